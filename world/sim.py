@@ -1,0 +1,623 @@
+"""The pymunk world: Khepera-like differential-drive robots, walls, static and moving
+obstacles, moving targets, noisy range and target sensors.
+
+Physics (DESIGN.md sections 2 and 7):
+
+* Each robot is a dynamic circle driven through a kinematic *control body* joined by a
+  ``PivotJoint`` (max_bias 0, finite max_force) and a ``GearJoint`` (pymunk's tank
+  pattern), so contacts are solved by pymunk and the robot never tunnels.
+* One world sub-step is 0.032 s (Webots' basic step). Wheel noise is drawn once per
+  wheel per sub-step; the executed wheel speeds give (v, omega), and the robot is
+  moved along the exact arc chord of the sub-step (velocity along heading + omega
+  dt / 2, magnitude v sinc(omega dt / 2)), so in free space the end pose of a
+  sub-step is the exact differential-drive arc.
+* pymunk integrates positions before it resolves contacts, so the world runs
+  ``PHYSICS_STEPS`` pymunk steps per sub-step (8 ms each; at most 1.25 mm of travel
+  per pymunk step bounds the penetration of a fresh contact).
+* pymunk also integrates positions with the velocity solved in the previous step;
+  for a robot with no contact the world therefore sets the robot body's velocity to
+  the commanded one directly, so a command acts in the very sub-step it is given (no
+  one-step lag). A robot that touches something is left to the contact solver and
+  the joints.
+
+Noise: one seed per world. Independent streams are spawned from it with numpy's
+``SeedSequence`` (wheels, target motion, and per robot one stream for range sensors
+and one for the target sensor), so reading a sensor more or less often never changes
+the wheel noise or the targets' paths, and one robot's reads never change another's.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import pymunk
+import pymunk.batch as pbatch
+from pymunk._chipmunk_cffi import ffi, lib
+
+from . import _physics as ph
+from . import geometry as geo
+from .motion import CircleMotion, Fixed, LineMotion, RandomWalk
+from .scenario import BODY_RADIUS, Scenario
+
+#: Robot body radius (m).
+ROBOT_RADIUS = BODY_RADIUS
+#: Axle length (m).
+AXLE = 0.053
+#: Wheel speed limit v* (m/s): 0.16 m per 1.024 s.
+V_MAX = 0.16 / 1.024
+#: World sub-step (s).
+SUBSTEP = 0.032
+#: pymunk steps per world sub-step.
+PHYSICS_STEPS = 4
+#: Relative half-width of the uniform wheel and sensor noise.
+NOISE = 0.1
+#: Distance-sensor resolution (m).
+RANGE_RESOLUTION = 0.005
+#: Target-sensor distance resolution (m).
+TARGET_RESOLUTION = 0.001
+#: Number of distance sensors.
+N_SENSORS = 12
+#: Robot mass (kg), about a Khepera's.
+ROBOT_MASS = 0.08
+#: Wheel traction: the pivot joint's max force (N), about 0.5 m g. With it the robot
+#: reaches full speed within one sub-step even when in contact.
+TRACTION_FORCE = 0.5 * ROBOT_MASS * 9.81
+#: A contact with the same item that resumes within this time (s) after it ended is
+#: the same collision (contact solvers flicker when a robot pushes into a corner).
+COLLISION_DEBOUNCE = 0.256
+#: Max torque of the gear joint (N m).
+TRACTION_TORQUE = 0.01
+
+_FIELDS = (
+    pbatch.BodyFields.POSITION
+    | pbatch.BodyFields.ANGLE
+    | pbatch.BodyFields.VELOCITY
+    | pbatch.BodyFields.ANGULAR_VELOCITY
+)
+_SENSOR_ANGLES = np.array([geo.wrap_angle(2.0 * math.pi * j / N_SENSORS) for j in range(N_SENSORS)])
+
+
+class World:
+    """A simulated world built from a :class:`~world.scenario.Scenario`.
+
+    Time advances only through :meth:`step` / :meth:`advance`. The same scenario and
+    seed (and the same sequence of calls) give bit-identical results.
+    """
+
+    def __init__(self, scenario: Scenario, seed: int | None = None) -> None:
+        self.scenario = scenario
+        self.seed = int(scenario.seed if seed is None else seed)
+        n = len(scenario.robots)
+        self._n = n
+        self._ids = [r.id for r in scenario.robots]
+        self._index = {rid: i for i, rid in enumerate(self._ids)}
+        self._k = 0  # sub-steps taken
+
+        # -- noise streams -----------------------------------------------------------
+        ss = np.random.SeedSequence(self.seed)
+        kids = ss.spawn(2 + 2 * n)
+        self._rng_wheels = np.random.Generator(np.random.PCG64(kids[0]))
+        self._rng_targets = np.random.Generator(np.random.PCG64(kids[1]))
+        self._rng_range = [np.random.Generator(np.random.PCG64(kids[2 + i])) for i in range(n)]
+        self._rng_target = [np.random.Generator(np.random.PCG64(kids[2 + n + i])) for i in range(n)]
+
+        # -- space ----------------------------------------------------------------------
+        dt = SUBSTEP / PHYSICS_STEPS
+        space = pymunk.Space()
+        space.gravity = (0.0, 0.0)
+        space.iterations = 10
+        space.collision_slop = 2e-4
+        # correct 20 % of an overlap per pymunk step
+        space.collision_bias = 0.8 ** (1.0 / dt)
+        self._space = space
+        self._cpspace = space._space
+        self._item_of: dict[pymunk.Shape, str] = ph.add_static(space, scenario)
+
+        # robots first, then control bodies, then moving obstacles (batch row order)
+        self._bodies: list[pymunk.Body] = []
+        self._shapes: list[pymunk.Circle] = []
+        self._robot_of: dict[pymunk.Shape, int] = {}
+        moment = pymunk.moment_for_circle(ROBOT_MASS, 0.0, ROBOT_RADIUS)
+        for i, r in enumerate(scenario.robots):
+            b = pymunk.Body(ROBOT_MASS, moment)
+            b.position = (r.start[0], r.start[1])
+            b.angle = r.start[2]
+            s = pymunk.Circle(b, ROBOT_RADIUS)
+            s.filter = pymunk.ShapeFilter(group=i + 1, categories=ph.CAT_ROBOT, mask=ph.MASK_ALL)
+            s.collision_type = ph.CT_ROBOT
+            s.friction = ph.FRICTION_ROBOT
+            s.elasticity = 0.0
+            space.add(b, s)
+            self._bodies.append(b)
+            self._shapes.append(s)
+            self._robot_of[s] = i
+            self._item_of[s] = f"robot {r.id}"
+        self._controls: list[pymunk.Body] = []
+        for i, b in enumerate(self._bodies):
+            c = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
+            c.position = b.position
+            c.angle = b.angle
+            pivot = pymunk.PivotJoint(c, b, (0.0, 0.0), (0.0, 0.0))
+            pivot.max_bias = 0.0
+            pivot.max_force = TRACTION_FORCE
+            gear = pymunk.GearJoint(c, b, 0.0, 1.0)
+            gear.max_bias = 0.0
+            gear.max_force = TRACTION_TORQUE
+            space.add(c, pivot, gear)
+            self._controls.append(c)
+        self._movers = [o for o in scenario.obstacles if o.motion is not None]
+        mover_bodies = []
+        for o in self._movers:
+            assert o.motion is not None
+            body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
+            mover_bodies.append(body)
+            body.position = o.motion.position(0.0)
+            shapes = ph.moving_obstacle_shapes(body, o)
+            space.add(body, *shapes)
+            for s in shapes:
+                self._item_of[s] = f"{o.source} ({o.id})"
+
+        # contact bookkeeping through collision callbacks
+        self._touch: list[dict[str, int]] = [dict() for _ in range(n)]
+        self._touching = [0] * n
+        self._released: list[dict[str, float]] = [dict() for _ in range(n)]
+        self._collisions = [0] * n
+        space.on_collision(ph.CT_ROBOT, None, begin=self._on_begin, separate=self._on_separate)
+
+        # batch buffers; check the row order once
+        self._buf = pbatch.Buffer()
+        pbatch.get_space_bodies(space, pbatch.BodyFields.BODY_ID, self._buf)
+        ids = list(np.frombuffer(self._buf.int_buf(), dtype=np.uintp))
+        expected = [b.id for b in self._bodies + self._controls + mover_bodies]
+        # static bodies (pymunk's own static body, once shapes hang on it) come last
+        if ids[: len(expected)] != expected or len(ids) - len(expected) > 1:  # pragma: no cover
+            raise RuntimeError("unexpected pymunk body order; the batch API cannot be used")
+        self._nb = len(ids)
+        self._set_buf = pbatch.Buffer()
+        self._state = self._read_bodies()
+
+        # commands, targets, stats
+        self._cmd = np.zeros((n, 2))
+        self._exec = np.zeros((n, 2))
+        self._goal: list[tuple[str, Any] | None] = []
+        tindex = {t.id: k for k, t in enumerate(scenario.targets)}
+        self._tindex = tindex
+        for r in scenario.robots:
+            self._goal.append(("target", tindex[r.goal]) if r.goal is not None else None)
+        self._tpos = np.array([t.position for t in scenario.targets], dtype=float).reshape(-1, 2)
+        self._theading = np.array(
+            [t.motion.heading if isinstance(t.motion, RandomWalk) else 0.0 for t in scenario.targets], dtype=float
+        )
+        self._path = [0.0] * n
+        self._clear = [math.inf] * n
+        self._info = ffi.new("cpSegmentQueryInfo *")
+        self._pinfo = ffi.new("cpPointQueryInfo *")
+        self._filters = [
+            ffi.new("cpShapeFilter *", (i + 1, ph.CAT_RAY, ph.MASK_SEEN))[0] for i in range(n)
+        ]
+        self._sensor_range = scenario.sensor_range
+        self._ray_len = ROBOT_RADIUS + scenario.sensor_range + 1e-9
+        self._dirs = [(math.cos(a), math.sin(a)) for a in _SENSOR_ANGLES]
+        self._pose_cache()
+        self._update_clearance()
+
+    # ------------------------------------------------------------------ properties
+    @property
+    def time(self) -> float:
+        """Sim time (s): number of sub-steps taken times the sub-step."""
+        return self._k * SUBSTEP
+
+    @property
+    def substep(self) -> float:
+        """Length of one sub-step (0.032 s)."""
+        return SUBSTEP
+
+    @property
+    def robot_ids(self) -> list[str]:
+        """Robot ids in scenario order."""
+        return list(self._ids)
+
+    @property
+    def target_ids(self) -> list[str]:
+        """Target ids in scenario order."""
+        return [t.id for t in self.scenario.targets]
+
+    @property
+    def sensor_angles(self) -> np.ndarray:
+        """Distance-sensor directions relative to heading, shape (12,), in (-pi, pi]."""
+        return _SENSOR_ANGLES.copy()
+
+    @property
+    def body_radius(self) -> float:
+        """Robot body radius (m)."""
+        return ROBOT_RADIUS
+
+    @property
+    def axle(self) -> float:
+        """Axle length (m)."""
+        return AXLE
+
+    @property
+    def v_max(self) -> float:
+        """Wheel speed limit v* (m/s)."""
+        return V_MAX
+
+    @property
+    def sensor_range(self) -> float:
+        """Distance-sensor range from the body surface (m)."""
+        return self._sensor_range
+
+    @property
+    def target_range(self) -> float:
+        """Target sensing range from the robot centre (m); inf if unlimited."""
+        return self.scenario.target_range
+
+    # ------------------------------------------------------------------ commands
+    def _i(self, robot_id: str) -> int:
+        try:
+            return self._index[robot_id]
+        except KeyError:
+            raise KeyError(f"unknown robot id {robot_id!r} (robots: {self._ids})") from None
+
+    def set_wheels(self, robot_id: str, v_l: float, v_r: float) -> None:
+        """Set the wheel speeds (m/s), clipped to +-v*; held until changed."""
+        i = self._i(robot_id)
+        vl, vr = float(v_l), float(v_r)
+        if not (math.isfinite(vl) and math.isfinite(vr)):
+            raise ValueError(f"wheel speeds must be finite, got ({v_l}, {v_r})")
+        self._cmd[i, 0] = min(max(vl, -V_MAX), V_MAX)
+        self._cmd[i, 1] = min(max(vr, -V_MAX), V_MAX)
+
+    def set_goal(self, robot_id: str, goal: str | tuple[float, float]) -> None:
+        """Point the robot's target sensor at a target id or at a fixed point (x, y)
+        (e.g. the next checkpoint of a planner)."""
+        i = self._i(robot_id)
+        if isinstance(goal, str):
+            if goal not in self._tindex:
+                raise KeyError(f"unknown target id {goal!r} (targets: {self.target_ids})")
+            self._goal[i] = ("target", self._tindex[goal])
+        else:
+            x, y = (float(v) for v in goal)
+            if not (math.isfinite(x) and math.isfinite(y)):
+                raise ValueError(f"goal must be finite, got {goal}")
+            self._goal[i] = ("point", (x, y))
+
+    # ------------------------------------------------------------------ stepping
+    def _read_bodies(self) -> np.ndarray:
+        self._buf.clear()
+        pbatch.get_space_bodies(self._space, _FIELDS, self._buf)
+        return np.frombuffer(self._buf.float_buf(), dtype=np.float64).reshape(self._nb, 6).copy()
+
+    def _pose_cache(self) -> None:
+        n = self._n
+        st = self._state
+        self._px = st[:n, 0].tolist()
+        self._py = st[:n, 1].tolist()
+        self._pth = st[:n, 2].tolist()
+
+    def step(self) -> None:
+        """Advance exactly one sub-step (0.032 s)."""
+        n = self._n
+        dt = SUBSTEP
+        t0 = self._k * dt
+        t1 = (self._k + 1) * dt
+        st = self._state
+        # executed wheel speeds: commanded x (1 + U(-0.1, 0.1)), per wheel per sub-step
+        u = self._rng_wheels.uniform(-NOISE, NOISE, size=(n, 2))
+        ex = self._cmd * (1.0 + u)
+        self._exec = ex
+        v = 0.5 * (ex[:, 0] + ex[:, 1])
+        w = (ex[:, 1] - ex[:, 0]) / AXLE
+        half = 0.5 * w * dt
+        small = np.abs(half) < 1e-6
+        sinc = np.where(small, 1.0 - half * half / 6.0, np.sin(half) / np.where(small, 1.0, half))
+        vc = v * sinc
+        head = st[:n, 2] + half
+        vx = vc * np.cos(head)
+        vy = vc * np.sin(head)
+
+        new = st.copy()
+        # control bodies follow their robot and carry the command
+        new[n : 2 * n, 0:3] = st[:n, 0:3]
+        new[n : 2 * n, 3] = vx
+        new[n : 2 * n, 4] = vy
+        new[n : 2 * n, 5] = w
+        # free robots move exactly as commanded in this sub-step
+        free = np.fromiter((c == 0 for c in self._touching), dtype=bool, count=n)
+        new[:n, 3] = np.where(free, vx, st[:n, 3])
+        new[:n, 4] = np.where(free, vy, st[:n, 4])
+        new[:n, 5] = np.where(free, w, st[:n, 5])
+        # moving obstacles: exactly on their script at t0, chord velocity to t1
+        for k, o in enumerate(self._movers):
+            assert o.motion is not None
+            p0 = o.motion.position(t0)
+            p1 = o.motion.position(t1)
+            row = 2 * n + k
+            new[row] = (p0[0], p0[1], 0.0, (p1[0] - p0[0]) / dt, (p1[1] - p0[1]) / dt, 0.0)
+        self._set_buf.set_float_buf(new.reshape(-1))
+        pbatch.set_space_bodies(self._space, _FIELDS, self._set_buf)
+
+        h = dt / PHYSICS_STEPS
+        for _ in range(PHYSICS_STEPS):
+            self._space.step(h)
+        self._k += 1
+
+        self._state = s2 = self._read_bodies()
+        dxy = s2[:n, 0:2] - st[:n, 0:2]
+        steps = np.hypot(dxy[:, 0], dxy[:, 1]).tolist()
+        path = self._path
+        for i in range(n):
+            path[i] += steps[i]
+        self._pose_cache()
+        self._update_clearance()
+        self._step_targets(t1)
+
+    def advance(self, duration: float) -> None:
+        """Advance round(duration / 0.032) sub-steps."""
+        k = round(float(duration) / SUBSTEP)
+        if k < 0:
+            raise ValueError(f"duration must be >= 0, got {duration}")
+        for _ in range(k):
+            self.step()
+
+    def _update_clearance(self) -> None:
+        q = lib.cpSpacePointQueryNearest
+        sp = self._cpspace
+        info = self._pinfo
+        r = ROBOT_RADIUS
+        clear = self._clear
+        for i in range(self._n):
+            q(sp, (self._px[i], self._py[i]), r + clear[i], self._filters[i], info)
+            c = info.distance - r
+            if c < clear[i]:
+                clear[i] = c
+
+    def _step_targets(self, t: float) -> None:
+        for k, tg in enumerate(self.scenario.targets):
+            m = tg.motion
+            if isinstance(m, Fixed):
+                continue
+            if isinstance(m, (CircleMotion, LineMotion)):
+                self._tpos[k] = m.position(t)
+            else:
+                x, y, hd = m.step(self._tpos[k, 0], self._tpos[k, 1], self._theading[k], SUBSTEP, self._rng_targets)
+                self._tpos[k] = (x, y)
+                self._theading[k] = hd
+
+    # ------------------------------------------------------------------ contacts
+    def _contact_pairs(self, arb: pymunk.Arbiter) -> list[tuple[int, str]]:
+        a, b = arb.shapes
+        out = []
+        ia = self._robot_of.get(a)
+        ib = self._robot_of.get(b)
+        if ia is not None:
+            out.append((ia, self._item_of[b]))
+        if ib is not None:
+            out.append((ib, self._item_of[a]))
+        return out
+
+    def _on_begin(self, arb: pymunk.Arbiter, space: pymunk.Space, data: Any) -> None:
+        now = self._k * SUBSTEP
+        for i, item in self._contact_pairs(arb):
+            c = self._touch[i].get(item, 0)
+            if c == 0 and now - self._released[i].get(item, -math.inf) > COLLISION_DEBOUNCE:
+                self._collisions[i] += 1
+            self._touch[i][item] = c + 1
+            self._touching[i] += 1
+
+    def _on_separate(self, arb: pymunk.Arbiter, space: pymunk.Space, data: Any) -> None:
+        for i, item in self._contact_pairs(arb):
+            c = self._touch[i].get(item, 0) - 1
+            if c <= 0:
+                self._touch[i].pop(item, None)
+                self._released[i][item] = self._k * SUBSTEP
+            else:
+                self._touch[i][item] = c
+            self._touching[i] = max(0, self._touching[i] - 1)
+
+    # ------------------------------------------------------------------ sensing
+    def pose(self, robot_id: str) -> tuple[float, float, float]:
+        """True pose (x, y, theta), theta wrapped to (-pi, pi]."""
+        i = self._i(robot_id)
+        return (self._px[i], self._py[i], geo.wrap_angle(self._pth[i]))
+
+    def true_ranges(self, robot_id: str) -> np.ndarray:
+        """Noise-free surface ranges of the 12 sensors (m), NaN beyond range."""
+        i = self._i(robot_id)
+        d = self._cast(i)
+        return np.where(d > self._sensor_range, np.nan, d)
+
+    def _cast(self, i: int) -> np.ndarray:
+        x = self._px[i]
+        y = self._py[i]
+        th = self._pth[i]
+        c = math.cos(th)
+        s = math.sin(th)
+        L = self._ray_len
+        q = lib.cpSpaceSegmentQueryFirst
+        sp = self._cpspace
+        f = self._filters[i]
+        info = self._info
+        start = (x, y)
+        out = []
+        app = out.append
+        for cj, sj in self._dirs:
+            q(sp, start, (x + L * (c * cj - s * sj), y + L * (s * cj + c * sj)), 0.0, f, info)
+            app(info.alpha)
+        d = np.array(out)
+        d *= L
+        d -= ROBOT_RADIUS
+        np.maximum(d, 0.0, out=d)
+        return d
+
+    def range_readings(self, robot_id: str) -> np.ndarray:
+        """The 12 noisy distance readings (m), shape (12,): true surface range x
+        (1 + U(-0.1, 0.1)), quantized to 0.005 m; NaN when nothing is within range.
+        A reading may exceed the range by up to the 10 % noise."""
+        i = self._i(robot_id)
+        d = self._cast(i)
+        far = d > self._sensor_range
+        d *= 1.0 + self._rng_range[i].uniform(-NOISE, NOISE, N_SENSORS)
+        d = np.round(d / RANGE_RESOLUTION) * RANGE_RESOLUTION
+        d[far] = np.nan
+        return d
+
+    def _goal_xy(self, i: int) -> tuple[float, float]:
+        g = self._goal[i]
+        if g is None:
+            raise ValueError(f"robot {self._ids[i]!r} has no goal (set one with set_goal or robots.goal)")
+        if g[0] == "point":
+            return g[1]
+        k = g[1]
+        return (float(self._tpos[k, 0]), float(self._tpos[k, 1]))
+
+    def goal_of(self, robot_id: str) -> tuple[float, float]:
+        """True position of the robot's current goal (a target or a set point)."""
+        return self._goal_xy(self._i(robot_id))
+
+    def target_reading(self, robot_id: str, target_id: str | None = None) -> tuple[float, float, bool]:
+        """(alpha, d, visible) of the robot's goal, or of ``target_id``.
+
+        The target's position in the robot frame, each coordinate x (1 + U(-0.1,
+        0.1)), converted to alpha = atan2 in (-pi, pi] and d rounded to 0.001 m
+        (alpha = 0 when the rounded d is 0). ``visible`` = true distance <= the
+        target range; when not visible, alpha and d are NaN.
+        """
+        i = self._i(robot_id)
+        if target_id is None:
+            gx, gy = self._goal_xy(i)
+        else:
+            if target_id not in self._tindex:
+                raise KeyError(f"unknown target id {target_id!r} (targets: {self.target_ids})")
+            k = self._tindex[target_id]
+            gx, gy = float(self._tpos[k, 0]), float(self._tpos[k, 1])
+        x, y, th = self._px[i], self._py[i], self._pth[i]
+        dx, dy = gx - x, gy - y
+        c, s = math.cos(th), math.sin(th)
+        lx = c * dx + s * dy
+        ly = -s * dx + c * dy
+        u = self._rng_target[i].uniform(-NOISE, NOISE, 2)
+        nx = lx * (1.0 + float(u[0]))
+        ny = ly * (1.0 + float(u[1]))
+        visible = math.hypot(dx, dy) <= self.scenario.target_range
+        if not visible:
+            return (math.nan, math.nan, False)
+        d = round(math.hypot(nx, ny) / TARGET_RESOLUTION) * TARGET_RESOLUTION
+        if d == 0.0:
+            return (0.0, 0.0, True)
+        a = math.atan2(ny, nx)
+        if a <= -math.pi:
+            a = math.pi
+        return (a, d, True)
+
+    # ------------------------------------------------------------------ records
+    def stats(self, robot_id: str) -> dict[str, float | int]:
+        """path_length_m (sum over sub-steps), collisions (new contacts with a wall,
+        an obstacle or a robot: one per item touched; touching the same item again
+        within 0.256 s counts once), min_clearance_m (smallest
+        body-surface distance to any wall/obstacle/robot so far, negative when
+        penetrating; inf if the world has nothing else in it)."""
+        i = self._i(robot_id)
+        return {
+            "path_length_m": self._path[i],
+            "collisions": self._collisions[i],
+            "min_clearance_m": self._clear[i],
+        }
+
+    def in_contact(self, robot_id: str) -> bool:
+        """True if the robot's body touches a wall, obstacle or robot now."""
+        return self._touching[self._i(robot_id)] > 0
+
+    def state(self) -> dict[str, Any]:
+        """Plain-data snapshot (floats, bools, strings, lists, dicts, None): time;
+        robots {id: x, y, theta, v_l, v_r (commanded, clipped), v_l_exec, v_r_exec
+        (executed with noise in the last sub-step), in_contact, goal}; targets
+        {id: x, y}; moving obstacles {id: x, y, theta}."""
+        n = self._n
+        st = self._state
+        robots = {}
+        for i, rid in enumerate(self._ids):
+            g = self._goal[i]
+            robots[rid] = {
+                "x": self._px[i],
+                "y": self._py[i],
+                "theta": geo.wrap_angle(self._pth[i]),
+                "v_l": float(self._cmd[i, 0]),
+                "v_r": float(self._cmd[i, 1]),
+                "v_l_exec": float(self._exec[i, 0]),
+                "v_r_exec": float(self._exec[i, 1]),
+                "in_contact": self._touching[i] > 0,
+                "goal": list(self._goal_xy(i)) if g is not None else None,
+            }
+        targets = {
+            t.id: {"x": float(self._tpos[k, 0]), "y": float(self._tpos[k, 1])}
+            for k, t in enumerate(self.scenario.targets)
+        }
+        obstacles = {
+            o.id: {
+                "x": float(st[2 * n + k, 0]),
+                "y": float(st[2 * n + k, 1]),
+                "theta": float(st[2 * n + k, 2]),
+            }
+            for k, o in enumerate(self._movers)
+        }
+        return {"time": self.time, "robots": robots, "targets": targets, "obstacles": obstacles}
+
+    def static_geometry(self) -> dict[str, Any]:
+        """Plain-data geometry for drawing and planning (see world/scenarios/README.md)."""
+        sc = self.scenario
+        walls = [
+            {
+                "a": list(w.a),
+                "b": list(w.b),
+                "thickness": w.thickness,
+                "known": w.known,
+                "vertices": [list(p) for p in w.outline],
+                "source": w.source,
+            }
+            for w in sc.walls
+        ]
+        polygons = []
+        discs = []
+        moving = []
+        for o in sc.obstacles:
+            if o.motion is not None:
+                moving.append(
+                    {
+                        "id": o.id,
+                        "shape": o.shape,
+                        "radius": o.radius,
+                        "vertices": [list(p) for p in o.outline] if o.outline else None,
+                        "motion": o.motion.to_dict(),
+                    }
+                )
+            elif o.shape == "disc":
+                assert o.center is not None
+                discs.append({"id": o.id, "center": list(o.center), "radius": o.radius, "known": o.known, "source": o.source})
+            else:
+                assert o.outline is not None
+                polygons.append(
+                    {
+                        "id": o.id,
+                        "shape": o.shape,
+                        "vertices": [list(p) for p in o.outline],
+                        "parts": [[list(p) for p in part] for part in o.parts],
+                        "known": o.known,
+                        "source": o.source,
+                    }
+                )
+        targets = [{"id": t.id, "position": list(t.position), "motion": t.motion.to_dict()} for t in sc.targets]
+        robots = [{"id": r.id, "start": list(r.start), "goal": r.goal} for r in sc.robots]
+        return {
+            "name": sc.name,
+            "bounds": list(sc.bounds),
+            "body_radius": ROBOT_RADIUS,
+            "walls": walls,
+            "polygons": polygons,
+            "discs": discs,
+            "moving_obstacles": moving,
+            "targets": targets,
+            "robots": robots,
+        }
