@@ -1,0 +1,156 @@
+"""The obstacle-free training arena of section 4.1 as a fast kinematic plant.
+
+Section 4.1 needs millions of robot steps (6 networks x 5 trials x 100,000 steps plus
+tests), so it runs on this exact-arc kinematic model of the differential drive rather
+than on the pymunk world of section 4.2; the robot, noise and sensor model are the same
+(DESIGN.md section 2). The arena has walls: the robot's centre is kept at least one body
+radius inside, and a step that touched a wall is not learned from (DESIGN.md section 3).
+These are plain numba functions, shared by the reference and the fast trial runners.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from ..models.fast import wrap
+from ..robot import KHEPERA, STEP_S, SUBSTEP_S, SUBSTEPS_PER_STEP
+
+
+@dataclass(frozen=True)
+class Arena:
+    """A square arena [0, size]^2 and the robot that moves in it."""
+
+    size: float = 5.0
+    target_margin: float = 0.05  # targets at least this far from the edge
+    body_radius: float = KHEPERA.body_radius
+    axle: float = KHEPERA.axle
+    v_max: float = KHEPERA.v_max
+    step_s: float = STEP_S
+    substeps: int = SUBSTEPS_PER_STEP
+    target_resolution: float = KHEPERA.target_resolution
+
+    @property
+    def substep_s(self) -> float:
+        return self.step_s / self.substeps
+
+    @property
+    def centre(self) -> tuple[float, float]:
+        return (self.size / 2.0, self.size / 2.0)
+
+    def vector(self) -> np.ndarray:
+        """The float64 vector the kernels read (layout: A_* below)."""
+        return np.array([self.size, self.body_radius, self.axle, self.v_max, self.substep_s,
+                         float(self.substeps), self.target_resolution])
+
+
+A_SIZE, A_RADIUS, A_AXLE, A_VMAX, A_DT, A_NSUB, A_RES = range(7)
+assert abs(SUBSTEP_S * SUBSTEPS_PER_STEP - STEP_S) < 1e-12
+
+
+@njit(cache=True)
+def sense_target(x, y, th, tx, ty, n0, n1, res):
+    """Target sensor: the target in the robot frame, each coordinate times its noise
+    factor, as (alpha, d) with d rounded to the resolution; alpha = 0 when d rounds to 0."""
+    dx = tx - x
+    dy = ty - y
+    c = math.cos(th)
+    s = math.sin(th)
+    lx = (c * dx + s * dy) * n0
+    ly = (-s * dx + c * dy) * n1
+    d = math.floor(math.sqrt(lx * lx + ly * ly) / res + 0.5) * res
+    if d == 0.0:
+        return 0.0, 0.0
+    return math.atan2(ly, lx), d
+
+
+@njit(cache=True)
+def move(x, y, th, vl, vr, dt, axle):
+    """Exact differential-drive arc over dt; returns x, y, theta (unwrapped), arc length."""
+    v = 0.5 * (vl + vr)
+    om = (vr - vl) / axle
+    if abs(om) > 1e-12:
+        th2 = th + om * dt
+        r = v / om
+        x = x + r * (math.sin(th2) - math.sin(th))
+        y = y - r * (math.cos(th2) - math.cos(th))
+    else:
+        th2 = th
+        x = x + v * dt * math.cos(th)
+        y = y + v * dt * math.sin(th)
+    return x, y, th2, abs(v) * dt
+
+
+@njit(cache=True)
+def keep_inside(x, y, lo, hi):
+    """The arena walls: clamp the centre into [lo, hi]^2; True when a wall was touched."""
+    touched = False
+    if x < lo:
+        x, touched = lo, True
+    elif x > hi:
+        x, touched = hi, True
+    if y < lo:
+        y, touched = lo, True
+    elif y > hi:
+        y, touched = hi, True
+    return x, y, touched
+
+
+@njit(cache=True)
+def displacement(x0, y0, th0, x1, y1, dth):
+    """v: the step's displacement in polar form in the robot frame at its start.
+
+    Below 1e-4 m, alpha_v = dtheta / 2 (the chord direction's limit), so pure turns
+    still train the d = 0 neurons (DESIGN.md section 3, item 2).
+    """
+    dx = x1 - x0
+    dy = y1 - y0
+    c = math.cos(th0)
+    s = math.sin(th0)
+    lx = c * dx + s * dy
+    ly = -s * dx + c * dy
+    d = math.sqrt(lx * lx + ly * ly)
+    if d < 1e-4:
+        return wrap(0.5 * dth), d
+    return math.atan2(ly, lx), d
+
+
+@njit(cache=True)
+def drive(pose, c0, c1, wheel_noise, arena, tx, ty, eps, t_eps, path_eps, t_start, path_start):
+    """Execute command (c0, c1) for one step of substeps, each wheel times its noise factor.
+
+    Updates pose (x, y, theta) in place and returns (path length, touched a wall, dtheta).
+    When eps is non-empty, records for each eps[e] not yet reached (t_eps[e] is NaN) the
+    time and path length at the first sub-step within eps[e] of the target (tx, ty).
+    """
+    lo = arena[A_RADIUS]
+    hi = arena[A_SIZE] - arena[A_RADIUS]
+    dt = arena[A_DT]
+    axle = arena[A_AXLE]
+    x, y, th = pose[0], pose[1], pose[2]
+    th0 = th
+    path = 0.0
+    touched = False
+    ne = eps.shape[0]
+    for k in range(wheel_noise.shape[0]):
+        x, y, th, ds = move(x, y, th, c0 * wheel_noise[k, 0], c1 * wheel_noise[k, 1], dt, axle)
+        x, y, hit = keep_inside(x, y, lo, hi)
+        touched = touched or hit
+        path += ds
+        if ne > 0:
+            dist = math.sqrt((x - tx) ** 2 + (y - ty) ** 2)
+            if dist <= eps[ne - 1]:
+                for e in range(ne):
+                    if dist <= eps[e] and math.isnan(t_eps[e]):
+                        t_eps[e] = t_start + (k + 1) * dt
+                        path_eps[e] = path_start + path
+    pose[0], pose[1], pose[2] = x, y, wrap(th)
+    return path, touched, th - th0
+
+
+def draw_targets(rng: np.random.Generator, count: int, arena: Arena) -> np.ndarray:
+    """Uniform random targets at least target_margin from the arena's edge."""
+    return rng.uniform(arena.target_margin, arena.size - arena.target_margin, size=(count, 2))

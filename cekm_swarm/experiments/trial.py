@@ -1,0 +1,241 @@
+"""Training/testing trials of section 4.1, in two runners that must agree:
+
+* :func:`run_reference` steps one reference network (:mod:`cekm_swarm.models.networks`)
+  in a plain Python loop: readable, slow;
+* :func:`run_batch` runs the same trial for a batch of robots (one per trial) in numba,
+  the trials in parallel threads: the experiments use this one.
+
+One training step: sense the target (u), command c by the network's target-reaching rule,
+add training-only exploration noise and clip to c*, drive 32 noisy sub-steps, then learn
+from the displacement v unless the robot touched a wall. A target is replaced when the
+robot reaches the goal state (d = 0, the robot stops) or its step budget runs out.
+A test presents the fixed test targets in sequence from the centre, with no learning.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+from numba import njit, prange
+
+from ..models import fast
+from ..models.networks import at_goal
+from .arena import A_RES, Arena, displacement, drive, sense_target
+from .streams import Schedule, TrialStreams
+
+EMPTY = np.empty(0)
+
+
+@dataclass
+class TestOutcome:
+    """Per test target: what happened. Arrays have one row per target (eps columns for *_eps)."""
+
+    final_dist: np.ndarray  # m, after the stop or when the budget ran out
+    stopped: np.ndarray  # bool: ended by a stop (c = 0) rather than the budget
+    steps: np.ndarray  # steps taken until the stop (or the budget)
+    path: np.ndarray  # m travelled until then
+    straight: np.ndarray  # m, l_i: straight-line distance from the start to the target
+    t_eps: np.ndarray  # s to first come within eps (NaN: never)
+    path_eps: np.ndarray  # m travelled until then
+
+    @classmethod
+    def empty(cls, m: int, n_eps: int) -> "TestOutcome":
+        return cls(np.zeros(m), np.zeros(m, dtype=np.bool_), np.zeros(m, dtype=np.int64), np.zeros(m), np.zeros(m),
+                   np.full((m, n_eps), np.nan), np.full((m, n_eps), np.nan))
+
+
+# ---------------------------------------------------------------- reference runner
+
+def _explore(c: np.ndarray, z: np.ndarray, rel: float, abs_: float, v_max: float) -> np.ndarray:
+    """Training-only exploration noise on the executed command, then clipped to c*."""
+    return np.clip(c + z * (rel * np.abs(c) + abs_), -v_max, v_max)
+
+
+def train_reference(net, pose: np.ndarray, cursor: list[int], streams: TrialStreams, t0: int, chunk: int,
+                    nsteps: int) -> None:
+    """Train ``net`` for nsteps steps from training step t0; pose and cursor [target, steps on it] update in place."""
+    arena, lp = streams.arena, net.learn_p
+    av = arena.vector()
+    targets = streams.train_targets
+    wheel, sense, explore = streams.train_chunk(chunk, nsteps)
+    budget = streams.schedule.train_budget
+    for j in range(nsteps):
+        while True:
+            tx, ty = targets[cursor[0]]
+            alpha, d = sense_target(pose[0], pose[1], pose[2], tx, ty, sense[j, 0], sense[j, 1], av[A_RES])
+            if d != 0.0 and cursor[1] < budget:
+                break
+            cursor[0] += 1
+            cursor[1] = 0
+        u = np.array([alpha, d])
+        c = _explore(net.command(u), explore[j], lp.explore_rel, lp.explore_abs, arena.v_max)
+        x0, y0, th0 = pose
+        _, touched, dth = drive(pose, c[0], c[1], wheel[j], av, 0.0, 0.0, EMPTY, EMPTY, EMPTY, 0.0, 0.0)
+        cursor[1] += 1
+        if not touched and (c[0] != 0.0 or c[1] != 0.0):
+            v = np.array(displacement(x0, y0, th0, pose[0], pose[1], dth))
+            net.learn(v, c, float(t0 + j))
+
+
+def test_reference(command: Callable[[np.ndarray], np.ndarray], streams: TrialStreams, eps: np.ndarray) -> TestOutcome:
+    """The fixed test: targets in sequence from the centre, heading 0, no learning."""
+    arena = streams.arena
+    av = arena.vector()
+    targets, wheel, sense = streams.test_set
+    out = TestOutcome.empty(len(targets), len(eps))
+    pose = np.array([*arena.centre, 0.0])
+    for i, (tx, ty) in enumerate(targets):
+        out.straight[i] = math.hypot(tx - pose[0], ty - pose[1])
+        t_eps, path_eps = out.t_eps[i], out.path_eps[i]
+        path, steps = 0.0, wheel.shape[1]
+        for j in range(wheel.shape[1]):
+            u = np.array(sense_target(pose[0], pose[1], pose[2], tx, ty, sense[i, j, 0], sense[i, j, 1], av[A_RES]))
+            if at_goal(u):
+                out.stopped[i], steps = True, j
+                break
+            c = np.clip(command(u), -arena.v_max, arena.v_max)
+            ds, _, _ = drive(pose, c[0], c[1], wheel[i, j], av, tx, ty, eps, t_eps, path_eps, j * arena.step_s, path)
+            path += ds
+        out.steps[i], out.path[i] = steps, path
+        out.final_dist[i] = math.hypot(tx - pose[0], ty - pose[1])
+    return out
+
+
+def run_reference(net, streams: TrialStreams, eps: np.ndarray) -> list[TestOutcome]:
+    """A whole trial with the reference network: a test at step 0 and after every interval."""
+    s = streams.schedule
+    pose = np.array([*streams.arena.centre, 0.0])
+    cursor = [0, 0]
+    outcomes = [test_reference(net.command, streams, eps)]
+    for chunk, t0 in enumerate(s.test_points[:-1]):
+        train_reference(net, pose, cursor, streams, t0, chunk, s.test_interval)
+        outcomes.append(test_reference(net.command, streams, eps))
+    return outcomes
+
+
+# ---------------------------------------------------------------- fast batched runner
+
+@njit(parallel=True, cache=True)
+def _train_batch(kind, size, W, P, R, p, arena, poses, cursors, targets, t0, wheel, sense, explore, budget):
+    B = W.shape[0]
+    n = W.shape[1]
+    v_max = p[fast.P_VMAX]
+    rel = p[fast.P_EXP_REL]
+    abs_ = p[fast.P_EXP_ABS]
+    empty = np.empty(0)
+    for b in prange(B):
+        idx_buf = np.empty(n, dtype=np.int64)
+        g_buf = np.empty(n)
+        c = np.empty(2)
+        pose = poses[b]
+        w, Pb, Rb = W[b], P[b], R[b]
+        for j in range(wheel.shape[1]):
+            while True:
+                tx = targets[b, cursors[b, 0], 0]
+                ty = targets[b, cursors[b, 0], 1]
+                alpha, d = sense_target(pose[0], pose[1], pose[2], tx, ty, sense[b, j, 0], sense[b, j, 1], arena[A_RES])
+                if d != 0.0 and cursors[b, 1] < budget:
+                    break
+                cursors[b, 0] += 1
+                cursors[b, 1] = 0
+            fast.command(kind, alpha, d, w, Pb, p, c)
+            c0 = min(max(c[0] + explore[b, j, 0] * (rel * abs(c[0]) + abs_), -v_max), v_max)
+            c1 = min(max(c[1] + explore[b, j, 1] * (rel * abs(c[1]) + abs_), -v_max), v_max)
+            x0, y0, th0 = pose[0], pose[1], pose[2]
+            _, touched, dth = drive(pose, c0, c1, wheel[b, j], arena, 0.0, 0.0, empty, empty, empty, 0.0, 0.0)
+            cursors[b, 1] += 1
+            if touched:
+                cursors[b, 3] += 1
+            elif c0 != 0.0 or c1 != 0.0:
+                cursors[b, 2] += 1
+                va, vd = displacement(x0, y0, th0, pose[0], pose[1], dth)
+                fast.learn(kind, va, vd, c0, c1, float(t0 + j), w, Pb, Rb, size, p, idx_buf, g_buf)
+
+
+@njit(parallel=True, cache=True)
+def _test_batch(kind, W, P, p, arena, cx, cy, step_s, targets, wheel, sense, eps,
+                final_dist, stopped, steps, path_out, straight, t_eps, path_eps):
+    B = W.shape[0]
+    v_max = p[fast.P_VMAX]
+    for b in prange(B):
+        c = np.empty(2)
+        pose = np.array([cx, cy, 0.0])
+        for i in range(targets.shape[1]):
+            tx = targets[b, i, 0]
+            ty = targets[b, i, 1]
+            straight[b, i] = math.hypot(tx - pose[0], ty - pose[1])
+            path = 0.0
+            n_steps = wheel.shape[2]
+            for j in range(wheel.shape[2]):
+                alpha, d = sense_target(pose[0], pose[1], pose[2], tx, ty, sense[b, i, j, 0], sense[b, i, j, 1], arena[A_RES])
+                if d == 0.0:
+                    stopped[b, i] = True
+                    n_steps = j
+                    break
+                fast.command(kind, alpha, d, W[b], P[b], p, c)
+                c0 = min(max(c[0], -v_max), v_max)
+                c1 = min(max(c[1], -v_max), v_max)
+                ds, _, _ = drive(pose, c0, c1, wheel[b, i, j], arena, tx, ty, eps, t_eps[b, i], path_eps[b, i],
+                                 j * step_s, path)
+                path += ds
+            steps[b, i] = n_steps
+            path_out[b, i] = path
+            final_dist[b, i] = math.hypot(tx - pose[0], ty - pose[1])
+
+
+@dataclass
+class NetworkBatch:
+    """The fast path's state for one network kind across a batch of trials."""
+
+    kind: str
+    size: int
+    W: np.ndarray  # (B, n, 2)
+    P: np.ndarray  # (B, n, 2, 2)
+    R: np.ndarray  # (B, n, 2, 2)
+    params: np.ndarray
+
+    @property
+    def code(self) -> int:
+        return fast.KIND_CODE[self.kind]
+
+
+def test_batch(batch: NetworkBatch, streams: list[TrialStreams], eps: np.ndarray) -> list[TestOutcome]:
+    """The fixed test for every trial of the batch."""
+    arena = streams[0].arena
+    targets = np.stack([s.test_set[0] for s in streams])
+    wheel = np.stack([s.test_set[1] for s in streams])
+    sense = np.stack([s.test_set[2] for s in streams])
+    B, m = targets.shape[:2]
+    o = [np.zeros((B, m)), np.zeros((B, m), dtype=np.bool_), np.zeros((B, m), dtype=np.int64), np.zeros((B, m)),
+         np.zeros((B, m)), np.full((B, m, len(eps)), np.nan), np.full((B, m, len(eps)), np.nan)]
+    cx, cy = arena.centre
+    _test_batch(batch.code, batch.W, batch.P, batch.params, arena.vector(), cx, cy, arena.step_s, targets, wheel,
+                sense, np.ascontiguousarray(eps, dtype=np.float64), *o)
+    return [TestOutcome(*(a[b] for a in o)) for b in range(B)]
+
+
+def run_batch(batch: NetworkBatch, streams: list[TrialStreams], eps: np.ndarray,
+              on_progress: Callable[[int], None] | None = None) -> list[list[TestOutcome]]:
+    """Whole trials for the batch (one trial per robot); returns outcomes[trial][test point].
+
+    ``on_progress(steps)`` is called after each training interval.
+    """
+    arena, s = streams[0].arena, streams[0].schedule
+    B = len(streams)
+    poses = np.tile(np.array([*arena.centre, 0.0]), (B, 1))
+    cursors = np.zeros((B, 4), dtype=np.int64)  # target index, steps on it, steps learned, steps at a wall
+    targets = np.stack([st.train_targets for st in streams])
+    results = [[o] for o in test_batch(batch, streams, eps)]
+    for chunk, t0 in enumerate(s.test_points[:-1]):
+        noise = [st.train_chunk(chunk, s.test_interval) for st in streams]
+        wheel, sense, explore = (np.stack([n[q] for n in noise]) for q in range(3))
+        _train_batch(batch.code, batch.size, batch.W, batch.P, batch.R, batch.params, arena.vector(), poses, cursors,
+                     targets, t0, wheel, sense, explore, s.train_budget)
+        for r, o in zip(results, test_batch(batch, streams, eps)):
+            r.append(o)
+        if on_progress:
+            on_progress(s.test_interval)
+    return results

@@ -1,0 +1,273 @@
+"""numba fast path of the target-reaching networks: the same rules as
+:mod:`cekm_swarm.models.networks`, one robot's arrays at a time, no Python objects.
+
+A network's state is three arrays so that every kind shares one calling convention:
+
+* ``w`` (n, 2): input weights (the BFN's centres);
+* ``P`` (n, 2, 2): M_i for the indirect EKM (internal units); for the direct EKM
+  ``P[i, 0]`` is c_i; for the BFN ``P[i, 0]`` is W_i and ``P[i, 1]`` its widths;
+* ``R`` (n, 2, 2): R_i^-1 for RLS (unused otherwise).
+
+Parameters travel as one float64 vector (:func:`pack_params`); its layout is below.
+The tests hold this module equal to the reference classes.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from .params import CompetitionParams, LearningParams
+
+BFN_D_SATURATION = 0.16  # must equal networks.BFN_D_SATURATION (a test checks)
+
+KIND_GD, KIND_RLS, KIND_DIRECT, KIND_BFN = 0, 1, 2, 3
+KIND_CODE = {"indirect-gd": KIND_GD, "indirect-rls": KIND_RLS, "direct": KIND_DIRECT, "bfn": KIND_BFN}
+
+# layout of the parameter vector
+(P_BETA_A, P_BETA_D, P_TOL, P_ETA_W, P_ETA_M, P_ETA_C, P_ETA_BFN, P_ETA_WIDTH, P_SIG0, P_SIGF, P_TAU, P_GMIN,
+ P_LAMBDA, P_TRCAP, P_DSCALE, P_EXP_REL, P_EXP_ABS, P_VMAX, P_WIDTH_FLOOR) = range(19)
+N_PARAMS = 19
+
+PI = math.pi
+TWO_PI = 2.0 * math.pi
+
+
+def pack_params(comp: CompetitionParams, lp: LearningParams, v_max: float, width_floor: float) -> np.ndarray:
+    """The float64 parameter vector the kernels read."""
+    p = np.empty(N_PARAMS)
+    p[P_BETA_A], p[P_BETA_D], p[P_TOL] = comp.beta_alpha, comp.beta_d, comp.direction_tolerance
+    p[P_ETA_W], p[P_ETA_M], p[P_ETA_C], p[P_ETA_BFN], p[P_ETA_WIDTH] = lp.eta_w, lp.eta_m, lp.eta_c, lp.eta_bfn, lp.eta_width
+    p[P_SIG0], p[P_SIGF], p[P_TAU], p[P_GMIN] = lp.sigma_initial, lp.sigma_final, lp.sigma_tau, lp.g_min
+    p[P_LAMBDA], p[P_TRCAP], p[P_DSCALE] = lp.forgetting, lp.rinv_trace_cap, lp.d_scale
+    p[P_EXP_REL], p[P_EXP_ABS], p[P_VMAX], p[P_WIDTH_FLOOR] = lp.explore_rel, lp.explore_abs, v_max, width_floor
+    return p
+
+
+@njit(cache=True)
+def wrap(a):
+    """Wrap to (-pi, pi], the same formula as :func:`cekm_swarm.angles.wrap`."""
+    b = PI - a
+    return PI - (b - TWO_PI * math.floor(b / TWO_PI))
+
+
+@njit(cache=True)
+def winner(alpha, d, w, p):
+    """Eqs. 2-4: the direction set A(alpha) first, then the smallest D over it."""
+    n = w.shape[0]
+    best_da = np.inf
+    for i in range(n):
+        da = abs(wrap(alpha - w[i, 0]))
+        if da < best_da:
+            best_da = da
+    limit = best_da + p[P_TOL]
+    s = 0
+    best = np.inf
+    for i in range(n):
+        da = wrap(alpha - w[i, 0])
+        if abs(da) <= limit:
+            dd = d - w[i, 1]
+            dist = p[P_BETA_A] * da * da + p[P_BETA_D] * dd * dd
+            if dist < best:
+                best = dist
+                s = i
+    return s
+
+
+@njit(cache=True)
+def bfn_activations(alpha, d, w, P, out):
+    """Normalized Gaussian activations of the basis-function network (widths in P[:, 1])."""
+    n = w.shape[0]
+    qmin = np.inf
+    for i in range(n):
+        za = wrap(alpha - w[i, 0]) / P[i, 1, 0]
+        zd = (min(d, BFN_D_SATURATION) - w[i, 1]) / P[i, 1, 1]
+        out[i] = 0.5 * (za * za + zd * zd)
+        if out[i] < qmin:
+            qmin = out[i]
+    total = 0.0
+    for i in range(n):
+        out[i] = math.exp(-(out[i] - qmin))
+        total += out[i]
+    for i in range(n):
+        out[i] /= total
+
+
+@njit(cache=True)
+def command(kind, alpha, d, w, P, p, out):
+    """The target-reaching rule of each network kind, written into out[0:2].
+
+    The goal state (d = 0) gives c = 0 for every kind.
+    """
+    if d == 0.0:
+        out[0] = 0.0
+        out[1] = 0.0
+        return
+    if kind == KIND_BFN:
+        phis = np.empty(w.shape[0])
+        bfn_activations(alpha, d, w, P, phis)
+        out[0] = 0.0
+        out[1] = 0.0
+        for i in range(w.shape[0]):
+            out[0] += phis[i] * P[i, 0, 0]
+            out[1] += phis[i] * P[i, 0, 1]
+        return
+    s = winner(alpha, d, w, p)
+    if kind == KIND_DIRECT:
+        out[0] = P[s, 0, 0]
+        out[1] = P[s, 0, 1]
+        return
+    # Eq. 11 with k = s
+    x0 = w[s, 0] + wrap(alpha - w[s, 0])
+    x1 = p[P_DSCALE] * d
+    c0 = P[s, 0, 0] * x0 + P[s, 0, 1] * x1
+    c1 = P[s, 1, 0] * x0 + P[s, 1, 1] * x1
+    if abs(c0) <= p[P_VMAX] and abs(c1) <= p[P_VMAX]:
+        out[0] = c0
+        out[1] = c1
+        return
+    x0 = w[s, 0]
+    x1 = p[P_DSCALE] * w[s, 1]
+    out[0] = P[s, 0, 0] * x0 + P[s, 0, 1] * x1
+    out[1] = P[s, 1, 0] * x0 + P[s, 1, 1] * x1
+
+
+@njit(cache=True)
+def _update_input_weight(w, i, va, vd, step):
+    """Eq. 12 for one neuron."""
+    w[i, 0] = wrap(w[i, 0] + step * wrap(va - w[i, 0]))
+    w[i, 1] = w[i, 1] + step * (vd - w[i, 1])
+
+
+@njit(cache=True)
+def learn(kind, va, vd, c0, c1, t, w, P, R, size, p, idx_buf, g_buf):
+    """One step of self-organized learning from displacement v = (va, vd) and executed c."""
+    n = w.shape[0]
+    k = winner(va, vd, w, p)
+    sigma = p[P_SIGF] + (p[P_SIG0] - p[P_SIGF]) * math.exp(-t / p[P_TAU])
+    gmin = p[P_GMIN]
+    reach = int(math.ceil(sigma * math.sqrt(2.0 * math.log(1.0 / gmin))))
+    rk = k // size
+    ck = k - rk * size
+    m = 0
+    for r in range(max(0, rk - reach), min(size, rk + reach + 1)):
+        for cc in range(max(0, ck - reach), min(size, ck + reach + 1)):
+            d2 = float((r - rk) * (r - rk) + (cc - ck) * (cc - ck))
+            g = math.exp(-d2 / (2.0 * sigma * sigma))
+            if g >= gmin:
+                idx_buf[m] = r * size + cc
+                g_buf[m] = g
+                m += 1
+    eta_w = p[P_ETA_W]
+    if kind == KIND_GD or kind == KIND_RLS:
+        ds = p[P_DSCALE]
+        x1 = ds * vd
+        for j in range(m):
+            i = idx_buf[j]
+            g = g_buf[j]
+            x0 = w[i, 0] + wrap(va - w[i, 0])
+            if kind == KIND_GD:  # Eq. 15
+                e0 = c0 - (P[i, 0, 0] * x0 + P[i, 0, 1] * x1)
+                e1 = c1 - (P[i, 1, 0] * x0 + P[i, 1, 1] * x1)
+                step = p[P_ETA_M] * g
+                P[i, 0, 0] += step * e0 * x0
+                P[i, 0, 1] += step * e0 * x1
+                P[i, 1, 0] += step * e1 * x0
+                P[i, 1, 1] += step * e1 * x1
+            else:  # Eqs. 16-17
+                lam = p[P_LAMBDA]
+                a, b, cq, dq = R[i, 0, 0], R[i, 0, 1], R[i, 1, 0], R[i, 1, 1]
+                px0 = a * x0 + b * x1
+                px1 = cq * x0 + dq * x1
+                denom = lam / g + (x0 * px0 + x1 * px1)
+                a = (a - px0 * px0 / denom) / lam
+                b = (b - px0 * px1 / denom) / lam
+                cq = (cq - px1 * px0 / denom) / lam
+                dq = (dq - px1 * px1 / denom) / lam
+                tr = a + dq
+                if tr > p[P_TRCAP]:
+                    f = p[P_TRCAP] / tr
+                    a *= f
+                    b *= f
+                    cq *= f
+                    dq *= f
+                R[i, 0, 0], R[i, 0, 1], R[i, 1, 0], R[i, 1, 1] = a, b, cq, dq
+                e0 = c0 - (P[i, 0, 0] * x0 + P[i, 0, 1] * x1)
+                e1 = c1 - (P[i, 1, 0] * x0 + P[i, 1, 1] * x1)
+                xp0 = x0 * a + x1 * cq
+                xp1 = x0 * b + x1 * dq
+                P[i, 0, 0] += g * e0 * xp0
+                P[i, 0, 1] += g * e0 * xp1
+                P[i, 1, 0] += g * e1 * xp0
+                P[i, 1, 1] += g * e1 * xp1
+            _update_input_weight(w, i, va, vd, eta_w * g)
+    elif kind == KIND_DIRECT:
+        for j in range(m):
+            i = idx_buf[j]
+            step = p[P_ETA_C] * g_buf[j]
+            P[i, 0, 0] += step * (c0 - P[i, 0, 0])
+            P[i, 0, 1] += step * (c1 - P[i, 0, 1])
+            _update_input_weight(w, i, va, vd, eta_w * g_buf[j])
+    else:  # basis-function network
+        o0 = 0.0
+        o1 = 0.0
+        phis = np.empty(n)
+        bfn_activations(va, vd, w, P, phis)
+        for i in range(n):
+            o0 += phis[i] * P[i, 0, 0]
+            o1 += phis[i] * P[i, 0, 1]
+        e0 = c0 - o0
+        e1 = c1 - o1
+        eta = p[P_ETA_BFN]
+        for i in range(n):
+            P[i, 0, 0] += eta * phis[i] * e0
+            P[i, 0, 1] += eta * phis[i] * e1
+        for j in range(m):  # widths, from the centres before this step's Eq. 12
+            i = idx_buf[j]
+            r = i // size
+            c = i - r * size
+            for axis in range(2):
+                best = np.inf
+                for side in (-1, 1):
+                    rr = r + side * axis
+                    cc = c + side * (1 - axis)
+                    if 0 <= rr < size and 0 <= cc < size:
+                        q = rr * size + cc
+                        da = wrap(w[i, 0] - w[q, 0])
+                        dd = w[i, 1] - w[q, 1]
+                        best = min(best, math.sqrt(da * da + dd * dd))
+                rho = max(best, p[P_WIDTH_FLOOR])
+                P[i, 1, axis] += p[P_ETA_WIDTH] * g_buf[j] * (rho - P[i, 1, axis])
+        for j in range(m):
+            _update_input_weight(w, idx_buf[j], va, vd, eta_w * g_buf[j])
+
+
+def network_arrays(net) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A reference network's state in this module's (w, P, R) convention (copies)."""
+    n = net.w.shape[0]
+    P = np.zeros((n, 2, 2))
+    R = np.zeros((n, 2, 2))
+    if net.kind.startswith("indirect"):
+        P[:] = net.M
+        R[:] = net.Rinv
+    elif net.kind == "direct":
+        P[:, 0] = net.C
+    else:
+        P[:, 0] = net.W
+        P[:, 1] = net.widths
+    return net.w.copy(), P, R
+
+
+def load_arrays(net, w: np.ndarray, P: np.ndarray, R: np.ndarray) -> None:
+    """Write (w, P, R) back into a reference network of the same kind and size."""
+    net.w[:] = w
+    if net.kind.startswith("indirect"):
+        net.M[:] = P
+        net.Rinv[:] = R
+    elif net.kind == "direct":
+        net.C[:] = P[:, 0]
+    else:
+        net.W[:] = P[:, 0]
+        net.widths[:] = P[:, 1]

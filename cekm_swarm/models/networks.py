@@ -1,0 +1,253 @@
+"""Reference target-reaching networks of section 4.1, written to follow the equations.
+
+* :class:`IndirectEKM`: the paper's indirect-mapping EKM (Eqs. 1, 11, 12, 15-17), trained
+  by gradient descent (G9, G12, G15) or recursive least squares (R15).
+* :class:`DirectEKM`: the direct-mapping EKM baseline (D15), one command c_i per neuron.
+* :class:`BasisFunctionNetwork`: the basis-function network baseline (B15).
+
+These are the readable reference; :mod:`cekm_swarm.models.fast` runs the same rules in
+numba for the experiments, and the tests hold the two equal. All share one contract:
+``command(u) -> c`` (the target-reaching rule) and ``learn(v, c, t)`` (one step of
+self-organized learning from the displacement v that the executed command c produced).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..angles import wrap
+from ..errors import ParameterError
+from ..robot import KHEPERA
+from . import learning
+from .competition import winner
+from .fields import motor_control
+from .lattice import Lattice, neighbourhood
+from .params import CompetitionParams, LearningParams
+
+KINDS = ("indirect-gd", "indirect-rls", "direct", "bfn")
+_NAME = re.compile(r"^([BDGR])(\d{1,2})$")
+_KIND_OF_LETTER = {"B": "bfn", "D": "direct", "G": "indirect-gd", "R": "indirect-rls"}
+LETTER_OF_KIND = {v: k for k, v in _KIND_OF_LETTER.items()}
+
+
+def parse_network_name(name: str) -> tuple[str, int]:
+    """'R15' -> ('indirect-rls', 15); the paper's naming (B, D, G, R + lattice side)."""
+    m = _NAME.match(name.strip().upper())
+    if not m or not 2 <= int(m.group(2)) <= 64:
+        raise ParameterError(f"unknown network {name!r}: expected a letter B, D, G or R and a lattice side 2-64, e.g. R15")
+    return _KIND_OF_LETTER[m.group(1)], int(m.group(2))
+
+
+def parameter_count(kind: str, size: int) -> int:
+    """Trainable parameters, counted as Table 1 does (R^-1 is not counted)."""
+    per_neuron = {"indirect-gd": 6, "indirect-rls": 6, "direct": 4, "bfn": 6}[kind]
+    return per_neuron * size * size
+
+
+def at_goal(u: np.ndarray) -> bool:
+    """The goal state u(T) = (alpha, 0): the target sensor reads d = 0 (section 3.1)."""
+    return u[1] == 0.0
+
+
+@dataclass
+class IndirectEKM:
+    """Indirect-mapping EKM: input weights w_i and control parameters M_i per neuron.
+
+    M is kept in the model's internal units (the input is (alpha, d_scale * d)); R^-1
+    starts at I in those units.
+    """
+
+    lattice: Lattice
+    rule: str  # "gd" (Eq. 15) or "rls" (Eqs. 16-17)
+    w: np.ndarray
+    M: np.ndarray
+    Rinv: np.ndarray
+    comp: CompetitionParams = field(default_factory=CompetitionParams)
+    learn_p: LearningParams = field(default_factory=LearningParams)
+    v_max: float = KHEPERA.v_max
+
+    @classmethod
+    def untrained(cls, size: int, rule: str, rng: np.random.Generator, comp: CompetitionParams | None = None,
+                  learn_p: LearningParams | None = None, v_max: float = KHEPERA.v_max) -> "IndirectEKM":
+        """Regular input weights and uninformed random M_i (DESIGN.md section 3, item 7)."""
+        if rule not in ("gd", "rls"):
+            raise ParameterError(f"IndirectEKM.rule must be 'gd' or 'rls', got {rule!r}")
+        lat = Lattice(size)
+        lp = learn_p or LearningParams()
+        scale = lp.m_init_scale * v_max / math.pi
+        M = rng.uniform(-scale, scale, size=(lat.n, 2, 2))
+        Rinv = np.tile(np.eye(2), (lat.n, 1, 1))
+        return cls(lat, rule, lat.initial_weights(), M, Rinv, comp or CompetitionParams(), lp, v_max)
+
+    @classmethod
+    def kinematic(cls, size: int, comp: CompetitionParams | None = None, learn_p: LearningParams | None = None,
+                  v_max: float = KHEPERA.v_max, axle: float = KHEPERA.axle, step_s: float = 1.024) -> "IndirectEKM":
+        """The kinematic initial guess M0 = (1/T) [[-axle, 1], [axle, 1]] (in SI units): a labelled option,
+        not the paper's untrained start."""
+        lat = Lattice(size)
+        lp = learn_p or LearningParams()
+        m_si = np.array([[-axle, 1.0], [axle, 1.0]]) / step_s  # turn by 2 alpha (chord convention), move d
+        M = np.tile(m_si @ np.diag([1.0, 1.0 / lp.d_scale]), (lat.n, 1, 1))
+        return cls(lat, "rls", lat.initial_weights(), M, np.tile(np.eye(2), (lat.n, 1, 1)), comp or CompetitionParams(), lp, v_max)
+
+    @property
+    def kind(self) -> str:
+        return "indirect-" + self.rule
+
+    def control(self, u: np.ndarray, k: int, s: int) -> np.ndarray:
+        """Eq. 11: c = M_k u if k = s and |M_k u| <= c*, else M_k w_k."""
+        return motor_control(self.M, self.w, u, k, s, self.v_max, self.learn_p.d_scale)
+
+    def command(self, u: np.ndarray) -> np.ndarray:
+        """Obstacle-free target reaching: k = s (no other field competes)."""
+        if at_goal(u):
+            return np.zeros(2)
+        s = winner(u, self.w, self.comp)
+        return self.control(u, s, s)
+
+    def learn(self, v: np.ndarray, c: np.ndarray, t: float) -> None:
+        """One step of self-organized learning: winner k for v, then Eqs. 15 or 16-17, then Eq. 12."""
+        k = winner(v, self.w, self.comp)
+        g = neighbourhood(self.lattice.positions(), k, self.learn_p.sigma(t))
+        idx = np.flatnonzero(g >= self.learn_p.g_min)
+        g = g[idx]
+        x = learning.model_inputs(v, self.w[idx], self.learn_p.d_scale)
+        if self.rule == "gd":
+            learning.gradient_descent(self.M, x, c, idx, g, self.learn_p.eta_m)
+        else:
+            learning.recursive_least_squares(self.M, self.Rinv, x, c, idx, g, self.learn_p.forgetting,
+                                             self.learn_p.rinv_trace_cap)
+        learning.update_input_weights(self.w, v, idx, g, self.learn_p.eta_w)
+
+
+@dataclass
+class DirectEKM:
+    """Direct-mapping EKM (D15): the winner s outputs its stored command c_s."""
+
+    lattice: Lattice
+    w: np.ndarray
+    C: np.ndarray
+    comp: CompetitionParams = field(default_factory=CompetitionParams)
+    learn_p: LearningParams = field(default_factory=LearningParams)
+
+    kind = "direct"
+
+    @classmethod
+    def untrained(cls, size: int, rng: np.random.Generator, comp: CompetitionParams | None = None,
+                  learn_p: LearningParams | None = None, v_max: float = KHEPERA.v_max) -> "DirectEKM":
+        lat = Lattice(size)
+        lp = learn_p or LearningParams()
+        C = rng.uniform(-lp.m_init_scale * v_max, lp.m_init_scale * v_max, size=(lat.n, 2))
+        return cls(lat, lat.initial_weights(), C, comp or CompetitionParams(), lp)
+
+    def command(self, u: np.ndarray) -> np.ndarray:
+        if at_goal(u):
+            return np.zeros(2)
+        return self.C[winner(u, self.w, self.comp)].copy()
+
+    def learn(self, v: np.ndarray, c: np.ndarray, t: float) -> None:
+        """c_i += eta G(k, i) (c - c_i), then Eq. 12, k the winner for v."""
+        k = winner(v, self.w, self.comp)
+        g = neighbourhood(self.lattice.positions(), k, self.learn_p.sigma(t))
+        idx = np.flatnonzero(g >= self.learn_p.g_min)
+        g = g[idx]
+        learning.direct_output_update(self.C, c, idx, g, self.learn_p.eta_c)
+        learning.update_input_weights(self.w, v, idx, g, self.learn_p.eta_w)
+
+
+BFN_WIDTH_FLOOR = 1e-3  # smallest basis width (raw (alpha [rad], d [m]) units), so no width collapses to 0
+BFN_D_SATURATION = 0.16  # m: inputs farther than one step's reach are presented at that reach
+
+
+def lattice_neighbour_distances(w: np.ndarray, size: int, i: int) -> np.ndarray:
+    """(rho_alpha, rho_d): raw Euclidean distance from centre i to its nearest lattice neighbour
+    along the direction (column) axis and along the distance (row) axis, floored."""
+    r, c = divmod(int(i), size)
+    out = np.full(2, np.inf)
+    for axis, nbrs in ((0, ((r, c - 1), (r, c + 1))), (1, ((r - 1, c), (r + 1, c)))):
+        for rr, cc in nbrs:
+            if 0 <= rr < size and 0 <= cc < size:
+                j = rr * size + cc
+                da = wrap(w[i, 0] - w[j, 0])
+                dd = w[i, 1] - w[j, 1]
+                out[axis] = min(out[axis], math.sqrt(da * da + dd * dd))
+    return np.maximum(out, BFN_WIDTH_FLOOR)
+
+
+@dataclass
+class BasisFunctionNetwork:
+    """Basis-function network (B15): c = sum_i phi_i(u) W_i, phi_i a normalized Gaussian with per-axis widths.
+
+    Centres self-organize like Eq. 12 (winner and lattice neighbourhood); each width moves
+    toward the Euclidean distance to its nearest neighbouring centre in the raw input
+    space (alpha in rad, d in m: Moody & Darken's rule), sigma_alpha among its lattice
+    neighbours along the direction axis and sigma_d along the distance axis, so the
+    widths keep the lattice's two scales; the output weights learn by
+    gradient descent on every unit at every step. 6 parameters per unit: centre 2,
+    widths 2, output weights 2. The network has no direction priority of its own: in
+    raw units the angle dominates the distance, which plays that part.
+    """
+
+    lattice: Lattice
+    w: np.ndarray  # centres (alpha, d)
+    widths: np.ndarray  # (sigma_alpha, sigma_d)
+    W: np.ndarray  # output weights
+    comp: CompetitionParams = field(default_factory=CompetitionParams)
+    learn_p: LearningParams = field(default_factory=LearningParams)
+
+    kind = "bfn"
+
+    @classmethod
+    def untrained(cls, size: int, rng: np.random.Generator, comp: CompetitionParams | None = None,
+                  learn_p: LearningParams | None = None, v_max: float = KHEPERA.v_max) -> "BasisFunctionNetwork":
+        lat = Lattice(size)
+        lp = learn_p or LearningParams()
+        w0 = lat.initial_weights()
+        widths = np.tile([2.0 * np.pi / size, 0.16 / (size - 1)], (lat.n, 1))
+        # full wheel range: the normalized output averages a few units, which would shrink half-range commands
+        W = rng.uniform(-2.0 * lp.m_init_scale * v_max, 2.0 * lp.m_init_scale * v_max, size=(lat.n, 2))
+        return cls(lat, w0, widths, W, comp or CompetitionParams(), lp)
+
+    def activations(self, u: np.ndarray) -> np.ndarray:
+        """Normalized Gaussian activations phi_i(u) / sum_j phi_j(u), computed stably.
+
+        Normalized, so that every input activates its nearest units however far it is.
+        """
+        za = wrap(u[0] - self.w[:, 0]) / self.widths[:, 0]
+        zd = (min(u[1], BFN_D_SATURATION) - self.w[:, 1]) / self.widths[:, 1]
+        q = 0.5 * (za * za + zd * zd)
+        phi = np.exp(-(q - q.min()))
+        return phi / phi.sum()
+
+    def command(self, u: np.ndarray) -> np.ndarray:
+        if at_goal(u):
+            return np.zeros(2)
+        return self.activations(u) @ self.W
+
+    def learn(self, v: np.ndarray, c: np.ndarray, t: float) -> None:
+        """Output weights by gradient descent, widths toward the nearest-centre distance, centres by Eq. 12."""
+        phi = self.activations(v)
+        err = c - phi @ self.W
+        k = winner(v, self.w, self.comp)
+        g = neighbourhood(self.lattice.positions(), k, self.learn_p.sigma(t))
+        idx = np.flatnonzero(g >= self.learn_p.g_min)
+        g = g[idx]
+        rho = np.array([lattice_neighbour_distances(self.w, self.lattice.size, i) for i in idx])
+        self.W += self.learn_p.eta_bfn * phi[:, None] * err[None, :]
+        self.widths[idx] += (self.learn_p.eta_width * g)[:, None] * (rho - self.widths[idx])
+        learning.update_input_weights(self.w, v, idx, g, self.learn_p.eta_w)
+
+
+def make_network(name: str, rng: np.random.Generator, comp: CompetitionParams | None = None,
+                 learn_p: LearningParams | None = None):
+    """An untrained network by the paper's name (B15, D15, G9, G12, G15, R15, ...)."""
+    kind, size = parse_network_name(name)
+    if kind == "bfn":
+        return BasisFunctionNetwork.untrained(size, rng, comp, learn_p)
+    if kind == "direct":
+        return DirectEKM.untrained(size, rng, comp, learn_p)
+    return IndirectEKM.untrained(size, kind.split("-")[1], rng, comp, learn_p)
