@@ -571,7 +571,7 @@ class _Parser:
         for i, rb in enumerate(sc.robots):
             x, y, _ = rb.start
             hit = idx.nearest(x, y)
-            if hit is not None and hit[0] < r:
+            if hit is not None and hit[0] < r - 1e-9:  # touching is allowed
                 self.fail(
                     f"robots[{i}].start",
                     f"robot body (radius {r} m) at ({x}, {y}) overlaps {hit[1]} "
@@ -580,12 +580,12 @@ class _Parser:
             for j in range(i):
                 o = sc.robots[j]
                 dist = math.hypot(o.start[0] - x, o.start[1] - y)
-                if dist < 2 * r:
+                if dist < 2 * r - 1e-9:
                     self.fail(f"robots[{i}].start", f"robot body overlaps robot {o.id!r} (centres {dist:.4f} m apart)")
         for tg in sc.targets:
             if isinstance(tg.motion, Fixed):
                 hit = idx.nearest(*tg.position)
-                if hit is not None and hit[0] <= 0.0:
+                if hit is not None and hit[0] < -1e-9:
                     self.fail(f"{tg.source}.position", f"target {list(tg.position)} is inside {hit[1]}")
 
 
