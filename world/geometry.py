@@ -76,8 +76,6 @@ def simple_polygon_problem(poly: Sequence[Point]) -> str | None:
     for i in range(n):
         if poly[i] == poly[(i + 1) % n]:
             return f"vertices {i} and {(i + 1) % n} coincide"
-    if abs(signed_area(poly)) < 1e-12:
-        return "has zero area"
     for i in range(n):
         a1, a2 = poly[i], poly[(i + 1) % n]
         for j in range(i + 1, n):
@@ -86,6 +84,8 @@ def simple_polygon_problem(poly: Sequence[Point]) -> str | None:
             b1, b2 = poly[j], poly[(j + 1) % n]
             if _segments_intersect(a1, a2, b1, b2):
                 return f"edges {i} and {j} intersect (the polygon must be simple)"
+    if abs(signed_area(poly)) < 1e-12:
+        return "has zero area"
     return None
 
 
