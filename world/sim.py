@@ -192,6 +192,10 @@ class World:
         )
         self._path = [0.0] * n
         self._clear = [math.inf] * n
+        self._near = [True] * n
+        self._noise_block = 12 * 64
+        self._noise = [[] for _ in range(n)]
+        self._noise_at = [0] * n
         self._info = ffi.new("cpSegmentQueryInfo *")
         self._pinfo = ffi.new("cpPointQueryInfo *")
         self._filters = [
@@ -308,49 +312,57 @@ class World:
         u = self._rng_wheels.uniform(-NOISE, NOISE, size=(n, 2))
         ex = self._cmd * (1.0 + u)
         self._exec = ex
-        v = 0.5 * (ex[:, 0] + ex[:, 1])
-        w = (ex[:, 1] - ex[:, 0]) / AXLE
-        half = 0.5 * w * dt
-        small = np.abs(half) < 1e-6
-        sinc = np.where(small, 1.0 - half * half / 6.0, np.sin(half) / np.where(small, 1.0, half))
-        vc = v * sinc
-        head = st[:n, 2] + half
-        vx = vc * np.cos(head)
-        vy = vc * np.sin(head)
-
+        exl = ex.tolist()
+        th = self._pth
+        touching = self._touching
         new = st.copy()
-        # control bodies follow their robot and carry the command
-        new[n : 2 * n, 0:3] = st[:n, 0:3]
-        new[n : 2 * n, 3] = vx
-        new[n : 2 * n, 4] = vy
-        new[n : 2 * n, 5] = w
-        # free robots move exactly as commanded in this sub-step
-        free = np.fromiter((c == 0 for c in self._touching), dtype=bool, count=n)
-        new[:n, 3] = np.where(free, vx, st[:n, 3])
-        new[:n, 4] = np.where(free, vy, st[:n, 4])
-        new[:n, 5] = np.where(free, w, st[:n, 5])
+        rows = []
+        for i in range(n):
+            vl, vr = exl[i]
+            v = 0.5 * (vl + vr)
+            w = (vr - vl) / AXLE
+            half = 0.5 * w * dt
+            # move along the chord of the arc: exact end pose in free space
+            vc = v * (math.sin(half) / half if abs(half) > 1e-6 else 1.0 - half * half / 6.0)
+            hd = th[i] + half
+            rows.append((vc * math.cos(hd), vc * math.sin(hd), w, touching[i] == 0))
+        if n:
+            vel = np.array([r[:3] for r in rows])
+            free = np.array([r[3] for r in rows])
+            # control bodies follow their robot and carry the command
+            new[n : 2 * n, 0:3] = st[:n, 0:3]
+            new[n : 2 * n, 3:6] = vel
+            # free robots move exactly as commanded in this sub-step; a robot in
+            # contact is left to the contact solver and the joints
+            new[:n, 3:6][free] = vel[free]
         # moving obstacles: exactly on their script at t0, chord velocity to t1
         for k, o in enumerate(self._movers):
             assert o.motion is not None
             p0 = o.motion.position(t0)
             p1 = o.motion.position(t1)
-            row = 2 * n + k
-            new[row] = (p0[0], p0[1], 0.0, (p1[0] - p0[0]) / dt, (p1[1] - p0[1]) / dt, 0.0)
+            new[2 * n + k] = (p0[0], p0[1], 0.0, (p1[0] - p0[0]) / dt, (p1[1] - p0[1]) / dt, 0.0)
         self._set_buf.set_float_buf(new.reshape(-1))
         pbatch.set_space_bodies(self._space, _FIELDS, self._set_buf)
 
         h = dt / PHYSICS_STEPS
-        for _ in range(PHYSICS_STEPS):
-            self._space.step(h)
+        if self._k == 0:
+            self._space.step(h)  # pymunk's wrapper validates the bodies once
+            rest = PHYSICS_STEPS - 1
+        else:
+            rest = PHYSICS_STEPS
+        cp_step = lib.cpSpaceStep  # bodies are never added or removed after __init__
+        sp = self._cpspace
+        for _ in range(rest):
+            cp_step(sp, h)
         self._k += 1
 
-        self._state = s2 = self._read_bodies()
-        dxy = s2[:n, 0:2] - st[:n, 0:2]
-        steps = np.hypot(dxy[:, 0], dxy[:, 1]).tolist()
+        self._state = self._read_bodies()
+        ox, oy = self._px, self._py
+        self._pose_cache()
+        px, py = self._px, self._py
         path = self._path
         for i in range(n):
-            path[i] += steps[i]
-        self._pose_cache()
+            path[i] += math.hypot(px[i] - ox[i], py[i] - oy[i])
         self._update_clearance()
         self._step_targets(t1)
 
@@ -363,15 +375,23 @@ class World:
             self.step()
 
     def _update_clearance(self) -> None:
+        """Nearest surface to each robot at its current pose: updates the minimum
+        clearance and caches whether anything is within sensor range (if nothing is,
+        a range read needs no ray casts)."""
         q = lib.cpSpacePointQueryNearest
         sp = self._cpspace
         info = self._pinfo
         r = ROBOT_RADIUS
+        see = self._sensor_range + 1e-9
         clear = self._clear
+        near = self._near
+        px, py, filters = self._px, self._py, self._filters
         for i in range(self._n):
-            q(sp, (self._px[i], self._py[i]), r + clear[i], self._filters[i], info)
+            ci = clear[i]
+            q(sp, (px[i], py[i]), r + (ci if ci > see else see), filters[i], info)
             c = info.distance - r
-            if c < clear[i]:
+            near[i] = c <= see
+            if c < ci:
                 clear[i] = c
 
     def _step_targets(self, t: float) -> None:
@@ -426,43 +446,58 @@ class World:
     def true_ranges(self, robot_id: str) -> np.ndarray:
         """Noise-free surface ranges of the 12 sensors (m), NaN beyond range."""
         i = self._i(robot_id)
-        d = self._cast(i)
-        return np.where(d > self._sensor_range, np.nan, d)
+        lim = self._sensor_range
+        return np.array([d if d <= lim else math.nan for d in self._cast(i)])
 
-    def _cast(self, i: int) -> np.ndarray:
+    def _cast(self, i: int) -> list[float]:
+        """True surface range along each sensor ray (m, >= 0; beyond range when the
+        ray hits nothing). Rays start at the robot centre (so a surface touching or
+        overlapping the body reads 0) and skip the robot's own shape (its group)."""
+        L = self._ray_len
+        if not self._near[i]:
+            return [L] * N_SENSORS
         x = self._px[i]
         y = self._py[i]
         th = self._pth[i]
-        c = math.cos(th)
-        s = math.sin(th)
-        L = self._ray_len
+        c = math.cos(th) * L
+        s = math.sin(th) * L
         q = lib.cpSpaceSegmentQueryFirst
         sp = self._cpspace
         f = self._filters[i]
         info = self._info
-        start = (x, y)
+        start = ffi.new("cpVect *", (x, y))[0]
+        r = ROBOT_RADIUS
         out = []
         app = out.append
         for cj, sj in self._dirs:
-            q(sp, start, (x + L * (c * cj - s * sj), y + L * (s * cj + c * sj)), 0.0, f, info)
-            app(info.alpha)
-        d = np.array(out)
-        d *= L
-        d -= ROBOT_RADIUS
-        np.maximum(d, 0.0, out=d)
-        return d
+            q(sp, start, (x + c * cj - s * sj, y + s * cj + c * sj), 0.0, f, info)
+            d = info.alpha * L - r
+            app(d if d > 0.0 else 0.0)
+        return out
+
+    def _range_noise(self, i: int) -> list[float]:
+        """The next 12 uniform(-0.1, 0.1) draws of robot i's range stream (drawn in
+        blocks; the values are the same as drawing 12 at a time)."""
+        k = self._noise_at[i]
+        buf = self._noise[i]
+        if k + N_SENSORS > len(buf):
+            buf = self._noise[i] = self._rng_range[i].uniform(-NOISE, NOISE, self._noise_block).tolist()
+            k = 0
+        self._noise_at[i] = k + N_SENSORS
+        return buf[k : k + N_SENSORS]
 
     def range_readings(self, robot_id: str) -> np.ndarray:
         """The 12 noisy distance readings (m), shape (12,): true surface range x
         (1 + U(-0.1, 0.1)), quantized to 0.005 m; NaN when nothing is within range.
         A reading may exceed the range by up to the 10 % noise."""
         i = self._i(robot_id)
-        d = self._cast(i)
-        far = d > self._sensor_range
-        d *= 1.0 + self._rng_range[i].uniform(-NOISE, NOISE, N_SENSORS)
-        d = np.round(d / RANGE_RESOLUTION) * RANGE_RESOLUTION
-        d[far] = np.nan
-        return d
+        lim = self._sensor_range
+        res = RANGE_RESOLUTION
+        nan = math.nan
+        u = self._range_noise(i)
+        return np.array(
+            [round(d * (1.0 + e) / res) * res if d <= lim else nan for d, e in zip(self._cast(i), u)]
+        )
 
     def _goal_xy(self, i: int) -> tuple[float, float]:
         g = self._goal[i]
