@@ -191,6 +191,7 @@ class World:
             [t.motion.heading if isinstance(t.motion, RandomWalk) else 0.0 for t in scenario.targets], dtype=float
         )
         self._path = [0.0] * n
+        self._contact_steps = [0] * n
         self._clear = [math.inf] * n
         self._near = [True] * n
         self._noise_block = 12 * 64
@@ -361,8 +362,11 @@ class World:
         self._pose_cache()
         px, py = self._px, self._py
         path = self._path
+        cs = self._contact_steps
         for i in range(n):
             path[i] += math.hypot(px[i] - ox[i], py[i] - oy[i])
+            if touching[i]:
+                cs[i] += 1
         self._update_clearance()
         self._step_targets(t1)
 
@@ -553,12 +557,14 @@ class World:
         an obstacle or a robot: one per item touched; touching the same item again
         within 0.256 s counts once), min_clearance_m (smallest
         body-surface distance to any wall/obstacle/robot so far, negative when
-        penetrating; inf if the world has nothing else in it)."""
+        penetrating; inf if the world has nothing else in it), contact_s (time
+        spent touching something, counted per sub-step that ends in contact)."""
         i = self._i(robot_id)
         return {
             "path_length_m": self._path[i],
             "collisions": self._collisions[i],
             "min_clearance_m": self._clear[i],
+            "contact_s": self._contact_steps[i] * SUBSTEP,
         }
 
     def in_contact(self, robot_id: str) -> bool:

@@ -98,7 +98,7 @@ def test_straight_run_distance():
     w.advance(8.0)
     st = w.stats("r1")
     assert st["path_length_m"] == pytest.approx(0.1 * w.time, rel=0.01)
-    assert st["collisions"] == 0
+    assert st["collisions"] == 0 and st["contact_s"] == 0.0
     assert st["min_clearance_m"] == pytest.approx(0.3 - R, abs=1e-9)  # the start, by the west wall
 
 
@@ -117,6 +117,7 @@ def test_full_speed_into_a_wall_never_passes_it(heading):
     assert worst > -0.001  # it did reach the wall
     st = w.stats("r1")
     assert st["collisions"] >= 1 and -0.002 < st["min_clearance_m"] < 0.0005
+    assert 0.0 < st["contact_s"] < w.time
 
 
 @pytest.mark.parametrize("heading", [0.0, 0.7])
@@ -194,3 +195,14 @@ def test_line_obstacle_pushes_a_robot():
         assert x - R - (ox + 0.05) > -0.003  # never deeply inside the box
     assert w.pose("r1")[0] > 1.2 + 0.05 + R - 0.003
     assert w.stats("r1")["collisions"] == 1
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_robot_fits_through_the_86_mm_doorway(seed):
+    sc = load_scenario("doorway", overrides={"robots[0].start": [1.38, 1.0, 0.0]})
+    w = World(sc, seed=seed)
+    w.set_wheels("r1", V, V)
+    w.advance(2.5)
+    x, y, _ = w.pose("r1")
+    assert x > 1.55 + R  # through the 0.10 m deep gap
+    assert abs(y - 1.0) < 0.043

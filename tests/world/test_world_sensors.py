@@ -189,3 +189,24 @@ def test_goal_follows_a_moving_target():
     w.advance(1.0)
     a = 0.5 * w.time
     assert w.goal_of("r1") == pytest.approx((1.0 + 0.3 * math.cos(a), 1.0 + 0.3 * math.sin(a)), abs=1e-12)
+
+
+def test_skipping_rays_when_nothing_is_near_is_exact():
+    # the world skips the 12 ray casts when its nearest-surface query finds nothing
+    # within range; forcing the casts must give the same answer everywhere
+    from world import ScenarioError, load_scenario
+
+    checked = 0
+    for x in np.arange(0.1, 3.0, 0.13):
+        for y in np.arange(0.1, 1.2, 0.11):
+            try:
+                sc = load_scenario("checkpoints", overrides={"robots[0].start": [float(x), float(y), 0.3]})
+            except ScenarioError:
+                continue  # start inside something
+            w = World(sc)
+            fast = w.true_ranges("r1")
+            w._near[0] = True
+            slow = w.true_ranges("r1")
+            assert np.array_equal(fast, slow, equal_nan=True)
+            checked += 1
+    assert checked > 150
