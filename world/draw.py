@@ -63,16 +63,17 @@ def draw_world(ax: Axes, geometry: Mapping[str, Any], state: Mapping[str, Any] |
             ax.add_patch(
                 Circle(motion["center"], motion["radius"], fill=False, linestyle="--", edgecolor=MOVING_EDGE, linewidth=0.8, zorder=1)
             )
+            # a direction arrow on the path, a quarter turn ahead of the obstacle
             s = 1.0 if motion.get("direction", "ccw") == "ccw" else -1.0
-            a = motion.get("phase", 0.0) + s * motion["angular_speed"] * t
+            a = motion.get("phase", 0.0) + s * motion["angular_speed"] * t + s * math.pi / 2
             cx, cy = motion["center"]
             r = motion["radius"]
             px, py = cx + r * math.cos(a), cy + r * math.sin(a)
             ax.annotate(
                 "",
-                xy=(px - s * 0.15 * r * math.sin(a), py + s * 0.15 * r * math.cos(a)),
+                xy=(px - s * 0.4 * r * math.sin(a), py + s * 0.4 * r * math.cos(a)),
                 xytext=(px, py),
-                arrowprops={"arrowstyle": "->", "color": MOVING_EDGE, "lw": 0.8},
+                arrowprops={"arrowstyle": "-|>", "color": MOVING_EDGE, "lw": 1.0},
                 zorder=1,
             )
         else:
