@@ -31,6 +31,8 @@ EMPTY = np.empty(0)
 
 @dataclass
 class TestOutcome:
+    __test__ = False  # not a pytest test class
+
     """Per test target: what happened. Arrays have one row per target (eps columns for *_eps)."""
 
     final_dist: np.ndarray  # m, after the stop or when the budget ran out
@@ -141,7 +143,7 @@ def _train_batch(kind, size, W, P, R, p, arena, poses, cursors, targets, t0, whe
                     break
                 cursors[b, 0] += 1
                 cursors[b, 1] = 0
-            fast.command(kind, alpha, d, w, Pb, p, c)
+            fast.command(kind, alpha, d, w, Pb, Rb, p, c)
             c0 = min(max(c[0] + explore[b, j, 0] * (rel * abs(c[0]) + abs_), -v_max), v_max)
             c1 = min(max(c[1] + explore[b, j, 1] * (rel * abs(c[1]) + abs_), -v_max), v_max)
             x0, y0, th0 = pose[0], pose[1], pose[2]
@@ -156,7 +158,7 @@ def _train_batch(kind, size, W, P, R, p, arena, poses, cursors, targets, t0, whe
 
 
 @njit(parallel=True, cache=True)
-def _test_batch(kind, W, P, p, arena, cx, cy, step_s, targets, wheel, sense, eps,
+def _test_batch(kind, W, P, R, p, arena, cx, cy, step_s, targets, wheel, sense, eps,
                 final_dist, stopped, steps, path_out, straight, t_eps, path_eps):
     B = W.shape[0]
     v_max = p[fast.P_VMAX]
@@ -175,7 +177,7 @@ def _test_batch(kind, W, P, p, arena, cx, cy, step_s, targets, wheel, sense, eps
                     stopped[b, i] = True
                     n_steps = j
                     break
-                fast.command(kind, alpha, d, W[b], P[b], p, c)
+                fast.command(kind, alpha, d, W[b], P[b], R[b], p, c)
                 c0 = min(max(c[0], -v_max), v_max)
                 c1 = min(max(c[1], -v_max), v_max)
                 ds, _, _ = drive(pose, c0, c1, wheel[b, i, j], arena, tx, ty, eps, t_eps[b, i], path_eps[b, i],
@@ -212,7 +214,7 @@ def test_batch(batch: NetworkBatch, streams: list[TrialStreams], eps: np.ndarray
     o = [np.zeros((B, m)), np.zeros((B, m), dtype=np.bool_), np.zeros((B, m), dtype=np.int64), np.zeros((B, m)),
          np.zeros((B, m)), np.full((B, m, len(eps)), np.nan), np.full((B, m, len(eps)), np.nan)]
     cx, cy = arena.centre
-    _test_batch(batch.code, batch.W, batch.P, batch.params, arena.vector(), cx, cy, arena.step_s, targets, wheel,
+    _test_batch(batch.code, batch.W, batch.P, batch.R, batch.params, arena.vector(), cx, cy, arena.step_s, targets, wheel,
                 sense, np.ascontiguousarray(eps, dtype=np.float64), *o)
     return [TestOutcome(*(a[b] for a in o)) for b in range(B)]
 

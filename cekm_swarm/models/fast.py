@@ -6,7 +6,7 @@ A network's state is three arrays so that every kind shares one calling conventi
 * ``w`` (n, 2): input weights (the BFN's centres);
 * ``P`` (n, 2, 2): M_i for the indirect EKM (internal units); for the direct EKM
   ``P[i, 0]`` is c_i; for the BFN ``P[i, 0]`` is W_i and ``P[i, 1]`` its widths;
-* ``R`` (n, 2, 2): R_i^-1 for RLS (unused otherwise).
+* ``R`` (n, 2, 2): R_i^-1 for RLS; for the BFN ``R[i, 0, 0]`` = 1 marks a centre that has won.
 
 Parameters travel as one float64 vector (:func:`pack_params`); its layout is below.
 The tests hold this module equal to the reference classes.
@@ -21,7 +21,6 @@ from numba import njit
 
 from .params import CompetitionParams, LearningParams
 
-BFN_D_SATURATION = 0.16  # must equal networks.BFN_D_SATURATION (a test checks)
 
 KIND_GD, KIND_RLS, KIND_DIRECT, KIND_BFN = 0, 1, 2, 3
 KIND_CODE = {"indirect-gd": KIND_GD, "indirect-rls": KIND_RLS, "direct": KIND_DIRECT, "bfn": KIND_BFN}
@@ -77,13 +76,23 @@ def winner(alpha, d, w, p):
 
 
 @njit(cache=True)
-def bfn_activations(alpha, d, w, P, out):
-    """Normalized Gaussian activations of the basis-function network (widths in P[:, 1])."""
+def bfn_activations(alpha, d, w, P, R, out):
+    """Normalized Gaussian activations of the basis-function network (widths in P[:, 1]).
+
+    R[i, 0, 0] > 0 marks a centre that has won for some training input; d is limited to
+    the farthest such centre (the network's local workspace).
+    """
     n = w.shape[0]
+    d_edge = -1.0
+    for i in range(n):
+        if R[i, 0, 0] > 0.0 and w[i, 1] > d_edge:
+            d_edge = w[i, 1]
+    if d_edge >= 0.0 and d > d_edge:
+        d = d_edge
     qmin = np.inf
     for i in range(n):
         za = wrap(alpha - w[i, 0]) / P[i, 1, 0]
-        zd = (min(d, BFN_D_SATURATION) - w[i, 1]) / P[i, 1, 1]
+        zd = (d - w[i, 1]) / P[i, 1, 1]
         out[i] = 0.5 * (za * za + zd * zd)
         if out[i] < qmin:
             qmin = out[i]
@@ -96,7 +105,7 @@ def bfn_activations(alpha, d, w, P, out):
 
 
 @njit(cache=True)
-def command(kind, alpha, d, w, P, p, out):
+def command(kind, alpha, d, w, P, R, p, out):
     """The target-reaching rule of each network kind, written into out[0:2].
 
     The goal state (d = 0) gives c = 0 for every kind.
@@ -107,7 +116,7 @@ def command(kind, alpha, d, w, P, p, out):
         return
     if kind == KIND_BFN:
         phis = np.empty(w.shape[0])
-        bfn_activations(alpha, d, w, P, phis)
+        bfn_activations(alpha, d, w, P, R, phis)
         out[0] = 0.0
         out[1] = 0.0
         for i in range(w.shape[0]):
@@ -214,7 +223,7 @@ def learn(kind, va, vd, c0, c1, t, w, P, R, size, p, idx_buf, g_buf):
         o0 = 0.0
         o1 = 0.0
         phis = np.empty(n)
-        bfn_activations(va, vd, w, P, phis)
+        bfn_activations(va, vd, w, P, R, phis)
         for i in range(n):
             o0 += phis[i] * P[i, 0, 0]
             o1 += phis[i] * P[i, 0, 1]
@@ -242,6 +251,7 @@ def learn(kind, va, vd, c0, c1, t, w, P, R, size, p, idx_buf, g_buf):
                 P[i, 1, axis] += p[P_ETA_WIDTH] * g_buf[j] * (rho - P[i, 1, axis])
         for j in range(m):
             _update_input_weight(w, idx_buf[j], va, vd, eta_w * g_buf[j])
+        R[k, 0, 0] = 1.0
 
 
 def network_arrays(net) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -257,6 +267,7 @@ def network_arrays(net) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     else:
         P[:, 0] = net.W
         P[:, 1] = net.widths
+        R[:, 0, 0] = net.won
     return net.w.copy(), P, R
 
 
@@ -271,3 +282,4 @@ def load_arrays(net, w: np.ndarray, P: np.ndarray, R: np.ndarray) -> None:
     else:
         net.W[:] = P[:, 0]
         net.widths[:] = P[:, 1]
+        net.won[:] = R[:, 0, 0] > 0.0

@@ -160,7 +160,6 @@ class DirectEKM:
 
 
 BFN_WIDTH_FLOOR = 1e-3  # smallest basis width (raw (alpha [rad], d [m]) units), so no width collapses to 0
-BFN_D_SATURATION = 0.16  # m: inputs farther than one step's reach are presented at that reach
 
 
 def lattice_neighbour_distances(w: np.ndarray, size: int, i: int) -> np.ndarray:
@@ -196,6 +195,7 @@ class BasisFunctionNetwork:
     w: np.ndarray  # centres (alpha, d)
     widths: np.ndarray  # (sigma_alpha, sigma_d)
     W: np.ndarray  # output weights
+    won: np.ndarray  # bool: the centre has won for some training input (not a parameter, like R^-1)
     comp: CompetitionParams = field(default_factory=CompetitionParams)
     learn_p: LearningParams = field(default_factory=LearningParams)
 
@@ -210,15 +210,21 @@ class BasisFunctionNetwork:
         widths = np.tile([2.0 * np.pi / size, 0.16 / (size - 1)], (lat.n, 1))
         # full wheel range: the normalized output averages a few units, which would shrink half-range commands
         W = rng.uniform(-2.0 * lp.m_init_scale * v_max, 2.0 * lp.m_init_scale * v_max, size=(lat.n, 2))
-        return cls(lat, w0, widths, W, comp or CompetitionParams(), lp)
+        return cls(lat, w0, widths, W, np.zeros(lat.n, dtype=bool), comp or CompetitionParams(), lp)
 
     def activations(self, u: np.ndarray) -> np.ndarray:
         """Normalized Gaussian activations phi_i(u) / sum_j phi_j(u), computed stably.
 
-        Normalized, so that every input activates its nearest units however far it is.
+        Normalized, so that every input activates its nearest units however far it is; and
+        an input beyond the network's local workspace (the farthest centre that has won for
+        a training input) is presented at its edge, as the EKM's winner stands in for a
+        target outside U' (section 3.2).
         """
+        d = u[1]
+        if np.any(self.won):
+            d = min(d, float(self.w[self.won, 1].max()))
         za = wrap(u[0] - self.w[:, 0]) / self.widths[:, 0]
-        zd = (min(u[1], BFN_D_SATURATION) - self.w[:, 1]) / self.widths[:, 1]
+        zd = (d - self.w[:, 1]) / self.widths[:, 1]
         q = 0.5 * (za * za + zd * zd)
         phi = np.exp(-(q - q.min()))
         return phi / phi.sum()
@@ -240,6 +246,7 @@ class BasisFunctionNetwork:
         self.W += self.learn_p.eta_bfn * phi[:, None] * err[None, :]
         self.widths[idx] += (self.learn_p.eta_width * g)[:, None] * (rho - self.widths[idx])
         learning.update_input_weights(self.w, v, idx, g, self.learn_p.eta_w)
+        self.won[k] = True
 
 
 def make_network(name: str, rng: np.random.Generator, comp: CompetitionParams | None = None,

@@ -58,7 +58,7 @@ class LearningParams:
     eta_w: float = 0.05
     eta_m: float = 0.05
     eta_c: float = 0.05
-    eta_bfn: float = 0.05
+    eta_bfn: float = 0.2
     eta_width: float = 0.05
     sigma_initial: float = 1.0
     sigma_final: float = 0.3

@@ -1,0 +1,108 @@
+"""The ``cekm`` command line."""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+
+import click
+
+from .errors import CekmError
+
+
+def _networks(value: str) -> tuple[str, ...]:
+    from .models.networks import parse_network_name
+
+    names = tuple(n.strip().upper() for n in value.split(",") if n.strip())
+    if not names:
+        raise click.BadParameter("give at least one network, e.g. R15")
+    for n in names:
+        try:
+            parse_network_name(n)
+        except CekmError as exc:
+            raise click.BadParameter(str(exc)) from None
+    return names
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(package_name="cekm-swarm")
+def main() -> None:
+    """Cooperative Extended Kohonen Maps: models, the paper's experiments, a multi-robot runtime."""
+
+
+@main.group()
+def experiment() -> None:
+    """Reproduce the paper's experiments."""
+
+
+@experiment.command("target-reaching")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), required=True,
+              help="Directory for results.json, tables.md and the figures.")
+@click.option("--networks", default="B15,D15,G9,G12,G15,R15", show_default=True,
+              help="Comma-separated networks: B (basis functions), D (direct EKM), G (indirect EKM, gradient "
+                   "descent), R (indirect EKM, recursive least squares) and the lattice side.")
+@click.option("--trials", default=5, show_default=True, type=click.IntRange(1, 1000))
+@click.option("--steps", default=100_000, show_default=True, type=click.IntRange(1))
+@click.option("--test-interval", default=10_000, show_default=True, type=click.IntRange(1))
+@click.option("--targets", "test_targets", default=50, show_default=True, type=click.IntRange(1),
+              help="Test targets per test.")
+@click.option("--seed", default=2005, show_default=True, type=int)
+@click.option("--quiet", is_flag=True, help="No progress bar.")
+def target_reaching(out_dir: Path, networks: str, trials: int, steps: int, test_interval: int, test_targets: int,
+                    seed: int, quiet: bool) -> None:
+    """Section 4.1: Tables 1-4 and Figures 5-7 (obstacle-free target reaching)."""
+    from .experiments.report import headline_orderings, write_report
+    from .experiments.streams import Schedule
+    from .experiments.target_reaching import TargetReachingConfig, run_experiment
+    from .models.io import save_model
+
+    try:
+        config = TargetReachingConfig(networks=_networks(networks), trials=trials, seed=seed,
+                                      schedule=Schedule(steps=steps, test_interval=test_interval, test_targets=test_targets))
+    except CekmError as exc:
+        raise click.UsageError(str(exc)) from None
+    results, runs = run_experiment(config, progress=not quiet)
+    trained = {r.name: r.trained(0, config) for r in runs}
+    for r in runs:
+        for t in range(config.trials):
+            save_model(out_dir / "models" / f"{r.name}-trial{t + 1}.npz", r.trained(t, config),
+                       {"network": r.name, "trial": t + 1, "steps": steps, "seed": seed, "initial_M": "random",
+                        "experiment": "target-reaching"})
+    written = write_report(results, trained, out_dir)
+    click.echo((out_dir / "tables.md").read_text().split("### Table 2")[0].rstrip())
+    click.echo("")
+    for claim, holds in headline_orderings(results).items():
+        click.echo(f"  {'holds' if holds else 'DOES NOT HOLD'}: {claim}")
+    click.echo(f"\n{results['wall_seconds']:.1f} s; wrote " + ", ".join(str(p) for p in written))
+
+
+@main.command()
+@click.option("--network", default="R15", show_default=True, help="Network name, e.g. R15 or G12.")
+@click.option("--steps", default=100_000, show_default=True, type=click.IntRange(1))
+@click.option("--seed", default=2005, show_default=True, type=int)
+@click.option("--out", "out_path", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help="The .npz model file to write.")
+@click.option("--quiet", is_flag=True)
+def train(network: str, steps: int, seed: int, out_path: Path, quiet: bool) -> None:
+    """Train one network by self-organized learning in the obstacle-free arena and save it."""
+    from .experiments.training import train_network
+    from .models.io import save_model
+
+    (name,) = _networks(network)
+    t0 = time.perf_counter()
+    net, score = train_network(name, steps, seed, progress=not quiet)
+    save_model(out_path, net, {"network": name, "steps": steps, "seed": seed, "initial_M": "random",
+                               "test_after_training": score})
+    click.echo(f"{name}: {steps:,} steps in {time.perf_counter() - t0:.1f} s; test after training: "
+               f"E {score['E_mm']:.2f} mm, T {score['T_s_per_m']:.1f} s/m, D {score['D']:.3f}, "
+               f"P(5) {score['P5']:.2f}; saved {out_path}")
+
+
+def run() -> None:  # pragma: no cover - console entry with clean errors
+    try:
+        main(standalone_mode=True)
+    except CekmError as exc:
+        click.echo(f"error: {exc}", err=True)
+        sys.exit(2)

@@ -1,0 +1,218 @@
+"""Tables 1-4 and Figures 5-7 of section 4.1 from a results document, beside the paper's values."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+# The paper's published numbers (Low, Leow & Ang 2005, Tables 1-4), for side-by-side tables.
+PAPER_TABLE1 = {  # E (mm), T (s/m), D: mean, std
+    "B15": ((10.02, 3.81), (166.40, 28.49), (0.11, 0.06)),
+    "D15": ((8.37, 2.25), (36.78, 11.11), (0.18, 0.15)),
+    "G9": ((3.40, 1.83), (15.31, 4.64), (0.10, 0.04)),
+    "G12": ((3.89, 1.61), (19.31, 8.47), (0.06, 0.02)),
+    "G15": ((3.23, 0.66), (18.96, 4.37), (0.07, 0.02)),
+    "R15": ((1.29, 0.14), (17.00, 2.48), (0.04, 0.01)),
+}
+PAPER_TABLE3 = {  # P(5), T(5) (s/m), D(5)
+    "B15": ((0.84, 0.05), (144.70, 20.16), (0.04, 0.03)),
+    "D15": ((0.54, 0.07), (18.61, 1.66), (0.18, 0.08)),
+    "G9": ((0.95, 0.08), (8.83, 0.96), (0.07, 0.02)),
+    "G12": ((0.92, 0.09), (8.48, 0.74), (0.03, 0.02)),
+    "G15": ((0.86, 0.04), (8.96, 0.47), (0.06, 0.01)),
+    "R15": ((1.00, 0.01), (8.85, 0.35), (0.03, 0.01)),
+}
+_ROWS = ("R15", "G9", "G12", "G15", "D15")
+_COLS = ("B15", "D15", "G15", "G12", "G9")
+_P = {  # the paper's t-test tables, row -> values in _COLS order (None: blank cell)
+    "E_mm": {"R15": (0.00, 0.00, 0.00, 0.00, 0.02), "G9": (0.00, 0.00, 0.42, 0.33), "G12": (0.01, 0.00, 0.21),
+             "G15": (0.00, 0.00), "D15": (0.22,)},
+    "D": {"R15": (0.01, 0.04, 0.01, 0.04, 0.00), "G9": (0.43, 0.16, 0.09, 0.02), "G12": (0.04, 0.06, 0.09),
+          "G15": (0.12, 0.09), "D15": (0.19,)},
+    "T_s_per_m": {"R15": (0.00, 0.00, 0.20, 0.29, 0.25), "G9": (0.00, 0.00, 0.12, 0.19), "G12": (0.00, 0.01, 0.47),
+                  "G15": (0.00, 0.01), "D15": (0.00,)},
+    "P5": {"R15": (0.00, 0.00, 0.00, 0.04, 0.12), "G9": (0.02, 0.00, 0.03, 0.29), "G12": (0.06, 0.00, 0.11),
+           "G15": (0.26, 0.00), "D15": (0.00,)},
+    "T5_s_per_m": {"R15": (0.00, 0.00, 0.35, 0.17, 0.48), "G9": (0.00, 0.00, 0.40, 0.27), "G12": (0.00, 0.00, 0.13),
+                   "G15": (0.00, 0.00), "D15": (0.00,)},
+    "D5": {"R15": (0.12, 0.00, 0.00, 0.19, 0.00), "G9": (0.09, 0.01, 0.14, 0.02), "G12": (0.31, 0.00, 0.03),
+           "G15": (0.20, 0.01), "D15": (0.00,)},
+}
+_LABEL = {"E_mm": "E (mm)", "T_s_per_m": "T (s/m)", "D": "D", "P5": "P(5)", "T5_s_per_m": "T(5) (s/m)", "D5": "D(5)"}
+
+
+def _ms(entry: dict, digits: int) -> str:
+    if entry is None or entry.get("mean") is None:
+        return "n/a"
+    return f"{entry['mean']:.{digits}f} ± {entry['std']:.{digits}f}"
+
+
+def _paper(pair, digits: int) -> str:
+    return f"{pair[0]:.{digits}f} ± {pair[1]:.{digits}f}"
+
+
+def _perf_table(results: dict, keys: tuple[str, str, str], paper: dict, title: str) -> list[str]:
+    lines = [f"### {title}", "",
+             "| Network | Parameters | " + " | ".join(f"{_LABEL[k]} ours | {_LABEL[k]} paper" for k in keys) + " |",
+             "|---|---:|" + "---:|---:|" * len(keys)]
+    for name, e in results["networks"].items():
+        cells = []
+        for j, k in enumerate(keys):
+            cells.append(_ms(e.get(k), 2))
+            cells.append(_paper(paper[name][j], 2) if name in paper else "")
+        lines.append(f"| {name} | {e['parameters']} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def _p_table(results: dict, key: str) -> list[str]:
+    """One t-test table in the paper's triangular layout: ours, with the paper's value in brackets."""
+    names = set(results["networks"])
+    rows = [r for r in _ROWS if r in names]
+    cols = [c for c in _COLS if c in names]
+    tt = results["t_tests"][key]
+    lines = [f"**{_LABEL[key]}**: ours (paper)", "", "| | " + " | ".join(cols) + " |", "|---|" + "---:|" * len(cols)]
+    for r in rows:
+        paper_row = _P[key][r]
+        cells = []
+        for c in cols:
+            ci = _COLS.index(c)
+            if ci >= len(paper_row):
+                cells.append("")
+                continue
+            p = tt.get(f"{r}|{c}", tt.get(f"{c}|{r}"))
+            cells.append(("n/a" if p is None else f"{p:.2f}") + f" ({paper_row[ci]:.2f})")
+        lines.append(f"| {r} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def tables_markdown(results: dict) -> str:
+    """Tables 1-4 as Markdown, ours beside the paper's."""
+    s = results["settings"]
+    sch = s["schedule"]
+    out = ["# Target reaching (paper section 4.1): Tables 1-4", "",
+           f"{s['trials']} trials x {sch['steps']:,} steps, tested every {sch['test_interval']:,} steps on "
+           f"{sch['test_targets']} targets; seed {s['seed']}. Mean ± std over trials (ours) beside the paper's. "
+           "Absolute E is not comparable with the paper's: ours is set mostly by the target sensor's 1 mm "
+           "resolution (a stop needs the rounded d to be 0; see README).", ""]
+    out += _perf_table(results, ("E_mm", "T_s_per_m", "D"), PAPER_TABLE1, "Table 1: performance after training")
+    out += ["", "Targets that ended by the step budget rather than a stop (per trial, mean ± std): " + ", ".join(
+        f"{n} {_ms(e.get('ended_by_budget'), 1)}" for n, e in results["networks"].items()), ""]
+    out += ["### Table 2: Welch t-test p-values after training", ""]
+    for key in ("E_mm", "D", "T_s_per_m"):
+        out += _p_table(results, key) + [""]
+    out += _perf_table(results, ("P5", "T5_s_per_m", "D5"), PAPER_TABLE3, "Table 3: performance at eps = 5 mm")
+    out += ["", "### Table 4: Welch t-test p-values at eps = 5 mm", ""]
+    for key in ("P5", "T5_s_per_m", "D5"):
+        out += _p_table(results, key) + [""]
+    return "\n".join(out)
+
+
+def headline_orderings(results: dict) -> dict[str, bool | None]:
+    """The paper's headline claims, checked on these results (None when a network is missing)."""
+    n = results["networks"]
+
+    def m(name, key):
+        return n[name][key]["mean"] if name in n and n[name][key]["mean"] is not None else None
+
+    out: dict[str, bool | None] = {}
+    for key in ("E_mm", "D"):
+        if "R15" in n:
+            others = [m(k, key) for k in n if k != "R15"]
+            out[f"R15 lowest {key}"] = all(m("R15", key) < o for o in others if o is not None)
+    indirect = [k for k in n if k[0] in "GR"]
+    for base in ("D15", "B15"):
+        for key in ("E_mm", "T_s_per_m"):
+            if base in n and indirect:
+                out[f"every indirect EKM below {base} in {key}"] = all(m(k, key) < m(base, key) for k in indirect)
+    return out
+
+
+def plot_all(results: dict, trained: dict, out_dir: Path) -> list[Path]:
+    """Fig. 5 (learning curves), Fig. 6 (input weights), Fig. 7 (P, T, D against eps)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out_dir = Path(out_dir)
+    paths = []
+    colours = {"B15": "tab:brown", "D15": "tab:orange", "G9": "tab:green", "G12": "tab:olive", "G15": "tab:cyan",
+               "R15": "tab:blue"}
+    nets = results["networks"]
+
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    for name, e in nets.items():
+        c = e["learning_curves"]
+        steps = np.array(c["steps"]) / 1000.0
+        for ax, key in zip(axes, ("E_mm", "T_s_per_m")):
+            mean, std = np.array(c[key]["mean"]), np.array(c[key]["std"])
+            ax.plot(steps, mean, "-o", ms=3, label=name, color=colours.get(name))
+            ax.fill_between(steps, np.maximum(mean - std, 1e-3), mean + std, alpha=0.15, color=colours.get(name))
+    axes[0].set_ylabel("mean positioning error E (mm)")
+    axes[1].set_ylabel("normalized time-to-target T (s/m)")
+    for ax, letter in zip(axes, "AB"):
+        ax.set_yscale("log")
+        ax.set_xlabel("training steps (thousands)")
+        ax.set_title(f"({letter})", loc="left")
+        ax.grid(alpha=0.3)
+    axes[1].legend(ncol=2, fontsize=8)
+    fig.suptitle("Fig. 5: learning curves (mean ± std over trials)")
+    fig.tight_layout()
+    paths.append(out_dir / "fig5_learning_curves.png")
+    fig.savefig(paths[-1], dpi=120)
+    plt.close(fig)
+
+    order = [n for n in ("G9", "G12", "G15", "R15", "D15", "B15") if n in trained] + [n for n in trained if n not in ("G9", "G12", "G15", "R15", "D15", "B15")]
+    cols = 3
+    rows = int(np.ceil(len(order) / cols))
+    fig, axes = plt.subplots(rows, cols, figsize=(4 * cols, 3.3 * rows), squeeze=False)
+    for ax, name, letter in zip(axes.flat, order, "ABCDEFGHIJKL"):
+        w = trained[name].w
+        ax.scatter(w[:, 0], w[:, 1], s=6, color="k")
+        ax.set_xlim(-np.pi, np.pi)
+        ax.set_ylim(-0.005, max(0.17, float(w[:, 1].max()) + 0.005))
+        ax.set_title(f"({letter}) {name}", loc="left")
+        ax.set_xlabel("alpha (rad)")
+        ax.set_ylabel("d (m)")
+        ax.grid(alpha=0.3)
+    for ax in list(axes.flat)[len(order):]:
+        ax.axis("off")
+    fig.suptitle("Fig. 6: self-organized input weights w_i = (alpha_i, d_i), trial 1")
+    fig.tight_layout()
+    paths.append(out_dir / "fig6_input_weights.png")
+    fig.savefig(paths[-1], dpi=120)
+    plt.close(fig)
+
+    fig, axes = plt.subplots(1, 3, figsize=(14, 4))
+    for name, e in nets.items():
+        ec = e["eps_curves"]
+        eps = np.array(ec["eps_mm"])
+        for ax, key in zip(axes, ("P", "T_s_per_m", "D")):
+            mean = np.array([np.nan if v is None else v for v in ec[key]["mean"]], dtype=float)
+            ax.plot(eps, mean, label=name, color=colours.get(name))
+    for ax, label, letter in zip(axes, ("target reaching probability P(eps)", "normalized time-to-target T(eps) (s/m)",
+                                        "mean deviation D(eps)"), "ABC"):
+        ax.set_xlabel("eps (mm)")
+        ax.set_ylabel(label)
+        ax.set_title(f"({letter})", loc="left")
+        ax.grid(alpha=0.3)
+    axes[1].set_yscale("log")
+    axes[0].legend(fontsize=8)
+    fig.suptitle("Fig. 7: after training, against the reaching radius eps")
+    fig.tight_layout()
+    paths.append(out_dir / "fig7_eps_curves.png")
+    fig.savefig(paths[-1], dpi=120)
+    plt.close(fig)
+    return paths
+
+
+def write_report(results: dict, trained: dict, out_dir: Path) -> list[Path]:
+    """results.json, tables.md and the figures into out_dir."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    written = [out_dir / "results.json", out_dir / "tables.md"]
+    written[0].write_text(json.dumps(results, indent=1))
+    written[1].write_text(tables_markdown(results))
+    return written + plot_all(results, trained, out_dir)

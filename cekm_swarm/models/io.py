@@ -1,0 +1,132 @@
+"""The saved-model format: one ``.npz`` file per trained network.
+
+Fields (format version 1):
+
+==================  ==========================================================
+``format``          the string ``"cekm-model"``
+``format_version``  integer, 1
+``kind``            ``indirect-gd`` | ``indirect-rls`` | ``direct`` | ``bfn``
+``lattice_size``    N (the lattice is N x N)
+``w``               (N*N, 2) input weights (alpha rad, d m)
+``M``               (N*N, 2, 2) control parameters (indirect; internal units)
+``Rinv``            (N*N, 2, 2) RLS state (indirect)
+``C``               (N*N, 2) commands (direct)
+``W``, ``widths``   (N*N, 2) each (bfn); ``won`` (N*N,) 1 where a centre has won (bfn)
+``params``          JSON: CompetitionParams and LearningParams used
+``provenance``      JSON: how it was made (network name, steps, seed, initial M, ...)
+==================  ==========================================================
+
+The file is written atomically (to a temporary name, then renamed).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import zipfile
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ModelFormatError
+from .lattice import Lattice
+from .networks import BasisFunctionNetwork, DirectEKM, IndirectEKM
+from .params import CompetitionParams, LearningParams, params_to_dict
+
+FORMAT = "cekm-model"
+FORMAT_VERSION = 1
+_ARRAYS = {"indirect-gd": ("M", "Rinv"), "indirect-rls": ("M", "Rinv"), "direct": ("C",), "bfn": ("W", "widths", "won")}
+_SHAPES = {"w": (2,), "M": (2, 2), "Rinv": (2, 2), "C": (2,), "W": (2,), "widths": (2,), "won": ()}
+
+
+def save_model(path: str | os.PathLike, net, provenance: dict | None = None) -> Path:
+    """Write ``net`` to ``path`` (``.npz``); returns the path written."""
+    path = Path(path)
+    arrays = {"w": net.w}
+    for name in _ARRAYS[net.kind]:
+        arrays[name] = np.asarray(getattr(net, name), dtype=np.float64)
+    meta = {
+        "format": np.array(FORMAT),
+        "format_version": np.array(FORMAT_VERSION),
+        "kind": np.array(net.kind),
+        "lattice_size": np.array(net.lattice.size),
+        "params": np.array(json.dumps(params_to_dict(net.comp, net.learn_p))),
+        "provenance": np.array(json.dumps(provenance or {})),
+    }
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".tmp")
+    with open(tmp, "wb") as fh:
+        np.savez_compressed(fh, **meta, **arrays)
+    os.replace(tmp, path)
+    return path
+
+
+def _scalar(data, path, key, kind):
+    if key not in data:
+        raise ModelFormatError(path, key, "missing")
+    value = data[key]
+    if value.shape != ():
+        raise ModelFormatError(path, key, f"expected a scalar, got shape {value.shape}")
+    try:
+        return kind(value.item())
+    except (TypeError, ValueError) as exc:
+        raise ModelFormatError(path, key, f"expected {kind.__name__}: {exc}") from None
+
+
+def load_model(path: str | os.PathLike):
+    """Read a saved network; raises :class:`ModelFormatError` naming the file and field on any problem."""
+    path = Path(path)
+    if not path.is_file():
+        raise ModelFormatError(path, None, "no such file")
+    try:
+        with np.load(path, allow_pickle=False) as npz:
+            data = {k: npz[k] for k in npz.files}
+    except (zipfile.BadZipFile, ValueError, OSError, EOFError) as exc:
+        raise ModelFormatError(path, None, f"not a readable .npz model file ({exc})") from None
+    fmt = _scalar(data, path, "format", str)
+    if fmt != FORMAT:
+        raise ModelFormatError(path, "format", f"expected {FORMAT!r}, got {fmt!r}")
+    version = _scalar(data, path, "format_version", int)
+    if version != FORMAT_VERSION:
+        raise ModelFormatError(path, "format_version", f"version {version} is not supported (this library reads {FORMAT_VERSION})")
+    kind = _scalar(data, path, "kind", str)
+    if kind not in _ARRAYS:
+        raise ModelFormatError(path, "kind", f"unknown network kind {kind!r}; expected one of {sorted(_ARRAYS)}")
+    size = _scalar(data, path, "lattice_size", int)
+    if not 2 <= size <= 64:
+        raise ModelFormatError(path, "lattice_size", f"must be 2-64, got {size}")
+    n = size * size
+    arrays = {}
+    for name in ("w", *_ARRAYS[kind]):
+        if name not in data:
+            raise ModelFormatError(path, name, f"missing (required for kind {kind!r})")
+        a = data[name]
+        want = (n, *_SHAPES[name])
+        if a.shape != want:
+            raise ModelFormatError(path, name, f"expected shape {want} for a {size}x{size} lattice, got {a.shape}")
+        if not np.issubdtype(a.dtype, np.floating):
+            raise ModelFormatError(path, name, f"expected floating point values, got dtype {a.dtype}")
+        if not np.all(np.isfinite(a)):
+            raise ModelFormatError(path, name, "contains NaN or infinite values")
+        arrays[name] = a.astype(np.float64)
+    try:
+        params = json.loads(_scalar(data, path, "params", str))
+        comp = CompetitionParams(**params["CompetitionParams"])
+        learn_p = LearningParams(**params["LearningParams"])
+    except ModelFormatError:
+        raise
+    except (ValueError, KeyError, TypeError) as exc:
+        raise ModelFormatError(path, "params", f"unreadable parameters ({exc})") from None
+    lat = Lattice(size)
+    if kind.startswith("indirect"):
+        return IndirectEKM(lat, kind.split("-")[1], arrays["w"], arrays["M"], arrays["Rinv"], comp, learn_p)
+    if kind == "direct":
+        return DirectEKM(lat, arrays["w"], arrays["C"], comp, learn_p)
+    return BasisFunctionNetwork(lat, arrays["w"], arrays["widths"], arrays["W"], arrays["won"] > 0.0, comp, learn_p)
+
+
+def model_provenance(path: str | os.PathLike) -> dict:
+    """The provenance record of a saved model (after the same checks as :func:`load_model`)."""
+    load_model(path)
+    with np.load(path, allow_pickle=False) as npz:
+        return json.loads(npz["provenance"].item())
