@@ -68,20 +68,28 @@ def sense_target(x, y, th, tx, ty, n0, n1, res):
 
 
 @njit(cache=True)
-def move(x, y, th, vl, vr, dt, axle):
-    """Exact differential-drive arc over dt; returns x, y, theta (unwrapped), arc length."""
+def move_arc(x, y, th, s, c, vl, vr, dt, axle):
+    """Exact differential-drive arc over dt from heading th with s, c = sin th, cos th.
+
+    Returns x, y, theta (unwrapped), its sine and cosine, and the arc length; passing the
+    sine and cosine along saves half the trigonometry of a step of sub-steps.
+    """
     v = 0.5 * (vl + vr)
     om = (vr - vl) / axle
     if abs(om) > 1e-12:
         th2 = th + om * dt
+        s2 = math.sin(th2)
+        c2 = math.cos(th2)
         r = v / om
-        x = x + r * (math.sin(th2) - math.sin(th))
-        y = y - r * (math.cos(th2) - math.cos(th))
-    else:
-        th2 = th
-        x = x + v * dt * math.cos(th)
-        y = y + v * dt * math.sin(th)
-    return x, y, th2, abs(v) * dt
+        return x + r * (s2 - s), y - r * (c2 - c), th2, s2, c2, abs(v) * dt
+    return x + v * dt * c, y + v * dt * s, th, s, c, abs(v) * dt
+
+
+@njit(cache=True)
+def move(x, y, th, vl, vr, dt, axle):
+    """Exact differential-drive arc over dt; returns x, y, theta (unwrapped), arc length."""
+    x, y, th, _, _, ds = move_arc(x, y, th, math.sin(th), math.cos(th), vl, vr, dt, axle)
+    return x, y, th, ds
 
 
 @njit(cache=True)
@@ -132,11 +140,13 @@ def drive(pose, c0, c1, wheel_noise, arena, tx, ty, eps, t_eps, path_eps, t_star
     axle = arena[A_AXLE]
     x, y, th = pose[0], pose[1], pose[2]
     th0 = th
+    s = math.sin(th)
+    c = math.cos(th)
     path = 0.0
     touched = False
     ne = eps.shape[0]
     for k in range(wheel_noise.shape[0]):
-        x, y, th, ds = move(x, y, th, c0 * wheel_noise[k, 0], c1 * wheel_noise[k, 1], dt, axle)
+        x, y, th, s, c, ds = move_arc(x, y, th, s, c, c0 * wheel_noise[k, 0], c1 * wheel_noise[k, 1], dt, axle)
         x, y, hit = keep_inside(x, y, lo, hi)
         touched = touched or hit
         path += ds

@@ -147,9 +147,9 @@ def plot_all(results: dict, trained: dict, out_dir: Path) -> list[Path]:
         c = e["learning_curves"]
         steps = np.array(c["steps"]) / 1000.0
         for ax, key in zip(axes, ("E_mm", "T_s_per_m")):
-            mean, std = np.array(c[key]["mean"]), np.array(c[key]["std"])
-            ax.plot(steps, mean, "-o", ms=3, label=name, color=colours.get(name))
-            ax.fill_between(steps, np.maximum(mean - std, 1e-3), mean + std, alpha=0.15, color=colours.get(name))
+            per_trial = np.array(c[key]["per_trial"])
+            ax.plot(steps, per_trial.mean(axis=0), "-o", ms=3, label=name, color=colours.get(name))
+            ax.fill_between(steps, per_trial.min(axis=0), per_trial.max(axis=0), alpha=0.12, color=colours.get(name))
     axes[0].set_ylabel("mean positioning error E (mm)")
     axes[1].set_ylabel("normalized time-to-target T (s/m)")
     for ax, letter in zip(axes, "AB"):
@@ -158,7 +158,7 @@ def plot_all(results: dict, trained: dict, out_dir: Path) -> list[Path]:
         ax.set_title(f"({letter})", loc="left")
         ax.grid(alpha=0.3)
     axes[1].legend(ncol=2, fontsize=8)
-    fig.suptitle("Fig. 5: learning curves (mean ± std over trials)")
+    fig.suptitle("Fig. 5: learning curves (mean over trials; band: range over trials)")
     fig.tight_layout()
     paths.append(out_dir / "fig5_learning_curves.png")
     fig.savefig(paths[-1], dpi=120)

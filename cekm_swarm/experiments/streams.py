@@ -8,6 +8,8 @@ between networks are the networks', not the dice's.
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -81,3 +83,11 @@ class TrialStreams:
         wheel = 1.0 + g.uniform(-wn, wn, size=(s.test_targets, s.test_budget, self.arena.substeps, 2))
         sense = 1.0 + g.uniform(-sn, sn, size=(s.test_targets, s.test_budget, 2))
         return targets, wheel, sense
+
+
+def batch_train_chunk(streams: list[TrialStreams], chunk: int, nsteps: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Every trial's training noise for one chunk, stacked (B, ...); drawn in threads
+    (numpy's generators release the GIL), each trial from its own stream as before."""
+    with ThreadPoolExecutor(max_workers=min(len(streams), os.cpu_count() or 1)) as ex:
+        parts = list(ex.map(lambda st: st.train_chunk(chunk, nsteps), streams))
+    return tuple(np.stack([p[q] for p in parts]) for q in range(3))

@@ -24,16 +24,16 @@ from numba import njit, prange
 from ..models import fast
 from ..models.networks import at_goal
 from .arena import A_RES, Arena, displacement, drive, sense_target
-from .streams import Schedule, TrialStreams
+from .streams import TrialStreams, batch_train_chunk
 
 EMPTY = np.empty(0)
 
 
 @dataclass
 class TestOutcome:
-    __test__ = False  # not a pytest test class
-
     """Per test target: what happened. Arrays have one row per target (eps columns for *_eps)."""
+
+    __test__ = False  # not a pytest test class
 
     final_dist: np.ndarray  # m, after the stop or when the budget ran out
     stopped: np.ndarray  # bool: ended by a stop (c = 0) rather than the budget
@@ -232,8 +232,7 @@ def run_batch(batch: NetworkBatch, streams: list[TrialStreams], eps: np.ndarray,
     targets = np.stack([st.train_targets for st in streams])
     results = [[o] for o in test_batch(batch, streams, eps)]
     for chunk, t0 in enumerate(s.test_points[:-1]):
-        noise = [st.train_chunk(chunk, s.test_interval) for st in streams]
-        wheel, sense, explore = (np.stack([n[q] for n in noise]) for q in range(3))
+        wheel, sense, explore = batch_train_chunk(streams, chunk, s.test_interval)
         _train_batch(batch.code, batch.size, batch.W, batch.P, batch.R, batch.params, arena.vector(), poses, cursors,
                      targets, t0, wheel, sense, explore, s.train_budget)
         for r, o in zip(results, test_batch(batch, streams, eps)):

@@ -56,16 +56,17 @@ def wrap(a):
 def winner(alpha, d, w, p):
     """Eqs. 2-4: the direction set A(alpha) first, then the smallest D over it."""
     n = w.shape[0]
+    das = np.empty(n)
     best_da = np.inf
     for i in range(n):
-        da = abs(wrap(alpha - w[i, 0]))
-        if da < best_da:
-            best_da = da
+        das[i] = wrap(alpha - w[i, 0])
+        if abs(das[i]) < best_da:
+            best_da = abs(das[i])
     limit = best_da + p[P_TOL]
     s = 0
     best = np.inf
     for i in range(n):
-        da = wrap(alpha - w[i, 0])
+        da = das[i]
         if abs(da) <= limit:
             dd = d - w[i, 1]
             dist = p[P_BETA_A] * da * da + p[P_BETA_D] * dd * dd
