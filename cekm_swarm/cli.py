@@ -100,6 +100,55 @@ def train(network: str, steps: int, seed: int, out_path: Path, quiet: bool) -> N
                f"P(5) {score['P5']:.2f}; saved {out_path}")
 
 
+def _load_scenario(name: str):
+    from world import ScenarioError, load_scenario
+
+    try:
+        return load_scenario(name)
+    except ScenarioError as exc:
+        raise click.UsageError(str(exc)) from None
+
+
+def _model(path: Path | None):
+    from .experiments.default_model import default_model
+    from .models.io import load_model
+
+    model = load_model(path) if path else default_model()
+    if not model.kind.startswith("indirect"):
+        raise click.UsageError(f"{path}: the controller needs an indirect-mapping EKM (G or R), not {model.kind!r}")
+    return model
+
+
+@main.command("run")
+@click.argument("scenario")
+@click.option("--controller", type=click.Choice(["cekm", "fusion"]), default="cekm", show_default=True)
+@click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path),
+              help="A trained model (.npz from `cekm train`); default: R15 trained and cached on first use.")
+@click.option("--seed", type=int, help="World seed (default: the scenario's).")
+@click.option("--max-time", default=600.0, show_default=True, type=click.FloatRange(min=1.0),
+              help="Sim seconds before a robot counts as trapped.")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), required=True)
+def run_cmd(scenario: str, controller: str, model_path: Path | None, seed: int | None, max_time: float,
+            out_dir: Path) -> None:
+    """Run SCENARIO (a name under world/scenarios or a .toml path) in one process, no Zenoh."""
+    from .experiments.navigation import plot_run, run_scenario
+
+    sc = _load_scenario(scenario)
+    model = _model(model_path)
+    t0 = time.perf_counter()
+    run = run_scenario(sc, controller, model, seed, max_time)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    doc = {"scenario": sc.name, "controller": controller, "seed": run.seed, "robots": run.outcome,
+           "wall_seconds": round(time.perf_counter() - t0, 3)}
+    (out_dir / "outcome.json").write_text(json.dumps(doc, indent=1))
+    fig = plot_run(run)
+    fig.savefig(out_dir / "trajectory.png", dpi=130)
+    for r, o in run.outcome.items():
+        click.echo(f"{r}: {'reached' if o['reached'] else 'NOT reached'} in {o['time_s']:.1f} s, path "
+                   f"{o['path_length_m']:.2f} m, {o['collisions']} collisions, min clearance {o['min_clearance_m'] * 1000:.0f} mm")
+    click.echo(f"wrote {out_dir / 'outcome.json'}, {out_dir / 'trajectory.png'}")
+
+
 def run() -> None:  # pragma: no cover - console entry with clean errors
     try:
         main(standalone_mode=True)

@@ -284,3 +284,27 @@ def load_arrays(net, w: np.ndarray, P: np.ndarray, R: np.ndarray) -> None:
         net.W[:] = P[:, 0]
         net.widths[:] = P[:, 1]
         net.won[:] = R[:, 0, 0] > 0.0
+
+
+@njit(cache=True)
+def target_field(w, s, sigma_alpha, sigma_d, out):
+    """Eqs. 5-6 into out: a_i = G_a(w_s, w_i)."""
+    ka = 1.0 / (2.0 * sigma_alpha * sigma_alpha)
+    kd = 1.0 / (2.0 * sigma_d * sigma_d)
+    for i in range(w.shape[0]):
+        da = wrap(w[s, 0] - w[i, 0])
+        dd = w[s, 1] - w[i, 1]
+        out[i] = math.exp(-da * da * ka - dd * dd * kd)
+
+
+@njit(cache=True)
+def obstacle_field(w, s, sigma_alpha, sigma_beyond, sigma_near, out):
+    """Eqs. 7-8 into out: b_i = G_b(w_s, w_i), wider beyond the obstacle (d_i >= d_s)."""
+    ka = 1.0 / (2.0 * sigma_alpha * sigma_alpha)
+    kb = 1.0 / (2.0 * sigma_beyond * sigma_beyond)
+    kn = 1.0 / (2.0 * sigma_near * sigma_near)
+    ds = w[s, 1]
+    for i in range(w.shape[0]):
+        da = wrap(w[s, 0] - w[i, 0])
+        dd = ds - w[i, 1]
+        out[i] = math.exp(-da * da * ka - dd * dd * (kb if w[i, 1] >= ds else kn))

@@ -1,0 +1,111 @@
+"""Cooperative EKMs (sections 3.2-3.4): modules as pure functions of their inputs.
+
+Each module is what one process of the distributed runtime runs:
+
+* target localization (every 0.256 s): the sensed target u -> winner s and target field a;
+* obstacle localization j (every 0.128 s, one per distance sensor): u_j -> winner and
+  obstacle field b_j, or nothing when the sensor sees nothing;
+* motor integration (on every arriving field): e = a - sum_j b_j (Eq. 9), k = argmax e
+  (Eq. 10), c by Eq. 11 with M_k; at the goal state c = 0. What the wheels execute is c
+  clipped to c*.
+
+All localization EKMs and the motor EKM share the trained input weights w (section 3.3).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Iterable
+
+import numpy as np
+
+from ..models import fast
+from ..models.fields import motor_control
+from ..models.networks import IndirectEKM
+from ..models.params import FieldParams
+from .readings import RangeReading, TargetReading
+
+
+@dataclass(frozen=True)
+class TargetActivity:
+    """Output of target localization: the input u, its winner s and the target field a."""
+
+    stamp: float
+    alpha: float
+    d: float
+    winner: int | None  # None: no target sensed
+    a: np.ndarray | None
+    at_goal: bool = False
+
+
+@dataclass(frozen=True)
+class ObstacleActivity:
+    """Output of obstacle localization j: its winner and field b_j, None when nothing is sensed."""
+
+    stamp: float
+    index: int
+    winner: int | None
+    b: np.ndarray | None
+
+
+@dataclass(frozen=True)
+class MotorOutput:
+    """The motor EKM's decision: the command c (clipped to c*), the motor winner k, and the
+    target winner s it was compared with."""
+
+    v_l: float
+    v_r: float
+    k: int | None
+    s: int | None
+
+
+@dataclass
+class CooperativeEKM:
+    """The cooperative-EKM controller of one robot, from a trained indirect-mapping EKM."""
+
+    model: IndirectEKM
+    fields: FieldParams = field(default_factory=FieldParams)
+
+    def __post_init__(self) -> None:
+        self._params = fast.pack_params(self.model.comp, self.model.learn_p, self.model.v_max, 1e-3)
+        self.w = np.ascontiguousarray(self.model.w)
+        self.n = self.w.shape[0]
+
+    def localize_target(self, reading: TargetReading, stamp: float) -> TargetActivity:
+        """Target localization (section 3.2): s = winner(u) (Eqs. 2-4), a_i = G_a(w_s, w_i) (Eqs. 5-6)."""
+        if not reading.usable:
+            return TargetActivity(stamp, float("nan"), float("nan"), None, None)
+        if reading.at_goal:
+            return TargetActivity(stamp, reading.alpha, reading.d, None, None, at_goal=True)
+        s = fast.winner(reading.alpha, reading.d, self.w, self._params)
+        a = np.empty(self.n)
+        fast.target_field(self.w, s, self.fields.sigma_a_alpha, self.fields.sigma_a_d, a)
+        return TargetActivity(stamp, reading.alpha, reading.d, int(s), a)
+
+    def localize_obstacle(self, reading: RangeReading, stamp: float) -> ObstacleActivity:
+        """Obstacle localization j (section 3.3): winner for u_j = (alpha_j, d_j), b_i = G_b (Eqs. 7-8)."""
+        if reading.d is None:
+            return ObstacleActivity(stamp, reading.index, None, None)
+        s = fast.winner(reading.alpha, reading.d, self.w, self._params)
+        b = np.empty(self.n)
+        f = self.fields
+        fast.obstacle_field(self.w, s, f.sigma_b_alpha, f.sigma_b_d_beyond, f.sigma_b_d_near, b)
+        return ObstacleActivity(stamp, reading.index, int(s), b)
+
+    def integrate(self, target: TargetActivity | None, obstacles: Iterable[ObstacleActivity]) -> MotorOutput:
+        """Neural integration and motor control (section 3.4, Eqs. 9-11).
+
+        No target sensed yet, or the goal state: the robot stops.
+        """
+        if target is None or target.at_goal or target.a is None:
+            return MotorOutput(0.0, 0.0, None, None)
+        e = target.a.copy()
+        for ob in obstacles:
+            if ob.b is not None:
+                e -= ob.b
+        k = int(np.argmax(e))
+        m = self.model
+        c = motor_control(m.M, self.w, np.array([target.alpha, target.d]), k, target.winner, m.v_max,
+                          m.learn_p.d_scale)
+        c = np.clip(c, -m.v_max, m.v_max)
+        return MotorOutput(float(c[0]), float(c[1]), k, target.winner)

@@ -1,0 +1,304 @@
+"""Section 4.2 in one process: a pymunk world and the robots' controllers, stepped in the
+tick order of :mod:`cekm_swarm.controller.schedule` (the runtime's lockstep mode must
+reproduce it exactly).
+
+This module composes the two sides: it reads the world's sensors, hands the controllers
+plain readings (the message protocol's content) and applies their wheel commands. The
+controller modules never import the world, and the world never imports them.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..controller.cooperative import CooperativeEKM, ObstacleActivity, TargetActivity
+from ..controller.fusion import CommandFusion
+from ..controller.planner import plan_checkpoints
+from ..controller.readings import TargetReading, range_readings
+from ..controller.schedule import SCHEDULE
+from ..errors import ParameterError
+from ..models.params import FieldParams
+
+CONTROLLERS = ("cekm", "fusion")
+CHECKPOINT_RADIUS = 0.03  # m: move on to the next checkpoint once this close (section 4.2)
+DEFAULT_MAX_TIME = 600.0  # s of sim time before a robot counts as trapped
+
+
+@dataclass
+class RobotLog:
+    """One robot's run: its path at every tick and what happened."""
+
+    robot: str
+    t: list[float] = field(default_factory=list)
+    x: list[float] = field(default_factory=list)
+    y: list[float] = field(default_factory=list)
+    theta: list[float] = field(default_factory=list)
+    v_l: list[float] = field(default_factory=list)
+    v_r: list[float] = field(default_factory=list)
+    checkpoints: list[tuple[float, float]] = field(default_factory=list)
+    checkpoint_times: list[float] = field(default_factory=list)
+    reached: bool = False
+    reached_time: float | None = None
+
+
+@dataclass
+class RobotBrain:
+    """Per robot: its controller and the latest output of every module."""
+
+    kind: str
+    controller: Any
+    target: TargetActivity | None = None
+    obstacles: dict[int, ObstacleActivity] = field(default_factory=dict)
+    c_target: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    goal_state: bool = False
+
+    def tick(self, t: float, target_reading: TargetReading | None, ranges) -> tuple[float, float]:
+        """Steps 2-3 of a tick: the modules due compute, then the motor integrates the latest of each."""
+        if self.kind == "cekm":
+            ekm: CooperativeEKM = self.controller
+            if target_reading is not None:
+                self.target = ekm.localize_target(target_reading, t)
+            for r in ranges:
+                self.obstacles[r.index] = ekm.localize_obstacle(r, t)
+            out = ekm.integrate(self.target, self.obstacles.values())
+            self.goal_state = self.target is not None and self.target.at_goal
+            return out.v_l, out.v_r
+        fusion: CommandFusion = self.controller
+        if target_reading is not None:
+            self.c_target = fusion.target_command(target_reading)
+            self.goal_state = target_reading.at_goal
+        if self.goal_state:
+            return 0.0, 0.0
+        c = fusion.fuse(self.c_target, fusion.avoid_command(ranges))
+        return float(c[0]), float(c[1])
+
+
+def make_brain(kind: str, model, world_constants: dict, fields: FieldParams | None = None) -> RobotBrain:
+    if kind == "cekm":
+        return RobotBrain(kind, CooperativeEKM(model, fields or FieldParams()))
+    if kind == "fusion":
+        return RobotBrain(kind, CommandFusion(model, body_radius=world_constants["body_radius"],
+                                              sensor_range=world_constants["sensor_range"]))
+    raise ParameterError(f"unknown controller {kind!r}; expected one of {list(CONTROLLERS)}")
+
+
+@dataclass
+class NavigationRun:
+    scenario: str
+    controller: str
+    seed: int
+    logs: dict[str, RobotLog]
+    outcome: dict[str, dict]
+    geometry: dict
+    final_state: dict
+    plan_paths: dict[str, list] = field(default_factory=dict)
+
+
+def run_scenario(scenario, controller: str = "cekm", model=None, seed: int | None = None,
+                 max_time: float = DEFAULT_MAX_TIME, use_checkpoints: bool | None = None,
+                 fields: FieldParams | None = None, progress=None) -> NavigationRun:
+    """Run a scenario to the end (every robot reached its goal, or max_time).
+
+    ``use_checkpoints``: plan checkpoints on the known walls (Fig. 12); default: when the
+    scenario is called "checkpoints". ``progress(t)`` is called every simulated second.
+    """
+    from world import World
+
+    if controller not in CONTROLLERS:
+        raise ParameterError(f"unknown controller {controller!r}; expected one of {list(CONTROLLERS)}")
+    if model is None:
+        from .default_model import default_model
+
+        model = default_model()
+    world = World(scenario, seed=seed)
+    consts = {"body_radius": world.body_radius, "sensor_range": world.sensor_range}
+    angles = world.sensor_angles
+    geometry = world.static_geometry()
+    if use_checkpoints is None:
+        use_checkpoints = scenario.name == "checkpoints"
+    robots = list(world.robot_ids)
+    brains = {r: make_brain(controller, model, consts, fields) for r in robots}
+    logs = {r: RobotLog(r) for r in robots}
+    plan_paths = {}
+    queue: dict[str, list[tuple[float, float]]] = {}
+    for r in robots:
+        goal = world.goal_of(r)
+        if use_checkpoints:
+            x, y, _ = world.pose(r)
+            plan = plan_checkpoints(geometry, (x, y), goal, body_radius=world.body_radius)
+            logs[r].checkpoints = plan.checkpoints
+            plan_paths[r] = plan.path
+            queue[r] = list(plan.checkpoints)
+            world.set_goal(r, queue[r][0])
+        else:
+            logs[r].checkpoints = [goal]
+            queue[r] = [goal]
+    max_ticks = int(math.ceil(max_time / SCHEDULE.tick_s))
+    for tick in range(max_ticks + 1):
+        t = SCHEDULE.time(tick)
+        if progress and tick % 8 == 0:
+            progress(t)
+        for r in robots:
+            log = logs[r]
+            x, y, th = world.pose(r)
+            ranges = range_readings(world.range_readings(r), angles, world.body_radius)
+            reading = None
+            if SCHEDULE.target_due(tick):
+                reading = TargetReading(*world.target_reading(r))
+                if len(queue[r]) > 1 and reading.usable and reading.d <= CHECKPOINT_RADIUS:
+                    queue[r].pop(0)  # mission logic: on to the next checkpoint
+                    log.checkpoint_times.append(t)
+                    world.set_goal(r, queue[r][0])
+                    reading = TargetReading(*world.target_reading(r))
+            v_l, v_r = brains[r].tick(t, reading, ranges)
+            world.set_wheels(r, v_l, v_r)
+            log.t.append(t)
+            log.x.append(x)
+            log.y.append(y)
+            log.theta.append(th)
+            log.v_l.append(v_l)
+            log.v_r.append(v_r)
+            if brains[r].goal_state and len(queue[r]) == 1 and not log.reached:
+                log.reached, log.reached_time = True, t
+                log.checkpoint_times.append(t)
+        if all(logs[r].reached for r in robots) or tick == max_ticks:
+            break
+        world.advance(SCHEDULE.tick_s)
+    outcome = {}
+    for r in robots:
+        st = world.stats(r)
+        gx, gy = world.goal_of(r)
+        x, y, _ = world.pose(r)
+        log = logs[r]
+        outcome[r] = {
+            "reached": log.reached,
+            "time_s": log.reached_time if log.reached else logs[r].t[-1],
+            "path_length_m": float(st["path_length_m"]),
+            "collisions": int(st["collisions"]),
+            "min_clearance_m": float(st["min_clearance_m"]),
+            "final_distance_m": float(math.hypot(gx - x, gy - y)),
+            "checkpoints": [list(c) for c in log.checkpoints],
+            "checkpoints_reached": len(log.checkpoint_times),
+        }
+    return NavigationRun(scenario.name, controller, world_seed(world, seed, scenario), logs, outcome, geometry,
+                         world.state(), plan_paths)
+
+
+def world_seed(world, seed, scenario) -> int:
+    return int(seed if seed is not None else scenario.seed)
+
+
+def plot_run(run: NavigationRun, ax=None, title: str | None = None):
+    """The run drawn like the paper's figures: walls, obstacles and their motion, robot path, goal, checkpoints."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Circle
+
+    from world.draw import draw_world
+
+    own = ax is None
+    if own:
+        xmin, ymin, xmax, ymax = run.geometry["bounds"]
+        aspect = (ymax - ymin) / max(xmax - xmin, 1e-9)
+        fig, ax = plt.subplots(figsize=(7, max(2.5, 7 * aspect)))
+    draw_world(ax, run.geometry, run.final_state)
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for i, (r, log) in enumerate(run.logs.items()):
+        col = colours[i % len(colours)]
+        ax.plot(log.x, log.y, "-", color=col, lw=1.2, label=f"{r} ({'reached' if log.reached else 'not reached'})")
+        step = max(1, len(log.x) // 40)
+        for x, y in zip(log.x[::step], log.y[::step]):
+            ax.add_patch(Circle((x, y), 0.03, fill=False, edgecolor=col, lw=0.4, alpha=0.5))
+        ax.add_patch(Circle((log.x[0], log.y[0]), 0.03, color=col, alpha=0.6))
+        cps = log.checkpoints
+        if len(cps) > 1:
+            ax.plot([c[0] for c in cps[:-1]], [c[1] for c in cps[:-1]], "o", color="k", ms=4, label="checkpoints")
+        ax.plot(cps[-1][0], cps[-1][1], "*", color="k", ms=10)
+    ax.set_title(title or f"{run.scenario}: {run.controller}, seed {run.seed}")
+    ax.legend(loc="best", fontsize=7)
+    if own:
+        fig.tight_layout()
+        return fig
+    return ax
+
+
+def fields_at(scenario, model, at_time: float, controller_seed: int | None = None, robot: str | None = None,
+              fields: FieldParams | None = None) -> dict:
+    """Run the cooperative EKM to sim time ``at_time`` and return the activities of Fig. 4:
+    the target field, each obstacle field, the combined obstacle fields and the integrated
+    activity, with the winners, the robot's pose and the input weights."""
+    from world import World
+
+    world = World(scenario, seed=controller_seed)
+    robot = robot or world.robot_ids[0]
+    consts = {"body_radius": world.body_radius, "sensor_range": world.sensor_range}
+    brains = {r: make_brain("cekm", model, consts, fields) for r in world.robot_ids}
+    last = int(round(at_time / SCHEDULE.tick_s))
+    for tick in range(last + 1):
+        t = SCHEDULE.time(tick)
+        for r in world.robot_ids:
+            ranges = range_readings(world.range_readings(r), world.sensor_angles, world.body_radius)
+            reading = TargetReading(*world.target_reading(r)) if SCHEDULE.target_due(tick) else None
+            world.set_wheels(r, *brains[r].tick(t, reading, ranges))
+        if tick < last:
+            world.advance(SCHEDULE.tick_s)
+    b = brains[robot]
+    n = model.w.shape[0]
+    a = b.target.a if b.target is not None and b.target.a is not None else np.zeros(n)
+    obstacle = {j: o.b for j, o in sorted(b.obstacles.items()) if o.b is not None}
+    combined = np.sum(list(obstacle.values()), axis=0) if obstacle else np.zeros(n)
+    e = a - combined
+    return {"time": SCHEDULE.time(last), "robot": robot, "pose": world.pose(robot), "w": model.w.copy(),
+            "a": a, "s": None if b.target is None else b.target.winner, "obstacle": obstacle,
+            "obstacle_winners": {j: o.winner for j, o in b.obstacles.items() if o.winner is not None},
+            "combined": combined, "e": e, "k": int(np.argmax(e)), "sensor_angles": world.sensor_angles.copy(),
+            "geometry": world.static_geometry(), "state": world.state()}
+
+
+def plot_fields(f: dict, sensors: tuple[int, int, int] | None = None):
+    """The six panels of Fig. 4 (plus the robot's situation): darker = stronger activity."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    w = f["w"]
+    angles = f["sensor_angles"]
+    if sensors is None:  # the sensors at -pi/6, 0, pi/6, as in the paper
+        sensors = tuple(int(np.argmin(np.abs(np.angle(np.exp(1j * (angles - a)))))) for a in (-np.pi / 6, 0.0, np.pi / 6))
+    panels = [("(A) target localization EKM", f["a"], f["s"])]
+    for letter, j in zip("BCD", sensors):
+        b = f["obstacle"].get(j, np.zeros(len(w)))
+        panels.append((f"({letter}) obstacle EKM, sensor at {angles[j]:+.2f} rad", b, f["obstacle_winners"].get(j)))
+    panels.append(("(E) obstacle EKMs combined", f["combined"], None))
+    panels.append(("(F) integrated (motor EKM)", f["e"], f["k"]))
+    fig, axes = plt.subplots(2, 4, figsize=(17, 7.5), gridspec_kw={"width_ratios": [1, 1, 1, 1.1]})
+    flat = [axes[0, 0], axes[0, 1], axes[0, 2], axes[1, 0], axes[1, 1], axes[1, 2]]
+    for ax, (title, act, win) in zip(flat, panels):
+        sc = ax.scatter(w[:, 0], w[:, 1], c=act, cmap="Greys", s=18, edgecolors="0.6", linewidths=0.3)
+        if win is not None:
+            ax.scatter([w[win, 0]], [w[win, 1]], s=90, facecolors="none", edgecolors="red", linewidths=1.5)
+        ax.set_title(title, fontsize=9, loc="left")
+        ax.set_xlim(-np.pi, np.pi)
+        ax.set_xlabel("alpha (rad)")
+        ax.set_ylabel("d (m)")
+        fig.colorbar(sc, ax=ax, fraction=0.046)
+    from world.draw import draw_world
+
+    for ax in (axes[0, 3], axes[1, 3]):
+        ax.remove()
+    ax = fig.add_subplot(1, 4, 4)
+    draw_world(ax, f["geometry"], f["state"])
+    x, y, th = f["pose"]
+    ax.set_xlim(x - 0.4, x + 0.4)
+    ax.set_ylim(y - 0.4, y + 0.4)
+    ax.set_title(f"robot at t = {f['time']:.2f} s", fontsize=9)
+    fig.suptitle("Fig. 4: activities of the localization and motor EKMs (red: winner)")
+    fig.tight_layout()
+    return fig
