@@ -149,6 +149,68 @@ def run_cmd(scenario: str, controller: str, model_path: Path | None, seed: int |
     click.echo(f"wrote {out_dir / 'outcome.json'}, {out_dir / 'trajectory.png'}")
 
 
+@main.command()
+@click.argument("scenario")
+@click.option("--at", "at_time", type=click.FloatRange(min=0.0), required=True, help="Sim time (s) of the snapshot.")
+@click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path))
+@click.option("--seed", type=int, help="World seed (default: the scenario's).")
+@click.option("--robot", help="Robot id (default: the first).")
+@click.option("--out", "out_path", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help="The PNG to write.")
+def fields(scenario: str, at_time: float, model_path: Path | None, seed: int | None, robot: str | None,
+           out_path: Path) -> None:
+    """Fig. 4: the target field, three obstacle fields, the combined obstacle fields and the
+    integrated activity of the cooperative EKM at sim time --at."""
+    from .experiments.navigation import fields_at, plot_fields
+
+    sc = _load_scenario(scenario)
+    f = fields_at(sc, _model(model_path), at_time, seed, robot)
+    out_path.parent.mkdir(parents=True, exist_ok=True)
+    plot_fields(f).savefig(out_path, dpi=110)
+    x, y, th = f["pose"]
+    click.echo(f"t = {f['time']:.3f} s, {f['robot']} at ({x:.3f}, {y:.3f}, {th:.2f} rad): target winner "
+               f"{f['s']}, motor winner {f['k']} at w = ({f['w'][f['k'], 0]:.2f} rad, {f['w'][f['k'], 1]:.3f} m); "
+               f"wrote {out_path}")
+
+
+@main.group()
+def sweep() -> None:
+    """Parameter sweeps of section 4.2."""
+
+
+@sweep.command("concave")
+@click.option("--depths", default="0.06,0.12,0.18,0.24", show_default=True, help="U depths (m), comma-separated.")
+@click.option("--widths", default="0.1,0.2,0.34,0.5,0.7,1.0", show_default=True, help="U widths (m) to try.")
+@click.option("--ranges", default="0.12,0.17,0.25", show_default=True, help="Sensing ranges (m).")
+@click.option("--seeds", default="1,2,3", show_default=True)
+@click.option("--need", default=2, show_default=True, type=click.IntRange(1), help="Successes a width needs.")
+@click.option("--max-time", default=300.0, show_default=True, type=click.FloatRange(min=1.0))
+@click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path))
+@click.option("--workers", type=click.IntRange(1), help="Parallel processes (default: one per core).")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), required=True)
+def sweep_concave(depths: str, widths: str, ranges: str, seeds: str, need: int, max_time: float,
+                  model_path: Path | None, workers: int | None, out_dir: Path) -> None:
+    """Fig. 9: the widest concave obstacle negotiated, per depth and sensing range."""
+    from .experiments.concave_sweep import SweepConfig, parse_floats, run_sweep, seeds_of, write_sweep
+    from .experiments.default_model import default_model, default_model_path
+
+    try:
+        config = SweepConfig(depths=parse_floats(depths, "depths"), widths=tuple(sorted(parse_floats(widths, "widths"))),
+                             ranges=parse_floats(ranges, "ranges"), seeds=tuple(seeds_of(seeds)), need=need,
+                             max_time=max_time)
+    except CekmError as exc:
+        raise click.UsageError(str(exc)) from None
+    if model_path is None:
+        default_model()
+        model_path = default_model_path()
+    doc = run_sweep(config, model_path, workers)
+    paths = write_sweep(doc, out_dir)
+    for c in doc["grid"]:
+        w = "none" if c["max_width"] is None else f"{c['max_width']:.2f} m"
+        click.echo(f"range {c['range']:.2f} m, depth {c['depth']:.2f} m: widest negotiated {w}")
+    click.echo("wrote " + ", ".join(str(p) for p in paths))
+
+
 def run() -> None:  # pragma: no cover - console entry with clean errors
     try:
         main(standalone_mode=True)

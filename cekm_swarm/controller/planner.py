@@ -100,7 +100,7 @@ def plan_checkpoints(geometry: Mapping[str, Any], start: tuple[float, float], go
     path = [(x0 + (c[1] + 0.5) * resolution, y0 + (c[0] + 0.5) * resolution) for c in cells]
     cl = np.array([clearance[c] for c in cells])
     checkpoints = []
-    window = max(1, int(0.1 / resolution))
+    window = max(1, int(0.2 / resolution))  # one checkpoint per narrow passage
     for i in range(1, len(cl) - 1):
         lo, hi = max(0, i - window), min(len(cl), i + window + 1)
         if cl[i] < doorway_clearance and cl[i] == cl[lo:hi].min():

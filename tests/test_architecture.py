@@ -1,0 +1,45 @@
+"""The package's boundaries: the controller and the world meet only through plain data
+and the message protocol; the numerical core does no I/O."""
+
+import ast
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def imports_of(package: str) -> dict[str, set[str]]:
+    out = {}
+    for path in (ROOT / package.replace(".", "/")).rglob("*.py"):
+        names = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Import):
+                names |= {a.name for a in node.names}
+            elif isinstance(node, ast.ImportFrom):
+                if node.level:  # relative: resolve against the module's package
+                    base = path.relative_to(ROOT).with_suffix("").parts[:-node.level]
+                    names.add(".".join(base + ((node.module,) if node.module else ())))
+                elif node.module:
+                    names.add(node.module)
+        out[str(path.relative_to(ROOT))] = names
+    return out
+
+
+def test_controller_and_models_never_import_the_world():
+    for package in ("cekm_swarm.models", "cekm_swarm.controller"):
+        for path, names in imports_of(package).items():
+            assert not any(n == "world" or n.startswith("world.") for n in names), path
+
+
+def test_world_never_imports_controller_code():
+    for path, names in imports_of("world").items():
+        bad = {n for n in names if n.startswith("cekm_swarm") and not n.startswith(("cekm_swarm.protocol",
+                                                                                      "cekm_swarm.errors"))}
+        assert not bad, (path, bad)
+
+
+def test_numerical_core_does_no_io():
+    io_modules = {"os", "pathlib", "json", "zenoh", "msgpack", "mcap", "socket", "subprocess"}
+    for path, names in imports_of("cekm_swarm.models").items():
+        if path.endswith("io.py"):  # the saved-model format is the core's one file boundary
+            continue
+        assert not (names & io_modules), (path, names & io_modules)
