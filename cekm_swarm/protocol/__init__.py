@@ -1,0 +1,25 @@
+"""The runtime's message protocol: the key space, the messages and their validation.
+
+Imports nothing from the rest of ``cekm_swarm`` but ``cekm_swarm.errors``, so the world
+server (which must not import controller code) can use it.
+"""
+
+from .drops import DropCounter, DropRecord
+from .errors import (KeySpaceError, MessageArrayError, MessageError, MessageFieldError, MessageFormatError,
+                     MessageKindError, MessageVersionError, ProtocolError)
+from .keys import (DEFAULT_KEYS, DEFAULT_RANGE_SENSORS, DEFAULT_ROOT, WORLD, KeyKind, KeySpace, ParsedKey,
+                   validate_module_name, validate_robot_id, validate_root)
+from .messages import (MESSAGE_TYPES, MSGPACK_ENCODING, SCHEMA_VERSION, Clock, Message, ObstacleField, SenseRange,
+                       SenseTarget, Share, TargetField, WheelCommand, WorldState, decode, encode, peek, summary,
+                       to_plain)
+
+__all__ = [
+    "DropCounter", "DropRecord",
+    "KeySpaceError", "MessageArrayError", "MessageError", "MessageFieldError", "MessageFormatError",
+    "MessageKindError", "MessageVersionError", "ProtocolError",
+    "DEFAULT_KEYS", "DEFAULT_RANGE_SENSORS", "DEFAULT_ROOT", "WORLD", "KeyKind", "KeySpace", "ParsedKey",
+    "validate_module_name", "validate_robot_id", "validate_root",
+    "MESSAGE_TYPES", "MSGPACK_ENCODING", "SCHEMA_VERSION", "Clock", "Message", "ObstacleField", "SenseRange",
+    "SenseTarget", "Share", "TargetField", "WheelCommand", "WorldState", "decode", "encode", "peek", "summary",
+    "to_plain",
+]

@@ -1,0 +1,263 @@
+"""The Zenoh key space of DESIGN.md section 6: build and parse every key.
+
+Keys (root ``cekm`` by default, ``<robot>`` a robot id such as ``r1``):
+
+========================================  ======================
+``<root>/<robot>/sense/target``           KeyKind.SENSE_TARGET
+``<root>/<robot>/sense/range/<j>``        KeyKind.SENSE_RANGE
+``<root>/<robot>/field/target``           KeyKind.FIELD_TARGET
+``<root>/<robot>/field/obstacle/<j>``     KeyKind.FIELD_OBSTACLE
+``<root>/<robot>/cmd/wheels``             KeyKind.CMD_WHEELS
+``<root>/<robot>/share``                  KeyKind.SHARE
+``<root>/world/state``                    KeyKind.WORLD_STATE
+``<root>/world/clock``                    KeyKind.WORLD_CLOCK
+``<root>/<owner>/alive/<module>``         KeyKind.ALIVE (liveliness tokens)
+========================================  ======================
+
+``world`` is reserved: it is not a robot id, but it may own liveliness tokens
+(``cekm/world/alive/server``). Building a key validates every part, so a bad robot id
+or sensor index fails where it is made, not somewhere downstream.
+"""
+
+from __future__ import annotations
+
+import enum
+import operator
+import re
+from dataclasses import dataclass
+
+from .errors import KeySpaceError
+
+WORLD = "world"
+"""The reserved owner segment of the world server's keys."""
+
+DEFAULT_ROOT = "cekm"
+DEFAULT_RANGE_SENSORS = 12
+
+_ROBOT_RE = re.compile(r"[A-Za-z][A-Za-z0-9_-]{0,63}\Z")
+_MODULE_RE = re.compile(r"[A-Za-z][A-Za-z0-9_.-]{0,63}\Z")
+_CHUNK_RE = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*\Z")
+
+
+class KeyKind(str, enum.Enum):
+    """What a key carries; the value is the key's suffix after the robot segment."""
+
+    SENSE_TARGET = "sense/target"
+    SENSE_RANGE = "sense/range"
+    FIELD_TARGET = "field/target"
+    FIELD_OBSTACLE = "field/obstacle"
+    CMD_WHEELS = "cmd/wheels"
+    SHARE = "share"
+    WORLD_STATE = "world/state"
+    WORLD_CLOCK = "world/clock"
+    ALIVE = "alive"
+
+    @property
+    def indexed(self) -> bool:
+        """True for the kinds whose key ends with a sensor index."""
+        return self in (KeyKind.SENSE_RANGE, KeyKind.FIELD_OBSTACLE)
+
+
+@dataclass(frozen=True, slots=True)
+class ParsedKey:
+    """A key taken apart: its kind, robot (or ``world`` owner), sensor index and module."""
+
+    kind: KeyKind
+    robot: str | None = None
+    index: int | None = None
+    module: str | None = None
+
+
+def validate_robot_id(robot: object) -> str:
+    """Return ``robot`` if it is a valid robot id (a letter, then letters, digits, ``_`` or ``-``)."""
+    if not isinstance(robot, str):
+        raise KeySpaceError("robot id", f"expected a string, got {type(robot).__name__}")
+    if robot == WORLD:
+        raise KeySpaceError(f"robot id '{robot}'", "'world' is reserved for the world server's keys")
+    if not _ROBOT_RE.match(robot):
+        raise KeySpaceError(f"robot id {robot!r}",
+                            "must start with a letter and hold only letters, digits, '_' or '-' (at most 64)")
+    return robot
+
+
+def validate_module_name(module: object) -> str:
+    """Return ``module`` if it is a valid module name (e.g. ``target``, ``obstacle-3``, ``motor``)."""
+    if not isinstance(module, str):
+        raise KeySpaceError("module name", f"expected a string, got {type(module).__name__}")
+    if not _MODULE_RE.match(module):
+        raise KeySpaceError(f"module name {module!r}",
+                            "must start with a letter and hold only letters, digits, '_', '.' or '-' (at most 64)")
+    return module
+
+
+def validate_root(root: object) -> str:
+    """Return ``root`` if it is a valid key root: '/'-separated plain chunks, no wildcards."""
+    if not isinstance(root, str) or not root:
+        raise KeySpaceError("key root", f"expected a non-empty string, got {root!r}")
+    for chunk in root.split("/"):
+        if not _CHUNK_RE.match(chunk):
+            raise KeySpaceError(f"key root {root!r}",
+                                f"chunk {chunk!r} must be letters, digits, '_', '.' or '-' (no wildcards, no empty chunks)")
+    return root
+
+
+@dataclass(frozen=True, slots=True)
+class KeySpace:
+    """The key space under one root, for robots with ``range_sensors`` distance sensors."""
+
+    root: str = DEFAULT_ROOT
+    range_sensors: int = DEFAULT_RANGE_SENSORS
+
+    def __post_init__(self) -> None:
+        validate_root(self.root)
+        if isinstance(self.range_sensors, bool) or not isinstance(self.range_sensors, int) or self.range_sensors < 1:
+            raise KeySpaceError("range_sensors", f"expected a positive integer, got {self.range_sensors!r}")
+
+    # ------------------------------------------------------------------ checks
+
+    def check_index(self, index: object, what: str = "sensor index") -> int:
+        """Return ``index`` as an int if it is a sensor index 0 .. range_sensors-1."""
+        if isinstance(index, bool):
+            raise KeySpaceError(what, "expected an integer, got bool")
+        try:
+            j = operator.index(index)  # type: ignore[arg-type]
+        except TypeError:
+            raise KeySpaceError(what, f"expected an integer, got {type(index).__name__}") from None
+        if not 0 <= j < self.range_sensors:
+            raise KeySpaceError(f"{what} {j}", f"out of range 0..{self.range_sensors - 1}")
+        return j
+
+    def _robot(self, robot: str) -> str:
+        return f"{self.root}/{validate_robot_id(robot)}"
+
+    # ------------------------------------------------------------------ builders
+
+    def sense_target(self, robot: str) -> str:
+        """World -> target module: the robot's target reading."""
+        return f"{self._robot(robot)}/sense/target"
+
+    def sense_range(self, robot: str, j: int) -> str:
+        """World -> obstacle module j: distance sensor j's reading."""
+        return f"{self._robot(robot)}/sense/range/{self.check_index(j)}"
+
+    def field_target(self, robot: str) -> str:
+        """Target module -> motor module: the target field."""
+        return f"{self._robot(robot)}/field/target"
+
+    def field_obstacle(self, robot: str, j: int) -> str:
+        """Obstacle module j -> motor module: sensor j's obstacle field."""
+        return f"{self._robot(robot)}/field/obstacle/{self.check_index(j)}"
+
+    def cmd_wheels(self, robot: str) -> str:
+        """Motor module -> world: the wheel command."""
+        return f"{self._robot(robot)}/cmd/wheels"
+
+    def share(self, robot: str) -> str:
+        """Robot -> teammates: own pose and targets seen."""
+        return f"{self._robot(robot)}/share"
+
+    def world_state(self) -> str:
+        """World -> monitors: ground-truth state."""
+        return f"{self.root}/{WORLD}/state"
+
+    def world_clock(self) -> str:
+        """World -> all: sim time (lockstep)."""
+        return f"{self.root}/{WORLD}/clock"
+
+    def alive(self, owner: str, module: str) -> str:
+        """Liveliness token of a module of robot ``owner`` (or of the world server, owner ``world``)."""
+        head = f"{self.root}/{WORLD}" if owner == WORLD else self._robot(owner)
+        return f"{head}/alive/{validate_module_name(module)}"
+
+    def key(self, kind: KeyKind | str, robot: str | None = None, index: int | None = None,
+            module: str | None = None) -> str:
+        """Build the key of ``kind`` (the inverse of :meth:`parse`)."""
+        kind = KeyKind(kind)
+        if kind is KeyKind.WORLD_STATE:
+            return self.world_state()
+        if kind is KeyKind.WORLD_CLOCK:
+            return self.world_clock()
+        if robot is None:
+            raise KeySpaceError(f"key of kind '{kind.value}'", "needs a robot id")
+        if kind is KeyKind.ALIVE:
+            if module is None:
+                raise KeySpaceError("liveliness key", "needs a module name")
+            return self.alive(robot, module)
+        if kind.indexed:
+            if index is None:
+                raise KeySpaceError(f"key of kind '{kind.value}'", "needs a sensor index")
+            return f"{self._robot(robot)}/{kind.value}/{self.check_index(index)}"
+        return f"{self._robot(robot)}/{kind.value}"
+
+    # ------------------------------------------------------------------ selectors
+
+    def everything(self) -> str:
+        """Key expression matching every key under the root."""
+        return f"{self.root}/**"
+
+    def robot_keys(self, robot: str) -> str:
+        """Key expression matching every key of one robot."""
+        return f"{self._robot(robot)}/**"
+
+    def alive_all(self) -> str:
+        """Key expression matching every liveliness token (robots' and the world's)."""
+        return f"{self.root}/*/alive/*"
+
+    # ------------------------------------------------------------------ parser
+
+    def parse(self, key: str) -> ParsedKey:
+        """Take ``key`` apart; raise KeySpaceError naming the key when it is not in this key space."""
+        if not isinstance(key, str):
+            raise KeySpaceError("key", f"expected a string, got {type(key).__name__}")
+        prefix = self.root + "/"
+        if not key.startswith(prefix):
+            raise KeySpaceError(f"key '{key}'", f"not under the root '{self.root}'")
+        parts = key[len(prefix):].split("/")
+        owner, rest = parts[0], parts[1:]
+        if owner == WORLD:
+            if rest == ["state"]:
+                return ParsedKey(KeyKind.WORLD_STATE)
+            if rest == ["clock"]:
+                return ParsedKey(KeyKind.WORLD_CLOCK)
+            if len(rest) == 2 and rest[0] == "alive":
+                return ParsedKey(KeyKind.ALIVE, WORLD, None, self._module_in(key, rest[1]))
+            raise KeySpaceError(f"key '{key}'", "unknown world key (expected world/state, world/clock or world/alive/<module>)")
+        try:
+            validate_robot_id(owner)
+        except KeySpaceError as exc:
+            raise KeySpaceError(f"key '{key}'", f"bad robot id: {exc.problem}") from None
+        n = len(rest)
+        if n == 1 and rest[0] == "share":
+            return ParsedKey(KeyKind.SHARE, owner)
+        if n == 2:
+            suffix = f"{rest[0]}/{rest[1]}"
+            for kind in (KeyKind.SENSE_TARGET, KeyKind.FIELD_TARGET, KeyKind.CMD_WHEELS):
+                if suffix == kind.value:
+                    return ParsedKey(kind, owner)
+            if rest[0] == "alive":
+                return ParsedKey(KeyKind.ALIVE, owner, None, self._module_in(key, rest[1]))
+        if n == 3:
+            suffix = f"{rest[0]}/{rest[1]}"
+            for kind in (KeyKind.SENSE_RANGE, KeyKind.FIELD_OBSTACLE):
+                if suffix == kind.value:
+                    return ParsedKey(kind, owner, self._index_in(key, rest[2]))
+        raise KeySpaceError(f"key '{key}'", "not a key of the cekm key space (DESIGN.md section 6)")
+
+    def _index_in(self, key: str, text: str) -> int:
+        if not text.isdigit() or (len(text) > 1 and text[0] == "0") or not text.isascii():
+            raise KeySpaceError(f"key '{key}'", f"sensor index {text!r} is not a plain non-negative integer")
+        j = int(text)
+        if j >= self.range_sensors:
+            raise KeySpaceError(f"key '{key}'", f"sensor index {j} out of range 0..{self.range_sensors - 1}")
+        return j
+
+    @staticmethod
+    def _module_in(key: str, text: str) -> str:
+        try:
+            return validate_module_name(text)
+        except KeySpaceError as exc:
+            raise KeySpaceError(f"key '{key}'", f"bad module name: {exc.problem}") from None
+
+
+DEFAULT_KEYS = KeySpace()
+"""The key space with root ``cekm`` and 12 distance sensors."""
