@@ -1,0 +1,115 @@
+"""Zenoh configurations and session opening: the embedded router and clients.
+
+The embedded default needs no ``zenohd`` binary: a router session is opened in-process
+from the Python wheel (``mode: router``) and module processes join it as clients.
+Multicast scouting is always off, so parallel runs (and tests) on one machine never
+find each other; every connection is an explicit endpoint.
+"""
+
+from __future__ import annotations
+
+import json
+import socket
+from pathlib import Path
+
+import zenoh
+
+from .errors import RuntimeTransportError
+
+DEFAULT_HOST = "127.0.0.1"
+DEFAULT_PORT = 7447
+DEFAULT_ENDPOINT = f"tcp/{DEFAULT_HOST}:{DEFAULT_PORT}"
+"""Where the launcher's embedded router listens, and where tools connect by default."""
+
+
+def free_port(host: str = DEFAULT_HOST) -> int:
+    """A TCP port free on ``host`` right now (bound and released; for tests and launchers)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind((host, 0))
+        return int(s.getsockname()[1])
+
+
+def _insert(config: zenoh.Config, path: str, value: object) -> None:
+    try:
+        config.insert_json5(path, json.dumps(value))
+    except Exception as exc:  # zenoh raises ZError with the reason
+        raise RuntimeTransportError(f"zenoh config: cannot set '{path}' to {value!r}: {exc}") from None
+
+
+def _common(config: zenoh.Config) -> None:
+    _insert(config, "scouting/multicast/enabled", False)
+    # No scouting happens, so no need to wait the default 500 ms for it when opening.
+    _insert(config, "scouting/delay", 0)
+
+
+def check_endpoint(endpoint: str) -> str:
+    """Return ``endpoint`` if it looks like a Zenoh locator ``proto/host:port``."""
+    proto, sep, rest = endpoint.partition("/")
+    host, colon, port = rest.rpartition(":")
+    if not sep or proto not in ("tcp", "udp", "tls", "quic", "ws", "unixsock-stream") or (
+            proto != "unixsock-stream" and (not colon or not host or not port.isdigit())):
+        raise RuntimeTransportError(f"endpoint {endpoint!r}: expected e.g. 'tcp/127.0.0.1:7447'")
+    return endpoint
+
+
+def embedded_router_config(port: int = DEFAULT_PORT, host: str = DEFAULT_HOST) -> zenoh.Config:
+    """Router mode, listening on ``tcp/host:port``, multicast scouting off."""
+    config = zenoh.Config()
+    _insert(config, "mode", "router")
+    _insert(config, "listen/endpoints", [check_endpoint(f"tcp/{host}:{int(port)}")])
+    _common(config)
+    return config
+
+
+def client_config(endpoint: str = DEFAULT_ENDPOINT, *, user: str | None = None,
+                  password: str | None = None) -> zenoh.Config:
+    """Client mode connecting to ``endpoint``, multicast scouting off, optional user/password."""
+    config = zenoh.Config()
+    _insert(config, "mode", "client")
+    _insert(config, "connect/endpoints", [check_endpoint(endpoint)])
+    _common(config)
+    if (user is None) != (password is None):
+        raise RuntimeTransportError("client config: give both user and password, or neither")
+    if user is not None:
+        _insert(config, "transport/auth/usrpwd/user", user)
+        _insert(config, "transport/auth/usrpwd/password", password)
+    return config
+
+
+def load_config(path: str | Path, overrides: dict[str, object] | None = None) -> zenoh.Config:
+    """A config file (JSON5) with optional overrides {'path/in/config': value}."""
+    path = Path(path)
+    if not path.is_file():
+        raise RuntimeTransportError(f"zenoh config {path}: no such file")
+    try:
+        config = zenoh.Config.from_file(str(path))
+    except Exception as exc:
+        raise RuntimeTransportError(f"zenoh config {path}: {exc}") from None
+    for k, v in (overrides or {}).items():
+        _insert(config, k, v)
+    return config
+
+
+def open_session(config: zenoh.Config, what: str = "zenoh session") -> zenoh.Session:
+    """zenoh.open with a precise error (unreachable endpoint, bad credentials, busy port)."""
+    try:
+        return zenoh.open(config)
+    except Exception as exc:
+        detail = str(exc).split(" at /", 1)[0]
+        try:
+            mode = json.loads(config.get_json("mode"))
+            eps = json.loads(config.get_json("listen/endpoints" if mode == "router" else "connect/endpoints"))
+        except Exception:
+            mode, eps = "?", "?"
+        raise RuntimeTransportError(f"cannot open {what} ({mode}, endpoints {eps}): {detail}") from None
+
+
+def open_embedded_router(port: int = DEFAULT_PORT, host: str = DEFAULT_HOST) -> zenoh.Session:
+    """Open the in-process router on ``tcp/host:port`` (fails clearly if the port is taken)."""
+    return open_session(embedded_router_config(port, host), "embedded router")
+
+
+def open_client(endpoint: str = DEFAULT_ENDPOINT, *, user: str | None = None,
+                password: str | None = None) -> zenoh.Session:
+    """Open a client session to ``endpoint`` (fails at once if nothing listens there)."""
+    return open_session(client_config(endpoint, user=user, password=password), "client session")

@@ -1,0 +1,201 @@
+"""Foxglove view channels in the project's MCAP logs (Foxglove cannot decode msgpack).
+
+Messages are built with the ``foxglove-sdk`` package's types
+(``foxglove.messages.SceneUpdate(...).encode()`` gives protobuf bytes and
+``SceneUpdate.get_schema()`` the official ``foxglove.SceneUpdate`` protobuf schema),
+then written through :class:`~cekm_swarm.runtime.mcap_log.McapRecorder`, so one file
+holds both the raw msgpack channels and these views.
+
+Channels: ``/view/scene`` (SceneUpdate: walls, static and moving obstacles, targets,
+robots with a heading arrow and a label), ``/view/tf`` (FrameTransforms ``world`` ->
+each robot), ``/view/path/<robot>`` (PosesInFrame: the robot's path so far).
+
+Input is plain data in the shapes ``world.World.static_geometry()`` and
+``world.World.state()`` return (this module does not import the world package).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from .mcap_log import McapRecorder, SchemaSpec
+
+try:  # optional dependency: foxglove-sdk
+    import foxglove.messages as fm
+except ImportError:  # pragma: no cover - exercised only where foxglove-sdk is missing
+    fm = None
+
+SCENE_TOPIC = "/view/scene"
+TF_TOPIC = "/view/tf"
+PATH_TOPIC = "/view/path/{robot}"
+WORLD_FRAME = "world"
+PATH_STEP = 0.005
+PATH_MAX = 2000
+
+_WALL = (0.45, 0.45, 0.5, 1.0)
+_KNOWN_OBSTACLE = (0.35, 0.35, 0.75, 0.9)
+_UNKNOWN_OBSTACLE = (0.75, 0.35, 0.35, 0.9)
+_ROBOT = (0.1, 0.55, 0.95, 1.0)
+_TARGET = (0.95, 0.6, 0.1, 1.0)
+_HEIGHT = 0.05
+
+
+def available() -> bool:
+    """True when the foxglove-sdk package is installed."""
+    return fm is not None
+
+
+def _need() -> Any:
+    if fm is None:
+        raise ImportError("Foxglove view channels need the foxglove-sdk package (pip install foxglove-sdk)")
+    return fm
+
+
+def _stamp(t: float) -> Any:
+    ns = max(0, int(round(t * 1e9)))
+    return fm.Timestamp(ns // 1_000_000_000, ns % 1_000_000_000)
+
+
+def _color(c: Sequence[float]) -> Any:
+    return fm.Color(r=c[0], g=c[1], b=c[2], a=c[3])
+
+
+def _yaw(yaw: float) -> Any:
+    return fm.Quaternion(x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2))
+
+
+def _pose(x: float, y: float, z: float = 0.0, yaw: float = 0.0) -> Any:
+    return fm.Pose(position=fm.Vector3(x=x, y=y, z=z), orientation=_yaw(yaw))
+
+
+def _schema(cls: Any) -> SchemaSpec:
+    s = cls.get_schema()
+    return SchemaSpec(s.name, s.encoding, bytes(s.data))
+
+
+def _loop(points: Sequence[Sequence[float]], z: float, color: Sequence[float], thickness: float = 0.004) -> Any:
+    pts = [fm.Point3(x=float(p[0]), y=float(p[1]), z=z) for p in points]
+    return fm.LinePrimitive(type=fm.LinePrimitiveLineType.LineLoop, pose=_pose(0, 0), thickness=thickness,
+                            scale_invariant=False, points=pts, color=_color(color))
+
+
+def _fill(parts: Sequence[Sequence[Sequence[float]]], z: float, color: Sequence[float]) -> Any:
+    """Convex parts as one triangle list (fan triangulation of each part)."""
+    pts = []
+    for part in parts:
+        for i in range(1, len(part) - 1):
+            for p in (part[0], part[i], part[i + 1]):
+                pts.append(fm.Point3(x=float(p[0]), y=float(p[1]), z=z))
+    return fm.TriangleListPrimitive(pose=_pose(0, 0), points=pts, color=_color(color))
+
+
+class FoxgloveViews:
+    """Writes the view channels of one run into ``recorder``."""
+
+    def __init__(self, recorder: McapRecorder, *, robot_radius: float = 0.03) -> None:
+        _need()
+        self.recorder = recorder
+        self.robot_radius = robot_radius
+        self._scene = _schema(fm.SceneUpdate)
+        self._tf = _schema(fm.FrameTransforms)
+        self._poses = _schema(fm.PosesInFrame)
+        self._moving: dict[str, Mapping[str, Any]] = {}
+        self._paths: dict[str, tuple[list[tuple[float, float, float]], list[Any]]] = {}
+
+    def _put(self, topic: str, schema: SchemaSpec, msg: Any, t: float) -> None:
+        self.recorder.write_encoded(topic, "protobuf", schema, msg.encode(), t)
+
+    def write_geometry(self, t: float, geometry: Mapping[str, Any]) -> None:
+        """The static scene (walls, polygons, discs) once, as entities without lifetime."""
+        ts = _stamp(t)
+        entities = []
+        for i, w in enumerate(geometry.get("walls", ())):
+            (ax, ay), (bx, by) = w["a"], w["b"]
+            th = float(w.get("thickness", 0.01))
+            length = math.hypot(bx - ax, by - ay) + th
+            cube = fm.CubePrimitive(pose=_pose((ax + bx) / 2, (ay + by) / 2, _HEIGHT / 2, math.atan2(by - ay, bx - ax)),
+                                    size=fm.Vector3(x=length, y=th, z=_HEIGHT), color=_color(_WALL))
+            entities.append(fm.SceneEntity(timestamp=ts, frame_id=WORLD_FRAME, id=f"wall/{i}", cubes=[cube]))
+        for p in geometry.get("polygons", ()):
+            color = _KNOWN_OBSTACLE if p.get("known", True) else _UNKNOWN_OBSTACLE
+            parts = p.get("parts") or [p["vertices"]]
+            entities.append(fm.SceneEntity(timestamp=ts, frame_id=WORLD_FRAME, id=f"obstacle/{p['id']}",
+                                           triangles=[_fill(parts, 0.001, color)],
+                                           lines=[_loop(p["vertices"], 0.002, color)]))
+        for d in geometry.get("discs", ()):
+            color = _KNOWN_OBSTACLE if d.get("known", True) else _UNKNOWN_OBSTACLE
+            r = float(d["radius"])
+            cyl = fm.CylinderPrimitive(pose=_pose(d["center"][0], d["center"][1], _HEIGHT / 2),
+                                       size=fm.Vector3(x=2 * r, y=2 * r, z=_HEIGHT), bottom_scale=1.0, top_scale=1.0,
+                                       color=_color(color))
+            entities.append(fm.SceneEntity(timestamp=ts, frame_id=WORLD_FRAME, id=f"obstacle/{d['id']}",
+                                           cylinders=[cyl]))
+        for m in geometry.get("moving_obstacles", ()):
+            self._moving[str(m["id"])] = m
+        self.robot_radius = float(geometry.get("body_radius", self.robot_radius))
+        self._put(SCENE_TOPIC, self._scene, fm.SceneUpdate(entities=entities), t)
+
+    def _path_step(self, rid: str, x: float, y: float, th: float) -> bool:
+        """Extend the robot's path if it moved (>= PATH_STEP m or 0.2 rad); True if extended."""
+        raw, poses = self._paths.setdefault(rid, ([], []))
+        if raw:
+            lx, ly, lth = raw[-1]
+            if math.hypot(x - lx, y - ly) < PATH_STEP and abs(math.remainder(th - lth, math.tau)) < 0.2:
+                return False
+        raw.append((x, y, th))
+        poses.append(_pose(x, y, 0.0, th))
+        if len(poses) > PATH_MAX:  # thin the older half so messages stay bounded on long runs
+            half = len(poses) // 2
+            raw[:half] = raw[:half:2]
+            poses[:half] = poses[:half:2]
+        return True
+
+    def write_state(self, t: float, state: Mapping[str, Any]) -> None:
+        """Robots, targets and moving obstacles at sim time ``t`` (a ``World.state()``-shaped
+        map), the ``world`` -> robot transforms, and each robot's path so far."""
+        ts = _stamp(t)
+        r = self.robot_radius
+        entities, transforms = [], []
+        for rid, rs in state.get("robots", {}).items():
+            x, y, th = float(rs["x"]), float(rs["y"]), float(rs["theta"])
+            body = fm.CylinderPrimitive(pose=_pose(x, y, _HEIGHT / 2), size=fm.Vector3(x=2 * r, y=2 * r, z=_HEIGHT),
+                                        bottom_scale=1.0, top_scale=1.0, color=_color(_ROBOT))
+            arrow = fm.ArrowPrimitive(pose=_pose(x, y, _HEIGHT + 0.005, th), shaft_length=1.2 * r,
+                                      shaft_diameter=0.2 * r, head_length=0.6 * r, head_diameter=0.5 * r,
+                                      color=_color((1, 1, 1, 1)))
+            label = fm.TextPrimitive(pose=_pose(x, y, _HEIGHT + 0.03), billboard=True, font_size=14.0,
+                                     scale_invariant=True, color=_color((1, 1, 1, 1)), text=str(rid))
+            entities.append(fm.SceneEntity(timestamp=ts, frame_id=WORLD_FRAME, id=f"robot/{rid}", cylinders=[body],
+                                           arrows=[arrow], texts=[label]))
+            transforms.append(fm.FrameTransform(timestamp=ts, parent_frame_id=WORLD_FRAME, child_frame_id=str(rid),
+                                                translation=fm.Vector3(x=x, y=y, z=0.0),
+                                                rotation=_yaw(th)))
+            if self._path_step(str(rid), x, y, th):
+                self._put(PATH_TOPIC.format(robot=rid), self._poses,
+                          fm.PosesInFrame(timestamp=ts, frame_id=WORLD_FRAME, poses=self._paths[str(rid)][1]), t)
+        for tid, tg in state.get("targets", {}).items():
+            sphere = fm.SpherePrimitive(pose=_pose(float(tg["x"]), float(tg["y"]), 0.01),
+                                        size=fm.Vector3(x=0.02, y=0.02, z=0.02), color=_color(_TARGET))
+            entities.append(fm.SceneEntity(timestamp=ts, frame_id=WORLD_FRAME, id=f"target/{tid}", spheres=[sphere]))
+        for oid, os_ in state.get("obstacles", {}).items():
+            shape = self._moving.get(str(oid), {})
+            x, y, th = float(os_["x"]), float(os_["y"]), float(os_.get("theta", 0.0))
+            if shape.get("radius"):
+                rr = float(shape["radius"])
+                prim = {"cylinders": [fm.CylinderPrimitive(pose=_pose(x, y, _HEIGHT / 2),
+                                                           size=fm.Vector3(x=2 * rr, y=2 * rr, z=_HEIGHT),
+                                                           bottom_scale=1.0, top_scale=1.0,
+                                                           color=_color(_UNKNOWN_OBSTACLE))]}
+            elif shape.get("vertices"):
+                c, s = math.cos(th), math.sin(th)
+                pts = [(x + c * px - s * py, y + s * px + c * py) for px, py in shape["vertices"]]
+                prim = {"lines": [_loop(pts, 0.002, _UNKNOWN_OBSTACLE)]}
+            else:
+                prim = {"spheres": [fm.SpherePrimitive(pose=_pose(x, y, 0.01), size=fm.Vector3(x=0.03, y=0.03, z=0.03),
+                                                       color=_color(_UNKNOWN_OBSTACLE))]}
+            entities.append(fm.SceneEntity(timestamp=ts, frame_id=WORLD_FRAME, id=f"obstacle/{oid}", **prim))
+        self._put(SCENE_TOPIC, self._scene, fm.SceneUpdate(entities=entities), t)
+        if transforms:
+            self._put(TF_TOPIC, self._tf, fm.FrameTransforms(transforms=transforms), t)
