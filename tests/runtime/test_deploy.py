@@ -1,0 +1,169 @@
+"""deploy/: the configs load with zenoh.Config.from_file, and the router's access control
+lets a robot publish on its own keys only.
+
+Every check sends a forbidden message and then an allowed one from the same session: a
+Zenoh session delivers in order, so once the allowed one has arrived, the forbidden one
+was dropped by the router (no waiting for something not to happen)."""
+
+from __future__ import annotations
+
+import json
+import queue
+import shutil
+from pathlib import Path
+
+import pytest
+import zenoh
+
+from cekm_swarm.protocol import DEFAULT_KEYS, WheelCommand, encode
+from cekm_swarm.runtime.bridge import Publishers, declare_alive
+from cekm_swarm.runtime.config import free_port, load_config, open_session
+from cekm_swarm.runtime.errors import RuntimeTransportError
+
+DEPLOY = Path(__file__).resolve().parents[2] / "deploy"
+K = DEFAULT_KEYS
+T = 20.0
+
+
+def get(config: zenoh.Config, path: str):
+    return json.loads(config.get_json(path))
+
+
+def test_every_config_loads_and_says_what_it_should():
+    files = sorted(p.name for p in DEPLOY.glob("*.json5"))
+    assert files == ["monitor.json5", "operator.json5", "robot-r1.json5", "robot-r2.json5", "router.json5",
+                     "world.json5"]
+    router = zenoh.Config.from_file(str(DEPLOY / "router.json5"))
+    assert get(router, "mode") == "router" and get(router, "scouting/multicast/enabled") is False
+    acl = get(router, "access_control")
+    assert acl["enabled"] is True and acl["default_permission"] == "deny"
+    rule_ids = {r["id"] for r in acl["rules"]}
+    for policy in acl["policies"]:
+        assert set(policy["rules"]) <= rule_ids
+    users = {u for s in acl["subjects"] for u in s["usernames"]}
+    creds = {line.split(":")[0] for line in (DEPLOY / "credentials.example.txt").read_text().split()}
+    assert users == creds == {"world", "r1", "r2", "r3", "r4", "monitor", "operator"}
+    for name, user in [("world", "world"), ("robot-r1", "r1"), ("robot-r2", "r2"), ("monitor", "monitor"),
+                       ("operator", "operator")]:
+        c = zenoh.Config.from_file(str(DEPLOY / f"{name}.json5"))
+        assert get(c, "mode") == "client" and get(c, "scouting/multicast/enabled") is False
+        assert get(c, "transport/auth/usrpwd/user") == user
+        assert get(c, "connect/endpoints") == ["tcp/cekm-router.local:7447"]
+    assert (DEPLOY / "README.md").read_text().count("--connect") >= 1
+
+
+@pytest.fixture
+def acl_router(tmp_path):
+    """deploy/router.json5 on a free loopback port with the example credentials."""
+    creds = tmp_path / "credentials.txt"
+    shutil.copy(DEPLOY / "credentials.example.txt", creds)
+    port = free_port()
+    config = load_config(DEPLOY / "router.json5", {"listen/endpoints": [f"tcp/127.0.0.1:{port}"],
+                                                    "transport/auth/usrpwd/dictionary_file": str(creds)})
+    router = open_session(config, "ACL router")
+    endpoint = f"tcp/127.0.0.1:{port}"
+    opened: list[zenoh.Session] = []
+
+    def client(name: str, password: str | None = None) -> zenoh.Session:
+        overrides: dict[str, object] = {"connect/endpoints": [endpoint]}
+        if password is not None:
+            overrides["transport/auth/usrpwd/password"] = password
+        s = open_session(load_config(DEPLOY / f"{name}.json5", overrides), name)
+        opened.append(s)
+        return s
+
+    yield client
+    for s in opened:
+        s.close()
+    router.close()
+
+
+def _kind(sample: zenoh.Sample) -> str:
+    return "PUT" if sample.kind == zenoh.SampleKind.PUT else "DELETE"
+
+
+class Inbox:
+    """Keys received by a subscriber, in order."""
+
+    def __init__(self, session: zenoh.Session, key_expr: str, liveliness: bool = False) -> None:
+        self.q: queue.SimpleQueue[str] = queue.SimpleQueue()
+        cb = (lambda s: self.q.put(f"{_kind(s)}:{s.key_expr}")) if liveliness else (lambda s: self.q.put(str(s.key_expr)))
+        self.sub = (session.liveliness().declare_subscriber(key_expr, cb, history=True) if liveliness
+                    else session.declare_subscriber(key_expr, cb))
+
+    def until(self, last: str) -> list[str]:
+        got = []
+        while (item := self.q.get(timeout=T)) != last:
+            got.append(item)
+        return got + [last]
+
+
+def cmd(sender: str) -> bytes:
+    return encode(WheelCommand(1.0, sender, 0.1, 0.1, 1))
+
+
+def test_robot_publishes_on_its_own_keys_only(acl_router):
+    world, r1 = acl_router("world"), acl_router("robot-r1")
+    inbox = Inbox(world, "cekm/**")
+    with Publishers(r1, block=True) as pubs:
+        assert pubs.wait_matching(K.cmd_wheels("r1"), T)
+        pubs.put(K.cmd_wheels("r2"), cmd("r1"))  # another robot's command: denied
+        pubs.put(K.sense_target("r1"), b"\x80")  # a world key, even under its own robot: denied
+        pubs.put(K.world_clock(), b"\x80")  # denied
+        pubs.put(K.cmd_wheels("r1"), cmd("r1"))  # its own: allowed
+        pubs.put(K.field_obstacle("r1", 3), b"\x80")  # its own: allowed
+    assert inbox.until(K.field_obstacle("r1", 3)) == [K.cmd_wheels("r1"), K.field_obstacle("r1", 3)]
+    inbox.sub.undeclare()
+
+
+def test_robot_receives_only_its_own_sense_keys(acl_router):
+    world, r1 = acl_router("world"), acl_router("robot-r1")
+    wide = Inbox(r1, "cekm/**")  # more than r1 may receive: the router refuses the subscription
+    own = Inbox(r1, "cekm/r1/sense/**")
+    own.q = wide.q  # one queue, in arrival order, for both subscriptions
+    clock = r1.declare_subscriber(K.world_clock(), lambda s: wide.q.put(str(s.key_expr)))
+    with Publishers(world, block=True) as pubs:
+        assert pubs.wait_matching(K.sense_target("r1"), T)
+        assert pubs.wait_matching(K.world_clock(), T)
+        pubs.put(K.sense_target("r2"), b"\x80")
+        pubs.put(K.world_state(), b"\x80")
+        pubs.put(K.sense_target("r1"), b"\x80")
+        pubs.put(K.world_clock(), b"\x80")
+    # the router never forwards r2's key or the world state to r1 (what does arrive is
+    # handed to every matching local subscription, so it may appear twice)
+    assert set(wide.until(K.world_clock())) == {K.sense_target("r1"), K.world_clock()}
+    for sub in (wide.sub, own.sub, clock):
+        sub.undeclare()
+
+
+def test_robot_holds_liveliness_tokens_on_its_own_keys_only(acl_router):
+    r1, monitor = acl_router("robot-r1"), acl_router("monitor")
+    watch = Inbox(monitor, K.alive_all(), liveliness=True)
+    bad = declare_alive(r1, K.alive("r2", "motor"))
+    good = declare_alive(r1, K.alive("r1", "motor"))
+    assert watch.until(f"PUT:{K.alive('r1', 'motor')}") == [f"PUT:{K.alive('r1', 'motor')}"]
+    good.undeclare()
+    bad.undeclare()
+    assert watch.until(f"DELETE:{K.alive('r1', 'motor')}") == [f"DELETE:{K.alive('r1', 'motor')}"]
+    watch.sub.undeclare()
+
+
+def test_other_robot_and_operator(acl_router):
+    world, r2, operator = acl_router("world"), acl_router("robot-r2"), acl_router("operator")
+    inbox = Inbox(world, "cekm/**")
+    with Publishers(r2, block=True) as pubs:
+        assert pubs.wait_matching(K.cmd_wheels("r2"), T)
+        pubs.put(K.cmd_wheels("r1"), cmd("r2"))
+        pubs.put(K.share("r2"), b"\x80")
+    assert inbox.until(K.share("r2")) == [K.share("r2")]
+    with Publishers(operator, block=True) as pubs:  # replay / launcher: any cekm key
+        assert pubs.wait_matching(K.cmd_wheels("r1"), T)
+        pubs.put(K.cmd_wheels("r1"), cmd("operator"))
+        pubs.put(K.sense_target("r3"), b"\x80")
+    assert inbox.until(K.sense_target("r3")) == [K.cmd_wheels("r1"), K.sense_target("r3")]
+    inbox.sub.undeclare()
+
+
+def test_wrong_password_is_refused(acl_router):
+    with pytest.raises(RuntimeTransportError, match="cannot open robot-r1"):
+        acl_router("robot-r1", password="wrong")
