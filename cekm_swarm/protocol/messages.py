@@ -109,7 +109,9 @@ def _vector(field: str, x: Any) -> np.ndarray:
     n = x.shape[0]
     if n == 0 or n > MAX_ARRAY_LEN:
         raise MessageArrayError(f"length {n} outside 1..{MAX_ARRAY_LEN}", field=field)
-    if not math.isfinite(np.add.reduce(x)):
+    # One cheap reduction: any NaN or infinity makes the sum of squares non-finite; only
+    # then (or on overflow of huge finite values) look element by element.
+    if not math.isfinite(x.dot(x)):
         bad = np.flatnonzero(~np.isfinite(x))
         if bad.size:
             raise MessageFieldError(f"not finite at index {int(bad[0])} ({x[bad[0]]})", field=field)

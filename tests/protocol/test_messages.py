@@ -67,6 +67,11 @@ def test_arrays_travel_as_raw_little_endian_bytes_and_come_back_read_only():
     assert m.a.dtype == np.float64 and m.winner == 3 and type(m.stamp) is float
 
 
+def test_huge_finite_values_are_accepted():
+    m = TargetField(1.0, "s", 0, np.array([1e200, -1e300, 1.7e308]))  # sum of squares overflows
+    assert decode(KeyKind.FIELD_TARGET, encode(m)) == m
+
+
 def test_equality_compares_arrays():
     assert TargetField(1.0, "s", 0, A) == TargetField(1.0, "s", 0, A.copy())
     assert TargetField(1.0, "s", 0, A) != TargetField(1.0, "s", 0, A + 1)
