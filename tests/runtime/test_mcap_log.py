@@ -136,7 +136,8 @@ def test_errors_name_the_file(tmp_path):
 
 
 def test_foxglove_view_channels_decode_with_foxglove_schemas_protobuf(tmp_path):
-    pytest.importorskip("foxglove")
+    pytest.importorskip("foxglove", reason="foxglove-sdk not installed")
+    pytest.importorskip("foxglove_schemas_protobuf", reason="foxglove-schemas-protobuf not installed")
     from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
     from foxglove_schemas_protobuf.PosesInFrame_pb2 import PosesInFrame
     from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
