@@ -10,7 +10,7 @@ import click
 from click.testing import CliRunner
 from runtime_samples import sample_traffic, write_log
 
-from cekm_swarm.protocol import DEFAULT_KEYS, WheelCommand, encode
+from cekm_swarm.protocol import DEFAULT_KEYS, WheelCommand
 from cekm_swarm.runtime.bridge import Publishers, declare_alive
 from cekm_swarm.runtime.commands import COMMANDS
 from cekm_swarm.runtime.config import free_port
@@ -44,7 +44,8 @@ def steady_publisher(session, key: str, period: float = 0.01) -> Iterator[None]:
         i = 0
         while not stop.is_set():
             pubs.send(key, WheelCommand(i * period, "r1/motor", 0.1, 0.1, i))
-            pubs.put(K.cmd_wheels("r7"), b"\xc1") if i == 3 else None  # one malformed message
+            if i == 3:
+                pubs.put(K.cmd_wheels("r7"), b"\xc1")  # one malformed message
             i += 1
             stop.wait(period)
 
