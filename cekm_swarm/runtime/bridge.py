@@ -5,6 +5,11 @@ callback here does one thing: copy the sample into a plain :class:`Received` rec
 hand it to the event loop with ``loop.call_soon_threadsafe``. A callback never blocks and
 never calls into a Zenoh session (which could deadlock Zenoh's threads); coroutines
 ``await`` the queue.
+
+Ordering: samples of one subscription arrive in order. zenoh-python runs each
+subscription's callback on its own thread, so samples of *different* subscriptions are
+not ordered with each other, even from one publisher session; put keys whose relative
+order matters under one subscription (one key expression).
 """
 
 from __future__ import annotations
