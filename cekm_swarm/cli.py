@@ -52,7 +52,7 @@ def experiment() -> None:
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 def target_reaching(out_dir: Path, networks: str, trials: int, steps: int, test_interval: int, test_targets: int,
                     seed: int, quiet: bool) -> None:
-    """Section 4.1: Tables 1-4 and Figures 5-7 (obstacle-free target reaching)."""
+    """Reproduce section 4.1: Tables 1-4 and Figures 5-7 (obstacle-free target reaching)."""
     from .experiments.report import headline_orderings, write_report
     from .experiments.streams import Schedule
     from .experiments.target_reaching import TargetReachingConfig, run_experiment
@@ -159,8 +159,11 @@ def run_cmd(scenario: str, controller: str, model_path: Path | None, seed: int |
               help="The PNG to write.")
 def fields(scenario: str, at_time: float, model_path: Path | None, seed: int | None, robot: str | None,
            out_path: Path) -> None:
-    """Fig. 4: the target field, three obstacle fields, the combined obstacle fields and the
-    integrated activity of the cooperative EKM at sim time --at."""
+    """Draw the activity maps of Fig. 4 at sim time --at.
+
+    The target field, three obstacle fields, the combined obstacle fields and the
+    integrated activity of the cooperative EKM, with the robot's situation.
+    """
     from .experiments.navigation import fields_at, plot_fields
 
     sc = _load_scenario(scenario)
@@ -190,7 +193,7 @@ def sweep() -> None:
 @click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), required=True)
 def sweep_concave(depths: str, widths: str, ranges: str, seeds: str, need: int, max_time: float,
                   model_path: Path | None, workers: int | None, out_dir: Path) -> None:
-    """Fig. 9: the widest concave obstacle negotiated, per depth and sensing range."""
+    """Find the widest concave obstacle negotiated, per depth and sensing range (Fig. 9)."""
     from .experiments.concave_sweep import SweepConfig, parse_floats, run_sweep, seeds_of, write_sweep
     from .experiments.default_model import default_model, default_model_path
 
@@ -209,6 +212,16 @@ def sweep_concave(depths: str, widths: str, ranges: str, seeds: str, need: int, 
         w = "none" if c["max_width"] is None else f"{c['max_width']:.2f} m"
         click.echo(f"range {c['range']:.2f} m, depth {c['depth']:.2f} m: widest negotiated {w}")
     click.echo("wrote " + ", ".join(str(p) for p in paths))
+
+
+def _register_runtime_commands() -> None:
+    from .runtime.commands import COMMANDS
+
+    for command in COMMANDS:
+        main.add_command(command)
+
+
+_register_runtime_commands()
 
 
 def run() -> None:  # pragma: no cover - console entry with clean errors
