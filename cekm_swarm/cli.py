@@ -159,7 +159,7 @@ def run_cmd(scenario: str, controller: str, model_path: Path | None, seed: int |
               help="The PNG to write.")
 def fields(scenario: str, at_time: float, model_path: Path | None, seed: int | None, robot: str | None,
            out_path: Path) -> None:
-    """Draw the activity maps of Fig. 4 at sim time --at.
+    """Draw the activity maps of the paper's Fig 4 at sim time --at.
 
     The target field, three obstacle fields, the combined obstacle fields and the
     integrated activity of the cooperative EKM, with the robot's situation.
