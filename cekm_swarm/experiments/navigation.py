@@ -24,7 +24,6 @@ from ..errors import ParameterError
 from ..models.params import FieldParams
 
 CONTROLLERS = ("cekm", "fusion")
-CHECKPOINT_RADIUS = 0.03  # m: move on to the next checkpoint once this close (section 4.2)
 DEFAULT_MAX_TIME = 600.0  # s of sim time before a robot counts as trapped
 
 
@@ -103,10 +102,13 @@ def run_scenario(scenario, controller: str = "cekm", model=None, seed: int | Non
                  fields: FieldParams | None = None, progress=None) -> NavigationRun:
     """Run a scenario to the end (every robot reached its goal, or max_time).
 
-    ``use_checkpoints``: plan checkpoints on the known walls (Fig. 12); default: when the
-    scenario is called "checkpoints". ``progress(t)`` is called every simulated second.
+    The world's side of every tick is :class:`world.episode.Episode` (the world server
+    runs the same); the robots' side is their controllers. ``use_checkpoints``: plan
+    checkpoints on the known walls (Fig. 12); default: when the scenario is called
+    "checkpoints". ``progress(t)`` is called every simulated second.
     """
     from world import World
+    from world.episode import Episode
 
     if controller not in CONTROLLERS:
         raise ParameterError(f"unknown controller {controller!r}; expected one of {list(CONTROLLERS)}")
@@ -116,76 +118,43 @@ def run_scenario(scenario, controller: str = "cekm", model=None, seed: int | Non
         model = default_model()
     world = World(scenario, seed=seed)
     consts = {"body_radius": world.body_radius, "sensor_range": world.sensor_range}
-    angles = world.sensor_angles
     geometry = world.static_geometry()
     if use_checkpoints is None:
         use_checkpoints = scenario.name == "checkpoints"
     robots = list(world.robot_ids)
     brains = {r: make_brain(controller, model, consts, fields) for r in robots}
-    logs = {r: RobotLog(r) for r in robots}
-    plan_paths = {}
-    queue: dict[str, list[tuple[float, float]]] = {}
-    for r in robots:
-        goal = world.goal_of(r)
-        if use_checkpoints:
-            x, y, _ = world.pose(r)
-            plan = plan_checkpoints(geometry, (x, y), goal, body_radius=world.body_radius)
-            logs[r].checkpoints = plan.checkpoints
-            plan_paths[r] = plan.path
-            queue[r] = list(plan.checkpoints)
-            world.set_goal(r, queue[r][0])
-        else:
-            logs[r].checkpoints = [goal]
-            queue[r] = [goal]
+    checkpoints, plan_paths = plan_all(world, geometry) if use_checkpoints else (None, {})
+    episode = Episode(world, checkpoints)
     max_ticks = int(math.ceil(max_time / SCHEDULE.tick_s))
-    for tick in range(max_ticks + 1):
-        t = SCHEDULE.time(tick)
-        if progress and tick % 8 == 0:
-            progress(t)
-        for r in robots:
-            log = logs[r]
-            x, y, th = world.pose(r)
-            ranges = range_readings(world.range_readings(r), angles, world.body_radius)
-            reading = None
-            if SCHEDULE.target_due(tick):
-                reading = TargetReading(*world.target_reading(r))
-                if len(queue[r]) > 1 and reading.usable and reading.d <= CHECKPOINT_RADIUS:
-                    queue[r].pop(0)  # mission logic: on to the next checkpoint
-                    log.checkpoint_times.append(t)
-                    world.set_goal(r, queue[r][0])
-                    reading = TargetReading(*world.target_reading(r))
-            v_l, v_r = brains[r].tick(t, reading, ranges)
-            world.set_wheels(r, v_l, v_r)
-            log.t.append(t)
-            log.x.append(x)
-            log.y.append(y)
-            log.theta.append(th)
-            log.v_l.append(v_l)
-            log.v_r.append(v_r)
-            if brains[r].goal_state and len(queue[r]) == 1 and not log.reached:
-                log.reached, log.reached_time = True, t
-                log.checkpoint_times.append(t)
-        if all(logs[r].reached for r in robots) or tick == max_ticks:
+    while True:
+        if progress and episode.tick % 8 == 0:
+            progress(episode.t)
+        commands = {}
+        for rd in episode.readings():
+            ranges = range_readings(rd.ranges, world.sensor_angles, world.body_radius)
+            target = TargetReading(*rd.target) if rd.target is not None else None
+            commands[rd.robot] = brains[rd.robot].tick(rd.t, target, ranges)
+        episode.apply(commands)
+        if episode.done or episode.tick >= max_ticks:
             break
-        world.advance(SCHEDULE.tick_s)
-    outcome = {}
-    for r in robots:
-        st = world.stats(r)
-        gx, gy = world.goal_of(r)
+        episode.advance()
+    logs = {}
+    for r, p in episode.progress.items():
+        t, x, y, th = (list(col) for col in zip(*p.path))
+        logs[r] = RobotLog(r, t, x, y, th, [c[0] for c in p.commands], [c[1] for c in p.commands],
+                           list(p.checkpoints), list(p.checkpoint_times), p.reached, p.reached_time)
+    return NavigationRun(scenario.name, controller, world_seed(world, seed, scenario), logs, episode.outcome(),
+                         geometry, world.state(), plan_paths)
+
+
+def plan_all(world, geometry) -> tuple[dict, dict]:
+    """Checkpoints for every robot from its start to its goal, on the known walls (Fig. 12)."""
+    checkpoints, paths = {}, {}
+    for r in world.robot_ids:
         x, y, _ = world.pose(r)
-        log = logs[r]
-        outcome[r] = {
-            "reached": log.reached,
-            "time_s": log.reached_time if log.reached else logs[r].t[-1],
-            "path_length_m": float(st["path_length_m"]),
-            "collisions": int(st["collisions"]),
-            "min_clearance_m": float(st["min_clearance_m"]),
-            "final_distance_m": float(math.hypot(gx - x, gy - y)),
-            "checkpoints": [list(c) for c in log.checkpoints],
-            "checkpoints_reached": len(log.checkpoint_times),
-        }
-    return NavigationRun(scenario.name, controller, world_seed(world, seed, scenario), logs, outcome, geometry,
-                         world.state(), plan_paths)
+        plan = plan_checkpoints(geometry, (x, y), world.goal_of(r), body_radius=world.body_radius)
+        checkpoints[r], paths[r] = plan.checkpoints, plan.path
+    return checkpoints, paths
 
 
 def world_seed(world, seed, scenario) -> int:

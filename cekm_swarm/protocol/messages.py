@@ -280,20 +280,41 @@ class SenseRange(_Message):
 @dataclass(eq=False, slots=True)
 class TargetField(_Message):
     """Target module -> motor module: the winning neuron ``winner`` and the target
-    field's activities ``a`` (float64[n], one per neuron of the motor map)."""
+    field's activities ``a`` (float64[n], one per neuron of the motor map), and the
+    sensed target input u = (``alpha``, ``d``) that Eq. 11 maps through M_k when k = s.
+
+    No target sensed: alpha, d, winner and a are all None. The goal state (d = 0):
+    ``at_goal`` is True, alpha and d are given, winner and a are None (the robot stops).
+    """
 
     stamp: float
     sender: str
-    winner: int
-    a: np.ndarray
+    winner: int | None
+    a: np.ndarray | None
+    alpha: float | None = None
+    d: float | None = None
+    at_goal: bool = False
     KIND: ClassVar[KeyKind] = KeyKind.FIELD_TARGET
     _ARRAYS: ClassVar[tuple[str, ...]] = ("a",)
 
     def __post_init__(self) -> None:
         self._envelope()
-        a = _vector("a", self.a)
-        self.a = a
-        self.winner = _int("winner", self.winner, hi=a.shape[0])
+        self.at_goal = _bool("at_goal", self.at_goal)
+        if (self.alpha is None) != (self.d is None):
+            raise _fail("alpha" if self.alpha is None else "d", "alpha and d must both be None (no target) or both be given")
+        if self.alpha is not None:
+            self.alpha = _float("alpha", self.alpha, angle=True)
+            self.d = _float("d", self.d, lo=0.0)
+        if (self.winner is None) != (self.a is None):
+            raise _fail("winner" if self.winner is None else "a", "winner and a must both be None or both be given")
+        if self.a is not None:
+            a = _vector("a", self.a)
+            self.a = a
+            self.winner = _int("winner", self.winner, hi=a.shape[0])
+            if self.at_goal:
+                raise _fail("at_goal", "at the goal state the target module sends no field")
+        elif self.at_goal and self.alpha is None:
+            raise _fail("at_goal", "the goal state needs the sensed alpha and d")
 
 
 @dataclass(eq=False, slots=True)

@@ -1,0 +1,134 @@
+"""The world's side of a run, tick by tick: shared by the in-process runner and the world
+server, so that a distributed lockstep run reproduces an in-process run bit for bit.
+
+A tick is 0.128 s (4 sub-steps). At tick k (sim time k * 0.128 s) the world:
+
+1. takes, for every robot in order, the 12 distance readings, then (on even ticks, every
+   0.256 s) the target reading; if the robot is following checkpoints and the sensed
+   target is within ``checkpoint_radius`` of the current checkpoint, the next one becomes
+   the goal and the target is read again;
+2. (the controllers compute and send their wheel commands;)
+3. applies each robot's command and advances 0.128 s.
+
+A robot has reached its goal when its target reading at the final goal is the goal state
+(d = 0, the controller stops). Plain data in, plain data out: no controller code here.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .sim import World
+
+TICK_S = 0.128
+TARGET_EVERY = 2  # ticks: the target sensor is read every 0.256 s
+CHECKPOINT_RADIUS = 0.03  # m (section 4.2: on to the next checkpoint once this close)
+
+
+@dataclass
+class TickReadings:
+    """What one robot's modules receive at a tick."""
+
+    robot: str
+    t: float
+    ranges: np.ndarray  # (12,) surface ranges, NaN = nothing seen
+    target: tuple[float, float, bool] | None  # (alpha, d, visible), None when not due
+
+
+@dataclass
+class RobotProgress:
+    checkpoints: list[tuple[float, float]]
+    next_index: int = 0
+    checkpoint_times: list[float] = field(default_factory=list)
+    reached: bool = False
+    reached_time: float | None = None
+    path: list[tuple[float, float, float, float]] = field(default_factory=list)  # t, x, y, theta per tick
+    commands: list[tuple[float, float]] = field(default_factory=list)
+
+    @property
+    def final(self) -> bool:
+        return self.next_index == len(self.checkpoints) - 1
+
+
+class Episode:
+    """Drive a :class:`World` tick by tick; the caller supplies the wheel commands."""
+
+    def __init__(self, world: World, checkpoints: dict[str, list[tuple[float, float]]] | None = None,
+                 checkpoint_radius: float = CHECKPOINT_RADIUS) -> None:
+        self.world = world
+        self.radius = checkpoint_radius
+        self.tick = 0
+        self.progress: dict[str, RobotProgress] = {}
+        for r in world.robot_ids:
+            cps = [tuple(map(float, c)) for c in (checkpoints or {}).get(r, [])] or [world.goal_of(r)]
+            self.progress[r] = RobotProgress(cps)
+            if checkpoints and r in checkpoints:
+                world.set_goal(r, cps[0])
+
+    @property
+    def t(self) -> float:
+        return round(self.tick * TICK_S, 9)
+
+    @property
+    def target_due(self) -> bool:
+        return self.tick % TARGET_EVERY == 0
+
+    def readings(self) -> list[TickReadings]:
+        """Step 1 of the tick, for every robot in order."""
+        w = self.world
+        out = []
+        for r in w.robot_ids:
+            p = self.progress[r]
+            x, y, th = w.pose(r)
+            p.path.append((self.t, x, y, th))
+            ranges = w.range_readings(r)
+            target = None
+            if self.target_due:
+                target = w.target_reading(r)
+                alpha, d, visible = target
+                if not p.final and visible and math.isfinite(d) and d <= self.radius:
+                    p.next_index += 1
+                    p.checkpoint_times.append(self.t)
+                    w.set_goal(r, p.checkpoints[p.next_index])
+                    target = w.target_reading(r)
+                if p.final and not p.reached and target[2] and target[1] == 0.0:
+                    p.reached, p.reached_time = True, self.t
+                    p.checkpoint_times.append(self.t)
+            out.append(TickReadings(r, self.t, ranges, target))
+        return out
+
+    def apply(self, commands: dict[str, tuple[float, float]]) -> None:
+        """Step 3: set every robot's wheels (a robot without a command keeps its last one)."""
+        for r, (v_l, v_r) in commands.items():
+            self.world.set_wheels(r, v_l, v_r)
+            self.progress[r].commands.append((v_l, v_r))
+
+    def advance(self) -> None:
+        self.world.advance(TICK_S)
+        self.tick += 1
+
+    @property
+    def done(self) -> bool:
+        return all(p.reached for p in self.progress.values())
+
+    def outcome(self) -> dict[str, dict]:
+        """Per robot: reached, time_s, path_length_m, collisions, min_clearance_m, final distance, checkpoints."""
+        out = {}
+        for r, p in self.progress.items():
+            st = self.world.stats(r)
+            gx, gy = self.world.goal_of(r)
+            x, y, _ = self.world.pose(r)
+            out[r] = {
+                "reached": p.reached,
+                "time_s": p.reached_time if p.reached else self.t,
+                "path_length_m": float(st["path_length_m"]),
+                "collisions": int(st["collisions"]),
+                "min_clearance_m": float(st["min_clearance_m"]),
+                "final_distance_m": float(math.hypot(gx - x, gy - y)),
+                "checkpoints": [list(c) for c in p.checkpoints],
+                "checkpoints_reached": len(p.checkpoint_times),
+            }
+        return out
