@@ -37,7 +37,7 @@ def main() -> None:
 
     def fast_tick(target, ranges):
         t = ekm.localize_target(target, 0.0)
-        obs = [ekm.localize_obstacle(r, 0.0) for r in ranges]
+        obs = ekm.localize_obstacles(ranges, 0.0)
         return ekm.integrate(t, obs)
 
     fp = FieldParams()

@@ -20,7 +20,6 @@ from typing import Iterable
 import numpy as np
 
 from ..models import fast
-from ..models.fields import motor_control
 from ..models.networks import IndirectEKM
 from ..models.params import FieldParams
 from .readings import RangeReading, TargetReading
@@ -69,6 +68,7 @@ class CooperativeEKM:
     def __post_init__(self) -> None:
         self._params = fast.pack_params(self.model.comp, self.model.learn_p, self.model.v_max, 1e-3)
         self.w = np.ascontiguousarray(self.model.w)
+        self._M = np.ascontiguousarray(self.model.M)
         self.n = self.w.shape[0]
 
     def localize_target(self, reading: TargetReading, stamp: float) -> TargetActivity:
@@ -92,6 +92,20 @@ class CooperativeEKM:
         fast.obstacle_field(self.w, s, f.sigma_b_alpha, f.sigma_b_d_beyond, f.sigma_b_d_near, b)
         return ObstacleActivity(stamp, reading.index, int(s), b)
 
+    def localize_obstacles(self, readings: list[RangeReading], stamp: float) -> list[ObstacleActivity]:
+        """Every obstacle localization module at once (the in-process fast path): the same
+        numbers as calling :meth:`localize_obstacle` for each reading, in one numba call."""
+        m = len(readings)
+        alphas = np.array([r.alpha for r in readings])
+        ds = np.array([np.nan if r.d is None else r.d for r in readings])
+        winners = np.empty(m, dtype=np.int64)
+        B = np.empty((m, self.n))
+        f = self.fields
+        fast.localize_obstacles(self.w, self._params, alphas, ds, f.sigma_b_alpha, f.sigma_b_d_beyond,
+                                f.sigma_b_d_near, winners, B)
+        return [ObstacleActivity(stamp, r.index, None, None) if winners[j] < 0
+                else ObstacleActivity(stamp, r.index, int(winners[j]), B[j]) for j, r in enumerate(readings)]
+
     def integrate(self, target: TargetActivity | None, obstacles: Iterable[ObstacleActivity]) -> MotorOutput:
         """Neural integration and motor control (section 3.4, Eqs. 9-11).
 
@@ -99,13 +113,11 @@ class CooperativeEKM:
         """
         if target is None or target.at_goal or target.a is None:
             return MotorOutput(0.0, 0.0, None, None)
-        e = target.a.copy()
-        for ob in obstacles:
-            if ob.b is not None:
-                e -= ob.b
-        k = int(np.argmax(e))
+        rows = [ob.b for ob in obstacles if ob.b is not None]
+        B = np.array(rows) if rows else np.empty((0, self.n))
+        e = np.empty(self.n)
+        k = int(fast.integrate_and_select(target.a, B, np.ones(len(rows), dtype=np.bool_), e))
         m = self.model
-        c = motor_control(m.M, self.w, np.array([target.alpha, target.d]), k, target.winner, m.v_max,
-                          m.learn_p.d_scale)
-        c = np.clip(c, -m.v_max, m.v_max)
-        return MotorOutput(float(c[0]), float(c[1]), k, target.winner)
+        v_l, v_r = fast.motor_command(self._M, self.w, target.alpha, target.d, k, target.winner, m.v_max,
+                                      m.learn_p.d_scale)
+        return MotorOutput(v_l, v_r, k, target.winner)

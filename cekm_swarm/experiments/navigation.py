@@ -61,8 +61,8 @@ class RobotBrain:
             ekm: CooperativeEKM = self.controller
             if target_reading is not None:
                 self.target = ekm.localize_target(target_reading, t)
-            for r in ranges:
-                self.obstacles[r.index] = ekm.localize_obstacle(r, t)
+            for ob in ekm.localize_obstacles(ranges, t):
+                self.obstacles[ob.index] = ob
             out = ekm.integrate(self.target, self.obstacles.values())
             self.goal_state = self.target is not None and self.target.at_goal
             return out.v_l, out.v_r

@@ -308,3 +308,51 @@ def obstacle_field(w, s, sigma_alpha, sigma_beyond, sigma_near, out):
         da = wrap(w[s, 0] - w[i, 0])
         dd = ds - w[i, 1]
         out[i] = math.exp(-da * da * ka - dd * dd * (kb if w[i, 1] >= ds else kn))
+
+
+@njit(cache=True)
+def localize_obstacles(w, p, alphas, ds, sigma_alpha, sigma_beyond, sigma_near, winners, B):
+    """Obstacle localization for every sensor at once (Eqs. 2-4, 7-8): for sensor j with a
+    reading (ds[j] finite), winners[j] and the field B[j]; winners[j] = -1 when it sees nothing.
+    Each row is computed exactly as :func:`winner` then :func:`obstacle_field` would."""
+    for j in range(alphas.shape[0]):
+        if math.isnan(ds[j]):
+            winners[j] = -1
+            continue
+        s = winner(alphas[j], ds[j], w, p)
+        winners[j] = s
+        obstacle_field(w, s, sigma_alpha, sigma_beyond, sigma_near, B[j])
+
+
+@njit(cache=True)
+def integrate_and_select(a, B, active, e):
+    """e = a - sum of the active rows of B (Eq. 9, in row order); returns k = argmax e (Eq. 10)."""
+    for i in range(a.shape[0]):
+        e[i] = a[i]
+    for j in range(B.shape[0]):
+        if active[j]:
+            for i in range(a.shape[0]):
+                e[i] -= B[j, i]
+    k = 0
+    for i in range(1, e.shape[0]):
+        if e[i] > e[k]:
+            k = i
+    return k
+
+
+@njit(cache=True)
+def motor_command(M, w, alpha, d, k, s, v_max, d_scale):
+    """Eq. 11 (as :func:`cekm_swarm.models.fields.motor_control`), then clipped to c*."""
+    use_u = False
+    if k == s:
+        x0 = w[k, 0] + wrap(alpha - w[k, 0])
+        x1 = d_scale * d
+        c0 = M[k, 0, 0] * x0 + M[k, 0, 1] * x1
+        c1 = M[k, 1, 0] * x0 + M[k, 1, 1] * x1
+        use_u = abs(c0) <= v_max and abs(c1) <= v_max
+    if not use_u:
+        x0 = w[k, 0]
+        x1 = d_scale * w[k, 1]
+        c0 = M[k, 0, 0] * x0 + M[k, 0, 1] * x1
+        c1 = M[k, 1, 0] * x0 + M[k, 1, 1] * x1
+    return min(max(c0, -v_max), v_max), min(max(c1, -v_max), v_max)

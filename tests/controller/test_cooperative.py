@@ -1,0 +1,77 @@
+"""The cooperative-EKM modules against the reference equations (models.fields, models.competition)."""
+
+import numpy as np
+import pytest
+
+from cekm_swarm.controller.cooperative import CooperativeEKM
+from cekm_swarm.controller.readings import RangeReading, TargetReading, range_readings
+from cekm_swarm.models.competition import winner
+from cekm_swarm.models.fields import integrate, motor_control, motor_winner, obstacle_field, target_field
+from cekm_swarm.models.networks import make_network
+from cekm_swarm.models.params import FieldParams
+
+
+@pytest.fixture(scope="module")
+def ekm():
+    return CooperativeEKM(make_network("R15", np.random.default_rng(4)))
+
+
+def test_target_localization_eqs_2_to_6(ekm):
+    act = ekm.localize_target(TargetReading(0.4, 0.9), stamp=1.0)
+    s = winner(np.array([0.4, 0.9]), ekm.model.w, ekm.model.comp)
+    assert act.winner == s and act.stamp == 1.0 and (act.alpha, act.d) == (0.4, 0.9)
+    np.testing.assert_allclose(act.a, target_field(ekm.model.w, s, FieldParams()), rtol=1e-12)
+
+
+def test_target_not_sensed_and_goal_state(ekm):
+    gone = ekm.localize_target(TargetReading(float("nan"), float("nan"), False), 0.0)
+    assert gone.winner is None and gone.a is None
+    goal = ekm.localize_target(TargetReading(0.0, 0.0), 0.0)
+    assert goal.at_goal and goal.a is None
+    for t in (None, gone, goal):
+        out = ekm.integrate(t, [])
+        assert (out.v_l, out.v_r) == (0.0, 0.0)  # no target, or the goal state: the robot stops
+
+
+def test_obstacle_localization_eqs_7_8(ekm):
+    act = ekm.localize_obstacle(RangeReading(3, np.pi / 2, 0.12), 0.5)
+    s = winner(np.array([np.pi / 2, 0.12]), ekm.model.w, ekm.model.comp)
+    assert act.index == 3 and act.winner == s
+    np.testing.assert_allclose(act.b, obstacle_field(ekm.model.w, s, FieldParams()), rtol=1e-12)
+    none = ekm.localize_obstacle(RangeReading(4, 2.0, None), 0.5)
+    assert none.winner is None and none.b is None
+
+
+def test_batched_obstacle_modules_equal_the_single_ones_exactly(ekm):
+    readings = range_readings(np.array([0.05, np.nan, 0.1, 0.0, np.nan, 0.17, 0.02, 0.11, np.nan, 0.08, 0.13, 0.04]),
+                              np.linspace(-np.pi, np.pi, 12, endpoint=False), 0.03)
+    batch = ekm.localize_obstacles(readings, 2.0)
+    for r, b in zip(readings, batch):
+        one = ekm.localize_obstacle(r, 2.0)
+        assert one.winner == b.winner and one.index == b.index
+        if one.b is None:
+            assert b.b is None
+        else:
+            assert np.array_equal(one.b, b.b)
+
+
+def test_integration_and_motor_control_eqs_9_to_11(ekm):
+    rng = np.random.default_rng(0)
+    m = ekm.model
+    for _ in range(50):
+        target = ekm.localize_target(TargetReading(rng.uniform(-np.pi, np.pi), rng.uniform(0.001, 2.0)), 0.0)
+        readings = [RangeReading(j, -np.pi + j * np.pi / 6, rng.uniform(0.03, 0.2) if rng.random() < 0.5 else None)
+                    for j in range(12)]
+        obs = ekm.localize_obstacles(readings, 0.0)
+        out = ekm.integrate(target, obs)
+        e = integrate(target.a, [o.b for o in obs if o.b is not None])
+        k = motor_winner(e)
+        c = np.clip(motor_control(m.M, m.w, np.array([target.alpha, target.d]), k, target.winner, m.v_max,
+                                  m.learn_p.d_scale), -m.v_max, m.v_max)
+        assert out.k == k and out.s == target.winner
+        np.testing.assert_allclose([out.v_l, out.v_r], c, rtol=1e-12, atol=1e-15)
+
+
+def test_range_readings_convert_surface_range_to_centre_distance():
+    rs = range_readings(np.array([0.05, np.nan]), np.array([0.0, 1.0]), 0.03)
+    assert rs[0].d == pytest.approx(0.08) and rs[1].d is None and rs[1].alpha == 1.0
