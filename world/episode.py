@@ -126,6 +126,7 @@ class Episode:
                 "time_s": p.reached_time if p.reached else self.t,
                 "path_length_m": float(st["path_length_m"]),
                 "collisions": int(st["collisions"]),
+                "collisions_with": st["collisions_with"],
                 "min_clearance_m": float(st["min_clearance_m"]),
                 "final_distance_m": float(math.hypot(gx - x, gy - y)),
                 "checkpoints": [list(c) for c in p.checkpoints],

@@ -164,6 +164,7 @@ class World:
         self._touching = [0] * n
         self._released: list[dict[str, float]] = [dict() for _ in range(n)]
         self._collisions = [0] * n
+        self._collided_with: list[dict[str, int]] = [{} for _ in range(n)]
         space.on_collision(ph.CT_ROBOT, None, begin=self._on_begin, separate=self._on_separate)
 
         # batch buffers; check the row order once
@@ -428,6 +429,7 @@ class World:
             c = self._touch[i].get(item, 0)
             if c == 0 and now - self._released[i].get(item, -math.inf) > COLLISION_DEBOUNCE:
                 self._collisions[i] += 1
+                self._collided_with[i][item] = self._collided_with[i].get(item, 0) + 1
             self._touch[i][item] = c + 1
             self._touching[i] += 1
 
@@ -555,7 +557,8 @@ class World:
     def stats(self, robot_id: str) -> dict[str, float | int]:
         """path_length_m (sum over sub-steps), collisions (new contacts with a wall,
         an obstacle or a robot: one per item touched; touching the same item again
-        within 0.256 s counts once), min_clearance_m (smallest
+        within 0.256 s counts once), collisions_with (those counts per item touched),
+        min_clearance_m (smallest
         body-surface distance to any wall/obstacle/robot so far, negative when
         penetrating; inf if the world has nothing else in it), contact_s (time
         spent touching something, counted per sub-step that ends in contact)."""
@@ -563,6 +566,7 @@ class World:
         return {
             "path_length_m": self._path[i],
             "collisions": self._collisions[i],
+            "collisions_with": dict(self._collided_with[i]),
             "min_clearance_m": self._clear[i],
             "contact_s": self._contact_steps[i] * SUBSTEP,
         }

@@ -58,18 +58,49 @@ class MotorOutput:
     s: int | None
 
 
+def motor_candidates(model: IndirectEKM, allow_reverse: bool = False, reverse_min_d: float = 0.02) -> np.ndarray:
+    """The neurons that may win the motor competition (Eq. 10) in obstacle navigation.
+
+    * Only converged neurons (``model.converged``, checked after training: M_i w_i moves
+      the robot by w_i). A neuron stranded between the learned clusters has control
+      parameters fitted to its neighbours' data; its command does not do what its input
+      weight says, and as a motor winner it drives the robot into what it should avoid.
+    * Unless ``allow_reverse``: no neuron encoding a reverse displacement (|alpha_i| >
+      pi/2 and d_i > reverse_min_d). The target field is angle-insensitive (sigma_a_alpha
+      = 2.475 rad), so a reverse move keeps 45 % of the target activity, and nothing
+      behind a forward-driving robot inhibits it: in a concave obstacle or at a doorway it
+      always beats the edge neuron of Fig. 4F (about 0.43) and the robot backs out and
+      re-enters. The paper's G9 and G12 maps have no reverse cluster (section 4.1), so
+      this never arises for them; maps learned from untrained M with exploration noise do
+      have one. Turning in place (d_i <= reverse_min_d) stays available.
+    This is the project's resolution (README), not the paper's text.
+    """
+    w = model.w
+    ok = np.ones(w.shape[0], dtype=np.bool_)
+    if getattr(model, "converged", None) is not None:
+        ok &= model.converged
+    if not allow_reverse:
+        ok &= ~((np.abs(w[:, 0]) > np.pi / 2) & (w[:, 1] > reverse_min_d))
+    if not ok.any():
+        ok[:] = True
+    return ok
+
+
 @dataclass
 class CooperativeEKM:
     """The cooperative-EKM controller of one robot, from a trained indirect-mapping EKM."""
 
     model: IndirectEKM
     fields: FieldParams = field(default_factory=FieldParams)
+    allow_reverse: bool = False
+    reverse_min_d: float = 0.02
 
     def __post_init__(self) -> None:
         self._params = fast.pack_params(self.model.comp, self.model.learn_p, self.model.v_max, 1e-3)
         self.w = np.ascontiguousarray(self.model.w)
         self._M = np.ascontiguousarray(self.model.M)
         self.n = self.w.shape[0]
+        self.eligible = motor_candidates(self.model, self.allow_reverse, self.reverse_min_d)
 
     def localize_target(self, reading: TargetReading, stamp: float) -> TargetActivity:
         """Target localization (section 3.2): s = winner(u) (Eqs. 2-4), a_i = G_a(w_s, w_i) (Eqs. 5-6)."""
@@ -116,7 +147,7 @@ class CooperativeEKM:
         rows = [ob.b for ob in obstacles if ob.b is not None]
         B = np.array(rows) if rows else np.empty((0, self.n))
         e = np.empty(self.n)
-        k = int(fast.integrate_and_select(target.a, B, np.ones(len(rows), dtype=np.bool_), e))
+        k = int(fast.integrate_and_select(target.a, B, np.ones(len(rows), dtype=np.bool_), self.eligible, e))
         m = self.model
         v_l, v_r = fast.motor_command(self._M, self.w, target.alpha, target.d, k, target.winner, m.v_max,
                                       m.learn_p.d_scale)

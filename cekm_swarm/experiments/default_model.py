@@ -19,7 +19,7 @@ from ..models.params import CompetitionParams, LearningParams, params_to_dict
 DEFAULT_NETWORK = "R15"
 DEFAULT_STEPS = 100_000
 DEFAULT_SEED = 2005
-TRAINING_CODE_VERSION = 1  # bump when the training loop changes what it produces
+TRAINING_CODE_VERSION = 2  # bump when the training loop changes what it produces (2: convergence mask)
 
 
 def cache_dir() -> Path:

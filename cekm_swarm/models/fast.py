@@ -325,17 +325,18 @@ def localize_obstacles(w, p, alphas, ds, sigma_alpha, sigma_beyond, sigma_near, 
 
 
 @njit(cache=True)
-def integrate_and_select(a, B, active, e):
-    """e = a - sum of the active rows of B (Eq. 9, in row order); returns k = argmax e (Eq. 10)."""
+def integrate_and_select(a, B, active, eligible, e):
+    """e = a - sum of the active rows of B (Eq. 9, in row order); returns k = argmax of e
+    over the eligible neurons (Eq. 10), -1 when none is eligible."""
     for i in range(a.shape[0]):
         e[i] = a[i]
     for j in range(B.shape[0]):
         if active[j]:
             for i in range(a.shape[0]):
                 e[i] -= B[j, i]
-    k = 0
-    for i in range(1, e.shape[0]):
-        if e[i] > e[k]:
+    k = -1
+    for i in range(e.shape[0]):
+        if eligible[i] and (k < 0 or e[i] > e[k]):
             k = i
     return k
 

@@ -12,6 +12,7 @@ Fields (format version 1):
 ``Rinv``            (N*N, 2, 2) RLS state (indirect)
 ``C``               (N*N, 2) commands (direct)
 ``W``, ``widths``   (N*N, 2) each (bfn); ``won`` (N*N,) 1 where a centre has won (bfn)
+``converged``       optional (N*N,) 1 where M_i w_i moves the robot by w_i (indirect)
 ``params``          JSON: CompetitionParams and LearningParams used
 ``provenance``      JSON: how it was made (network name, steps, seed, initial M, ...)
 ==================  ==========================================================
@@ -45,6 +46,8 @@ def save_model(path: str | os.PathLike, net, provenance: dict | None = None) -> 
     arrays = {"w": net.w}
     for name in _ARRAYS[net.kind]:
         arrays[name] = np.asarray(getattr(net, name), dtype=np.float64)
+    if getattr(net, "converged", None) is not None:
+        arrays["converged"] = np.asarray(net.converged, dtype=np.float64)
     meta = {
         "format": np.array(FORMAT),
         "format_version": np.array(FORMAT_VERSION),
@@ -119,7 +122,14 @@ def load_model(path: str | os.PathLike):
         raise ModelFormatError(path, "params", f"unreadable parameters ({exc})") from None
     lat = Lattice(size)
     if kind.startswith("indirect"):
-        return IndirectEKM(lat, kind.split("-")[1], arrays["w"], arrays["M"], arrays["Rinv"], comp, learn_p)
+        converged = None
+        if "converged" in data:
+            c = data["converged"]
+            if c.shape != (n,):
+                raise ModelFormatError(path, "converged", f"expected shape {(n,)}, got {c.shape}")
+            converged = np.asarray(c) > 0.0
+        return IndirectEKM(lat, kind.split("-")[1], arrays["w"], arrays["M"], arrays["Rinv"], comp, learn_p,
+                           converged=converged)
     if kind == "direct":
         return DirectEKM(lat, arrays["w"], arrays["C"], comp, learn_p)
     return BasisFunctionNetwork(lat, arrays["w"], arrays["widths"], arrays["W"], arrays["won"] > 0.0, comp, learn_p)

@@ -69,6 +69,9 @@ class IndirectEKM:
     comp: CompetitionParams = field(default_factory=CompetitionParams)
     learn_p: LearningParams = field(default_factory=LearningParams)
     v_max: float = KHEPERA.v_max
+    # bool per neuron: its command M_i w_i moves the robot by w_i (section 3.5's converged
+    # state), checked after training; None when unknown (not a parameter, like R^-1)
+    converged: np.ndarray | None = None
 
     @classmethod
     def untrained(cls, size: int, rule: str, rng: np.random.Generator, comp: CompetitionParams | None = None,
