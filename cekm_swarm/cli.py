@@ -78,6 +78,34 @@ def target_reaching(out_dir: Path, networks: str, trials: int, steps: int, test_
     click.echo(f"\n{results['wall_seconds']:.1f} s; wrote " + ", ".join(str(p) for p in written))
 
 
+@experiment.command("obstacles")
+@click.option("--seeds", default="1,2,3,4,5", show_default=True)
+@click.option("--max-time", default=300.0, show_default=True, type=click.FloatRange(min=1.0),
+              help="Sim seconds before a robot counts as trapped.")
+@click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path))
+@click.option("--workers", type=click.IntRange(1), help="Parallel processes (default: one per core).")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), required=True)
+def obstacles(seeds: str, max_time: float, model_path: Path | None, workers: int | None, out_dir: Path) -> None:
+    """Reproduce section 4.2 (Figs. 8, 10-12): cooperative EKMs and command fusion over seeds."""
+    from .experiments.concave_sweep import seeds_of
+    from .experiments.default_model import default_model, default_model_path
+    from .experiments.obstacle_suite import run_suite, table_markdown, write_suite
+
+    try:
+        seed_list = tuple(seeds_of(seeds))
+    except CekmError as exc:
+        raise click.UsageError(str(exc)) from None
+    if not seed_list:
+        raise click.UsageError("--seeds: give at least one seed")
+    if model_path is None:
+        default_model()
+        model_path = default_model_path()
+    doc, pictures = run_suite(seed_list, model_path, max_time, workers)
+    paths = write_suite(doc, pictures, out_dir)
+    click.echo(table_markdown(doc))
+    click.echo("wrote " + ", ".join(str(p) for p in paths))
+
+
 @main.command()
 @click.option("--network", default="R15", show_default=True, help="Network name, e.g. R15 or G12.")
 @click.option("--steps", default=100_000, show_default=True, type=click.IntRange(1))

@@ -189,6 +189,13 @@ def plot_run(run: NavigationRun, ax=None, title: str | None = None):
         if len(cps) > 1:
             ax.plot([c[0] for c in cps[:-1]], [c[1] for c in cps[:-1]], "o", color="k", ms=4, label="checkpoints")
         ax.plot(cps[-1][0], cps[-1][1], "*", color="k", ms=10)
+    xs = [v for log in run.logs.values() for v in log.x] + [c[0] for log in run.logs.values() for c in log.checkpoints]
+    ys = [v for log in run.logs.values() for v in log.y] + [c[1] for log in run.logs.values() for c in log.checkpoints]
+    bx0, by0, bx1, by1 = run.geometry["bounds"]
+    pad = 0.25
+    ax.set_xlim(max(bx0 - 0.03, min(xs) - pad), min(bx1 + 0.03, max(xs) + pad))
+    ax.set_ylim(max(by0 - 0.03, min(ys) - pad), min(by1 + 0.03, max(ys) + pad))
+    ax.set_aspect("equal")
     ax.set_title(title or f"{run.scenario}: {run.controller}, seed {run.seed}")
     ax.legend(loc="best", fontsize=7)
     if own:

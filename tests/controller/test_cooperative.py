@@ -65,7 +65,7 @@ def test_integration_and_motor_control_eqs_9_to_11(ekm):
         obs = ekm.localize_obstacles(readings, 0.0)
         out = ekm.integrate(target, obs)
         e = integrate(target.a, [o.b for o in obs if o.b is not None])
-        k = motor_winner(e)
+        k = motor_winner(np.where(ekm.eligible, e, -np.inf))
         c = np.clip(motor_control(m.M, m.w, np.array([target.alpha, target.d]), k, target.winner, m.v_max,
                                   m.learn_p.d_scale), -m.v_max, m.v_max)
         assert out.k == k and out.s == target.winner
@@ -75,3 +75,28 @@ def test_integration_and_motor_control_eqs_9_to_11(ekm):
 def test_range_readings_convert_surface_range_to_centre_distance():
     rs = range_readings(np.array([0.05, np.nan]), np.array([0.0, 1.0]), 0.03)
     assert rs[0].d == pytest.approx(0.08) and rs[1].d is None and rs[1].alpha == 1.0
+
+
+def test_motor_candidates_exclude_reverse_and_unconverged_neurons():
+    from cekm_swarm.controller.cooperative import motor_candidates
+
+    net = make_network("R9", np.random.default_rng(1))
+    w = net.w
+    reverse = (np.abs(w[:, 0]) > np.pi / 2) & (w[:, 1] > 0.02)
+    assert reverse.any()
+    np.testing.assert_array_equal(motor_candidates(net), ~reverse)
+    assert motor_candidates(net, allow_reverse=True).all()
+    net.converged = np.zeros(len(w), dtype=bool)
+    net.converged[:10] = True
+    np.testing.assert_array_equal(motor_candidates(net, allow_reverse=True), net.converged)
+
+
+def test_convergence_mask_tells_a_converged_map_from_an_untrained_one():
+    from cekm_swarm.experiments.training import convergence_mask
+    from cekm_swarm.models.networks import IndirectEKM
+
+    kinematic = convergence_mask(IndirectEKM.kinematic(9))
+    untrained = convergence_mask(make_network("R9", np.random.default_rng(2)))
+    small_angle = np.abs(IndirectEKM.kinematic(9).w[:, 0]) < 0.8
+    assert kinematic[small_angle].all()  # M0 moves the robot by w_i where the arc is near its chord
+    assert untrained.mean() < 0.5 < kinematic.mean()
