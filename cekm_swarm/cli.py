@@ -199,8 +199,10 @@ def fields(scenario: str, at_time: float, model_path: Path | None, seed: int | N
     out_path.parent.mkdir(parents=True, exist_ok=True)
     plot_fields(f).savefig(out_path, dpi=110)
     x, y, th = f["pose"]
+    k = f["k"]
+    motor = "none (the robot stops)" if k is None else f"{k} at w = ({f['w'][k, 0]:.2f} rad, {f['w'][k, 1]:.3f} m)"
     click.echo(f"t = {f['time']:.3f} s, {f['robot']} at ({x:.3f}, {y:.3f}, {th:.2f} rad): target winner "
-               f"{f['s']}, motor winner {f['k']} at w = ({f['w'][f['k'], 0]:.2f} rad, {f['w'][f['k'], 1]:.3f} m); "
+               f"{f['s']}, motor winner {motor}, command ({f['command'][0]:.3f}, {f['command'][1]:.3f}) m/s; "
                f"wrote {out_path}")
 
 

@@ -230,10 +230,12 @@ def fields_at(scenario, model, at_time: float, controller_seed: int | None = Non
     obstacle = {j: o.b for j, o in sorted(b.obstacles.items()) if o.b is not None}
     combined = np.sum(list(obstacle.values()), axis=0) if obstacle else np.zeros(n)
     e = a - combined
+    decision = b.controller.integrate(b.target, b.obstacles.values())
     return {"time": SCHEDULE.time(last), "robot": robot, "pose": world.pose(robot), "w": model.w.copy(),
             "a": a, "s": None if b.target is None else b.target.winner, "obstacle": obstacle,
             "obstacle_winners": {j: o.winner for j, o in b.obstacles.items() if o.winner is not None},
-            "combined": combined, "e": e, "k": int(np.argmax(e)), "sensor_angles": world.sensor_angles.copy(),
+            "combined": combined, "e": e, "k": decision.k, "eligible": b.controller.eligible.copy(),
+            "command": (decision.v_l, decision.v_r), "sensor_angles": world.sensor_angles.copy(),
             "geometry": world.static_geometry(), "state": world.state()}
 
 
@@ -258,6 +260,11 @@ def plot_fields(f: dict, sensors: tuple[int, int, int] | None = None):
     flat = [axes[0, 0], axes[0, 1], axes[0, 2], axes[1, 0], axes[1, 1], axes[1, 2]]
     for ax, (title, act, win) in zip(flat, panels):
         sc = ax.scatter(w[:, 0], w[:, 1], c=act, cmap="Greys", s=18, edgecolors="0.6", linewidths=0.3)
+        if title.startswith("(F)") and "eligible" in f and not f["eligible"].all():
+            out = ~f["eligible"]
+            ax.scatter(w[out, 0], w[out, 1], marker="x", s=22, color="tab:blue", linewidths=0.8,
+                       label="not in the motor competition")
+            ax.legend(fontsize=7, loc="upper left")
         if win is not None:
             ax.scatter([w[win, 0]], [w[win, 1]], s=90, facecolors="none", edgecolors="red", linewidths=1.5)
         ax.set_title(title, fontsize=9, loc="left")
