@@ -48,7 +48,7 @@ def main() -> None:
         a = target_field(model.w, s, fp)
         bs = [obstacle_field(model.w, winner(np.array([r.alpha, r.d]), model.w, model.comp), fp) for r in ranges]
         e = integrate(a, bs)
-        k = motor_winner(e)
+        k = motor_winner(np.where(ekm.eligible, e, -np.inf))  # the same motor candidates
         return motor_control(model.M, model.w, u, k, s, model.v_max, model.learn_p.d_scale)
 
     for target, ranges in cases[:5]:  # compile / warm up, and check the two agree

@@ -212,8 +212,8 @@ def sweep() -> None:
 
 
 @sweep.command("concave")
-@click.option("--depths", default="0.06,0.12,0.18,0.24", show_default=True, help="U depths (m), comma-separated.")
-@click.option("--widths", default="0.1,0.2,0.34,0.5,0.7,1.0", show_default=True, help="U widths (m) to try.")
+@click.option("--depths", default="0.06,0.12,0.18,0.24,0.3", show_default=True, help="U depths (m), comma-separated.")
+@click.option("--widths", default="0.1,0.2,0.34,0.5,0.7,1.0,1.4,2.0", show_default=True, help="U widths (m) to try.")
 @click.option("--ranges", default="0.12,0.17,0.25", show_default=True, help="Sensing ranges (m).")
 @click.option("--seeds", default="1,2,3", show_default=True)
 @click.option("--need", default=2, show_default=True, type=click.IntRange(1), help="Successes a width needs.")

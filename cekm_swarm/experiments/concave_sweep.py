@@ -21,8 +21,8 @@ from ..errors import ParameterError
 
 @dataclass(frozen=True)
 class SweepConfig:
-    depths: tuple[float, ...] = (0.06, 0.12, 0.18, 0.24)
-    widths: tuple[float, ...] = (0.10, 0.20, 0.34, 0.50, 0.70, 1.00)
+    depths: tuple[float, ...] = (0.06, 0.12, 0.18, 0.24, 0.30)
+    widths: tuple[float, ...] = (0.10, 0.20, 0.34, 0.50, 0.70, 1.00, 1.40, 2.00)
     ranges: tuple[float, ...] = (0.12, 0.17, 0.25)
     seeds: tuple[int, ...] = (1, 2, 3)
     need: int = 2  # successes out of len(seeds) for a width to count as negotiated
