@@ -101,6 +101,16 @@ class CooperativeEKM:
         self._M = np.ascontiguousarray(self.model.M)
         self.n = self.w.shape[0]
         self.eligible = motor_candidates(self.model, self.allow_reverse, self.reverse_min_d)
+        # A field depends only on its winner s (Eqs. 6, 8), so both are tabulated once per
+        # model: row s is exactly what fast.target_field / fast.obstacle_field give for s.
+        f = self.fields
+        self._A = np.empty((self.n, self.n))
+        self._B = np.empty((self.n, self.n))
+        for s in range(self.n):
+            fast.target_field(self.w, s, f.sigma_a_alpha, f.sigma_a_d, self._A[s])
+            fast.obstacle_field(self.w, s, f.sigma_b_alpha, f.sigma_b_d_beyond, f.sigma_b_d_near, self._B[s])
+        self._A.flags.writeable = False
+        self._B.flags.writeable = False
 
     def localize_target(self, reading: TargetReading, stamp: float) -> TargetActivity:
         """Target localization (section 3.2): s = winner(u) (Eqs. 2-4), a_i = G_a(w_s, w_i) (Eqs. 5-6)."""
@@ -109,33 +119,19 @@ class CooperativeEKM:
         if reading.at_goal:
             return TargetActivity(stamp, reading.alpha, reading.d, None, None, at_goal=True)
         s = fast.winner(reading.alpha, reading.d, self.w, self._params)
-        a = np.empty(self.n)
-        fast.target_field(self.w, s, self.fields.sigma_a_alpha, self.fields.sigma_a_d, a)
-        return TargetActivity(stamp, reading.alpha, reading.d, int(s), a)
+        return TargetActivity(stamp, reading.alpha, reading.d, int(s), self._A[s])
 
     def localize_obstacle(self, reading: RangeReading, stamp: float) -> ObstacleActivity:
         """Obstacle localization j (section 3.3): winner for u_j = (alpha_j, d_j), b_i = G_b (Eqs. 7-8)."""
         if reading.d is None:
             return ObstacleActivity(stamp, reading.index, None, None)
         s = fast.winner(reading.alpha, reading.d, self.w, self._params)
-        b = np.empty(self.n)
-        f = self.fields
-        fast.obstacle_field(self.w, s, f.sigma_b_alpha, f.sigma_b_d_beyond, f.sigma_b_d_near, b)
-        return ObstacleActivity(stamp, reading.index, int(s), b)
+        return ObstacleActivity(stamp, reading.index, int(s), self._B[s])
 
     def localize_obstacles(self, readings: list[RangeReading], stamp: float) -> list[ObstacleActivity]:
-        """Every obstacle localization module at once (the in-process fast path): the same
-        numbers as calling :meth:`localize_obstacle` for each reading, in one numba call."""
-        m = len(readings)
-        alphas = np.array([r.alpha for r in readings])
-        ds = np.array([np.nan if r.d is None else r.d for r in readings])
-        winners = np.empty(m, dtype=np.int64)
-        B = np.empty((m, self.n))
-        f = self.fields
-        fast.localize_obstacles(self.w, self._params, alphas, ds, f.sigma_b_alpha, f.sigma_b_d_beyond,
-                                f.sigma_b_d_near, winners, B)
-        return [ObstacleActivity(stamp, r.index, None, None) if winners[j] < 0
-                else ObstacleActivity(stamp, r.index, int(winners[j]), B[j]) for j, r in enumerate(readings)]
+        """Every obstacle localization module at once (the in-process path): the same as
+        :meth:`localize_obstacle` for each reading."""
+        return [self.localize_obstacle(r, stamp) for r in readings]
 
     def integrate(self, target: TargetActivity | None, obstacles: Iterable[ObstacleActivity]) -> MotorOutput:
         """Neural integration and motor control (section 3.4, Eqs. 9-11).

@@ -311,20 +311,6 @@ def obstacle_field(w, s, sigma_alpha, sigma_beyond, sigma_near, out):
 
 
 @njit(cache=True)
-def localize_obstacles(w, p, alphas, ds, sigma_alpha, sigma_beyond, sigma_near, winners, B):
-    """Obstacle localization for every sensor at once (Eqs. 2-4, 7-8): for sensor j with a
-    reading (ds[j] finite), winners[j] and the field B[j]; winners[j] = -1 when it sees nothing.
-    Each row is computed exactly as :func:`winner` then :func:`obstacle_field` would."""
-    for j in range(alphas.shape[0]):
-        if math.isnan(ds[j]):
-            winners[j] = -1
-            continue
-        s = winner(alphas[j], ds[j], w, p)
-        winners[j] = s
-        obstacle_field(w, s, sigma_alpha, sigma_beyond, sigma_near, B[j])
-
-
-@njit(cache=True)
 def integrate_and_select(a, B, active, eligible, e):
     """e = a - sum of the active rows of B (Eq. 9, in row order); returns k = argmax of e
     over the eligible neurons (Eq. 10), -1 when none is eligible."""
