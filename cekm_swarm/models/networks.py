@@ -49,13 +49,13 @@ def parameter_count(kind: str, size: int) -> int:
 
 
 def updated_neighbourhood(v: np.ndarray, w: np.ndarray, lattice: Lattice, comp: CompetitionParams,
-                          learn_p: LearningParams, t: float) -> tuple[np.ndarray, np.ndarray]:
-    """N_k and G(k, i) for the training input v: k = winner(v) (step 4 of section 3.5), and
-    the neurons with G >= g_min, with their G."""
+                          learn_p: LearningParams, t: float) -> tuple[int, np.ndarray, np.ndarray]:
+    """k = winner(v) for the training input v (step 4 of section 3.5), N_k = the neurons
+    with G(k, i) >= g_min, and their G."""
     k = winner(v, w, comp)
     g = neighbourhood(lattice.positions(), k, learn_p.sigma(t))
     idx = np.flatnonzero(g >= learn_p.g_min)
-    return idx, g[idx]
+    return k, idx, g[idx]
 
 
 def at_goal(u: np.ndarray) -> bool:
@@ -124,7 +124,7 @@ class IndirectEKM:
 
     def learn(self, v: np.ndarray, c: np.ndarray, t: float) -> None:
         """One step of self-organized learning: winner k for v, then Eqs. 15 or 16-17, then Eq. 12."""
-        idx, g = updated_neighbourhood(v, self.w, self.lattice, self.comp, self.learn_p, t)
+        k, idx, g = updated_neighbourhood(v, self.w, self.lattice, self.comp, self.learn_p, t)
         x = learning.model_inputs(v, self.w[idx], self.learn_p.d_scale)
         if self.rule == "gd":
             learning.gradient_descent(self.M, x, c, idx, g, self.learn_p.eta_m)
@@ -161,7 +161,7 @@ class DirectEKM:
 
     def learn(self, v: np.ndarray, c: np.ndarray, t: float) -> None:
         """c_i += eta G(k, i) (c - c_i), then Eq. 12, k the winner for v."""
-        idx, g = updated_neighbourhood(v, self.w, self.lattice, self.comp, self.learn_p, t)
+        k, idx, g = updated_neighbourhood(v, self.w, self.lattice, self.comp, self.learn_p, t)
         learning.direct_output_update(self.C, c, idx, g, self.learn_p.eta_c)
         learning.update_input_weights(self.w, v, idx, g, self.learn_p.eta_w)
 
@@ -245,7 +245,7 @@ class BasisFunctionNetwork:
         """Output weights by gradient descent, widths toward the nearest-centre distance, centres by Eq. 12."""
         phi = self.activations(v)
         err = c - phi @ self.W
-        idx, g = updated_neighbourhood(v, self.w, self.lattice, self.comp, self.learn_p, t)
+        k, idx, g = updated_neighbourhood(v, self.w, self.lattice, self.comp, self.learn_p, t)
         rho = np.array([lattice_neighbour_distances(self.w, self.lattice.size, i) for i in idx])
         self.W += self.learn_p.eta_bfn * phi[:, None] * err[None, :]
         self.widths[idx] += (self.learn_p.eta_width * g)[:, None] * (rho - self.widths[idx])
