@@ -25,6 +25,9 @@ SAMPLES = [
     (K.sense_range("r1", 4), SenseRange(0.128, "world", 4, 2.094, 0.085)),
     (K.sense_range("r1", 11), SenseRange(0.128, "world", 11, -math.pi, None)),
     (K.field_target("r1"), TargetField(0.256, "r1/target", 112, A)),
+    (K.field_target("r1"), TargetField(0.256, "r1/target", 112, A, alpha=0.3, d=1.2)),
+    (K.field_target("r1"), TargetField(0.512, "r1/target", None, None, alpha=-1.0, d=0.0, at_goal=True)),
+    (K.field_target("r1"), TargetField(0.768, "r1/target", None, None)),
     (K.field_obstacle("r1", 3), ObstacleField(0.128, "r1/obstacle-3", 3, 40, A * -1)),
     (K.field_obstacle("r1", 0), ObstacleField(0.128, "r1/obstacle-0", 0, None, None)),
     (K.cmd_wheels("r1"), WheelCommand(0.3, "r1/motor", 0.15625, -0.05, 17)),
@@ -277,3 +280,17 @@ def test_drop_counter_counts_and_logs_once_per_source(caplog):
     rec = drops.records()
     assert [r.source for r in rec] == sorted([FKEY, K.field_obstacle("r1", 2)])
     assert "schema version 99" in [r for r in rec if r.source == FKEY][0].first_reason
+
+
+@pytest.mark.parametrize("kwargs,field", [
+    (dict(winner=None, a=A, alpha=0.1, d=0.5), "winner"),
+    (dict(winner=3, a=None, alpha=0.1, d=0.5), "a"),
+    (dict(winner=3, a=A, alpha=0.1, d=None), "d"),
+    (dict(winner=3, a=A, alpha=0.1, d=0.0, at_goal=True), "at_goal"),
+    (dict(winner=None, a=None, at_goal=True), "at_goal"),
+])
+def test_target_field_states_are_consistent(kwargs, field):
+    """A target field is one of: a field with the input u, the goal state (u, no field), no target."""
+    with pytest.raises(MessageFieldError) as err:
+        TargetField(1.0, "r1/target", **kwargs)
+    assert err.value.field == field
