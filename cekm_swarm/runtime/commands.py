@@ -200,3 +200,24 @@ def replay_cmd(log_file: Path, endpoint: str | None, config_file: Path | None, r
 
 COMMANDS: list[click.Command] = [topic, log_group, replay_cmd]
 """The runtime's commands for the main CLI: ``for c in COMMANDS: main.add_command(c)``."""
+
+
+# --------------------------------------------------------------------------- monitor
+
+
+@click.command("monitor")
+@_connect_options
+@click.option("--root", default="cekm", show_default=True, help=_ROOT_HELP)
+@click.option("--refresh", default=0.5, show_default=True, type=click.FloatRange(min=0.05), help="Seconds between redraws.")
+@click.option("--once", "once_after", type=click.FloatRange(min=0.1), default=None, metavar="SECONDS",
+              help="Watch for SECONDS, print one snapshot and exit (for scripts and pipes).")
+def monitor(endpoint: str | None, config_file: Path | None, root: str, refresh: float, once_after: float | None) -> None:
+    """A live view of a run: robots' poses, goals, status, modules alive, sense-to-command
+    latency, and every key's rate and age. Attach from any terminal; Ctrl-C to leave."""
+    from .monitor import run_monitor
+
+    with _session(endpoint, config_file) as session:
+        run_monitor(session, root=root, refresh=refresh, once_after=once_after, out=click.echo)
+
+
+COMMANDS.append(monitor)
