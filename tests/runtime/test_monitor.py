@@ -5,7 +5,6 @@ from __future__ import annotations
 import subprocess
 import sys
 
-import numpy as np
 
 from cekm_swarm.protocol import DEFAULT_KEYS as K
 from cekm_swarm.protocol import SenseRange, WheelCommand, WorldState, encode
