@@ -14,7 +14,7 @@ import world
 from world import ScenarioError, World, load_scenario, scenario_names
 
 REPO = Path(__file__).resolve().parents[2]
-SHIPPED = ["checkpoints", "concave", "doorway", "lone_obstacle", "rooms", "tracking", "training"]
+SHIPPED = ["checkpoints", "concave", "crossing", "doorway", "lone_obstacle", "rooms", "tracking", "training"]
 
 
 def test_all_shipped_scenarios_are_listed():
