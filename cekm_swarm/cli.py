@@ -254,6 +254,16 @@ def _register_runtime_commands() -> None:
 _register_runtime_commands()
 
 
+def _register_launch_commands() -> None:
+    from .launch.commands import COMMANDS
+
+    for command in COMMANDS:
+        main.add_command(command)
+
+
+_register_launch_commands()
+
+
 def run() -> None:  # pragma: no cover - console entry with clean errors
     try:
         main(standalone_mode=True)

@@ -33,7 +33,21 @@ def test_controller_and_models_never_import_the_world():
 def test_world_never_imports_controller_code():
     for path, names in imports_of("world").items():
         bad = {n for n in names if n.startswith("cekm_swarm") and not n.startswith(("cekm_swarm.protocol",
-                                                                                      "cekm_swarm.errors"))}
+                                                                                      "cekm_swarm.errors",
+                                                                                      "cekm_swarm.runtime"))}
+        assert not bad, (path, bad)
+
+
+def test_module_processes_never_import_the_world():
+    for path, names in imports_of("cekm_swarm.modules").items():
+        assert not any(n == "world" or n.startswith("world.") for n in names), path
+
+
+def test_runtime_never_imports_controller_code():
+    # the world server may import the runtime, so the runtime must not reach the controller
+    for path, names in imports_of("cekm_swarm.runtime").items():
+        bad = {n for n in names if n.startswith(("cekm_swarm.controller", "cekm_swarm.models",
+                                                 "cekm_swarm.experiments", "cekm_swarm.modules"))}
         assert not bad, (path, bad)
 
 

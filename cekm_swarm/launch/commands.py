@@ -1,0 +1,78 @@
+"""Click commands of the launcher: ``cekm launch`` and ``cekm plot``."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import click
+
+from cekm_swarm.runtime.config import DEFAULT_PORT
+
+
+@click.command("launch")
+@click.argument("scenario")
+@click.option("--mode", type=click.Choice(["realtime", "lockstep"]), default="realtime", show_default=True,
+              help="realtime: wall clock; lockstep: the world waits for every robot's command (reproducible).")
+@click.option("--seed", type=int, help="World seed (default: the scenario's).")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), required=True,
+              help="Directory for outcome.json, run.mcap, trajectory.png and the processes' logs.")
+@click.option("--connect", help="Join this Zenoh endpoint (e.g. tcp/10.0.0.1:7447) instead of opening an "
+                                "embedded router.")
+@click.option("--port", default=DEFAULT_PORT, show_default=True, type=click.IntRange(1, 65535),
+              help="Port of the embedded router on 127.0.0.1 (without --connect).")
+@click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path),
+              help="A trained model (.npz); default: R15 trained and cached on first use.")
+@click.option("--max-time", default=600.0, show_default=True, type=click.FloatRange(min=0.2),
+              help="Sim seconds before the run ends.")
+@click.option("--root", default="cekm", show_default=True, help="Key space root.")
+@click.option("--no-plot", is_flag=True, help="Do not draw trajectory.png.")
+def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, connect: str | None, port: int,
+               model_path: Path | None, max_time: float, root: str, no_plot: bool) -> None:
+    """Run SCENARIO through the distributed runtime: the world server and, per robot,
+    1 + 12 + 1 module processes on Zenoh, supervised (restarted when they die)."""
+    from world import ScenarioError, load_scenario
+
+    from .launcher import LaunchConfig, launch
+
+    try:
+        load_scenario(scenario)
+    except ScenarioError as exc:
+        raise click.UsageError(str(exc)) from None
+    config = LaunchConfig(scenario, out_dir, mode=mode, seed=seed, connect=connect, port=port, model=model_path,
+                          max_time=max_time, root=root, plot=not no_plot)
+    outcome = launch(config, echo=lambda s: click.echo(s))
+    if not outcome:
+        raise click.ClickException(f"the run left no outcome; see {out_dir / 'launch.log'} and {out_dir / 'logs'}")
+    for r, o in outcome["robots"].items():
+        click.echo(f"{r}: {'reached' if o['reached'] else 'NOT reached'} in {o['time_s']:.1f} s, path "
+                   f"{o['path_length_m']:.2f} m, {o['collisions']} collisions")
+    lat = outcome.get("sense_to_command_ms", {})
+    if lat.get("n"):
+        click.echo(f"sense-to-command latency p50 {lat['p50']} ms, p99 {lat['p99']} ms ({lat['n']} ticks)")
+    restarts = outcome.get("launcher", {}).get("restarts")
+    if restarts:
+        click.echo(f"restarts: {restarts}")
+    click.echo(f"wrote {out_dir / 'outcome.json'}, {out_dir / 'run.mcap'}, {out_dir / 'trajectory.png'}")
+
+
+@click.command("plot")
+@click.argument("log", type=click.Path(dir_okay=False, exists=True, path_type=Path))
+@click.option("--out", "out_path", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help="The PNG to write.")
+@click.option("--title", help="Figure title.")
+def plot_cmd(log: Path, out_path: Path, title: str | None) -> None:
+    """Draw the run recorded in LOG (an MCAP file of `cekm launch`): arena and robot paths."""
+    from .plot import plot_log
+
+    outcome = None
+    sibling = log.with_name("outcome.json")
+    if sibling.is_file():
+        outcome = json.loads(sibling.read_text())
+    fig = plot_log(log, title=title, outcome=outcome)
+    out_path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out_path, dpi=130)
+    click.echo(f"wrote {out_path}")
+
+
+COMMANDS = [launch_cmd, plot_cmd]

@@ -1,0 +1,360 @@
+"""The launcher: a Zenoh router (embedded, unless joining one), per robot 1 + 12 + 1
+module processes, then the world server, all separate OS processes, supervised.
+
+Order: the router opens; every module starts; once every module's liveliness token is up
+the world server starts (so no tick is published before the modules listen). A module
+that dies is restarted with back-off (0.25 s, doubling while it keeps dying within 5 s of
+starting, at most 5 s), which the log shows. When the world server ends (every robot at
+its goal, max time) or on SIGINT/SIGTERM everything stops: the world server first (it
+writes its outcome and closes the log), then the modules (SIGTERM, SIGKILL after 5 s).
+
+Each child's output goes to ``OUT/logs/<robot>-<module>.log`` (``world.log`` for the
+world server); ``OUT/pids.json`` holds the live process ids; ``OUT/launch.log`` the
+launcher's own record.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import math
+import os
+import signal
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from cekm_swarm.protocol import DEFAULT_ROOT, KeySpace
+from cekm_swarm.runtime.bridge import LivelinessWatcher
+from cekm_swarm.runtime.config import DEFAULT_HOST, DEFAULT_PORT, open_client, open_embedded_router
+
+BACKOFF_MIN = 0.25
+BACKOFF_MAX = 5.0
+HEALTHY_AFTER = 5.0  # s: a module up this long gets its back-off reset
+ALIVE_TIMEOUT = 180.0
+STOP_GRACE = 5.0
+
+
+@dataclass
+class Child:
+    """One supervised module process."""
+
+    robot: str
+    name: str
+    argv: list[str]
+    log_path: Path
+    proc: asyncio.subprocess.Process | None = None
+    started: float = 0.0
+    restarts: int = 0
+    backoff: float = BACKOFF_MIN
+    exits: list[int] = field(default_factory=list)
+
+    @property
+    def label(self) -> str:
+        return f"{self.robot}/{self.name}"
+
+
+@dataclass
+class LaunchConfig:
+    scenario: str
+    out: Path
+    mode: str = "realtime"
+    seed: int | None = None
+    connect: str | None = None
+    port: int = DEFAULT_PORT
+    model: Path | None = None
+    max_time: float = 600.0
+    root: str = DEFAULT_ROOT
+    deadman: float = 0.5
+    republish: float = 1.0
+    plot: bool = True
+    progress_every: float = 1.0
+
+
+def module_names(sensors: int) -> list[str]:
+    return ["target"] + [f"obstacle-{j}" for j in range(sensors)] + ["motor"]
+
+
+def module_argv(name: str, robot: str, model: Path, endpoint: str, mode: str, root: str) -> list[str]:
+    common = ["--robot", robot, "--model", str(model), "--connect", endpoint, "--root", root, "--mode", mode]
+    if name == "target":
+        return [sys.executable, "-m", "cekm_swarm.modules.target", *common]
+    if name == "motor":
+        return [sys.executable, "-m", "cekm_swarm.modules.motor", *common]
+    j = int(name.split("-", 1)[1])
+    return [sys.executable, "-m", "cekm_swarm.modules.obstacle", *common, "--index", str(j)]
+
+
+def plan_checkpoint_data(scenario) -> dict[str, list[list[float]]]:
+    """Checkpoints for every robot on the known walls (Fig. 12), as plain data."""
+    from cekm_swarm.controller.planner import plan_checkpoints
+    from world import World
+
+    world = World(scenario)
+    geometry = world.static_geometry()
+    out = {}
+    for r in world.robot_ids:
+        x, y, _ = world.pose(r)
+        plan = plan_checkpoints(geometry, (x, y), world.goal_of(r), body_radius=world.body_radius)
+        out[r] = [list(map(float, c)) for c in plan.checkpoints]
+    return out
+
+
+def format_progress(doc: dict[str, Any]) -> str:
+    parts = [f"t={doc['t']:7.2f} s"]
+    for r, s in doc["robots"].items():
+        st = "reached" if s["reached"] else ("STOPPED" if s.get("stopped") else f"{s['to_goal']:.2f} m to goal")
+        parts.append(f"{r} ({s['x']:.2f}, {s['y']:.2f}) {st}")
+    if doc.get("republished"):
+        parts.append(f"republished {doc['republished']}")
+    if doc.get("deadline_misses"):
+        parts.append(f"deadline misses {doc['deadline_misses']}")
+    return "  ".join(parts)
+
+
+class Launcher:
+    def __init__(self, config: LaunchConfig, echo: Callable[[str], None] = print) -> None:
+        self.c = config
+        self.echo = echo
+        self.keys = KeySpace(config.root)
+        self.children: dict[str, Child] = {}
+        self.stopping = False
+        self.world_proc: asyncio.subprocess.Process | None = None
+        self.interrupted = False
+        self._log = None
+        self.startup_s: float | None = None
+
+    # ------------------------------------------------------------------ logging
+
+    def say(self, text: str) -> None:
+        line = f"[{time.strftime('%H:%M:%S')}] {text}"
+        self.echo(line)
+        if self._log is not None:
+            self._log.write(line + "\n")
+            self._log.flush()
+
+    def _write_pids(self) -> None:
+        pids = {c.label: c.proc.pid for c in self.children.values() if c.proc is not None and c.proc.returncode is None}
+        if self.world_proc is not None and self.world_proc.returncode is None:
+            pids["world/server"] = self.world_proc.pid
+        tmp = self.c.out / "pids.json.tmp"
+        tmp.write_text(json.dumps(pids, indent=1))
+        tmp.replace(self.c.out / "pids.json")
+
+    # ------------------------------------------------------------------ children
+
+    async def _spawn(self, child: Child) -> None:
+        with open(child.log_path, "ab") as f:
+            child.proc = await asyncio.create_subprocess_exec(*child.argv, stdout=f, stderr=asyncio.subprocess.STDOUT,
+                                                              stdin=asyncio.subprocess.DEVNULL,
+                                                              start_new_session=True)
+        child.started = time.monotonic()
+        self._write_pids()
+
+    async def _supervise(self, child: Child) -> None:
+        while True:
+            assert child.proc is not None
+            code = await child.proc.wait()
+            if self.stopping:
+                return
+            child.exits.append(code)
+            up = time.monotonic() - child.started
+            if up >= HEALTHY_AFTER:
+                child.backoff = BACKOFF_MIN
+            delay = child.backoff
+            child.backoff = min(BACKOFF_MAX, child.backoff * 2)
+            why = f"signal {-code}" if code < 0 else f"exit code {code}"
+            self.say(f"module {child.label} died ({why}) after {up:.1f} s; restarting in {delay:.2f} s "
+                     f"(restart #{child.restarts + 1})")
+            self._write_pids()
+            await asyncio.sleep(delay)
+            if self.stopping:
+                return
+            child.restarts += 1
+            await self._spawn(child)
+            self.say(f"module {child.label} restarted (pid {child.proc.pid})")
+
+    async def _stop_children(self) -> None:
+        procs = [c.proc for c in self.children.values() if c.proc is not None and c.proc.returncode is None]
+        for p in procs:
+            try:
+                p.send_signal(signal.SIGTERM)
+            except ProcessLookupError:
+                pass
+        if procs:
+            _, pending = await asyncio.wait([asyncio.ensure_future(p.wait()) for p in procs], timeout=STOP_GRACE)
+            for p in procs:
+                if p.returncode is None:
+                    try:
+                        p.kill()
+                    except ProcessLookupError:
+                        pass
+            if pending:
+                await asyncio.wait(pending, timeout=STOP_GRACE)
+
+    # ------------------------------------------------------------------ world
+
+    async def _read_world(self, stream: asyncio.StreamReader) -> None:
+        while True:
+            line = await stream.readline()
+            if not line:
+                return
+            text = line.decode(errors="replace").rstrip()
+            kind, _, body = text.partition(" ")
+            try:
+                doc = json.loads(body) if body else {}
+            except json.JSONDecodeError:
+                doc = None
+            if kind == "PROGRESS" and doc is not None:
+                self.say(format_progress(doc))
+            elif kind == "EVENT" and doc is not None:
+                extra = {k: v for k, v in doc.items() if k not in ("event", "t")}
+                self.say(f"world event at t={doc['t']:.2f} s: {doc['event']} {extra}")
+            elif kind == "START" and doc is not None:
+                self.say(f"world started ticking ({doc['mode']}, seed {doc['seed']})")
+            elif kind == "DONE" and doc is not None:
+                self.say(f"world done at t={doc['sim_seconds']:.2f} s of sim time, {doc['wall_seconds']:.1f} s of wall time")
+            elif text:
+                self.say(f"world: {text}")
+
+    # ------------------------------------------------------------------ main
+
+    async def run(self) -> dict[str, Any]:
+        c = self.c
+        c.out.mkdir(parents=True, exist_ok=True)
+        (c.out / "logs").mkdir(exist_ok=True)
+        self._log = open(c.out / "launch.log", "a")
+        loop = asyncio.get_running_loop()
+        for sig in (signal.SIGTERM, signal.SIGINT):
+            try:
+                loop.add_signal_handler(sig, self._interrupt)
+            except (NotImplementedError, RuntimeError):  # pragma: no cover
+                pass
+        from world import load_scenario
+
+        scenario = load_scenario(c.scenario)
+        robots = [r.id for r in scenario.robots]
+        model = c.model
+        if model is None:
+            from cekm_swarm.experiments.default_model import default_model, default_model_path
+
+            default_model()
+            model = default_model_path()
+        checkpoints = None
+        if scenario.name == "checkpoints":
+            checkpoints = plan_checkpoint_data(scenario)
+            (c.out / "checkpoints.json").write_text(json.dumps(checkpoints))
+        router = None
+        if c.connect:
+            endpoint = c.connect
+        else:
+            router = open_embedded_router(c.port, DEFAULT_HOST)
+            endpoint = f"tcp/{DEFAULT_HOST}:{c.port}"
+            self.say(f"embedded Zenoh router on {endpoint}")
+        session = open_client(endpoint)
+        t0 = time.monotonic()
+        supervisors: list[asyncio.Task] = []
+        outcome: dict[str, Any] = {}
+        try:
+            watcher = LivelinessWatcher(session, self.keys.alive_all())
+            for r in robots:
+                for name in module_names(self.keys.range_sensors):
+                    child = Child(r, name, module_argv(name, r, model, endpoint, c.mode, c.root),
+                                  c.out / "logs" / f"{r}-{name}.log")
+                    self.children[child.label] = child
+            self.say(f"{scenario.name}: {len(robots)} robot(s), starting {len(self.children)} module processes "
+                     f"({c.mode})")
+            for child in self.children.values():
+                await self._spawn(child)
+            supervisors = [asyncio.ensure_future(self._supervise(ch)) for ch in self.children.values()]
+            expected = {self.keys.alive(ch.robot, ch.name) for ch in self.children.values()}
+            deadline = loop.time() + ALIVE_TIMEOUT
+            while not expected <= watcher.alive and not self.stopping:
+                try:
+                    await watcher.next_event(timeout=max(0.1, min(1.0, deadline - loop.time())))
+                except asyncio.TimeoutError:
+                    if loop.time() > deadline:
+                        missing = sorted(expected - watcher.alive)
+                        raise RuntimeError(f"modules not alive after {ALIVE_TIMEOUT:.0f} s: {missing[:5]}...")
+            if self.stopping:
+                return {}
+            self.startup_s = round(time.monotonic() - t0, 3)
+            self.say(f"all {len(expected)} modules alive after {self.startup_s:.1f} s; starting the world")
+            world_argv = [sys.executable, "-m", "world.server", c.scenario, "--connect", endpoint, "--root", c.root,
+                          "--out", str(c.out), "--mode", c.mode, "--max-time", str(c.max_time),
+                          "--deadman", str(c.deadman), "--republish", str(c.republish),
+                          "--progress-every", str(c.progress_every)]
+            if c.seed is not None:
+                world_argv += ["--seed", str(c.seed)]
+            if checkpoints is not None:
+                world_argv += ["--checkpoints", str(c.out / "checkpoints.json")]
+            with open(c.out / "logs" / "world.log", "ab") as werr:
+                self.world_proc = await asyncio.create_subprocess_exec(
+                    *world_argv, stdout=asyncio.subprocess.PIPE, stderr=werr, stdin=asyncio.subprocess.DEVNULL,
+                    start_new_session=True)
+            self._write_pids()
+            await self._read_world(self.world_proc.stdout)
+            code = await self.world_proc.wait()
+            if code not in (0, 3):
+                self.say(f"world server ended with code {code}; see {c.out / 'logs' / 'world.log'}")
+        finally:
+            self.stopping = True
+            if self.world_proc is not None and self.world_proc.returncode is None:
+                self.world_proc.send_signal(signal.SIGTERM)
+                try:
+                    await asyncio.wait_for(self.world_proc.wait(), 15.0)
+                except asyncio.TimeoutError:
+                    self.world_proc.kill()
+            await self._stop_children()
+            for s in supervisors:
+                s.cancel()
+            try:
+                watcher.close()
+            except Exception:
+                pass
+            session.close()
+            if router is not None:
+                router.close()
+            self.say("all processes stopped")
+        outcome_path = c.out / "outcome.json"
+        if outcome_path.is_file():
+            outcome = json.loads(outcome_path.read_text())
+            outcome["launcher"] = {
+                "modules": len(self.children), "interrupted": self.interrupted,
+                "restarts": {ch.label: ch.restarts for ch in self.children.values() if ch.restarts},
+                "exits": {ch.label: ch.exits for ch in self.children.values() if ch.exits},
+                "startup_s": self.startup_s}
+            outcome_path.write_text(json.dumps(outcome, indent=1))
+        if c.plot and (c.out / "run.mcap").is_file():
+            try:
+                from .plot import plot_log
+
+                fig = plot_log(c.out / "run.mcap", title=f"{scenario.name} ({c.mode}, seed {outcome.get('seed')})",
+                               outcome=outcome)
+                fig.savefig(c.out / "trajectory.png", dpi=130)
+            except Exception as exc:  # noqa: BLE001 - the run's results stand without the picture
+                self.say(f"could not draw trajectory.png: {type(exc).__name__}: {exc}")
+        if self._log is not None:
+            self._log.close()
+        return outcome
+
+    def _interrupt(self) -> None:
+        if self.interrupted:
+            return
+        self.interrupted = True
+        self.say("interrupted: stopping")
+        if self.world_proc is not None and self.world_proc.returncode is None:
+            self.world_proc.send_signal(signal.SIGTERM)  # writes its outcome; the rest stops after it
+        else:
+            self.stopping = True
+            for ch in self.children.values():
+                if ch.proc is not None and ch.proc.returncode is None:
+                    ch.proc.send_signal(signal.SIGTERM)
+
+
+def launch(config: LaunchConfig, echo: Callable[[str], None] = print) -> dict[str, Any]:
+    """Run a launch to the end; the outcome (``outcome.json`` plus the launcher's record)."""
+    return asyncio.run(Launcher(config, echo).run())

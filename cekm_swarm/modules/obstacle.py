@@ -1,0 +1,56 @@
+"""Obstacle localization module j: on each ``sense/range/<j>`` (every 0.128 s) the winner
+and the obstacle field b_j (section 3.3), published on ``field/obstacle/<j>``.
+
+``python -m cekm_swarm.modules.obstacle --robot r1 --index 3 --model M.npz --connect ...``
+
+The reading's ``d`` is the obstacle input u_j: the distance from the robot's centre
+(surface range plus body radius), None when the sensor sees nothing, as
+``controller.readings.range_readings`` forms it in one process.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from cekm_swarm.protocol import KeySpace, ObstacleField, SenseRange
+
+from .shell import ModuleSpec, base_parser, keyspace, load_controller, main_of
+
+
+def name_of(index: int) -> str:
+    return f"obstacle-{index}"
+
+
+def obstacle_field(ekm, msg: SenseRange, sender: str) -> ObstacleField:
+    """What ``ekm.localize_obstacle(RangeReading(j, alpha_j, d_j), stamp)`` gives, as a message."""
+    from cekm_swarm.controller.readings import RangeReading
+
+    act = ekm.localize_obstacle(RangeReading(msg.index, msg.alpha, msg.d), msg.stamp)
+    return ObstacleField(msg.stamp, sender, msg.index, act.winner, act.b)
+
+
+def build_spec(ekm, robot: str, index: int, keys: KeySpace = KeySpace()) -> ModuleSpec:
+    index = keys.check_index(index)
+    out_key = keys.field_obstacle(robot, index)
+    sender = f"{robot}/{name_of(index)}"
+
+    def handle(msg, rec):
+        if not isinstance(msg, SenseRange):
+            return []
+        return [(out_key, obstacle_field(ekm, msg, sender))]
+
+    return ModuleSpec(name_of(index), robot, keys.sense_range(robot, index), handle, keys)
+
+
+def _build(args: argparse.Namespace) -> ModuleSpec:
+    return build_spec(load_controller(args.model), args.robot, args.index, keyspace(args))
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = base_parser("cekm obstacle localization module (one distance sensor)")
+    p.add_argument("--index", type=int, required=True, help="distance sensor index j (0..11)")
+    return main_of(_build, p, argv)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

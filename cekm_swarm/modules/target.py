@@ -1,0 +1,58 @@
+"""Target localization module: on each ``sense/target`` (every 0.256 s) the winner s and
+the target field a (section 3.2), published on ``field/target``.
+
+``python -m cekm_swarm.modules.target --robot r1 --model M.npz --connect tcp/127.0.0.1:7447``
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+from cekm_swarm.protocol import KeySpace, SenseTarget, TargetField
+
+from .shell import ModuleSpec, base_parser, keyspace, load_controller, main_of
+
+NAME = "target"
+
+
+def target_field(ekm, msg: SenseTarget, sender: str) -> TargetField:
+    """The target field of one target reading: what ``RobotBrain.tick`` computes with
+    ``ekm.localize_target(TargetReading(alpha, d, visible), stamp)``, as a message.
+
+    The world sends (0, 0, visible=False) for a target out of range; the in-process
+    runner hands the controller NaNs there; either way the reading is not usable."""
+    from cekm_swarm.controller.readings import TargetReading
+
+    act = ekm.localize_target(TargetReading(msg.alpha, msg.d, msg.visible), msg.stamp)
+    if act.at_goal:
+        return TargetField(msg.stamp, sender, None, None, act.alpha, act.d, at_goal=True)
+    if act.a is None or not (math.isfinite(act.alpha) and math.isfinite(act.d)):
+        return TargetField(msg.stamp, sender, None, None)
+    return TargetField(msg.stamp, sender, act.winner, act.a, act.alpha, act.d)
+
+
+def build_spec(ekm, robot: str, keys: KeySpace = KeySpace()) -> ModuleSpec:
+    out_key = keys.field_target(robot)
+    spec_box: list[ModuleSpec] = []
+
+    def handle(msg, rec):
+        if not isinstance(msg, SenseTarget):
+            return []
+        return [(out_key, target_field(ekm, msg, spec_box[0].sender))]
+
+    spec = ModuleSpec(NAME, robot, keys.sense_target(robot), handle, keys)
+    spec_box.append(spec)
+    return spec
+
+
+def _build(args: argparse.Namespace) -> ModuleSpec:
+    return build_spec(load_controller(args.model), args.robot, keyspace(args))
+
+
+def main(argv: list[str] | None = None) -> int:
+    return main_of(_build, base_parser("cekm target localization module"), argv)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

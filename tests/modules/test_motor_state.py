@@ -1,0 +1,127 @@
+"""The motor module's bookkeeping without Zenoh or the controller: lockstep completeness,
+repeats for re-published ticks, staleness in real time."""
+
+import numpy as np
+import pytest
+
+from cekm_swarm.modules.motor import MotorState, stamp_of
+from cekm_swarm.protocol import ObstacleField, TargetField
+
+N = 12
+
+
+def fake_integrate(calls):
+    def integrate(target, obstacles):
+        calls.append((target, [o.index for o in obstacles], [o.stamp for o in obstacles]))
+        return (0.0 if target is None else float(target.winner), float(len(obstacles)))
+    return integrate
+
+
+def obstacle(t, j, seen=True):
+    return ObstacleField(t, f"r1/obstacle-{j}", j, 1 if seen else None, np.ones(4) if seen else None)
+
+
+def target(t, winner=2):
+    return TargetField(t, "r1/target", winner, np.ones(8), 0.1, 0.5)
+
+
+def test_lockstep_sends_once_when_the_even_tick_is_complete():
+    calls = []
+    m = MotorState(fake_integrate(calls), lockstep=True)
+    t = stamp_of(0)
+    for j in range(N):
+        assert m.put(obstacle(t, j)) == []
+    assert m.missing(t) == ["target"]
+    out = m.put(target(t))
+    assert out == [(t, 2.0, 12.0)]
+    assert calls[-1][1] == list(range(N))  # obstacles combined in index order
+    assert m.commands == 1
+
+
+def test_lockstep_odd_tick_uses_the_latest_target_field():
+    calls = []
+    m = MotorState(fake_integrate(calls), lockstep=True)
+    t0, t1, t2 = stamp_of(0), stamp_of(1), stamp_of(2)
+    m.put(target(t0))
+    for j in range(N):
+        m.put(obstacle(t0, j))
+    # tick 1 (odd): no target reading; complete with the 12 obstacle fields, arriving in any order
+    out = []
+    for j in reversed(range(N)):
+        out += m.put(obstacle(t1, j))
+    assert out == [(t1, 2.0, 12.0)]
+    assert calls[-1][0].stamp == t0
+    # tick 2 (even): the old target field is not enough
+    for j in range(N):
+        assert m.put(obstacle(t2, j)) == []
+    assert m.missing(t2) == ["target"]
+    assert m.put(target(t2, winner=5)) == [(t2, 5.0, 12.0)]
+
+
+def test_lockstep_waits_for_a_missing_obstacle_field_and_repeats_on_republish():
+    m = MotorState(fake_integrate([]), lockstep=True)
+    t0 = stamp_of(0)
+    m.put(target(t0))
+    for j in range(N):
+        if j != 7:
+            assert m.put(obstacle(t0, j)) == []
+    assert m.missing(t0) == ["obstacle-7"]
+    assert m.put(obstacle(t0, 7)) == [(t0, 2.0, 12.0)]
+    # the world re-publishes tick 0: every re-sent field is answered with the same command
+    assert m.put(obstacle(t0, 3)) == [(t0, 2.0, 12.0)]
+    assert m.repeats == 1 and m.commands == 1
+    # a late field of an older tick changes nothing
+    assert m.put(obstacle(stamp_of(0), 3)) == [(t0, 2.0, 12.0)]
+
+
+def test_lockstep_ignores_a_field_older_than_the_stored_one():
+    m = MotorState(fake_integrate([]), lockstep=True)
+    m.put(obstacle(stamp_of(3), 0))
+    assert m.put(obstacle(stamp_of(2), 0)) == []
+    assert m.obstacles[0].stamp == stamp_of(3)
+
+
+def test_realtime_integrates_on_every_field_with_the_latest_of_each():
+    calls = []
+    m = MotorState(fake_integrate(calls))
+    assert m.put(obstacle(0.0, 0)) == [(0.0, 0.0, 1.0)]  # no target yet: the robot stops (c = 0 via integrate)
+    assert m.put(target(0.0)) == [(0.0, 2.0, 1.0)]
+    assert m.put(obstacle(0.0, 1)) == [(0.0, 2.0, 2.0)]
+    assert m.commands == 3
+
+
+def test_realtime_drops_a_stale_obstacle_field_and_counts_it_once():
+    calls = []
+    m = MotorState(fake_integrate(calls))
+    for k in range(3):
+        t = stamp_of(k)
+        m.put(target(stamp_of(k - k % 2)))
+        for j in range(N):
+            if not (j == 4 and k > 0):  # sensor 4's module died after tick 0
+                m.put(obstacle(t, j))
+    # at tick 2 sensor 4's field is 0.256 s old: at the limit, still used
+    assert 4 in calls[-1][1]
+    m.put(obstacle(stamp_of(3), 0))
+    assert 4 not in calls[-1][1] and len(calls[-1][1]) == N - 1
+    m.put(obstacle(stamp_of(3), 1))
+    assert m.stale_drops == {"obstacle-4": 1}
+    # the restarted module's fresh field is used again
+    m.put(obstacle(stamp_of(3), 4))
+    assert 4 in calls[-1][1]
+
+
+def test_realtime_stale_target_means_no_target():
+    calls = []
+    m = MotorState(fake_integrate(calls))
+    m.put(target(0.0))
+    m.put(obstacle(stamp_of(4), 0))  # 0.512 s later: at the limit
+    assert calls[-1][0] is not None
+    m.put(obstacle(stamp_of(5), 0))
+    assert calls[-1][0] is None
+    assert m.stale_drops == {"target": 1}
+
+
+@pytest.mark.parametrize("k", [0, 1, 2, 3, 100, 101])
+def test_target_stamp_for_a_tick(k):
+    m = MotorState(fake_integrate([]))
+    assert m.target_stamp_for(stamp_of(k)) == stamp_of(k - k % 2)

@@ -1,0 +1,411 @@
+"""The world server of the distributed runtime: runs a scenario tick by tick with
+:class:`world.episode.Episode` (the same world side as the in-process runner) and talks
+to the robots' module processes over Zenoh.
+
+Per tick (0.128 s of sim time, stamp = sim time) and robot it publishes
+``<root>/<robot>/sense/range/<j>`` (12, every tick) and ``<root>/<robot>/sense/target``
+(even ticks), then ``<root>/world/clock`` and ``<root>/world/state``; it applies each
+robot's latest ``cmd/wheels`` and advances.
+
+* ``lockstep``: the world advances only when every robot's command stamped with the
+  tick's sim time has arrived. If one is missing after ``--republish`` seconds, the tick's
+  readings (and each robot's latest target reading) are published again, so a restarted
+  module catches up. Same scenario and seed give the same trajectory as ``cekm run``.
+* ``realtime``: ticks follow the wall clock. At each tick boundary the latest command of
+  each robot is applied; a robot whose commands have stopped (the next tick would end
+  more than ``--deadman`` s after its last command arrived) is stopped (wheels 0) and
+  the stop is reported.
+
+A range reading's ``d`` is the obstacle input u_j, the distance from the robot's centre
+(surface range + body radius), None when nothing is in range; an out-of-range target is
+sent as alpha = d = 0, visible False.
+
+Everything seen under ``<root>/**`` is recorded into ``OUT/run.mcap`` at its stamp's sim
+time, with Foxglove view channels; ``OUT/outcome.json`` (the fields of ``cekm run``) and
+``OUT/trajectory.json`` (pose and command per tick) are written at the end, which is when
+every robot reached its goal, at ``--max-time``, or on SIGTERM/SIGINT.
+
+Progress goes to stdout as lines ``PROGRESS {json}``, ``EVENT {json}`` and ``DONE {json}``.
+
+``python -m world.server SCENARIO --connect tcp/127.0.0.1:7447 --out DIR [--mode lockstep]``
+
+Imports only ``world``, ``cekm_swarm.protocol``, ``cekm_swarm.runtime`` and ``cekm_swarm.errors``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import json
+import logging
+import math
+import signal
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from cekm_swarm.protocol import (DEFAULT_ROOT, Clock, DropCounter, KeyKind, KeySpace, SenseRange, SenseTarget,
+                                 WheelCommand, WorldState, peek)
+from cekm_swarm.runtime.bridge import AsyncSubscription, Publishers, declare_alive, wait_matching_async
+from cekm_swarm.runtime.config import DEFAULT_ENDPOINT, open_client
+from cekm_swarm.runtime.mcap_log import McapRecorder
+
+from .episode import TICK_S, Episode, TickReadings
+from .scenario import load_scenario
+from .sim import World
+
+log = logging.getLogger("world.server")
+SENDER = "world"
+DEADMAN_S = 0.5
+REPUBLISH_S = 1.0
+DEFAULT_MAX_TIME = 600.0
+
+
+def emit(kind: str, doc: dict[str, Any]) -> None:
+    """One progress line on stdout for the launcher."""
+    sys.stdout.write(f"{kind} {json.dumps(doc)}\n")
+    sys.stdout.flush()
+
+
+# --------------------------------------------------------------------------- pure parts
+
+
+def sense_messages(keys: KeySpace, rd: TickReadings, sensor_angles, body_radius: float) -> list[tuple[str, Any]]:
+    """The sense messages of one robot's readings at one tick: 12 ranges (+ the target)."""
+    out: list[tuple[str, Any]] = []
+    t = rd.t
+    for j, r in enumerate(rd.ranges):
+        r = float(r)
+        d = None if not math.isfinite(r) else r + body_radius
+        out.append((keys.sense_range(rd.robot, j), SenseRange(t, SENDER, j, float(sensor_angles[j]), d)))
+    if rd.target is not None:
+        out.append((keys.sense_target(rd.robot), target_message(t, rd.target)))
+    return out
+
+
+def target_message(t: float, target: tuple[float, float, bool]) -> SenseTarget:
+    alpha, d, visible = target
+    if not (visible and math.isfinite(alpha) and math.isfinite(d)):
+        return SenseTarget(t, SENDER, 0.0, 0.0, False)
+    return SenseTarget(t, SENDER, float(alpha), float(d), True)
+
+
+class Deadman:
+    """Per robot: when did its last command arrive (monotonic s), and is it stopped."""
+
+    def __init__(self, robots: list[str], limit: float, now: float) -> None:
+        self.limit = limit
+        self.last = {r: now for r in robots}
+        self.stopped = {r: False for r in robots}
+
+    def heard(self, robot: str, at: float) -> None:
+        self.last[robot] = at
+
+    def check(self, robot: str, now: float, horizon: float) -> tuple[bool, bool]:
+        """(stop now?, newly stopped?): stop when the coming ``horizon`` s would run past
+        ``limit`` s of silence."""
+        silent = now + horizon - self.last[robot] > self.limit
+        newly = silent and not self.stopped[robot]
+        self.stopped[robot] = silent
+        return silent, newly
+
+
+# --------------------------------------------------------------------------- the server
+
+
+class WorldServer:
+    def __init__(self, args: argparse.Namespace) -> None:
+        self.args = args
+        self.keys = KeySpace(args.root)
+        self.scenario = load_scenario(args.scenario)
+        self.world = World(self.scenario, seed=args.seed)
+        checkpoints = None
+        if args.checkpoints:
+            raw = Path(args.checkpoints).read_text() if not args.checkpoints.lstrip().startswith("{") else args.checkpoints
+            checkpoints = {r: [tuple(map(float, c)) for c in cps] for r, cps in json.loads(raw).items()}
+        self.episode = Episode(self.world, checkpoints)
+        self.robots = list(self.world.robot_ids)
+        self.out = Path(args.out)
+        self.out.mkdir(parents=True, exist_ok=True)
+        self.lockstep = args.mode == "lockstep"
+        self.max_ticks = int(math.ceil(args.max_time / TICK_S))
+        self.drops = DropCounter("world", keys=self.keys)
+        self.cmd_keys = {self.keys.cmd_wheels(r): r for r in self.robots}
+        self.latest: dict[str, WheelCommand] = {}
+        self.arrived = asyncio.Event()
+        self.events: list[dict[str, Any]] = []
+        self.republished = 0
+        self.deadline_misses = 0
+        self.latencies: list[float] = []  # s from publishing a tick's readings to its command
+        self.sent_at: dict[float, float] = {}
+        self.last_target: dict[str, SenseTarget] = {}
+        self.stop = asyncio.Event()
+        self.recorded = 0
+        self.last_stamp = 0.0
+
+    # ------------------------------------------------------------------ recording
+
+    def _on_sample(self, rec) -> None:
+        if rec.kind != "put":
+            return
+        _, stamp = peek(rec.payload)
+        if stamp is not None:
+            self.last_stamp = max(self.last_stamp, stamp)
+        self.recorder.write(rec.key, rec.payload, self.last_stamp if stamp is None else stamp)
+        self.recorded += 1
+        robot = self.cmd_keys.get(rec.key)
+        if robot is None:
+            return
+        msg = self.drops.decode(rec.key, rec.payload)
+        if not isinstance(msg, WheelCommand):
+            return
+        self.latest[robot] = msg
+        self.deadman.heard(robot, rec.at)
+        sent = self.sent_at.get(msg.stamp)
+        if sent is not None:
+            self._lat_pending[(robot, msg.stamp)] = rec.at - sent
+        self.arrived.set()
+
+    async def _pump(self) -> None:
+        while True:
+            rec = await self.sub.get()
+            self._on_sample(rec)
+            while (rec := self.sub.get_nowait()) is not None:
+                self._on_sample(rec)
+
+    # ------------------------------------------------------------------ publishing
+
+    def _publish_tick(self, readings: list[TickReadings]) -> None:
+        w, ep = self.world, self.episode
+        angles, radius = w.sensor_angles, w.body_radius
+        self.sent_at[ep.t] = time.monotonic()
+        if len(self.sent_at) > 64:
+            self.sent_at.pop(next(iter(self.sent_at)))
+        for rd in readings:
+            for key, msg in sense_messages(self.keys, rd, angles, radius):
+                self.pubs.send(key, msg)
+                if isinstance(msg, SenseTarget):
+                    self.last_target[rd.robot] = msg
+        self.pubs.send(self.keys.world_clock(), Clock(ep.t, SENDER, ep.tick))
+        st = w.state()
+        self.pubs.send(self.keys.world_state(), WorldState(ep.t, SENDER, st["robots"], st["targets"], st["obstacles"]))
+        if self.views is not None:
+            self.views.write_state(ep.t, st)
+
+    def _republish(self, readings: list[TickReadings], waiting: list[str]) -> None:
+        w = self.world
+        for rd in readings:
+            if rd.robot not in waiting:
+                continue
+            for key, msg in sense_messages(self.keys, rd, w.sensor_angles, w.body_radius):
+                if not isinstance(msg, SenseTarget):
+                    self.pubs.send(key, msg)
+            last = self.last_target.get(rd.robot)
+            if last is not None:
+                self.pubs.send(self.keys.sense_target(rd.robot), last)
+        self.republished += 1
+
+    # ------------------------------------------------------------------ loops
+
+    async def _lockstep_commands(self, readings: list[TickReadings]) -> dict[str, tuple[float, float]]:
+        t = self.episode.t
+        loop = asyncio.get_running_loop()
+        next_republish = loop.time() + self.args.republish
+        while True:
+            waiting = [r for r in self.robots if (c := self.latest.get(r)) is None or c.stamp != t]
+            if not waiting:
+                return {r: (self.latest[r].v_l, self.latest[r].v_r) for r in self.robots}
+            if self.stop.is_set():
+                raise asyncio.CancelledError
+            self.arrived.clear()
+            timeout = next_republish - loop.time()
+            if timeout <= 0:
+                self._event("republish", {"waiting": waiting})
+                self._republish(readings, waiting)
+                next_republish = loop.time() + self.args.republish
+                continue
+            stopper = asyncio.ensure_future(self.stop.wait())
+            waiter = asyncio.ensure_future(self.arrived.wait())
+            await asyncio.wait({stopper, waiter}, timeout=timeout, return_when=asyncio.FIRST_COMPLETED)
+            stopper.cancel()
+            waiter.cancel()
+
+    async def _realtime_commands(self, start: float) -> dict[str, tuple[float, float]]:
+        loop = asyncio.get_running_loop()
+        ep = self.episode
+        boundary = start + (ep.tick + 1) * TICK_S
+        try:
+            await asyncio.wait_for(self.stop.wait(), max(0.0, boundary - loop.time()))
+            raise asyncio.CancelledError
+        except asyncio.TimeoutError:
+            pass
+        now = time.monotonic()
+        commands = {}
+        for r in self.robots:
+            c = self.latest.get(r)
+            if c is None or c.stamp < ep.t:
+                self.deadline_misses += 1
+            stop, newly = self.deadman.check(r, now, TICK_S)
+            if stop or c is None:
+                commands[r] = (0.0, 0.0)
+                if newly:
+                    self._event("deadman", {"robot": r, "silent_s": round(now - self.deadman.last[r], 4),
+                                            "limit_s": self.deadman.limit, "wall": time.time()})
+            else:
+                commands[r] = (c.v_l, c.v_r)
+        return commands
+
+    def _event(self, kind: str, doc: dict[str, Any]) -> None:
+        doc = {"event": kind, "t": self.episode.t, **doc}
+        self.events.append(doc)
+        emit("EVENT", doc)
+
+    def _progress(self) -> None:
+        ep = self.episode
+        robots = {}
+        for r in self.robots:
+            x, y, _ = self.world.pose(r)
+            gx, gy = self.world.goal_of(r)
+            p = ep.progress[r]
+            robots[r] = {"x": round(x, 3), "y": round(y, 3), "to_goal": round(math.hypot(gx - x, gy - y), 3),
+                         "reached": p.reached, "stopped": self.deadman.stopped.get(r, False)}
+        emit("PROGRESS", {"t": ep.t, "tick": ep.tick, "robots": robots, "republished": self.republished,
+                          "deadline_misses": self.deadline_misses})
+
+    async def run(self) -> dict[str, Any]:
+        args = self.args
+        loop = asyncio.get_running_loop()
+        for sig in (signal.SIGTERM, signal.SIGINT):
+            try:
+                loop.add_signal_handler(sig, self.stop.set)
+            except (NotImplementedError, RuntimeError):  # pragma: no cover
+                pass
+        self._lat_pending: dict[tuple[str, float], float] = {}
+        self.deadman = Deadman(self.robots, args.deadman, time.monotonic())
+        geometry = self.world.static_geometry()
+        self.recorder = McapRecorder(self.out / "run.mcap", metadata={
+            "scenario": self.scenario.name, "seed": str(self.world.seed), "mode": args.mode})
+        self.recorder.add_metadata("geometry", {"json": json.dumps(geometry)})
+        self.views = None
+        try:
+            from cekm_swarm.runtime import foxglove_view
+
+            if foxglove_view.available():
+                self.views = foxglove_view.FoxgloveViews(self.recorder, robot_radius=self.world.body_radius)
+                self.views.write_geometry(0.0, geometry)
+        except ImportError:  # pragma: no cover - foxglove-sdk missing
+            self.views = None
+        session = open_client(args.connect)
+        t_wall0 = time.perf_counter()
+        aborted = False
+        try:
+            self.pubs = Publishers(session, block=self.lockstep, express=True)
+            self.sub = AsyncSubscription(session, self.keys.everything())
+            token = declare_alive(session, self.keys.alive("world", "server"))
+            pump = asyncio.ensure_future(self._pump())
+            # Every module's subscription must be known before tick 0 is published.
+            for r in self.robots:
+                keys = [self.keys.sense_target(r)] + [self.keys.sense_range(r, j) for j in range(self.keys.range_sensors)]
+                for k in keys:
+                    if not await wait_matching_async(self.pubs.publisher(k), args.match_timeout):
+                        log.warning("no subscriber on %s after %.0f s; starting anyway", k, args.match_timeout)
+            start = loop.time()
+            last_progress = -1e9
+            emit("START", {"mode": args.mode, "robots": self.robots, "scenario": self.scenario.name,
+                           "seed": self.world.seed})
+            ep = self.episode
+            try:
+                while True:
+                    readings = ep.readings()
+                    self._publish_tick(readings)
+                    if self.lockstep:
+                        commands = await self._lockstep_commands(readings)
+                    else:
+                        commands = await self._realtime_commands(start)
+                    self._collect_latency(ep.t)
+                    ep.apply(commands)
+                    now = time.monotonic()
+                    if now - last_progress >= args.progress_every:
+                        last_progress = now
+                        self._progress()
+                    if ep.done or ep.tick >= self.max_ticks:
+                        break
+                    ep.advance()
+            except asyncio.CancelledError:
+                aborted = True
+                self._event("stopped", {"reason": "signal"})
+            self._progress()
+            # what is still in flight gets recorded
+            await asyncio.sleep(0.05)
+            pump.cancel()
+            while (rec := self.sub.get_nowait()) is not None:
+                self._on_sample(rec)
+            token.undeclare()
+            self.sub.close()
+            self.pubs.close()
+        finally:
+            session.close()
+            self.recorder.close()
+        return self._write_outputs(time.perf_counter() - t_wall0, aborted)
+
+    def _collect_latency(self, t: float) -> None:
+        for r in self.robots:
+            lat = self._lat_pending.pop((r, t), None)
+            if lat is not None:
+                self.latencies.append(lat)
+        self._lat_pending = {k: v for k, v in self._lat_pending.items() if k[1] > t}
+
+    def _write_outputs(self, wall: float, aborted: bool) -> dict[str, Any]:
+        ep = self.episode
+        lat = sorted(self.latencies)
+
+        def q(p: float) -> float | None:
+            return None if not lat else round(lat[min(len(lat) - 1, int(p * len(lat)))] * 1000, 3)
+
+        doc = {"scenario": self.scenario.name, "controller": "cekm", "seed": self.world.seed, "robots": ep.outcome(),
+               "wall_seconds": round(wall, 3), "mode": self.args.mode, "sim_seconds": ep.t, "ticks": ep.tick,
+               "aborted": aborted, "republished": self.republished, "deadline_misses": self.deadline_misses,
+               "sense_to_command_ms": {"p50": q(0.5), "p99": q(0.99), "n": len(lat)},
+               "dropped_messages": self.drops.total, "recorded_messages": self.recorded, "events": self.events}
+        (self.out / "outcome.json").write_text(json.dumps(doc, indent=1))
+        traj = {}
+        for r, p in ep.progress.items():
+            t, x, y, th = (list(c) for c in zip(*p.path)) if p.path else ([], [], [], [])
+            traj[r] = {"t": t, "x": x, "y": y, "theta": th, "v_l": [c[0] for c in p.commands],
+                       "v_r": [c[1] for c in p.commands], "checkpoints": [list(c) for c in p.checkpoints],
+                       "checkpoint_times": list(p.checkpoint_times)}
+        (self.out / "trajectory.json").write_text(json.dumps(traj))
+        emit("DONE", {k: doc[k] for k in ("sim_seconds", "wall_seconds", "aborted", "robots")})
+        return doc
+
+
+def parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(description="cekm world server")
+    p.add_argument("scenario", help="scenario name (world/scenarios) or .toml path")
+    p.add_argument("--connect", default=DEFAULT_ENDPOINT)
+    p.add_argument("--root", default=DEFAULT_ROOT)
+    p.add_argument("--out", required=True, help="directory for run.mcap, outcome.json, trajectory.json")
+    p.add_argument("--mode", choices=("realtime", "lockstep"), default="realtime")
+    p.add_argument("--seed", type=int, default=None)
+    p.add_argument("--max-time", type=float, default=DEFAULT_MAX_TIME)
+    p.add_argument("--checkpoints", default=None, help="JSON {robot: [[x, y], ...]} or a file holding it")
+    p.add_argument("--deadman", type=float, default=DEADMAN_S, help="s without commands before a robot is stopped")
+    p.add_argument("--republish", type=float, default=REPUBLISH_S, help="lockstep: s before re-publishing a tick")
+    p.add_argument("--match-timeout", type=float, default=20.0)
+    p.add_argument("--progress-every", type=float, default=1.0, help="wall s between PROGRESS lines")
+    p.add_argument("--log-level", default="INFO")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parser().parse_args(argv)
+    logging.basicConfig(level=args.log_level.upper(), stream=sys.stderr,
+                        format="%(asctime)s.%(msecs)03d %(name)s %(levelname)s %(message)s", datefmt="%H:%M:%S")
+    server = WorldServer(args)
+    doc = asyncio.run(server.run())
+    return 0 if not doc["aborted"] else 3
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
