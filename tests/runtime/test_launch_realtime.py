@@ -1,0 +1,135 @@
+"""`cekm launch` in real time, end to end with two robots (28 module processes and the
+world server, a real embedded router on a free loopback port), with faults injected
+mid-run: SIGKILL r1's obstacle module 0 (the launcher restarts it, r1's motor drops the
+stale field, r1 still reaches its goal past a disc) and SIGKILL r2's motor module (the
+world stops r2 within the dead-man limit; the launcher restarts the motor and r2 goes on).
+
+One run serves all the checks below, to keep the suite's time down (each launch costs
+some 15 s of process start-up on two cores)."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import time
+
+import pytest
+
+from cekm_swarm.experiments.default_model import default_model, default_model_path
+from cekm_swarm.protocol import DEFAULT_KEYS as K
+
+from test_launch_support import LaunchProcess
+
+SCENARIO = """
+name = "pair"
+description = "two robots, short trips; r1 passes a disc"
+seed = 1
+
+[arena]
+bounds = [0.0, 0.0, 1.4, 1.2]
+
+[[robots]]
+id = "r1"
+start = [0.2, 0.35, 0.0]
+goal = "g1"
+
+[[robots]]
+id = "r2"
+start = [0.2, 0.85, 0.0]
+goal = "g2"
+
+[[targets]]
+id = "g1"
+position = [1.0, 0.35]
+
+[[targets]]
+id = "g2"
+position = [0.75, 0.85]
+
+[[obstacles]]
+id = "disc"
+shape = "disc"
+center = [0.6, 0.35]
+radius = 0.04
+"""
+DEADMAN = 0.5
+KILL_AT = 1.0  # s of sim time
+
+
+@pytest.fixture(scope="module")
+def faulty_run(tmp_path_factory):
+    default_model(progress=False)
+    out = tmp_path_factory.mktemp("realtime")
+    scenario = out / "pair.toml"
+    scenario.write_text(SCENARIO)
+    run = LaunchProcess(str(scenario), out / "run", "--mode", "realtime", "--max-time", "40",
+                        "--model", str(default_model_path()))
+    kills = {}
+    try:
+        run.wait_line("world started ticking", timeout=90)
+        while True:
+            line = run.wait_line(" t=", timeout=20)
+            if float(line.split("t=")[1].split()[0]) >= KILL_AT:
+                break
+        pids = run.pids()
+        for label in ("r1/obstacle-0", "r2/motor"):
+            kills[label] = time.time()
+            os.kill(pids[label], signal.SIGKILL)
+        code = run.finish(timeout=90)
+    finally:
+        run.kill()
+    assert code == 0, "\n".join(run.lines)
+    return run, kills
+
+
+def test_two_robots_in_real_time_complete_and_reach_their_goals(faulty_run):
+    run, _ = faulty_run
+    outcome = run.outcome()
+    assert outcome["mode"] == "realtime" and not outcome["aborted"]
+    assert set(outcome["robots"]) == {"r1", "r2"}
+    assert all(o["reached"] for o in outcome["robots"].values()), outcome["robots"]
+    # (r1 may graze the disc: its forward sensor's module is dead for about 2 s of the approach)
+    # real time: sim time kept up with the wall clock
+    assert outcome["wall_seconds"] >= 0.9 * outcome["sim_seconds"]
+    assert (run.out / "trajectory.png").is_file()
+
+
+def test_killed_modules_are_restarted_and_the_log_shows_it(faulty_run):
+    run, _ = faulty_run
+    restarts = run.outcome()["launcher"]["restarts"]
+    assert restarts.get("r1/obstacle-0", 0) >= 1 and restarts.get("r2/motor", 0) >= 1, restarts
+    text = "\n".join(run.lines)
+    assert "module r1/obstacle-0 died (signal 9)" in text and "module r1/obstacle-0 restarted" in text
+    assert "module r2/motor died (signal 9)" in text
+    assert "restarted" in (run.out / "launch.log").read_text()
+
+
+def test_motor_drops_the_dead_obstacle_modules_stale_field(faulty_run):
+    run, _ = faulty_run
+    log = (run.out / "logs" / "r1-motor.log").read_text()
+    assert "stale field dropped: obstacle-0" in log
+
+
+def test_world_stops_the_robot_whose_motor_died_within_the_deadman_limit(faulty_run):
+    run, kills = faulty_run
+    events = [e for e in run.outcome()["events"] if e["event"] == "deadman" and e["robot"] == "r2"]
+    assert events, run.outcome()["events"]
+    first = events[0]
+    assert first["silent_s"] <= DEADMAN
+    assert first["wall"] - kills["r2/motor"] <= DEADMAN + 0.05
+    assert first["t"] >= KILL_AT
+    # r1's motor never went silent
+    assert not [e for e in run.outcome()["events"] if e["event"] == "deadman" and e["robot"] == "r1"]
+
+
+def test_realtime_log_holds_every_robots_channels(faulty_run):
+    from mcap.reader import make_reader
+
+    run, _ = faulty_run
+    with open(run.out / "run.mcap", "rb") as f:
+        topics = {c.topic for c in make_reader(f).get_summary().channels.values()}
+    for r in ("r1", "r2"):
+        for key in (K.sense_target(r), K.sense_range(r, 11), K.field_target(r), K.field_obstacle(r, 0),
+                    K.cmd_wheels(r)):
+            assert key in topics, key
