@@ -1,0 +1,197 @@
+"""The runtime's process graph: sense-to-command latency, lockstep speed-up, module memory.
+
+One robot's 14 module processes (target, obstacle 0..11, motor; lockstep mode, so the
+motor answers each tick exactly once, when the tick's 13 fields are in) on an embedded
+router on loopback. This process plays the world: it steps ``lone_obstacle`` with
+``world.episode.Episode``, publishes each tick's readings and waits for the command.
+
+* sense-to-command latency: from the first sense message of a tick put on Zenoh to the
+  command for that tick arriving (in the Zenoh callback), paced at one tick per 128 ms
+  as in real time (p50, p99); beside it, in the same run, the raw one-way latency of a
+  2 KB message between two processes through the router (2 hops, the modules' path),
+  with bench_zenoh's method;
+* lockstep speed-up: ticks as fast as the graph answers, sim time / wall time, both for
+  this bare loop and for a full ``cekm launch lone_obstacle --mode lockstep`` (the world
+  server recording the MCAP log and Foxglove views);
+* memory: resident set (VmRSS) and proportional set (Pss, shared pages split among the
+  processes sharing them) of one obstacle module process.
+
+Run: python benchmarks/bench_runtime.py [--ticks 400] [--no-launch]
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from cekm_swarm.experiments.default_model import default_model, default_model_path  # noqa: E402
+from cekm_swarm.launch.launcher import module_argv, module_names  # noqa: E402
+from cekm_swarm.protocol import DEFAULT_KEYS as K  # noqa: E402
+from cekm_swarm.protocol import WheelCommand, decode  # noqa: E402
+from cekm_swarm.runtime.bridge import LivelinessWatcher, Publishers  # noqa: E402
+from cekm_swarm.runtime.config import free_port, open_client, open_embedded_router  # noqa: E402
+from world import World, load_scenario  # noqa: E402
+from world.episode import TICK_S, Episode  # noqa: E402
+from world.server import sense_messages  # noqa: E402
+
+
+def pct(xs: list[float], q: float) -> float:
+    xs = sorted(xs)
+    return xs[min(len(xs) - 1, int(round(q / 100 * (len(xs) - 1))))]
+
+
+def memory(pid: int) -> dict[str, float]:
+    out = {}
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            out["rss_mb"] = int(line.split()[1]) / 1024
+    try:
+        for line in Path(f"/proc/{pid}/smaps_rollup").read_text().splitlines():
+            if line.startswith("Pss:"):
+                out["pss_mb"] = int(line.split()[1]) / 1024
+            elif line.startswith("Private_Clean:") or line.startswith("Private_Dirty:"):
+                out["uss_mb"] = out.get("uss_mb", 0.0) + int(line.split()[1]) / 1024
+    except OSError:
+        pass
+    return out
+
+
+async def start_modules(session, endpoint: str, model: Path) -> tuple[list[subprocess.Popen], float]:
+    procs = [subprocess.Popen(module_argv(n, "r1", model, endpoint, "lockstep", "cekm"), stdout=subprocess.DEVNULL,
+                              stderr=subprocess.DEVNULL) for n in module_names(12)]
+    t0 = time.monotonic()
+    expected = {K.alive("r1", n) for n in module_names(12)}
+    with LivelinessWatcher(session, K.alive_all()) as w:
+        while not expected <= w.alive:
+            await w.next_event(timeout=120)
+    return procs, time.monotonic() - t0
+
+
+def graph_run(session, ticks: int, paced: bool, first_tick: int = 0) -> tuple[list[float], float, int]:
+    """Step lone_obstacle through the module graph; latencies (ms), wall s, ticks run.
+    Stamps start at ``first_tick`` (the motor ignores ticks older than its last answer)."""
+    world = World(load_scenario("lone_obstacle"))
+    ep = Episode(world)
+    ep.tick = first_tick
+    got: dict[float, float] = {}
+    cv = threading.Condition()
+    cmds: dict[float, WheelCommand] = {}
+
+    def on_cmd(sample) -> None:
+        at = time.perf_counter()
+        msg = decode(K.cmd_wheels("r1"), sample.payload.to_bytes())
+        with cv:
+            if msg.stamp not in got:
+                got[msg.stamp] = at
+                cmds[msg.stamp] = msg
+            cv.notify_all()
+
+    sub = session.declare_subscriber(K.cmd_wheels("r1"), on_cmd)
+    lat = []
+    pubs = Publishers(session, block=True, express=True)
+    for j in range(12):
+        pubs.wait_matching(K.sense_range("r1", j), 20)
+    pubs.wait_matching(K.sense_target("r1"), 20)
+    t_start = time.perf_counter()
+    n = 0
+    for k in range(first_tick, first_tick + ticks):
+        if paced:
+            time.sleep(max(0.0, t_start + (k - first_tick) * TICK_S - time.perf_counter()))
+        (rd,) = ep.readings()
+        msgs = sense_messages(K, rd, world.sensor_angles, world.body_radius)
+        t0 = time.perf_counter()
+        for key, m in msgs:
+            pubs.send(key, m)
+        t = rd.t
+        with cv:
+            if not cv.wait_for(lambda: t in got, timeout=10):
+                raise RuntimeError(f"no command for tick {k}")
+        lat.append((got[t] - t0) * 1000)
+        c = cmds[t]
+        ep.apply({"r1": (c.v_l, c.v_r)})
+        n += 1
+        if ep.done:  # start over so the run is as long as asked
+            world = World(load_scenario("lone_obstacle"))
+            ep = Episode(world)
+            ep.tick = k + 1  # keep stamps increasing for the motor
+            continue
+        ep.advance()
+    wall = time.perf_counter() - t_start
+    sub.undeclare()
+    pubs.close()
+    return lat, wall, n
+
+
+def launch_speedup() -> dict[str, float]:
+    with tempfile.TemporaryDirectory() as d:
+        port = free_port()
+        t0 = time.perf_counter()
+        subprocess.run([sys.executable, "-m", "cekm_swarm", "launch", "lone_obstacle", "--mode", "lockstep",
+                        "--out", d, "--port", str(port), "--no-plot", "--model", str(default_model_path())],
+                       check=True, stdout=subprocess.DEVNULL)
+        total = time.perf_counter() - t0
+        o = json.loads((Path(d) / "outcome.json").read_text())
+    return {"sim_s": o["sim_seconds"], "world_wall_s": o["wall_seconds"],
+            "speedup": o["sim_seconds"] / o["wall_seconds"], "startup_s": o["launcher"]["startup_s"],
+            "total_wall_s": total, "p50_ms": o["sense_to_command_ms"]["p50"], "p99_ms": o["sense_to_command_ms"]["p99"]}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--ticks", type=int, default=400)
+    ap.add_argument("--no-launch", action="store_true")
+    args = ap.parse_args()
+    default_model(progress=False)
+    model = default_model_path()
+    port = free_port()
+    router = open_embedded_router(port)
+    endpoint = f"tcp/127.0.0.1:{port}"
+    session = open_client(endpoint)
+    procs, startup = asyncio.run(start_modules(session, endpoint, model))
+    try:
+        mem = memory(procs[1].pid)
+        paced_lat, _, _ = graph_run(session, args.ticks, paced=True)
+        fast_lat, wall, n = graph_run(session, args.ticks, paced=False, first_tick=args.ticks + args.ticks % 2)
+    finally:
+        for p in procs:
+            p.terminate()
+        for p in procs:
+            p.wait(10)
+        session.close()
+        router.close()
+    import bench_zenoh
+
+    raw = bench_zenoh.latency("asyncio", 2, 1000, 0.002)
+    raw_cb = bench_zenoh.latency("callback", 2, 1000, 0.002)
+    result = {
+        "machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}",
+        "module_startup_s_14_processes": round(startup, 2),
+        "sense_to_command_ms_paced": {"p50": round(pct(paced_lat, 50), 3), "p99": round(pct(paced_lat, 99), 3),
+                                      "n": len(paced_lat)},
+        "sense_to_command_ms_flat_out": {"p50": round(pct(fast_lat, 50), 3), "p99": round(pct(fast_lat, 99), 3)},
+        "raw_one_way_2_hops_ms": {"asyncio_p50": round(pct(raw, 50) / 1000, 3), "asyncio_p99": round(pct(raw, 99) / 1000, 3),
+                                  "callback_p50": round(pct(raw_cb, 50) / 1000, 3),
+                                  "callback_p99": round(pct(raw_cb, 99) / 1000, 3)},
+        "lockstep_bare_loop": {"ticks": n, "wall_s": round(wall, 3), "speedup": round(n * TICK_S / wall, 1)},
+        "module_memory_mb": {k: round(v, 1) for k, v in mem.items()},
+    }
+    if not args.no_launch:
+        result["lockstep_cekm_launch"] = {k: round(v, 3) if isinstance(v, float) else v
+                                          for k, v in launch_speedup().items()}
+    print(json.dumps(result, indent=1))
+
+
+if __name__ == "__main__":
+    main()
