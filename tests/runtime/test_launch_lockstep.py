@@ -87,3 +87,19 @@ def test_lockstep_log_holds_the_sense_field_and_command_channels(lockstep_run):
         assert stamps == sorted(stamps) and len(set(stamps)) == ticks
         assert counts[K.sense_target("r1")] >= (ticks + 1) // 2
     assert (run.out / "trajectory.png").stat().st_size > 10_000
+
+
+def test_cekm_plot_draws_the_run_from_its_log(lockstep_run, tmp_path):
+    from click.testing import CliRunner
+
+    from cekm_swarm.cli import main
+    from cekm_swarm.launch.plot import read_run
+
+    run, _ = lockstep_run
+    res = CliRunner().invoke(main, ["plot", str(run.out / "run.mcap"), "--out", str(tmp_path / "fig.png")])
+    assert res.exit_code == 0, res.output
+    assert (tmp_path / "fig.png").stat().st_size > 10_000
+    drawn = read_run(run.out / "run.mcap")
+    traj = json.loads((run.out / "trajectory.json").read_text())["r1"]
+    assert [p[1] for p in drawn["paths"]["r1"]] == traj["x"]  # the log's poses are the run's
+    assert drawn["geometry"]["name"] == "lone_obstacle"
