@@ -60,7 +60,7 @@ def steady_publisher(session, key: str, period: float = 0.01) -> Iterator[None]:
 
 
 def test_commands_are_exported():
-    assert [c.name for c in COMMANDS] == ["topic", "log", "replay"]
+    assert [c.name for c in COMMANDS] == ["topic", "log", "replay", "monitor"]
     assert set(COMMANDS[0].commands) == {"list", "echo", "hz"} and set(COMMANDS[1].commands) == {"info"}
 
 

@@ -170,12 +170,15 @@ def test_state_and_geometry_are_plain_data():
 
 
 def test_world_never_imports_the_controller():
-    code = "import sys, world, world.draw; print([m for m in sys.modules if m.startswith('cekm_swarm')])"
+    """The simulation imports nothing of cekm_swarm; the world server only the message
+    protocol and the transport (never controller, model or experiment code)."""
+    code = "import sys, world, world.draw, world.episode; print([m for m in sys.modules if m.startswith('cekm_swarm')])"
     out = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
-    for p in (REPO / "world").rglob("*.py"):
-        text = p.read_text()
-        assert "import cekm_swarm" not in text and "from cekm_swarm" not in text, p
+    code = ("import sys, world.server; print(sorted({m.split('.')[1] for m in sys.modules "
+            "if m.startswith('cekm_swarm.')}))")
+    out = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, check=True)
+    assert set(eval(out.stdout)) <= {"protocol", "runtime", "errors"}, out.stdout
 
 
 # --------------------------------------------------------------------------- bad files
