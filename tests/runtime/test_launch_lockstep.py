@@ -1,5 +1,5 @@
-"""`cekm launch` in lockstep, end to end: a real embedded router on a free loopback port,
-the world server and 14 module processes; the trajectory equals the in-process run bit
+"""`cekm launch` in lockstep, end to end, on the paper's concave obstacle (Fig. 8): a real
+embedded router on a free loopback port, the world server and 14 module processes; the trajectory equals the in-process run bit
 for bit, even though an obstacle module and the motor module are SIGKILLed as soon as
 the world starts ticking (the launcher restarts them; the world re-publishes the waiting
 tick's readings until the restarted modules answer)."""
@@ -20,14 +20,14 @@ from world import load_scenario
 
 from test_launch_support import LaunchProcess
 
-SEED = 5
+SEED = 1  # the cooperative EKM reaches the goal behind the U on this seed (README table)
 
 
 @pytest.fixture(scope="module")
 def lockstep_run(tmp_path_factory):
     model = default_model(progress=False)
     out = tmp_path_factory.mktemp("lockstep")
-    run = LaunchProcess("lone_obstacle", out, "--mode", "lockstep", "--seed", str(SEED), "--max-time", "40",
+    run = LaunchProcess("concave", out, "--mode", "lockstep", "--seed", str(SEED), "--max-time", "40",
                         "--model", str(default_model_path()))
     try:
         run.wait_line("world started ticking", timeout=90)
@@ -49,7 +49,7 @@ def test_lockstep_reaches_the_goal_and_equals_the_in_process_run(lockstep_run):
     assert any("all 14 modules alive" in line for line in run.lines)
     assert outcome["republished"] >= 1
     assert outcome["launcher"]["restarts"] == {"r1/obstacle-5": 1, "r1/motor": 1}
-    ref = run_scenario(load_scenario("lone_obstacle"), "cekm", model, SEED, max_time=40)
+    ref = run_scenario(load_scenario("concave"), "cekm", model, SEED, max_time=40)
     traj = json.loads((run.out / "trajectory.json").read_text())["r1"]
     log = ref.logs["r1"]
     assert len(traj["t"]) == len(log.t)
@@ -102,4 +102,4 @@ def test_cekm_plot_draws_the_run_from_its_log(lockstep_run, tmp_path):
     drawn = read_run(run.out / "run.mcap")
     traj = json.loads((run.out / "trajectory.json").read_text())["r1"]
     assert [p[1] for p in drawn["paths"]["r1"]] == traj["x"]  # the log's poses are the run's
-    assert drawn["geometry"]["name"] == "lone_obstacle"
+    assert drawn["geometry"]["name"] == "concave"
