@@ -27,8 +27,15 @@ from cekm_swarm.runtime.config import DEFAULT_PORT
               help="Sim seconds before the run ends.")
 @click.option("--root", default="cekm", show_default=True, help="Key space root.")
 @click.option("--no-plot", is_flag=True, help="Do not draw trajectory.png.")
+@click.option("--robots", "robots", default=None, metavar="R1,R2",
+              help="Start only these robots' module processes here; 'none' for a world-only host "
+                   "(several hosts: see deploy/README.md).")
+@click.option("--no-world", is_flag=True, help="Do not start the world server here (it runs on another host).")
+@click.option("--listen", "listen_host", default="127.0.0.1", show_default=True,
+              help="Address of the embedded router; 0.0.0.0 serves other hosts.")
 def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, connect: str | None, port: int,
-               model_path: Path | None, max_time: float, root: str, no_plot: bool) -> None:
+               model_path: Path | None, max_time: float, root: str, no_plot: bool, robots: str | None,
+               no_world: bool, listen_host: str) -> None:
     """Run SCENARIO through the distributed runtime: the world server and, per robot,
     1 + 12 + 1 module processes on Zenoh, supervised (restarted when they die)."""
     from world import ScenarioError, load_scenario
@@ -39,9 +46,17 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, connec
         load_scenario(scenario)
     except ScenarioError as exc:
         raise click.UsageError(str(exc)) from None
+    only = None if robots is None else tuple(r.strip() for r in robots.split(",") if r.strip() and r.strip() != "none")
     config = LaunchConfig(scenario, out_dir, mode=mode, seed=seed, connect=connect, port=port, model=model_path,
-                          max_time=max_time, root=root, plot=not no_plot)
-    outcome = launch(config, echo=lambda s: click.echo(s))
+                          max_time=max_time, root=root, plot=not no_plot, robots=only, world=not no_world,
+                          listen_host=listen_host)
+    try:
+        outcome = launch(config, echo=lambda s: click.echo(s))
+    except ValueError as exc:
+        raise click.UsageError(str(exc)) from None
+    if no_world:
+        click.echo(f"modules of {', '.join(only) if only else 'every robot'} stopped; the world host writes the outcome")
+        return
     if not outcome:
         raise click.ClickException(f"the run left no outcome; see {out_dir / 'launch.log'} and {out_dir / 'logs'}")
     for r, o in outcome["robots"].items():

@@ -72,6 +72,9 @@ class LaunchConfig:
     republish: float = 1.0
     plot: bool = True
     progress_every: float = 1.0
+    robots: tuple[str, ...] | None = None  # whose module processes start here (None: every robot)
+    world: bool = True  # start the world server here
+    listen_host: str = DEFAULT_HOST  # the embedded router's address (0.0.0.0 to serve other hosts)
 
 
 def module_names(sensors: int) -> list[str]:
@@ -236,7 +239,11 @@ class Launcher:
         from world import load_scenario
 
         scenario = load_scenario(c.scenario)
-        robots = [r.id for r in scenario.robots]
+        all_robots = [r.id for r in scenario.robots]
+        unknown = sorted(set(c.robots or ()) - set(all_robots))
+        if unknown:
+            raise ValueError(f"{c.scenario}: no robot {', '.join(unknown)} (robots: {', '.join(all_robots)})")
+        robots = [r for r in all_robots if c.robots is None or r in c.robots]
         model = c.model
         if model is None:
             from cekm_swarm.experiments.default_model import default_model, default_model_path
@@ -251,8 +258,8 @@ class Launcher:
         if c.connect:
             endpoint = c.connect
         else:
-            router = open_embedded_router(c.port, DEFAULT_HOST)
-            endpoint = f"tcp/{DEFAULT_HOST}:{c.port}"
+            router = open_embedded_router(c.port, c.listen_host)
+            endpoint = f"tcp/{DEFAULT_HOST if c.listen_host in ('0.0.0.0', '::') else c.listen_host}:{c.port}"
             self.say(f"embedded Zenoh router on {endpoint}")
         session = open_client(endpoint)
         t0 = time.monotonic()
@@ -270,7 +277,10 @@ class Launcher:
             for child in self.children.values():
                 await self._spawn(child)
             supervisors = [asyncio.ensure_future(self._supervise(ch)) for ch in self.children.values()]
-            expected = {self.keys.alive(ch.robot, ch.name) for ch in self.children.values()}
+            # the world starts only when every module of every robot is up, here or on other hosts
+            expected = {self.keys.alive(r, name) for r in all_robots for name in module_names(self.keys.range_sensors)}
+            if not c.world:
+                expected = {self.keys.alive(ch.robot, ch.name) for ch in self.children.values()}
             deadline = loop.time() + ALIVE_TIMEOUT
             while not expected <= watcher.alive and not self.stopping:
                 try:
@@ -282,6 +292,9 @@ class Launcher:
             if self.stopping:
                 return {}
             self.startup_s = round(time.monotonic() - t0, 3)
+            if not c.world:
+                await self._serve_until_world_ends(watcher, len(expected))
+                return {}
             self.say(f"all {len(expected)} modules alive after {self.startup_s:.1f} s; starting the world")
             world_argv = [sys.executable, "-m", "world.server", c.scenario, "--connect", endpoint, "--root", c.root,
                           "--out", str(c.out), "--mode", c.mode, "--max-time", str(c.max_time),
@@ -340,6 +353,25 @@ class Launcher:
         if self._log is not None:
             self._log.close()
         return outcome
+
+    async def _serve_until_world_ends(self, watcher: LivelinessWatcher, n: int) -> None:
+        """Robots-only host: keep the modules supervised until the world server (on another
+        host) has come and gone, or until interrupted."""
+        world_key = self.keys.alive("world", "server")
+        self.say(f"all {n} local modules alive after {self.startup_s:.1f} s; waiting for the world server")
+        seen = False
+        while not self.stopping:
+            try:
+                await watcher.next_event(timeout=1.0)
+            except asyncio.TimeoutError:
+                pass
+            if world_key in watcher.alive:
+                if not seen:
+                    self.say("the world server is up")
+                seen = True
+            elif seen:
+                self.say("the world server has ended")
+                return
 
     def _interrupt(self) -> None:
         if self.interrupted:
