@@ -14,14 +14,18 @@ All localization EKMs and the motor EKM share the trained input weights w (secti
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Iterable
 
 import numpy as np
 
-from ..models import fast
+from ..models.competition import winner
+from ..models.fields import obstacle_field, target_field
 from ..models.networks import IndirectEKM
 from ..models.params import FieldParams
+
+TWO_PI = 2.0 * math.pi
 from .readings import RangeReading, TargetReading
 
 
@@ -86,31 +90,69 @@ def motor_candidates(model: IndirectEKM, allow_reverse: bool = False, reverse_mi
     return ok
 
 
+def _wrap(a: float) -> float:
+    """(-pi, pi], the same formula as :func:`cekm_swarm.angles.wrap` (bit for bit)."""
+    b = math.pi - a
+    return math.pi - (b - TWO_PI * math.floor(b / TWO_PI))
+
+
+def motor_command(M: np.ndarray, w: np.ndarray, alpha: float, d: float, k: int, s: int | None, v_max: float,
+                  d_scale: float) -> tuple[float, float]:
+    """Eq. 11 then clipped to c*: c = M_k u if k = s and |M_k u| <= c*, else M_k w_k.
+
+    Plain float arithmetic, the same operations as the numpy reference
+    (:func:`cekm_swarm.models.fields.motor_control`) and the numba kernel, in the same order.
+    """
+    Mk = M[k]
+    if k == s:
+        x0 = float(w[k, 0]) + _wrap(alpha - float(w[k, 0]))
+        x1 = d_scale * d
+        c0 = float(Mk[0, 0]) * x0 + float(Mk[0, 1]) * x1
+        c1 = float(Mk[1, 0]) * x0 + float(Mk[1, 1]) * x1
+        if abs(c0) <= v_max and abs(c1) <= v_max:
+            return c0, c1
+    x0 = float(w[k, 0])
+    x1 = d_scale * float(w[k, 1])
+    c0 = float(Mk[0, 0]) * x0 + float(Mk[0, 1]) * x1
+    c1 = float(Mk[1, 0]) * x0 + float(Mk[1, 1]) * x1
+    return min(max(c0, -v_max), v_max), min(max(c1, -v_max), v_max)
+
+
 @dataclass
 class CooperativeEKM:
-    """The cooperative-EKM controller of one robot, from a trained indirect-mapping EKM."""
+    """The cooperative-EKM controller of one robot, from a trained indirect-mapping EKM.
+
+    ``backend`` chooses how winners are found: "numba" (the in-process runner: fast) or
+    "numpy" (the module processes: no numba in the process, about a third of the memory).
+    Both compute the same arithmetic and give the same winners bit for bit (tested); the
+    fields are tabulated with numpy either way, so every output is identical.
+    """
 
     model: IndirectEKM
     fields: FieldParams = field(default_factory=FieldParams)
     allow_reverse: bool = False
     reverse_min_d: float = 0.02
+    backend: str = "numba"
 
     def __post_init__(self) -> None:
-        self._params = fast.pack_params(self.model.comp, self.model.learn_p, self.model.v_max, 1e-3)
+        if self.backend not in ("numba", "numpy"):
+            raise ValueError(f"CooperativeEKM.backend must be 'numba' or 'numpy', got {self.backend!r}")
         self.w = np.ascontiguousarray(self.model.w)
         self._M = np.ascontiguousarray(self.model.M)
         self.n = self.w.shape[0]
         self.eligible = motor_candidates(self.model, self.allow_reverse, self.reverse_min_d)
-        # A field depends only on its winner s (Eqs. 6, 8), so both are tabulated once per
-        # model: row s is exactly what fast.target_field / fast.obstacle_field give for s.
-        f = self.fields
-        self._A = np.empty((self.n, self.n))
-        self._B = np.empty((self.n, self.n))
-        for s in range(self.n):
-            fast.target_field(self.w, s, f.sigma_a_alpha, f.sigma_a_d, self._A[s])
-            fast.obstacle_field(self.w, s, f.sigma_b_alpha, f.sigma_b_d_beyond, f.sigma_b_d_near, self._B[s])
+        # A field depends only on its winner s (Eqs. 6, 8), so both are tabulated once per model.
+        self._A = np.stack([target_field(self.w, s, self.fields) for s in range(self.n)])
+        self._B = np.stack([obstacle_field(self.w, s, self.fields) for s in range(self.n)])
         self._A.flags.writeable = False
         self._B.flags.writeable = False
+        if self.backend == "numba":
+            from ..models import fast
+
+            params = fast.pack_params(self.model.comp, self.model.learn_p, self.model.v_max, 1e-3)
+            self._winner = lambda alpha, d: int(fast.winner(alpha, d, self.w, params))
+        else:
+            self._winner = lambda alpha, d: winner(np.array([alpha, d]), self.w, self.model.comp)
 
     def localize_target(self, reading: TargetReading, stamp: float) -> TargetActivity:
         """Target localization (section 3.2): s = winner(u) (Eqs. 2-4), a_i = G_a(w_s, w_i) (Eqs. 5-6)."""
@@ -118,15 +160,15 @@ class CooperativeEKM:
             return TargetActivity(stamp, float("nan"), float("nan"), None, None)
         if reading.at_goal:
             return TargetActivity(stamp, reading.alpha, reading.d, None, None, at_goal=True)
-        s = fast.winner(reading.alpha, reading.d, self.w, self._params)
-        return TargetActivity(stamp, reading.alpha, reading.d, int(s), self._A[s])
+        s = self._winner(reading.alpha, reading.d)
+        return TargetActivity(stamp, reading.alpha, reading.d, s, self._A[s])
 
     def localize_obstacle(self, reading: RangeReading, stamp: float) -> ObstacleActivity:
         """Obstacle localization j (section 3.3): winner for u_j = (alpha_j, d_j), b_i = G_b (Eqs. 7-8)."""
         if reading.d is None:
             return ObstacleActivity(stamp, reading.index, None, None)
-        s = fast.winner(reading.alpha, reading.d, self.w, self._params)
-        return ObstacleActivity(stamp, reading.index, int(s), self._B[s])
+        s = self._winner(reading.alpha, reading.d)
+        return ObstacleActivity(stamp, reading.index, s, self._B[s])
 
     def localize_obstacles(self, readings: list[RangeReading], stamp: float) -> list[ObstacleActivity]:
         """Every obstacle localization module at once (the in-process path): the same as
@@ -134,17 +176,19 @@ class CooperativeEKM:
         return [self.localize_obstacle(r, stamp) for r in readings]
 
     def integrate(self, target: TargetActivity | None, obstacles: Iterable[ObstacleActivity]) -> MotorOutput:
-        """Neural integration and motor control (section 3.4, Eqs. 9-11).
+        """Neural integration and motor control (section 3.4, Eqs. 9-11): e = a - sum_j b_j in
+        sensor order, k = the first largest e among the motor candidates, c by Eq. 11.
 
         No target sensed yet, or the goal state: the robot stops.
         """
         if target is None or target.at_goal or target.a is None:
             return MotorOutput(0.0, 0.0, None, None)
-        rows = [ob.b for ob in obstacles if ob.b is not None]
-        B = np.array(rows) if rows else np.empty((0, self.n))
-        e = np.empty(self.n)
-        k = int(fast.integrate_and_select(target.a, B, np.ones(len(rows), dtype=np.bool_), self.eligible, e))
+        e = target.a.copy()
+        for ob in obstacles:
+            if ob.b is not None:
+                e -= ob.b
+        k = int(np.argmax(np.where(self.eligible, e, -np.inf)))
         m = self.model
-        v_l, v_r = fast.motor_command(self._M, self.w, target.alpha, target.d, k, target.winner, m.v_max,
-                                      m.learn_p.d_scale)
+        v_l, v_r = motor_command(self._M, self.w, target.alpha, target.d, k, target.winner, m.v_max,
+                                 m.learn_p.d_scale)
         return MotorOutput(v_l, v_r, k, target.winner)

@@ -47,7 +47,7 @@ def load_controller(path: str):
     model = load_model(path)
     if not model.kind.startswith("indirect"):
         raise SystemExit(f"{path}: the controller needs an indirect-mapping EKM, not {model.kind!r}")
-    return CooperativeEKM(model)
+    return CooperativeEKM(model, backend="numpy")  # no numba in a module process: a third of the memory
 
 
 Handler = Callable[[Message, Received], list[tuple[str, Message]]]

@@ -100,3 +100,20 @@ def test_convergence_mask_tells_a_converged_map_from_an_untrained_one():
     small_angle = np.abs(IndirectEKM.kinematic(9).w[:, 0]) < 0.8
     assert kinematic[small_angle].all()  # M0 moves the robot by w_i where the arc is near its chord
     assert untrained.mean() < 0.5 < kinematic.mean()
+
+
+def test_numba_and_numpy_backends_are_identical():
+    """The in-process runner (numba winners) and the module processes (numpy winners) must
+    decide identically, bit for bit, for the distributed lockstep run to equal it."""
+    net = make_network("R15", np.random.default_rng(9))
+    fast_ekm, numpy_ekm = CooperativeEKM(net), CooperativeEKM(net, backend="numpy")
+    rng = np.random.default_rng(1)
+    for _ in range(300):
+        t = TargetReading(rng.uniform(-np.pi, np.pi), rng.uniform(0.0005, 2.0))
+        rs = [RangeReading(j, -np.pi + j * np.pi / 6, rng.uniform(0.03, 0.2) if rng.random() < 0.6 else None)
+              for j in range(12)]
+        a, b = fast_ekm.localize_target(t, 0.0), numpy_ekm.localize_target(t, 0.0)
+        assert a.winner == b.winner and np.array_equal(a.a, b.a)
+        oa, ob = fast_ekm.localize_obstacles(rs, 0.0), numpy_ekm.localize_obstacles(rs, 0.0)
+        assert [o.winner for o in oa] == [o.winner for o in ob]
+        assert fast_ekm.integrate(a, oa) == numpy_ekm.integrate(b, ob)
