@@ -1,0 +1,79 @@
+"""How many robots (each with all 14 module processes) run in real time on this machine.
+
+For N = 1, 2, 4, 8 (or --robots) robots in an open arena, each driving 1.5 m to its own
+goal, `cekm launch --mode realtime` runs for --sim seconds; the world server counts a
+deadline miss whenever a robot's latest command at a tick boundary is older than that
+tick (its fields and command did not make it within 128 ms). Baseline, the same run
+with one robot. Goal (issue 4): 8 robots, 112 module processes, with no deadline misses.
+
+Run: python benchmarks/bench_runtime_scale.py [--robots 1,2,4,8] [--sim 10]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+
+def scenario_text(n: int) -> str:
+    cols = math.ceil(math.sqrt(n))
+    size = 2.0 + 0.5 * cols
+    lines = ['name = "scale"', f'description = "{n} robots in the open"', "seed = 1", "[arena]",
+             f"bounds = [0.0, 0.0, {size + 1.5}, {size}]"]
+    for i in range(n):
+        x, y = 0.5 + 0.5 * (i % cols), 0.5 + 0.5 * (i // cols)
+        lines += ["[[robots]]", f'id = "r{i + 1}"', f"start = [{x}, {y}, 0.0]", f'goal = "g{i + 1}"']
+        lines += ["[[targets]]", f'id = "g{i + 1}"', f"position = [{x + 1.5}, {y}]"]
+    return "\n".join(lines) + "\n"
+
+
+def run(n: int, sim: float, port: int) -> dict:
+    with tempfile.TemporaryDirectory() as tmp:
+        sc = Path(tmp) / f"scale{n}.toml"
+        sc.write_text(scenario_text(n))
+        t0 = time.perf_counter()
+        proc = subprocess.run([sys.executable, "-m", "cekm_swarm", "launch", str(sc), "--mode", "realtime",
+                               "--max-time", str(sim), "--out", str(Path(tmp) / "out"), "--no-plot", "--port",
+                               str(port)], capture_output=True, text=True)
+        wall = time.perf_counter() - t0
+        if proc.returncode != 0:
+            return {"robots": n, "error": proc.stdout[-2000:] + proc.stderr[-2000:]}
+        outcome = json.loads((Path(tmp) / "out" / "outcome.json").read_text())
+    ticks = round(outcome.get("sim_time_s", sim) / 0.128) if "sim_time_s" in outcome else round(sim / 0.128)
+    return {"robots": n, "modules": n * 14, "deadline_misses": outcome.get("deadline_misses"),
+            "robot_ticks": n * ticks, "latency_ms": outcome.get("sense_to_command_ms"),
+            "startup_s": outcome.get("launcher", {}).get("startup_s"), "wall_s": round(wall, 1)}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--robots", default="1,2,4,8")
+    ap.add_argument("--sim", type=float, default=10.0, help="sim (= wall) seconds of each run")
+    ap.add_argument("--port", type=int, default=7461)
+    args = ap.parse_args()
+    rows = [run(int(n), args.sim, args.port) for n in args.robots.split(",")]
+    base = rows[0]
+    print(f"{'robots':>6} {'modules':>8} {'misses':>7} {'robot-ticks':>12} {'miss %':>7} {'lat p50 ms':>11} "
+          f"{'lat p99 ms':>11} {'startup s':>10}")
+    for r in rows:
+        if "error" in r:
+            print(f"{r['robots']:>6} failed: {r['error'][-300:]}")
+            continue
+        lat = r["latency_ms"] or {}
+        pct = 100.0 * r["deadline_misses"] / max(1, r["robot_ticks"])
+        print(f"{r['robots']:>6} {r['modules']:>8} {r['deadline_misses']:>7} {r['robot_ticks']:>12} {pct:>6.1f}% "
+              f"{lat.get('p50', math.nan):>11} {lat.get('p99', math.nan):>11} {r['startup_s']:>10}")
+    ok = [r["robots"] for r in rows if "error" not in r and r["deadline_misses"] == 0]
+    print(f"baseline (1 robot): {base.get('deadline_misses')} misses; largest N with no deadline miss: "
+          f"{max(ok) if ok else 'none'} (goal: 8)")
+    print(json.dumps(rows))
+
+
+if __name__ == "__main__":
+    main()
