@@ -19,7 +19,6 @@ from ..controller.cooperative import CooperativeEKM, ObstacleActivity, TargetAct
 from ..controller.fusion import CommandFusion
 from ..controller.planner import plan_checkpoints
 from ..controller.readings import TargetReading, range_readings
-from ..controller.schedule import SCHEDULE
 from ..errors import ParameterError
 from ..models.params import FieldParams
 
@@ -108,7 +107,7 @@ def run_scenario(scenario, controller: str = "cekm", model=None, seed: int | Non
     "checkpoints". ``progress(t)`` is called every simulated second.
     """
     from world import World
-    from world.episode import Episode
+    from world.episode import TICK_S, Episode
 
     if controller not in CONTROLLERS:
         raise ParameterError(f"unknown controller {controller!r}; expected one of {list(CONTROLLERS)}")
@@ -125,16 +124,11 @@ def run_scenario(scenario, controller: str = "cekm", model=None, seed: int | Non
     brains = {r: make_brain(controller, model, consts, fields) for r in robots}
     checkpoints, plan_paths = plan_all(world, geometry) if use_checkpoints else (None, {})
     episode = Episode(world, checkpoints)
-    max_ticks = int(math.ceil(max_time / SCHEDULE.tick_s))
+    max_ticks = int(math.ceil(max_time / TICK_S))
     while True:
         if progress and episode.tick % 8 == 0:
             progress(episode.t)
-        commands = {}
-        for rd in episode.readings():
-            ranges = range_readings(rd.ranges, world.sensor_angles, world.body_radius)
-            target = TargetReading(*rd.target) if rd.target is not None else None
-            commands[rd.robot] = brains[rd.robot].tick(rd.t, target, ranges)
-        episode.apply(commands)
+        control_tick(episode, brains)
         if episode.done or episode.tick >= max_ticks:
             break
         episode.advance()
@@ -145,6 +139,17 @@ def run_scenario(scenario, controller: str = "cekm", model=None, seed: int | Non
                            list(p.checkpoints), list(p.checkpoint_times), p.reached, p.reached_time)
     return NavigationRun(scenario.name, controller, world_seed(world, seed, scenario), logs, episode.outcome(),
                          geometry, world.state(), plan_paths)
+
+
+def control_tick(episode, brains: dict[str, RobotBrain]) -> None:
+    """Steps 1-3 of a tick: the world's readings, every robot's modules, the commands applied."""
+    world = episode.world
+    commands = {}
+    for rd in episode.readings():
+        ranges = range_readings(rd.ranges, world.sensor_angles, world.body_radius)
+        target = TargetReading(*rd.target) if rd.target is not None else None
+        commands[rd.robot] = brains[rd.robot].tick(rd.t, target, ranges)
+    episode.apply(commands)
 
 
 def plan_all(world, geometry) -> tuple[dict, dict]:
@@ -210,20 +215,20 @@ def fields_at(scenario, model, at_time: float, controller_seed: int | None = Non
     the target field, each obstacle field, the combined obstacle fields and the integrated
     activity, with the winners, the robot's pose and the input weights."""
     from world import World
+    from world.episode import TICK_S, Episode
 
     world = World(scenario, seed=controller_seed)
     robot = robot or world.robot_ids[0]
     consts = {"body_radius": world.body_radius, "sensor_range": world.sensor_range}
     brains = {r: make_brain("cekm", model, consts, fields) for r in world.robot_ids}
-    last = int(round(at_time / SCHEDULE.tick_s))
-    for tick in range(last + 1):
-        t = SCHEDULE.time(tick)
-        for r in world.robot_ids:
-            ranges = range_readings(world.range_readings(r), world.sensor_angles, world.body_radius)
-            reading = TargetReading(*world.target_reading(r)) if SCHEDULE.target_due(tick) else None
-            world.set_wheels(r, *brains[r].tick(t, reading, ranges))
-        if tick < last:
-            world.advance(SCHEDULE.tick_s)
+    checkpoints = plan_all(world, world.static_geometry())[0] if scenario.name == "checkpoints" else None
+    episode = Episode(world, checkpoints)
+    last = int(round(at_time / TICK_S))
+    while True:
+        control_tick(episode, brains)
+        if episode.tick >= last:
+            break
+        episode.advance()
     b = brains[robot]
     n = model.w.shape[0]
     a = b.target.a if b.target is not None and b.target.a is not None else np.zeros(n)
@@ -231,7 +236,7 @@ def fields_at(scenario, model, at_time: float, controller_seed: int | None = Non
     combined = np.sum(list(obstacle.values()), axis=0) if obstacle else np.zeros(n)
     e = a - combined
     decision = b.controller.integrate(b.target, b.obstacles.values())
-    return {"time": SCHEDULE.time(last), "robot": robot, "pose": world.pose(robot), "w": model.w.copy(),
+    return {"time": episode.t, "robot": robot, "pose": world.pose(robot), "w": model.w.copy(),
             "a": a, "s": None if b.target is None else b.target.winner, "obstacle": obstacle,
             "obstacle_winners": {j: o.winner for j, o in b.obstacles.items() if o.winner is not None},
             "combined": combined, "e": e, "k": decision.k, "eligible": b.controller.eligible.copy(),

@@ -124,7 +124,7 @@ class IndirectEKM:
 
     def learn(self, v: np.ndarray, c: np.ndarray, t: float) -> None:
         """One step of self-organized learning: winner k for v, then Eqs. 15 or 16-17, then Eq. 12."""
-        k, idx, g = updated_neighbourhood(v, self.w, self.lattice, self.comp, self.learn_p, t)
+        _, idx, g = updated_neighbourhood(v, self.w, self.lattice, self.comp, self.learn_p, t)
         x = learning.model_inputs(v, self.w[idx], self.learn_p.d_scale)
         if self.rule == "gd":
             learning.gradient_descent(self.M, x, c, idx, g, self.learn_p.eta_m)
@@ -161,7 +161,7 @@ class DirectEKM:
 
     def learn(self, v: np.ndarray, c: np.ndarray, t: float) -> None:
         """c_i += eta G(k, i) (c - c_i), then Eq. 12, k the winner for v."""
-        k, idx, g = updated_neighbourhood(v, self.w, self.lattice, self.comp, self.learn_p, t)
+        _, idx, g = updated_neighbourhood(v, self.w, self.lattice, self.comp, self.learn_p, t)
         learning.direct_output_update(self.C, c, idx, g, self.learn_p.eta_c)
         learning.update_input_weights(self.w, v, idx, g, self.learn_p.eta_w)
 

@@ -26,13 +26,14 @@ import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 
+from cekm_swarm.controller.schedule import SCHEDULE
 from cekm_swarm.protocol import DEFAULT_RANGE_SENSORS, KeySpace, ObstacleField, TargetField, WheelCommand
 
 from .shell import ModuleSpec, base_parser, keyspace, load_controller, main_of
 
 NAME = "motor"
-TICK_S = 0.128
-TARGET_EVERY = 2
+TICK_S = SCHEDULE.tick_s
+TARGET_EVERY = SCHEDULE.target_every
 log = logging.getLogger("cekm_swarm.modules.motor")
 
 # integrate(target_field | None, obstacle_fields in index order) -> (v_l, v_r)
