@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import collections
 import json
 import logging
 import math
@@ -45,9 +46,11 @@ import time
 from pathlib import Path
 from typing import Any
 
-from cekm_swarm.protocol import (DEFAULT_ROOT, Clock, DropCounter, KeyKind, KeySpace, SenseRange, SenseTarget,
-                                 WheelCommand, WorldState, peek)
-from cekm_swarm.runtime.bridge import AsyncSubscription, Publishers, declare_alive, wait_matching_async
+import zenoh
+
+from cekm_swarm.protocol import (DEFAULT_ROOT, Clock, DropCounter, KeySpace, SenseRange, SenseTarget, WheelCommand,
+                                 WorldState, encode, peek)
+from cekm_swarm.runtime.bridge import InlineSubscription, Publishers, Received, declare_alive, wait_matching_async
 from cekm_swarm.runtime.config import DEFAULT_ENDPOINT, open_client
 from cekm_swarm.runtime.mcap_log import McapRecorder
 
@@ -59,6 +62,8 @@ log = logging.getLogger("world.server")
 SENDER = "world"
 DEADMAN_S = 0.5
 REPUBLISH_S = 1.0
+RECORD_QUEUE = 1 << 16
+"""Samples the recording queue holds between two drains (one per tick); the oldest go first."""
 DEFAULT_MAX_TIME = 600.0
 
 
@@ -144,18 +149,14 @@ class WorldServer:
         self.recorded = 0
         self.last_stamp = 0.0
 
-    # ------------------------------------------------------------------ recording
+    # ------------------------------------------------------------------ receiving
 
-    def _on_sample(self, rec) -> None:
-        if rec.kind != "put":
-            return
-        _, stamp = peek(rec.payload)
-        if stamp is not None:
-            self.last_stamp = max(self.last_stamp, stamp)
-        self.recorder.write(rec.key, rec.payload, self.last_stamp if stamp is None else stamp)
-        self.recorded += 1
+    def _on_command(self, rec: Received) -> None:
+        """A ``cmd/wheels`` sample, on Zenoh's receiving thread: keep the robot's latest
+        command, note when it was heard (dead-man) and how long after its tick's readings
+        it came; in lockstep, wake the tick loop. Touches only what the loop reads whole."""
         robot = self.cmd_keys.get(rec.key)
-        if robot is None:
+        if robot is None or rec.kind != "put":
             return
         msg = self.drops.decode(rec.key, rec.payload)
         if not isinstance(msg, WheelCommand):
@@ -164,17 +165,32 @@ class WorldServer:
         self.deadman.heard(robot, rec.at)
         sent = self.sent_at.get(msg.stamp)
         if sent is not None:
-            self._lat_pending[(robot, msg.stamp)] = rec.at - sent
-        self.arrived.set()
+            self._lat_pending.append((robot, msg.stamp, rec.at - sent))
+        if self.lockstep:
+            self._loop.call_soon_threadsafe(self.arrived.set)
 
-    async def _pump(self) -> None:
-        while True:
-            rec = await self.sub.get()
-            self._on_sample(rec)
-            while (rec := self.sub.get_nowait()) is not None:
-                self._on_sample(rec)
+    def _drain_records(self) -> None:
+        """Record every sample other sessions sent under ``<root>/**`` since the last
+        drain, at its stamp's sim time (a message without a stamp at the newest stamp
+        seen). Done once per tick in one batch: no thread wakes up per message."""
+        while (sample := self.record_sub.try_recv()) is not None:
+            if sample.kind != zenoh.SampleKind.PUT:
+                continue
+            payload = sample.payload.to_bytes()
+            _, stamp = peek(payload)
+            if stamp is not None:
+                self.last_stamp = max(self.last_stamp, stamp)
+            self.recorder.write(str(sample.key_expr), payload, self.last_stamp if stamp is None else stamp)
+            self.recorded += 1
 
     # ------------------------------------------------------------------ publishing
+
+    def _send(self, key: str, msg: Any) -> None:
+        """Publish ``msg`` and record it (the record subscription sees only other sessions)."""
+        payload = encode(msg)
+        self.pubs.put(key, payload)
+        self.recorder.write(key, payload, msg.stamp)
+        self.recorded += 1
 
     def _publish_tick(self, readings: list[TickReadings]) -> None:
         w, ep = self.world, self.episode
@@ -184,12 +200,12 @@ class WorldServer:
             self.sent_at.pop(next(iter(self.sent_at)))
         for rd in readings:
             for key, msg in sense_messages(self.keys, rd, angles, radius):
-                self.pubs.send(key, msg)
+                self._send(key, msg)
                 if isinstance(msg, SenseTarget):
                     self.last_target[rd.robot] = msg
-        self.pubs.send(self.keys.world_clock(), Clock(ep.t, SENDER, ep.tick))
+        self._send(self.keys.world_clock(), Clock(ep.t, SENDER, ep.tick))
         st = w.state()
-        self.pubs.send(self.keys.world_state(), WorldState(ep.t, SENDER, st["robots"], st["targets"], st["obstacles"]))
+        self._send(self.keys.world_state(), WorldState(ep.t, SENDER, st["robots"], st["targets"], st["obstacles"]))
         if self.views is not None:
             self.views.write_state(ep.t, st)
 
@@ -200,10 +216,10 @@ class WorldServer:
                 continue
             for key, msg in sense_messages(self.keys, rd, w.sensor_angles, w.body_radius):
                 if not isinstance(msg, SenseTarget):
-                    self.pubs.send(key, msg)
+                    self._send(key, msg)
             last = self.last_target.get(rd.robot)
             if last is not None:
-                self.pubs.send(self.keys.sense_target(rd.robot), last)
+                self._send(self.keys.sense_target(rd.robot), last)
         self.republished += 1
 
     # ------------------------------------------------------------------ loops
@@ -281,7 +297,9 @@ class WorldServer:
                 loop.add_signal_handler(sig, self.stop.set)
             except (NotImplementedError, RuntimeError):  # pragma: no cover
                 pass
-        self._lat_pending: dict[tuple[str, float], float] = {}
+        self._loop = loop
+        self._lat_pending: collections.deque[tuple[str, float, float]] = collections.deque()
+        self._lat_seen: dict[tuple[str, float], float] = {}
         self.deadman = Deadman(self.robots, args.deadman, time.monotonic())
         geometry = self.world.static_geometry()
         self.recorder = McapRecorder(self.out / "run.mcap", metadata={
@@ -301,9 +319,10 @@ class WorldServer:
         aborted = False
         try:
             self.pubs = Publishers(session, block=self.lockstep, express=True)
-            self.sub = AsyncSubscription(session, self.keys.everything())
+            self.record_sub = session.declare_subscriber(self.keys.everything(), zenoh.handlers.RingChannel(RECORD_QUEUE),
+                                                         allowed_origin=zenoh.Locality.REMOTE)
+            self.cmd_sub = InlineSubscription(session, self.keys.cmd_wheels_all(), self._on_command)
             token = declare_alive(session, self.keys.alive("world", "server"))
-            pump = asyncio.ensure_future(self._pump())
             # Every module's subscription must be known before tick 0 is published.
             for r in self.robots:
                 keys = [self.keys.sense_target(r)] + [self.keys.sense_range(r, j) for j in range(self.keys.range_sensors)]
@@ -324,6 +343,7 @@ class WorldServer:
                     else:
                         commands = await self._realtime_commands(start)
                     self._collect_latency(ep.t)
+                    self._drain_records()
                     ep.apply(commands)
                     now = time.monotonic()
                     if now - last_progress >= args.progress_every:
@@ -338,11 +358,10 @@ class WorldServer:
             self._progress()
             # what is still in flight gets recorded
             await asyncio.sleep(0.05)
-            pump.cancel()
-            while (rec := self.sub.get_nowait()) is not None:
-                self._on_sample(rec)
+            self.cmd_sub.close()
+            self._drain_records()
             token.undeclare()
-            self.sub.close()
+            self.record_sub.undeclare()
             self.pubs.close()
         finally:
             session.close()
@@ -350,11 +369,18 @@ class WorldServer:
         return self._write_outputs(time.perf_counter() - t_wall0, aborted)
 
     def _collect_latency(self, t: float) -> None:
+        """Each robot's latency for tick ``t``: to the last command stamped ``t`` heard so far
+        (in real time the motor may send several per tick)."""
+        seen = self._lat_seen
+        while self._lat_pending:
+            robot, stamp, lat = self._lat_pending.popleft()
+            seen[(robot, stamp)] = lat
         for r in self.robots:
-            lat = self._lat_pending.pop((r, t), None)
+            lat = seen.pop((r, t), None)
             if lat is not None:
                 self.latencies.append(lat)
-        self._lat_pending = {k: v for k, v in self._lat_pending.items() if k[1] > t}
+        for k in [k for k in seen if k[1] <= t]:
+            del seen[k]
 
     def _write_outputs(self, wall: float, aborted: bool) -> dict[str, Any]:
         ep = self.episode

@@ -199,6 +199,10 @@ class KeySpace:
         """Key expression matching every key of one robot."""
         return f"{self._robot(robot)}/**"
 
+    def cmd_wheels_all(self) -> str:
+        """Key expression matching every robot's wheel command (what the world listens to)."""
+        return f"{self.root}/*/cmd/wheels"
+
     def alive_all(self) -> str:
         """Key expression matching every liveliness token (robots' and the world's)."""
         return f"{self.root}/*/alive/*"

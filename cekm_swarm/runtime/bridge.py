@@ -15,6 +15,7 @@ order matters under one subscription (one key expression).
 from __future__ import annotations
 
 import asyncio
+import logging
 import threading
 import time
 from collections.abc import Callable
@@ -25,6 +26,7 @@ import zenoh
 
 from cekm_swarm.protocol import MSGPACK_ENCODING, Message, encode
 
+log = logging.getLogger("cekm_swarm.runtime.bridge")
 MSGPACK = zenoh.Encoding(MSGPACK_ENCODING)
 """The Zenoh encoding label of every payload of the protocol."""
 
@@ -113,6 +115,42 @@ class AsyncSubscription:
             self._sub = None
 
     def __enter__(self) -> "AsyncSubscription":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class InlineSubscription:
+    """Samples on ``key_expr`` handed to ``fn(rec)`` on Zenoh's receiving thread itself
+    (``zenoh.handlers.Callback(..., indirect=False)``): no extra thread and no event-loop
+    wake-up. ``fn`` must be quick and must never block or wait on the session (a module's
+    compute-and-publish qualifies: publishing does not wait for an answer). Samples of the
+    one subscription arrive in order. An exception in ``fn`` is counted in ``errors`` and
+    logged once; the subscription keeps going."""
+
+    def __init__(self, session: zenoh.Session, key_expr: str, fn: Callable[[Received], None]) -> None:
+        self.key_expr = key_expr
+        self.errors = 0
+        self._fn = fn
+
+        def callback(sample: zenoh.Sample) -> None:
+            try:
+                fn(Received.from_sample(sample))
+            except Exception as exc:  # noqa: BLE001 - never let an error reach Zenoh's thread
+                self.errors += 1
+                if self.errors == 1:
+                    log.error("subscription %s: handler failed: %s: %s", key_expr, type(exc).__name__, exc)
+
+        self._sub = session.declare_subscriber(key_expr, zenoh.handlers.Callback(callback, indirect=False))
+
+    def close(self) -> None:
+        """Undeclare the Zenoh subscriber (idempotent)."""
+        if self._sub is not None:
+            self._sub.undeclare()
+            self._sub = None
+
+    def __enter__(self) -> "InlineSubscription":
         return self
 
     def __exit__(self, *exc: object) -> None:
