@@ -100,7 +100,7 @@ def graph_run(session, ticks: int, paced: bool, first_tick: int = 0) -> tuple[li
 
     sub = session.declare_subscriber(K.cmd_wheels("r1"), on_cmd)
     lat = []
-    pubs = Publishers(session, block=True, express=True)
+    pubs = Publishers(session, block=True, express=False)  # as the world server publishes
     for j in range(12):
         pubs.wait_matching(K.sense_range("r1", j), 20)
     pubs.wait_matching(K.sense_target("r1"), 20)

@@ -318,7 +318,7 @@ class WorldServer:
         t_wall0 = time.perf_counter()
         aborted = False
         try:
-            self.pubs = Publishers(session, block=self.lockstep, express=True)
+            self.pubs = Publishers(session, block=True, express=False)
             self.record_sub = session.declare_subscriber(self.keys.everything(), zenoh.handlers.RingChannel(RECORD_QUEUE),
                                                          allowed_origin=zenoh.Locality.REMOTE)
             self.cmd_sub = InlineSubscription(session, self.keys.cmd_wheels_all(), self._on_command)

@@ -116,7 +116,7 @@ async def run_module(spec: ModuleSpec, endpoint: str, *, block: bool = False,
     session = open_client(endpoint)
     handled = [0]
     try:
-        pubs = Publishers(session, block=block, express=True)
+        pubs = Publishers(session, block=block, express=False)
         closed = threading.Event()
 
         def serve(rec: Received) -> None:
