@@ -314,7 +314,7 @@ class WorldServer:
                 self.views.write_geometry(0.0, geometry)
         except ImportError:  # pragma: no cover - foxglove-sdk missing
             self.views = None
-        session = open_client(args.connect)
+        session = open_client(args.connect, config_file=args.zenoh_config)
         t_wall0 = time.perf_counter()
         aborted = False
         try:
@@ -410,6 +410,7 @@ def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(description="cekm world server")
     p.add_argument("scenario", help="scenario name (world/scenarios) or .toml path")
     p.add_argument("--connect", default=DEFAULT_ENDPOINT)
+    p.add_argument("--zenoh-config", default=None, help="Zenoh client config file (credentials, TLS; see deploy/)")
     p.add_argument("--root", default=DEFAULT_ROOT)
     p.add_argument("--out", required=True, help="directory for run.mcap, outcome.json, trajectory.json")
     p.add_argument("--mode", choices=("realtime", "lockstep"), default="realtime")

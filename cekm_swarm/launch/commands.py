@@ -33,9 +33,14 @@ from cekm_swarm.runtime.config import DEFAULT_PORT
 @click.option("--no-world", is_flag=True, help="Do not start the world server here (it runs on another host).")
 @click.option("--listen", "listen_host", default="127.0.0.1", show_default=True,
               help="Address of the embedded router; 0.0.0.0 serves other hosts.")
+@click.option("--zenoh-config", type=click.Path(dir_okay=False, exists=True, path_type=Path),
+              help="Zenoh client config file (credentials, TLS; see deploy/) for every process started here; "
+                   "--connect or the embedded router sets its endpoint.")
+@click.option("--model-from-zenoh", is_flag=True,
+              help="Modules fetch the model from the world host's launcher (a robot host needs no model file).")
 def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, connect: str | None, port: int,
                model_path: Path | None, max_time: float, root: str, no_plot: bool, robots: str | None,
-               no_world: bool, listen_host: str) -> None:
+               no_world: bool, listen_host: str, zenoh_config: Path | None, model_from_zenoh: bool) -> None:
     """Run SCENARIO through the distributed runtime: the world server and, per robot,
     1 + 12 + 1 module processes on Zenoh, supervised (restarted when they die)."""
     from world import ScenarioError, load_scenario
@@ -46,10 +51,18 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, connec
         load_scenario(scenario)
     except ScenarioError as exc:
         raise click.UsageError(str(exc)) from None
+    if zenoh_config is not None:  # refuse a bad config file before any process starts
+        from cekm_swarm.runtime.config import client_config_from_file
+        from cekm_swarm.runtime.errors import RuntimeTransportError
+
+        try:
+            client_config_from_file(zenoh_config, connect or "tcp/127.0.0.1:7447")
+        except RuntimeTransportError as exc:
+            raise click.UsageError(str(exc)) from None
     only = None if robots is None else tuple(r.strip() for r in robots.split(",") if r.strip() and r.strip() != "none")
     config = LaunchConfig(scenario, out_dir, mode=mode, seed=seed, connect=connect, port=port, model=model_path,
                           max_time=max_time, root=root, plot=not no_plot, robots=only, world=not no_world,
-                          listen_host=listen_host)
+                          listen_host=listen_host, zenoh_config=zenoh_config, model_from_zenoh=model_from_zenoh)
     try:
         outcome = launch(config, echo=lambda s: click.echo(s))
     except ValueError as exc:

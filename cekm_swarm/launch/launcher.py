@@ -30,6 +30,7 @@ from typing import Any
 from cekm_swarm.protocol import DEFAULT_ROOT, KeySpace
 from cekm_swarm.runtime.bridge import LivelinessWatcher
 from cekm_swarm.runtime.config import DEFAULT_HOST, DEFAULT_PORT, open_client, open_embedded_router
+from cekm_swarm.runtime.model_service import ZENOH_MODEL, ModelServer
 
 BACKOFF_MIN = 0.25
 BACKOFF_MAX = 5.0
@@ -75,14 +76,20 @@ class LaunchConfig:
     robots: tuple[str, ...] | None = None  # whose module processes start here (None: every robot)
     world: bool = True  # start the world server here
     listen_host: str = DEFAULT_HOST  # the embedded router's address (0.0.0.0 to serve other hosts)
+    zenoh_config: Path | None = None  # client config file (credentials, TLS) for every process started here
+    model_from_zenoh: bool = False  # modules fetch the model from the world host's launcher (no file here)
 
 
 def module_names(sensors: int) -> list[str]:
     return ["target"] + [f"obstacle-{j}" for j in range(sensors)] + ["motor"]
 
 
-def module_argv(name: str, robot: str, model: Path, endpoint: str, mode: str, root: str) -> list[str]:
+def module_argv(name: str, robot: str, model: Path | str, endpoint: str, mode: str, root: str,
+                zenoh_config: Path | None = None) -> list[str]:
+    """The command line of one module process; ``model`` a file or ``"zenoh"`` (fetch it)."""
     common = ["--robot", robot, "--model", str(model), "--connect", endpoint, "--root", root, "--mode", mode]
+    if zenoh_config is not None:
+        common += ["--zenoh-config", str(zenoh_config)]
     if name == "target":
         return [sys.executable, "-m", "cekm_swarm.modules.target", *common]
     if name == "motor":
@@ -245,7 +252,9 @@ class Launcher:
             raise ValueError(f"{c.scenario}: no robot {', '.join(unknown)} (robots: {', '.join(all_robots)})")
         robots = [r for r in all_robots if c.robots is None or r in c.robots]
         model = c.model
-        if model is None:
+        if model is None and c.model_from_zenoh and not c.world:
+            model = ZENOH_MODEL  # a robot host: the world host's launcher serves the model
+        elif model is None:
             from cekm_swarm.experiments.default_model import default_model, default_model_path
 
             default_model()
@@ -261,7 +270,11 @@ class Launcher:
             router = open_embedded_router(c.port, c.listen_host)
             endpoint = f"tcp/{DEFAULT_HOST if c.listen_host in ('0.0.0.0', '::') else c.listen_host}:{c.port}"
             self.say(f"embedded Zenoh router on {endpoint}")
-        session = open_client(endpoint)
+        session = open_client(endpoint, config_file=c.zenoh_config)
+        model_server = None
+        if c.world and model != ZENOH_MODEL:
+            model_server = ModelServer(session, self.keys.world_model(), model)
+            self.say(f"serving the model {Path(model).name} on {self.keys.world_model()}")
         t0 = time.monotonic()
         supervisors: list[asyncio.Task] = []
         outcome: dict[str, Any] = {}
@@ -269,7 +282,8 @@ class Launcher:
             watcher = LivelinessWatcher(session, self.keys.alive_all())
             for r in robots:
                 for name in module_names(self.keys.range_sensors):
-                    child = Child(r, name, module_argv(name, r, model, endpoint, c.mode, c.root),
+                    child = Child(r, name, module_argv(name, r, ZENOH_MODEL if c.model_from_zenoh else model,
+                                                       endpoint, c.mode, c.root, c.zenoh_config),
                                   c.out / "logs" / f"{r}-{name}.log")
                     self.children[child.label] = child
             self.say(f"{scenario.name}: {len(robots)} robot(s), starting {len(self.children)} module processes "
@@ -302,6 +316,8 @@ class Launcher:
                           "--progress-every", str(c.progress_every)]
             if c.seed is not None:
                 world_argv += ["--seed", str(c.seed)]
+            if c.zenoh_config is not None:
+                world_argv += ["--zenoh-config", str(c.zenoh_config)]
             if checkpoints is not None:
                 world_argv += ["--checkpoints", str(c.out / "checkpoints.json")]
             with open(c.out / "logs" / "world.log", "ab") as werr:
@@ -328,6 +344,8 @@ class Launcher:
                 watcher.close()
             except Exception:
                 pass
+            if model_server is not None:
+                model_server.close()
             session.close()
             if router is not None:
                 router.close()

@@ -22,6 +22,7 @@ The file is written atomically (to a temporary name, then renamed).
 
 from __future__ import annotations
 
+import io
 import json
 import os
 import zipfile
@@ -81,8 +82,18 @@ def load_model(path: str | os.PathLike):
     path = Path(path)
     if not path.is_file():
         raise ModelFormatError(path, None, "no such file")
+    return _parse(path, path)
+
+
+def load_model_bytes(blob: bytes, source: str):
+    """A saved network from the bytes of its file (e.g. served over Zenoh); ``source``
+    names where they came from in any :class:`ModelFormatError`."""
+    return _parse(io.BytesIO(blob), source)
+
+
+def _parse(file, path):
     try:
-        with np.load(path, allow_pickle=False) as npz:
+        with np.load(file, allow_pickle=False) as npz:
             data = {k: npz[k] for k in npz.files}
     except (zipfile.BadZipFile, ValueError, OSError, EOFError) as exc:
         raise ModelFormatError(path, None, f"not a readable .npz model file ({exc})") from None

@@ -23,7 +23,9 @@ from typing import Any
 
 from cekm_swarm.protocol import DEFAULT_ROOT, DropCounter, KeySpace, Message
 from cekm_swarm.runtime.bridge import AsyncSubscription, InlineSubscription, Publishers, Received, declare_alive
+from cekm_swarm.errors import CekmError
 from cekm_swarm.runtime.config import DEFAULT_ENDPOINT, open_client
+from cekm_swarm.runtime.model_service import fetch_model_bytes, is_zenoh_source
 
 log = logging.getLogger("cekm_swarm.modules")
 
@@ -32,22 +34,31 @@ def base_parser(description: str) -> argparse.ArgumentParser:
     """Arguments every module takes."""
     p = argparse.ArgumentParser(description=description)
     p.add_argument("--robot", required=True, help="robot id, e.g. r1")
-    p.add_argument("--model", required=True, help="trained model file (.npz)")
+    p.add_argument("--model", required=True,
+                   help="trained model file (.npz), or 'zenoh' to fetch it from the launcher's queryable")
+    p.add_argument("--model-timeout", type=float, default=30.0, help="s to wait for the served model (--model zenoh)")
     p.add_argument("--connect", default=DEFAULT_ENDPOINT, help="Zenoh endpoint to join (default %(default)s)")
+    p.add_argument("--zenoh-config", default=None,
+                   help="Zenoh client config file (credentials, TLS; see deploy/); --connect sets its endpoint")
     p.add_argument("--root", default=DEFAULT_ROOT, help="key space root (default %(default)s)")
     p.add_argument("--mode", choices=("realtime", "lockstep"), default="realtime")
     p.add_argument("--log-level", default="INFO")
     return p
 
 
-def load_controller(path: str):
-    """The cooperative EKM of a saved indirect-mapping model."""
+def load_controller(source: str | tuple[str, bytes]):
+    """The cooperative EKM of a saved indirect-mapping model: a file path, or
+    ``(where, file bytes)`` fetched from the launcher (``--model zenoh``)."""
     from cekm_swarm.controller.cooperative import CooperativeEKM
-    from cekm_swarm.models.io import load_model
+    from cekm_swarm.models.io import load_model, load_model_bytes
 
-    model = load_model(path)
+    if isinstance(source, tuple):
+        where, blob = source
+        model = load_model_bytes(blob, where)
+    else:
+        where, model = source, load_model(source)
     if not model.kind.startswith("indirect"):
-        raise SystemExit(f"{path}: the controller needs an indirect-mapping EKM, not {model.kind!r}")
+        raise SystemExit(f"{where}: the controller needs an indirect-mapping EKM, not {model.kind!r}")
     return CooperativeEKM(model, backend="numpy")  # no numba in a module process: a third of the memory
 
 
@@ -93,7 +104,8 @@ def process_one(spec: ModuleSpec, rec: Received) -> list[tuple[str, Message]]:
 
 
 async def run_module(spec: ModuleSpec, endpoint: str, *, block: bool = False,
-                     ready: Callable[[], None] | None = None, dispatch: str = "inline") -> int:
+                     ready: Callable[[], None] | None = None, dispatch: str = "inline",
+                     config_file: str | None = None) -> int:
     """Serve ``spec`` until SIGTERM/SIGINT: subscribe, hold the liveliness token, publish
     what the handler returns. Returns the number of messages handled.
 
@@ -113,7 +125,7 @@ async def run_module(spec: ModuleSpec, endpoint: str, *, block: bool = False,
             loop.add_signal_handler(sig, stop.set)
         except (NotImplementedError, RuntimeError):  # pragma: no cover - non-main thread
             pass
-    session = open_client(endpoint)
+    session = open_client(endpoint, config_file=config_file)
     handled = [0]
     try:
         pubs = Publishers(session, block=block, express=False)
@@ -184,15 +196,31 @@ def main_of(build: Callable[[argparse.Namespace], ModuleSpec], parser: argparse.
     logging.basicConfig(level=args.log_level.upper(), stream=sys.stderr,
                         format="%(asctime)s.%(msecs)03d %(name)s %(levelname)s %(message)s", datefmt="%H:%M:%S")
     t0 = time.perf_counter()
-    spec = build(args)
+    try:
+        if is_zenoh_source(args.model):
+            args.model = fetch_model(args)
+        spec = build(args)
+    except CekmError as exc:  # a model or transport error: a clear line in the module's log, not a traceback
+        log.error("%s/%s: cannot start: %s", args.robot, parser.prog, exc)
+        return 2
     log.info("%s: model loaded in %.2f s (pid %d)", spec.sender, time.perf_counter() - t0, os.getpid())
-    asyncio.run(run_module(spec, args.connect, block=args.mode == "lockstep"))
+    asyncio.run(run_module(spec, args.connect, block=args.mode == "lockstep", config_file=args.zenoh_config))
     # The session is closed and everything logged: skip the interpreter's teardown (about
     # 0.4 s of CPU per process with numba loaded, seconds for a robot's 14 processes).
     logging.shutdown()
     sys.stdout.flush()
     sys.stderr.flush()
     os._exit(0)
+
+
+def fetch_model(args: argparse.Namespace) -> tuple[str, bytes]:
+    """``(where, bytes)`` of the model served at ``<root>/world/model`` (``--model zenoh``)."""
+    key = KeySpace(args.root).world_model()
+    session = open_client(args.connect, config_file=args.zenoh_config)
+    try:
+        return f"zenoh:{key}", fetch_model_bytes(session, key, args.model_timeout)
+    finally:
+        session.close()
 
 
 def keyspace(args: Any) -> KeySpace:

@@ -164,6 +164,11 @@ class KeySpace:
         """World -> all: sim time (lockstep)."""
         return f"{self.root}/{WORLD}/clock"
 
+    def world_model(self) -> str:
+        """Launcher -> modules: the queryable serving the trained model's file (a query,
+        not a publication: ``--model zenoh``; see :mod:`cekm_swarm.runtime.model_service`)."""
+        return f"{self.root}/{WORLD}/model"
+
     def alive(self, owner: str, module: str) -> str:
         """Liveliness token of a module of robot ``owner`` (or of the world server, owner ``world``)."""
         head = f"{self.root}/{WORLD}" if owner == WORLD else self._robot(owner)

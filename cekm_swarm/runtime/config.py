@@ -109,7 +109,29 @@ def open_embedded_router(port: int = DEFAULT_PORT, host: str = DEFAULT_HOST) -> 
     return open_session(embedded_router_config(port, host), "embedded router")
 
 
-def open_client(endpoint: str = DEFAULT_ENDPOINT, *, user: str | None = None,
-                password: str | None = None) -> zenoh.Session:
-    """Open a client session to ``endpoint`` (fails at once if nothing listens there)."""
+def client_config_from_file(path: str | Path, endpoint: str = DEFAULT_ENDPOINT) -> zenoh.Config:
+    """A client config file (JSON5: credentials, TLS keys, as in ``deploy/``) joining
+    ``endpoint``, which replaces the file's ``connect/endpoints``; multicast scouting stays
+    off. A router-mode file is refused: processes join, the launcher routes."""
+    config = load_config(path, {"connect/endpoints": [check_endpoint(endpoint)]})
+    try:
+        mode = json.loads(config.get_json("mode"))
+    except Exception:
+        mode = None
+    if mode not in (None, "client", "peer"):
+        raise RuntimeTransportError(f"zenoh config {path}: mode is {mode!r}; a process joins as 'client'")
+    _insert(config, "mode", "client")
+    _common(config)
+    return config
+
+
+def open_client(endpoint: str = DEFAULT_ENDPOINT, *, user: str | None = None, password: str | None = None,
+                config_file: str | Path | None = None) -> zenoh.Session:
+    """Open a client session to ``endpoint`` (fails at once if nothing listens there, or
+    if the router refuses the credentials). ``config_file``: a client config file whose
+    credentials and TLS settings are used (see :func:`client_config_from_file`)."""
+    if config_file is not None:
+        if user is not None or password is not None:
+            raise RuntimeTransportError("client config: give credentials in the config file or as user/password, not both")
+        return open_session(client_config_from_file(config_file, endpoint), f"client session ({config_file})")
     return open_session(client_config(endpoint, user=user, password=password), "client session")
