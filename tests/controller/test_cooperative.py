@@ -117,3 +117,21 @@ def test_numba_and_numpy_backends_are_identical():
         oa, ob = fast_ekm.localize_obstacles(rs, 0.0), numpy_ekm.localize_obstacles(rs, 0.0)
         assert [o.winner for o in oa] == [o.winner for o in ob]
         assert fast_ekm.integrate(a, oa) == numpy_ekm.integrate(b, ob)
+
+
+def test_remembered_winners_equal_the_competition():
+    """The winner memo answers exactly what the competition (Eqs. 2-4) would, for repeated
+    quantised sensor inputs, and stays bounded."""
+    from cekm_swarm.controller import cooperative
+
+    net = make_network("R15", np.random.default_rng(4))
+    ekm = CooperativeEKM(net, backend="numpy")
+    rng = np.random.default_rng(5)
+    for _ in range(2000):
+        alpha = -np.pi + int(rng.integers(12)) * np.pi / 6
+        d = round(rng.uniform(0.03, 0.2) / 0.005) * 0.005  # 5 mm steps, as the world's distance sensors
+        assert ekm.localize_obstacle(RangeReading(0, alpha, d), 0.0).winner == ekm._compete(alpha, d)
+    assert 0 < len(ekm._winners) <= cooperative.WINNER_MEMO
+    for k in range(cooperative.WINNER_MEMO + 10):  # distinct inputs: the memo starts again, never grows past its bound
+        ekm.localize_target(TargetReading(0.1, 0.001 * (k + 1)), 0.0)
+    assert len(ekm._winners) <= cooperative.WINNER_MEMO
