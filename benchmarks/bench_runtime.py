@@ -12,7 +12,9 @@ router on loopback. This process plays the world: it steps ``lone_obstacle`` wit
   with bench_zenoh's method;
 * lockstep speed-up: ticks as fast as the graph answers, sim time / wall time, both for
   this bare loop and for a full ``cekm launch lone_obstacle --mode lockstep`` (the world
-  server recording the MCAP log and Foxglove views);
+  server recording the MCAP log and Foxglove views): sim time over the world's tick loop
+  (first tick's readings to the last tick), and beside it over the world server's whole
+  life (waiting for subscribers, closing the log);
 * memory: resident set (VmRSS) and proportional set (Pss, shared pages split among the
   processes sharing them) of one obstacle module process.
 
@@ -143,8 +145,10 @@ def launch_speedup() -> dict[str, float]:
                        check=True, stdout=subprocess.DEVNULL)
         total = time.perf_counter() - t0
         o = json.loads((Path(d) / "outcome.json").read_text())
-    return {"sim_s": o["sim_seconds"], "world_wall_s": o["wall_seconds"],
-            "speedup": o["sim_seconds"] / o["wall_seconds"], "startup_s": o["launcher"]["startup_s"],
+    return {"sim_s": o["sim_seconds"], "world_wall_s": o["wall_seconds"], "tick_loop_s": o["tick_loop_seconds"],
+            "speedup": o["sim_seconds"] / o["tick_loop_seconds"],
+            "speedup_incl_world_start_and_log_close": o["sim_seconds"] / o["wall_seconds"],
+            "startup_s": o["launcher"]["startup_s"],
             "total_wall_s": total, "p50_ms": o["sense_to_command_ms"]["p50"], "p99_ms": o["sense_to_command_ms"]["p99"]}
 
 

@@ -154,6 +154,8 @@ class WorldServer:
         self.last_target: dict[str, SenseTarget] = {}
         self.stop = asyncio.Event()
         self.recorded = 0
+        self.tick_loop_seconds = 0.0  # wall s from the first tick's readings to the last tick
+        self._unrecorded: list[tuple[str, bytes, float]] = []
         self.last_stamp = 0.0
 
     # ------------------------------------------------------------------ receiving
@@ -193,11 +195,17 @@ class WorldServer:
     # ------------------------------------------------------------------ publishing
 
     def _send(self, key: str, msg: Any) -> None:
-        """Publish ``msg`` and record it (the record subscription sees only other sessions)."""
+        """Publish ``msg``; it is recorded by :meth:`_record_sent` (the record subscription
+        sees only other sessions)."""
         payload = encode(msg)
         self.pubs.put(key, payload)
-        self.recorder.write(key, payload, msg.stamp)
-        self.recorded += 1
+        self._unrecorded.append((key, payload, msg.stamp))
+
+    def _record_sent(self) -> None:
+        for key, payload, stamp in self._unrecorded:
+            self.recorder.write(key, payload, stamp)
+        self.recorded += len(self._unrecorded)
+        self._unrecorded.clear()
 
     def _publish_tick(self, readings: list[TickReadings]) -> None:
         w, ep = self.world, self.episode
@@ -213,8 +221,11 @@ class WorldServer:
         self._send(self.keys.world_clock(), Clock(ep.t, SENDER, ep.tick))
         st = w.state()
         self._send(self.keys.world_state(), WorldState(ep.t, SENDER, st["robots"], st["targets"], st["obstacles"]))
+        # Everything published: the modules compute now, and the log is written meanwhile.
+        self._record_sent()
         if self.views is not None:
             self.views.write_state(ep.t, st)
+        self._drain_records()
 
     def _republish(self, readings: list[TickReadings], waiting: list[str]) -> None:
         w = self.world
@@ -227,6 +238,7 @@ class WorldServer:
             last = self.last_target.get(rd.robot)
             if last is not None:
                 self._send(self.keys.sense_target(rd.robot), last)
+        self._record_sent()
         self.republished += 1
 
     # ------------------------------------------------------------------ loops
@@ -350,7 +362,6 @@ class WorldServer:
                     else:
                         commands = await self._realtime_commands(start)
                     self._collect_latency(ep.t)
-                    self._drain_records()
                     ep.apply(commands)
                     now = time.monotonic()
                     if now - last_progress >= args.progress_every:
@@ -362,6 +373,7 @@ class WorldServer:
             except asyncio.CancelledError:
                 aborted = True
                 self._event("stopped", {"reason": "signal"})
+            self.tick_loop_seconds = loop.time() - start
             self._progress()
             # what is still in flight gets recorded
             await asyncio.sleep(0.05)
@@ -397,7 +409,7 @@ class WorldServer:
             return None if not lat else round(lat[min(len(lat) - 1, int(p * len(lat)))] * 1000, 3)
 
         doc = {"scenario": self.scenario.name, "controller": "cekm", "seed": self.world.seed, "robots": ep.outcome(),
-               "wall_seconds": round(wall, 3), "mode": self.args.mode, "sim_seconds": ep.t, "ticks": ep.tick,
+               "wall_seconds": round(wall, 3), "tick_loop_seconds": round(self.tick_loop_seconds, 3), "mode": self.args.mode, "sim_seconds": ep.t, "ticks": ep.tick,
                "aborted": aborted, "republished": self.republished, "deadline_misses": self.deadline_misses,
                "sense_to_command_ms": {"p50": q(0.5), "p99": q(0.99), "n": len(lat)},
                "dropped_messages": self.drops.total, "recorded_messages": self.recorded, "events": self.events}
