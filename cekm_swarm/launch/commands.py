@@ -33,7 +33,7 @@ from cekm_swarm.runtime.config import DEFAULT_PORT
 @click.option("--no-world", is_flag=True, help="Do not start the world server here (it runs on another host).")
 @click.option("--listen", "listen_host", default="127.0.0.1", show_default=True,
               help="Address of the embedded router; 0.0.0.0 serves other hosts.")
-@click.option("--zenoh-config", type=click.Path(dir_okay=False, exists=True, path_type=Path),
+@click.option("--config", "zenoh_config", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               help="Zenoh client config file (credentials, TLS; see deploy/) for every process started here; "
                    "--connect or the embedded router sets its endpoint.")
 @click.option("--model-from-zenoh", is_flag=True,

@@ -63,7 +63,26 @@ def _handoff(loop: asyncio.AbstractEventLoop, fn: Callable[[Received], None]) ->
     return callback
 
 
-class AsyncSubscription:
+class _Subscriber:
+    """What every subscription wrapper here shares: ``close()`` undeclares its Zenoh
+    subscriber (idempotent), and it is a context manager that closes on exit."""
+
+    _sub: Any = None
+
+    def close(self) -> None:
+        """Undeclare the subscriber (idempotent)."""
+        if self._sub is not None:
+            self._sub.undeclare()
+            self._sub = None
+
+    def __enter__(self) -> Any:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class AsyncSubscription(_Subscriber):
     """Samples on ``key_expr`` as an asyncio queue: ``await sub.get()`` or ``async for rec in sub``.
 
     ``maxsize`` 0 keeps every sample (FIFO, unbounded); a positive ``maxsize`` keeps the
@@ -108,20 +127,8 @@ class AsyncSubscription:
     async def __anext__(self) -> Received:
         return await self._queue.get()
 
-    def close(self) -> None:
-        """Undeclare the Zenoh subscriber (idempotent)."""
-        if self._sub is not None:
-            self._sub.undeclare()
-            self._sub = None
 
-    def __enter__(self) -> "AsyncSubscription":
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
-
-class InlineSubscription:
+class InlineSubscription(_Subscriber):
     """Samples on ``key_expr`` handed to ``fn(rec)`` on Zenoh's receiving thread itself
     (``zenoh.handlers.Callback(..., indirect=False)``): no extra thread and no event-loop
     wake-up. ``fn`` must be quick and must never block or wait on the session (a module's
@@ -144,20 +151,8 @@ class InlineSubscription:
 
         self._sub = session.declare_subscriber(key_expr, zenoh.handlers.Callback(callback, indirect=False))
 
-    def close(self) -> None:
-        """Undeclare the Zenoh subscriber (idempotent)."""
-        if self._sub is not None:
-            self._sub.undeclare()
-            self._sub = None
 
-    def __enter__(self) -> "InlineSubscription":
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
-
-class LatestValues:
+class LatestValues(_Subscriber):
     """The newest sample of each key matching ``key_expr`` (what motor integration needs:
     the latest vector of each source), plus the set of keys updated since last asked.
 
@@ -205,18 +200,6 @@ class LatestValues:
         dirty, self._dirty = self._dirty, set()
         self._event.clear()
         return dirty
-
-    def close(self) -> None:
-        """Undeclare the Zenoh subscriber (idempotent)."""
-        if self._sub is not None:
-            self._sub.undeclare()
-            self._sub = None
-
-    def __enter__(self) -> "LatestValues":
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
 
 def ring_subscriber(session: zenoh.Session, key_expr: str, capacity: int = 1) -> zenoh.Subscriber:
@@ -321,7 +304,7 @@ class LivelinessEvent:
     at: float
 
 
-class LivelinessWatcher:
+class LivelinessWatcher(_Subscriber):
     """Tokens matching ``key_expr``: the set alive now and the stream of appear/disappear
     events. Uses a liveliness subscriber with history, so tokens that existed before the
     watcher started are reported as appearing."""
@@ -374,14 +357,3 @@ class LivelinessWatcher:
     async def __anext__(self) -> LivelinessEvent:
         return await self._events.get()
 
-    def close(self) -> None:
-        """Undeclare the liveliness subscriber (idempotent)."""
-        if self._sub is not None:
-            self._sub.undeclare()
-            self._sub = None
-
-    def __enter__(self) -> "LivelinessWatcher":
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()

@@ -74,8 +74,8 @@ def test_world_host_and_robot_host(tmp_path):
 
 def test_split_launch_through_access_control_with_credentials(tmp_path, acl_router):
     default_model(progress=False)
-    outcome = split_run(tmp_path, ("--connect", acl_router, "--zenoh-config", str(DEPLOY / "world.json5")),
-                        ("--zenoh-config", str(DEPLOY / "robot-r1.json5")), acl_router)
+    outcome = split_run(tmp_path, ("--connect", acl_router, "--config", str(DEPLOY / "world.json5")),
+                        ("--config", str(DEPLOY / "robot-r1.json5")), acl_router)
     assert outcome["dropped_messages"] == 0
 
 
@@ -83,7 +83,7 @@ def test_a_wrong_password_stops_the_launch_with_a_clear_error(tmp_path, acl_rout
     bad = tmp_path / "bad.json5"
     bad.write_text((DEPLOY / "robot-r1.json5").read_text().replace("change-me-r1", "wrong"))
     p = LaunchProcess("lone_obstacle", tmp_path / "out", "--robots", "r1", "--no-world", "--connect", acl_router,
-                      "--zenoh-config", str(bad), "--model", str(default_model_path()))
+                      "--config", str(bad), "--model", str(default_model_path()))
     code = p.finish(timeout=60)
     assert code != 0
     assert any("cannot open client session" in line for line in p.lines), "\n".join(p.lines[-20:])
