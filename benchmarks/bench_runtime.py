@@ -11,7 +11,7 @@ router on loopback. This process plays the world: it steps ``lone_obstacle`` wit
   2 KB message between two processes through the router (2 hops, the modules' path),
   with bench_zenoh's method;
 * lockstep speed-up: ticks as fast as the graph answers, sim time / wall time, both for
-  this bare loop and for a full ``cekm launch lone_obstacle --mode lockstep`` (the world
+  this bare loop and for full ``cekm launch lone_obstacle|concave --mode lockstep`` runs (the world
   server recording the MCAP log and Foxglove views): sim time over the world's tick loop
   (first tick's readings to the last tick), and beside it over the world server's whole
   life (waiting for subscribers, closing the log);
@@ -136,11 +136,11 @@ def graph_run(session, ticks: int, paced: bool, first_tick: int = 0) -> tuple[li
     return lat, wall, n
 
 
-def launch_speedup() -> dict[str, float]:
+def launch_speedup(scenario: str) -> dict[str, float]:
     with tempfile.TemporaryDirectory() as d:
         port = free_port()
         t0 = time.perf_counter()
-        subprocess.run([sys.executable, "-m", "cekm_swarm", "launch", "lone_obstacle", "--mode", "lockstep",
+        subprocess.run([sys.executable, "-m", "cekm_swarm", "launch", scenario, "--mode", "lockstep",
                         "--out", d, "--port", str(port), "--no-plot", "--model", str(default_model_path())],
                        check=True, stdout=subprocess.DEVNULL)
         total = time.perf_counter() - t0
@@ -192,8 +192,9 @@ def main() -> None:
         "module_memory_mb": {k: round(v, 1) for k, v in mem.items()},
     }
     if not args.no_launch:
-        result["lockstep_cekm_launch"] = {k: round(v, 3) if isinstance(v, float) else v
-                                          for k, v in launch_speedup().items()}
+        for scenario in ("lone_obstacle", "concave"):  # 100 and 203 ticks
+            result[f"lockstep_cekm_launch_{scenario}"] = {k: round(v, 3) if isinstance(v, float) else v
+                                                          for k, v in launch_speedup(scenario).items()}
     print(json.dumps(result, indent=1))
 
 
