@@ -133,3 +133,25 @@ def test_realtime_log_holds_every_robots_channels(faulty_run):
         for key in (K.sense_target(r), K.sense_range(r, 11), K.field_target(r), K.field_obstacle(r, 0),
                     K.cmd_wheels(r)):
             assert key in topics, key
+
+
+def test_no_reading_or_field_is_lost_in_transit(faulty_run):
+    """Every reading the world published got its field, and the field reached the world's
+    log: a burst of a tick's messages is batched, not dropped (an express message each was
+    a batch of its own, overflowed the router's queue towards the world and was dropped).
+    The modules that were never killed answer every tick but the last (still in flight when
+    the world stops)."""
+    from mcap.reader import make_reader
+
+    run, _ = faulty_run
+    stamps: dict[str, set[int]] = {}
+    with open(run.out / "run.mcap", "rb") as f:
+        for _, channel, message in make_reader(f).iter_messages():
+            stamps.setdefault(channel.topic, set()).add(round(message.log_time / 1e6))  # ms of sim time
+    for r in ("r1", "r2"):
+        for j in range(12):
+            if (r, j) == ("r1", 0):
+                continue  # SIGKILLed mid-run
+            read, answered = stamps[K.sense_range(r, j)], stamps[K.field_obstacle(r, j)]
+            missing = sorted(read - answered)
+            assert missing in ([], [max(read)]), (r, j, missing[:10], len(read))
