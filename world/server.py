@@ -61,6 +61,10 @@ from .sim import World
 log = logging.getLogger("world.server")
 SENDER = "world"
 DEADMAN_S = 0.5
+DEADMAN_MARGIN_S = 0.025
+"""How late a tick boundary may come on a loaded machine (measured: up to a few ms with a
+second run of 56 processes beside it); the dead-man stops a robot this much early rather
+than late."""
 REPUBLISH_S = 1.0
 RECORD_QUEUE = 1 << 16
 """Samples the recording queue holds between two drains (one per tick); the oldest go first."""
@@ -94,12 +98,6 @@ def target_message(t: float, target: tuple[float, float, bool]) -> SenseTarget:
     if not (visible and math.isfinite(alpha) and math.isfinite(d)):
         return SenseTarget(t, SENDER, 0.0, 0.0, False)
     return SenseTarget(t, SENDER, float(alpha), float(d), True)
-
-
-DEADMAN_MARGIN_S = 0.025
-"""How late a tick boundary may come on a loaded machine (measured: up to a few ms with a
-second run of 56 processes beside it); the dead-man stops a robot this much early rather
-than late."""
 
 
 class Deadman:
@@ -409,7 +407,8 @@ class WorldServer:
             return None if not lat else round(lat[min(len(lat) - 1, int(p * len(lat)))] * 1000, 3)
 
         doc = {"scenario": self.scenario.name, "controller": "cekm", "seed": self.world.seed, "robots": ep.outcome(),
-               "wall_seconds": round(wall, 3), "tick_loop_seconds": round(self.tick_loop_seconds, 3), "mode": self.args.mode, "sim_seconds": ep.t, "ticks": ep.tick,
+               "wall_seconds": round(wall, 3), "tick_loop_seconds": round(self.tick_loop_seconds, 3),
+               "mode": self.args.mode, "sim_seconds": ep.t, "ticks": ep.tick,
                "aborted": aborted, "republished": self.republished, "deadline_misses": self.deadline_misses,
                "sense_to_command_ms": {"p50": q(0.5), "p99": q(0.99), "n": len(lat)},
                "dropped_messages": self.drops.total, "recorded_messages": self.recorded, "events": self.events}

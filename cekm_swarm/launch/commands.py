@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from cekm_swarm.runtime.config import DEFAULT_PORT
+from cekm_swarm.runtime.config import DEFAULT_ENDPOINT, DEFAULT_PORT
 
 
 @click.command("launch")
@@ -56,7 +56,7 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, connec
         from cekm_swarm.runtime.errors import RuntimeTransportError
 
         try:
-            client_config_from_file(zenoh_config, connect or "tcp/127.0.0.1:7447")
+            client_config_from_file(zenoh_config, connect or DEFAULT_ENDPOINT)
         except RuntimeTransportError as exc:
             raise click.UsageError(str(exc)) from None
     only = None if robots is None else tuple(r.strip() for r in robots.split(",") if r.strip() and r.strip() != "none")

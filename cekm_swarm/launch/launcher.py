@@ -17,8 +17,6 @@ from __future__ import annotations
 
 import asyncio
 import json
-import math
-import os
 import signal
 import sys
 import time
@@ -272,7 +270,7 @@ class Launcher:
             self.say(f"embedded Zenoh router on {endpoint}")
         session = open_client(endpoint, config_file=c.zenoh_config)
         model_server = None
-        if c.world and model != ZENOH_MODEL:
+        if c.world:  # (a world host always has the model file)
             model_server = ModelServer(session, self.keys.world_model(), model)
             self.say(f"serving the model {Path(model).name} on {self.keys.world_model()}")
         t0 = time.monotonic()

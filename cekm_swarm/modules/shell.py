@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from cekm_swarm.protocol import DEFAULT_ROOT, DropCounter, KeySpace, Message
-from cekm_swarm.runtime.bridge import AsyncSubscription, InlineSubscription, Publishers, Received, declare_alive
+from cekm_swarm.runtime.bridge import InlineSubscription, Publishers, Received, declare_alive
 from cekm_swarm.errors import CekmError
 from cekm_swarm.runtime.config import DEFAULT_ENDPOINT, open_client
 from cekm_swarm.runtime.model_service import fetch_model_bytes, is_zenoh_source
@@ -104,20 +104,16 @@ def process_one(spec: ModuleSpec, rec: Received) -> list[tuple[str, Message]]:
 
 
 async def run_module(spec: ModuleSpec, endpoint: str, *, block: bool = False,
-                     ready: Callable[[], None] | None = None, dispatch: str = "inline",
-                     config_file: str | None = None) -> int:
+                     ready: Callable[[], None] | None = None, config_file: str | None = None) -> int:
     """Serve ``spec`` until SIGTERM/SIGINT: subscribe, hold the liveliness token, publish
     what the handler returns. Returns the number of messages handled.
 
-    ``dispatch="inline"`` (default) runs decode, handler and publish on Zenoh's receiving
-    thread (a direct callback): one thread wake-up per message instead of three (Zenoh's
-    callback thread, the event loop's self-pipe, the loop), which is most of a module's
-    cost on a loaded machine (``benchmarks/bench_runtime.py``). The handler never blocks
-    and messages of the one subscription arrive in order on that thread, so the module's
-    state needs no lock. ``dispatch="loop"`` hands each sample to the asyncio loop first.
-    The event loop owns the life cycle either way: signals, the liveliness token, shutdown."""
-    if dispatch not in ("inline", "loop"):
-        raise ValueError(f"dispatch must be 'inline' or 'loop', not {dispatch!r}")
+    Decode, handler and publish run on Zenoh's receiving thread (a direct callback): one
+    thread wake-up per message instead of three (Zenoh's callback thread, the event loop's
+    self-pipe, the loop), which is most of a module's cost on a loaded machine
+    (``benchmarks/bench_runtime.py``). The handler never blocks and messages of the one
+    subscription arrive in order on that thread, so the module's state needs no lock. The
+    event loop owns the life cycle: signals, the liveliness token, shutdown."""
     loop = asyncio.get_running_loop()
     stop = asyncio.Event()
     for sig in (signal.SIGTERM, signal.SIGINT):
@@ -141,20 +137,14 @@ async def run_module(spec: ModuleSpec, endpoint: str, *, block: bool = False,
                     log.warning("%s: publishing on %s failed: %s", spec.sender, key, exc)
             handled[0] += 1
 
-        if dispatch == "inline":
-            sub = InlineSubscription(session, spec.listen, serve)
-        else:
-            sub = AsyncSubscription(session, spec.listen)
+        sub = InlineSubscription(session, spec.listen, serve)
         # The token comes last: once it is up, the subscription is in place.
         token = declare_alive(session, spec.keys.alive(spec.robot, spec.name))
-        log.info("%s: up, listening on %s (%s dispatch)", spec.sender, spec.listen, dispatch)
+        log.info("%s: up, listening on %s", spec.sender, spec.listen)
         if ready:
             ready()
         try:
-            if dispatch == "inline":
-                await stop.wait()
-            else:
-                await _serve_from_loop(sub, serve, stop)
+            await stop.wait()
         finally:
             closed.set()
             sub.close()
@@ -169,24 +159,6 @@ async def run_module(spec: ModuleSpec, endpoint: str, *, block: bool = False,
                     "; ".join(f"{r.source} x{r.count}" for r in spec.drops.records()))
     log.info("%s: stopped after %d messages", spec.sender, handled[0])
     return handled[0]
-
-
-async def _serve_from_loop(sub: AsyncSubscription, serve: Callable[[Received], None], stop: asyncio.Event) -> None:
-    """The event-loop dispatch: await each sample, serve it and every one already queued."""
-    stopper = asyncio.ensure_future(stop.wait())
-    try:
-        while not stop.is_set():
-            getter = asyncio.ensure_future(sub.get())
-            done, _ = await asyncio.wait({getter, stopper}, return_when=asyncio.FIRST_COMPLETED)
-            if getter not in done:
-                getter.cancel()
-                return
-            rec = getter.result()
-            while rec is not None:
-                serve(rec)
-                rec = sub.get_nowait()
-    finally:
-        stopper.cancel()
 
 
 def main_of(build: Callable[[argparse.Namespace], ModuleSpec], parser: argparse.ArgumentParser,

@@ -139,7 +139,6 @@ class InlineSubscription(_Subscriber):
     def __init__(self, session: zenoh.Session, key_expr: str, fn: Callable[[Received], None]) -> None:
         self.key_expr = key_expr
         self.errors = 0
-        self._fn = fn
 
         def callback(sample: zenoh.Sample) -> None:
             try:

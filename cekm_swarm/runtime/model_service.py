@@ -10,15 +10,12 @@ asker checks the digest and then reads the bytes with the same checks as a file
 from __future__ import annotations
 
 import hashlib
-import logging
 import time
 from pathlib import Path
 
 import zenoh
 
 from .errors import RuntimeTransportError
-
-log = logging.getLogger("cekm_swarm.runtime.model_service")
 
 ZENOH_MODEL = "zenoh"
 """The ``--model`` value that means: fetch the model from the launcher's queryable."""
