@@ -23,7 +23,7 @@ from numba import njit, prange
 
 from ..models import fast
 from ..models.networks import at_goal
-from .arena import A_RES, Arena, displacement, drive, sense_target
+from .arena import A_RES, displacement, drive, sense_target
 from .streams import TrialStreams, batch_train_chunk
 
 EMPTY = np.empty(0)
