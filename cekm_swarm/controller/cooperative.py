@@ -158,7 +158,7 @@ class CooperativeEKM:
             self._compete = lambda alpha, d: winner(np.array([alpha, d]), self.w, self.model.comp)
         self._winners: dict[tuple[float, float], int] = {}
 
-    def _winner(self, alpha: float, d: float) -> int:
+    def winner(self, alpha: float, d: float) -> int:
         """The winner for input (alpha, d) (Eqs. 2-4), remembered per exact input: the
         competition is a pure function of the input, and a distance sensor's readings
         are quantised (5 mm steps at a fixed direction), so an obstacle module meets the
@@ -172,20 +172,28 @@ class CooperativeEKM:
             self._winners[key] = s
         return s
 
+    def target_activity(self, s: int) -> np.ndarray:
+        """The target field a_i of winner s (Eqs. 5-6), tabulated; read-only."""
+        return self._A[s]
+
+    def obstacle_activity(self, s: int) -> np.ndarray:
+        """The obstacle field b_i of winner s (Eqs. 7-8), tabulated; read-only."""
+        return self._B[s]
+
     def localize_target(self, reading: TargetReading, stamp: float) -> TargetActivity:
         """Target localization (section 3.2): s = winner(u) (Eqs. 2-4), a_i = G_a(w_s, w_i) (Eqs. 5-6)."""
         if not reading.usable:
             return TargetActivity(stamp, float("nan"), float("nan"), None, None)
         if reading.at_goal:
             return TargetActivity(stamp, reading.alpha, reading.d, None, None, at_goal=True)
-        s = self._winner(reading.alpha, reading.d)
+        s = self.winner(reading.alpha, reading.d)
         return TargetActivity(stamp, reading.alpha, reading.d, s, self._A[s])
 
     def localize_obstacle(self, reading: RangeReading, stamp: float) -> ObstacleActivity:
         """Obstacle localization j (section 3.3): winner for u_j = (alpha_j, d_j), b_i = G_b (Eqs. 7-8)."""
         if reading.d is None:
             return ObstacleActivity(stamp, reading.index, None, None)
-        s = self._winner(reading.alpha, reading.d)
+        s = self.winner(reading.alpha, reading.d)
         return ObstacleActivity(stamp, reading.index, s, self._B[s])
 
     def localize_obstacles(self, readings: list[RangeReading], stamp: float) -> list[ObstacleActivity]:

@@ -27,7 +27,8 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 
 from cekm_swarm.controller.schedule import SCHEDULE
-from cekm_swarm.protocol import DEFAULT_RANGE_SENSORS, KeySpace, ObstacleField, TargetField, WheelCommand
+from cekm_swarm.protocol import DEFAULT_RANGE_SENSORS, KeySpace, ObstacleField, TargetField, WheelCommand, encode
+from cekm_swarm.protocol.hotpath import VectorCache, obstacle_field_values, target_field_values, unpack
 
 from .shell import ModuleSpec, base_parser, keyspace, load_controller, main_of
 
@@ -200,11 +201,34 @@ def build_spec(integrate: Integrate, robot: str, keys: KeySpace = KeySpace(), *,
             seq[0] += 1
         return out
 
+    obstacle_keys = {keys.field_obstacle(robot, j): j for j in range(keys.range_sensors)}
+    target_key = keys.field_target(robot)
+    vectors = VectorCache()
+
+    def fast(key: str, payload: bytes) -> list[tuple[str, bytes]] | None:
+        """The hot path of ``handle``: a well-formed field with its vector read once per
+        distinct vector (:class:`VectorCache`); anything else goes the general way."""
+        j = obstacle_keys.get(key)
+        if j is not None:
+            u = obstacle_field_values(unpack(payload), j, vectors)
+            if u is None:
+                return None
+            msg = ObstacleField(u[0], u[1], j, u[2], u[3])
+        elif key == target_key:
+            u = target_field_values(unpack(payload), vectors)
+            if u is None:
+                return None
+            msg = TargetField(*u)
+        else:
+            return None
+        return [(k, encode(m)) for k, m in handle(msg, None)]
+
     def on_stop() -> None:
         log.info("%s: %d commands (%d repeats), stale drops %s", sender, state.commands, state.repeats,
                  state.stale_drops or "none")
 
-    spec = ModuleSpec(NAME, robot, f"{keys.root}/{robot}/field/**", handle, keys, on_stop=on_stop)
+    spec = ModuleSpec(NAME, robot, f"{keys.root}/{robot}/field/**", handle, keys, on_stop=on_stop, fast=fast,
+                      outputs=(out_key,))
     spec.state = state  # type: ignore[attr-defined]  # for tests and logs
     return spec
 

@@ -21,13 +21,23 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from cekm_swarm.protocol import DEFAULT_ROOT, DropCounter, KeySpace, Message
+import zenoh
+
+from cekm_swarm.protocol import DEFAULT_ROOT, MSGPACK_ENCODING, DropCounter, KeySpace, Message, encode
 from cekm_swarm.runtime.bridge import InlineSubscription, Publishers, Received, declare_alive
 from cekm_swarm.errors import CekmError
 from cekm_swarm.runtime.config import DEFAULT_ENDPOINT, open_client
 from cekm_swarm.runtime.model_service import fetch_model_bytes, is_zenoh_source
 
 log = logging.getLogger("cekm_swarm.modules")
+
+ZENOH_RUNTIME = "(rx: (handover: app), tx: (handover: app), net: (handover: app), acc: (handover: app))"
+"""Zenoh's runtimes in a module process: all on one worker thread (Zenoh's ``ZENOH_RUNTIME``
+variable; the default is five runtimes on six threads). A module receives one message and
+sends one per period, so the hand-offs between receiving, sending and timer threads cost
+more than they save: one thread cuts a module's CPU per message by about a quarter and
+its thread wake-ups from about five to three (``benchmarks/bench_runtime.py``). A
+``ZENOH_RUNTIME`` already in the environment is kept."""
 
 
 def base_parser(description: str) -> argparse.ArgumentParser:
@@ -63,6 +73,10 @@ def load_controller(source: str | tuple[str, bytes]):
 
 
 Handler = Callable[[Message, Received], list[tuple[str, Message]]]
+FastHandler = Callable[[str, bytes], "list[tuple[str, bytes]] | None"]
+"""A module's hot path: key and payload bytes in, ``[(key, bytes to publish)]`` out, or None when
+it does not take the message (then the general decode-and-handle path runs). It must
+give exactly the bytes the general path would encode."""
 
 
 @dataclass
@@ -77,6 +91,9 @@ class ModuleSpec:
     keys: KeySpace = field(default_factory=KeySpace)
     drops: DropCounter | None = None
     on_stop: Callable[[], None] | None = None
+    fast: FastHandler | None = None
+    outputs: tuple[str, ...] = ()
+    """Keys the module publishes on, declared before it listens (none: declared on first use)."""
 
     def __post_init__(self) -> None:
         if self.drops is None:
@@ -103,6 +120,20 @@ def process_one(spec: ModuleSpec, rec: Received) -> list[tuple[str, Message]]:
         return []
 
 
+def respond(spec: ModuleSpec, key: str, payload: bytes) -> list[tuple[str, bytes]]:
+    """The bytes to publish for one sample put on ``key``: the module's fast path when it
+    takes the message, else :func:`process_one`'s messages, encoded."""
+    if spec.fast is not None:
+        try:
+            out = spec.fast(key, payload)
+        except Exception:  # noqa: BLE001 - the general path decides, and counts a bad message
+            out = None
+        if out is not None:
+            return out
+    rec = Received(key, payload, "put", MSGPACK_ENCODING, time.monotonic())
+    return [(k, encode(m)) for k, m in process_one(spec, rec)]
+
+
 async def run_module(spec: ModuleSpec, endpoint: str, *, block: bool = False,
                      ready: Callable[[], None] | None = None, config_file: str | None = None) -> int:
     """Serve ``spec`` until SIGTERM/SIGINT: subscribe, hold the liveliness token, publish
@@ -125,19 +156,22 @@ async def run_module(spec: ModuleSpec, endpoint: str, *, block: bool = False,
     handled = [0]
     try:
         pubs = Publishers(session, block=block, express=False)
+        for key in spec.outputs:  # before listening: no declaration on Zenoh's thread later
+            pubs.publisher(key)
         closed = threading.Event()
+        put = zenoh.SampleKind.PUT
 
-        def serve(rec: Received) -> None:
-            if closed.is_set():
+        def serve(sample: zenoh.Sample) -> None:
+            if closed.is_set() or sample.kind != put:
                 return
-            for key, out in process_one(spec, rec):
+            for key, data in respond(spec, str(sample.key_expr), sample.payload.to_bytes()):
                 try:
-                    pubs.send(key, out)
+                    pubs.put(key, data)
                 except Exception as exc:  # noqa: BLE001 - a closing session must not kill the thread
                     log.warning("%s: publishing on %s failed: %s", spec.sender, key, exc)
             handled[0] += 1
 
-        sub = InlineSubscription(session, spec.listen, serve)
+        sub = InlineSubscription(session, spec.listen, serve, raw=True)
         # The token comes last: once it is up, the subscription is in place.
         token = declare_alive(session, spec.keys.alive(spec.robot, spec.name))
         log.info("%s: up, listening on %s", spec.sender, spec.listen)
@@ -165,6 +199,7 @@ def main_of(build: Callable[[argparse.Namespace], ModuleSpec], parser: argparse.
             argv: list[str] | None = None) -> int:
     """Parse arguments, build the module, serve it; the body of each module's ``main``."""
     args = parser.parse_args(argv)
+    os.environ.setdefault("ZENOH_RUNTIME", ZENOH_RUNTIME)  # read by Zenoh when the session opens
     logging.basicConfig(level=args.log_level.upper(), stream=sys.stderr,
                         format="%(asctime)s.%(msecs)03d %(name)s %(levelname)s %(message)s", datefmt="%H:%M:%S")
     t0 = time.perf_counter()

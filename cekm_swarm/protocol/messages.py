@@ -451,14 +451,19 @@ _packb = msgpack.packb
 _unpackb = msgpack.unpackb
 
 
-def encode(msg: Message) -> bytes:
-    """The msgpack bytes of ``msg`` (already validated when it was built)."""
+def to_wire(msg: Message) -> dict[str, Any]:
+    """The map that :func:`encode` packs: the envelope, then the kind's fields in order."""
     kind = _KIND_VALUE.get(type(msg))
     if kind is None:
         raise MessageKindError(f"{type(msg).__name__} is not a protocol message")
     wire = {"v": SCHEMA_VERSION, "kind": kind, "stamp": msg.stamp, "sender": msg.sender}
     wire.update(msg._body())
-    return _packb(wire, use_bin_type=True)
+    return wire
+
+
+def encode(msg: Message) -> bytes:
+    """The msgpack bytes of ``msg`` (already validated when it was built)."""
+    return _packb(to_wire(msg), use_bin_type=True)
 
 
 _PARSED: dict[int, tuple[KeySpace, dict[str, tuple[KeyKind, int | None]]]] = {}

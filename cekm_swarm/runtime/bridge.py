@@ -134,15 +134,18 @@ class InlineSubscription(_Subscriber):
     wake-up. ``fn`` must be quick and must never block or wait on the session (a module's
     compute-and-publish qualifies: publishing does not wait for an answer). Samples of the
     one subscription arrive in order. An exception in ``fn`` is counted in ``errors`` and
-    logged once; the subscription keeps going."""
+    logged once; the subscription keeps going. ``raw=True`` hands ``fn`` the
+    ``zenoh.Sample`` itself (no copy into a :class:`Received`: the module hot path)."""
 
-    def __init__(self, session: zenoh.Session, key_expr: str, fn: Callable[[Received], None]) -> None:
+    def __init__(self, session: zenoh.Session, key_expr: str, fn: Callable[[Any], None], *,
+                 raw: bool = False) -> None:
         self.key_expr = key_expr
         self.errors = 0
+        convert = (lambda sample: sample) if raw else Received.from_sample
 
         def callback(sample: zenoh.Sample) -> None:
             try:
-                fn(Received.from_sample(sample))
+                fn(convert(sample))
             except Exception as exc:  # noqa: BLE001 - never let an error reach Zenoh's thread
                 self.errors += 1
                 if self.errors == 1:

@@ -12,7 +12,7 @@ from cekm_swarm.controller.readings import TargetReading, range_readings
 from cekm_swarm.experiments.default_model import default_model
 from cekm_swarm.experiments.navigation import make_brain
 from cekm_swarm.modules import motor, obstacle, target
-from cekm_swarm.modules.shell import process_one
+from cekm_swarm.modules.shell import process_one, respond
 from cekm_swarm.protocol import DEFAULT_KEYS as K
 from cekm_swarm.protocol import SenseRange, SenseTarget, decode, encode
 from cekm_swarm.runtime.bridge import Received
@@ -97,6 +97,124 @@ def test_malformed_message_is_dropped_counted_and_survived(model, payload):
     (out,) = process_one(spec, rec(key, good))
     assert out[0] == K.field_obstacle("r1", 0) and out[1].winner is not None
     assert spec.drops.total == 1
+
+
+@pytest.mark.parametrize("payload", [
+    b"\xc1garbage",
+    msgpack.packb({"v": 99, "kind": "sense/range", "stamp": 0.0, "sender": "w", "index": 0, "alpha": 0.0, "d": None}),
+    msgpack.packb([1, 2, 3]),
+    msgpack.packb({"v": 1, "kind": "sense/range", "stamp": 0.0, "sender": "w", "index": 0, "alpha": 0.0}),
+    msgpack.packb({"v": 1, "kind": "sense/range", "stamp": 0.0, "sender": "w", "index": 1, "alpha": 0.0, "d": 0.2}),
+])
+def test_a_malformed_message_passes_the_fast_path_by_and_is_dropped_and_counted(model, payload):
+    spec = obstacle.build_spec(CooperativeEKM(model), "r1", 0)
+    key = K.sense_range("r1", 0)
+    assert spec.fast(key, payload) is None
+    assert respond(spec, key, payload) == []
+    assert spec.drops.count(key) == 1
+
+
+def test_obstacle_fast_path_sends_the_bytes_of_the_general_path(model):
+    """Every reading of a lone_obstacle run and of a sweep of ranges and directions (the
+    world's 5 mm steps and arbitrary floats, nothing seen, integer-valued stamps the fast
+    path leaves to the general one): the published bytes are those of the general path."""
+    ekm = CooperativeEKM(model)
+    world = World(load_scenario("lone_obstacle"))
+    episode = Episode(world)
+    payloads = {}
+    for _ in range(40):
+        (rd,) = episode.readings()
+        for key, msg in sense_messages(K, rd, world.sensor_angles, world.body_radius):
+            if isinstance(msg, SenseRange):
+                payloads.setdefault(msg.index, []).append(encode(msg))
+        episode.apply({"r1": (0.1, 0.12)})
+        episode.advance()
+    rng = np.random.default_rng(3)
+    for j in (0, 5, 11):
+        for k in range(200):
+            d = None if k % 10 == 0 else float(rng.choice([round(rng.uniform(0.05, 0.6), 3), rng.uniform(0.05, 0.6)]))
+            payloads[j].append(encode(SenseRange(round(k * 0.128, 9), "world", j, float(rng.uniform(-3, 3)), d)))
+        payloads[j].append(msgpack.packb({"v": 1, "kind": "sense/range", "stamp": 2, "sender": "world", "index": j,
+                                          "alpha": 0.5, "d": 0.25}))
+    taken = 0
+    for j, msgs in payloads.items():
+        fast = obstacle.build_spec(ekm, "r1", j)
+        slow = obstacle.build_spec(ekm, "r1", j)
+        slow.fast = None
+        key = K.sense_range("r1", j)
+        for p in msgs:
+            taken += fast.fast(key, p) is not None
+            assert respond(fast, key, p) == respond(slow, key, p)
+        assert fast.drops.total == 0
+    assert taken == sum(map(len, payloads.values())) - 3  # all but the integer stamps took the fast path
+
+
+def test_target_fast_path_sends_the_bytes_of_the_general_path(model):
+    """Target readings over the sensing range, out of range, at the goal (d = 0) and one
+    with an integer stamp: the fast path takes the visible ones short of the goal, and the
+    published bytes are the general path's in every case."""
+    ekm = CooperativeEKM(model)
+    fast = target.build_spec(ekm, "r1")
+    slow = target.build_spec(ekm, "r1")
+    slow.fast = None
+    key = K.sense_target("r1")
+    rng = np.random.default_rng(5)
+    payloads = [encode(SenseTarget(round(k * 0.256, 9), "world", float(rng.uniform(-math.pi, math.pi)),
+                                   float(rng.choice([rng.uniform(0.01, 3.0), round(rng.uniform(0.01, 3.0), 3)])), True))
+                for k in range(300)]
+    odd = [encode(SenseTarget(1.0, "world", 0.0, 0.0, False)), encode(SenseTarget(1.0, "world", 0.3, 0.0, True)),
+           msgpack.packb({"v": 1, "kind": "sense/target", "stamp": 2, "sender": "world", "alpha": 0.5, "d": 1.0,
+                          "visible": True})]
+    for p in payloads + odd:
+        assert respond(fast, key, p) == respond(slow, key, p)
+    assert all(fast.fast(key, p) is not None for p in payloads)
+    assert all(fast.fast(key, p) is None for p in odd)
+    assert fast.drops.total == 0
+
+
+@pytest.mark.parametrize("lockstep", [True, False], ids=["lockstep", "realtime"])
+def test_motor_fast_path_sends_the_bytes_of_the_general_path(model, lockstep):
+    """The fields of a lone_obstacle run (from the obstacle and target modules), fed to a
+    motor module with and to one without its fast path: the same commands, byte for byte."""
+    ekm = CooperativeEKM(model)
+    world = World(load_scenario("lone_obstacle"))
+    episode = Episode(world)
+    integrate = motor.controller_integrate(ekm)
+    fast = motor.build_spec(integrate, "r1", lockstep=lockstep)
+    slow = motor.build_spec(integrate, "r1", lockstep=lockstep)
+    slow.fast = None
+    took = [0]
+    inner = fast.fast
+
+    def counted(key, payload):
+        out = inner(key, payload)
+        took[0] += out is not None
+        return out
+
+    fast.fast = counted
+    obs = {j: obstacle.build_spec(ekm, "r1", j) for j in range(12)}
+    tgt = target.build_spec(ekm, "r1")
+    sent = n_fields = 0
+    for _ in range(60):
+        (rd,) = episode.readings()
+        fields = []
+        for key, msg in sense_messages(K, rd, world.sensor_angles, world.body_radius):
+            spec = obs[msg.index] if isinstance(msg, SenseRange) else tgt
+            fields += respond(spec, key, encode(msg))
+        command = None
+        n_fields += len(fields)
+        for key, payload in fields:
+            out = respond(fast, key, payload)
+            assert out == respond(slow, key, payload)
+            if out:
+                command = decode(out[-1][0], out[-1][1])
+                sent += 1
+        assert fast.drops.total == 0
+        assert command is not None
+        episode.apply({"r1": (command.v_l, command.v_r)})
+        episode.advance()
+    assert sent == (60 if lockstep else 60 * 12 + 30)
+    assert took[0] == n_fields  # every field of the run took the fast path
 
 
 def test_motor_survives_a_malformed_field_and_a_wrong_index(model):
