@@ -13,6 +13,7 @@ import json
 import os
 import signal
 import time
+from pathlib import Path
 
 import pytest
 
@@ -73,6 +74,8 @@ def faulty_run(tmp_path_factory):
             if float(line.split("t=")[1].split()[0]) >= KILL_AT:
                 break
         pids = run.pids()
+        task = Path(f"/proc/{pids['r1/obstacle-3']}/task")
+        run.module_threads = sorted((t / "comm").read_text().strip() for t in task.iterdir())
         for label in ("r1/obstacle-0", "r2/motor"):
             kills[label] = time.time()
             os.kill(pids[label], signal.SIGKILL)
@@ -93,6 +96,14 @@ def test_two_robots_in_real_time_complete_and_reach_their_goals(faulty_run):
     # real time: sim time kept up with the wall clock
     assert outcome["wall_seconds"] >= 0.9 * outcome["sim_seconds"]
     assert (run.out / "trajectory.png").is_file()
+
+
+def test_a_module_process_runs_zenoh_on_one_runtime(faulty_run):
+    """modules.shell.ZENOH_RUNTIME hands every Zenoh runtime to 'app': a live module has
+    no receiving, sending or timer threads of its own (Zenoh names them rx-, tx-, net-)."""
+    names = faulty_run[0].module_threads
+    assert any(n.startswith("app-") for n in names), names
+    assert not any(n.startswith(("rx-", "tx-", "net-", "acc-")) for n in names), names
 
 
 def test_killed_modules_are_restarted_and_the_log_shows_it(faulty_run):
