@@ -5,8 +5,9 @@ motor answers each tick exactly once, when the tick's 13 fields are in) on an em
 router on loopback. This process plays the world: it steps ``lone_obstacle`` with
 ``world.episode.Episode``, publishes each tick's readings and waits for the command.
 
-* sense-to-command latency: from the first sense message of a tick put on Zenoh to the
-  command for that tick arriving (in the Zenoh callback), paced at one tick per 128 ms
+* sense-to-command latency: from the tick's sensor readings in hand (before they are
+  encoded and put on Zenoh, as the world server measures it) to the command for that
+  tick arriving (in the Zenoh callback), paced at one tick per 128 ms
   as in real time (p50, p99); beside it, in the same run, the raw one-way latency of a
   2 KB message between two processes through the router (2 hops, the modules' path),
   with bench_zenoh's method;
@@ -46,7 +47,7 @@ from cekm_swarm.runtime.bridge import LivelinessWatcher, Publishers  # noqa: E40
 from cekm_swarm.runtime.config import free_port, open_client, open_embedded_router  # noqa: E402
 from world import World, load_scenario  # noqa: E402
 from world.episode import TICK_S, Episode  # noqa: E402
-from world.server import sense_messages  # noqa: E402
+from world.server import SenseEncoder  # noqa: E402
 
 
 def pct(xs: list[float], q: float) -> float:
@@ -106,16 +107,16 @@ def graph_run(session, ticks: int, paced: bool, first_tick: int = 0) -> tuple[li
     for j in range(12):
         pubs.wait_matching(K.sense_range("r1", j), 20)
     pubs.wait_matching(K.sense_target("r1"), 20)
+    sense = SenseEncoder(K, "r1", world.sensor_angles, world.body_radius)
     t_start = time.perf_counter()
     n = 0
     for k in range(first_tick, first_tick + ticks):
         if paced:
             time.sleep(max(0.0, t_start + (k - first_tick) * TICK_S - time.perf_counter()))
         (rd,) = ep.readings()
-        msgs = sense_messages(K, rd, world.sensor_angles, world.body_radius)
         t0 = time.perf_counter()
-        for key, m in msgs:
-            pubs.send(key, m)
+        for key, payload in sense(rd):  # as the world server publishes a tick's readings
+            pubs.put(key, payload)
         t = rd.t
         with cv:
             if not cv.wait_for(lambda: t in got, timeout=10):

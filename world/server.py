@@ -50,6 +50,7 @@ import zenoh
 
 from cekm_swarm.protocol import (DEFAULT_ROOT, Clock, DropCounter, KeySpace, SenseRange, SenseTarget, WheelCommand,
                                  WorldState, encode, peek)
+from cekm_swarm.protocol.hotpath import Splice
 from cekm_swarm.runtime.bridge import InlineSubscription, Publishers, Received, declare_alive, wait_matching_async
 from cekm_swarm.runtime.config import DEFAULT_ENDPOINT, open_client
 from cekm_swarm.runtime.mcap_log import McapRecorder
@@ -91,6 +92,51 @@ def sense_messages(keys: KeySpace, rd: TickReadings, sensor_angles, body_radius:
     if rd.target is not None:
         out.append((keys.sense_target(rd.robot), target_message(t, rd.target)))
     return out
+
+
+class SenseEncoder:
+    """The wire bytes of one robot's sense messages: ``encoder(rd)`` equals ``[(key,
+    encode(msg)) for key, msg in sense_messages(...)]`` (tested), with each message packed
+    once and only its stamp and reading spliced in per tick. The readings open the
+    critical path of every tick (sense to command), so the world spends a few us per
+    message on them instead of a dataclass, its checks and a whole pack. A value the
+    message would refuse (a negative range, an angle outside [-pi, pi]) takes the general
+    path, which raises as it would have."""
+
+    def __init__(self, keys: KeySpace, robot: str, sensor_angles, body_radius: float) -> None:
+        self.keys, self.robot, self.radius = keys, robot, body_radius
+        self.angles = [float(a) for a in sensor_angles]
+        self.range_keys = [keys.sense_range(robot, j) for j in range(len(self.angles))]
+        self.target_key = keys.sense_target(robot)
+        self.seen = [Splice(SenseRange(0.0, SENDER, j, a, 0.0), ("stamp", "d")) for j, a in enumerate(self.angles)]
+        self.blind = [Splice(SenseRange(0.0, SENDER, j, a, None)) for j, a in enumerate(self.angles)]
+        self.visible = Splice(SenseTarget(0.0, SENDER, 0.0, 0.0, True), ("stamp", "alpha", "d"))
+        self.hidden = Splice(SenseTarget(0.0, SENDER, 0.0, 0.0, False))
+
+    def __call__(self, rd: TickReadings) -> list[tuple[str, bytes]]:
+        t = float(rd.t)
+        if not 0.0 <= t < math.inf:
+            return [(k, encode(m)) for k, m in sense_messages(self.keys, rd, self.angles, self.radius)]
+        out = []
+        for j, r in enumerate(rd.ranges):
+            r = float(r)
+            if not math.isfinite(r):
+                out.append((self.range_keys[j], self.blind[j](t)))
+                continue
+            d = r + self.radius
+            if 0.0 <= d < math.inf:
+                out.append((self.range_keys[j], self.seen[j](t, d)))
+            else:  # the general path refuses it, naming the field
+                out.append((self.range_keys[j], encode(SenseRange(t, SENDER, j, self.angles[j], d))))
+        if rd.target is not None:
+            alpha, d, visible = rd.target
+            if not (visible and math.isfinite(alpha) and math.isfinite(d)):
+                out.append((self.target_key, self.hidden(t)))
+            elif -math.pi <= alpha <= math.pi and 0.0 <= d:
+                out.append((self.target_key, self.visible(t, float(alpha), float(d))))
+            else:
+                out.append((self.target_key, encode(target_message(t, rd.target))))
+        return out
 
 
 def target_message(t: float, target: tuple[float, float, bool]) -> SenseTarget:
@@ -149,7 +195,8 @@ class WorldServer:
         self.deadline_misses = 0
         self.latencies: list[float] = []  # s from publishing a tick's readings to its command
         self.sent_at: dict[float, float] = {}
-        self.last_target: dict[str, SenseTarget] = {}
+        self.last_target: dict[str, bytes] = {}  # the latest target reading's payload, per robot
+        self._sense_encoders: dict[str, SenseEncoder] = {}
         self.stop = asyncio.Event()
         self.recorded = 0
         self.tick_loop_seconds = 0.0  # wall s from the first tick's readings to the last tick
@@ -195,9 +242,18 @@ class WorldServer:
     def _send(self, key: str, msg: Any) -> None:
         """Publish ``msg``; it is recorded by :meth:`_record_sent` (the record subscription
         sees only other sessions)."""
-        payload = encode(msg)
+        self._put(key, encode(msg), msg.stamp)
+
+    def _put(self, key: str, payload: bytes, stamp: float) -> None:
         self.pubs.put(key, payload)
-        self._unrecorded.append((key, payload, msg.stamp))
+        self._unrecorded.append((key, payload, stamp))
+
+    def _sense(self, rd: TickReadings) -> list[tuple[str, bytes]]:
+        enc = self._sense_encoders.get(rd.robot)
+        if enc is None:
+            w = self.world
+            enc = self._sense_encoders[rd.robot] = SenseEncoder(self.keys, rd.robot, w.sensor_angles, w.body_radius)
+        return enc(rd)
 
     def _record_sent(self) -> None:
         for key, payload, stamp in self._unrecorded:
@@ -212,10 +268,10 @@ class WorldServer:
         if len(self.sent_at) > 64:
             self.sent_at.pop(next(iter(self.sent_at)))
         for rd in readings:
-            for key, msg in sense_messages(self.keys, rd, angles, radius):
-                self._send(key, msg)
-                if isinstance(msg, SenseTarget):
-                    self.last_target[rd.robot] = msg
+            for key, payload in self._sense(rd):
+                self._put(key, payload, rd.t)
+            if rd.target is not None:
+                self.last_target[rd.robot] = payload  # the last one: the target's
         self._send(self.keys.world_clock(), Clock(ep.t, SENDER, ep.tick))
         st = w.state()
         self._send(self.keys.world_state(), WorldState(ep.t, SENDER, st["robots"], st["targets"], st["obstacles"]))
@@ -230,12 +286,12 @@ class WorldServer:
         for rd in readings:
             if rd.robot not in waiting:
                 continue
-            for key, msg in sense_messages(self.keys, rd, w.sensor_angles, w.body_radius):
-                if not isinstance(msg, SenseTarget):
-                    self._send(key, msg)
+            sense = self._sense(rd)
+            for key, payload in sense[:len(w.sensor_angles)]:
+                self._put(key, payload, rd.t)
             last = self.last_target.get(rd.robot)
             if last is not None:
-                self._send(self.keys.sense_target(rd.robot), last)
+                self._put(self.keys.sense_target(rd.robot), last, rd.t)
         self._record_sent()
         self.republished += 1
 
