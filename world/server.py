@@ -104,7 +104,7 @@ class SenseEncoder:
     path, which raises as it would have."""
 
     def __init__(self, keys: KeySpace, robot: str, sensor_angles, body_radius: float) -> None:
-        self.keys, self.robot, self.radius = keys, robot, body_radius
+        self.keys, self.radius = keys, body_radius
         self.angles = [float(a) for a in sensor_angles]
         self.range_keys = [keys.sense_range(robot, j) for j in range(len(self.angles))]
         self.target_key = keys.sense_target(robot)
@@ -263,7 +263,6 @@ class WorldServer:
 
     def _publish_tick(self, readings: list[TickReadings]) -> None:
         w, ep = self.world, self.episode
-        angles, radius = w.sensor_angles, w.body_radius
         self.sent_at[ep.t] = time.monotonic()
         if len(self.sent_at) > 64:
             self.sent_at.pop(next(iter(self.sent_at)))

@@ -278,10 +278,10 @@ class Launcher:
         outcome: dict[str, Any] = {}
         try:
             watcher = LivelinessWatcher(session, self.keys.alive_all())
+            module_model = ZENOH_MODEL if c.model_from_zenoh else model
             for r in robots:
                 for name in module_names(self.keys.range_sensors):
-                    child = Child(r, name, module_argv(name, r, ZENOH_MODEL if c.model_from_zenoh else model,
-                                                       endpoint, c.mode, c.root, c.zenoh_config),
+                    child = Child(r, name, module_argv(name, r, module_model, endpoint, c.mode, c.root, c.zenoh_config),
                                   c.out / "logs" / f"{r}-{name}.log")
                     self.children[child.label] = child
             self.say(f"{scenario.name}: {len(robots)} robot(s), starting {len(self.children)} module processes "

@@ -36,7 +36,7 @@ def fast_obstacle_field(ekm, index: int, sender: str, out_key: str) -> FastHandl
     is a fixed row per winner (Eq. 8), so its bytes are built once per winner and only
     the stamp is packed per message. None for anything but a well-formed reading: the
     shell then takes the general path, which decodes, or drops and counts."""
-    restamp: dict[int | None, Splice] = {}
+    splices: dict[int | None, Splice] = {}
 
     def fast(key: str, payload: bytes) -> list[tuple[str, bytes]] | None:
         u = sense_range_values(unpack(payload), index)
@@ -44,10 +44,10 @@ def fast_obstacle_field(ekm, index: int, sender: str, out_key: str) -> FastHandl
             return None
         stamp, alpha, d = u
         s = None if d is None else ekm.winner(alpha, d)  # Eqs. 2-4 (memoised)
-        enc = restamp.get(s)
+        enc = splices.get(s)
         if enc is None:
             b = None if s is None else ekm.obstacle_activity(s)  # Eqs. 7-8
-            enc = restamp[s] = Splice(ObstacleField(0.0, sender, index, s, b))
+            enc = splices[s] = Splice(ObstacleField(0.0, sender, index, s, b))
         return [(out_key, enc(stamp))]
 
     return fast

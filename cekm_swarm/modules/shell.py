@@ -23,9 +23,9 @@ from typing import Any
 
 import zenoh
 
+from cekm_swarm.errors import CekmError
 from cekm_swarm.protocol import DEFAULT_ROOT, MSGPACK_ENCODING, DropCounter, KeySpace, Message, encode
 from cekm_swarm.runtime.bridge import InlineSubscription, Publishers, Received, declare_alive
-from cekm_swarm.errors import CekmError
 from cekm_swarm.runtime.config import DEFAULT_ENDPOINT, open_client
 from cekm_swarm.runtime.model_service import fetch_model_bytes, is_zenoh_source
 

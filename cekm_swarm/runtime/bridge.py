@@ -141,11 +141,11 @@ class InlineSubscription(_Subscriber):
                  raw: bool = False) -> None:
         self.key_expr = key_expr
         self.errors = 0
-        convert = (lambda sample: sample) if raw else Received.from_sample
+        handle = fn if raw else (lambda sample: fn(Received.from_sample(sample)))
 
         def callback(sample: zenoh.Sample) -> None:
             try:
-                fn(convert(sample))
+                handle(sample)
             except Exception as exc:  # noqa: BLE001 - never let an error reach Zenoh's thread
                 self.errors += 1
                 if self.errors == 1:
