@@ -1,16 +1,19 @@
 """The runtime's process graph: sense-to-command latency, lockstep speed-up, module memory.
 
 One robot's 14 module processes (target, obstacle 0..11, motor; lockstep mode, so the
-motor answers each tick exactly once, when the tick's 13 fields are in) on an embedded
-router on loopback. This process plays the world: it steps ``lone_obstacle`` with
-``world.episode.Episode``, publishes each tick's readings and waits for the command.
+motor answers each tick exactly once, when the tick's 13 fields are in) on loopback. This
+process plays the world server as the launcher runs it: it hosts the embedded router
+(Zenoh on one thread, as the world server does on loopback), steps ``lone_obstacle`` with
+``world.episode.Episode``, publishes each tick's readings on the router's own session and
+waits for the command.
 
 * sense-to-command latency: from the tick's sensor readings in hand (before they are
   encoded and put on Zenoh, as the world server measures it) to the command for that
   tick arriving (in the Zenoh callback), paced at one tick per 128 ms
-  as in real time (p50, p99); beside it, in the same run, the raw one-way latency of a
-  2 KB message between two processes through the router (2 hops, the modules' path),
-  with bench_zenoh's method;
+  as in real time (p50, p99); beside it, in the same run and with the same Zenoh
+  settings, the raw one-way latency of a 2 KB message between two processes with
+  bench_zenoh's method: 1 hop (publisher in the router's process, the world's readings)
+  and 2 hops through the router (a module's field to the motor);
 * lockstep speed-up: ticks as fast as the graph answers, sim time / wall time, both for
   this bare loop and for full ``cekm launch lone_obstacle|concave --mode lockstep`` runs (the world
   server recording the MCAP log and Foxglove views): sim time over the world's tick loop
@@ -43,8 +46,8 @@ from cekm_swarm.experiments.default_model import default_model, default_model_pa
 from cekm_swarm.launch.launcher import module_argv, module_names  # noqa: E402
 from cekm_swarm.protocol import DEFAULT_KEYS as K  # noqa: E402
 from cekm_swarm.protocol import WheelCommand, decode  # noqa: E402
-from cekm_swarm.runtime.bridge import LivelinessWatcher, Publishers  # noqa: E402
-from cekm_swarm.runtime.config import free_port, open_client, open_embedded_router  # noqa: E402
+from cekm_swarm.runtime.bridge import InlineSubscription, LivelinessWatcher, Publishers  # noqa: E402
+from cekm_swarm.runtime.config import free_port, open_embedded_router, use_one_zenoh_thread  # noqa: E402
 from world import World, load_scenario  # noqa: E402
 from world.episode import TICK_S, Episode  # noqa: E402
 from world.server import SenseEncoder  # noqa: E402
@@ -101,7 +104,7 @@ def graph_run(session, ticks: int, paced: bool, first_tick: int = 0) -> tuple[li
                 cmds[msg.stamp] = msg
             cv.notify_all()
 
-    sub = session.declare_subscriber(K.cmd_wheels("r1"), on_cmd)
+    sub = InlineSubscription(session, K.cmd_wheels("r1"), on_cmd, raw=True)  # as the world server takes commands
     lat = []
     pubs = Publishers(session, block=True, express=False)  # as the world server publishes
     for j in range(12):
@@ -132,7 +135,7 @@ def graph_run(session, ticks: int, paced: bool, first_tick: int = 0) -> tuple[li
             continue
         ep.advance()
     wall = time.perf_counter() - t_start
-    sub.undeclare()
+    sub.close()
     pubs.close()
     return lat, wall, n
 
@@ -160,10 +163,11 @@ def main() -> None:
     args = ap.parse_args()
     default_model(progress=False)
     model = default_model_path()
+    use_one_zenoh_thread()  # as world.server does when it hosts the router on loopback
     port = free_port()
     router = open_embedded_router(port)
     endpoint = f"tcp/127.0.0.1:{port}"
-    session = open_client(endpoint)
+    session = router  # the world publishes on the router's own session
     procs, startup = asyncio.run(start_modules(session, endpoint, model))
     try:
         mem = memory(procs[1].pid)
@@ -174,10 +178,10 @@ def main() -> None:
             p.terminate()
         for p in procs:
             p.wait(10)
-        session.close()
         router.close()
     import bench_zenoh
 
+    raw1 = bench_zenoh.latency("callback", 1, 1000, 0.002)
     raw = bench_zenoh.latency("asyncio", 2, 1000, 0.002)
     raw_cb = bench_zenoh.latency("callback", 2, 1000, 0.002)
     result = {
@@ -186,6 +190,8 @@ def main() -> None:
         "sense_to_command_ms_paced": {"p50": round(pct(paced_lat, 50), 3), "p99": round(pct(paced_lat, 99), 3),
                                       "n": len(paced_lat)},
         "sense_to_command_ms_flat_out": {"p50": round(pct(fast_lat, 50), 3), "p99": round(pct(fast_lat, 99), 3)},
+        "raw_one_way_1_hop_ms": {"callback_p50": round(pct(raw1, 50) / 1000, 3),
+                                 "callback_p99": round(pct(raw1, 99) / 1000, 3)},
         "raw_one_way_2_hops_ms": {"asyncio_p50": round(pct(raw, 50) / 1000, 3), "asyncio_p99": round(pct(raw, 99) / 1000, 3),
                                   "callback_p50": round(pct(raw_cb, 50) / 1000, 3),
                                   "callback_p99": round(pct(raw_cb, 99) / 1000, 3)},

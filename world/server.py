@@ -25,9 +25,17 @@ time, with Foxglove view channels; ``OUT/outcome.json`` (the fields of ``cekm ru
 ``OUT/trajectory.json`` (pose and command per tick) are written at the end, which is when
 every robot reached its goal, at ``--max-time``, or on SIGTERM/SIGINT.
 
-Progress goes to stdout as lines ``PROGRESS {json}``, ``EVENT {json}`` and ``DONE {json}``.
+Zenoh: with ``--connect`` the server joins a router as a client; with ``--listen`` it
+hosts the router itself (the launcher's embedded default), so a tick's readings leave and
+its commands arrive with no router hop between the world and the modules: two of the six
+hops of a tick's critical path (world, module, motor, world) are gone. ``--wait-modules S``
+holds tick 0 until every module of every robot holds its liveliness token.
+
+Progress goes to stdout as lines ``READY {json}`` (the session is open and the token up),
+``START``, ``PROGRESS {json}``, ``EVENT {json}`` and ``DONE {json}``.
 
 ``python -m world.server SCENARIO --connect tcp/127.0.0.1:7447 --out DIR [--mode lockstep]``
+``python -m world.server SCENARIO --listen tcp/127.0.0.1:7447 --wait-modules 180 --out DIR``
 
 Imports only ``world``, ``cekm_swarm.protocol``, ``cekm_swarm.runtime`` and ``cekm_swarm.errors``.
 """
@@ -50,9 +58,12 @@ import zenoh
 
 from cekm_swarm.protocol import (DEFAULT_ROOT, Clock, DropCounter, KeySpace, SenseRange, SenseTarget, WheelCommand,
                                  WorldState, encode, peek)
+from cekm_swarm.errors import CekmError
 from cekm_swarm.protocol.hotpath import Splice
-from cekm_swarm.runtime.bridge import InlineSubscription, Publishers, Received, declare_alive, wait_matching_async
-from cekm_swarm.runtime.config import DEFAULT_ENDPOINT, open_client
+from cekm_swarm.runtime.bridge import (InlineSubscription, LivelinessWatcher, Publishers, Received, declare_alive,
+                                       wait_matching_async)
+from cekm_swarm.runtime.config import (DEFAULT_ENDPOINT, is_loopback, open_client, open_embedded_router, tcp_host_port,
+                                       use_one_zenoh_thread)
 from cekm_swarm.runtime.mcap_log import McapRecorder
 
 from .episode import TICK_S, Episode, TickReadings
@@ -198,6 +209,7 @@ class WorldServer:
         self.last_target: dict[str, bytes] = {}  # the latest target reading's payload, per robot
         self._sense_encoders: dict[str, SenseEncoder] = {}
         self.stop = asyncio.Event()
+        self.stop_reason = "signal"
         self.recorded = 0
         self.tick_loop_seconds = 0.0  # wall s from the first tick's readings to the last tick
         self._unrecorded: list[tuple[str, bytes, float]] = []
@@ -386,7 +398,11 @@ class WorldServer:
                 self.views.write_geometry(0.0, geometry)
         except ImportError:  # pragma: no cover - foxglove-sdk missing
             self.views = None
-        session = open_client(args.connect, config_file=args.zenoh_config)
+        try:
+            session = open_world_session(args)
+        except BaseException:
+            self.recorder.close()
+            raise
         t_wall0 = time.perf_counter()
         aborted = False
         try:
@@ -395,18 +411,25 @@ class WorldServer:
                                                          allowed_origin=zenoh.Locality.REMOTE)
             self.cmd_sub = InlineSubscription(session, self.keys.cmd_wheels_all(), self._on_command)
             token = declare_alive(session, self.keys.alive("world", "server"))
+            emit("READY", {"endpoint": args.listen or args.connect, "router": bool(args.listen)})
+            if args.wait_modules > 0 and not await self._wait_for_modules(session, args.wait_modules):
+                self.stop.set()
             # Every module's subscription must be known before tick 0 is published.
             for r in self.robots:
                 keys = [self.keys.sense_target(r)] + [self.keys.sense_range(r, j) for j in range(self.keys.range_sensors)]
                 for k in keys:
+                    if self.stop.is_set():
+                        break
                     if not await wait_matching_async(self.pubs.publisher(k), args.match_timeout):
                         log.warning("no subscriber on %s after %.0f s; starting anyway", k, args.match_timeout)
             start = loop.time()
             last_progress = -1e9
-            emit("START", {"mode": args.mode, "robots": self.robots, "scenario": self.scenario.name,
-                           "seed": self.world.seed})
             ep = self.episode
             try:
+                if self.stop.is_set():  # interrupted (or modules missing) before tick 0
+                    raise asyncio.CancelledError
+                emit("START", {"mode": args.mode, "robots": self.robots, "scenario": self.scenario.name,
+                               "seed": self.world.seed})
                 while True:
                     readings = ep.readings()
                     self._publish_tick(readings)
@@ -425,7 +448,7 @@ class WorldServer:
                     ep.advance()
             except asyncio.CancelledError:
                 aborted = True
-                self._event("stopped", {"reason": "signal"})
+                self._event("stopped", {"reason": self.stop_reason})
             self.tick_loop_seconds = loop.time() - start
             self._progress()
             # what is still in flight gets recorded
@@ -439,6 +462,28 @@ class WorldServer:
             session.close()
             self.recorder.close()
         return self._write_outputs(time.perf_counter() - t_wall0, aborted)
+
+    async def _wait_for_modules(self, session: zenoh.Session, timeout: float) -> bool:
+        """Hold tick 0 until every module of every robot holds its liveliness token (at most
+        ``timeout`` s, or until SIGTERM); False, with an event naming the missing ones, if
+        some never came."""
+        expected = self.keys.robot_modules_alive(self.robots)
+        with LivelinessWatcher(session, self.keys.alive_all()) as watcher:
+            waiter = asyncio.ensure_future(watcher.wait_all(expected, timeout))
+            stopper = asyncio.ensure_future(self.stop.wait())
+            await asyncio.wait({waiter, stopper}, return_when=asyncio.FIRST_COMPLETED)
+            stopper.cancel()
+            if not waiter.done():
+                waiter.cancel()
+                return False
+            missing = waiter.result()
+        if missing:
+            self.stop_reason = "modules missing"
+            self._event("modules_missing", {"after_s": timeout, "missing": sorted(missing)})
+            log.error("%d of %d modules not alive after %.0f s: %s", len(missing), len(expected), timeout,
+                      ", ".join(sorted(missing)[:8]))
+            return False
+        return True
 
     def _collect_latency(self, t: float) -> None:
         """Each robot's latency for tick ``t``: to the last command stamped ``t`` heard so far
@@ -479,11 +524,25 @@ class WorldServer:
         return doc
 
 
+def open_world_session(args: argparse.Namespace) -> zenoh.Session:
+    """The world's Zenoh session: the router itself with ``--listen``, else a client of
+    ``--connect``."""
+    if args.listen:
+        host, port = tcp_host_port(args.listen)
+        return open_embedded_router(port, host)
+    return open_client(args.connect, config_file=args.zenoh_config)
+
+
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(description="cekm world server")
     p.add_argument("scenario", help="scenario name (world/scenarios) or .toml path")
-    p.add_argument("--connect", default=DEFAULT_ENDPOINT)
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--connect", default=DEFAULT_ENDPOINT, help="join this router as a client (default %(default)s)")
+    where.add_argument("--listen", default=None, metavar="tcp/HOST:PORT",
+                       help="host the router here (the embedded default) instead of joining one")
     p.add_argument("--zenoh-config", default=None, help="Zenoh client config file (credentials, TLS; see deploy/)")
+    p.add_argument("--wait-modules", type=float, default=0.0, metavar="S",
+                   help="hold tick 0 until every robot's modules are alive, at most S s (0: do not wait)")
     p.add_argument("--root", default=DEFAULT_ROOT)
     p.add_argument("--out", required=True, help="directory for run.mcap, outcome.json, trajectory.json")
     p.add_argument("--mode", choices=("realtime", "lockstep"), default="realtime")
@@ -499,11 +558,25 @@ def parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = parser().parse_args(argv)
+    p = parser()
+    args = p.parse_args(argv)
+    if args.listen:
+        try:
+            host, _ = tcp_host_port(args.listen)
+        except CekmError as exc:
+            p.error(f"--listen: {exc}")
+        if args.zenoh_config:
+            p.error("--zenoh-config is a client's config; with --listen the world hosts the router")
+        if is_loopback(host):
+            use_one_zenoh_thread()  # every link is local: no queue fills, and one thread wakes per message
     logging.basicConfig(level=args.log_level.upper(), stream=sys.stderr,
                         format="%(asctime)s.%(msecs)03d %(name)s %(levelname)s %(message)s", datefmt="%H:%M:%S")
     server = WorldServer(args)
-    doc = asyncio.run(server.run())
+    try:
+        doc = asyncio.run(server.run())
+    except CekmError as exc:  # e.g. the router's port is taken: one clear line for the launcher's log
+        log.error("cannot run: %s", exc)
+        return 2
     return 0 if not doc["aborted"] else 3
 
 

@@ -63,10 +63,14 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, connec
     config = LaunchConfig(scenario, out_dir, mode=mode, seed=seed, connect=connect, port=port, model=model_path,
                           max_time=max_time, root=root, plot=not no_plot, robots=only, world=not no_world,
                           listen_host=listen_host, zenoh_config=zenoh_config, model_from_zenoh=model_from_zenoh)
+    from cekm_swarm.errors import CekmError
+
     try:
         outcome = launch(config, echo=lambda s: click.echo(s))
     except ValueError as exc:
         raise click.UsageError(str(exc)) from None
+    except CekmError as exc:  # the world server or the embedded router did not come up: say why, no traceback
+        raise click.ClickException(str(exc)) from None
     if no_world:
         click.echo(f"modules of {', '.join(only) if only else 'every robot'} stopped; the world host writes the outcome")
         return

@@ -1,8 +1,12 @@
-"""The launcher: a Zenoh router (embedded, unless joining one), per robot 1 + 12 + 1
-module processes, then the world server, all separate OS processes, supervised.
+"""The launcher: the world server, then per robot 1 + 12 + 1 module processes, all
+separate OS processes, supervised.
 
-Order: the router opens; every module starts; once every module's liveliness token is up
-the world server starts (so no tick is published before the modules listen). A module
+Order: the world server starts first. With the embedded default (no ``--connect``) it
+hosts the Zenoh router on loopback, so the world's readings and the robots' commands
+cross no extra process; with ``--connect`` it joins that router. Once its session is
+open (a READY line) every module starts, and the world holds tick 0 until every module's
+liveliness token is up (so no tick is published before the modules listen). A robots-only
+host (``--no-world``) without ``--connect`` opens an embedded router of its own. A module
 that dies is restarted with back-off (0.25 s, doubling while it keeps dying within 5 s of
 starting, at most 5 s), which the log shows. When the world server ends (every robot at
 its goal, max time) or on SIGINT/SIGTERM everything stops: the world server first (it
@@ -25,12 +29,18 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from cekm_swarm.protocol import DEFAULT_ROOT, KeySpace
+from cekm_swarm.errors import CekmError
+from cekm_swarm.protocol import DEFAULT_ROOT, KeySpace, module_names
 from cekm_swarm.runtime.bridge import LivelinessWatcher
 from cekm_swarm.runtime.config import DEFAULT_HOST, DEFAULT_PORT, open_client, open_embedded_router
 from cekm_swarm.runtime.model_service import ZENOH_MODEL, ModelServer
 
 BACKOFF_MIN = 0.25
+
+
+class LaunchError(CekmError):
+    """A launch cannot go on: the world server or the modules did not come up."""
+
 BACKOFF_MAX = 5.0
 HEALTHY_AFTER = 5.0  # s: a module up this long gets its back-off reset
 ALIVE_TIMEOUT = 180.0
@@ -76,10 +86,6 @@ class LaunchConfig:
     listen_host: str = DEFAULT_HOST  # the embedded router's address (0.0.0.0 to serve other hosts)
     zenoh_config: Path | None = None  # client config file (credentials, TLS) for every process started here
     model_from_zenoh: bool = False  # modules fetch the model from the world host's launcher (no file here)
-
-
-def module_names(sensors: int) -> list[str]:
-    return ["target"] + [f"obstacle-{j}" for j in range(sensors)] + ["motor"]
 
 
 def module_argv(name: str, robot: str, model: Path | str, endpoint: str, mode: str, root: str,
@@ -262,21 +268,35 @@ class Launcher:
             checkpoints = plan_checkpoint_data(scenario)
             (c.out / "checkpoints.json").write_text(json.dumps(checkpoints))
         router = None
+        world_hosts_router = c.world and not c.connect
+        local_host = DEFAULT_HOST if c.listen_host in ("0.0.0.0", "::") else c.listen_host
         if c.connect:
             endpoint = c.connect
         else:
-            router = open_embedded_router(c.port, c.listen_host)
-            endpoint = f"tcp/{DEFAULT_HOST if c.listen_host in ('0.0.0.0', '::') else c.listen_host}:{c.port}"
-            self.say(f"embedded Zenoh router on {endpoint}")
-        session = open_client(endpoint, config_file=c.zenoh_config)
+            endpoint = f"tcp/{local_host}:{c.port}"
+            if not world_hosts_router:  # a robots-only host serving its own router
+                router = open_embedded_router(c.port, c.listen_host)
+                self.say(f"embedded Zenoh router on {endpoint}")
+        session = None
         model_server = None
-        if c.world:  # (a world host always has the model file)
-            model_server = ModelServer(session, self.keys.world_model(), model)
-            self.say(f"serving the model {Path(model).name} on {self.keys.world_model()}")
+        watcher = None
+        world_reader = None
         t0 = time.monotonic()
         supervisors: list[asyncio.Task] = []
         outcome: dict[str, Any] = {}
         try:
+            if c.world:
+                # The world first: with the embedded default it hosts the router, and it holds
+                # tick 0 until every module of every robot, here or on other hosts, is alive.
+                await self._start_world(endpoint if c.connect else f"tcp/{c.listen_host}:{c.port}",
+                                        hosts_router=world_hosts_router, checkpoints=checkpoints is not None)
+                world_reader = asyncio.ensure_future(self._read_world(self.world_proc.stdout))
+                if world_hosts_router:
+                    self.say(f"the world server hosts the embedded Zenoh router on {endpoint}")
+            session = open_client(endpoint, config_file=c.zenoh_config)
+            if c.world:  # (a world host always has the model file)
+                model_server = ModelServer(session, self.keys.world_model(), model)
+                self.say(f"serving the model {Path(model).name} on {self.keys.world_model()}")
             watcher = LivelinessWatcher(session, self.keys.alive_all())
             module_model = ZENOH_MODEL if c.model_from_zenoh else model
             for r in robots:
@@ -290,40 +310,26 @@ class Launcher:
                 await self._spawn(child)
             supervisors = [asyncio.ensure_future(self._supervise(ch)) for ch in self.children.values()]
             # the world starts only when every module of every robot is up, here or on other hosts
-            expected = {self.keys.alive(r, name) for r in all_robots for name in module_names(self.keys.range_sensors)}
+            expected = self.keys.robot_modules_alive(all_robots)
             if not c.world:
                 expected = {self.keys.alive(ch.robot, ch.name) for ch in self.children.values()}
             deadline = loop.time() + ALIVE_TIMEOUT
-            while not expected <= watcher.alive and not self.stopping:
+            while not expected <= watcher.alive and not self.stopping and not self._world_ended():
                 try:
                     await watcher.next_event(timeout=max(0.1, min(1.0, deadline - loop.time())))
                 except asyncio.TimeoutError:
                     if loop.time() > deadline:
                         missing = sorted(expected - watcher.alive)
-                        raise RuntimeError(f"modules not alive after {ALIVE_TIMEOUT:.0f} s: {missing[:5]}...")
+                        raise LaunchError(f"modules not alive after {ALIVE_TIMEOUT:.0f} s: {missing[:5]}...")
             if self.stopping:
                 return {}
             self.startup_s = round(time.monotonic() - t0, 3)
             if not c.world:
-                await self._serve_until_world_ends(watcher, len(expected))
+                await self._serve_until_world_ends(watcher, len(expected), session)
                 return {}
-            self.say(f"all {len(expected)} modules alive after {self.startup_s:.1f} s; starting the world")
-            world_argv = [sys.executable, "-m", "world.server", c.scenario, "--connect", endpoint, "--root", c.root,
-                          "--out", str(c.out), "--mode", c.mode, "--max-time", str(c.max_time),
-                          "--deadman", str(c.deadman), "--republish", str(c.republish),
-                          "--progress-every", str(c.progress_every)]
-            if c.seed is not None:
-                world_argv += ["--seed", str(c.seed)]
-            if c.zenoh_config is not None:
-                world_argv += ["--zenoh-config", str(c.zenoh_config)]
-            if checkpoints is not None:
-                world_argv += ["--checkpoints", str(c.out / "checkpoints.json")]
-            with open(c.out / "logs" / "world.log", "ab") as werr:
-                self.world_proc = await asyncio.create_subprocess_exec(
-                    *world_argv, stdout=asyncio.subprocess.PIPE, stderr=werr, stdin=asyncio.subprocess.DEVNULL,
-                    start_new_session=True)
-            self._write_pids()
-            await self._read_world(self.world_proc.stdout)
+            if expected <= watcher.alive:
+                self.say(f"all {len(expected)} modules alive after {self.startup_s:.1f} s; the world starts")
+            await world_reader
             code = await self.world_proc.wait()
             if code not in (0, 3):
                 self.say(f"world server ended with code {code}; see {c.out / 'logs' / 'world.log'}")
@@ -338,13 +344,17 @@ class Launcher:
             await self._stop_children()
             for s in supervisors:
                 s.cancel()
+            if world_reader is not None:
+                world_reader.cancel()
             try:
-                watcher.close()
+                if watcher is not None:
+                    watcher.close()
             except Exception:
                 pass
             if model_server is not None:
                 model_server.close()
-            session.close()
+            if session is not None:
+                session.close()
             if router is not None:
                 router.close()
             self.say("all processes stopped")
@@ -370,22 +380,65 @@ class Launcher:
             self._log.close()
         return outcome
 
-    async def _serve_until_world_ends(self, watcher: LivelinessWatcher, n: int) -> None:
+    async def _start_world(self, where: str, *, hosts_router: bool, checkpoints: bool) -> None:
+        """Start the world server (hosting the router at ``where``, or joining it) and wait
+        for its READY line: its session is open, so modules can join."""
+        c = self.c
+        world_argv = [sys.executable, "-m", "world.server", c.scenario, "--listen" if hosts_router else "--connect",
+                      where, "--root", c.root, "--out", str(c.out), "--mode", c.mode, "--max-time", str(c.max_time),
+                      "--deadman", str(c.deadman), "--republish", str(c.republish),
+                      "--progress-every", str(c.progress_every), "--wait-modules", str(ALIVE_TIMEOUT + 5)]
+        if c.seed is not None:
+            world_argv += ["--seed", str(c.seed)]
+        if c.zenoh_config is not None and not hosts_router:
+            world_argv += ["--zenoh-config", str(c.zenoh_config)]
+        if checkpoints:
+            world_argv += ["--checkpoints", str(c.out / "checkpoints.json")]
+        log_path = c.out / "logs" / "world.log"
+        with open(log_path, "ab") as werr:
+            self.world_proc = await asyncio.create_subprocess_exec(
+                *world_argv, stdout=asyncio.subprocess.PIPE, stderr=werr, stdin=asyncio.subprocess.DEVNULL,
+                start_new_session=True)
+        self._write_pids()
+        assert self.world_proc.stdout is not None
+        while True:
+            line = await self.world_proc.stdout.readline()
+            if not line:
+                code = await self.world_proc.wait()
+                last = [x for x in log_path.read_text(errors="replace").splitlines() if x.strip()][-1:]
+                raise LaunchError(f"the world server ended (code {code}) before its Zenoh session opened"
+                                   f"{': ' + last[0] if last else ''} (see {log_path})")
+            if line.startswith(b"READY "):
+                return
+            self.say(f"world: {line.decode(errors='replace').rstrip()}")
+
+    def _world_ended(self) -> bool:
+        return self.world_proc is not None and self.world_proc.returncode is not None
+
+    async def _serve_until_world_ends(self, watcher: LivelinessWatcher, n: int, session: Any) -> None:
         """Robots-only host: keep the modules supervised until the world server (on another
-        host) has come and gone, or until interrupted."""
+        host) has come and gone, or until interrupted. Read from the token's events, in
+        order, so a short run that came and went between two looks is still seen to end;
+        and a lost router (the world host hosted it and has gone) ends the wait too."""
         world_key = self.keys.alive("world", "server")
         self.say(f"all {n} local modules alive after {self.startup_s:.1f} s; waiting for the world server")
-        seen = False
+        seen = world_key in watcher.alive
+        if seen:
+            self.say("the world server is up")
         while not self.stopping:
             try:
-                await watcher.next_event(timeout=1.0)
+                event = await watcher.next_event(timeout=1.0)
             except asyncio.TimeoutError:
-                pass
-            if world_key in watcher.alive:
-                if not seen:
-                    self.say("the world server is up")
+                if seen and not session.info.routers_zid():
+                    self.say("the world server has ended (its host's Zenoh router is gone)")
+                    return
+                continue
+            if event.key != world_key:
+                continue
+            if event.alive and not seen:
+                self.say("the world server is up")
                 seen = True
-            elif seen:
+            elif not event.alive:
                 self.say("the world server has ended")
                 return
 

@@ -26,19 +26,10 @@ import zenoh
 from cekm_swarm.errors import CekmError
 from cekm_swarm.protocol import DEFAULT_ROOT, MSGPACK_ENCODING, DropCounter, KeySpace, Message, encode
 from cekm_swarm.runtime.bridge import InlineSubscription, Publishers, Received, declare_alive
-from cekm_swarm.runtime.config import DEFAULT_ENDPOINT, open_client
+from cekm_swarm.runtime.config import DEFAULT_ENDPOINT, open_client, use_one_zenoh_thread
 from cekm_swarm.runtime.model_service import fetch_model_bytes, is_zenoh_source
 
 log = logging.getLogger("cekm_swarm.modules")
-
-ZENOH_RUNTIME = "(rx: (handover: app), tx: (handover: app), net: (handover: app), acc: (handover: app))"
-"""Zenoh's runtimes in a module process: all on one worker thread (Zenoh's ``ZENOH_RUNTIME``
-variable; the default is five runtimes on six threads). A module receives one message and
-sends one per period, so the hand-offs between receiving, sending and timer threads cost
-more than they save: one thread cuts a module's CPU per message by about a quarter and
-its thread wake-ups from about five to three (``benchmarks/bench_runtime.py``). A
-``ZENOH_RUNTIME`` already in the environment is kept."""
-
 
 def base_parser(description: str) -> argparse.ArgumentParser:
     """Arguments every module takes."""
@@ -199,7 +190,7 @@ def main_of(build: Callable[[argparse.Namespace], ModuleSpec], parser: argparse.
             argv: list[str] | None = None) -> int:
     """Parse arguments, build the module, serve it; the body of each module's ``main``."""
     args = parser.parse_args(argv)
-    os.environ.setdefault("ZENOH_RUNTIME", ZENOH_RUNTIME)  # read by Zenoh when the session opens
+    use_one_zenoh_thread()  # a module receives one message and sends one per period: one thread does it
     logging.basicConfig(level=args.log_level.upper(), stream=sys.stderr,
                         format="%(asctime)s.%(msecs)03d %(name)s %(levelname)s %(message)s", datefmt="%H:%M:%S")
     t0 = time.perf_counter()

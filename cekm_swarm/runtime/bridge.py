@@ -341,6 +341,20 @@ class LivelinessWatcher(_Subscriber):
             return await self._events.get()
         return await asyncio.wait_for(self._events.get(), timeout)
 
+    async def wait_all(self, keys: set[str] | frozenset[str], timeout: float) -> frozenset[str]:
+        """Wait until every token of ``keys`` is alive, at most ``timeout`` seconds; the
+        keys still missing then (empty when all came)."""
+
+        async def until() -> None:
+            while not keys <= self._alive:
+                await asyncio.shield(self._change)
+
+        try:
+            await asyncio.wait_for(until(), timeout)
+        except asyncio.TimeoutError:
+            pass
+        return frozenset(keys) - self._alive
+
     async def wait_for(self, key: str, alive: bool = True, timeout: float | None = None) -> None:
         """Wait until ``key``'s token is alive (or gone, ``alive=False``); TimeoutError after ``timeout``."""
 

@@ -8,7 +8,9 @@ find each other; every connection is an explicit endpoint.
 
 from __future__ import annotations
 
+import ipaddress
 import json
+import os
 import socket
 from pathlib import Path
 
@@ -20,6 +22,25 @@ DEFAULT_HOST = "127.0.0.1"
 DEFAULT_PORT = 7447
 DEFAULT_ENDPOINT = f"tcp/{DEFAULT_HOST}:{DEFAULT_PORT}"
 """Where the launcher's embedded router listens, and where tools connect by default."""
+
+
+ONE_THREAD_RUNTIME = "(rx: (handover: app), tx: (handover: app), net: (handover: app), acc: (handover: app))"
+"""Zenoh's runtimes all on one worker thread (the value of Zenoh's ``ZENOH_RUNTIME``
+variable, read once, when a process opens its first session; the default is five
+runtimes on six threads). Module processes use it, and so does the world server when it
+hosts the router on loopback: each hand-off between Zenoh's receiving, sending and timer
+threads is a thread wake-up, which costs more than the work it hands over on this
+2-core machine (``benchmarks/bench_runtime.py``).
+
+The price: a message published with congestion control BLOCK onto a link whose queue is
+full waits for a send that the same thread would make. Loopback links drain at once, so
+no queue fills there; a router serving other hosts keeps Zenoh's default threads."""
+
+
+def use_one_zenoh_thread() -> None:
+    """Run this process's Zenoh on one thread (:data:`ONE_THREAD_RUNTIME`), unless
+    ``ZENOH_RUNTIME`` is already set; call before the first session opens."""
+    os.environ.setdefault("ZENOH_RUNTIME", ONE_THREAD_RUNTIME)
 
 
 def free_port(host: str = DEFAULT_HOST) -> int:
@@ -55,6 +76,26 @@ def check_endpoint(endpoint: str) -> str:
             proto != "unixsock-stream" and (not colon or not host or not port.isdigit())):
         raise RuntimeTransportError(f"endpoint {endpoint!r}: expected e.g. 'tcp/127.0.0.1:7447'")
     return endpoint
+
+
+def tcp_host_port(endpoint: str) -> tuple[str, int]:
+    """``("127.0.0.1", 7447)`` of ``tcp/127.0.0.1:7447``; other locators are refused."""
+    check_endpoint(endpoint)
+    proto, _, rest = endpoint.partition("/")
+    host, _, port = rest.rpartition(":")
+    if proto != "tcp":
+        raise RuntimeTransportError(f"endpoint {endpoint!r}: the embedded router listens on tcp/HOST:PORT")
+    return host.strip("[]"), int(port)
+
+
+def is_loopback(host: str) -> bool:
+    """True for 127.0.0.0/8, ::1 and ``localhost``."""
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
 
 
 def embedded_router_config(port: int = DEFAULT_PORT, host: str = DEFAULT_HOST) -> zenoh.Config:

@@ -9,6 +9,9 @@ from __future__ import annotations
 import json
 import os
 import signal
+import socket
+import subprocess
+import sys
 
 import pytest
 
@@ -103,3 +106,18 @@ def test_cekm_plot_draws_the_run_from_its_log(lockstep_run, tmp_path):
     traj = json.loads((run.out / "trajectory.json").read_text())["r1"]
     assert [p[1] for p in drawn["paths"]["r1"]] == traj["x"]  # the log's poses are the run's
     assert drawn["geometry"]["name"] == "concave"
+
+
+def test_a_taken_port_stops_the_launch_with_a_clear_error(tmp_path):
+    """The world server cannot host the router on a port another program listens on:
+    the launch ends at once, naming the address and the world's log, with no traceback."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        s.listen()
+        r = subprocess.run([sys.executable, "-m", "cekm_swarm", "launch", "lone_obstacle", "--mode", "lockstep",
+                            "--out", str(tmp_path), "--port", str(s.getsockname()[1]), "--no-plot"],
+                           capture_output=True, text=True, timeout=120)
+    assert r.returncode == 1
+    assert "before its Zenoh session opened" in r.stderr and "Address already in use" in r.stderr, r.stderr
+    assert str(tmp_path / "logs" / "world.log") in r.stderr and "Traceback" not in r.stderr
+    assert not (tmp_path / "logs" / "r1-motor.log").exists()  # no module was started

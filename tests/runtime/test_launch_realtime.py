@@ -73,9 +73,12 @@ def faulty_run(tmp_path_factory):
             line = run.wait_line(" t=", timeout=20)
             if float(line.split("t=")[1].split()[0]) >= KILL_AT:
                 break
-        pids = run.pids()
+        pids = run.pids_seen = run.pids()
         task = Path(f"/proc/{pids['r1/obstacle-3']}/task")
         run.module_threads = sorted((t / "comm").read_text().strip() for t in task.iterdir())
+        world = pids["world/server"]
+        run.world_threads = sorted((t / "comm").read_text().strip() for t in Path(f"/proc/{world}/task").iterdir())
+        run.router_owner = listening_pid(run.port, [world, run.proc.pid])
         for label in ("r1/obstacle-0", "r2/motor"):
             kills[label] = time.time()
             os.kill(pids[label], signal.SIGKILL)
@@ -98,8 +101,35 @@ def test_two_robots_in_real_time_complete_and_reach_their_goals(faulty_run):
     assert (run.out / "trajectory.png").is_file()
 
 
+def listening_pid(port: int, pids: list[int]) -> int | None:
+    """Which of ``pids`` holds the socket listening on TCP ``port`` (from /proc/net/tcp)."""
+    inodes = set()
+    for line in Path("/proc/net/tcp").read_text().splitlines()[1:]:
+        f = line.split()
+        if f[3] == "0A" and int(f[1].rsplit(":", 1)[1], 16) == port:  # 0A: LISTEN
+            inodes.add(f"socket:[{f[9]}]")
+    for pid in pids:
+        for fd in Path(f"/proc/{pid}/fd").iterdir():
+            try:
+                if os.readlink(fd) in inodes:
+                    return pid
+            except OSError:
+                continue
+    return None
+
+
+def test_the_world_server_hosts_the_embedded_router_on_one_zenoh_thread(faulty_run):
+    """The embedded default: the world server process, not the launcher, listens on the
+    launch's port, and on loopback its Zenoh runs on one thread (runtime.config.ONE_THREAD_RUNTIME)."""
+    run, _ = faulty_run
+    assert run.router_owner == run.pids_seen["world/server"]
+    assert any(n.startswith("app-") for n in run.world_threads), run.world_threads
+    assert not any(n.startswith(("rx-", "tx-", "net-", "acc-")) for n in run.world_threads), run.world_threads
+    assert any("the world server hosts the embedded Zenoh router" in line for line in run.lines)
+
+
 def test_a_module_process_runs_zenoh_on_one_runtime(faulty_run):
-    """modules.shell.ZENOH_RUNTIME hands every Zenoh runtime to 'app': a live module has
+    """runtime.config.ONE_THREAD_RUNTIME hands every Zenoh runtime to 'app': a live module has
     no receiving, sending or timer threads of its own (Zenoh names them rx-, tx-, net-)."""
     names = faulty_run[0].module_threads
     assert any(n.startswith("app-") for n in names), names
