@@ -17,8 +17,9 @@ waits for the command.
 * lockstep speed-up: ticks as fast as the graph answers, sim time / wall time, both for
   this bare loop and for full ``cekm launch lone_obstacle|concave --mode lockstep`` runs (the world
   server recording the MCAP log and Foxglove views): sim time over the world's tick loop
-  (first tick's readings to the last tick), and beside it over the world server's whole
-  life (waiting for subscribers, closing the log);
+  (first tick's readings to the last tick), and beside it over the world server's run
+  from the moment every module is alive (its ``wall_seconds``: the subscribers' matching
+  wait, the tick loop, closing the log);
 * memory: resident set (VmRSS) and proportional set (Pss, shared pages split among the
   processes sharing them) of one obstacle module process.
 

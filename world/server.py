@@ -403,7 +403,7 @@ class WorldServer:
         except BaseException:
             self.recorder.close()
             raise
-        t_wall0 = time.perf_counter()
+        t_wall0 = time.perf_counter()  # reset once the modules are alive: wall_seconds is the run's own
         aborted = False
         try:
             self.pubs = Publishers(session, block=True, express=False)
@@ -414,6 +414,7 @@ class WorldServer:
             emit("READY", {"endpoint": args.listen or args.connect, "router": bool(args.listen)})
             if args.wait_modules > 0 and not await self._wait_for_modules(session, args.wait_modules):
                 self.stop.set()
+            t_wall0 = time.perf_counter()
             # Every module's subscription must be known before tick 0 is published.
             for r in self.robots:
                 keys = [self.keys.sense_target(r)] + [self.keys.sense_range(r, j) for j in range(self.keys.range_sensors)]
