@@ -85,7 +85,10 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, connec
     restarts = outcome.get("launcher", {}).get("restarts")
     if restarts:
         click.echo(f"restarts: {restarts}")
-    click.echo(f"wrote {out_dir / 'outcome.json'}, {out_dir / 'run.mcap'}, {out_dir / 'trajectory.png'}")
+    if outcome.get("aborted"):
+        click.echo("the run was stopped before its end (see the world's events in outcome.json)")
+    written = [out_dir / n for n in ("outcome.json", "run.mcap", "trajectory.png") if (out_dir / n).is_file()]
+    click.echo("wrote " + ", ".join(map(str, written)))
 
 
 @click.command("plot")
