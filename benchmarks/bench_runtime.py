@@ -3,7 +3,7 @@
 One robot's 14 module processes (target, obstacle 0..11, motor; lockstep mode, so the
 motor answers each tick exactly once, when the tick's 13 fields are in) on loopback. This
 process plays the world server as the launcher runs it: it hosts the embedded router
-(Zenoh on one thread, as the world server does on loopback), steps ``lone_obstacle`` with
+(Zenoh's threads as the world server sets them on loopback), steps ``lone_obstacle`` with
 ``world.episode.Episode``, publishes each tick's readings on the router's own session and
 waits for the command.
 
@@ -11,7 +11,7 @@ waits for the command.
   encoded and put on Zenoh, as the world server measures it) to the command for that
   tick arriving (in the Zenoh callback), paced at one tick per 128 ms
   as in real time (p50, p99); beside it, in the same run and with the same Zenoh
-  settings, the raw one-way latency of a 2 KB message between two processes with
+  router, the raw one-way latency of a 2 KB message between two processes with
   bench_zenoh's method: 1 hop (publisher in the router's process, the world's readings)
   and 2 hops through the router (a module's field to the motor);
 * lockstep speed-up: ticks as fast as the graph answers, sim time / wall time, both for
@@ -48,7 +48,8 @@ from cekm_swarm.launch.launcher import module_argv, module_names  # noqa: E402
 from cekm_swarm.protocol import DEFAULT_KEYS as K  # noqa: E402
 from cekm_swarm.protocol import WheelCommand, decode  # noqa: E402
 from cekm_swarm.runtime.bridge import InlineSubscription, LivelinessWatcher, Publishers  # noqa: E402
-from cekm_swarm.runtime.config import free_port, open_embedded_router, use_one_zenoh_thread  # noqa: E402
+from cekm_swarm.runtime.config import (ROUTER_RUNTIME, free_port, open_embedded_router,  # noqa: E402
+                                       use_router_zenoh_threads)
 from world import World, load_scenario  # noqa: E402
 from world.episode import TICK_S, Episode  # noqa: E402
 from world.server import SenseEncoder  # noqa: E402
@@ -164,9 +165,11 @@ def main() -> None:
     args = ap.parse_args()
     default_model(progress=False)
     model = default_model_path()
-    use_one_zenoh_thread()  # as world.server does when it hosts the router on loopback
+    use_router_zenoh_threads()  # as world.server does when it hosts the router on loopback
     port = free_port()
     router = open_embedded_router(port)
+    if os.environ.get("ZENOH_RUNTIME") == ROUTER_RUNTIME:  # read once, at the router's opening:
+        del os.environ["ZENOH_RUNTIME"]  # the children choose their own
     endpoint = f"tcp/127.0.0.1:{port}"
     session = router  # the world publishes on the router's own session
     procs, startup = asyncio.run(start_modules(session, endpoint, model))

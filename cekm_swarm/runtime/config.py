@@ -27,20 +27,33 @@ DEFAULT_ENDPOINT = f"tcp/{DEFAULT_HOST}:{DEFAULT_PORT}"
 ONE_THREAD_RUNTIME = "(rx: (handover: app), tx: (handover: app), net: (handover: app), acc: (handover: app))"
 """Zenoh's runtimes all on one worker thread (the value of Zenoh's ``ZENOH_RUNTIME``
 variable, read once, when a process opens its first session; the default is five
-runtimes on six threads). Module processes use it, and so does the world server when it
-hosts the router on loopback: each hand-off between Zenoh's receiving, sending and timer
-threads is a thread wake-up, which costs more than the work it hands over on this
-2-core machine (``benchmarks/bench_runtime.py``).
+runtimes on six threads). A module process receives one message and sends one per
+period: each hand-off between Zenoh's receiving, sending and timer threads is a thread
+wake-up, which costs more than the work it hands over on this 2-core machine
+(``benchmarks/bench_runtime.py``)."""
 
-The price: a message published with congestion control BLOCK onto a link whose queue is
-full waits for a send that the same thread would make. Loopback links drain at once, so
-no queue fills there; a router serving other hosts keeps Zenoh's default threads."""
+ROUTER_RUNTIME = ("(rx: (handover: app), tx: (handover: app), net: (handover: app), acc: (handover: app), "
+                  "app: (worker_threads: 2))")
+"""Zenoh's runtimes in the world server when it hosts the router on loopback: all on one
+runtime, as in a module, but with two worker threads. One thread does a message's work,
+so a tick costs the router about 10 thread wake-ups instead of 35 (1.6 ms of CPU instead
+of 2.2). The second thread is there for Zenoh's blocking steps: with a single thread, a
+client that goes silent without closing (a stopped ``cekm topic echo``) froze all routing
+for 10 s when its lease expired, and a real-time run's robots were stopped by the
+dead-man (``tests/runtime/test_launch_stalled_client.py``). A router serving other hosts
+keeps Zenoh's default threads."""
 
 
 def use_one_zenoh_thread() -> None:
     """Run this process's Zenoh on one thread (:data:`ONE_THREAD_RUNTIME`), unless
     ``ZENOH_RUNTIME`` is already set; call before the first session opens."""
     os.environ.setdefault("ZENOH_RUNTIME", ONE_THREAD_RUNTIME)
+
+
+def use_router_zenoh_threads() -> None:
+    """Run this process's Zenoh as :data:`ROUTER_RUNTIME` says, unless ``ZENOH_RUNTIME``
+    is already set; call before the first session opens."""
+    os.environ.setdefault("ZENOH_RUNTIME", ROUTER_RUNTIME)
 
 
 def free_port(host: str = DEFAULT_HOST) -> int:

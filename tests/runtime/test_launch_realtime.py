@@ -118,9 +118,10 @@ def listening_pid(port: int, pids: list[int]) -> int | None:
     return None
 
 
-def test_the_world_server_hosts_the_embedded_router_on_one_zenoh_thread(faulty_run):
+def test_the_world_server_hosts_the_embedded_router_on_zenoh_app_threads(faulty_run):
     """The embedded default: the world server process, not the launcher, listens on the
-    launch's port, and on loopback its Zenoh runs on one thread (runtime.config.ONE_THREAD_RUNTIME)."""
+    launch's port, and on loopback all its Zenoh runtimes are handed to 'app'
+    (runtime.config.ROUTER_RUNTIME: no receiving, sending or timer threads of their own)."""
     run, _ = faulty_run
     assert run.router_owner == run.pids_seen["world/server"]
     assert any(n.startswith("app-") for n in run.world_threads), run.world_threads
