@@ -403,7 +403,7 @@ class WorldServer:
         except BaseException:
             self.recorder.close()
             raise
-        t_wall0 = time.perf_counter()  # reset once the modules are alive: wall_seconds is the run's own
+        t_wall0 = time.perf_counter()  # set again once the modules are alive: wall_seconds is the run's own
         aborted = False
         try:
             self.pubs = Publishers(session, block=True, express=False)

@@ -292,7 +292,8 @@ class Launcher:
                                         hosts_router=world_hosts_router, checkpoints=checkpoints is not None)
                 world_reader = asyncio.ensure_future(self._read_world(self.world_proc.stdout))
                 if world_hosts_router:
-                    self.say(f"the world server hosts the embedded Zenoh router on {endpoint}")
+                    also = "" if local_host == c.listen_host else f" (listening on tcp/{c.listen_host}:{c.port})"
+                    self.say(f"the world server hosts the embedded Zenoh router on {endpoint}{also}")
             session = open_client(endpoint, config_file=c.zenoh_config)
             if c.world:  # (a world host always has the model file)
                 model_server = ModelServer(session, self.keys.world_model(), model)
