@@ -49,7 +49,7 @@ from cekm_swarm.protocol import DEFAULT_KEYS as K  # noqa: E402
 from cekm_swarm.protocol import WheelCommand, decode  # noqa: E402
 from cekm_swarm.runtime.bridge import InlineSubscription, LivelinessWatcher, Publishers  # noqa: E402
 from cekm_swarm.runtime.config import (ROUTER_RUNTIME, free_port, open_embedded_router,  # noqa: E402
-                                       use_router_zenoh_threads)
+                                       use_zenoh_runtime)
 from world import World, load_scenario  # noqa: E402
 from world.episode import TICK_S, Episode  # noqa: E402
 from world.server import SenseEncoder  # noqa: E402
@@ -165,7 +165,7 @@ def main() -> None:
     args = ap.parse_args()
     default_model(progress=False)
     model = default_model_path()
-    use_router_zenoh_threads()  # as world.server does when it hosts the router on loopback
+    use_zenoh_runtime(ROUTER_RUNTIME)  # as world.server does when it hosts the router on loopback
     port = free_port()
     router = open_embedded_router(port)
     if os.environ.get("ZENOH_RUNTIME") == ROUTER_RUNTIME:  # read once, at the router's opening:

@@ -62,8 +62,8 @@ from cekm_swarm.errors import CekmError
 from cekm_swarm.protocol.hotpath import Splice
 from cekm_swarm.runtime.bridge import (InlineSubscription, LivelinessWatcher, Publishers, Received, declare_alive,
                                        wait_matching_async)
-from cekm_swarm.runtime.config import (DEFAULT_ENDPOINT, is_loopback, open_client, open_embedded_router, tcp_host_port,
-                                       use_router_zenoh_threads)
+from cekm_swarm.runtime.config import (DEFAULT_ENDPOINT, ROUTER_RUNTIME, is_loopback, open_client, open_embedded_router,
+                                       tcp_host_port, use_zenoh_runtime)
 from cekm_swarm.runtime.mcap_log import McapRecorder
 
 from .episode import TICK_S, Episode, TickReadings
@@ -569,7 +569,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.zenoh_config:
             p.error("--zenoh-config is a client's config; with --listen the world hosts the router")
         if is_loopback(host):
-            use_router_zenoh_threads()  # one thread wakes per message; a second for Zenoh's blocking steps
+            use_zenoh_runtime(ROUTER_RUNTIME)  # one thread wakes per message; a second for Zenoh's blocking steps
     logging.basicConfig(level=args.log_level.upper(), stream=sys.stderr,
                         format="%(asctime)s.%(msecs)03d %(name)s %(levelname)s %(message)s", datefmt="%H:%M:%S")
     server = WorldServer(args)

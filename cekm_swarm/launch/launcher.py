@@ -288,7 +288,7 @@ class Launcher:
             if c.world:
                 # The world first: with the embedded default it hosts the router, and it holds
                 # tick 0 until every module of every robot, here or on other hosts, is alive.
-                await self._start_world(endpoint if c.connect else f"tcp/{c.listen_host}:{c.port}",
+                await self._start_world(f"tcp/{c.listen_host}:{c.port}" if world_hosts_router else endpoint,
                                         hosts_router=world_hosts_router, checkpoints=checkpoints is not None)
                 world_reader = asyncio.ensure_future(self._read_world(self.world_proc.stdout))
                 if world_hosts_router:

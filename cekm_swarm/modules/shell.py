@@ -26,7 +26,7 @@ import zenoh
 from cekm_swarm.errors import CekmError
 from cekm_swarm.protocol import DEFAULT_ROOT, MSGPACK_ENCODING, DropCounter, KeySpace, Message, encode
 from cekm_swarm.runtime.bridge import InlineSubscription, Publishers, Received, declare_alive
-from cekm_swarm.runtime.config import DEFAULT_ENDPOINT, open_client, use_one_zenoh_thread
+from cekm_swarm.runtime.config import DEFAULT_ENDPOINT, ONE_THREAD_RUNTIME, open_client, use_zenoh_runtime
 from cekm_swarm.runtime.model_service import fetch_model_bytes, is_zenoh_source
 
 log = logging.getLogger("cekm_swarm.modules")
@@ -190,7 +190,7 @@ def main_of(build: Callable[[argparse.Namespace], ModuleSpec], parser: argparse.
             argv: list[str] | None = None) -> int:
     """Parse arguments, build the module, serve it; the body of each module's ``main``."""
     args = parser.parse_args(argv)
-    use_one_zenoh_thread()  # a module receives one message and sends one per period: one thread does it
+    use_zenoh_runtime(ONE_THREAD_RUNTIME)  # a module receives one message and sends one per period: one thread does it
     logging.basicConfig(level=args.log_level.upper(), stream=sys.stderr,
                         format="%(asctime)s.%(msecs)03d %(name)s %(levelname)s %(message)s", datefmt="%H:%M:%S")
     t0 = time.perf_counter()

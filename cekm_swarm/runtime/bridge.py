@@ -341,31 +341,27 @@ class LivelinessWatcher(_Subscriber):
             return await self._events.get()
         return await asyncio.wait_for(self._events.get(), timeout)
 
+    async def _until(self, done: Callable[[], bool], timeout: float | None) -> None:
+        """Wait until ``done()`` holds, checked at every token change; TimeoutError after ``timeout``."""
+
+        async def until() -> None:
+            while not done():
+                await asyncio.shield(self._change)
+
+        await asyncio.wait_for(until(), timeout)
+
     async def wait_all(self, keys: set[str] | frozenset[str], timeout: float) -> frozenset[str]:
         """Wait until every token of ``keys`` is alive, at most ``timeout`` seconds; the
         keys still missing then (empty when all came)."""
-
-        async def until() -> None:
-            while not keys <= self._alive:
-                await asyncio.shield(self._change)
-
         try:
-            await asyncio.wait_for(until(), timeout)
+            await self._until(lambda: keys <= self._alive, timeout)
         except asyncio.TimeoutError:
             pass
         return frozenset(keys) - self._alive
 
     async def wait_for(self, key: str, alive: bool = True, timeout: float | None = None) -> None:
         """Wait until ``key``'s token is alive (or gone, ``alive=False``); TimeoutError after ``timeout``."""
-
-        async def until() -> None:
-            while (key in self._alive) != alive:
-                await asyncio.shield(self._change)
-
-        if timeout is None:
-            await until()
-        else:
-            await asyncio.wait_for(until(), timeout)
+        await self._until(lambda: (key in self._alive) == alive, timeout)
 
     def __aiter__(self) -> "LivelinessWatcher":
         return self

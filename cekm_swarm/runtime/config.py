@@ -44,16 +44,11 @@ dead-man (``tests/runtime/test_launch_stalled_client.py``). A router serving oth
 keeps Zenoh's default threads."""
 
 
-def use_one_zenoh_thread() -> None:
-    """Run this process's Zenoh on one thread (:data:`ONE_THREAD_RUNTIME`), unless
-    ``ZENOH_RUNTIME`` is already set; call before the first session opens."""
-    os.environ.setdefault("ZENOH_RUNTIME", ONE_THREAD_RUNTIME)
-
-
-def use_router_zenoh_threads() -> None:
-    """Run this process's Zenoh as :data:`ROUTER_RUNTIME` says, unless ``ZENOH_RUNTIME``
-    is already set; call before the first session opens."""
-    os.environ.setdefault("ZENOH_RUNTIME", ROUTER_RUNTIME)
+def use_zenoh_runtime(spec: str) -> None:
+    """Run this process's Zenoh as ``spec`` says (:data:`ONE_THREAD_RUNTIME`,
+    :data:`ROUTER_RUNTIME`), unless ``ZENOH_RUNTIME`` is already set; call before the
+    first session opens."""
+    os.environ.setdefault("ZENOH_RUNTIME", spec)
 
 
 def free_port(host: str = DEFAULT_HOST) -> int:
