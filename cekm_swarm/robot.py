@@ -4,11 +4,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from .ticks import SUBSTEP_S, TARGET_PERIOD_S
+from .ticks import TICK_S as OBSTACLE_PERIOD_S
+
 STEP_S = 1.024  # one target-reaching time step (section 4.1)
-SUBSTEP_S = 0.032  # Webots' basic time step; wheel slip noise is drawn this often
 SUBSTEPS_PER_STEP = 32
-TARGET_PERIOD_S = 0.256  # target localization module period (section 3.1)
-OBSTACLE_PERIOD_S = 0.128  # obstacle localization module period (section 3.1)
 
 
 @dataclass(frozen=True)

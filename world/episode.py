@@ -23,8 +23,9 @@ import numpy as np
 
 from .sim import World
 
-TICK_S = 0.128
-TARGET_EVERY = 2  # ticks: the target sensor is read every 0.256 s
+from cekm_swarm.ticks import TARGET_EVERY, TICK_S, tick_time
+
+__all__ = ["TICK_S", "TARGET_EVERY", "Episode", "TickReadings"]
 CHECKPOINT_RADIUS = 0.03  # m (section 4.2: on to the next checkpoint once this close)
 
 
@@ -70,7 +71,7 @@ class Episode:
 
     @property
     def t(self) -> float:
-        return round(self.tick * TICK_S, 9)
+        return tick_time(self.tick)
 
     @property
     def target_due(self) -> bool:

@@ -10,18 +10,15 @@ from __future__ import annotations
 import math
 from typing import Sequence
 
+from cekm_swarm.angles import wrap_scalar
+
 Point = tuple[float, float]
 Poly = list[Point]
 
 TAU = 2.0 * math.pi
 
 
-def wrap_angle(a: float) -> float:
-    """Wrap an angle to (-pi, pi]."""
-    r = math.remainder(a, TAU)
-    if r <= -math.pi:
-        r += TAU
-    return r
+wrap_angle = wrap_scalar  # to (-pi, pi], the project's one formula (cekm_swarm.angles)
 
 
 def signed_area(poly: Sequence[Point]) -> float:

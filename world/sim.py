@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 import pymunk
 import pymunk.batch as pbatch
+from cekm_swarm.ticks import SUBSTEP_S
 from pymunk._chipmunk_cffi import ffi, lib
 
 from . import _physics as ph
@@ -47,8 +48,8 @@ ROBOT_RADIUS = BODY_RADIUS
 AXLE = 0.053
 #: Wheel speed limit v* (m/s): 0.16 m per 1.024 s.
 V_MAX = 0.16 / 1.024
-#: World sub-step (s).
-SUBSTEP = 0.032
+#: World sub-step (s), from the protocol's clock.
+SUBSTEP = SUBSTEP_S
 #: pymunk steps per world sub-step.
 PHYSICS_STEPS = 4
 #: Relative half-width of the uniform wheel and sensor noise.

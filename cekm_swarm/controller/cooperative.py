@@ -14,12 +14,12 @@ All localization EKMs and the motor EKM share the trained input weights w (secti
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import Iterable
 
 import numpy as np
 
+from ..angles import wrap_scalar
 from ..models.competition import winner
 from ..models.fields import obstacle_field, target_field
 from ..models.networks import IndirectEKM
@@ -27,7 +27,6 @@ from ..models.params import FieldParams
 
 from .readings import RangeReading, TargetReading
 
-TWO_PI = 2.0 * math.pi
 WINNER_MEMO = 4096
 """Inputs whose winner a controller remembers before it starts again (a bound on memory)."""
 
@@ -93,12 +92,6 @@ def motor_candidates(model: IndirectEKM, allow_reverse: bool = False, reverse_mi
     return ok
 
 
-def _wrap(a: float) -> float:
-    """(-pi, pi], the same formula as :func:`cekm_swarm.angles.wrap` (bit for bit)."""
-    b = math.pi - a
-    return math.pi - (b - TWO_PI * math.floor(b / TWO_PI))
-
-
 def motor_command(M: np.ndarray, w: np.ndarray, alpha: float, d: float, k: int, s: int | None, v_max: float,
                   d_scale: float) -> tuple[float, float]:
     """Eq. 11 then clipped to c*: c = M_k u if k = s and |M_k u| <= c*, else M_k w_k.
@@ -108,7 +101,7 @@ def motor_command(M: np.ndarray, w: np.ndarray, alpha: float, d: float, k: int, 
     """
     Mk = M[k]
     if k == s:
-        x0 = float(w[k, 0]) + _wrap(alpha - float(w[k, 0]))
+        x0 = float(w[k, 0]) + wrap_scalar(alpha - float(w[k, 0]))
         x1 = d_scale * d
         c0 = float(Mk[0, 0]) * x0 + float(Mk[0, 1]) * x1
         c1 = float(Mk[1, 0]) * x0 + float(Mk[1, 1]) * x1

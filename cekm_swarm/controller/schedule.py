@@ -18,12 +18,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ..ticks import SUBSTEP_S, TARGET_PERIOD_S, TICK_S
+
 
 @dataclass(frozen=True)
 class Schedule:
-    substep_s: float = 0.032
-    obstacle_period_s: float = 0.128
-    target_period_s: float = 0.256
+    substep_s: float = SUBSTEP_S
+    obstacle_period_s: float = TICK_S
+    target_period_s: float = TARGET_PERIOD_S
 
     @property
     def tick_s(self) -> float:

@@ -19,6 +19,7 @@ import math
 import numpy as np
 from numba import njit
 
+from ..angles import wrap_scalar
 from .params import CompetitionParams, LearningParams
 
 
@@ -45,11 +46,7 @@ def pack_params(comp: CompetitionParams, lp: LearningParams, v_max: float, width
     return p
 
 
-@njit(cache=True)
-def wrap(a):
-    """Wrap to (-pi, pi], the same formula as :func:`cekm_swarm.angles.wrap`."""
-    b = PI - a
-    return PI - (b - TWO_PI * math.floor(b / TWO_PI))
+wrap = njit(cache=True)(wrap_scalar)  # (-pi, pi], the formula of cekm_swarm.angles
 
 
 @njit(cache=True)

@@ -26,15 +26,13 @@ import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 
-from cekm_swarm.controller.schedule import SCHEDULE
 from cekm_swarm.protocol import DEFAULT_RANGE_SENSORS, KeySpace, ObstacleField, TargetField, WheelCommand, encode
+from cekm_swarm.ticks import TARGET_EVERY, TICK_S
 from cekm_swarm.protocol.hotpath import VectorCache, obstacle_field_values, target_field_values, unpack
 
 from .shell import ModuleSpec, base_parser, keyspace, load_controller, main_of
 
 NAME = "motor"
-TICK_S = SCHEDULE.tick_s
-TARGET_EVERY = SCHEDULE.target_every
 log = logging.getLogger("cekm_swarm.modules.motor")
 
 # integrate(target_field | None, obstacle_fields in index order) -> (v_l, v_r)
@@ -42,11 +40,12 @@ Integrate = Callable[[TargetField | None, list[ObstacleField]], tuple[float, flo
 
 
 def tick_of(stamp: float, tick_s: float = TICK_S) -> int:
+    """:func:`cekm_swarm.ticks.tick_of` for a configurable tick length."""
     return int(round(stamp / tick_s))
 
 
 def stamp_of(tick: int, tick_s: float = TICK_S) -> float:
-    """Sim time of a tick, computed as the world computes it (``round(k * 0.128, 9)``)."""
+    """:func:`cekm_swarm.ticks.tick_time` for a configurable tick length."""
     return round(tick * tick_s, 9)
 
 

@@ -1,0 +1,25 @@
+"""The runtime's clock, one home for both sides of the protocol (world and controller;
+plain constants, so the simulation may import it).
+
+Time advances in ticks of 0.128 s (the obstacle modules' period), each 4 world sub-steps
+of 0.032 s; the target sensor and module run every other tick (0.256 s). A tick's sim
+time is computed, never accumulated, so every process derives the same stamp for tick k.
+"""
+
+from __future__ import annotations
+
+SUBSTEP_S = 0.032  # Webots' basic time step; wheel slip noise is drawn this often
+TICK_S = 0.128  # obstacle localization period (section 3.1)
+TARGET_PERIOD_S = 0.256  # target localization period (section 3.1)
+SUBSTEPS_PER_TICK = round(TICK_S / SUBSTEP_S)
+TARGET_EVERY = round(TARGET_PERIOD_S / TICK_S)  # ticks
+
+
+def tick_time(tick: int) -> float:
+    """Sim time of tick k, as every process computes it: ``round(k * 0.128, 9)``."""
+    return round(tick * TICK_S, 9)
+
+
+def tick_of(stamp: float) -> int:
+    """The tick whose sim time is nearest to ``stamp``."""
+    return int(round(stamp / TICK_S))
