@@ -20,8 +20,12 @@ A range reading's ``d`` is the obstacle input u_j, the distance from the robot's
 (surface range + body radius), None when nothing is in range; an out-of-range target is
 sent as alpha = d = 0, visible False.
 
-Everything seen under ``<root>/**`` is recorded into ``OUT/run.mcap`` at its stamp's sim
-time, with Foxglove view channels; ``OUT/outcome.json`` (the fields of ``cekm run``) and
+Everything under ``<root>/**`` that passes the checks of :class:`RecordFilter` is recorded
+into ``OUT/run.mcap`` (log time: the server's sim time of the tick in which it arrived;
+publish time: its checked stamp), with Foxglove view channels; what fails them is dropped
+and counted per source (``drops`` in ``outcome.json``). The world trusts nothing from the
+network: a command whose stamp is not a tick's time near the world's clock is dropped too.
+Results: ``OUT/outcome.json`` (the fields of ``cekm run``) and
 ``OUT/trajectory.json`` (pose and command per tick) are written at the end, which is when
 every robot reached its goal, at ``--max-time``, or on SIGTERM/SIGINT.
 
@@ -56,10 +60,11 @@ from typing import Any
 
 import zenoh
 
-from cekm_swarm.protocol import (DEFAULT_ROOT, Clock, DropCounter, KeySpace, SenseRange, SenseTarget, WheelCommand,
-                                 WorldState, encode, peek)
+from cekm_swarm.protocol import (DEFAULT_ROOT, Clock, DropCounter, KeySpace, KeySpaceError, SenseRange, SenseTarget,
+                                 WheelCommand, WorldState, encode)
 from cekm_swarm.errors import CekmError
 from cekm_swarm.protocol.hotpath import Splice
+from cekm_swarm.protocol.stamps import PAST_S, stamp_problem
 from cekm_swarm.runtime.bridge import (InlineSubscription, LivelinessWatcher, Publishers, Received, declare_alive,
                                        wait_matching_async)
 from cekm_swarm.runtime.config import (DEFAULT_ENDPOINT, ROUTER_RUNTIME, is_loopback, open_client, open_embedded_router,
@@ -150,6 +155,47 @@ class SenseEncoder:
         return out
 
 
+class RecordFilter:
+    """What the world's recorder takes from other sessions: a message on a key of this
+    run (a robot of the scenario, or the world's keys) that decodes as its key's message,
+    with a stamp on the tick grid no older than ``PAST_S`` and not ahead of the world's
+    sim time (no peer is ahead of the world's clock: the world starts each tick). Anything
+    else is dropped and counted per source key (a key outside the key space, or of a robot
+    this run does not have, is counted without a channel being opened for it), so the log
+    holds at most a fixed set of channels and no stamp a writer cannot hold."""
+
+    def __init__(self, keys: KeySpace, robots: list[str], drops: DropCounter) -> None:
+        self.keys, self.robots, self.drops = keys, frozenset(robots), drops
+        self._known: dict[str, bool] = {}
+
+    def _key_ok(self, key: str) -> bool:
+        ok = self._known.get(key)
+        if ok is None:
+            try:
+                p = self.keys.parse(key)
+                ok = p.robot is None or p.robot in self.robots
+            except KeySpaceError:
+                ok = False
+            if len(self._known) < 4096:  # only ever a bounded memo: foreign keys are unbounded
+                self._known[key] = ok
+        return ok
+
+    def check(self, key: str, payload: bytes, now: float) -> float | None:
+        """The message's stamp when it is to be recorded at sim time ``now``, else None
+        (dropped and counted)."""
+        if not self._key_ok(key):
+            self.drops.drop(key, "key outside this run's key space")
+            return None
+        msg = self.drops.decode(key, payload)
+        if msg is None:
+            return None
+        why = stamp_problem(msg.stamp, now, PAST_S, 0.0)
+        if why is not None:
+            self.drops.drop(key, why)
+            return None
+        return msg.stamp
+
+
 def target_message(t: float, target: tuple[float, float, bool]) -> SenseTarget:
     alpha, d, visible = target
     if not (visible and math.isfinite(alpha) and math.isfinite(d)):
@@ -197,7 +243,9 @@ class WorldServer:
         self.out.mkdir(parents=True, exist_ok=True)
         self.lockstep = args.mode == "lockstep"
         self.max_ticks = int(math.ceil(args.max_time / TICK_S))
-        self.drops = DropCounter("world", keys=self.keys)
+        self.drops = DropCounter("world commands", keys=self.keys)
+        self.record_drops = DropCounter("world recorder", keys=self.keys)
+        self.record_filter = RecordFilter(self.keys, self.robots, self.record_drops)
         self.cmd_keys = {self.keys.cmd_wheels(r): r for r in self.robots}
         self.latest: dict[str, WheelCommand] = {}
         self.arrived = asyncio.Event()
@@ -213,7 +261,7 @@ class WorldServer:
         self.recorded = 0
         self.tick_loop_seconds = 0.0  # wall s from the first tick's readings to the last tick
         self._unrecorded: list[tuple[str, bytes, float]] = []
-        self.last_stamp = 0.0
+        self.now = 0.0  # the sim time of the tick whose readings are out (read by Zenoh's thread)
 
     # ------------------------------------------------------------------ receiving
 
@@ -222,10 +270,20 @@ class WorldServer:
         command, note when it was heard (dead-man) and how long after its tick's readings
         it came; in lockstep, wake the tick loop. Touches only what the loop reads whole."""
         robot = self.cmd_keys.get(rec.key)
-        if robot is None or rec.kind != "put":
+        if robot is None:
+            if rec.kind == "put":
+                self.drops.drop(rec.key, "no robot of this run has this key")
+            return
+        if rec.kind != "put":
             return
         msg = self.drops.decode(rec.key, rec.payload)
         if not isinstance(msg, WheelCommand):
+            return
+        why = stamp_problem(msg.stamp, self.now, PAST_S, 0.0)  # a command is for a tick already out
+        if why is None and (old := self.latest.get(robot)) is not None and msg.stamp < old.stamp:
+            why = f"stamp {msg.stamp} older than the robot's latest command ({old.stamp})"
+        if why is not None:
+            self.drops.drop(rec.key, why)
             return
         self.latest[robot] = msg
         self.deadman.heard(robot, rec.at)
@@ -235,19 +293,21 @@ class WorldServer:
         if self.lockstep:
             self._loop.call_soon_threadsafe(self.arrived.set)
 
-    def _drain_records(self) -> None:
-        """Record every sample other sessions sent under ``<root>/**`` since the last
-        drain, at its stamp's sim time (a message without a stamp at the newest stamp
-        seen). Done once per tick in one batch: no thread wakes up per message."""
+    def _drain_records(self, now: float) -> None:
+        """Record what other sessions sent under ``<root>/**`` since the last drain (it
+        arrived during the previous tick or, just now, this one): log time ``now``, the
+        server's sim time, publish time the message's checked stamp (:class:`RecordFilter`).
+        Done once per tick in one batch: no thread wakes up per message."""
+        put = zenoh.SampleKind.PUT
+        check = self.record_filter.check
         while (sample := self.record_sub.try_recv()) is not None:
-            if sample.kind != zenoh.SampleKind.PUT:
+            if sample.kind != put:
                 continue
-            payload = sample.payload.to_bytes()
-            _, stamp = peek(payload)
+            key, payload = str(sample.key_expr), sample.payload.to_bytes()
+            stamp = check(key, payload, now)
             if stamp is not None:
-                self.last_stamp = max(self.last_stamp, stamp)
-            self.recorder.write(str(sample.key_expr), payload, self.last_stamp if stamp is None else stamp)
-            self.recorded += 1
+                self.recorder.write(key, payload, now, stamp)
+                self.recorded += 1
 
     # ------------------------------------------------------------------ publishing
 
@@ -275,6 +335,7 @@ class WorldServer:
 
     def _publish_tick(self, readings: list[TickReadings]) -> None:
         w, ep = self.world, self.episode
+        self.now = ep.t  # commands from here on may be for this tick
         self.sent_at[ep.t] = time.monotonic()
         if len(self.sent_at) > 64:
             self.sent_at.pop(next(iter(self.sent_at)))
@@ -290,7 +351,7 @@ class WorldServer:
         self._record_sent()
         if self.views is not None:
             self.views.write_state(ep.t, st)
-        self._drain_records()
+        self._drain_records(ep.t)
 
     def _republish(self, readings: list[TickReadings], waiting: list[str]) -> None:
         w = self.world
@@ -455,7 +516,7 @@ class WorldServer:
             # what is still in flight gets recorded
             await asyncio.sleep(0.05)
             self.cmd_sub.close()
-            self._drain_records()
+            self._drain_records(self.now)
             token.undeclare()
             self.record_sub.undeclare()
             self.pubs.close()
@@ -512,7 +573,9 @@ class WorldServer:
                "mode": self.args.mode, "sim_seconds": ep.t, "ticks": ep.tick,
                "aborted": aborted, "republished": self.republished, "deadline_misses": self.deadline_misses,
                "sense_to_command_ms": {"p50": q(0.5), "p99": q(0.99), "n": len(lat)},
-               "dropped_messages": self.drops.total, "recorded_messages": self.recorded, "events": self.events}
+               "dropped_messages": self.drops.total + self.record_drops.total, "recorded_messages": self.recorded,
+               "drops": {"commands": self.drops.by_source(), "recorder": self.record_drops.by_source()},
+               "events": self.events}
         (self.out / "outcome.json").write_text(json.dumps(doc, indent=1))
         traj = {}
         for r, p in ep.progress.items():

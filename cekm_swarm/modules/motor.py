@@ -11,9 +11,12 @@ Two ways of deciding when to integrate (:class:`MotorState`):
   t has arrived: the 12 obstacle fields stamped t and the target field of the latest
   target tick at or before t (t itself on even ticks). The fields are then exactly the
   ones ``RobotBrain.tick`` uses in one process, combined in the same order (obstacles by
-  index), so the command is the same to the bit. A field arriving again for a tick
-  already answered (the world re-publishes a tick's readings after a timeout so a
-  restarted module catches up) makes the module send that tick's command again.
+  index), so the command is the same to the bit. Fields are kept per tick until their
+  tick is answered, so a stray field of another tick (late, or a peer's with a stamp
+  ahead) never displaces the one a tick needs. A field arriving again for the tick last
+  answered (the world re-publishes a tick's readings after a timeout so a restarted
+  module catches up) makes the module send that tick's command again; a field of an
+  older tick is dropped and counted.
 
 ``python -m cekm_swarm.modules.motor --robot r1 --model M.npz --mode lockstep --connect ...``
 """
@@ -73,25 +76,37 @@ class MotorState:
     repeats: int = 0
     stale_drops: dict[str, int] = field(default_factory=dict)
     _stale_now: set[str] = field(default_factory=set)
+    drop: Callable[[TargetField | ObstacleField, str], None] | None = None
+    """Called with a field the state refuses and the reason (the module counts it)."""
+    pending: dict[float, dict[int, ObstacleField]] = field(default_factory=dict)  # lockstep: tick -> fields
+    targets: dict[float, TargetField] = field(default_factory=dict)  # lockstep: target fields by tick
+    MAX_PENDING = 64  # ticks held at most (the modules' stamp window already bounds them)
 
     # ------------------------------------------------------------------ storing
 
+    def _refuse(self, msg: TargetField | ObstacleField, why: str) -> list:
+        if self.drop is not None:
+            self.drop(msg, why)
+        return []
+
     def put(self, msg: TargetField | ObstacleField) -> list[tuple[float, float, float]]:
+        if isinstance(msg, ObstacleField) and not 0 <= msg.index < self.sensors:
+            return self._refuse(msg, f"sensor index {msg.index} outside 0..{self.sensors - 1}")
+        if not isinstance(msg, (TargetField, ObstacleField)):
+            return []
+        if self.lockstep:
+            return self._put_lockstep(msg)
         if isinstance(msg, TargetField):
             if self.target is not None and msg.stamp < self.target.stamp:
-                return []  # out of order: keep the newer one
+                return self._refuse(msg, f"stamp {msg.stamp} older than the latest target field's")
             self.target = msg
-        elif isinstance(msg, ObstacleField):
-            if not 0 <= msg.index < self.sensors:
-                return []
+        else:
             old = self.obstacles.get(msg.index)
             if old is not None and msg.stamp < old.stamp:
-                return []
+                return self._refuse(msg, f"stamp {msg.stamp} older than the latest field of obstacle-{msg.index}")
             self.obstacles[msg.index] = msg
-        else:
-            return []
         self.newest = max(self.newest, msg.stamp)
-        return self._lockstep(msg.stamp) if self.lockstep else [self._realtime()]
+        return [self._realtime()]
 
     # ------------------------------------------------------------------ real time
 
@@ -138,33 +153,48 @@ class MotorState:
     def missing(self, stamp: float) -> list[str]:
         """The fields still missing for the tick at ``stamp`` (empty: complete)."""
         out = []
-        want = self.target_stamp_for(stamp)
-        if self.target is None or self.target.stamp != want:
+        if self.target_stamp_for(stamp) not in self.targets:
             out.append("target")
-        for j in range(self.sensors):
-            f = self.obstacles.get(j)
-            if f is None or f.stamp != stamp:
-                out.append(f"obstacle-{j}")
+        have = self.pending.get(stamp, {})
+        out += [f"obstacle-{j}" for j in range(self.sensors) if j not in have]
         return out
 
-    def _lockstep(self, arrived: float) -> list[tuple[float, float, float]]:
-        # The tick the obstacle fields are at (all 12 carry the same stamp when complete).
-        if len(self.obstacles) < self.sensors:
-            return []
-        stamp = self.obstacles[0].stamp
+    def _put_lockstep(self, msg: TargetField | ObstacleField) -> list[tuple[float, float, float]]:
+        stamp = msg.stamp
         if stamp < self.sent_stamp:
-            return []
+            return self._refuse(msg, f"field of tick {stamp} after tick {self.sent_stamp} was answered")
+        self.newest = max(self.newest, stamp)
+        if isinstance(msg, TargetField):
+            self.targets[stamp] = msg
+            self.target = msg
+        else:
+            self.obstacles[msg.index] = msg
+            if stamp > self.sent_stamp:
+                self.pending.setdefault(stamp, {})[msg.index] = msg
         if stamp == self.sent_stamp:
-            if arrived == stamp and self.sent is not None:  # a re-published tick: answer again
+            if self.sent is not None:  # a re-published tick: answer again
                 self.repeats += 1
                 return [(stamp, *self.sent)]
             return []
-        if self.missing(stamp):
-            return []
-        v_l, v_r = self.integrate(self.target, [self.obstacles[j] for j in range(self.sensors)])
+        while len(self.pending) > self.MAX_PENDING:  # bounded whatever arrives
+            del self.pending[min(self.pending)]
+        for t in sorted(self.pending):
+            if not self.missing(t):
+                return [self._answer(t)]
+        return []
+
+    def _answer(self, stamp: float) -> tuple[float, float, float]:
+        fields = self.pending[stamp]
+        target = self.targets[self.target_stamp_for(stamp)]
+        v_l, v_r = self.integrate(target, [fields[j] for j in range(self.sensors)])
         self.sent_stamp, self.sent = stamp, (v_l, v_r)
         self.commands += 1
-        return [(stamp, v_l, v_r)]
+        for t in [t for t in self.pending if t <= stamp]:
+            del self.pending[t]
+        keep = self.target_stamp_for(stamp)
+        for t in [t for t in self.targets if t < keep]:
+            del self.targets[t]
+        return (stamp, v_l, v_r)
 
 
 def controller_integrate(ekm) -> Integrate:
@@ -186,23 +216,43 @@ def controller_integrate(ekm) -> Integrate:
 
 
 def build_spec(integrate: Integrate, robot: str, keys: KeySpace = KeySpace(), *, lockstep: bool = False,
-               obstacle_limit: float = 2 * TICK_S, target_limit: float = 4 * TICK_S) -> ModuleSpec:
-    state = MotorState(integrate, lockstep=lockstep, sensors=keys.range_sensors, obstacle_limit=obstacle_limit,
-                       target_limit=target_limit)
+               obstacle_limit: float = 2 * TICK_S, target_limit: float = 4 * TICK_S,
+               neurons: int | None = None) -> ModuleSpec:
+    """The motor module; with ``neurons`` (the lattice size) a field whose vector or
+    winner does not fit the lattice is dropped and counted instead of reaching Eq. 9."""
     out_key = keys.cmd_wheels(robot)
     sender = f"{robot}/{NAME}"
     seq = [0]
+    obstacle_keys = {keys.field_obstacle(robot, j): j for j in range(keys.range_sensors)}
+    target_key = keys.field_target(robot)
+    spec = ModuleSpec(NAME, robot, f"{keys.root}/{robot}/field/**", lambda msg, rec: handle(msg, rec), keys,
+                      outputs=(out_key,))
+
+    def source_key(msg) -> str:
+        return target_key if isinstance(msg, TargetField) else keys.field_obstacle(robot, msg.index)
+
+    state = MotorState(integrate, lockstep=lockstep, sensors=keys.range_sensors, obstacle_limit=obstacle_limit,
+                       target_limit=target_limit, drop=lambda msg, why: spec.drops.drop(source_key(msg), why))
+
+    def misfit(msg) -> str | None:
+        vec = msg.a if isinstance(msg, TargetField) else msg.b
+        if vec is not None and vec.shape[0] != neurons:
+            return f"field of {vec.shape[0]} neurons, the lattice has {neurons}"
+        if msg.winner is not None and not 0 <= msg.winner < neurons:
+            return f"winner {msg.winner} outside the lattice's 0..{neurons - 1}"
+        return None
 
     def handle(msg, rec):
+        if neurons is not None and isinstance(msg, (TargetField, ObstacleField)) and (why := misfit(msg)):
+            spec.drops.drop(source_key(msg), why)
+            return []
         out = []
         for stamp, v_l, v_r in state.put(msg):
             out.append((out_key, WheelCommand(stamp, sender, v_l, v_r, seq[0])))
             seq[0] += 1
         return out
 
-    obstacle_keys = {keys.field_obstacle(robot, j): j for j in range(keys.range_sensors)}
-    target_key = keys.field_target(robot)
-    vectors = VectorCache()
+    vectors = VectorCache(length=neurons)
 
     def fast(key: str, payload: bytes) -> list[tuple[str, bytes]] | None:
         """The hot path of ``handle``: a well-formed field with its vector read once per
@@ -220,22 +270,23 @@ def build_spec(integrate: Integrate, robot: str, keys: KeySpace = KeySpace(), *,
             msg = TargetField(*u)
         else:
             return None
+        if not spec.admit(key, msg.stamp):
+            return []
         return [(k, encode(m)) for k, m in handle(msg, None)]
 
     def on_stop() -> None:
         log.info("%s: %d commands (%d repeats), stale drops %s", sender, state.commands, state.repeats,
                  state.stale_drops or "none")
 
-    spec = ModuleSpec(NAME, robot, f"{keys.root}/{robot}/field/**", handle, keys, on_stop=on_stop, fast=fast,
-                      outputs=(out_key,))
+    spec.on_stop, spec.fast = on_stop, fast
     spec.state = state  # type: ignore[attr-defined]  # for tests and logs
     return spec
 
 
 def _build(args: argparse.Namespace) -> ModuleSpec:
-    return build_spec(controller_integrate(load_controller(args.model)), args.robot, keyspace(args),
-                      lockstep=args.mode == "lockstep", obstacle_limit=args.obstacle_stale,
-                      target_limit=args.target_stale)
+    ekm = load_controller(args.model)
+    return build_spec(controller_integrate(ekm), args.robot, keyspace(args), lockstep=args.mode == "lockstep",
+                      obstacle_limit=args.obstacle_stale, target_limit=args.target_stale, neurons=int(ekm.w.shape[0]))
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -15,7 +15,7 @@ import argparse
 from cekm_swarm.protocol import KeySpace, ObstacleField, SenseRange
 from cekm_swarm.protocol.hotpath import Splice, sense_range_values, unpack
 
-from .shell import FastHandler, ModuleSpec, base_parser, keyspace, load_controller, main_of
+from .shell import Admit, FastHandler, ModuleSpec, base_parser, keyspace, load_controller, main_of
 
 
 def name_of(index: int) -> str:
@@ -30,12 +30,13 @@ def obstacle_field(ekm, msg: SenseRange, sender: str) -> ObstacleField:
     return ObstacleField(msg.stamp, sender, msg.index, act.winner, act.b)
 
 
-def fast_obstacle_field(ekm, index: int, sender: str, out_key: str) -> FastHandler:
+def fast_obstacle_field(ekm, index: int, sender: str, out_key: str, admit: Admit | None = None) -> FastHandler:
     """The hot path of :func:`obstacle_field`: payload bytes in, the field's bytes out,
     equal to ``encode(obstacle_field(ekm, decode(payload), sender))`` (tested). A field
     is a fixed row per winner (Eq. 8), so its bytes are built once per winner and only
     the stamp is packed per message. None for anything but a well-formed reading: the
-    shell then takes the general path, which decodes, or drops and counts."""
+    shell then takes the general path, which decodes, or drops and counts. ``admit``
+    (the module's stamp check) drops a well-formed reading with an unbelievable stamp."""
     splices: dict[int | None, Splice] = {}
 
     def fast(key: str, payload: bytes) -> list[tuple[str, bytes]] | None:
@@ -43,6 +44,8 @@ def fast_obstacle_field(ekm, index: int, sender: str, out_key: str) -> FastHandl
         if u is None:
             return None
         stamp, alpha, d = u
+        if admit is not None and not admit(key, stamp):
+            return []
         s = None if d is None else ekm.winner(alpha, d)  # Eqs. 2-4 (memoised)
         enc = splices.get(s)
         if enc is None:
@@ -63,8 +66,9 @@ def build_spec(ekm, robot: str, index: int, keys: KeySpace = KeySpace()) -> Modu
             return []
         return [(out_key, obstacle_field(ekm, msg, sender))]
 
-    return ModuleSpec(name_of(index), robot, keys.sense_range(robot, index), handle, keys,
-                      fast=fast_obstacle_field(ekm, index, sender, out_key), outputs=(out_key,))
+    spec = ModuleSpec(name_of(index), robot, keys.sense_range(robot, index), handle, keys, outputs=(out_key,))
+    spec.fast = fast_obstacle_field(ekm, index, sender, out_key, spec.admit)
+    return spec
 
 
 def _build(args: argparse.Namespace) -> ModuleSpec:

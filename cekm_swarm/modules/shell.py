@@ -3,7 +3,9 @@ the liveliness token, decoding with drop counting, clean shutdown on SIGTERM/SIG
 
 A module is a :class:`ModuleSpec`: the key expression it listens on and a ``handle``
 coroutine-free callback ``handle(msg, rec) -> list[(key, Message)]`` that computes what
-to publish from one decoded message. Everything numerical lives in the pure parts
+to publish from one decoded message. A message whose stamp the module's
+:class:`~cekm_swarm.protocol.stamps.StampWindow` does not believe is dropped and counted
+before any handler sees it (on the fast path too: :meth:`ModuleSpec.admit`). Everything numerical lives in the pure parts
 (:mod:`.target`, :mod:`.obstacle`, :mod:`.motor`); this file only moves bytes.
 """
 
@@ -11,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import json
 import logging
 import os
 import signal
@@ -25,6 +28,7 @@ import zenoh
 
 from cekm_swarm.errors import CekmError
 from cekm_swarm.protocol import DEFAULT_ROOT, MSGPACK_ENCODING, DropCounter, KeySpace, Message, encode
+from cekm_swarm.protocol.stamps import StampWindow
 from cekm_swarm.runtime.bridge import InlineSubscription, Publishers, Received, declare_alive
 from cekm_swarm.runtime.config import DEFAULT_ENDPOINT, ONE_THREAD_RUNTIME, open_client, use_zenoh_runtime
 from cekm_swarm.runtime.model_service import fetch_model_bytes, is_zenoh_source
@@ -68,6 +72,8 @@ FastHandler = Callable[[str, bytes], "list[tuple[str, bytes]] | None"]
 """A module's hot path: key and payload bytes in, ``[(key, bytes to publish)]`` out, or None when
 it does not take the message (then the general decode-and-handle path runs). It must
 give exactly the bytes the general path would encode."""
+Admit = Callable[[str, float], bool]
+"""A module's stamp check, :meth:`ModuleSpec.admit`: (key, stamp) -> believe it?"""
 
 
 @dataclass
@@ -85,10 +91,20 @@ class ModuleSpec:
     fast: FastHandler | None = None
     outputs: tuple[str, ...] = ()
     """Keys the module publishes on, declared before it listens (none: declared on first use)."""
+    window: StampWindow = field(default_factory=StampWindow)
 
     def __post_init__(self) -> None:
         if self.drops is None:
             self.drops = DropCounter(f"{self.robot}/{self.name}", keys=self.keys)
+
+    def admit(self, key: str, stamp: float) -> bool:
+        """True when the stamp of a message received on ``key`` is believable (the window
+        then moves to it); else the message is dropped and counted."""
+        why = self.window.check(stamp)
+        if why is None:
+            return True
+        self.drops.drop(key, why)
+        return False
 
     @property
     def sender(self) -> str:
@@ -102,7 +118,7 @@ def process_one(spec: ModuleSpec, rec: Received) -> list[tuple[str, Message]]:
     if rec.kind != "put":
         return []
     msg = spec.drops.decode(rec.key, rec.payload)
-    if msg is None:
+    if msg is None or not spec.admit(rec.key, msg.stamp):
         return []
     try:
         return spec.handle(msg, rec)
@@ -182,6 +198,7 @@ async def run_module(spec: ModuleSpec, endpoint: str, *, block: bool = False,
     if spec.drops.total:
         log.warning("%s: %d malformed messages dropped: %s", spec.sender, spec.drops.total,
                     "; ".join(f"{r.source} x{r.count}" for r in spec.drops.records()))
+    log.info("%s: DROPS %s", spec.sender, json.dumps({"handled": handled[0], "dropped": spec.drops.by_source()}))
     log.info("%s: stopped after %d messages", spec.sender, handled[0])
     return handled[0]
 

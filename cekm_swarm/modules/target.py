@@ -12,7 +12,7 @@ import math
 from cekm_swarm.protocol import KeySpace, SenseTarget, TargetField
 from cekm_swarm.protocol.hotpath import Splice, sense_target_values, unpack
 
-from .shell import FastHandler, ModuleSpec, base_parser, keyspace, load_controller, main_of
+from .shell import Admit, FastHandler, ModuleSpec, base_parser, keyspace, load_controller, main_of
 
 NAME = "target"
 
@@ -33,12 +33,13 @@ def target_field(ekm, msg: SenseTarget, sender: str) -> TargetField:
     return TargetField(msg.stamp, sender, act.winner, act.a, act.alpha, act.d)
 
 
-def fast_target_field(ekm, sender: str, out_key: str) -> FastHandler:
+def fast_target_field(ekm, sender: str, out_key: str, admit: Admit | None = None) -> FastHandler:
     """The hot path of :func:`target_field` for a visible target short of the goal:
     payload bytes in, the field's bytes out, equal to the general path's (tested). The
     field a is a fixed row per winner (Eq. 6), so its bytes are packed once per winner and
     only the stamp and the sensed (alpha, d) per message. Anything else (no target, the
-    goal state, a malformed message) returns None: the general path takes it."""
+    goal state, a malformed message) returns None: the general path takes it. ``admit``
+    (the module's stamp check) drops a well-formed reading with an unbelievable stamp."""
     splices: dict[int, Splice] = {}
 
     def fast(key: str, payload: bytes) -> list[tuple[str, bytes]] | None:
@@ -46,6 +47,8 @@ def fast_target_field(ekm, sender: str, out_key: str) -> FastHandler:
         if u is None or not u[3] or u[2] == 0.0:
             return None
         stamp, alpha, d, _ = u
+        if admit is not None and not admit(key, stamp):
+            return []
         s = ekm.winner(alpha, d)  # Eqs. 2-4 (memoised)
         enc = splices.get(s)
         if enc is None:
@@ -65,8 +68,9 @@ def build_spec(ekm, robot: str, keys: KeySpace = KeySpace()) -> ModuleSpec:
             return []
         return [(out_key, target_field(ekm, msg, sender))]
 
-    return ModuleSpec(NAME, robot, keys.sense_target(robot), handle, keys,
-                      fast=fast_target_field(ekm, sender, out_key), outputs=(out_key,))
+    spec = ModuleSpec(NAME, robot, keys.sense_target(robot), handle, keys, outputs=(out_key,))
+    spec.fast = fast_target_field(ekm, sender, out_key, spec.admit)
+    return spec
 
 
 def _build(args: argparse.Namespace) -> ModuleSpec:

@@ -22,17 +22,26 @@ class DropRecord:
     first_reason: str
 
 
+MAX_SOURCES = 256
+"""Sources counted apart; a peer may invent keys without end, so drops from any further
+source are counted together under :data:`OTHER_SOURCES` (and logged once)."""
+OTHER_SOURCES = "(other sources)"
+
+
 class DropCounter:
-    """Per source key: counts dropped (malformed, wrong-version) messages and logs the
-    first one of each source once, with its reason; later ones are only counted.
+    """Per source key: counts dropped (malformed, wrong-version, unbelievable stamp)
+    messages and logs the first one of each source once, with its reason; later ones are
+    only counted. At most ``max_sources`` sources are told apart (then one more line), so
+    memory and warning lines stay bounded whatever a peer sends.
 
     Thread-safe, so a Zenoh callback thread and an event loop may share one.
     """
 
     def __init__(self, name: str = "receiver", logger: logging.Logger | None = None,
-                 keys: KeySpace = DEFAULT_KEYS) -> None:
+                 keys: KeySpace = DEFAULT_KEYS, max_sources: int = MAX_SOURCES) -> None:
         self.name = name
         self.keys = keys
+        self.max_sources = max_sources
         self._log = logger or log
         self._lock = threading.Lock()
         self._counts: dict[str, int] = {}
@@ -42,6 +51,8 @@ class DropCounter:
         """Count one dropped message from ``source``; log it if it is the source's first."""
         text = str(reason)
         with self._lock:
+            if source not in self._counts and len(self._counts) >= self.max_sources:
+                source = OTHER_SOURCES
             n = self._counts.get(source, 0)
             self._counts[source] = n + 1
             if n == 0:
@@ -68,6 +79,11 @@ class DropCounter:
         """Messages dropped from ``source``."""
         with self._lock:
             return self._counts.get(source, 0)
+
+    def by_source(self) -> dict[str, int]:
+        """Drops per source (a copy), for reports."""
+        with self._lock:
+            return dict(sorted(self._counts.items()))
 
     def records(self) -> list[DropRecord]:
         """One record per source that had drops, sorted by source."""

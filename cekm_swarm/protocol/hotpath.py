@@ -86,10 +86,15 @@ def sense_target_values(m: Any) -> tuple[float, float, float, bool] | None:
 class VectorCache:
     """Field vectors already checked, by their wire bytes: a field is one of a fixed
     table's rows (Eqs. 6, 8), so a receiver meets the same few hundred vectors again and
-    again. Holds at most ``limit`` vectors (then starts again). Values are read-only."""
+    again. Holds at most ``limit`` vectors and ``max_bytes`` bytes of them (then starts
+    again), and only vectors of ``length`` floats when that is given: a peer sending
+    distinct vectors of up to 2^20 floats cannot make it hold more. Values are read-only."""
 
-    def __init__(self, limit: int = 4096) -> None:
+    def __init__(self, limit: int = 4096, max_bytes: int = 8 << 20, length: int | None = None) -> None:
         self.limit = limit
+        self.max_bytes = max_bytes
+        self.length = length
+        self.bytes = 0
         self._arrays: dict[bytes, np.ndarray] = {}
 
     def vector(self, m: Any) -> np.ndarray | None:
@@ -98,7 +103,8 @@ class VectorCache:
             return None
         data, shape = m["data"], m["shape"]
         if (type(data) is not bytes or m["dtype"] != "<f8" or type(shape) is not list or len(shape) != 1
-                or type(shape[0]) is not int or not 0 < shape[0] <= MAX_ARRAY_LEN or len(data) != 8 * shape[0]):
+                or type(shape[0]) is not int or not 0 < shape[0] <= MAX_ARRAY_LEN or len(data) != 8 * shape[0]
+                or (self.length is not None and shape[0] != self.length)):
             return None
         x = self._arrays.get(data)
         if x is not None:
@@ -106,9 +112,13 @@ class VectorCache:
         x = np.frombuffer(data, dtype=_F8)
         if not np.isfinite(x).all():
             return None
-        if len(self._arrays) >= self.limit:
+        if len(data) > self.max_bytes:
+            return x
+        if len(self._arrays) >= self.limit or self.bytes + len(data) > self.max_bytes:
             self._arrays.clear()
+            self.bytes = 0
         self._arrays[data] = x
+        self.bytes += len(data)
         return x
 
 

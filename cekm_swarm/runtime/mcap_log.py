@@ -41,11 +41,22 @@ DEFAULT_FLUSH_INTERVAL = 0.5
 _MAGIC = b"\x89MCAP0\r\n"
 
 
+MAX_NS = (1 << 64) - 1
+"""MCAP timestamps are unsigned 64-bit nanoseconds (about 584 years)."""
+MAX_CHANNELS = 4096
+"""Key channels a recorder registers at most (MCAP channel ids are 16-bit): a peer that
+invents keys must not grow the channel table without end. Further keys are refused and
+counted in :attr:`McapRecorder.refused`."""
+
+
 def sim_ns(t: float) -> int:
-    """Sim time in seconds -> integer nanoseconds (MCAP timestamps), clamped at 0."""
-    if not math.isfinite(t) or t <= 0:
+    """Sim time in seconds -> integer nanoseconds (MCAP timestamps), clamped to [0, MAX_NS]
+    (a time no writer can hold never reaches it: NaN is 0, anything huge is MAX_NS)."""
+    if not t > 0:  # also NaN
         return 0
-    return int(round(t * 1e9))
+    if t >= MAX_NS / 1e9:
+        return MAX_NS
+    return min(int(round(t * 1e9)), MAX_NS)
 
 
 @dataclass(frozen=True, slots=True)
@@ -83,6 +94,7 @@ class McapRecorder:
         self._sequence: dict[int, int] = {}
         self._last_flush = time.monotonic()
         self.messages = 0
+        self.refused = 0  # messages on new keys beyond MAX_CHANNELS, not written
 
     # ------------------------------------------------------------------ channels
 
@@ -114,12 +126,17 @@ class McapRecorder:
 
     # ------------------------------------------------------------------ writing
 
-    def write(self, key: str, payload: bytes, sim_time: float, publish_time: float | None = None) -> None:
-        """Record msgpack ``payload`` received on ``key`` at ``sim_time`` seconds."""
+    def write(self, key: str, payload: bytes, sim_time: float, publish_time: float | None = None) -> bool:
+        """Record msgpack ``payload`` received on ``key`` at ``sim_time`` seconds. False
+        (counted in :attr:`refused`) for a new key once :data:`MAX_CHANNELS` are in use."""
         entry = self._channels.get(key)
+        if entry is None and len(self._channels) >= MAX_CHANNELS:
+            self.refused += 1
+            return False
         cid = entry[0] if entry is not None and entry[1] == MSGPACK else self.channel(key, MSGPACK,
                                                                                      self._msgpack_schema(key))
         self._add(cid, payload, sim_time, sim_time if publish_time is None else publish_time)
+        return True
 
     def write_encoded(self, topic: str, message_encoding: str, schema: SchemaSpec, data: bytes,
                       sim_time: float) -> None:

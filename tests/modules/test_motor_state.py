@@ -74,11 +74,25 @@ def test_lockstep_waits_for_a_missing_obstacle_field_and_repeats_on_republish():
     assert m.put(obstacle(stamp_of(0), 3)) == [(t0, 2.0, 12.0)]
 
 
-def test_lockstep_ignores_a_field_older_than_the_stored_one():
-    m = MotorState(fake_integrate([]), lockstep=True)
-    m.put(obstacle(stamp_of(3), 0))
-    assert m.put(obstacle(stamp_of(2), 0)) == []
-    assert m.obstacles[0].stamp == stamp_of(3)
+def test_lockstep_keeps_fields_per_tick_so_a_stray_stamp_displaces_nothing():
+    """A field of a later tick (a peer's, or early) arriving before the current tick's own
+    does not hide the current tick's field; a field of a tick already answered is dropped
+    and counted."""
+    calls, dropped = [], []
+    m = MotorState(fake_integrate(calls), lockstep=True, drop=lambda msg, why: dropped.append((msg.stamp, why)))
+    t0, t1, t5 = stamp_of(0), stamp_of(1), stamp_of(5)
+    m.put(target(t0))
+    m.put(obstacle(t5, 0))  # ahead: kept for its own tick
+    out = []
+    for j in range(N):
+        out += m.put(obstacle(t0, j))
+    assert out == [(t0, 2.0, 12.0)] and calls[-1][2] == [t0] * N
+    for j in range(N):
+        out += m.put(obstacle(t1, j))
+    assert out[-1] == (t1, 2.0, 12.0)
+    assert m.put(obstacle(t0, 3)) == [] and dropped == [(t0, dropped[0][1])]
+    assert "answered" in dropped[0][1]
+    assert m.missing(t5) == ["target"] + [f"obstacle-{j}" for j in range(1, N)]
 
 
 def test_realtime_integrates_on_every_field_with_the_latest_of_each():

@@ -1,5 +1,6 @@
-"""The protocol package imports nothing from cekm_swarm but cekm_swarm.errors (the world
-server imports it and must not pull in controller code)."""
+"""The protocol package imports nothing from cekm_swarm but cekm_swarm.errors and the tick
+clock cekm_swarm.ticks (plain constants) (the world server imports it and must not pull
+in controller code)."""
 
 from __future__ import annotations
 
@@ -28,7 +29,7 @@ def test_protocol_imports_only_errors_from_the_package():
                 continue
             for name in names:
                 if name.startswith("cekm_swarm"):
-                    assert name == "cekm_swarm.errors", f"{path.name} imports {name}"
+                    assert name in ("cekm_swarm.errors", "cekm_swarm.ticks"), f"{path.name} imports {name}"
 
 
 def test_importing_the_protocol_loads_no_other_project_module():
@@ -36,4 +37,4 @@ def test_importing_the_protocol_loads_no_other_project_module():
             "print(sorted(m for m in sys.modules if m.startswith(('cekm_swarm', 'world'))))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     loaded = eval(out)
-    assert all(m == "cekm_swarm" or m == "cekm_swarm.errors" or m.startswith("cekm_swarm.protocol") for m in loaded), loaded
+    assert all(m in ("cekm_swarm", "cekm_swarm.errors", "cekm_swarm.ticks") or m.startswith("cekm_swarm.protocol") for m in loaded), loaded

@@ -1,0 +1,73 @@
+"""Which stamps a receiver believes: the sane window around sim time.
+
+A stamp is a peer's claim. Believed blindly it did harm: a stamp of 1e18 overflowed the
+MCAP writer (the world server died), made every later field "stale" in a real-time motor
+(the robot stopped for good) and froze a lockstep motor on a tick that never comes. So a
+receiver takes a stamp only when it is finite, within [0, MAX_STAMP_S], on the tick grid
+(every message of the runtime is stamped with a tick's sim time, ``cekm_swarm.ticks``),
+and within a window around *now*:
+
+* the world server owns the clock: now is its sim time;
+* a module process has no clock of its own: now is the newest stamp it has taken (none
+  yet: any stamp in bounds is taken; see docs/robustness.md for what that leaves open).
+
+Anything else is dropped by the caller and counted per source (:class:`DropCounter`).
+"""
+
+from __future__ import annotations
+
+import math
+
+from cekm_swarm.ticks import TICK_S
+
+MAX_STAMP_S = 1e7
+"""No run lasts 116 days of sim time; a stamp beyond this is bogus whatever the clock says."""
+PAST_S = 8 * TICK_S
+"""How far behind now a stamp may be: a tick's fields and commands arrive within a tick, a
+re-published target reading is one tick old, real-time staleness limits are 2-4 ticks."""
+FUTURE_S = 8 * TICK_S
+"""How far ahead of a module's newest stamp a stamp may be (the world's next tick is one
+tick ahead; a module restarted or starved for a while sees a jump of a few)."""
+_GRID_TOL = 1e-9  # stamps are round(k * 0.128, 9)
+
+
+def on_grid(stamp: float) -> bool:
+    """True when ``stamp`` is a tick's sim time."""
+    k = round(stamp / TICK_S)
+    return abs(stamp - round(k * TICK_S, 9)) <= _GRID_TOL
+
+
+def stamp_problem(stamp: object, now: float | None, past: float = PAST_S, future: float = FUTURE_S,
+                  grid: bool = True) -> str | None:
+    """Why ``stamp`` is not believable at sim time ``now`` (None: it is). ``now`` None:
+    only the absolute bounds (and the grid) apply."""
+    if type(stamp) is not float and type(stamp) is not int:
+        return f"stamp {stamp!r} is not a number"
+    if not math.isfinite(stamp):
+        return f"stamp {stamp!r} is not finite"
+    if not 0.0 <= stamp <= MAX_STAMP_S:
+        return f"stamp {stamp!r} outside [0, {MAX_STAMP_S:g}] s"
+    if now is not None and not now - past - _GRID_TOL <= stamp <= now + future + _GRID_TOL:
+        return f"stamp {stamp!r} outside the window [{now - past:.3f}, {now + future:.3f}] s around sim time {now:.3f}"
+    if grid and not on_grid(stamp):
+        return f"stamp {stamp!r} is not a tick's sim time (k * {TICK_S} s)"
+    return None
+
+
+class StampWindow:
+    """A module's stamp check: :func:`stamp_problem` around the newest stamp taken so far.
+
+    ``check(stamp)`` returns the reason to drop, or None and takes the stamp (moving now
+    forward). Used on one thread (a module's Zenoh callback)."""
+
+    __slots__ = ("past", "future", "newest")
+
+    def __init__(self, past: float = PAST_S, future: float = FUTURE_S) -> None:
+        self.past, self.future = past, future
+        self.newest: float | None = None
+
+    def check(self, stamp: float) -> str | None:
+        why = stamp_problem(stamp, self.newest, self.past, self.future)
+        if why is None and (self.newest is None or stamp > self.newest):
+            self.newest = float(stamp)
+        return why
