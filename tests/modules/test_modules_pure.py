@@ -240,3 +240,16 @@ def test_a_handler_error_counts_as_a_drop():
     key = K.sense_target("r1")
     assert process_one(spec, rec(key, encode(SenseTarget(0.0, "world", 0.1, 0.2, True)))) == []
     assert spec.drops.count(key) == 1 and "boom" in spec.drops.records()[0].first_reason
+
+
+def test_motor_drops_a_field_that_does_not_fit_the_lattice(model):
+    """A well-formed field with a vector of another length is dropped and counted, on the
+    fast and the general path alike, and never reaches Eq. 9."""
+    n = model.w.shape[0]
+    spec = motor.build_spec(motor.controller_integrate(CooperativeEKM(model)), "r1", lockstep=True, neurons=n)
+    for j, length in enumerate([n + 1, n - 1, 10]):
+        key = K.field_obstacle("r1", j)
+        payload = encode(obstacle.ObstacleField(0.128, "x", j, 3, np.ones(length)))
+        assert respond(spec, key, payload) == []
+        assert spec.drops.count(key) == 1, spec.drops.records()
+    assert spec.state.pending == {}

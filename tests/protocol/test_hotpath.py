@@ -183,3 +183,22 @@ def test_spliced_target_field_equals_encode():
 def test_splice_refuses_a_field_the_message_has_not():
     with pytest.raises(ValueError, match="no field 'alpha'"):
         Splice(WheelCommand(0.0, "r1/motor", 0.1, -0.2, 7), ("stamp", "alpha"))
+
+
+def test_vector_cache_stays_bounded_whatever_it_is_sent():
+    """4096 distinct vectors of up to 2^20 floats would be gigabytes: the cache holds at
+    most max_bytes, and only vectors of the lattice's length when told it."""
+    from cekm_swarm.protocol.hotpath import VectorCache
+
+    def wire(x):
+        return {"dtype": "<f8", "shape": [len(x)], "data": np.asarray(x, "<f8").tobytes()}
+
+    cache = VectorCache(max_bytes=1 << 20)
+    for i in range(200):
+        v = cache.vector(wire(np.full(1 << 13, float(i))))  # 64 KB each
+        assert v is not None and v[0] == i
+        assert cache.bytes <= cache.max_bytes
+    assert cache.vector(wire(np.zeros((1 << 17) + 1))) is not None and cache.bytes <= cache.max_bytes
+    sized = VectorCache(length=225)
+    assert sized.vector(wire(np.zeros(225))) is not None
+    assert sized.vector(wire(np.zeros(224))) is None  # the general decoder then decides

@@ -220,3 +220,23 @@ def test_record_zenoh_files_live_traffic_at_sim_time(clients, tmp_path):
     assert [(m.topic, m.data) for m in msgs if m.topic != K.cmd_wheels("r9")] == [(k, d) for k, d, _ in traffic]
     bad = [m for m in msgs if m.topic == K.cmd_wheels("r9")]
     assert len(bad) == 1 and bad[0].log_time == sim_ns(traffic[-1][2])  # filed at the latest sim time seen
+
+
+def test_times_no_writer_can_hold_are_clamped_and_the_channel_table_is_bounded(tmp_path, monkeypatch):
+    """A peer's stamp of 1e18 or 1e300 overflowed the mcap writer and killed the world
+    server; keys invented without end grew the channel table (16-bit ids)."""
+    import cekm_swarm.runtime.mcap_log as ml
+
+    assert sim_ns(1e300) == sim_ns(1e18) == sim_ns(float("inf")) == ml.MAX_NS
+    assert sim_ns(float("nan")) == sim_ns(-1.0) == 0 and sim_ns(0.128) == 128_000_000
+    monkeypatch.setattr(ml, "MAX_CHANNELS", 5)
+    path = tmp_path / "bounded.mcap"
+    payload = encode(Clock(0.128, "world", 1))
+    with McapRecorder(path) as rec:
+        rec.write(DEFAULT_KEYS.world_clock(), payload, 1e300, 1e18)
+        written = [rec.write(f"cekm/fuzz/{i}", payload, 0.128) for i in range(20)]
+        assert rec.write(DEFAULT_KEYS.world_clock(), payload, 0.256)  # a known channel still takes messages
+    assert written == [True] * 4 + [False] * 16 and rec.refused == 16
+    with open(path, "rb") as f:
+        summary = make_reader(f).get_summary()
+    assert len(summary.channels) == 5 and summary.statistics.message_count == 6

@@ -1,0 +1,226 @@
+"""Hostile input, end to end: a client joins the router of a running `cekm launch` and
+publishes malformed messages (tests/runtime/fuzz_corpus.py) on every key of the robot and
+of the world, and on keys it invents under the root.
+
+* lockstep, 10,000 messages on the paper's concave obstacle: every process survives (no
+  restart), the trajectory equals the in-process run bit for bit, and the drop counters
+  account for every message at every receiver (the world's recorder, the world's command
+  subscription, each of the 14 modules), exactly: what a receiver did not drop is in the
+  log (only the class the world cannot refuse without the model), nothing else is. The
+  warning lines stay bounded.
+* real time, a smaller run: the same accounting, and the robot never stops (no dead-man,
+  no zero command) although far-future stamps were thrown at every one of its keys.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import threading
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+import pytest
+import zenoh
+
+from cekm_swarm.experiments.default_model import default_model, default_model_path
+from cekm_swarm.experiments.navigation import run_scenario
+from cekm_swarm.protocol import DEFAULT_KEYS as K
+from cekm_swarm.protocol import Clock, MessageError, decode
+from cekm_swarm.protocol.drops import MAX_SOURCES
+from cekm_swarm.runtime.config import open_client
+from world import load_scenario
+
+from fuzz_corpus import Fuzz, make_corpus
+from test_launch_support import LaunchProcess
+
+SEED = 1
+START_TICK = 20  # fuzz from here: a stamp of the run's first ticks is then outside every window
+FENCE = "cekm/fuzz/fence"
+
+
+class Clockwatch:
+    """The world's tick, from ``world/clock`` (only the world's own clock messages).
+
+    Samples wait in a ring channel that a thread of ours empties: Zenoh's receiving thread
+    then never needs this process's GIL. With a callback, it did: while the main thread
+    sat in a blocking put holding the GIL, the receiving thread could not take the world's
+    clock, the router's queue towards us filled, and with the world publishing with
+    congestion control BLOCK the router stalled until our lease ran out (10 s)."""
+
+    def __init__(self, session: zenoh.Session) -> None:
+        self.tick = -1
+        self.changed = threading.Condition()
+        self.sub = session.declare_subscriber(K.world_clock(), zenoh.handlers.RingChannel(16),
+                                              allowed_origin=zenoh.Locality.REMOTE)
+        threading.Thread(target=self._read, daemon=True).start()
+
+    def _read(self) -> None:
+        try:
+            for sample in self.sub:
+                try:
+                    msg = decode(K.world_clock(), sample.payload.to_bytes())
+                except MessageError:
+                    continue
+                if isinstance(msg, Clock) and msg.sender == "world" and msg.tick > self.tick:
+                    with self.changed:
+                        self.tick = msg.tick
+                        self.changed.notify_all()
+        except Exception:  # noqa: BLE001 - the subscriber was undeclared
+            pass
+
+    def wait_past(self, tick: int, timeout: float) -> int:
+        with self.changed:
+            assert self.changed.wait_for(lambda: self.tick > tick, timeout), f"the world never passed tick {tick}"
+            return self.tick
+
+
+def fuzz(port: int, total: int, batch: int, neurons: int, seed: int, paced: bool) -> tuple[list[Fuzz], int]:
+    """Publish ``total`` malformed messages in batches, each built at the world's latest
+    tick (``paced``: one batch per tick), then a fence; returns what was sent (fence
+    included) and the tick at which the last batch was built."""
+    rng = np.random.default_rng(seed)
+    session = open_client(f"tcp/127.0.0.1:{port}")
+    block = getattr(zenoh.CongestionControl, __import__("os").environ.get("FUZZ_CC", "BLOCK"))  # nothing of ours lost on the way: the accounting is exact
+    sent: list[Fuzz] = []
+    try:
+        clock = Clockwatch(session)
+        tick = clock.wait_past(START_TICK - 1, timeout=60)
+        while len(sent) < total:
+            for f in make_corpus(rng, min(batch, total - len(sent)), tick, ["r1"], neurons, start=len(sent)):
+                session.put(f.key, f.payload, congestion_control=block)
+                sent.append(f)
+            tick = clock.wait_past(tick, timeout=30) if paced else max(tick, clock.tick)
+        session.put(FENCE, b"fence", congestion_control=block)
+        sent.append(Fuzz(FENCE, b"fence", "invented key"))
+        clock.wait_past(tick + 10, timeout=30)  # before closing: what is queued in our session goes out
+        clock.sub.undeclare()
+    finally:
+        session.close()
+    return sent, tick
+
+
+def module_listens() -> dict[str, str]:
+    """Each r1 module's subscription."""
+    out = {"target": K.sense_target("r1"), "motor": "cekm/r1/field/**"}
+    out.update({f"obstacle-{j}": K.sense_range("r1", j) for j in range(12)})
+    return out
+
+
+def receiving(expr: str, sent: list[Fuzz]) -> int:
+    ke = zenoh.KeyExpr(expr)
+    return sum(ke.intersects(zenoh.KeyExpr(f.key)) for f in sent)
+
+
+def module_drops(out: Path, name: str) -> dict:
+    text = (out / "logs" / f"r1-{name}.log").read_text()
+    (doc,) = re.findall(r"DROPS (\{.*\})", text)
+    return json.loads(doc)
+
+
+def fuzz_in_log(out: Path) -> Counter:
+    """The fuzz messages the world recorded, by class of their key."""
+    from mcap.reader import make_reader
+
+    found: Counter = Counter()
+    with open(out / "run.mcap", "rb") as f:
+        for _, channel, m in make_reader(f).iter_messages():
+            if channel.message_encoding != "msgpack":
+                continue
+            msg = decode(channel.topic, m.data)  # everything in the log decodes
+            if msg.sender.startswith("fuzz-"):
+                found[int(msg.sender[5:])] += 1
+    return found
+
+
+def check_accounting(run: LaunchProcess, sent: list[Fuzz]) -> dict[str, int]:
+    """Every fuzzed message is counted by every receiver it reached, exactly: dropped, or
+    (at the world's recorder, only for the class it cannot refuse) in the log."""
+    outcome = run.outcome()
+    assert outcome["launcher"]["restarts"] == {}, outcome["launcher"]  # every process survived
+    drops = outcome["drops"]
+    n_rec = sum(drops["recorder"].values())
+    assert FENCE in drops["recorder"] or "(other sources)" in drops["recorder"], (n_rec, len(drops["recorder"]),
+                                                                                  outcome["recorded_messages"])
+    recorded = fuzz_in_log(run.out)
+    assert all(sent[i].decodes for i in recorded), [sent[i].cls for i in recorded if not sent[i].decodes]
+    assert set(recorded.values()) <= {1}
+    counts = {"world recorder": sum(drops["recorder"].values()), "world commands": sum(drops["commands"].values())}
+    assert counts["world recorder"] + len(recorded) == len(sent)
+    assert counts["world commands"] == receiving(K.cmd_wheels_all(), sent)
+    for name, expr in module_listens().items():
+        doc = module_drops(run.out, name)
+        counts[name] = sum(doc["dropped"].values())
+        assert counts[name] == receiving(expr, sent), (name, doc, receiving(expr, sent))
+        assert doc["handled"] >= counts[name]
+    # the warning lines stay bounded: one per source that had drops, sources capped
+    for log in (run.out / "logs").glob("*.log"):
+        warnings = sum(" WARNING " in line for line in log.read_text().splitlines())
+        limit = 2 * (MAX_SOURCES + 1) + 10 if log.name == "world.log" else MAX_SOURCES + 3
+        assert warnings <= limit, (log.name, warnings)
+    return counts
+
+
+@pytest.fixture(scope="module")
+def lockstep_fuzzed(tmp_path_factory):
+    model = default_model(progress=False)
+    out = tmp_path_factory.mktemp("fuzz-lockstep")
+    run = LaunchProcess("concave", out, "--mode", "lockstep", "--seed", str(SEED), "--max-time", "40",
+                        "--model", str(default_model_path()), "--no-plot")
+    try:
+        run.wait_line("world started ticking", timeout=90)
+        sent, last_tick = fuzz(run.port, 10_000, 250, model.w.shape[0], seed=11, paced=False)
+        code = run.finish(timeout=120)
+    finally:
+        run.kill()
+    assert code == 0, "\n".join(run.lines)
+    return run, model, sent, last_tick
+
+
+def test_lockstep_fuzz_changes_nothing_and_every_message_is_counted(lockstep_fuzzed):
+    run, model, sent, last_tick = lockstep_fuzzed
+    assert len(sent) > 10_000 and len({f.key for f in sent}) > MAX_SOURCES  # more sources than a counter tells apart
+    assert {f.cls for f in sent} >= {"not msgpack", "not a map", "schema version", "missing field", "extra field",
+                                     "wrong type", "non-finite", "bogus stamp", "wrong kind", "wrong length",
+                                     "oversized", "nested", "invented key"}
+    # the bit-for-bit outcome of the in-process run
+    ref = run_scenario(load_scenario("concave"), "cekm", model, SEED, max_time=40)
+    traj = json.loads((run.out / "trajectory.json").read_text())["r1"]
+    log = ref.logs["r1"]
+    assert last_tick < len(log.t) - 1, "the run ended before the fuzz did"
+    assert traj["t"] == log.t
+    assert traj["x"] == log.x and traj["y"] == log.y and traj["theta"] == log.theta
+    assert traj["v_l"] == log.v_l and traj["v_r"] == log.v_r
+    assert run.outcome()["robots"] == json.loads(json.dumps(ref.outcome))
+    counts = check_accounting(run, sent)
+    print("lockstep fuzz:", len(sent), "messages;", counts)
+
+
+@pytest.fixture(scope="module")
+def realtime_fuzzed(tmp_path_factory):
+    model = default_model(progress=False)
+    out = tmp_path_factory.mktemp("fuzz-realtime")
+    run = LaunchProcess("lone_obstacle", out, "--mode", "realtime", "--seed", str(SEED), "--max-time", "6",
+                        "--model", str(default_model_path()), "--no-plot")
+    try:
+        run.wait_line("world started ticking", timeout=90)
+        sent, last_tick = fuzz(run.port, 1_500, 75, model.w.shape[0], seed=12, paced=True)
+        code = run.finish(timeout=120)
+    finally:
+        run.kill()
+    assert code == 0, "\n".join(run.lines)
+    return run, sent, last_tick
+
+
+def test_realtime_fuzz_stops_no_robot_and_every_message_is_counted(realtime_fuzzed):
+    run, sent, last_tick = realtime_fuzzed
+    outcome = run.outcome()
+    traj = json.loads((run.out / "trajectory.json").read_text())["r1"]
+    assert last_tick < len(traj["t"]) - 1, "the run ended before the fuzz did"
+    assert not [e for e in outcome["events"] if e["event"] == "deadman"], outcome["events"]
+    # the robot drove on through the fuzz: a far-future stamp made every field stale before
+    moving = [(vl, vr) != (0.0, 0.0) for vl, vr in zip(traj["v_l"][START_TICK:], traj["v_r"][START_TICK:])]
+    assert all(moving), moving.index(False)
+    counts = check_accounting(run, sent)
+    print("real-time fuzz:", len(sent), "messages;", counts)
