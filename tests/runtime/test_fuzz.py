@@ -35,7 +35,8 @@ from world import load_scenario
 from fuzz_corpus import Fuzz, make_corpus
 from test_launch_support import LaunchProcess
 
-SEED = 1
+SEED = 4  # the robot does not reach the goal on this seed (README table): a long run to fuzz
+MAX_TIME = "40"  # s of sim time: 313 ticks
 START_TICK = 20  # fuzz from here: a stamp of the run's first ticks is then outside every window
 FENCE = "cekm/fuzz/fence"
 
@@ -82,7 +83,7 @@ def fuzz(port: int, total: int, batch: int, neurons: int, seed: int, paced: bool
     included) and the tick at which the last batch was built."""
     rng = np.random.default_rng(seed)
     session = open_client(f"tcp/127.0.0.1:{port}")
-    block = getattr(zenoh.CongestionControl, __import__("os").environ.get("FUZZ_CC", "BLOCK"))  # nothing of ours lost on the way: the accounting is exact
+    block = zenoh.CongestionControl.BLOCK  # nothing of ours lost on the way: the accounting is exact
     sent: list[Fuzz] = []
     try:
         clock = Clockwatch(session)
@@ -166,11 +167,11 @@ def check_accounting(run: LaunchProcess, sent: list[Fuzz]) -> dict[str, int]:
 def lockstep_fuzzed(tmp_path_factory):
     model = default_model(progress=False)
     out = tmp_path_factory.mktemp("fuzz-lockstep")
-    run = LaunchProcess("concave", out, "--mode", "lockstep", "--seed", str(SEED), "--max-time", "40",
+    run = LaunchProcess("concave", out, "--mode", "lockstep", "--seed", str(SEED), "--max-time", MAX_TIME,
                         "--model", str(default_model_path()), "--no-plot")
     try:
         run.wait_line("world started ticking", timeout=90)
-        sent, last_tick = fuzz(run.port, 10_000, 250, model.w.shape[0], seed=11, paced=False)
+        sent, last_tick = fuzz(run.port, 10_000, 50, model.w.shape[0], seed=11, paced=True)
         code = run.finish(timeout=120)
     finally:
         run.kill()
@@ -185,7 +186,7 @@ def test_lockstep_fuzz_changes_nothing_and_every_message_is_counted(lockstep_fuz
                                      "wrong type", "non-finite", "bogus stamp", "wrong kind", "wrong length",
                                      "oversized", "nested", "invented key"}
     # the bit-for-bit outcome of the in-process run
-    ref = run_scenario(load_scenario("concave"), "cekm", model, SEED, max_time=40)
+    ref = run_scenario(load_scenario("concave"), "cekm", model, SEED, max_time=float(MAX_TIME))
     traj = json.loads((run.out / "trajectory.json").read_text())["r1"]
     log = ref.logs["r1"]
     assert last_tick < len(log.t) - 1, "the run ended before the fuzz did"
@@ -201,11 +202,11 @@ def test_lockstep_fuzz_changes_nothing_and_every_message_is_counted(lockstep_fuz
 def realtime_fuzzed(tmp_path_factory):
     model = default_model(progress=False)
     out = tmp_path_factory.mktemp("fuzz-realtime")
-    run = LaunchProcess("lone_obstacle", out, "--mode", "realtime", "--seed", str(SEED), "--max-time", "6",
+    run = LaunchProcess("lone_obstacle", out, "--mode", "realtime", "--seed", "1", "--max-time", "8",
                         "--model", str(default_model_path()), "--no-plot")
     try:
         run.wait_line("world started ticking", timeout=90)
-        sent, last_tick = fuzz(run.port, 1_500, 75, model.w.shape[0], seed=12, paced=True)
+        sent, last_tick = fuzz(run.port, 1_500, 100, model.w.shape[0], seed=12, paced=True)
         code = run.finish(timeout=120)
     finally:
         run.kill()
