@@ -51,7 +51,7 @@ def certs(tmp_path_factory) -> Path:
     """A run folder holding certs/ (the run's CA) and other-ca/ (a second, unrelated CA)."""
     root = tmp_path_factory.mktemp("tls-run")
     for sub in ("certs", "other-ca"):
-        done = make_certs(root / sub)
+        done = make_certs(root / sub, hosts=None if sub == "certs" else "r1")
         assert done.returncode == 0, done.stderr
     return root
 
