@@ -3,7 +3,9 @@ joined by veth pairs. The world host runs the Zenoh router of deploy/tls/router.
 (mutual TLS, access control) and deploy/launch-hosts.sh's world launcher; robot r1's and
 robot r2's hosts each run launch-hosts.sh for their robot, joining the router by its
 address on their link. Each host logs in with its own deploy/tls/ config and
-certificate. The lockstep outcome equals the one-process run bit for bit.
+certificate. Once the world ticks, r1's link is cut for 2 s (shorter than Zenoh's 10 s
+lease: the TLS connection survives, TCP retransmits). The lockstep outcome still equals
+the one-process run bit for bit.
 
 Topology (addresses exist only inside these namespaces; nothing leaves the machine):
 
@@ -35,6 +37,7 @@ REPO = Path(__file__).resolve().parents[2]
 DEPLOY = REPO / "deploy"
 SEED = 2
 MAX_TIME = 30.0
+OUTAGE = 2.0
 ROBOTS = ("r1", "r2")
 WORLD_ADDR = {"r1": "10.199.1.1", "r2": "10.199.2.1"}
 ROBOT_ADDR = {"r1": "10.199.1.2", "r2": "10.199.2.2"}
@@ -152,6 +155,7 @@ class Hosts:
         tag = f"{os.getpid() % 100000}"
         self.ns = {h: f"cekm{tag}-{h}" for h in ("world", *ROBOTS)}
         self.procs: list[NsProcess] = []
+        self.ifs = {r: f"ck{tag}{r}" for r in ROBOTS}
         for ns in self.ns.values():
             self._ok(ip("netns", "add", ns))
             self._ok(ip("-n", ns, "link", "set", "lo", "up"))
@@ -168,6 +172,10 @@ class Hosts:
     def _ok(done: subprocess.CompletedProcess) -> None:
         if done.returncode != 0:
             raise RuntimeError(f"{' '.join(done.args)}: {done.stderr.strip()}")
+
+    def link(self, robot: str, up: bool) -> None:
+        """Bring robot's end of its link down or up (as a pulled cable)."""
+        self._ok(ip("-n", self.ns[robot], "link", "set", self.ifs[robot], "up" if up else "down"))
 
     def start(self, host: str, argv: list[str], env: dict[str, str], cwd: Path, stdin: bool = False) -> NsProcess:
         p = NsProcess(self.ns[host], argv, env, cwd, stdin)
@@ -245,6 +253,12 @@ def test_world_host_and_two_robot_hosts_in_network_namespaces_over_mutual_tls(ho
     robots = {r: hosts.start(r, [str(DEPLOY / "launch-hosts.sh"), r, WORLD_ADDR[r], *opts],
                              dict(base, OUT=str(run / "host"), ZENOH_CONFIG=str(DEPLOY / "tls" / f"robot-{r}.json5")),
                              run) for r in ROBOTS}
+    world.wait_line("world started ticking", timeout=120)
+    t_cut = time.monotonic()
+    hosts.link("r1", up=False)
+    time.sleep(OUTAGE)
+    hosts.link("r1", up=True)
+    t_up = time.monotonic()
     assert world.finish(timeout=240) == 0, "\n".join(world.lines)
     wall = time.monotonic() - t0
     for r, p in robots.items():
@@ -260,4 +274,10 @@ def test_world_host_and_two_robot_hosts_in_network_namespaces_over_mutual_tls(ho
         # Each robot host ran its own robot's modules (one log each, OUT/logs/ROBOT-MODULE.log) and no other's.
         logs = {p.name.split("-")[0] for p in (run / f"host-{r}" / "logs").glob("*-*.log")}
         assert logs == {r}, logs
-    print(f"three-namespace TLS run: {wall:.1f} s wall from router start to the world's end")
+    # The cut hit the run: the lockstep world waited for r1 (and republished its readings).
+    assert any("republish" in line and "'r1'" in line for line in world.lines), "\n".join(world.lines)
+    for line in world.lines:
+        if "modules alive after" in line or "world done" in line:
+            print(line)
+    print(f"three-namespace TLS run: {wall:.1f} s wall from router start to the world's end; "
+          f"r1's link down {t_up - t_cut:.1f} s")
