@@ -257,3 +257,14 @@ def test_split_launch_over_mutual_tls_and_an_intruder_changes_nothing(tls_router
     senders = {decode(K.cmd_wheels("r1"), m.data).sender for m in read_messages(log, topics=[K.cmd_wheels("r1")])}
     assert markers > 10, f"the intruder's allowed markers were recorded {markers} times: it ran during the run"
     assert senders == {"r1/motor"}, senders
+
+
+def test_a_missing_certificate_file_is_named(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # no certs/ here
+    with pytest.raises(RuntimeTransportError, match=r"robot-r1.json5: transport/link/tls/root_ca_certificate: "
+                                                    r"no such file 'certs/ca.pem' \(relative to the working directory"):
+        load_config(TLS / "robot-r1.json5")
+    (tmp_path / "certs").mkdir()
+    (tmp_path / "certs" / "ca.pem").write_text("")
+    with pytest.raises(RuntimeTransportError, match="connect_certificate: no such file 'certs/r1.pem'"):
+        load_config(TLS / "robot-r1.json5")
