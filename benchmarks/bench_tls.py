@@ -58,6 +58,7 @@ def measure(router_config: zenoh.Config, client: Callable[[], zenoh.Config], ope
     """Median session-open time (ms), median and 99th-percentile round trip (us)."""
     router = open_session(router_config, "router")
     try:
+        open_session(client(), "warm-up").close()  # the process's first session pays one-off costs
         open_ms = []
         for _ in range(opens):
             t = time.perf_counter()
