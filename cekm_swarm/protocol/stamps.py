@@ -41,6 +41,13 @@ def stamp_problem(stamp: object, now: float | None, past: float = PAST_S, future
                   grid: bool = True) -> str | None:
     """Why ``stamp`` is not believable at sim time ``now`` (None: it is). ``now`` None:
     only the absolute bounds (and the grid) apply."""
+    if (type(stamp) is float and 0.0 <= stamp <= MAX_STAMP_S  # the common case first: a few comparisons
+            and (now is None or now - past - _GRID_TOL <= stamp <= now + future + _GRID_TOL)):
+        if not grid:
+            return None
+        k = round(stamp / TICK_S)
+        if abs(stamp - round(k * TICK_S, 9)) <= _GRID_TOL:
+            return None
     if type(stamp) is not float and type(stamp) is not int:
         return f"stamp {stamp!r} is not a number"
     if not math.isfinite(stamp):
