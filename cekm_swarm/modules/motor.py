@@ -162,6 +162,8 @@ class MotorState:
     def _put_lockstep(self, msg: TargetField | ObstacleField) -> list[tuple[float, float, float]]:
         stamp = msg.stamp
         if stamp < self.sent_stamp:
+            if isinstance(msg, TargetField) and stamp == self.target_stamp_for(self.sent_stamp):
+                return []  # the world re-published the target reading the answered (odd) tick used
             return self._refuse(msg, f"field of tick {stamp} after tick {self.sent_stamp} was answered")
         self.newest = max(self.newest, stamp)
         if isinstance(msg, TargetField):

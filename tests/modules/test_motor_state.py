@@ -92,6 +92,8 @@ def test_lockstep_keeps_fields_per_tick_so_a_stray_stamp_displaces_nothing():
     assert out[-1] == (t1, 2.0, 12.0)
     assert m.put(obstacle(t0, 3)) == [] and dropped == [(t0, dropped[0][1])]
     assert "answered" in dropped[0][1]
+    # the target reading tick 1 used, re-published while the world waits for tick 2: not a drop
+    assert m.put(target(t0)) == [] and len(dropped) == 1
     assert m.missing(t5) == ["target"] + [f"obstacle-{j}" for j in range(1, N)]
 
 
