@@ -333,7 +333,7 @@ class Launcher:
             await world_reader
             code = await self.world_proc.wait()
             if code not in (0, 3):
-                self.say(f"world server ended with code {code}; see {c.out / 'logs' / 'world.log'}")
+                self._world_died(code)
         finally:
             self.stopping = True
             if self.world_proc is not None and self.world_proc.returncode is None:
@@ -412,6 +412,27 @@ class Launcher:
             if line.startswith(b"READY "):
                 return
             self.say(f"world: {line.decode(errors='replace').rstrip()}")
+
+    def _world_died(self, code: int) -> None:
+        """The world server ended abnormally (killed, crashed): say so, and make ``run.mcap``
+        a complete, indexed log again if the world could not close it (the cut file is kept
+        as ``run.truncated.mcap``). The run ends: nothing else can tick the world."""
+        from cekm_swarm.runtime.mcap_log import is_complete, recover_log
+
+        c = self.c
+        why = f"was killed by signal {-code}" if code < 0 else f"ended with exit code {code}"
+        self.say(f"the world server {why}; the run ends (see {c.out / 'logs' / 'world.log'})")
+        log_path = c.out / "run.mcap"
+        try:
+            if not log_path.is_file() or is_complete(log_path):
+                return
+            cut = log_path.with_name("run.truncated.mcap")
+            log_path.replace(cut)
+            rep = recover_log(cut, log_path)
+            self.say(f"recovered the world's log: {rep.messages} messages on {rep.channels} channels into "
+                     f"{log_path} ({cut.name} is the file as the world left it)")
+        except CekmError as exc:
+            self.say(f"could not recover the world's log: {exc}")
 
     def _world_ended(self) -> bool:
         return self.world_proc is not None and self.world_proc.returncode is not None

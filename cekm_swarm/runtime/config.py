@@ -76,6 +76,25 @@ def _common(config: zenoh.Config) -> None:
     _insert(config, "transport/shared_memory/enabled", False)
 
 
+RECONNECT_RETRY = {"period_init_ms": 250, "period_max_ms": 1000, "period_increase_factor": 2.0}
+"""How a client retries its router after losing it (Zenoh's ``connect/retry``): first after
+0.25 s, then doubling up to every 1 s, for ever. A client reconnects by itself, and Zenoh
+re-declares its subscriptions, publishers, queryables and liveliness tokens on the new
+link, so a router restart costs at most about 1 s after the router is back (Zenoh's
+default backs off to 4 s). The first connection is not retried: opening a session still
+fails at once when nothing listens."""
+
+
+def _reconnect(config: zenoh.Config) -> None:
+    """Set :data:`RECONNECT_RETRY` unless the config (a user's file) sets its own."""
+    try:
+        own = json.loads(config.get_json("connect/retry"))
+    except Exception:
+        own = None
+    if own is None:
+        _insert(config, "connect/retry", RECONNECT_RETRY)
+
+
 def check_endpoint(endpoint: str) -> str:
     """Return ``endpoint`` if it looks like a Zenoh locator ``proto/host:port``."""
     proto, sep, rest = endpoint.partition("/")
@@ -122,6 +141,7 @@ def client_config(endpoint: str = DEFAULT_ENDPOINT, *, user: str | None = None,
     _insert(config, "mode", "client")
     _insert(config, "connect/endpoints", [check_endpoint(endpoint)])
     _common(config)
+    _reconnect(config)
     if (user is None) != (password is None):
         raise RuntimeTransportError("client config: give both user and password, or neither")
     if user is not None:
@@ -176,6 +196,7 @@ def client_config_from_file(path: str | Path, endpoint: str = DEFAULT_ENDPOINT) 
         raise RuntimeTransportError(f"zenoh config {path}: mode is {mode!r}; a process joins as 'client'")
     _insert(config, "mode", "client")
     _common(config)
+    _reconnect(config)
     return config
 
 

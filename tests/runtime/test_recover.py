@@ -78,3 +78,52 @@ def test_log_recover_command_on_a_killed_writer(tmp_path, helpers):
     bad.write_bytes(b"not mcap")
     err = CliRunner().invoke(cli, ["log", "recover", str(bad), str(tmp_path / "x.mcap")])
     assert err.exit_code != 0 and "bad.mcap: not an MCAP file" in err.output
+
+
+def test_sigkilled_world_server_loses_at_most_one_second(tmp_path, clients, router):
+    """The world server alone in real time (its readings go out whether or not a robot
+    answers), joined to a router, a subscriber beside it: SIGKILL the world mid-run, recover
+    its log, and find in it every message the subscriber saw, up to 1 s (of sim time, which
+    is wall time in real time) before the last one."""
+    import subprocess
+    import sys
+    import threading
+
+    from cekm_swarm.protocol import DEFAULT_KEYS as K
+    from cekm_swarm.protocol import peek
+
+    seen: list[tuple[str, float, bytes]] = []
+    enough = threading.Event()
+
+    def on_sample(sample):
+        payload = sample.payload.to_bytes()
+        _, stamp = peek(payload)
+        seen.append((str(sample.key_expr), stamp, payload))
+        if stamp is not None and stamp >= 3.0:
+            enough.set()
+
+    session = clients()
+    sub = session.declare_subscriber(K.everything(), on_sample)  # before tick 0: the world waits for it
+    out = tmp_path / "world"
+    world = subprocess.Popen([sys.executable, "-m", "world.server", "lone_obstacle", "--connect", router,
+                              "--out", str(out), "--mode", "realtime", "--max-time", "60", "--match-timeout", "30"],
+                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        assert enough.wait(60), f"the world did not reach 3 s of sim time ({len(seen)} messages seen)"
+        world.send_signal(signal.SIGKILL)
+        world.wait(timeout=10)
+    finally:
+        if world.poll() is None:
+            world.kill()
+    sub.undeclare()
+    log = out / "run.mcap"
+    assert not is_complete(log)
+    report = recover_log(log, tmp_path / "recovered.mcap")
+    assert not report.input_complete and is_complete(report.output)
+    last = max(s for _, s, _ in seen if s is not None)
+    logged = [(m.topic, m.log_time, m.data) for m in read_messages(report.output) if m.message_encoding == "msgpack"]
+    cutoff = last - 1.0
+    saw = sorted((k, round(s * 1e9), p) for k, s, p in seen if s is not None and s <= cutoff)
+    kept = sorted(m for m in logged if m[1] <= round(cutoff * 1e9))
+    assert saw and kept == saw  # every message up to 1 s before the kill, and nothing else
+    assert max(t for _, t, _ in logged) >= round(cutoff * 1e9)
