@@ -1,0 +1,111 @@
+"""Router and world restarts, end to end with ``cekm launch --connect`` to an outside
+router (a separate process, killed and started again on the same port) and real module
+processes:
+
+- lockstep: the router is SIGKILLed as the world starts ticking; the world re-publishes
+  the waiting tick until the restarted router carries the modules' answers, and the
+  trajectory still equals the in-process run bit for bit;
+- real time: the router is SIGKILLed mid-run; the dead-man stops the robot during the gap,
+  every process reconnects by itself, and the robot drives on; then the world server is
+  SIGKILLed: the launcher ends the run with a clear message and a recovered, indexed log.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import re
+import signal
+
+import pytest
+
+from cekm_swarm.experiments.default_model import default_model, default_model_path
+from cekm_swarm.runtime.config import free_port
+from cekm_swarm.runtime.mcap_log import is_complete, read_messages
+
+from test_launch_support import LaunchProcess
+
+SEED = 1
+PROGRESS = re.compile(r" t=\s*([0-9.]+) s\s+r1 \(([-0-9.]+), ([-0-9.]+)\) (STOPPED|reached|([0-9.]+) m to goal)")
+
+
+def progress(line: str) -> tuple[float, str, float | None, tuple[float, float]] | None:
+    """(t, state, m to goal, (x, y)) of a launcher progress line of r1, None for other lines."""
+    m = PROGRESS.search(line)
+    if m is None:
+        return None
+    return float(m.group(1)), m.group(4), float(m.group(5)) if m.group(5) else None, \
+        (float(m.group(2)), float(m.group(3)))
+
+
+def test_lockstep_resumes_after_a_router_restart_and_equals_the_in_process_run(tmp_path, helpers):
+    from cekm_swarm.experiments.navigation import run_scenario
+    from world import load_scenario
+
+    model = default_model(progress=False)
+    port = free_port()
+    endpoint = f"tcp/127.0.0.1:{port}"
+    router = helpers("router", str(port))
+    router.expect("READY")
+    run = LaunchProcess("concave", tmp_path / "run", "--connect", endpoint, "--mode", "lockstep", "--seed", str(SEED),
+                        "--max-time", "10", "--model", str(default_model_path()), "--no-plot")
+    try:
+        run.wait_line("world started ticking", timeout=90)
+        os.kill(router.proc.pid, signal.SIGKILL)
+        router.proc.wait(timeout=10)
+        # the world waits for the tick's commands, then re-publishes its readings (into the void)
+        run.wait_line("republish", timeout=30)
+        helpers("router", str(port)).expect("READY")
+        code = run.finish(timeout=120)
+    finally:
+        run.kill()
+    assert code == 0, "\n".join(run.lines)
+    outcome = run.outcome()
+    assert outcome["republished"] >= 1 and not outcome["aborted"]
+    assert not outcome["launcher"]["restarts"]  # no process died: they reconnected
+    ref = run_scenario(load_scenario("concave"), "cekm", model, SEED, max_time=10)
+    traj = json.loads((run.out / "trajectory.json").read_text())["r1"]
+    log = ref.logs["r1"]
+    assert traj["t"] == log.t and traj["x"] == log.x and traj["y"] == log.y and traj["theta"] == log.theta
+    assert traj["v_l"] == log.v_l and traj["v_r"] == log.v_r
+
+
+def test_real_time_goes_on_after_a_router_restart_and_a_killed_world_ends_the_run(tmp_path, helpers):
+    from cekm_swarm.protocol import DEFAULT_KEYS as K
+
+    default_model(progress=False)
+    port = free_port()
+    endpoint = f"tcp/127.0.0.1:{port}"
+    router = helpers("router", str(port))
+    router.expect("READY")
+    run = LaunchProcess("lone_obstacle", tmp_path / "run", "--connect", endpoint, "--mode", "realtime",
+                        "--max-time", "60", "--model", str(default_model_path()), "--no-plot")
+    try:
+        run.wait_line("world started ticking", timeout=90)
+        while (p := progress(run.wait_line(" t=", timeout=20))) is None or p[0] < 1.0 or p[2] is None:
+            pass
+        os.kill(router.proc.pid, signal.SIGKILL)
+        router.proc.wait(timeout=10)
+        stopped_at = float(re.search(r"world event at t=([0-9.]+) s: deadman", run.wait_line("deadman", 30)).group(1))
+        while (p := progress(run.wait_line(" t=", timeout=20))) is None or p[1] != "STOPPED":
+            pass
+        where = p[3]
+        helpers("router", str(port)).expect("READY")
+        # the robot drives on: a progress line not STOPPED, 2 cm or more from where it stopped
+        while (p := progress(run.wait_line(" t=", timeout=30))) is None or p[1] == "STOPPED" or \
+                math.dist(p[3], where) < 0.02:
+            pass
+        os.kill(run.pids()["world/server"], signal.SIGKILL)
+        code = run.finish(timeout=60)
+    finally:
+        run.kill()
+    text = "\n".join(run.lines)
+    assert code != 0, text
+    assert "the world server was killed by signal 9; the run ends" in text
+    assert "recovered the world's log" in text and "the run left no outcome" in text
+    log, cut = run.out / "run.mcap", run.out / "run.truncated.mcap"
+    assert is_complete(log) and not is_complete(cut)
+    # the world heard the robot's commands again after the gap: its subscriptions came back
+    stamps = [m.log_time / 1e9 for m in read_messages(log, topics=[K.cmd_wheels("r1")])]
+    assert any(t > stopped_at + 0.5 for t in stamps), (stopped_at, stamps[-5:])
