@@ -45,6 +45,7 @@ BACKOFF_MAX = 5.0
 HEALTHY_AFTER = 5.0  # s: a module up this long gets its back-off reset
 ALIVE_TIMEOUT = 180.0
 STOP_GRACE = 5.0
+ROUTER_GRACE = 10.0  # s a robots-only host with --connect waits for a lost router and the world to come back
 
 
 @dataclass
@@ -452,6 +453,8 @@ class Launcher:
                 event = await watcher.next_event(timeout=1.0)
             except asyncio.TimeoutError:
                 if seen and not session.info.routers_zid():
+                    if await self._router_back(watcher, world_key, session):
+                        continue
                     self.say("the world server has ended (its host's Zenoh router is gone)")
                     return
                 continue
@@ -461,8 +464,27 @@ class Launcher:
                 self.say("the world server is up")
                 seen = True
             elif not event.alive:
+                if await self._router_back(watcher, world_key, session):
+                    continue
                 self.say("the world server has ended")
                 return
+
+    async def _router_back(self, watcher: LivelinessWatcher, world_key: str, session: Any) -> bool:
+        """The world's token went with the router: with ``--connect`` (an outside router,
+        which may be restarted) wait up to :data:`ROUTER_GRACE` s for the world's token to
+        come back (Zenoh clients reconnect and re-declare their tokens by themselves). True
+        if it did; False at once if the router is still there (the world really ended) or
+        when this host serves its own router."""
+        if not self.c.connect or session.info.routers_zid():
+            return False
+        self.say(f"lost the Zenoh router; waiting up to {ROUTER_GRACE:.0f} s for it and the world server to come back")
+        t0 = time.monotonic()
+        try:
+            await watcher.wait_for(world_key, True, ROUTER_GRACE)
+        except asyncio.TimeoutError:
+            return False
+        self.say(f"reconnected: the world server is up again after {time.monotonic() - t0:.1f} s")
+        return True
 
     def _interrupt(self) -> None:
         if self.interrupted:

@@ -109,3 +109,63 @@ def test_real_time_goes_on_after_a_router_restart_and_a_killed_world_ends_the_ru
     # the world heard the robot's commands again after the gap: its subscriptions came back
     stamps = [m.log_time / 1e9 for m in read_messages(log, topics=[K.cmd_wheels("r1")])]
     assert any(t > stopped_at + 0.5 for t in stamps), (stopped_at, stamps[-5:])
+
+
+def test_a_robots_only_host_waits_out_a_router_restart(tmp_path):
+    """``Launcher._serve_until_world_ends`` with ``--connect``, driven by scripted events:
+    the world's token goes with the router (no router: keep waiting), comes back when the
+    router does, and only a later disappearance with the router up ends the wait."""
+    import asyncio
+    from types import SimpleNamespace
+
+    from cekm_swarm.launch.launcher import LaunchConfig, Launcher
+    from cekm_swarm.protocol import DEFAULT_KEYS as K
+    from cekm_swarm.runtime.bridge import LivelinessEvent
+
+    world = K.alive("world", "server")
+    routers: list[str] = ["a1"]
+    session = SimpleNamespace(info=SimpleNamespace(routers_zid=lambda: list(routers)))
+
+    class Watcher:
+        def __init__(self) -> None:
+            self.events = [LivelinessEvent(world, True, 0.0)]
+            self.alive: set[str] = set()
+            self.later: list[LivelinessEvent] = []
+
+        async def next_event(self, timeout: float | None = None) -> LivelinessEvent:
+            await asyncio.sleep(0)
+            if not self.events:
+                raise asyncio.TimeoutError
+            ev = self.events.pop(0)
+            (self.alive.add if ev.alive else self.alive.discard)(ev.key)
+            return ev
+
+        async def wait_for(self, key: str, alive: bool = True, timeout: float | None = None) -> None:
+            for _ in range(50):  # the router comes back (in the test: on the 10th look)
+                if (key in self.alive) == alive:
+                    return
+                await asyncio.sleep(0)
+                if _ == 10:
+                    routers.append("a2")
+                    self.alive.add(world)
+                    self.events += [LivelinessEvent(world, True, 2.0), LivelinessEvent(world, False, 3.0)]
+            raise asyncio.TimeoutError
+
+    watcher = Watcher()
+    said: list[str] = []
+    launcher = Launcher(LaunchConfig("lone_obstacle", tmp_path, connect="tcp/127.0.0.1:7447"), echo=said.append)
+    launcher.startup_s = 1.0
+
+    async def scenario() -> None:
+        task = asyncio.ensure_future(launcher._serve_until_world_ends(watcher, 14, session))
+        await asyncio.sleep(0.01)
+        routers.clear()  # the router is killed: the world's token goes with it
+        watcher.events.append(LivelinessEvent(world, False, 1.0))
+        await asyncio.wait_for(task, 5)
+
+    asyncio.run(scenario())
+    lines = [s.split("] ", 1)[1] for s in said[1:]]
+    assert lines[0] == "the world server is up"
+    assert lines[1].startswith("lost the Zenoh router; waiting up to 10 s")
+    assert lines[2].startswith("reconnected: the world server is up again after")
+    assert lines[3] == "the world server has ended" and len(lines) == 4
