@@ -39,6 +39,21 @@ def progress(line: str) -> tuple[float, str, float | None, tuple[float, float]] 
         (float(m.group(2)), float(m.group(3)))
 
 
+def test_clients_retry_a_lost_router_unless_their_config_file_says_otherwise(tmp_path):
+    from cekm_swarm.runtime.config import RECONNECT_RETRY, client_config, client_config_from_file
+
+    assert json.loads(client_config("tcp/127.0.0.1:7447").get_json("connect/retry")) == RECONNECT_RETRY
+    plain = tmp_path / "plain.json5"
+    plain.write_text('{mode: "client"}')
+    assert json.loads(client_config_from_file(plain, "tcp/127.0.0.1:7447").get_json("connect/retry")) == \
+        RECONNECT_RETRY
+    own = tmp_path / "own.json5"
+    own.write_text('{mode: "client", connect: {retry: {period_init_ms: 2000, period_max_ms: 8000, '
+                   'period_increase_factor: 2}}}')
+    assert json.loads(client_config_from_file(own, "tcp/127.0.0.1:7447").get_json("connect/retry"))[
+        "period_max_ms"] == 8000
+
+
 def test_lockstep_resumes_after_a_router_restart_and_equals_the_in_process_run(tmp_path, helpers):
     from cekm_swarm.experiments.navigation import run_scenario
     from world import load_scenario
@@ -111,59 +126,59 @@ def test_real_time_goes_on_after_a_router_restart_and_a_killed_world_ends_the_ru
     assert any(t > stopped_at + 0.5 for t in stamps), (stopped_at, stamps[-5:])
 
 
-def test_a_robots_only_host_waits_out_a_router_restart(tmp_path):
-    """``Launcher._serve_until_world_ends`` with ``--connect``, driven by scripted events:
-    the world's token goes with the router (no router: keep waiting), comes back when the
-    router does, and only a later disappearance with the router up ends the wait."""
+def test_a_robots_only_host_waits_out_a_router_restart(tmp_path, helpers):
+    """``Launcher._serve_until_world_ends`` of a robots-only host with ``--connect``, with a
+    real session, liveliness watcher and router: a helper process holds the world server's
+    token; the router is SIGKILLed (the token's DELETE comes with no router: keep waiting)
+    and started again (the token's PUT: the world is back); then the helper is killed with
+    the router up, which ends the wait."""
     import asyncio
-    from types import SimpleNamespace
 
     from cekm_swarm.launch.launcher import LaunchConfig, Launcher
     from cekm_swarm.protocol import DEFAULT_KEYS as K
-    from cekm_swarm.runtime.bridge import LivelinessEvent
+    from cekm_swarm.runtime.bridge import LivelinessWatcher
+    from cekm_swarm.runtime.config import open_client
 
-    world = K.alive("world", "server")
-    routers: list[str] = ["a1"]
-    session = SimpleNamespace(info=SimpleNamespace(routers_zid=lambda: list(routers)))
-
-    class Watcher:
-        def __init__(self) -> None:
-            self.events = [LivelinessEvent(world, True, 0.0)]
-            self.alive: set[str] = set()
-            self.later: list[LivelinessEvent] = []
-
-        async def next_event(self, timeout: float | None = None) -> LivelinessEvent:
-            await asyncio.sleep(0)
-            if not self.events:
-                raise asyncio.TimeoutError
-            ev = self.events.pop(0)
-            (self.alive.add if ev.alive else self.alive.discard)(ev.key)
-            return ev
-
-        async def wait_for(self, key: str, alive: bool = True, timeout: float | None = None) -> None:
-            for _ in range(50):  # the router comes back (in the test: on the 10th look)
-                if (key in self.alive) == alive:
-                    return
-                await asyncio.sleep(0)
-                if _ == 10:
-                    routers.append("a2")
-                    self.alive.add(world)
-                    self.events += [LivelinessEvent(world, True, 2.0), LivelinessEvent(world, False, 3.0)]
-            raise asyncio.TimeoutError
-
-    watcher = Watcher()
+    port = free_port()
+    endpoint = f"tcp/127.0.0.1:{port}"
+    router = helpers("router", str(port))
+    router.expect("READY")
+    world = helpers("token", endpoint, K.alive("world", "server"))
+    world.expect("READY")
     said: list[str] = []
-    launcher = Launcher(LaunchConfig("lone_obstacle", tmp_path, connect="tcp/127.0.0.1:7447"), echo=said.append)
-    launcher.startup_s = 1.0
+    session = open_client(endpoint)
 
     async def scenario() -> None:
-        task = asyncio.ensure_future(launcher._serve_until_world_ends(watcher, 14, session))
-        await asyncio.sleep(0.01)
-        routers.clear()  # the router is killed: the world's token goes with it
-        watcher.events.append(LivelinessEvent(world, False, 1.0))
-        await asyncio.wait_for(task, 5)
+        said_more = asyncio.Event()
 
-    asyncio.run(scenario())
+        def echo(line: str) -> None:
+            said.append(line)
+            said_more.set()
+
+        async def until_said(needle: str) -> None:  # each wait bounded by the scenario's timeout
+            while not any(needle in line for line in said):
+                said_more.clear()
+                await said_more.wait()
+
+        launcher = Launcher(LaunchConfig("lone_obstacle", tmp_path, connect=endpoint), echo=echo)
+        launcher.startup_s = 1.0
+        with LivelinessWatcher(session, K.alive_all()) as watcher:
+            await watcher.wait_for(K.alive("world", "server"), True, 20)
+            task = asyncio.ensure_future(launcher._serve_until_world_ends(watcher, 14, session))
+            os.kill(router.proc.pid, signal.SIGKILL)
+            await asyncio.to_thread(router.proc.wait, 10)
+            await until_said("lost the Zenoh router")
+            assert not task.done(), said
+            await asyncio.to_thread(lambda: helpers("router", str(port)).expect("READY"))
+            await until_said("reconnected")
+            assert not task.done(), said
+            world.proc.kill()
+            await asyncio.wait_for(task, 20)
+
+    try:
+        asyncio.run(asyncio.wait_for(scenario(), 60))
+    finally:
+        session.close()
     lines = [s.split("] ", 1)[1] for s in said[1:]]
     assert lines[0] == "the world server is up"
     assert lines[1].startswith("lost the Zenoh router; waiting up to 10 s")
