@@ -432,7 +432,7 @@ class Launcher:
             rep = recover_log(cut, log_path)
             self.say(f"recovered the world's log: {rep.messages} messages on {rep.channels} channels into "
                      f"{log_path} ({cut.name} is the file as the world left it)")
-        except CekmError as exc:
+        except (CekmError, OSError) as exc:
             self.say(f"could not recover the world's log: {exc}")
 
     def _world_ended(self) -> bool:
