@@ -7,7 +7,9 @@ processes:
   trajectory still equals the in-process run bit for bit;
 - real time: the router is SIGKILLed mid-run; the dead-man stops the robot during the gap,
   every process reconnects by itself, and the robot drives on; then the world server is
-  SIGKILLed: the launcher ends the run with a clear message and a recovered, indexed log.
+  SIGKILLed: the launcher ends the run with a clear message and a recovered, indexed log;
+- a robots-only host (``--no-world --connect``) waits out a router restart instead of
+  taking the world's token going with the router for the end of the run.
 """
 
 from __future__ import annotations
@@ -17,8 +19,6 @@ import math
 import os
 import re
 import signal
-
-import pytest
 
 from cekm_swarm.experiments.default_model import default_model, default_model_path
 from cekm_swarm.runtime.config import free_port
