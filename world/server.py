@@ -48,6 +48,7 @@ import collections
 import json
 import logging
 import math
+import os
 import signal
 import sys
 import time
@@ -85,9 +86,16 @@ DEFAULT_MAX_TIME = 600.0
 
 
 def emit(kind: str, doc: dict[str, Any]) -> None:
-    """One progress line on stdout for the launcher."""
-    sys.stdout.write(f"{kind} {json.dumps(doc)}\n")
-    sys.stdout.flush()
+    """One progress line on stdout for the launcher. When the launcher is gone (the pipe
+    is broken: it was killed, and the server is stopping on its parent-death signal),
+    the lines go nowhere and the run still ends cleanly: outcome written, log closed."""
+    try:
+        sys.stdout.write(f"{kind} {json.dumps(doc)}\n")
+        sys.stdout.flush()
+    except BrokenPipeError:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())  # also for the interpreter's last flush
+        os.close(devnull)
 
 
 # --------------------------------------------------------------------------- pure parts
