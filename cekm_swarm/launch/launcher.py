@@ -29,10 +29,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from cekm_swarm.errors import CekmError
+from cekm_swarm.errors import RunError
 from cekm_swarm.protocol import DEFAULT_ROOT, KeySpace, module_names
 from cekm_swarm.runtime.bridge import LivelinessWatcher
 from cekm_swarm.runtime.config import DEFAULT_HOST, DEFAULT_PORT, open_client, open_embedded_router
+from cekm_swarm.runtime.errors import RuntimeTransportError
 from cekm_swarm.runtime.model_service import ZENOH_MODEL, ModelServer
 
 from .processes import die_with_parent, module_argv, new_run_id, server_argv
@@ -40,7 +41,7 @@ from .processes import die_with_parent, module_argv, new_run_id, server_argv
 BACKOFF_MIN = 0.25
 
 
-class LaunchError(CekmError):
+class LaunchError(RunError):
     """A launch cannot go on: the world server or the modules did not come up."""
 
 BACKOFF_MAX = 5.0
@@ -89,6 +90,13 @@ class LaunchConfig:
     zenoh_config: Path | None = None  # client config file (credentials, TLS) for every process started here
     model_from_zenoh: bool = False  # modules fetch the model from the world host's launcher (no file here)
     run_id: str | None = None  # the run's id (None: made by a world host, learned from the world by a robots-only host)
+
+
+def port_hint(error_text: str, port: int) -> str:
+    """A hint to add to an error that says the router's port is taken."""
+    if "Address already in use" in error_text or "address in use" in error_text.lower():
+        return f"; port {port} is taken (another run or program listens there): choose another with --port"
+    return ""
 
 
 def plan_checkpoint_data(scenario) -> dict[str, list[list[float]]]:
@@ -310,7 +318,10 @@ class Launcher:
             return c.connect
         endpoint = f"tcp/{self._local_host}:{c.port}"
         if not self._world_hosts_router:
-            self.router = open_embedded_router(c.port, c.listen_host)
+            try:
+                self.router = open_embedded_router(c.port, c.listen_host)
+            except RuntimeTransportError as exc:
+                raise LaunchError(f"{exc}{port_hint(str(exc), c.port)}") from None
             self.say(f"embedded Zenoh router on {endpoint}")
         return endpoint
 
@@ -504,8 +515,9 @@ class Launcher:
             if not line:
                 code = await self.world_proc.wait()
                 last = [x for x in log_path.read_text(errors="replace").splitlines() if x.strip()][-1:]
+                hint = port_hint(last[0] if last else "", c.port) if hosts_router else ""
                 raise LaunchError(f"the world server ended (code {code}) before its Zenoh session opened"
-                                   f"{': ' + last[0] if last else ''} (see {log_path})")
+                                   f"{': ' + last[0] if last else ''} (see {log_path}){hint}")
             if line.startswith(b"READY "):
                 return
             self.say(f"world: {line.decode(errors='replace').rstrip()}")
@@ -540,6 +552,11 @@ class Launcher:
                 self.say("the world server has ended")
                 return
 
+    def launch(self) -> dict[str, Any]:
+        """Run the launch to the end in a new event loop (from the main thread: children
+        die with the thread that started them)."""
+        return asyncio.run(self.run())
+
     def _interrupt(self) -> None:
         if self.interrupted:
             return
@@ -556,4 +573,4 @@ class Launcher:
 
 def launch(config: LaunchConfig, echo: Callable[[str], None] = print) -> dict[str, Any]:
     """Run a launch to the end; the outcome (``outcome.json`` plus the launcher's record)."""
-    return asyncio.run(Launcher(config, echo).run())
+    return Launcher(config, echo).launch()

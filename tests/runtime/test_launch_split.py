@@ -85,5 +85,8 @@ def test_a_wrong_password_stops_the_launch_with_a_clear_error(tmp_path, acl_rout
     p = LaunchProcess("lone_obstacle", tmp_path / "out", "--robots", "r1", "--no-world", "--connect", acl_router,
                       "--config", str(bad), "--model", str(default_model_path()))
     code = p.finish(timeout=60)
-    assert code != 0
-    assert any("cannot open client session" in line for line in p.lines), "\n".join(p.lines[-20:])
+    assert code == 1
+    failed = [line for line in p.lines if line.startswith("cekm: failed: ")]
+    assert len(failed) == 1 and "cannot open client session" in failed[0], "\n".join(p.lines[-20:])
+    assert f"authentication failed for user 'r1' at {acl_router}" in failed[0]
+    assert not any("Traceback" in line for line in p.lines)
