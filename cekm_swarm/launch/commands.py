@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import ipaddress
 import json
 from pathlib import Path
 
@@ -62,13 +63,12 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwr
                                  param_hint="'--robots'")
     if no_world and not only:
         raise click.UsageError("--no-world with no robot here starts nothing: name robots with --robots")
-    if listen_host not in ("0.0.0.0", "::"):
-        from cekm_swarm.runtime.config import tcp_host_port
-
-        try:
-            tcp_host_port(f"tcp/{listen_host}:{port}")
-        except CekmError as exc:
-            raise click.BadParameter(str(exc), param_hint="'--listen'") from None
+    try:
+        ipaddress.ip_address(listen_host.strip("[]"))
+    except ValueError:
+        if listen_host != "localhost":
+            raise click.BadParameter(f"{listen_host!r} is not an IP address (e.g. 127.0.0.1, or 0.0.0.0 to serve "
+                                     f"other hosts)", param_hint="'--listen'") from None
     if zenoh_config is not None:  # refuse a bad config file before any process starts
         from cekm_swarm.runtime.config import client_config_from_file
         from cekm_swarm.runtime.errors import RuntimeTransportError
