@@ -78,3 +78,22 @@ def test_sigkill_of_the_launcher_leaves_no_process_and_the_next_run_is_clean(tmp
     traj = json.loads((second.out / "trajectory.json").read_text())["r1"]
     assert traj["x"] == ref.logs["r1"].x and traj["v_l"] == ref.logs["r1"].v_l
     assert outcome["robots"]["r1"]["time_s"] == ref.outcome["r1"]["time_s"]
+
+
+def test_ctrl_c_stops_the_run_cleanly_and_exits_130(tmp_path):
+    default_model(progress=False)
+    run = LaunchProcess("lone_obstacle", tmp_path / "out", "--mode", "realtime", "--model", str(default_model_path()),
+                        "--no-plot")
+    try:
+        run.wait_line("world started ticking", timeout=120)
+        pids = run.pids()
+        run.proc.send_signal(signal.SIGINT)
+        code = run.finish(timeout=60)
+    finally:
+        run.kill()
+    assert code == 130, "\n".join(run.lines[-20:])
+    assert run.lines[-1] == "cekm: interrupted"
+    assert not any("Traceback" in line for line in run.lines)
+    outcome = run.outcome()
+    assert outcome["aborted"] and outcome["launcher"]["interrupted"]
+    assert not [label for label, p in pids.items() if running(p)]

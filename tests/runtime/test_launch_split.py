@@ -56,6 +56,9 @@ def split_run(tmp_path, world_args: tuple[str, ...], robot_args: tuple[str, ...]
         if robots is not None:
             robots.kill()
     assert any("the world server has ended" in line for line in robots.lines)
+    # the robot host took the run id from the world server's token: one run on both hosts
+    run_ids = [[line.rsplit("run id ", 1)[1] for line in host.lines if "] run id " in line] for host in (world, robots)]
+    assert run_ids[0] == run_ids[1] and len(run_ids[0]) == 1
     assert not (tmp_path / "robot-host" / "outcome.json").exists()
     outcome = world.outcome()
     assert outcome["launcher"]["modules"] == 0  # no module process on the world host
