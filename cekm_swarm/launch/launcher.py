@@ -12,9 +12,15 @@ starting, at most 5 s), which the log shows. When the world server ends (every r
 its goal, max time) or on SIGINT/SIGTERM everything stops: the world server first (it
 writes its outcome and closes the log), then the modules (SIGTERM, SIGKILL after 5 s).
 
+Run isolation: every run has a run id (made by the world host's launcher, printed, and
+taken from the world server's token by a robots-only host unless given with
+``--run-id``); every liveliness token carries it, so the world counts only its own run's
+modules. Every child dies with the launcher, whatever kills it (``PR_SET_PDEATHSIG``,
+:mod:`.processes`).
+
 Each child's output goes to ``OUT/logs/<robot>-<module>.log`` (``world.log`` for the
 world server); ``OUT/pids.json`` holds the live process ids; ``OUT/launch.log`` the
-launcher's own record.
+launcher's own record; ``outcome.json`` gets the run id and the launcher's record.
 """
 
 from __future__ import annotations
@@ -22,7 +28,6 @@ from __future__ import annotations
 import asyncio
 import json
 import signal
-import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
