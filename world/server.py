@@ -65,6 +65,7 @@ from cekm_swarm.runtime.bridge import (InlineSubscription, LivelinessWatcher, Pu
                                        wait_matching_async)
 from cekm_swarm.runtime.config import (DEFAULT_ENDPOINT, ROUTER_RUNTIME, is_loopback, open_client, open_embedded_router,
                                        tcp_host_port, use_zenoh_runtime)
+from cekm_swarm.runtime.lifetime import die_with_parent
 from cekm_swarm.runtime.mcap_log import McapRecorder
 from cekm_swarm.runtime.process_args import Param, add_params, run_id_arg, to_argv
 
@@ -578,6 +579,7 @@ def server_argv(**values: Any) -> list[str]:
 
 
 def main(argv: list[str] | None = None) -> int:
+    die_with_parent()  # started by a launcher: stop (writing the outcome) when it dies, whatever kills it
     p = parser()
     args = p.parse_args(argv)
     if args.listen:

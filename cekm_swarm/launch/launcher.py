@@ -16,7 +16,7 @@ Run isolation: every run has a run id (made by the world host's launcher, printe
 taken from the world server's token by a robots-only host unless given with
 ``--run-id``); every liveliness token carries it, so the world counts only its own run's
 modules. Every child dies with the launcher, whatever kills it (``PR_SET_PDEATHSIG``,
-:mod:`.processes`).
+:mod:`cekm_swarm.runtime.lifetime`).
 
 Each child's output goes to ``OUT/logs/<robot>-<module>.log`` (``world.log`` for the
 world server); ``OUT/pids.json`` holds the live process ids; ``OUT/launch.log`` the
@@ -41,7 +41,7 @@ from cekm_swarm.runtime.config import DEFAULT_HOST, DEFAULT_PORT, open_client, o
 from cekm_swarm.runtime.errors import RuntimeTransportError
 from cekm_swarm.runtime.model_service import ZENOH_MODEL, ModelServer
 
-from .processes import die_with_parent, module_argv, new_run_id, server_argv
+from .processes import child_env, module_argv, new_run_id, server_argv
 
 BACKOFF_MIN = 0.25
 
@@ -174,7 +174,7 @@ class Launcher:
         with open(child.log_path, "ab") as f:
             child.proc = await asyncio.create_subprocess_exec(*child.argv, stdout=f, stderr=asyncio.subprocess.STDOUT,
                                                               stdin=asyncio.subprocess.DEVNULL,
-                                                              start_new_session=True, preexec_fn=die_with_parent())
+                                                              start_new_session=True, env=child_env())
         child.started = time.monotonic()
         self._write_pids()
 
@@ -512,7 +512,7 @@ class Launcher:
         with open(log_path, "ab") as werr:
             self.world_proc = await asyncio.create_subprocess_exec(
                 *world_argv, stdout=asyncio.subprocess.PIPE, stderr=werr, stdin=asyncio.subprocess.DEVNULL,
-                start_new_session=True, preexec_fn=die_with_parent())
+                start_new_session=True, env=child_env())
         self._write_pids()
         assert self.world_proc.stdout is not None
         while True:

@@ -27,6 +27,7 @@ from cekm_swarm.errors import CekmError
 from cekm_swarm.protocol import DEFAULT_ROOT, MSGPACK_ENCODING, DropCounter, KeySpace, Message, encode
 from cekm_swarm.runtime.bridge import InlineSubscription, Publishers, Received, declare_alive
 from cekm_swarm.runtime.config import DEFAULT_ENDPOINT, ONE_THREAD_RUNTIME, open_client, use_zenoh_runtime
+from cekm_swarm.runtime.lifetime import die_with_parent
 from cekm_swarm.runtime.model_service import fetch_model_bytes, is_zenoh_source
 from cekm_swarm.runtime.process_args import Param, add_params, run_id_arg, to_argv
 
@@ -212,6 +213,7 @@ async def run_module(spec: ModuleSpec, endpoint: str, *, block: bool = False,
 def main_of(build: Callable[[argparse.Namespace], ModuleSpec], parser: argparse.ArgumentParser,
             argv: list[str] | None = None) -> int:
     """Parse arguments, build the module, serve it; the body of each module's ``main``."""
+    die_with_parent()  # started by a launcher: stop when it dies, whatever kills it
     args = parser.parse_args(argv)
     use_zenoh_runtime(ONE_THREAD_RUNTIME)  # a module receives one message and sends one per period: one thread does it
     logging.basicConfig(level=args.log_level.upper(), stream=sys.stderr,
