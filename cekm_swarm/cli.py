@@ -190,7 +190,8 @@ def run_cmd(scenario: str, controller: str, model_path: Path | None, seed: int |
 
 @main.command()
 @click.argument("scenario")
-@click.option("--at", "at_time", type=click.FloatRange(min=0.0), required=True, help="Sim time (s) of the snapshot.")
+@click.option("--at", "at_time", type=click.FloatRange(0.0, 600.0), required=True,
+              help="Sim time (s) of the snapshot, at most 600 (the longest run).")
 @click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path))
 @click.option("--seed", type=SEED, help="World seed (default: the scenario's).")
 @click.option("--robot", help="Robot id (default: the first).")

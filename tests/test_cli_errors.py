@@ -74,8 +74,9 @@ def bad_values(param: click.Parameter) -> list[str]:
     t = param.type
     if t is SEED:
         return ["-1", "x"]
-    if isinstance(t, (click.IntRange, click.FloatRange)) and t.min is not None:
-        return [str(t.min - 1), "x"]
+    if isinstance(t, (click.IntRange, click.FloatRange)):
+        return [str(b) for b in (None if t.min is None else t.min - 1, None if t.max is None else t.max + 1)
+                if b is not None] + ["x"]
     if isinstance(t, click.Choice):
         return ["no-such-choice"]
     if t in (click.INT, click.FLOAT):
