@@ -286,6 +286,7 @@ class WorldServer:
         self.tick_loop_seconds = 0.0  # wall s from the first tick's readings to the last tick
         self._unrecorded: list[tuple[str, bytes, float]] = []
         self.now = 0.0  # the sim time of the tick whose readings are out (read by Zenoh's thread)
+        self.late_commands = 0
 
     # ------------------------------------------------------------------ receiving
 
@@ -304,10 +305,11 @@ class WorldServer:
         if not isinstance(msg, WheelCommand):
             return
         why = stamp_problem(msg.stamp, self.now, PAST_S, 0.0)  # a command is for a tick already out
-        if why is None and (old := self.latest.get(robot)) is not None and msg.stamp < old.stamp:
-            why = f"stamp {msg.stamp} older than the robot's latest command ({old.stamp})"
         if why is not None:
             self.drops.drop(rec.key, why)
+            return
+        if (old := self.latest.get(robot)) is not None and msg.stamp < old.stamp:
+            self.late_commands += 1  # believable but superseded (a motor's repeat for a re-published tick)
             return
         self.latest[robot] = msg
         self.deadman.heard(robot, rec.at)
@@ -599,6 +601,7 @@ class WorldServer:
                "sense_to_command_ms": {"p50": q(0.5), "p99": q(0.99), "n": len(lat)},
                "dropped_messages": self.drops.total + self.record_drops.total, "recorded_messages": self.recorded,
                "drops": {"commands": self.drops.by_source(), "recorder": self.record_drops.by_source()},
+               "late_commands": self.late_commands,
                "events": self.events}
         (self.out / "outcome.json").write_text(json.dumps(doc, indent=1))
         traj = {}
