@@ -9,7 +9,9 @@ and within a window around *now*:
 
 * the world server owns the clock: now is its sim time;
 * a module process has no clock of its own: now is the newest stamp it has taken (none
-  yet: any stamp in bounds is taken; see docs/robustness.md for what that leaves open).
+  yet, or none for ``QUIET_S`` of wall time, as after a router outage while a real-time
+  world ticked on: any stamp in bounds is taken; docs/robustness.md says what that leaves
+  open).
 
 Anything else is dropped by the caller and counted per source (:class:`DropCounter`).
 """
@@ -17,6 +19,7 @@ Anything else is dropped by the caller and counted per source (:class:`DropCount
 from __future__ import annotations
 
 import math
+import time
 
 from cekm_swarm.ticks import TICK_S
 
@@ -28,6 +31,9 @@ re-published target reading is one tick old, real-time staleness limits are 2-4 
 FUTURE_S = 8 * TICK_S
 """How far ahead of a module's newest stamp a stamp may be (the world's next tick is one
 tick ahead; a module restarted or starved for a while sees a jump of a few)."""
+QUIET_S = 1.0
+"""Wall seconds without a believable stamp after which a module takes the next stamp in
+bounds as now (the world's messages come every 0.128 s, or every re-publish second)."""
 _GRID_TOL = 1e-9  # stamps are round(k * 0.128, 9)
 
 
@@ -67,14 +73,19 @@ class StampWindow:
     ``check(stamp)`` returns the reason to drop, or None and takes the stamp (moving now
     forward). Used on one thread (a module's Zenoh callback)."""
 
-    __slots__ = ("past", "future", "newest")
+    __slots__ = ("past", "future", "quiet", "newest", "taken_at")
 
-    def __init__(self, past: float = PAST_S, future: float = FUTURE_S) -> None:
-        self.past, self.future = past, future
+    def __init__(self, past: float = PAST_S, future: float = FUTURE_S, quiet: float = QUIET_S) -> None:
+        self.past, self.future, self.quiet = past, future, quiet
         self.newest: float | None = None
+        self.taken_at = -math.inf
 
     def check(self, stamp: float) -> str | None:
-        why = stamp_problem(stamp, self.newest, self.past, self.future)
-        if why is None and (self.newest is None or stamp > self.newest):
-            self.newest = float(stamp)
+        wall = time.monotonic()
+        newest = self.newest if wall - self.taken_at <= self.quiet else None  # quiet for long: re-anchor
+        why = stamp_problem(stamp, newest, self.past, self.future)
+        if why is None:
+            if newest is None or stamp > newest:
+                self.newest = float(stamp)
+            self.taken_at = wall
         return why

@@ -35,3 +35,14 @@ def test_a_module_window_follows_the_newest_stamp_it_took():
     assert w.check(tick_time(30)) is not None  # an old tick
     assert w.check(tick_time(2000)) is not None  # far ahead: now does not jump
     assert w.newest == tick_time(50)
+
+
+def test_a_module_window_re_anchors_after_a_quiet_spell():
+    """After a router outage a real-time world's time has moved on by more than the window:
+    a module that heard nothing believable for ``quiet`` wall seconds takes the next stamp."""
+    w = StampWindow(quiet=0.0)
+    assert w.check(tick_time(50)) is None
+    assert w.check(tick_time(500)) is None and w.newest == tick_time(500)
+    assert w.check(1e18) is not None  # bounds still hold
+    held = StampWindow(quiet=3600.0)
+    assert held.check(tick_time(50)) is None and held.check(tick_time(500)) is not None
