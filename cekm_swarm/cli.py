@@ -52,12 +52,12 @@ def experiment() -> None:
 @click.option("--master-seeds", default=1, show_default=True, type=click.IntRange(1, 100),
               help="Run K independent master seeds (seed, seed+1, ...): each into OUT/seed-S, and OUT/summary.md "
                    "with 95 % intervals and how often each headline ordering holds.")
-@click.option("--speed-unit", type=click.FloatRange(min=0.0), default=None,
-              help="Wheel speeds execute as whole multiples of this (m/s); 0: continuous. "
-                   "Default: the Khepera's 0.008 (one encoder pulse per 10 ms).")
+@click.option("--speed-unit", type=click.FloatRange(min=0.0), default=0.0, show_default=True,
+              help="Wheel speeds execute as whole multiples of this (m/s), so a command under half a unit "
+                   "stops the robot; 0: continuous. The Khepera's is 0.008 (one encoder pulse per 10 ms).")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 def target_reaching(out_dir: Path, networks: str, trials: int, steps: int, test_interval: int, test_targets: int,
-                    seed: int, master_seeds: int, speed_unit: float | None, quiet: bool) -> None:
+                    seed: int, master_seeds: int, speed_unit: float, quiet: bool) -> None:
     """Reproduce section 4.1: Tables 1-4 and Figures 5-7 (obstacle-free target reaching)."""
     from .experiments.arena import Arena
     from .experiments.streams import Schedule
@@ -65,7 +65,7 @@ def target_reaching(out_dir: Path, networks: str, trials: int, steps: int, test_
     from .experiments.master_seeds import run_and_report
 
     try:
-        arena = Arena() if speed_unit is None else Arena(speed_unit=speed_unit)
+        arena = Arena(speed_unit=speed_unit)
         config = TargetReachingConfig(networks=_networks(networks), trials=trials, seed=seed, arena=arena,
                                       schedule=Schedule(steps=steps, test_interval=test_interval, test_targets=test_targets))
     except CekmError as exc:

@@ -25,10 +25,12 @@ from ..robot import KHEPERA, STEP_S, SUBSTEP_S, SUBSTEPS_PER_STEP, quantize_spee
 class Arena:
     """A square arena [0, size]^2 and the robot that moves in it.
 
-    speed_unit: executed wheel speeds are whole multiples of it (the Khepera's 8 mm/s,
-    :class:`cekm_swarm.robot.Khepera`), so a command under half a unit is a stop for every
-    network, as the paper's "come to a stop (motor control c = 0)"; 0 gives continuous
-    wheel speeds, where only the goal state d = 0 stops a robot.
+    speed_unit: 0 (the default) gives continuous wheel speeds, where a robot stops only at
+    the goal state d = 0 (every network commands c = 0 there). A positive unit, e.g. the
+    Khepera's 8 mm/s (:class:`cekm_swarm.robot.Khepera`), executes wheel speeds as whole
+    multiples of it, so a command under half a unit is a stop for every network (the
+    paper's "come to a stop (motor control c = 0)"); it reproduces the paper's orderings
+    worse (docs/reproduction-4.1.md), so it is an option.
     """
 
     size: float = 5.0
@@ -39,7 +41,7 @@ class Arena:
     step_s: float = STEP_S
     substeps: int = SUBSTEPS_PER_STEP
     target_resolution: float = KHEPERA.target_resolution
-    speed_unit: float = KHEPERA.speed_unit
+    speed_unit: float = 0.0
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.speed_unit) and 0.0 <= self.speed_unit < self.v_max):

@@ -77,7 +77,7 @@ def test_executed_speeds_are_whole_multiples_of_the_unit():
     assert quantize_speed(0.0039, unit, v_max) == 0.0 and quantize_speed(-0.0039, unit, v_max) == 0.0
     assert quantize_speed(0.0041, unit, v_max) == pytest.approx(0.008)
     assert quantize_speed(0.05, 0.0, v_max) == 0.05  # unit 0: continuous
-    av = Arena().vector()
+    av = Arena(speed_unit=0.008).vector()
     assert executed_command(0.0123, -0.9, av) == pytest.approx((0.016, -19 * 0.008))  # clipped to c*, then quantized
 
 
@@ -90,7 +90,7 @@ def test_a_command_under_half_a_unit_stops_the_robot():
 
     schedule = Schedule(steps=10, test_interval=10, test_targets=3, test_budget=20)
     creep = lambda u: np.array([0.0039, -0.0035])  # noqa: E731
-    quantized = test_reference(creep, TrialStreams(1, 0, Arena(), schedule), np.array([0.005]))
+    quantized = test_reference(creep, TrialStreams(1, 0, Arena(speed_unit=KHEPERA.speed_unit), schedule), np.array([0.005]))
     assert quantized.stopped.all() and (quantized.steps == 0).all() and (quantized.path == 0).all()
     continuous = test_reference(creep, TrialStreams(1, 0, Arena(speed_unit=0.0), schedule), np.array([0.005]))
     assert not continuous.stopped.any() and (continuous.path > 0).all()

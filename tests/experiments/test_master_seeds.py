@@ -50,7 +50,7 @@ def test_cli_master_seeds_writes_each_seed_and_the_summary(tmp_path):
         assert (out / f"seed-{seed}" / "results.json").is_file() and (out / f"seed-{seed}" / "tables.md").is_file()
     summary = json.loads((out / "summary.json").read_text())
     assert summary["settings"]["master_seeds"] == [11, 12]
-    assert summary["settings"]["arena"]["speed_unit"] == pytest.approx(0.008)
+    assert summary["settings"]["arena"]["speed_unit"] == 0.0  # continuous by default
     per_seed = [json.loads((out / f"seed-{s}" / "results.json").read_text())["networks"]["R9"]["E_mm"]["mean"]
                 for s in (11, 12)]
     assert summary["networks"]["R9"]["E_mm"]["per_seed"] == per_seed
