@@ -24,7 +24,7 @@ from cekm_swarm.errors import CekmError
 
 from .config import DEFAULT_ENDPOINT, client_config, load_config, open_session
 
-_ROOT_HELP = "Key-space root (DESIGN.md section 6)."
+_ROOT_HELP = "Key-space root (docs/design.md section 6)."
 
 
 def _connect_options(f: Callable[..., Any]) -> Callable[..., Any]:
