@@ -93,9 +93,11 @@ def tables_markdown(results: dict) -> str:
     sch = s["schedule"]
     out = ["# Target reaching (paper section 4.1): Tables 1-4", "",
            f"{s['trials']} trials x {sch['steps']:,} steps, tested every {sch['test_interval']:,} steps on "
-           f"{sch['test_targets']} targets; seed {s['seed']}. Mean ± std over trials (ours) beside the paper's. "
-           "Absolute E is not comparable with the paper's: ours is set mostly by the target sensor's 1 mm "
-           "resolution (a stop needs the rounded d to be 0; see README).", ""]
+           f"{sch['test_targets']} targets; seed {s['seed']}. Mean ± std over trials (ours) beside the paper's. " + (
+               f"Wheel speeds quantized to {s['arena']['speed_unit'] * 1000:g} mm/s: a stop is a command under half "
+               "a unit on both wheels (docs/reproduction-4.1.md)." if s["arena"].get("speed_unit", 0.0) > 0 else
+               "Continuous wheel speeds: absolute E is not comparable with the paper's, ours is set mostly by the "
+               "target sensor's 1 mm resolution (a stop needs the rounded d to be 0; docs/reproduction-4.1.md)."), ""]
     out += _perf_table(results, ("E_mm", "T_s_per_m", "D"), PAPER_TABLE1, "Table 1: performance after training")
     out += ["", "Targets that ended by the step budget rather than a stop (per trial, mean ± std): " + ", ".join(
         f"{n} {_ms(e.get('ended_by_budget'), 1)}" for n, e in results["networks"].items()), ""]
