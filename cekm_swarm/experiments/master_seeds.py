@@ -100,9 +100,18 @@ def run_master_seeds(config: TargetReachingConfig, count: int, progress: bool = 
 
 def _write_seed(config: TargetReachingConfig, results: dict, runs: list[NetworkRun], out_dir: Path,
                 models: bool) -> list[Path]:
-    from ..models.io import save_model
-    from .report import write_report
+    """One seed's report: with models, also the trained models and the figures (a single-seed
+    run); without (one seed of several), results.json and tables.md only."""
+    import json
 
+    from ..models.io import save_model
+    from .report import tables_markdown, write_report
+
+    if not models:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        (out_dir / "results.json").write_text(json.dumps(results, indent=1))
+        (out_dir / "tables.md").write_text(tables_markdown(results))
+        return [out_dir / "results.json", out_dir / "tables.md"]
     if models:
         for r in runs:
             for t in range(config.trials):
