@@ -149,19 +149,32 @@ def _model(path: Path | None):
 
 @main.command("run")
 @click.argument("scenario")
-@click.option("--controller", type=click.Choice(["cekm", "fusion"]), default="cekm", show_default=True)
+@click.option("--controller", type=click.Choice(["cekm", "fusion", "acmommt", "stay"]), default="cekm",
+              show_default=True, help="cekm or fusion for navigation; cekm, acmommt or stay for tracking.")
 @click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               help="A trained model (.npz from `cekm train`); default: R15 trained and cached on first use.")
 @click.option("--seed", type=int, help="World seed (default: the scenario's).")
-@click.option("--max-time", default=600.0, show_default=True, type=click.FloatRange(min=1.0),
-              help="Sim seconds before a robot counts as trapped.")
+@click.option("--max-time", type=click.FloatRange(min=1.0),
+              help="Sim seconds before a robot counts as trapped (default 600); for a tracking scenario, the "
+                   "run's length (default 120).")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), required=True)
-def run_cmd(scenario: str, controller: str, model_path: Path | None, seed: int | None, max_time: float,
+def run_cmd(scenario: str, controller: str, model_path: Path | None, seed: int | None, max_time: float | None,
             out_dir: Path) -> None:
-    """Run SCENARIO (a name under world/scenarios or a .toml path) in one process, no Zenoh."""
+    """Run SCENARIO (a name under world/scenarios or a .toml path) in one process, no Zenoh.
+
+    A scenario with targets whose robots have no goal is a tracking scenario (Fig. 13)."""
     from .experiments.navigation import plot_run, run_scenario
+    from world.tracking import is_tracking
 
     sc = _load_scenario(scenario)
+    if is_tracking(sc):
+        from .experiments.tracking import run_tracking_cmd
+
+        run_tracking_cmd(sc, controller, model_path, seed, max_time, out_dir)
+        return
+    if controller not in ("cekm", "fusion"):
+        raise click.UsageError(f"--controller {controller}: {sc.name!r} is a navigation scenario (cekm or fusion)")
+    max_time = 600.0 if max_time is None else max_time
     model = _model(model_path)
     t0 = time.perf_counter()
     run = run_scenario(sc, controller, model, seed, max_time)

@@ -6,7 +6,8 @@ Per robot (docs/tracking.md):
 * the tracking target module (every 0.256 s, on ``sense/pose``, ``sense/targets`` and the
   teammates' shares, see :mod:`.team` for which shares a tick uses) computes
   - one target field per sensed target t, weighted by w_t = watched_factor ** n_t (n_t:
-    teammates that observe t and are nearer to it), localized at a stand-off: a target
+    teammates that observe t and are nearer to it) and by its urgency (a target near
+    the edge of the range pulls harder), localized at a stand-off: a target
     at distance d > standoff * R is localized at (alpha, d - standoff * R), a nearer one
     at (alpha, 0), so the robot closes in to half its sensing range and then only turns
     to face the target; it keeps the target in range instead of driving onto it;
@@ -59,6 +60,9 @@ def teammate_field(w: np.ndarray, s: int, params: TrackingParams) -> np.ndarray:
     return np.exp(-da * da / (2.0 * params.teammate_sigma_alpha ** 2) - dd * dd / (2.0 * sd * sd))
 
 
+_SHARED: dict = {}
+
+
 @dataclass(frozen=True)
 class TrackingActivity:
     """The tracking target module's output at one tick."""
@@ -85,9 +89,18 @@ class TrackingEKM:
     def __post_init__(self) -> None:
         if not math.isfinite(self.target_range):
             raise ValueError("tracking needs a finite target sensing range (sensors.target_range)")
-        self.ekm = CooperativeEKM(self.model, self.fields, backend=self.backend)
-        self._T = np.stack([teammate_field(self.ekm.w, s, self.params) for s in range(self.ekm.n)])
-        self._T.flags.writeable = False
+        key = (id(self.model), self.fields, self.params, self.backend)
+        held = _SHARED.get(key)
+        if held is None or held[0] is not self.model:
+            ekm = CooperativeEKM(self.model, self.fields, backend=self.backend)
+            T = np.stack([teammate_field(ekm.w, s, self.params) for s in range(ekm.n)])
+            T.flags.writeable = False
+            if len(_SHARED) >= 8:
+                _SHARED.clear()
+            held = _SHARED[key] = (self.model, ekm, T)
+        # the EKM and the field tables are pure functions of the model and parameters:
+        # the robots of one process share them (the winner memo is exact per input)
+        self.ekm, self._T = held[1], held[2]
 
     def localize(self, t: float, pose: tuple[float, float, float], sensed: dict[str, tuple[float, float]],
                  view: TeamView) -> TrackingActivity:
@@ -108,7 +121,7 @@ class TrackingEKM:
             full = full or wt >= 1.0
             u_d = d - standoff if d > standoff else 0.0
             s = ekm.winner(alpha, u_d)
-            a += wt * ekm.target_activity(s)
+            a += (wt * (1.0 - p.urgency + p.urgency * min(d / R, 1.0))) * ekm.target_activity(s)
             inputs.append((s, alpha, u_d, wt))
         if not full:
             goal = view.search_goal(t, pose, own, team, p.search_reached * R, p.wander_ahead_m)

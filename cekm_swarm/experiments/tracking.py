@@ -138,6 +138,44 @@ def outcome_doc(run: TrackingRun) -> dict[str, Any]:
             "tracking": run.tracking}
 
 
+def run_tracking_cmd(scenario, controller: str, model_path, seed: int | None, duration: float | None, out_dir) -> None:
+    """``cekm run`` on a tracking scenario: outcome.json (with ``tracking``) and trajectory.png."""
+    import json
+    import time
+    from pathlib import Path
+
+    import click
+
+    if controller not in CONTROLLERS:
+        raise click.UsageError(f"--controller {controller}: {scenario.name!r} is a tracking scenario "
+                               f"(one of {', '.join(CONTROLLERS)})")
+    model = None
+    if controller == "cekm":
+        from ..models.io import load_model
+        from .default_model import default_model
+
+        model = load_model(model_path) if model_path else default_model()
+    t0 = time.perf_counter()
+    run = run_tracking(scenario, controller, model, seed, DEFAULT_DURATION if duration is None else duration)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    doc = outcome_doc(run)
+    doc["wall_seconds"] = round(time.perf_counter() - t0, 3)
+    (out / "outcome.json").write_text(json.dumps(doc, indent=1))
+    import matplotlib.pyplot as plt
+
+    fig = plot_tracking(run)
+    fig.savefig(out / "trajectory.png", dpi=130)
+    plt.close(fig)
+    tr = run.tracking
+    per = ", ".join(f"{k} {v:.2f}" for k, v in tr["A_per_target"].items())
+    sp = tr["spread"]
+    click.echo(f"A = {tr['A']:.3f} ({tr['robots']} robots, {tr['targets']} targets; per target: {per}); robots "
+               f"apart {sp['robots_start']:.2f} -> {sp['robots_end']:.2f} m while targets {sp['targets_start']:.2f} "
+               f"-> {sp['targets_end']:.2f} m; collisions {sum(run.collisions.values())}")
+    click.echo(f"wrote {out / 'outcome.json'}, {out / 'trajectory.png'}")
+
+
 def plot_tracking(run: TrackingRun, ax=None, title: str | None = None, instants: int = 4):
     """Fig. 13: the targets' paths (grey, arrow at the end), each robot's path in its colour,
     and its sensing circle at a few instants (fainter earlier)."""

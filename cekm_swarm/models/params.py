@@ -120,6 +120,9 @@ class TrackingParams:
     observe it (by their latest share) and are nearer to it than this robot: 1 when no
     nearer teammate sees it, falling as more do (A-CMOMMT's rule, with the nearest
     observer keeping full weight so that two robots on one target do not both leave it).
+    urgency: a sensed target's field is also scaled by (1 - urgency) + urgency * min(d / R,
+    1): a target near the edge of the sensing range, about to be lost, pulls harder than
+    one close by (0: no scaling).
     teammate_near, teammate_far: a teammate's inhibitory field has weight 1 within
     teammate_near * R, falling linearly to 0 at teammate_far * R (A-CMOMMT's shape).
     teammate_sigma_alpha, teammate_sigma_d_beyond, teammate_sigma_d_near: its widths
@@ -135,6 +138,7 @@ class TrackingParams:
 
     standoff: float = 0.5
     watched_factor: float = 0.25
+    urgency: float = 0.5
     teammate_near: float = 0.5
     teammate_far: float = 1.5
     teammate_sigma_alpha: float = 0.99
@@ -152,6 +156,8 @@ class TrackingParams:
                         "share_timeout_s", "memory_s")
         if not 0.0 <= self.standoff < 1.0:
             raise ParameterError(f"TrackingParams.standoff must be in [0, 1), got {self.standoff!r}")
+        if not 0.0 <= self.urgency <= 1.0:
+            raise ParameterError(f"TrackingParams.urgency must be in [0, 1], got {self.urgency!r}")
         if not 0.0 <= self.watched_factor <= 1.0:
             raise ParameterError(f"TrackingParams.watched_factor must be in [0, 1], got {self.watched_factor!r}")
         if not self.teammate_near < self.teammate_far:
