@@ -106,6 +106,22 @@ def obstacles(seeds: str, max_time: float, model_path: Path | None, workers: int
     click.echo("wrote " + ", ".join(str(p) for p in paths))
 
 
+@experiment.command("tracking")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), required=True)
+@click.option("--seeds", default=10, show_default=True, type=click.IntRange(2, 1000), help="Seeds 1..N per team size.")
+@click.option("--robots", default="2,4,8", show_default=True, help="Team sizes, comma-separated.")
+@click.option("--duration", default=60.0, show_default=True, type=click.FloatRange(min=1.0), help="Sim seconds per run.")
+@click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path))
+@click.option("--workers", type=click.IntRange(1), help="Parallel processes (default: one per core).")
+@click.option("--quiet", is_flag=True, help="No progress bar.")
+def tracking_experiment(out_dir: Path, seeds: int, robots: str, duration: float, model_path: Path | None,
+                        workers: int | None, quiet: bool) -> None:
+    """Multi-robot tracking (Fig. 13): cooperative EKMs, A-CMOMMT and static robots on the same seeds."""
+    from .experiments.tracking import run_tracking_experiment_cmd
+
+    run_tracking_experiment_cmd(out_dir, seeds, robots, duration, model_path, workers, quiet)
+
+
 @main.command()
 @click.option("--network", default="R15", show_default=True, help="Network name, e.g. R15 or G12.")
 @click.option("--steps", default=100_000, show_default=True, type=click.IntRange(1))

@@ -46,17 +46,6 @@ def tracking_sense(world: World, robot: str, stamp: float) -> tuple[SensePose, S
     return pose, SenseTargets(stamp, SENDER, seen)
 
 
-def observers(world: World) -> dict[str, list[str]]:
-    """Ground truth: for every target, the robots whose target sensing range holds it."""
-    state = world.state()
-    limit = world.target_range
-    out: dict[str, list[str]] = {}
-    for tid, tp in state["targets"].items():
-        out[tid] = [rid for rid, rp in state["robots"].items()
-                    if math.hypot(tp["x"] - rp["x"], tp["y"] - rp["y"]) <= limit]
-    return out
-
-
 def mean_pairwise(points: list[tuple[float, float]]) -> float:
     """Mean distance over all pairs of points (0 for fewer than two)."""
     n = len(points)
@@ -83,17 +72,25 @@ class ObservationMeter:
     observed_by: list[dict[str, list[str]]] = field(default_factory=list)
 
     def sample(self, world: World, t: float) -> dict[str, list[str]]:
-        """Record tick ``t``; returns who observes which target now."""
-        obs = observers(world)
+        """Record tick ``t`` of ``world``; returns who observes which target now."""
         state = world.state()
+        return self.sample_positions(t, {r: (p["x"], p["y"]) for r, p in state["robots"].items()},
+                                     {k: (p["x"], p["y"]) for k, p in state["targets"].items()}, world.target_range)
+
+    def sample_positions(self, t: float, robots: dict[str, tuple[float, float]],
+                         targets: dict[str, tuple[float, float]], target_range: float) -> dict[str, list[str]]:
+        """Record tick ``t`` from true positions: a target is observed when it is within
+        ``target_range`` of at least one robot. Returns who observes which target."""
+        obs = {tid: [r for r, rp in robots.items() if math.hypot(tp[0] - rp[0], tp[1] - rp[1]) <= target_range]
+               for tid, tp in targets.items()}
         m = len(self.targets)
         watched = [tid for tid in self.targets if obs.get(tid)]
         for tid in watched:
             self.seen[tid] = self.seen.get(tid, 0) + 1
         self.t.append(t)
         self.fraction.append(len(watched) / m if m else 0.0)
-        self.robot_spread.append(mean_pairwise([(r["x"], r["y"]) for r in state["robots"].values()]))
-        self.target_spread.append(mean_pairwise([(p["x"], p["y"]) for p in state["targets"].values()]))
+        self.robot_spread.append(mean_pairwise(list(robots.values())))
+        self.target_spread.append(mean_pairwise(list(targets.values())))
         self.observed_by.append(obs)
         return obs
 

@@ -92,10 +92,11 @@ def run_tracking(scenario, controller: str = "cekm", model=None, seed: int | Non
     ticks = int(math.ceil(duration / TICK_S))
     for tick in range(ticks + 1):
         t = round(tick * TICK_S, 9)
-        meter.sample(world, t)
         st = world.state()
-        for tid, p in st["targets"].items():
-            tpaths[tid].append((p["x"], p["y"]))
+        tpos = {tid: (p["x"], p["y"]) for tid, p in st["targets"].items()}
+        meter.sample_positions(t, {r: (p["x"], p["y"]) for r, p in st["robots"].items()}, tpos, world.target_range)
+        for tid, xy in tpos.items():
+            tpaths[tid].append(xy)
         if tick == ticks:
             break
         due = tick % TARGET_EVERY == 0
@@ -258,11 +259,16 @@ def team_scenario(robots: int, seed: int, targets_per_robot: float = 1.5, side_p
     return parse_scenario(raw, source=f"<team of {robots}>")
 
 
+_MODELS: dict[str, Any] = {}
+
+
 def _one(args) -> dict[str, Any]:
     robots, seed, controller, duration, model_path = args
     from ..models.io import load_model
 
-    model = load_model(model_path) if controller == "cekm" else None
+    model = None
+    if controller == "cekm":  # one load per process
+        model = _MODELS.get(model_path) or _MODELS.setdefault(model_path, load_model(model_path))
     sc = team_scenario(robots, seed)
     run = run_tracking(sc, controller, model, seed, duration)
     return {"robots": robots, "seed": seed, "controller": controller, "A": run.tracking["A"],
@@ -292,9 +298,13 @@ def run_experiment(sizes: tuple[int, ...], seeds: int, duration: float, model_pa
     jobs = [(n, s, c, duration, str(model_path)) for n in sizes for s in range(1, seeds + 1) for c in CONTROLLERS]
     workers = workers or max(1, min(len(jobs), os.cpu_count() or 1))
     rows = []
-    with ProcessPoolExecutor(workers) as ex:
-        for row in tqdm(ex.map(_one, jobs), total=len(jobs), disable=not progress, desc="tracking runs"):
-            rows.append(row)
+    if workers == 1:  # in this process (no pool to start)
+        for job in tqdm(jobs, disable=not progress, desc="tracking runs"):
+            rows.append(_one(job))
+    else:
+        with ProcessPoolExecutor(workers) as ex:
+            for row in tqdm(ex.map(_one, jobs), total=len(jobs), disable=not progress, desc="tracking runs"):
+                rows.append(row)
     pictures = {}
     configs = []
     for n in sizes:
@@ -310,6 +320,31 @@ def run_experiment(sizes: tuple[int, ...], seeds: int, duration: float, model_pa
     return {"configs": configs, "seeds": list(range(1, seeds + 1)), "duration_s": duration,
             "arena_rule": "square arena, side 2 m * sqrt(robots / 2); round(1.5 * robots) random-walk targets "
                           "(0.05 m/s, turn noise 1 rad/sqrt(s)); target sensing range 0.5 m"}, pictures
+
+
+def run_tracking_experiment_cmd(out_dir, seeds: int, robots: str, duration: float, model_path, workers, quiet: bool) -> None:
+    """``cekm experiment tracking``."""
+    import time
+
+    import click
+
+    try:
+        sizes = tuple(int(x) for x in robots.split(",") if x.strip())
+    except ValueError:
+        raise click.UsageError(f"--robots {robots!r}: expected team sizes like 2,4,8") from None
+    if not sizes or any(n < 1 or n > 64 for n in sizes):
+        raise click.UsageError(f"--robots {robots!r}: give team sizes between 1 and 64")
+    if model_path is None:
+        from .default_model import default_model, default_model_path
+
+        default_model()
+        model_path = default_model_path()
+    t0 = time.perf_counter()
+    doc, pictures = run_experiment(sizes, seeds, duration, model_path, workers, progress=not quiet)
+    doc["wall_seconds"] = round(time.perf_counter() - t0, 1)
+    paths = write_experiment(doc, pictures, out_dir)
+    click.echo(table_markdown(doc))
+    click.echo(f"{doc['wall_seconds']:.1f} s; wrote " + ", ".join(str(p) for p in paths))
 
 
 def write_experiment(doc: dict[str, Any], pictures: dict[str, TrackingRun], out_dir) -> list:
