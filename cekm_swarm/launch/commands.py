@@ -48,9 +48,14 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, connec
     from .launcher import LaunchConfig, launch
 
     try:
-        load_scenario(scenario)
+        sc = load_scenario(scenario)
     except ScenarioError as exc:
         raise click.UsageError(str(exc)) from None
+    from world.tracking import is_tracking
+
+    if is_tracking(sc):  # docs/tracking.md
+        raise click.UsageError(f"{sc.name!r} is a tracking scenario: its distributed runtime path is not built yet; "
+                               f"run it in one process with `cekm run {scenario} --controller cekm|acmommt|stay`")
     if zenoh_config is not None:  # refuse a bad config file before any process starts
         from cekm_swarm.runtime.config import client_config_from_file
         from cekm_swarm.runtime.errors import RuntimeTransportError
