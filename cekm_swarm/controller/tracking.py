@@ -9,7 +9,7 @@ Per robot (docs/tracking.md):
     teammates that observe t and are nearer to it) and by its urgency (a target near
     the edge of the range pulls harder), localized at a stand-off: a target
     at distance d > standoff * R is localized at (alpha, d - standoff * R), a nearer one
-    at (alpha, 0), so the robot closes in to half its sensing range and then only turns
+    at (alpha, 0), so the robot closes in to 0.7 of its sensing range and then only turns
     to face the target; it keeps the target in range instead of driving onto it;
   - when no sensed target has full weight, the target field of the search goal (the
     one search behaviour, :meth:`.team.TeamView.search_goal`), weighted search_weight;

@@ -136,7 +136,7 @@ class TrackingParams:
     memory_s: a target's last reported position is forgotten after this long.
     """
 
-    standoff: float = 0.5
+    standoff: float = 0.7
     watched_factor: float = 0.25
     urgency: float = 0.5
     teammate_near: float = 0.5
@@ -144,7 +144,7 @@ class TrackingParams:
     teammate_sigma_alpha: float = 0.99
     teammate_sigma_d_beyond: float = 2.475
     teammate_sigma_d_near: float = 0.0495
-    search_weight: float = 0.5
+    search_weight: float = 0.8
     search_reached: float = 0.5
     wander_ahead_m: float = 0.3
     share_timeout_s: float = 1.0
