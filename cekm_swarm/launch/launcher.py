@@ -32,7 +32,8 @@ from typing import Any
 from cekm_swarm.errors import CekmError
 from cekm_swarm.protocol import DEFAULT_ROOT, KeySpace, module_names
 from cekm_swarm.runtime.bridge import LivelinessWatcher
-from cekm_swarm.runtime.config import DEFAULT_HOST, DEFAULT_PORT, open_client, open_embedded_router
+from cekm_swarm.runtime.config import DEFAULT_HOST, DEFAULT_PORT, open_embedded_router
+from cekm_swarm.runtime.wait import open_client_when_ready
 from cekm_swarm.runtime.model_service import ZENOH_MODEL, ModelServer
 
 BACKOFF_MIN = 0.25
@@ -294,7 +295,7 @@ class Launcher:
                 if world_hosts_router:
                     also = "" if local_host == c.listen_host else f" (listening on tcp/{c.listen_host}:{c.port})"
                     self.say(f"the world server hosts the embedded Zenoh router on {endpoint}{also}")
-            session = open_client(endpoint, config_file=c.zenoh_config)
+            session = open_client_when_ready(endpoint, c.zenoh_config, say=self.say)  # a robot host may start first
             if c.world:  # (a world host always has the model file)
                 model_server = ModelServer(session, self.keys.world_model(), model)
                 self.say(f"serving the model {Path(model).name} on {self.keys.world_model()}")

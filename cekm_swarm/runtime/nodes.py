@@ -1,0 +1,115 @@
+"""``cekm node list``: the live module processes of a run, from their liveliness tokens.
+
+Every module process holds a token ``<root>/<robot>/alive/<module>`` (the world server
+``<root>/world/alive/server``); :func:`group_tokens` (pure) sorts the tokens alive now
+into owners and says which of a robot's modules are missing.
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass
+
+import zenoh
+
+from cekm_swarm.protocol import WORLD, KeyKind, KeySpace, KeySpaceError
+
+
+@dataclass(frozen=True, slots=True)
+class OwnerNodes:
+    """The live modules of one owner (a robot id or ``world``) and the missing ones."""
+
+    owner: str
+    alive: tuple[str, ...]
+    missing: tuple[str, ...]
+    expected: int = 0
+
+    def as_dict(self) -> dict[str, object]:
+        return {"owner": self.owner, "alive": list(self.alive), "missing": list(self.missing)}
+
+
+def group_tokens(tokens: set[str] | list[str], keys: KeySpace) -> tuple[list[OwnerNodes], list[str]]:
+    """(owners with their live and missing modules, sorted; tokens that are not module
+    tokens of ``keys``). A robot's expected modules are ``keys.module_names()``."""
+    owners: dict[str, set[str]] = {}
+    other: list[str] = []
+    for t in sorted(tokens):
+        try:
+            parsed = keys.parse(t)
+        except KeySpaceError:
+            other.append(t)
+            continue
+        if parsed.kind is not KeyKind.ALIVE or parsed.robot is None or parsed.module is None:
+            other.append(t)
+            continue
+        owners.setdefault(parsed.robot, set()).add(parsed.module)
+    expected = keys.module_names()
+    order = {m: i for i, m in enumerate(expected)}
+    out = []
+    for owner in sorted(owners, key=lambda o: (o != WORLD, o)):
+        mods = owners[owner]
+        alive = tuple(sorted(mods, key=lambda m: (order.get(m, len(order)), m)))
+        missing = () if owner == WORLD else tuple(m for m in expected if m not in mods)
+        out.append(OwnerNodes(owner, alive, missing, 0 if owner == WORLD else len(expected)))
+    return out, other
+
+
+def live_tokens(session: zenoh.Session, keys: KeySpace, timeout: float = 2.0) -> set[str]:
+    """The liveliness tokens alive now under ``keys`` (a liveliness query)."""
+    replies = session.liveliness().get(keys.alive_all(), timeout=timeout)
+    return {str(r.ok.key_expr) for r in replies if r.ok is not None}
+
+
+def wait_for_tokens(session: zenoh.Session, keys: KeySpace, timeout: float,
+                    stop: threading.Event | None = None) -> set[str]:
+    """Tokens alive now; if there are none, wait up to ``timeout`` s for the first to appear."""
+    seen: set[str] = set()
+    arrived = threading.Event()
+    lock = threading.Lock()
+
+    def on_token(sample: zenoh.Sample) -> None:
+        with lock:
+            if sample.kind == zenoh.SampleKind.DELETE:
+                seen.discard(str(sample.key_expr))
+            else:
+                seen.add(str(sample.key_expr))
+                arrived.set()
+
+    sub = session.liveliness().declare_subscriber(keys.alive_all(), on_token, history=True)
+    try:
+        tokens = live_tokens(session, keys)
+        if tokens or timeout <= 0:
+            return tokens | seen
+        stopper = stop or threading.Event()
+        end = timeout
+        step = 0.1
+        waited = 0.0
+        while waited < end and not stopper.is_set():
+            if arrived.wait(step):
+                break
+            waited += step
+        if arrived.is_set():  # let the rest of a starting run's tokens arrive
+            stopper.wait(0.3)
+        with lock:
+            return set(seen) | live_tokens(session, keys)
+    finally:
+        sub.undeclare()
+
+
+def format_nodes(groups: list[OwnerNodes], other: list[str]) -> str:
+    """One line per owner: ``r1  14/14  target obstacle-0..11 motor``, missing ones named."""
+    if not groups and not other:
+        return "no live modules"
+    lines = []
+    for g in groups:
+        if g.owner == WORLD:
+            lines.append(f"{g.owner:<8} {', '.join(g.alive)}")
+            continue
+        line = f"{g.owner:<8} {g.expected - len(g.missing):>2}/{g.expected} modules alive"
+        if g.missing:
+            line += f"; missing: {', '.join(g.missing)}"
+        lines.append(line)
+    for t in other:
+        lines.append(f"other token: {t}")
+    return "\n".join(lines)
+
