@@ -53,8 +53,12 @@ def _say(text: str) -> None:
 
 
 def _open(endpoint: str | None, config_file: Path | None, wait_s: float, stop: threading.Event | None = None):
-    from .wait import open_tool_session
+    from .wait import open_tool_session, resolve_endpoint
 
+    try:
+        resolve_endpoint(endpoint)
+    except CekmError as exc:
+        raise click.UsageError(str(exc)) from None
     try:
         return open_tool_session(endpoint, config_file, timeout=wait_s, say=_say, stop=stop)
     except CekmError as exc:
@@ -261,11 +265,16 @@ def topic_info_cmd(endpoint: str | None, config_file: Path | None, wait_s: float
 @click.option("--count", "-n", default=1, show_default=True, type=click.IntRange(1), help="Messages to publish.")
 @click.option("--rate", default=None, type=click.FloatRange(min=0.0, min_open=True), help="Messages per second.")
 @click.option("--stamp", default=None, type=float, help="The messages' stamp (default: the JSON's, else 0).")
+@click.option("--wait-subscriber", default=5.0, show_default=True, type=click.FloatRange(0.0),
+              help="Seconds to wait for a subscriber before publishing anyway.")
+@click.option("--confirm-timeout", default=3.0, show_default=True, type=click.FloatRange(0.1),
+              help="Seconds to wait for the messages to come back through the router.")
 @click.option("--no-confirm", is_flag=True,
               help="Do not check that the router passed the messages on (needs no subscribe permission).")
 @click.option("--root", default="cekm", show_default=True, help=_ROOT_HELP)
 def topic_pub_cmd(endpoint: str | None, config_file: Path | None, wait_s: float, key: str, message: str, count: int,
-                  rate: float | None, stamp: float | None, no_confirm: bool, root: str) -> None:
+                  rate: float | None, stamp: float | None, wait_subscriber: float, confirm_timeout: float,
+                  no_confirm: bool, root: str) -> None:
     """Publish a message on KEY, its fields as a JSON map, e.g.
     cekm topic pub cekm/r1/cmd/wheels '{"v_l": 0.05, "v_r": 0.05, "seq": 1}'.
 
@@ -286,7 +295,8 @@ def topic_pub_cmd(endpoint: str | None, config_file: Path | None, wait_s: float,
     with _session(endpoint, config_file, wait_s) as session, _sigint_sets(stop) as hit:
         probe = None if no_confirm else _open(endpoint, config_file, wait_s, stop)
         try:
-            res = publish(session, key, payload, count=count, rate=rate, probe=probe, stop=stop)
+            res = publish(session, key, payload, count=count, rate=rate, probe=probe, stop=stop,
+                          wait_subscriber=wait_subscriber, waiting=_say, confirm_timeout=confirm_timeout)
         finally:
             if probe is not None:
                 probe.close()

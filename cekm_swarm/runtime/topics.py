@@ -366,11 +366,14 @@ class PubResult:
 
 def publish(session: zenoh.Session, key: str, payload: bytes, *, count: int = 1, rate: float | None = None,
             probe: zenoh.Session | None = None, confirm_timeout: float = 3.0,
-            stop: threading.Event | None = None) -> PubResult:
+            stop: threading.Event | None = None, wait_subscriber: float = 0.0,
+            waiting: Callable[[str], None] | None = None) -> PubResult:
     """Put ``payload`` on ``key`` ``count`` times (``rate`` Hz apart). With ``probe`` (a second
     session on the same router, with the same credentials) subscribed to ``key``, count how
     many come back through the router: a router whose access control denies the put drops
-    it silently, so a shortfall is the one sign of that."""
+    it silently, so a shortfall is the one sign of that. ``wait_subscriber``: first wait up
+    to that many seconds for a subscriber (saying so through ``waiting``), as ``ros2 topic
+    pub`` does; published anyway after it, with ``matched`` False."""
     from .bridge import Publishers
 
     stop = stop or threading.Event()
@@ -380,6 +383,12 @@ def publish(session: zenoh.Session, key: str, payload: bytes, *, count: int = 1,
     with Publishers(session, block=True) as pubs:
         pub = pubs.publisher(key)
         result.matched = pub.matching_status.matching
+        if not result.matched and wait_subscriber > 0:
+            from .bridge import wait_matching
+
+            if waiting is not None:
+                waiting(f"waiting for a subscriber on {key} ...")
+            result.matched = wait_matching(pub, wait_subscriber)
         if probe is not None:
             probe_sub = probe.declare_subscriber(key, lambda s: got.release())
             # A barrier: the router answers the probe's liveliness query after it has taken
