@@ -190,6 +190,7 @@ def replay_log(session: zenoh.Session, path: str | Path, *, rate: float | None =
                         result.stopped = True
                         return result
                 if first_ns is None:
+                    loop_t0 = time.perf_counter()  # the schedule starts at the first message
                     first_ns = m.log_time
                 last_ns = m.log_time
                 if not fast:

@@ -232,3 +232,20 @@ def test_record_writes_the_channels_and_views_of_the_worlds_log(router, clients,
     assert len(bad) == 1 and bad[0].log_time == 3_000_000_000 and bad[0].data == b"\xc1"
     assert [m.data for m in read_messages(out, topics=[K.world_state()])] == [
         encode(world_state(1.0 + i, 0.1 * i)) for i in range(3)]
+
+
+def test_recording_draws_what_it_can_and_counts_what_it_cannot(tmp_path):
+    """A world state that decodes but has no drawable pose is recorded, drawn in no view,
+    and counted; a malformed one is recorded as it came and counted."""
+    from cekm_swarm.runtime.mcap_log import McapRecorder
+    from cekm_swarm.runtime.record import Recording
+
+    out = tmp_path / "r.mcap"
+    with McapRecorder(out) as recorder:
+        rec = Recording(recorder)
+        rec.add(K.world_state(), encode(world_state(1.0, 0.1)))
+        rec.add(K.world_state(), encode(WorldState(2.0, "world", {"r1": {"y": 0.5}}, {}, {})))  # no x
+        rec.add(K.world_state(), b"\x93\x01")  # not a message
+    assert rec.result.messages == 3 and rec.result.malformed == 2
+    topics = [m.topic for m in read_messages(out)]
+    assert topics.count(K.world_state()) == 3 and topics.count("/view/scene") == 1
