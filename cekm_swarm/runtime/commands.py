@@ -611,8 +611,9 @@ def record_cmd(key_expr: str | None, out_path: Path, endpoint: str | None, confi
 @click.option("--refresh", default=0.5, show_default=True, type=click.FloatRange(min=0.05), help="Seconds between redraws.")
 @click.option("--once", "once_after", type=click.FloatRange(min=0.1), default=None, metavar="SECONDS",
               help="Watch for SECONDS, print one snapshot and exit (for scripts and pipes).")
+@click.option("--json", "as_json", is_flag=True, help="With --once: the snapshot as one JSON object.")
 def monitor(endpoint: str | None, config_file: Path | None, wait_s: float, root: str, robots: tuple[str, ...],
-            key_expr: str | None, refresh: float, once_after: float | None) -> None:
+            key_expr: str | None, refresh: float, once_after: float | None, as_json: bool) -> None:
     """A live view of a run (80 columns): the run's phase, robots' poses, goals, status,
     commands, modules alive and sense-to-command latency; --keys adds per-key rates.
     Attach from any terminal, before or after the run starts; Ctrl-C to leave."""
@@ -621,6 +622,8 @@ def monitor(endpoint: str | None, config_file: Path | None, wait_s: float, root:
     from .wait import resolve_endpoint
 
     _keys(root)
+    if as_json and once_after is None:
+        raise click.UsageError("--json needs --once SECONDS (the live view is for a terminal)")
     wanted = {r.strip() for t in robots for r in t.split(",") if r.strip()} or None
     chooser = None
     if key_expr is not None:
@@ -632,7 +635,7 @@ def monitor(endpoint: str | None, config_file: Path | None, wait_s: float, root:
     with _session(endpoint, config_file, wait_s) as session:
         try:
             run_monitor(session, root=root, refresh=refresh, once_after=once_after, out=click.echo, robots=wanted,
-                        key_filter=chooser, endpoint=shown if config_file is None else "")
+                        key_filter=chooser, endpoint=shown if config_file is None else "", as_json=as_json)
         except KeyboardInterrupt:
             sys.exit(INTERRUPTED)
     if once_after is None:

@@ -285,6 +285,25 @@ def render(state: MonitorState, now: float, *, robots: set[str] | None = None, k
     return Group(*lines)
 
 
+def snapshot(state: MonitorState, now: float, *, robots: set[str] | None = None,
+             key_filter: Callable[[str], bool] | None = None) -> dict[str, Any]:
+    """What the view shows, as plain data (``cekm monitor --once --json``)."""
+    out: dict[str, Any] = {"phase": state.phase(now), "sim_time": state.sim_time, "dropped": state.drops.total,
+                           "robots": {}}
+    for rid in sorted(state.robots):
+        if robots is not None and rid not in robots:
+            continue
+        v = state.robots[rid]
+        n, missing = state.modules_alive(rid)
+        out["robots"][rid] = {"pose": v.pose, "goal": v.goal, "in_contact": v.in_contact, "status": v.status,
+                              "command": v.command, "modules_alive": n, "modules_missing": missing,
+                              "latency_ms_p50": v.latency_ms(0.5), "latency_ms_p99": v.latency_ms(0.99)}
+    if key_filter is not None:
+        out["keys"] = [{"key": s.key, "rate_hz": s.rate, "age_s": s.age, "stamp": state.last_stamp.get(s.key)}
+                       for s in state.key_stats(now) if key_filter(s.key)]
+    return out
+
+
 def render_text(state: MonitorState, now: float, width: int = WIDTH, **kw: Any) -> str:
     """The view as plain text, as an 80-column terminal shows it (for --once, pipes, tests)."""
     console = Console(width=width, record=True, file=io.StringIO(), color_system=None, force_terminal=False)
@@ -295,7 +314,7 @@ def render_text(state: MonitorState, now: float, width: int = WIDTH, **kw: Any) 
 def run_monitor(session: zenoh.Session, root: str = "cekm", refresh: float = 0.5, once_after: float | None = None,
                 out: Callable[[str], None] = print, *, robots: set[str] | None = None,
                 key_filter: Callable[[str], bool] | None = None, endpoint: str = "",
-                stop: threading.Event | None = None) -> MonitorState:
+                stop: threading.Event | None = None, as_json: bool = False) -> MonitorState:
     """Subscribe to the run and draw it until Ctrl-C or ``stop`` (or, with ``once_after``,
     print one snapshot after that many seconds and return)."""
     keys = KeySpace(root=root)
@@ -314,9 +333,9 @@ def run_monitor(session: zenoh.Session, root: str = "cekm", refresh: float = 0.5
                 tokens.discard(str(sample.key_expr))
             else:
                 tokens.add(str(sample.key_expr))
-        state.set_alive(snapshot())
+        state.set_alive(current_tokens())
 
-    def snapshot() -> set[str]:
+    def current_tokens() -> set[str]:
         with lock:
             return set(tokens)
 
@@ -326,15 +345,20 @@ def run_monitor(session: zenoh.Session, root: str = "cekm", refresh: float = 0.5
     try:
         if once_after is not None:
             stop.wait(once_after)  # the observation window of a one-shot snapshot
-            state.set_alive(snapshot())
-            out(render_text(state, time.monotonic(), **kw))
+            state.set_alive(current_tokens())
+            if as_json:
+                from .jsonout import json_line
+
+                out(json_line(snapshot(state, time.monotonic(), robots=robots, key_filter=key_filter)))
+            else:
+                out(render_text(state, time.monotonic(), **kw))
             return state
         from rich.live import Live
 
         with Live(render(state, time.monotonic(), **kw), refresh_per_second=max(1, round(1 / refresh)),
                   screen=False, auto_refresh=False) as view:
             while not stop.is_set():
-                state.set_alive(snapshot())
+                state.set_alive(current_tokens())
                 view.update(render(state, time.monotonic(), **kw), refresh=True)
                 stop.wait(refresh)
     except KeyboardInterrupt:

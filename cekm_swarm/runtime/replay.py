@@ -166,9 +166,11 @@ def replay_log(session: zenoh.Session, path: str | Path, *, rate: float | None =
         on_progress(ReplayProgress(sim_ns / 1e9, first, end_s if math.isfinite(end_s) else sim_ns / 1e9,
                                    result.published, result.loops, control is not None and control.paused))
 
+    first_ns: int | None = None
+    last_ns = 0
     try:
         while True:
-            first_ns: int | None = None
+            first_ns = None
             last_ns = 0
             skip_before: int | None = None if log_start_ns is None else log_start_ns + int(round(start * 1e9))
             loop_t0 = time.perf_counter()
@@ -228,6 +230,8 @@ def replay_log(session: zenoh.Session, path: str | Path, *, rate: float | None =
             if max_loops is not None and result.loops >= max_loops:
                 return result
     finally:
+        if result.stopped and first_ns is not None:  # the part of the interrupted loop
+            result.sim_seconds += (last_ns - first_ns) / 1e9
         result.wall_seconds = time.perf_counter() - t_start
         if own:
             pubs.close()

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 
@@ -11,7 +12,8 @@ from cekm_swarm.protocol import DEFAULT_KEYS as K
 from cekm_swarm.protocol import SenseRange, WheelCommand, WorldState, encode
 from cekm_swarm.runtime.bridge import declare_alive
 from cekm_swarm.runtime.logcat import key_filter
-from cekm_swarm.runtime.monitor import MonitorState, render_text
+from cekm_swarm.runtime.jsonout import json_line
+from cekm_swarm.runtime.monitor import MonitorState, render_text, snapshot
 
 ALL_MODULES = {K.alive("r1", m) for m in K.module_names()}
 WORLD_TOKEN = K.alive("world", "server")
@@ -102,6 +104,10 @@ def test_robot_filter_and_key_filter():
     assert "cekm/r2/cmd/wheels" in text and "cekm/r1/cmd/wheels" not in text and "cekm/world/state" not in text
     summary = render_text(st, now=1.1)
     assert "3 keys active" in summary and "cekm/r1/cmd/wheels" not in summary  # no key list unless asked
+    doc = json.loads(json_line(snapshot(st, 1.1, robots={"r2"}, key_filter=key_filter(["cekm/r2/**"]))))
+    assert doc["phase"] == "replay" and list(doc["robots"]) == ["r2"] and doc["robots"]["r2"]["status"] == "moving"
+    assert doc["robots"]["r2"]["pose"] == [1.1, 1.2, 0.0] and doc["robots"]["r2"]["latency_ms_p50"] is None
+    assert [k["key"] for k in doc["keys"]] == ["cekm/r2/cmd/wheels"]
 
 
 def test_a_world_state_it_cannot_draw_is_dropped_and_counted_not_a_crash():
