@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import os
+import socket
 import threading
 import time
 from collections.abc import Callable, Mapping
@@ -67,9 +68,24 @@ def resolve_endpoint(connect: str | None, environ: Mapping[str, str] | None = No
 
 
 def _unreachable(exc: BaseException) -> bool:
-    """True when opening failed because nothing answered at the endpoint (worth retrying)."""
+    """True when opening failed in the way a router that is not up yet makes it fail."""
     text = str(exc)
     return "Unable to connect" in text or "Connection refused" in text or "Timeout" in text
+
+
+def listening(endpoint: str, timeout: float = 1.0) -> bool | None:
+    """Whether something accepts TCP connections at a ``tcp/`` or ``tls/`` endpoint
+    (None for other protocols). Zenoh reports a refused password exactly as an absent
+    router ("Unable to connect"); a listening port tells the two apart."""
+    proto, _, rest = endpoint.partition("/")
+    if proto not in ("tcp", "tls"):
+        return None
+    host, _, port = rest.rpartition(":")
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout):
+            return True
+    except (OSError, ValueError):
+        return False
 
 
 def open_when_ready(make_config: Callable[[], zenoh.Config], endpoint: str, *, timeout: float = DEFAULT_WAIT,
@@ -88,6 +104,9 @@ def open_when_ready(make_config: Callable[[], zenoh.Config], endpoint: str, *, t
         except RuntimeTransportError as exc:
             if not _unreachable(exc):
                 raise
+            if listening(endpoint):  # a router is there and refused us: waiting will not help
+                raise RuntimeTransportError(f"{exc} (a router listens at {endpoint} but refused the session: "
+                                            f"check the credentials and TLS settings of the client config)") from None
             waited = time.monotonic() - t0
             if waited >= timeout or (stop is not None and stop.is_set()):
                 if timeout <= 0:

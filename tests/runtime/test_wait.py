@@ -91,3 +91,29 @@ def test_topic_echo_started_before_the_router_waits_for_it_and_for_messages():
     assert proc.returncode == 0, err
     assert out.strip() == ('{"key":"cekm/r1/cmd/wheels","message":{"kind":"cmd/wheels","stamp":1.5,'
                            '"sender":"r1/motor","v_l":0.1,"v_r":0.2,"seq":7}}')
+
+
+def test_a_refused_session_is_not_waited_for(tmp_path):
+    """A wrong password fails like an absent router in Zenoh ("Unable to connect"); the
+    wait tells them apart by the listening port and fails at once, saying why."""
+    import shutil
+    import time
+    from pathlib import Path
+
+    from cekm_swarm.runtime.config import load_config, open_session
+
+    deploy = Path(__file__).resolve().parents[2] / "deploy"
+    shutil.copy(deploy / "credentials.example.txt", tmp_path / "credentials.txt")
+    port = free_port()
+    endpoint = f"tcp/127.0.0.1:{port}"
+    router = open_session(load_config(deploy / "router.json5", {
+        "listen/endpoints": [endpoint], "transport/auth/usrpwd/dictionary_file": str(tmp_path / "credentials.txt")}))
+    bad = tmp_path / "bad.json5"
+    bad.write_text((deploy / "robot-r1.json5").read_text().replace("change-me-r1", "wrong"))
+    t0 = time.monotonic()
+    try:
+        with pytest.raises(RuntimeTransportError, match="refused the session: check the credentials"):
+            open_client_when_ready(endpoint, bad, timeout=T)
+    finally:
+        router.close()
+    assert time.monotonic() - t0 < T / 2  # not the whole wait
