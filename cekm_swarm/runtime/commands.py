@@ -33,7 +33,7 @@ from cekm_swarm.errors import CekmError
 
 from .wait import DEFAULT_WAIT, ENV_CONNECT
 
-_ROOT_HELP = "Key-space root."
+_ROOT_HELP = "Key-space root (docs/design.md section 6)."
 INTERRUPTED = 130
 
 
