@@ -39,6 +39,13 @@ WIDTH = 80
 STALE_AFTER = 3.0
 """Seconds without a world state after which the monitor says so."""
 
+MAX_KEYS = 4096
+"""Keys whose rates the monitor tracks; messages on keys beyond these are counted only (a
+publisher inventing keys cannot grow the monitor without bound)."""
+
+MAX_ROBOTS = 512
+"""Robots the monitor tracks; others are counted in ``untracked``."""
+
 FRESH = 1.0
 """A world state younger than this (s) means the run is going, whatever the tokens say."""
 
@@ -109,18 +116,29 @@ class MonitorState:
         self.sim_time = math.nan
         self.world_at: float | None = None  # arrival time of the newest world state
         self.world_token_seen = False
+        self.untracked = 0  # messages on keys (or robots) beyond MAX_KEYS (MAX_ROBOTS)
         self.drops = DropCounter("monitor", keys=keys)
         self._lock = threading.Lock()
 
-    def robot(self, rid: str) -> RobotView:
-        if rid not in self.robots:
-            self.robots[rid] = RobotView(rid)
-        return self.robots[rid]
+    def robot(self, rid: str) -> RobotView | None:
+        """The view of robot ``rid``, made on first sight; None beyond :data:`MAX_ROBOTS`."""
+        v = self.robots.get(rid)
+        if v is None:
+            if len(self.robots) >= MAX_ROBOTS:
+                self.untracked += 1
+                return None
+            v = self.robots[rid] = RobotView(rid)
+        return v
 
     def observe(self, key: str, payload: bytes, at: float) -> None:
         """One received message: decoded and checked (a malformed one is counted and dropped)."""
         with self._lock:
-            q = self.arrivals.setdefault(key, deque())
+            q = self.arrivals.get(key)
+            if q is None:
+                if len(self.arrivals) >= MAX_KEYS:
+                    self.untracked += 1
+                    return
+                q = self.arrivals[key] = deque()
             q.append(at)
             while q and at - q[0] > self.window:
                 q.popleft()
@@ -144,19 +162,22 @@ class MonitorState:
                 self.world_at = at
                 for rid, (pose, goal, contact) in entries.items():
                     v = self.robot(rid)
+                    if v is None:
+                        continue
                     v.pose, v.in_contact = pose, contact
                     if goal is not None:
                         v.goal = goal
                 return
             self.last_stamp[key] = msg.stamp
-            if isinstance(msg, (SenseRange, SenseTarget)) and robot:
-                v = self.robot(robot)
+            v = self.robot(robot) if robot and isinstance(msg, (SenseRange, SenseTarget, WheelCommand)) else None
+            if v is None:
+                return
+            if isinstance(msg, (SenseRange, SenseTarget)):
                 v.sense_first.setdefault(round(msg.stamp, 6), at)
                 if len(v.sense_first) > 64:
                     for s in sorted(v.sense_first)[:-64]:
                         del v.sense_first[s]
-            elif isinstance(msg, WheelCommand) and robot:
-                v = self.robot(robot)
+            elif isinstance(msg, WheelCommand):
                 v.command = (msg.v_l, msg.v_r)
                 v.command_stamp = msg.stamp
                 first = v.sense_first.get(round(msg.stamp, 6))
@@ -236,6 +257,8 @@ def render(state: MonitorState, now: float, *, robots: set[str] | None = None, k
     head.append(_fit(phase, len(phase), "<"), style=_PHASE_STYLE.get(phase, "bold yellow"))
     sim = "-" if not math.isfinite(state.sim_time) else f"{state.sim_time:.2f} s"
     head.append(f"  sim {sim}  dropped {state.drops.total}")
+    if state.untracked:
+        head.append(f"  untracked {state.untracked}", style="yellow")
     if endpoint:
         head.append(f"  {endpoint}", style="dim")
     lines: list[Text] = [head]

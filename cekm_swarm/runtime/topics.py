@@ -222,6 +222,16 @@ class Endpoints:
     subscribers: dict[str, list[str]]
 
 
+def _zids(doc: dict[str, Any], *fields: str) -> list[str]:
+    """The session ids listed under ``fields`` of an admin-space entry (anything else ignored)."""
+    out = []
+    for f in fields:
+        value = doc.get(f)
+        if isinstance(value, list):
+            out.extend(v for v in value if isinstance(v, str))
+    return out
+
+
 def _admin(session: zenoh.Session, selector: str, timeout: float) -> list[tuple[str, dict[str, Any]]]:
     out = []
     for reply in session.get(selector, timeout=timeout):
@@ -264,16 +274,15 @@ def router_endpoints(session: zenoh.Session, key_expr: str, keys: KeySpace = DEF
             label = f"{parsed.robot}/{parsed.module}"
         except Exception:
             label = rest
-        for zid in doc.get("clients", []) + doc.get("peers", []):
-            names.setdefault(str(zid), []).append(label)
+        for zid in _zids(doc, "clients", "peers"):
+            names.setdefault(zid, []).append(label)
 
     def who(doc: dict[str, Any], routers: bool) -> list[str]:
         out = []
-        for zid in doc.get("clients", []) + doc.get("peers", []):
-            zid = str(zid)
+        for zid in _zids(doc, "clients", "peers"):
             if zid != me:
                 out.append(", ".join(sorted(names[zid])) if zid in names else f"zid {zid}")
-        if routers and doc.get("routers"):
+        if routers and _zids(doc, "routers"):
             out.append("router")
         return sorted(out)
 

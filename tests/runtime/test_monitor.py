@@ -151,3 +151,15 @@ def test_monitor_command_attaches_to_a_live_run(router, clients):
     assert "r1" in out and "moving" in out and "1/14" in out
     assert "cekm/r1/cmd/wheels" in out and "cekm/world/state" in out
     del token
+
+
+def test_invented_keys_and_robots_cannot_grow_the_monitor_without_bound(monkeypatch):
+    from cekm_swarm.runtime import monitor
+
+    monkeypatch.setattr(monitor, "MAX_KEYS", 5)
+    monkeypatch.setattr(monitor, "MAX_ROBOTS", 3)
+    st = MonitorState()
+    for i in range(10):
+        st.observe(K.cmd_wheels(f"r{i}"), encode(WheelCommand(1.0, "m", 0.1, 0.1, 1)), at=1.0)
+    assert len(st.arrivals) == 5 and len(st.robots) == 3 and st.untracked == 5 + 2
+    assert "untracked 7" in render_text(st, now=1.0)

@@ -117,3 +117,16 @@ def test_a_refused_session_is_not_waited_for(tmp_path):
     finally:
         router.close()
     assert time.monotonic() - t0 < T / 2  # not the whole wait
+
+
+def test_launch_takes_its_endpoint_from_cekm_connect_and_refuses_a_bad_one(tmp_path):
+    """`cekm launch` resolves its endpoint by the same rule: a bad CEKM_CONNECT is a usage
+    error naming the variable, before any process starts."""
+    from click.testing import CliRunner
+
+    from cekm_swarm.cli import main
+
+    res = CliRunner().invoke(main, ["launch", "lone_obstacle", "--out", str(tmp_path / "out")],
+                             env={ENV_CONNECT: "localhost:7447"})
+    assert res.exit_code == 2 and f"{ENV_CONNECT}: endpoint 'localhost:7447'" in res.output
+    assert not (tmp_path / "out").exists()
