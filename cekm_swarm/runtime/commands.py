@@ -169,7 +169,7 @@ def topic_list_cmd(endpoint: str | None, config_file: Path | None, wait_s: float
 @click.option("--count", "-n", type=click.IntRange(1), default=None, help="Stop after N messages.")
 @click.option("--timeout", type=click.FloatRange(0.0), default=None,
               help="Stop after this many seconds of silence (default: wait for messages until Ctrl-C).")
-@click.option("--full", is_flag=True, help="Print every field in full (arrays too).")
+@click.option("--full", is_flag=True, help="Print every field in full (arrays too), the message as JSON.")
 @click.option("--json", "as_json", is_flag=True, help="One JSON object per message: key and message (or error).")
 @click.option("--root", default="cekm", show_default=True, help=_ROOT_HELP)
 def topic_echo_cmd(endpoint: str | None, config_file: Path | None, wait_s: float, key_expr: str, count: int | None,

@@ -189,7 +189,7 @@ def echo(session: zenoh.Session, key_expr: str, out: Callable[[str], None], *, c
             except MessageError as exc:
                 out(f"{rec.key}: MALFORMED ({len(rec.payload)} bytes): {exc}")
                 continue
-            out(f"{rec.key}: {to_plain(msg) if full else summary(msg)}")
+            out(f"{rec.key}: {json_line(to_plain(msg)) if full else summary(msg)}")
     finally:
         sub.undeclare()
     return n

@@ -249,3 +249,28 @@ def test_recording_draws_what_it_can_and_counts_what_it_cannot(tmp_path):
     assert rec.result.messages == 3 and rec.result.malformed == 2
     topics = [m.topic for m in read_messages(out)]
     assert topics.count(K.world_state()) == 3 and topics.count("/view/scene") == 1
+
+
+def test_echo_full_prints_the_message_as_json(router, clients):
+    from cekm_swarm.runtime.topics import echo
+
+    a, b = clients(), clients()
+    lines: list[str] = []
+    done = threading.Event()
+    pubs = Publishers(a, block=True)
+
+    def send() -> None:
+        if pubs.wait_matching(K.cmd_wheels("r1"), T):
+            pubs.send(K.cmd_wheels("r1"), WheelCommand(0.5, "r1/motor", 0.1, 0.2, 3))
+            pubs.put(K.cmd_wheels("r1"), b"\xc1")
+
+    t = threading.Thread(target=send)
+    t.start()
+    n = echo(b, K.cmd_wheels("r1"), lines.append, count=2, full=True, stop=done)
+    t.join(T)
+    pubs.close()
+    assert n == 2
+    key, _, body = lines[0].partition(": ")
+    assert key == K.cmd_wheels("r1") and json.loads(body) == {"kind": "cmd/wheels", "stamp": 0.5,
+                                                             "sender": "r1/motor", "v_l": 0.1, "v_r": 0.2, "seq": 3}
+    assert lines[1].startswith("cekm/r1/cmd/wheels: MALFORMED (1 bytes)")
