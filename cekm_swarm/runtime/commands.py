@@ -138,11 +138,11 @@ def topic_list_cmd(endpoint: str | None, config_file: Path | None, wait_s: float
     from .jsonout import json_line
     from .topics import alive_tokens, topic_list
 
-    _keys(root)
+    keys = _keys(root)
     with _session(endpoint, config_file, wait_s) as session:
         try:
-            seen = topic_list(session, f"{root}/**", window)
-            tokens = alive_tokens(session, f"{root}/*/alive/*") if alive else []
+            seen = topic_list(session, keys.everything(), window)
+            tokens = alive_tokens(session, keys.alive_all()) if alive else []
         except KeyboardInterrupt:
             sys.exit(INTERRUPTED)
     if as_json:
@@ -296,7 +296,8 @@ def topic_pub_cmd(endpoint: str | None, config_file: Path | None, wait_s: float,
         probe = None if no_confirm else _open(endpoint, config_file, wait_s, stop)
         try:
             res = publish(session, key, payload, count=count, rate=rate, probe=probe, stop=stop,
-                          wait_subscriber=wait_subscriber, waiting=_say, confirm_timeout=confirm_timeout)
+                          wait_subscriber=wait_subscriber, waiting=_say, confirm_timeout=confirm_timeout,
+                          keys=keys)
         finally:
             if probe is not None:
                 probe.close()

@@ -28,7 +28,7 @@ import zenoh
 from rich.console import Console, Group
 from rich.text import Text
 
-from cekm_swarm.protocol import (DEFAULT_KEYS, WORLD, DropCounter, KeySpace, SenseRange, SenseTarget, WheelCommand,
+from cekm_swarm.protocol import (DEFAULT_KEYS, WORLD, DropCounter, KeyKind, KeySpace, SenseRange, SenseTarget, WheelCommand,
                                  WorldState)
 
 from .topics import HzStats, hz_stats
@@ -196,7 +196,7 @@ class MonitorState:
         server alive), ``no world state for N s`` or ``run ended`` (the world server's token
         went away, or the states stopped with no module left)."""
         world_alive = self.keys.alive(WORLD, "server") in self.alive
-        modules_alive = any(not t.startswith(f"{self.keys.root}/{WORLD}/") for t in self.alive)
+        modules_alive = any(owner != WORLD for owner in self._alive_modules())
         if self.world_at is None:
             if self.world_token_seen and not world_alive:
                 return "run ended"
@@ -218,10 +218,21 @@ class MonitorState:
                     HzStats(k, 0, 0.0, math.nan, math.nan, math.nan, math.nan, math.inf)
                     for k, q in sorted(self.arrivals.items())]
 
+    def _alive_modules(self) -> dict[str, set[str]]:
+        """{owner: module names} of the liveliness tokens alive now (parsed by the key space)."""
+        out: dict[str, set[str]] = {}
+        for t in self.alive:
+            try:
+                parsed = self.keys.parse(t)
+            except Exception:
+                continue
+            if parsed.kind is KeyKind.ALIVE and parsed.robot and parsed.module:
+                out.setdefault(parsed.robot, set()).add(parsed.module)
+        return out
+
     def modules_alive(self, rid: str) -> tuple[int, list[str]]:
         """(number alive, the names of the missing ones) of a robot's modules."""
-        prefix = f"{self.keys.root}/{rid}/alive/"
-        names = {t[len(prefix):] for t in self.alive if t.startswith(prefix)}
+        names = self._alive_modules().get(rid, set())
         expected = self.keys.module_names()
         return len(names & set(expected)), [m for m in expected if m not in names]
 

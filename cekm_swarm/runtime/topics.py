@@ -376,7 +376,7 @@ class PubResult:
 def publish(session: zenoh.Session, key: str, payload: bytes, *, count: int = 1, rate: float | None = None,
             probe: zenoh.Session | None = None, confirm_timeout: float = 3.0,
             stop: threading.Event | None = None, wait_subscriber: float = 0.0,
-            waiting: Callable[[str], None] | None = None) -> PubResult:
+            waiting: Callable[[str], None] | None = None, keys: KeySpace = DEFAULT_KEYS) -> PubResult:
     """Put ``payload`` on ``key`` ``count`` times (``rate`` Hz apart). With ``probe`` (a second
     session on the same router, with the same credentials) subscribed to ``key``, count how
     many come back through the router: a router whose access control denies the put drops
@@ -402,7 +402,7 @@ def publish(session: zenoh.Session, key: str, payload: bytes, *, count: int = 1,
             probe_sub = probe.declare_subscriber(key, lambda s: got.release())
             # A barrier: the router answers the probe's liveliness query after it has taken
             # the probe's subscription (one link, in order), so the first put finds it there.
-            for _ in probe.liveliness().get(f"{key.split('/', 1)[0]}/*/alive/*", timeout=confirm_timeout):
+            for _ in probe.liveliness().get(keys.alive_all(), timeout=confirm_timeout):
                 pass
         try:
             for i in range(count):
