@@ -8,6 +8,7 @@ into owners and says which of a robot's modules are missing.
 from __future__ import annotations
 
 import threading
+import time
 from dataclasses import dataclass
 
 import zenoh
@@ -62,7 +63,13 @@ def live_tokens(session: zenoh.Session, keys: KeySpace, timeout: float = 2.0) ->
 
 def wait_for_tokens(session: zenoh.Session, keys: KeySpace, timeout: float,
                     stop: threading.Event | None = None) -> set[str]:
-    """Tokens alive now; if there are none, wait up to ``timeout`` s for the first to appear."""
+    """Tokens alive now; if there are none, wait up to ``timeout`` s for the first to appear
+    (then 0.3 s more for the rest of a starting run's tokens)."""
+    tokens = live_tokens(session, keys)
+    if tokens or timeout <= 0:
+        return tokens
+    # Only now a history subscriber: while one is declared, a liveliness query of the same
+    # session was seen to come back empty (zenoh 1.x).
     seen: set[str] = set()
     arrived = threading.Event()
     lock = threading.Lock()
@@ -75,25 +82,19 @@ def wait_for_tokens(session: zenoh.Session, keys: KeySpace, timeout: float,
                 seen.add(str(sample.key_expr))
                 arrived.set()
 
+    stopper = stop or threading.Event()
     sub = session.liveliness().declare_subscriber(keys.alive_all(), on_token, history=True)
     try:
-        tokens = live_tokens(session, keys)
-        if tokens or timeout <= 0:
-            return tokens | seen
-        stopper = stop or threading.Event()
-        end = timeout
-        step = 0.1
-        waited = 0.0
-        while waited < end and not stopper.is_set():
-            if arrived.wait(step):
+        deadline = time.monotonic() + timeout
+        while not stopper.is_set() and not arrived.wait(min(0.1, max(0.0, deadline - time.monotonic()))):
+            if time.monotonic() >= deadline:
                 break
-            waited += step
-        if arrived.is_set():  # let the rest of a starting run's tokens arrive
+        if arrived.is_set():
             stopper.wait(0.3)
-        with lock:
-            return set(seen) | live_tokens(session, keys)
     finally:
         sub.undeclare()
+    with lock:
+        return set(seen) | live_tokens(session, keys)
 
 
 def format_nodes(groups: list[OwnerNodes], other: list[str]) -> str:

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import click
 import pytest
+import zenoh
 from click.testing import CliRunner
 from runtime_samples import sample_traffic, write_log
 
@@ -158,10 +159,18 @@ def test_node_list_groups_live_modules_and_names_the_missing(router, clients):
     assert lines[0] == "world    server"
     assert lines[1] == "r1       14/14 modules alive"
     assert lines[2].startswith("r2        2/14 modules alive; missing: obstacle-0, obstacle-1")
-    js = [json.loads(line) for line in run("node", "list", "--connect", router, "--json").output.splitlines()]
+    listed = run("node", "list", "--connect", router, "--json")
+    js = [json.loads(line) for line in listed.output.splitlines()]
+    assert len(js) == 3, listed.output
     assert js[2] == {"owner": "r2", "alive": ["target", "motor"], "missing": [f"obstacle-{j}" for j in range(12)]}
+    gone = threading.Semaphore(0)
+    watch = clients().liveliness().declare_subscriber(
+        K.alive_all(), lambda smp: gone.release() if smp.kind == zenoh.SampleKind.DELETE else None)
     for t in tokens:
         t.undeclare()
+    for _ in tokens:  # the router has taken every token away
+        assert gone.acquire(timeout=T)
+    watch.undeclare()
     empty = run("node", "list", "--connect", router, "--timeout", "0.2")
     assert empty.output.splitlines()[-1] == "no live modules"
 
