@@ -163,9 +163,11 @@ def test_node_list_groups_live_modules_and_names_the_missing(router, clients):
     js = [json.loads(line) for line in listed.output.splitlines()]
     assert len(js) == 3, listed.output
     assert js[2] == {"owner": "r2", "alive": ["target", "motor"], "missing": [f"obstacle-{j}" for j in range(12)]}
-    gone = threading.Semaphore(0)
+    gone, there = threading.Semaphore(0), threading.Semaphore(0)
     watch = clients().liveliness().declare_subscriber(
-        K.alive_all(), lambda smp: gone.release() if smp.kind == zenoh.SampleKind.DELETE else None)
+        K.alive_all(), lambda smp: (gone if smp.kind == zenoh.SampleKind.DELETE else there).release(), history=True)
+    for _ in tokens:  # the watcher knows every token
+        assert there.acquire(timeout=T)
     for t in tokens:
         t.undeclare()
     for _ in tokens:  # the router has taken every token away
