@@ -123,7 +123,7 @@ def _check_key_expr(key_expr: str, hint: str = "KEYEXPR") -> str:
 
 @click.group("topic")
 def topic() -> None:
-    """Inspect and drive the keys of a live or replayed run (like ``ros2 topic``)."""
+    """Inspect and drive the keys of a live or replayed run (like ros2 topic)."""
 
 
 @topic.command("list")
@@ -264,7 +264,7 @@ def topic_info_cmd(endpoint: str | None, config_file: Path | None, wait_s: float
 @click.argument("message", metavar="JSON")
 @click.option("--count", "-n", default=1, show_default=True, type=click.IntRange(1), help="Messages to publish.")
 @click.option("--rate", default=None, type=click.FloatRange(min=0.0, min_open=True), help="Messages per second.")
-@click.option("--stamp", default=None, type=float, help="The messages' stamp (default: the JSON's, else 0).")
+@click.option("--stamp", default=None, type=float, help="The messages' stamp, over the JSON's (default: the JSON's, else 0).")
 @click.option("--wait-subscriber", default=5.0, show_default=True, type=click.FloatRange(0.0),
               help="Seconds to wait for a subscriber before publishing anyway.")
 @click.option("--confirm-timeout", default=3.0, show_default=True, type=click.FloatRange(0.1),
@@ -317,7 +317,7 @@ def topic_pub_cmd(endpoint: str | None, config_file: Path | None, wait_s: float,
 
 @click.group("node")
 def node() -> None:
-    """The module processes of a run (like ``ros2 node``)."""
+    """The module processes of a run (like ros2 node)."""
 
 
 @node.command("list")
@@ -399,7 +399,7 @@ def log_info_cmd(log_file: Path, recover_to: Path | None, as_json: bool) -> None
 @click.option("--root", default="cekm", show_default=True, help=_ROOT_HELP)
 def log_cat_cmd(log_file: Path, topics: tuple[str, ...], as_json: bool, views: bool, start: float | None,
                 end: float | None, root: str) -> None:
-    """Print a log's messages, decoded, in time order (like ``mcap cat``, ``ros2 bag echo``)."""
+    """Print a log's messages, decoded, in time order (like mcap cat, ros2 bag echo)."""
     from .logcat import CatCounts, cat_lines
 
     patterns = tuple(p.strip() for t in topics for p in t.split(",") if p.strip())

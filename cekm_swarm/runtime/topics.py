@@ -343,7 +343,9 @@ def build_message(key: str, fields_json: str, keys: KeySpace = DEFAULT_KEYS, *, 
         raise MessageError(f"{key}: the message is not JSON ({exc})") from None
     if not isinstance(doc, dict):
         raise MessageError(f"{key}: the message must be a JSON map of fields, got {type(doc).__name__}")
-    doc.setdefault("stamp", 0.0 if stamp is None else stamp)
+    if stamp is not None:
+        doc["stamp"] = stamp
+    doc.setdefault("stamp", 0.0)
     doc.setdefault("sender", sender)
     if parsed.index is not None:
         doc.setdefault("index", parsed.index)
