@@ -207,6 +207,7 @@ def topic_hz_cmd(endpoint: str | None, config_file: Path | None, wait_s: float, 
 
     _check_key_expr(key_expr)
     stop = threading.Event()
+    said = False
     with _session(endpoint, config_file, wait_s) as session, ArrivalLog(session, key_expr, window) as arrivals:
         t_end = None if duration is None else time.monotonic() + duration
         try:
@@ -216,6 +217,11 @@ def topic_hz_cmd(endpoint: str | None, config_file: Path | None, wait_s: float, 
                     break
                 stop.wait(interval if left is None else min(interval, left))
                 stats = arrivals.stats()
+                if not stats:
+                    if not said:
+                        _say(f"waiting for messages on {key_expr} ...")
+                        said = True
+                    continue
                 if as_json:
                     for s in stats:
                         click.echo(json_line(asdict(s)))
@@ -476,9 +482,11 @@ def _keyboard(control: Any, stop: threading.Event) -> Iterator[bool]:
 @click.option("--start", default=0.0, show_default=True, type=click.FloatRange(0.0),
               help="Skip this many seconds from the log's start.")
 @click.option("--keys", "key_expr", default=None, metavar="KEYEXPR", help="Replay only keys matching this.")
+@click.option("--start-paused", is_flag=True, help="Wait for a key press (space) before the first message.")
 @click.option("--quiet", is_flag=True, help="No progress line.")
 def replay_cmd(log_file: Path, endpoint: str | None, config_file: Path | None, wait_s: float, port: int | None,
-               rate: float, fast: bool, loop: bool, start: float, key_expr: str | None, quiet: bool) -> None:
+               rate: float, fast: bool, loop: bool, start: float, key_expr: str | None, start_paused: bool,
+               quiet: bool) -> None:
     """Republish the recorded messages of LOG.mcap onto Zenoh at the recorded timing.
 
     With no --connect (and no CEKM_CONNECT, no --config) the replay hosts the router itself
@@ -500,11 +508,15 @@ def replay_cmd(log_file: Path, endpoint: str | None, config_file: Path | None, w
     if span is not None and start > span[1] - span[0]:
         raise click.BadParameter(f"{start:g} s is past the log's end ({span[1] - span[0]:.3f} s long)",
                                  param_hint="--start")
+    if start_paused and not sys.stdin.isatty():
+        raise click.UsageError("--start-paused needs a terminal (space resumes the replay)")
     host_router = not ep.explicit and config_file is None
     if port is not None and not host_router:
         raise click.UsageError(f"--port is for the router the replay hosts; it joins {ep.endpoint} ({ep.source})")
     stop = threading.Event()
     control = ReplayControl()
+    if start_paused:
+        control.pause()
     if host_router:
         p = DEFAULT_PORT if port is None else port
         try:
