@@ -133,8 +133,27 @@ def client_config(endpoint: str = DEFAULT_ENDPOINT, *, user: str | None = None,
     return config
 
 
+TLS_FILES = ("root_ca_certificate", "listen_certificate", "listen_private_key", "connect_certificate",
+             "connect_private_key")
+"""Keys under ``transport/link/tls`` naming a file (PEM)."""
+
+
+def check_tls_files(config: zenoh.Config, what: str) -> None:
+    """Fail with the key and the path when a TLS file the config names is missing
+    (Zenoh itself only says that it cannot connect or listen)."""
+    for key in TLS_FILES:
+        try:
+            value = json.loads(config.get_json(f"transport/link/tls/{key}"))
+        except Exception:
+            continue
+        if isinstance(value, str) and not Path(value).is_file():
+            where = "" if Path(value).is_absolute() else f" (relative to the working directory {os.getcwd()})"
+            raise RuntimeTransportError(f"zenoh config {what}: transport/link/tls/{key}: no such file {value!r}{where}")
+
+
 def load_config(path: str | Path, overrides: dict[str, object] | None = None) -> zenoh.Config:
-    """A config file (JSON5) with optional overrides {'path/in/config': value}."""
+    """A config file (JSON5) with optional overrides {'path/in/config': value}; the TLS
+    files it names must exist."""
     path = Path(path)
     if not path.is_file():
         raise RuntimeTransportError(f"zenoh config {path}: no such file")
@@ -144,6 +163,7 @@ def load_config(path: str | Path, overrides: dict[str, object] | None = None) ->
         raise RuntimeTransportError(f"zenoh config {path}: {exc}") from None
     for k, v in (overrides or {}).items():
         _insert(config, k, v)
+    check_tls_files(config, str(path))
     return config
 
 
