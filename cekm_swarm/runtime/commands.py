@@ -608,6 +608,8 @@ def record_cmd(key_expr: str | None, out_path: Path, endpoint: str | None, confi
     span = "" if res.first_stamp is None else f", sim time {res.first_stamp:.3f} .. {res.last_stamp:.3f} s"
     bad = f", {res.malformed} malformed" if res.malformed else ""
     click.echo(f"recorded {res.messages} messages on {len(res.per_key)} keys{span}{bad} into {out_path}")
+    if res.first_stamp is not None and keys.world_state() in res.per_key and not res.geometry:
+        _say(f"no static scene in the recording: nothing answered on {keys.world_geometry()}")
     if hit[0]:
         sys.exit(INTERRUPTED)
 

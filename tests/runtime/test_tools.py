@@ -19,7 +19,9 @@ from cekm_swarm.protocol import WheelCommand, WorldState, decode, encode
 from cekm_swarm.runtime.bridge import Publishers, declare_alive
 from cekm_swarm.runtime.commands import COMMANDS
 from cekm_swarm.runtime.config import free_port, load_config, open_session
+from cekm_swarm.launch.plot import read_geometry
 from cekm_swarm.runtime.mcap_log import log_info, read_messages
+from cekm_swarm.runtime.record import serve_geometry
 
 DEPLOY = Path(__file__).resolve().parents[2] / "deploy"
 T = 20.0
@@ -213,6 +215,10 @@ def world_state(t: float, x: float) -> WorldState:
                       {"t1": {"x": 1.0, "y": 1.0}}, {})
 
 
+GEOMETRY = {"walls": [{"a": [0.0, 0.0], "b": [2.0, 0.0], "thickness": 0.01}], "polygons": [], "discs": [],
+            "moving_obstacles": [], "body_radius": 0.03}
+
+
 def test_record_writes_the_channels_and_views_of_the_worlds_log(router, clients, tmp_path):
     out = tmp_path / "rec.mcap"
     a = clients()
@@ -220,6 +226,7 @@ def test_record_writes_the_channels_and_views_of_the_worlds_log(router, clients,
     t = threading.Thread(target=lambda: result.append(run("record", "cekm/**", "--out", str(out), "--connect",
                                                           router, "--count", "7")))
     pubs = Publishers(a, block=True)
+    scene = serve_geometry(a, K.world_geometry(), GEOMETRY)
     t.start()
     try:
         assert pubs.wait_matching(K.world_state(), T)  # the recorder's subscription is in place
@@ -230,14 +237,17 @@ def test_record_writes_the_channels_and_views_of_the_worlds_log(router, clients,
     finally:
         t.join(T)
         pubs.close()
+    scene.undeclare()
     res = result[0]
     assert res.exit_code == 0, res.output
+    assert "no static scene" not in res.output
+    assert read_geometry(out) == GEOMETRY  # what `cekm plot` draws the arena from
     assert f"recorded 7 messages on 3 keys, sim time 1.000 .. 3.000 s into {out}" in res.output
     info = log_info(out)
     assert info.complete
     topics = {c.topic: (c.message_encoding, c.count) for c in info.channels}
     assert topics[K.world_state()] == ("msgpack", 3) and topics[K.cmd_wheels("r1")] == ("msgpack", 3)
-    assert topics["/view/scene"] == ("protobuf", 3) and topics["/view/tf"] == ("protobuf", 3)
+    assert topics["/view/scene"] == ("protobuf", 4) and topics["/view/tf"] == ("protobuf", 3)  # + the static scene
     assert topics["/view/path/r1"][0] == "protobuf"
     bad = [m for m in read_messages(out) if m.topic == K.cmd_wheels("r7")]
     assert len(bad) == 1 and bad[0].log_time == 3_000_000_000 and bad[0].data == b"\xc1"
