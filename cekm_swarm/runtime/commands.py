@@ -2,7 +2,8 @@
 
 - ``topic list|echo|hz|info|pub``: inspect and drive a live (or replayed) run;
 - ``node list``: the live module processes, from their liveliness tokens;
-- ``log info|cat``: summarise or print an MCAP log;
+- ``log info|cat``: summarise or print an MCAP log; ``log recover IN OUT``: a complete,
+  indexed copy of a log whose writer was killed;
 - ``replay LOG.mcap``: republish a log (hosting the router itself unless told where to join);
 - ``record [KEYEXPR] --out LOG.mcap``: record live keys like the world server's log;
 - ``monitor``: a live view of a run.
@@ -31,10 +32,11 @@ import click
 
 from cekm_swarm.errors import CekmError
 
+from cekm_swarm.cli_support import ENDPOINT, ROOT, Interrupted
+
 from .wait import DEFAULT_WAIT, ENV_CONNECT
 
 _ROOT_HELP = "Key-space root (docs/design.md section 6)."
-INTERRUPTED = 130
 
 
 def _connect_options(f: Callable[..., Any]) -> Callable[..., Any]:
@@ -42,7 +44,7 @@ def _connect_options(f: Callable[..., Any]) -> Callable[..., Any]:
                      help="Seconds to wait for the router before giving up (0: do not wait).")(f)
     f = click.option("--config", "config_file", type=click.Path(dir_okay=False, exists=True, path_type=Path),
                      default=None, help="Zenoh client config file (JSON5); --connect overrides its endpoint.")(f)
-    f = click.option("--connect", "endpoint", default=None, metavar="ENDPOINT",
+    f = click.option("--connect", "endpoint", default=None, metavar="ENDPOINT", type=ENDPOINT,
                      help=f"Zenoh endpoint to join [default: ${ENV_CONNECT}, else tcp/127.0.0.1:7447, the "
                           f"launcher's embedded router].")(f)
     return f
@@ -70,7 +72,7 @@ def _session(endpoint: str | None, config_file: Path | None, wait_s: float = DEF
     try:
         session = _open(endpoint, config_file, wait_s)
     except KeyboardInterrupt:
-        sys.exit(INTERRUPTED)
+        raise Interrupted() from None
     try:
         yield session
     finally:
@@ -129,7 +131,7 @@ def topic() -> None:
 @topic.command("list")
 @_connect_options
 @click.option("--window", default=2.0, show_default=True, type=click.FloatRange(0.05), help="Seconds to listen.")
-@click.option("--root", default="cekm", show_default=True, help=_ROOT_HELP)
+@click.option("--root", default="cekm", show_default=True, type=ROOT, help=_ROOT_HELP)
 @click.option("--alive/--no-alive", default=True, show_default=True, help="Also list liveliness tokens.")
 @click.option("--json", "as_json", is_flag=True, help="One JSON object per key.")
 def topic_list_cmd(endpoint: str | None, config_file: Path | None, wait_s: float, window: float, root: str,
@@ -144,7 +146,7 @@ def topic_list_cmd(endpoint: str | None, config_file: Path | None, wait_s: float
             seen = topic_list(session, keys.everything(), window)
             tokens = alive_tokens(session, keys.alive_all()) if alive else []
         except KeyboardInterrupt:
-            sys.exit(INTERRUPTED)
+            raise Interrupted() from None
     if as_json:
         for key, (n, size) in seen.items():
             click.echo(json_line({"key": key, "messages": n, "rate_hz": n / window, "bytes_per_msg": size / max(n, 1)}))
@@ -171,7 +173,7 @@ def topic_list_cmd(endpoint: str | None, config_file: Path | None, wait_s: float
               help="Stop after this many seconds of silence (default: wait for messages until Ctrl-C).")
 @click.option("--full", is_flag=True, help="Print every field in full (arrays too), the message as JSON.")
 @click.option("--json", "as_json", is_flag=True, help="One JSON object per message: key and message (or error).")
-@click.option("--root", default="cekm", show_default=True, help=_ROOT_HELP)
+@click.option("--root", default="cekm", show_default=True, type=ROOT, help=_ROOT_HELP)
 def topic_echo_cmd(endpoint: str | None, config_file: Path | None, wait_s: float, key_expr: str, count: int | None,
                    timeout: float | None, full: bool, as_json: bool, root: str) -> None:
     """Decode and print the messages on KEYEXPR (e.g. 'cekm/r1/cmd/wheels', 'cekm/r1/**')."""
@@ -184,7 +186,7 @@ def topic_echo_cmd(endpoint: str | None, config_file: Path | None, wait_s: float
             n = echo(session, key_expr, click.echo, count=count, timeout=timeout, full=full, keys=keys,
                      as_json=as_json, waiting=_say)
         except KeyboardInterrupt:
-            sys.exit(INTERRUPTED)
+            raise Interrupted() from None
     if timeout is not None and (count is None or n < count):
         _say(f"({n} messages; stopped after {timeout:g} s of silence)")
 
@@ -229,14 +231,14 @@ def topic_hz_cmd(endpoint: str | None, config_file: Path | None, wait_s: float, 
                     click.echo(format_hz(stats))
                     click.echo("")
         except KeyboardInterrupt:
-            sys.exit(INTERRUPTED)
+            raise Interrupted() from None
 
 
 @topic.command("info")
 @_connect_options
 @click.argument("key_expr", metavar="KEYEXPR")
 @click.option("--window", default=2.0, show_default=True, type=click.FloatRange(0.1), help="Seconds to measure rates.")
-@click.option("--root", default="cekm", show_default=True, help=_ROOT_HELP)
+@click.option("--root", default="cekm", show_default=True, type=ROOT, help=_ROOT_HELP)
 @click.option("--json", "as_json", is_flag=True, help="One JSON object: publishers, subscribers, rates.")
 def topic_info_cmd(endpoint: str | None, config_file: Path | None, wait_s: float, key_expr: str, window: float,
                    root: str, as_json: bool) -> None:
@@ -255,7 +257,7 @@ def topic_info_cmd(endpoint: str | None, config_file: Path | None, wait_s: float
                 threading.Event().wait(window)
                 stats = arrivals.stats()
         except KeyboardInterrupt:
-            sys.exit(INTERRUPTED)
+            raise Interrupted() from None
     if as_json:
         click.echo(json_line({"key_expr": key_expr, "publishers": None if ep is None else ep.publishers,
                               "subscribers": None if ep is None else ep.subscribers,
@@ -277,7 +279,7 @@ def topic_info_cmd(endpoint: str | None, config_file: Path | None, wait_s: float
               help="Seconds to wait for the messages to come back through the router.")
 @click.option("--no-confirm", is_flag=True,
               help="Do not check that the router passed the messages on (needs no subscribe permission).")
-@click.option("--root", default="cekm", show_default=True, help=_ROOT_HELP)
+@click.option("--root", default="cekm", show_default=True, type=ROOT, help=_ROOT_HELP)
 def topic_pub_cmd(endpoint: str | None, config_file: Path | None, wait_s: float, key: str, message: str, count: int,
                   rate: float | None, stamp: float | None, wait_subscriber: float, confirm_timeout: float,
                   no_confirm: bool, root: str) -> None:
@@ -308,8 +310,7 @@ def topic_pub_cmd(endpoint: str | None, config_file: Path | None, wait_s: float,
             if probe is not None:
                 probe.close()
     if hit[0]:
-        _say(f"interrupted after {res.sent} message(s)")
-        sys.exit(INTERRUPTED)
+        raise Interrupted(f"interrupted after {res.sent} message(s)")
     if res.confirmed is not None and res.confirmed < res.sent:
         raise click.ClickException(
             f"{key}: the router passed on {res.confirmed} of {res.sent} message(s): its access control forbids "
@@ -328,7 +329,7 @@ def node() -> None:
 
 @node.command("list")
 @_connect_options
-@click.option("--root", default="cekm", show_default=True, help=_ROOT_HELP)
+@click.option("--root", default="cekm", show_default=True, type=ROOT, help=_ROOT_HELP)
 @click.option("--timeout", default=0.0, show_default=True, type=click.FloatRange(0.0),
               help="If none is alive yet, wait this many seconds for the first one.")
 @click.option("--json", "as_json", is_flag=True, help="One JSON object per owner: alive and missing modules.")
@@ -345,7 +346,7 @@ def node_list_cmd(endpoint: str | None, config_file: Path | None, wait_s: float,
         try:
             tokens = wait_for_tokens(session, keys, timeout)
         except KeyboardInterrupt:
-            sys.exit(INTERRUPTED)
+            raise Interrupted() from None
     groups, other = group_tokens(tokens, keys)
     if as_json:
         for g in groups:
@@ -402,7 +403,7 @@ def log_info_cmd(log_file: Path, recover_to: Path | None, as_json: bool) -> None
 @click.option("--views", is_flag=True, help="Also list the Foxglove view messages (size only).")
 @click.option("--start", type=float, default=None, help="Only messages at or after this sim time (s).")
 @click.option("--end", type=float, default=None, help="Only messages at or before this sim time (s).")
-@click.option("--root", default="cekm", show_default=True, help=_ROOT_HELP)
+@click.option("--root", default="cekm", show_default=True, type=ROOT, help=_ROOT_HELP)
 def log_cat_cmd(log_file: Path, topics: tuple[str, ...], as_json: bool, views: bool, start: float | None,
                 end: float | None, root: str) -> None:
     """Print a log's messages, decoded, in time order (like mcap cat, ros2 bag echo)."""
@@ -424,6 +425,26 @@ def log_cat_cmd(log_file: Path, topics: tuple[str, ...], as_json: bool, views: b
         return
     if counts.malformed:
         _say(f"{counts.malformed} malformed message(s) in the log (printed as errors)")
+
+
+@log_group.command("recover")
+@click.argument("log_file", metavar="IN.mcap", type=click.Path(dir_okay=False, exists=True, path_type=Path))
+@click.argument("out_file", metavar="OUT.mcap", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--force", is_flag=True, help="Overwrite OUT.mcap if it exists.")
+def log_recover_cmd(log_file: Path, out_file: Path, force: bool) -> None:
+    """Copy every complete message (and metadata) of IN.mcap, e.g. a log whose writer was
+    killed, into OUT.mcap, a complete, indexed file."""
+    from .mcap_log import recover_log
+
+    if out_file.exists() and not force:
+        raise click.ClickException(f"{out_file}: exists; use --force to overwrite it")
+    try:
+        rep = recover_log(log_file, out_file)
+    except CekmError as exc:
+        raise click.ClickException(str(exc)) from None
+    how = "the input was complete" if rep.input_complete else f"the input ends early ({rep.cut_reason})"
+    click.echo(f"recovered {rep.messages} messages on {rep.channels} channels and {rep.metadata} metadata "
+               f"records into {rep.output}; {how}")
 
 
 # --------------------------------------------------------------------------- replay
@@ -530,7 +551,7 @@ def replay_cmd(log_file: Path, endpoint: str | None, config_file: Path | None, w
         try:
             session = _open(endpoint, config_file, wait_s)
         except KeyboardInterrupt:
-            sys.exit(INTERRUPTED)
+            raise Interrupted() from None
     tty = sys.stderr.isatty() and not quiet
     width = [0]
 
@@ -555,7 +576,7 @@ def replay_cmd(log_file: Path, endpoint: str | None, config_file: Path | None, w
     click.echo(f"published {result.published} messages on {len(result.per_key)} keys in {result.loops} loop(s), "
                f"{result.sim_seconds:.3f} s of sim time in {result.wall_seconds:.3f} s")
     if hit[0]:
-        sys.exit(INTERRUPTED)
+        raise Interrupted() from None
 
 
 # --------------------------------------------------------------------------- record
@@ -570,7 +591,7 @@ def replay_cmd(log_file: Path, endpoint: str | None, config_file: Path | None, w
               help="Stop after this many seconds (default: Ctrl-C).")
 @click.option("--count", "-n", default=None, type=click.IntRange(1), help="Stop after N messages.")
 @click.option("--no-views", is_flag=True, help="Record the key-space channels only (no Foxglove views).")
-@click.option("--root", default="cekm", show_default=True, help=_ROOT_HELP)
+@click.option("--root", default="cekm", show_default=True, type=ROOT, help=_ROOT_HELP)
 def record_cmd(key_expr: str | None, out_path: Path, endpoint: str | None, config_file: Path | None, wait_s: float,
                duration: float | None, count: int | None, no_views: bool, root: str) -> None:
     """Record the live keys matching KEYEXPR (default: the whole key space) into an MCAP log
@@ -611,7 +632,7 @@ def record_cmd(key_expr: str | None, out_path: Path, endpoint: str | None, confi
     if res.first_stamp is not None and keys.world_state() in res.per_key and not res.geometry:
         _say(f"no static scene in the recording: nothing answered on {keys.world_geometry()}")
     if hit[0]:
-        sys.exit(INTERRUPTED)
+        raise Interrupted() from None
 
 
 # --------------------------------------------------------------------------- monitor
@@ -619,7 +640,7 @@ def record_cmd(key_expr: str | None, out_path: Path, endpoint: str | None, confi
 
 @click.command("monitor")
 @_connect_options
-@click.option("--root", default="cekm", show_default=True, help=_ROOT_HELP)
+@click.option("--root", default="cekm", show_default=True, type=ROOT, help=_ROOT_HELP)
 @click.option("--robot", "robots", multiple=True, metavar="ID", help="Show only this robot (repeat, or r1,r2).")
 @click.option("--keys", "key_expr", default=None, metavar="KEYEXPR",
               help="List the rate and age of every key matching this (e.g. 'cekm/r1/**').")
@@ -652,9 +673,9 @@ def monitor(endpoint: str | None, config_file: Path | None, wait_s: float, root:
             run_monitor(session, root=root, refresh=refresh, once_after=once_after, out=click.echo, robots=wanted,
                         key_filter=chooser, endpoint=shown if config_file is None else "", as_json=as_json)
         except KeyboardInterrupt:
-            sys.exit(INTERRUPTED)
+            raise Interrupted() from None
     if once_after is None:
-        sys.exit(INTERRUPTED)
+        raise Interrupted() from None
 
 
 COMMANDS: list[click.Command] = [topic, log_group, replay_cmd, monitor, node, record_cmd]

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import json
 import os
-import socket
 import threading
 import time
 from collections.abc import Callable, Mapping
@@ -68,24 +67,12 @@ def resolve_endpoint(connect: str | None, environ: Mapping[str, str] | None = No
 
 
 def _unreachable(exc: BaseException) -> bool:
-    """True when opening failed in the way a router that is not up yet makes it fail."""
+    """True when opening failed because nothing accepts connections at the endpoint (worth
+    retrying). A router that refuses the session (credentials, TLS) is told apart by
+    :func:`~cekm_swarm.runtime.config.open_session`, whose message then says so."""
     text = str(exc)
-    return "Unable to connect" in text or "Connection refused" in text or "Timeout" in text
-
-
-def listening(endpoint: str, timeout: float = 1.0) -> bool | None:
-    """Whether something accepts TCP connections at a ``tcp/`` or ``tls/`` endpoint
-    (None for other protocols). Zenoh reports a refused password exactly as an absent
-    router ("Unable to connect"); a listening port tells the two apart."""
-    proto, _, rest = endpoint.partition("/")
-    if proto not in ("tcp", "tls"):
-        return None
-    host, _, port = rest.rpartition(":")
-    try:
-        with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout):
-            return True
-    except (OSError, ValueError):
-        return False
+    return "nothing accepts connections there" in text or (
+        "Unable to connect" in text and "refused" not in text and "authentication failed" not in text)
 
 
 def open_when_ready(make_config: Callable[[], zenoh.Config], endpoint: str, *, timeout: float = DEFAULT_WAIT,
@@ -104,9 +91,6 @@ def open_when_ready(make_config: Callable[[], zenoh.Config], endpoint: str, *, t
         except RuntimeTransportError as exc:
             if not _unreachable(exc):
                 raise
-            if listening(endpoint):  # a router is there and refused us: waiting will not help
-                raise RuntimeTransportError(f"{exc} (a router listens at {endpoint} but refused the session: "
-                                            f"check the credentials and TLS settings of the client config)") from None
             waited = time.monotonic() - t0
             if waited >= timeout or (stop is not None and stop.is_set()):
                 if timeout <= 0:

@@ -62,7 +62,7 @@ def steady_publisher(session, key: str, period: float = 0.01) -> Iterator[None]:
 def test_commands_are_exported():
     assert [c.name for c in COMMANDS] == ["topic", "log", "replay", "monitor", "node", "record"]
     assert set(COMMANDS[0].commands) == {"list", "echo", "hz", "info", "pub"}
-    assert set(COMMANDS[1].commands) == {"info", "cat"} and set(COMMANDS[4].commands) == {"list"}
+    assert set(COMMANDS[1].commands) == {"info", "cat", "recover"} and set(COMMANDS[4].commands) == {"list"}
 
 
 def test_topic_echo_decodes_and_reports_malformed(router, clients):
