@@ -185,17 +185,32 @@ class MonitorState:
                     v.latencies.append(at - first)
 
     def set_alive(self, tokens: set[str]) -> None:
-        """The liveliness tokens alive now."""
+        """The liveliness tokens alive now (of any run: ``<root>/<owner>/alive/<module>[/<run>]``)."""
         with self._lock:
             self.alive = set(tokens)
-            if self.keys.alive(WORLD, "server") in self.alive:
-                self.world_token_seen = True
+        if self._world_alive():
+            self.world_token_seen = True
+
+    def _world_alive(self) -> bool:
+        return "server" in self._alive_modules().get(WORLD, set())
+
+    def runs(self) -> list[str]:
+        """The run ids in the liveliness tokens alive now."""
+        out = set()
+        for t in self.alive:
+            try:
+                run = self.keys.parse(t).run
+            except Exception:
+                continue
+            if run:
+                out.add(run)
+        return sorted(out)
 
     def phase(self, now: float) -> str:
         """``waiting for the world``, ``running``, ``replay`` (world states with no world
         server alive), ``no world state for N s`` or ``run ended`` (the world server's token
         went away, or the states stopped with no module left)."""
-        world_alive = self.keys.alive(WORLD, "server") in self.alive
+        world_alive = self._world_alive()
         modules_alive = any(owner != WORLD for owner in self._alive_modules())
         if self.world_at is None:
             if self.world_token_seen and not world_alive:
@@ -268,6 +283,9 @@ def render(state: MonitorState, now: float, *, robots: set[str] | None = None, k
     head.append(_fit(phase, len(phase), "<"), style=_PHASE_STYLE.get(phase, "bold yellow"))
     sim = "-" if not math.isfinite(state.sim_time) else f"{state.sim_time:.2f} s"
     head.append(f"  sim {sim}  dropped {state.drops.total}")
+    runs = state.runs()
+    if runs:
+        head.append(f"  run {','.join(runs)}")
     if state.untracked:
         head.append(f"  untracked {state.untracked}", style="yellow")
     if endpoint:

@@ -24,15 +24,17 @@ class OwnerNodes:
     alive: tuple[str, ...]
     missing: tuple[str, ...]
     expected: int = 0
+    runs: tuple[str, ...] = ()
 
     def as_dict(self) -> dict[str, object]:
-        return {"owner": self.owner, "alive": list(self.alive), "missing": list(self.missing)}
+        return {"owner": self.owner, "alive": list(self.alive), "missing": list(self.missing), "runs": list(self.runs)}
 
 
 def group_tokens(tokens: set[str] | list[str], keys: KeySpace) -> tuple[list[OwnerNodes], list[str]]:
     """(owners with their live and missing modules, sorted; tokens that are not module
     tokens of ``keys``). A robot's expected modules are ``keys.module_names()``."""
     owners: dict[str, set[str]] = {}
+    runs: dict[str, set[str]] = {}
     other: list[str] = []
     for t in sorted(tokens):
         try:
@@ -44,6 +46,8 @@ def group_tokens(tokens: set[str] | list[str], keys: KeySpace) -> tuple[list[Own
             other.append(t)
             continue
         owners.setdefault(parsed.robot, set()).add(parsed.module)
+        if parsed.run:
+            runs.setdefault(parsed.robot, set()).add(parsed.run)
     expected = keys.module_names()
     order = {m: i for i, m in enumerate(expected)}
     out = []
@@ -51,7 +55,8 @@ def group_tokens(tokens: set[str] | list[str], keys: KeySpace) -> tuple[list[Own
         mods = owners[owner]
         alive = tuple(sorted(mods, key=lambda m: (order.get(m, len(order)), m)))
         missing = () if owner == WORLD else tuple(m for m in expected if m not in mods)
-        out.append(OwnerNodes(owner, alive, missing, 0 if owner == WORLD else len(expected)))
+        out.append(OwnerNodes(owner, alive, missing, 0 if owner == WORLD else len(expected),
+                              tuple(sorted(runs.get(owner, ())))))
     return out, other
 
 
@@ -103,10 +108,11 @@ def format_nodes(groups: list[OwnerNodes], other: list[str]) -> str:
         return "no live modules"
     lines = []
     for g in groups:
+        run = f" (run {', '.join(g.runs)})" if g.runs else ""
         if g.owner == WORLD:
-            lines.append(f"{g.owner:<8} {', '.join(g.alive)}")
+            lines.append(f"{g.owner:<8} {', '.join(g.alive)}{run}")
             continue
-        line = f"{g.owner:<8} {g.expected - len(g.missing):>2}/{g.expected} modules alive"
+        line = f"{g.owner:<8} {g.expected - len(g.missing):>2}/{g.expected} modules alive{run}"
         if g.missing:
             line += f"; missing: {', '.join(g.missing)}"
         lines.append(line)

@@ -163,3 +163,16 @@ def test_invented_keys_and_robots_cannot_grow_the_monitor_without_bound(monkeypa
         st.observe(K.cmd_wheels(f"r{i}"), encode(WheelCommand(1.0, "m", 0.1, 0.1, 1)), at=1.0)
     assert len(st.arrivals) == 5 and len(st.robots) == 3 and st.untracked == 5 + 2
     assert "untracked 7" in render_text(st, now=1.0)
+
+
+def test_tokens_with_a_run_id_count_as_the_world_and_modules():
+    from cekm_swarm.protocol import KeySpace
+
+    run = KeySpace(run="run-7")
+    st = MonitorState()
+    st.set_alive({run.alive("r1", m) for m in run.module_names()} | {run.alive("world", "server")})
+    st.observe(K.world_state(), encode(world_state(0.5, 0.3)), at=1.0)
+    assert st.phase(1.2) == "running" and st.modules_alive("r1") == (14, [])
+    assert "  run run-7" in lines_of(render_text(st, now=1.2))[0]
+    st.set_alive({run.alive("r1", m) for m in run.module_names()})
+    assert st.phase(2.5) == "run ended"  # the world's token went away

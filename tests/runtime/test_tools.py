@@ -164,7 +164,8 @@ def test_node_list_groups_live_modules_and_names_the_missing(router, clients):
     listed = run("node", "list", "--connect", router, "--json")
     js = [json.loads(line) for line in listed.output.splitlines()]
     assert len(js) == 3, listed.output
-    assert js[2] == {"owner": "r2", "alive": ["target", "motor"], "missing": [f"obstacle-{j}" for j in range(12)]}
+    assert js[2] == {"owner": "r2", "alive": ["target", "motor"], "missing": [f"obstacle-{j}" for j in range(12)],
+                     "runs": []}
     gone, there = threading.Semaphore(0), threading.Semaphore(0)
     watch = clients().liveliness().declare_subscriber(
         K.alive_all(), lambda smp: (gone if smp.kind == zenoh.SampleKind.DELETE else there).release(), history=True)
@@ -180,6 +181,17 @@ def test_node_list_groups_live_modules_and_names_the_missing(router, clients):
 
 
 # --------------------------------------------------------------------------- log cat
+
+
+def test_node_list_names_the_run():
+    from cekm_swarm.protocol import KeySpace
+    from cekm_swarm.runtime.nodes import format_nodes, group_tokens
+
+    run = KeySpace(run="abc-1")
+    groups, other = group_tokens({run.alive("world", "server"), run.alive("r1", "motor"), "cekm/r1/nothing"}, K)
+    assert format_nodes(groups, other).splitlines() == [
+        "world    server (run abc-1)", "r1        1/14 modules alive (run abc-1); missing: " +
+        ", ".join(["target"] + [f"obstacle-{j}" for j in range(12)]), "other token: cekm/r1/nothing"]
 
 
 def test_log_cat_prints_decoded_messages_text_and_json(tmp_path):
