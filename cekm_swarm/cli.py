@@ -264,6 +264,15 @@ def _register_launch_commands() -> None:
 _register_launch_commands()
 
 
+def _register_view_command() -> None:
+    from .view.command import view_cmd
+
+    main.add_command(view_cmd)
+
+
+_register_view_command()
+
+
 def run() -> None:  # pragma: no cover - console entry with clean errors
     try:
         main(standalone_mode=True)
