@@ -147,7 +147,7 @@ def goal_marker(ax: Axes, xy: Sequence[float], colour: str, robot: str | None = 
                    zorder=6, linestyle="none", gid=f"goal:{robot}" if robot else None)[0]
 
 
-def nice_step(span: float, marks: int = 8) -> float:
+def nice_step(span: float, marks: int = 12) -> float:
     """A round time step (1, 2 or 5 times a power of ten) giving about ``marks`` marks over ``span``."""
     if not span > 0:
         return 1.0
@@ -172,9 +172,12 @@ def draw_paths(ax: Axes, paths: Mapping[str, tuple[Sequence[float], Sequence[flo
         ax.plot(xs, ys, "-", color=col, lw=1.3, zorder=3, label=(labels or {}).get(rid, rid), gid=f"path:{rid}")
         ax.plot(xs[:1], ys[:1], "o", color=col, ms=7, markeredgecolor="k", markeredgewidth=0.6, zorder=6,
                 gid=f"start:{rid}")
+        last = len(ts) - 1  # no marks once the robot has stopped for good (they would pile up)
+        while last > 0 and math.hypot(xs[last] - xs[-1], ys[last] - ys[-1]) < 1e-3:
+            last -= 1
         mx, my, mt = [], [], []
         i = 0
-        for n in range(1, int(ts[-1] / step) + 1):
+        for n in range(1, int(ts[last] / step) + 1):
             while i < len(ts) - 1 and ts[i] < n * step:
                 i += 1
             mx.append(xs[i])
@@ -183,17 +186,43 @@ def draw_paths(ax: Axes, paths: Mapping[str, tuple[Sequence[float], Sequence[flo
         ax.plot(mx, my, "o", color=col, ms=3.5, markeredgecolor="white", markeredgewidth=0.4, zorder=5,
                 gid=f"time:{rid}")
         for x, y, t in list(zip(mx, my, mt))[1::2]:
+            if math.hypot(x - xs[-1], y - ys[-1]) < 0.02:
+                continue  # not on the final pose's goal star
             ax.annotate(f"{t:g}", (x, y), xytext=(3, 3), textcoords="offset points", fontsize=6, color=col, zorder=7)
     return step
+
+
+def content_points(geometry: Mapping[str, Any]) -> list[tuple[float, float]]:
+    """Extreme points of what is inside the arena: static obstacles, the reach of moving
+    obstacles' paths, targets (the walls are the frame, not content)."""
+    pts: list[tuple[float, float]] = []
+    for p in geometry.get("polygons", []):
+        pts += [(v[0], v[1]) for v in p["vertices"]]
+    for d in geometry.get("discs", []):
+        (cx, cy), r = d["center"], d["radius"]
+        pts += [(cx - r, cy - r), (cx + r, cy + r)]
+    for m in geometry.get("moving_obstacles", []):
+        mo = m["motion"]
+        if mo["type"] == "circle":
+            (cx, cy), r = mo["center"], mo["radius"]
+            pts += [(cx - r, cy - r), (cx + r, cy + r)]
+        else:
+            pts += [tuple(mo["a"]), tuple(mo["b"])]
+    pts += [tuple(t["position"]) for t in geometry.get("targets", [])]
+    return [(float(x), float(y)) for x, y in pts]
 
 
 def fit_bounds(ax: Axes, geometry: Mapping[str, Any] | None, points: Sequence[Sequence[float]],
                margin: float = 0.15) -> tuple[float, float, float, float]:
     """Limits that fit the content: the bounding box of ``points`` (paths, starts, goals)
+    and of the arena's obstacles and targets (:func:`content_points`, walls excluded)
     plus ``margin`` m, clipped to the arena (plus its walls) when ``geometry`` is given.
     Returns (xmin, xmax, ymin, ymax)."""
-    xs = [float(p[0]) for p in points]
-    ys = [float(p[1]) for p in points]
+    pts = [(float(p[0]), float(p[1])) for p in points]
+    if geometry is not None and pts:
+        pts += content_points(geometry)
+    xs = [p[0] for p in pts]
+    ys = [p[1] for p in pts]
     if not xs:
         x0, x1 = ax.get_xlim()
         y0, y1 = ax.get_ylim()
@@ -222,3 +251,12 @@ def legend_outside(ax: Axes, title: str | None = None, time_step: float | None =
         return None
     return ax.legend(handles, labels, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, fontsize=7,
                      title=title, title_fontsize=7, frameon=False)
+
+
+def figure_size(x0: float, x1: float, y0: float, y1: float, height: float = 5.5,
+                legend_width: float = 1.7) -> tuple[float, float]:
+    """Figure (width, height) in inches for an equal-aspect map of these limits with the
+    legend to its right, so the map fills its axes without empty margins."""
+    aspect = (x1 - x0) / max(y1 - y0, 1e-9)
+    h = height if aspect <= 1.6 else max(2.5, 8.0 / aspect)
+    return (1.0 + (h - 0.9) * aspect + legend_width, h)

@@ -53,7 +53,7 @@ def plot_log(path: str | Path, title: str | None = None, outcome: dict[str, Any]
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from world.draw import draw_paths, draw_world, fit_bounds, legend_outside, robot_colours
+    from world.draw import draw_paths, draw_world, figure_size, fit_bounds, legend_outside, robot_colours
 
     run = read_run(path)
     geometry = run["geometry"]
@@ -77,6 +77,6 @@ def plot_log(path: str | Path, title: str | None = None, outcome: dict[str, Any]
     t_end = run["state"]["time"] if run["state"] else 0.0
     ax.set_title(title or f"{Path(path).name}: {t_end:.1f} s of sim time", fontsize=9)
     legend_outside(ax, time_step=step if paths else None)
-    fig.set_size_inches(2.2 + 5.5 * min(1.6, max(0.6, (x1 - x0) / max(y1 - y0, 1e-9))), 5.5)
+    fig.set_size_inches(figure_size(x0, x1, y0, y1))
     fig.tight_layout()
     return fig
