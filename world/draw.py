@@ -173,7 +173,7 @@ def draw_paths(ax: Axes, paths: Mapping[str, tuple[Sequence[float], Sequence[flo
         ax.plot(xs[:1], ys[:1], "o", color=col, ms=7, markeredgecolor="k", markeredgewidth=0.6, zorder=6,
                 gid=f"start:{rid}")
         last = len(ts) - 1  # no marks once the robot has stopped for good (they would pile up)
-        while last > 0 and math.hypot(xs[last] - xs[-1], ys[last] - ys[-1]) < 1e-3:
+        while last > 0 and math.hypot(xs[last - 1] - xs[-1], ys[last - 1] - ys[-1]) < 1e-3:
             last -= 1
         mx, my, mt = [], [], []
         i = 0
