@@ -97,15 +97,18 @@ class LiveView:
 
     # ------------------------------------------------------------------ output
     def fields(self) -> dict[str, Any] | None:
-        """The chosen robot's latest fields (those of its newest tick): a, sum_j b_j, e
-        (Eq. 9), s, k (Eq. 10) and which sensors see something; None before any field."""
+        """The chosen robot's latest fields, as its motor module holds them: the latest
+        target field a (the target sensor may run slower than the range sensors) and the
+        obstacle fields of the newest range tick; sum_j b_j, e (Eq. 9), s, k (Eq. 10) and
+        which sensors see something. None before any field."""
         tf = self.target_field
-        stamps = [f.stamp for f in self.obstacle_fields.values()] + ([tf.stamp] if tf is not None else [])
-        if not stamps:
+        obstacle_stamps = [f.stamp for f in self.obstacle_fields.values()]
+        if tf is None and not obstacle_stamps:
             return None
-        newest = max(stamps)
-        b = [f for f in self.obstacle_fields.values() if f.stamp == newest and f.b is not None]
-        a = tf.a if tf is not None and tf.stamp == newest and tf.a is not None else None
+        newest = max(obstacle_stamps + ([tf.stamp] if tf is not None else []))
+        newest_b = max(obstacle_stamps, default=newest)
+        b = [f for f in self.obstacle_fields.values() if f.stamp == newest_b and f.b is not None]
+        a = tf.a if tf is not None else None
         n = a.shape[0] if a is not None else (b[0].b.shape[0] if b else 0)
         if n == 0:
             return {"stamp": newest, "n": 0, "seeing": [], "at_goal": bool(tf is not None and tf.at_goal)}
