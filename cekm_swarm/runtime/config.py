@@ -76,6 +76,25 @@ def _common(config: zenoh.Config) -> None:
     _insert(config, "transport/shared_memory/enabled", False)
 
 
+RECONNECT_RETRY = {"period_init_ms": 250, "period_max_ms": 1000, "period_increase_factor": 2.0}
+"""How a client retries its router after losing it (Zenoh's ``connect/retry``): first after
+0.25 s, then doubling up to every 1 s, for ever. A client reconnects by itself, and Zenoh
+re-declares its subscriptions, publishers, queryables and liveliness tokens on the new
+link, so a router restart costs at most about 1 s after the router is back (Zenoh's
+default backs off to 4 s). The first connection is not retried: opening a session still
+fails at once when nothing listens."""
+
+
+def _reconnect(config: zenoh.Config) -> None:
+    """Set :data:`RECONNECT_RETRY` unless the config (a user's file) sets its own."""
+    try:
+        own = json.loads(config.get_json("connect/retry"))
+    except Exception:
+        own = None
+    if own is None:
+        _insert(config, "connect/retry", RECONNECT_RETRY)
+
+
 def check_endpoint(endpoint: str) -> str:
     """Return ``endpoint`` if it looks like a Zenoh locator ``proto/host:port``."""
     proto, sep, rest = endpoint.partition("/")
@@ -122,6 +141,7 @@ def client_config(endpoint: str = DEFAULT_ENDPOINT, *, user: str | None = None,
     _insert(config, "mode", "client")
     _insert(config, "connect/endpoints", [check_endpoint(endpoint)])
     _common(config)
+    _reconnect(config)
     if (user is None) != (password is None):
         raise RuntimeTransportError("client config: give both user and password, or neither")
     if user is not None:
@@ -175,7 +195,37 @@ def open_session(config: zenoh.Config, what: str = "zenoh session") -> zenoh.Ses
             eps = json.loads(config.get_json("listen/endpoints" if mode == "router" else "connect/endpoints"))
         except Exception:
             mode, eps = "?", "?"
+        if mode == "client" and "Unable to connect" in detail and isinstance(eps, list):
+            detail = _why_not_connected(config, eps, detail)
         raise RuntimeTransportError(f"cannot open {what} ({mode}, endpoints {eps}): {detail}") from None
+
+
+def _why_not_connected(config: zenoh.Config, endpoints: list[str], detail: str) -> str:
+    """Zenoh says "Unable to connect" both when nothing listens and when the router refuses
+    the session: tell them apart by a plain TCP connection to each endpoint."""
+    reachable = [ep for ep in endpoints if _tcp_reachable(ep)]
+    if not reachable:
+        return f"{detail.strip()} (nothing accepts connections there: is the router running, and the address right?)"
+    try:
+        user = json.loads(config.get_json("transport/auth/usrpwd/user"))
+    except Exception:
+        user = None
+    if user:
+        return f"authentication failed for user {user!r} at {reachable[0]} (the router refused the credentials)"
+    return (f"the router at {reachable[0]} refused the session (it may require credentials or TLS: "
+            f"give a client config with --config)")
+
+
+def _tcp_reachable(endpoint: str, timeout: float = 1.0) -> bool:
+    proto, _, rest = endpoint.partition("/")
+    host, _, port = rest.split("#", 1)[0].rpartition(":")
+    if proto not in ("tcp", "tls") or not port.isdigit():
+        return False
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout):
+            return True
+    except OSError:
+        return False
 
 
 def open_embedded_router(port: int = DEFAULT_PORT, host: str = DEFAULT_HOST) -> zenoh.Session:
@@ -196,6 +246,7 @@ def client_config_from_file(path: str | Path, endpoint: str = DEFAULT_ENDPOINT) 
         raise RuntimeTransportError(f"zenoh config {path}: mode is {mode!r}; a process joins as 'client'")
     _insert(config, "mode", "client")
     _common(config)
+    _reconnect(config)
     return config
 
 
