@@ -17,7 +17,7 @@ from cekm_swarm.errors import CekmError
 
 def _geometry(scenario: str | None, log: Path | None, seed: int | None):
     """(static geometry, sensing radii) from a scenario or from a run's MCAP log."""
-    from world import load_scenario
+    from world import ScenarioError, load_scenario
     from world.sim import World
 
     if log is not None:
@@ -30,7 +30,7 @@ def _geometry(scenario: str | None, log: Path | None, seed: int | None):
         return geometry, []
     try:
         sc = load_scenario(scenario)
-    except CekmError as exc:
+    except ScenarioError as exc:
         raise click.BadParameter(str(exc), param_hint="SCENARIO") from None
     geometry = World(sc, seed=seed if seed is not None else sc.seed).static_geometry()
     r = geometry.get("body_radius", 0.03)

@@ -93,3 +93,16 @@ def test_server_inlines_the_state_and_streams_ticks():
             urllib.request.urlopen(server.url + "nothing", timeout=10)
     finally:
         server.close()
+
+
+def test_cli_errors_name_the_option():
+    from click.testing import CliRunner
+
+    from cekm_swarm.cli import main
+
+    r = CliRunner().invoke(main, ["view"])
+    assert r.exit_code == 2 and "give a SCENARIO" in r.output
+    r = CliRunner().invoke(main, ["view", "crossing", "--robot", "r9", "--wait", "0"])
+    assert r.exit_code == 2 and "--robot" in r.output and "'r9' is not a robot of this arena (r1, r2, r3)" in r.output
+    r = CliRunner().invoke(main, ["view", "no_such_scenario"])
+    assert r.exit_code == 2 and "SCENARIO" in r.output and "no_such_scenario" in r.output
