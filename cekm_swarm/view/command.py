@@ -99,11 +99,14 @@ def _waiting_session(endpoint: str | None, config_file: Path | None, wait: float
 @click.option("--http", "http_port", default=8470, show_default=True, type=click.IntRange(0, 65535),
               help="Local HTTP port of the page (0: any free one).")
 @click.option("--host", default="127.0.0.1", show_default=True, help="Address the page is served on.")
+@click.option("--foxglove", "foxglove_port", type=click.IntRange(0, 65535), default=None, metavar="PORT",
+              help="Also serve the view channels live on a Foxglove WebSocket server on this port "
+                   "(for the Foxglove desktop app).")
 @click.option("--wait", default=60.0, show_default=True, type=click.FloatRange(min=0.0),
               help="Seconds to keep trying to reach the router (a run that is still starting).")
 def view_cmd(scenario: str | None, log: Path | None, seed: int | None, robot: str | None, model_path: Path | None,
              endpoint: str | None, config_file: Path | None, root: str, http_port: int, host: str,
-             wait: float) -> None:
+             wait: float, foxglove_port: int | None) -> None:
     """A live 2-D view of a running or replayed run in the browser: arena, obstacles,
     robots with headings, paths and sensing circles, targets, and for one robot its
     target field, obstacle fields and motor-EKM activity (the paper's Fig. 4)."""
@@ -127,6 +130,16 @@ def view_cmd(scenario: str | None, log: Path | None, seed: int | None, robot: st
             server = ViewServer(view, host, http_port)
         except OSError as exc:
             raise click.ClickException(f"--http {http_port}: cannot serve on {host}: {exc.strerror}") from None
+        fox = None
+        if foxglove_port is not None:
+            from .foxglove_live import FoxgloveLive
+
+            try:
+                fox = FoxgloveLive(view, host, foxglove_port)
+            except Exception as exc:  # noqa: BLE001 - foxglove's own error types; the page still serves
+                server.close()
+                raise click.ClickException(f"--foxglove {foxglove_port}: cannot serve on {host}: {exc}") from None
+            click.echo(f"foxglove WebSocket server on ws://{host}:{fox.port}", err=True)
         click.echo(f"live view on {server.url} (Ctrl-C to stop)", err=True)
         view.w = _lattice(session, model_path, root, timeout=5.0)
         try:
@@ -134,5 +147,7 @@ def view_cmd(scenario: str | None, log: Path | None, seed: int | None, robot: st
         except KeyboardInterrupt:
             pass
         finally:
+            if fox is not None:
+                fox.close()
             server.close()
             sub.undeclare()
