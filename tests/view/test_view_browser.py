@@ -26,6 +26,7 @@ import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).parents[1] / "runtime"))
+from test_foxglove_live import WsClient  # noqa: E402
 from test_launch_support import LaunchProcess  # noqa: E402
 
 from cekm_swarm.experiments.default_model import default_model_path  # noqa: E402
@@ -88,18 +89,21 @@ def test_live_view_in_headless_chromium(tmp_path):
     # the view first: it waits for the launch's router and subscribes as soon as it is up,
     # seconds before the 14 modules are alive and the lockstep world ticks
     view = subprocess.Popen([sys.executable, "-m", "cekm_swarm", "view", "lone_obstacle", "--http", "0",
-                             "--connect", f"tcp/127.0.0.1:{port}", "--model", str(default_model_path())],
+                             "--foxglove", "0", "--connect", f"tcp/127.0.0.1:{port}",
+                             "--model", str(default_model_path())],
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=True,
                             env=dict(os.environ, PYTHONUNBUFFERED="1"))
     run = LaunchProcess("lone_obstacle", tmp_path / "run", "--mode", "lockstep", "--max-time", "8",
                         "--model", str(default_model_path()), port=port)
     motor = None
     try:
-        line = view.stderr.readline()
-        if line.startswith("waiting"):
-            line = view.stderr.readline()  # "live view on URL (Ctrl-C to stop)"
-        assert line.startswith("live view on http://"), line
-        url = line.split()[3]
+        said = [view.stderr.readline() for _ in range(2)]
+        if said[0].startswith("waiting"):  # for the router
+            said = said[1:] + [view.stderr.readline()]
+        assert said[0].startswith("foxglove WebSocket server on ws://127.0.0.1:"), said
+        assert said[1].startswith("live view on http://"), said
+        fox_port = int(said[0].split(":")[-1])
+        url = said[1].split()[3]
         stream = Stream(url + "events")
         run.wait_line("world started ticking", timeout=120)
         motor = run.pids()["r1/motor"]
@@ -117,6 +121,11 @@ def test_live_view_in_headless_chromium(tmp_path):
                     return state
 
         a = hold(1.0)
+        ws = WsClient(fox_port)  # the Foxglove server of the same view advertises the scene
+        while True:
+            op, data = ws.frame()
+            if op == 1 and any(c["topic"] == "/view/scene" for c in json.loads(data).get("channels", [])):
+                break
         img_a = _screenshot(url, tmp_path / "a.png")
         os.kill(motor, signal.SIGCONT)
         b = hold(a["time"] + 3.0)
