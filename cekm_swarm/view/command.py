@@ -2,17 +2,14 @@
 
 from __future__ import annotations
 
-import contextlib
 import math
 import threading
-import time
-from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
 
 import click
 
 from cekm_swarm.errors import CekmError
+from cekm_swarm.runtime.commands import _connect_options, _session
 
 
 def _geometry(scenario: str | None, log: Path | None, seed: int | None):
@@ -55,34 +52,6 @@ def _lattice(session, model_path: Path | None, root: str, timeout: float):
         return None
 
 
-@contextlib.contextmanager
-def _waiting_session(endpoint: str | None, config_file: Path | None, wait: float) -> Iterator[Any]:
-    """A client session, retried every 0.25 s for up to ``wait`` s while the router is not up."""
-    from cekm_swarm.runtime.config import DEFAULT_ENDPOINT, client_config, load_config, open_session
-
-    deadline = time.monotonic() + wait
-    said = False
-    while True:
-        try:
-            if config_file is not None:
-                config = load_config(config_file, {"connect/endpoints": [endpoint]} if endpoint else None)
-            else:
-                config = client_config(endpoint or DEFAULT_ENDPOINT)
-            session = open_session(config, "client session")
-            break
-        except CekmError as exc:
-            if time.monotonic() >= deadline:
-                raise click.ClickException(str(exc)) from None
-            if not said:
-                click.echo(f"waiting up to {wait:g} s for the router at {endpoint or DEFAULT_ENDPOINT}", err=True)
-                said = True
-            time.sleep(0.25)  # the router is not up yet: poll again
-    try:
-        yield session
-    finally:
-        session.close()
-
-
 @click.command("view")
 @click.argument("scenario", required=False)
 @click.option("--log", "log", type=click.Path(dir_okay=False, exists=True, path_type=Path),
@@ -91,10 +60,7 @@ def _waiting_session(endpoint: str | None, config_file: Path | None, wait: float
 @click.option("--robot", help="Robot whose fields are drawn (default: the first).")
 @click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               help="Model file for the lattice (default: ask the run's model queryable).")
-@click.option("--connect", "endpoint", default=None, metavar="ENDPOINT",
-              help="Zenoh endpoint to join [default: tcp/127.0.0.1:7447, the launcher's embedded router].")
-@click.option("--config", "config_file", type=click.Path(dir_okay=False, exists=True, path_type=Path),
-              help="Zenoh client config file (JSON5); --connect overrides its endpoint.")
+@_connect_options
 @click.option("--root", default="cekm", show_default=True, help="Key-space root.")
 @click.option("--http", "http_port", default=8470, show_default=True, type=click.IntRange(0, 65535),
               help="Local HTTP port of the page (0: any free one).")
@@ -102,11 +68,9 @@ def _waiting_session(endpoint: str | None, config_file: Path | None, wait: float
 @click.option("--foxglove", "foxglove_port", type=click.IntRange(0, 65535), default=None, metavar="PORT",
               help="Also serve the view channels live on a Foxglove WebSocket server on this port "
                    "(for the Foxglove desktop app).")
-@click.option("--wait", default=60.0, show_default=True, type=click.FloatRange(min=0.0),
-              help="Seconds to keep trying to reach the router (a run that is still starting).")
 def view_cmd(scenario: str | None, log: Path | None, seed: int | None, robot: str | None, model_path: Path | None,
              endpoint: str | None, config_file: Path | None, root: str, http_port: int, host: str,
-             wait: float, foxglove_port: int | None) -> None:
+             wait_s: float, foxglove_port: int | None) -> None:
     """A live 2-D view of a running or replayed run in the browser: arena, obstacles,
     robots with headings, paths and sensing circles, targets, and for one robot its
     target field, obstacle fields and motor-EKM activity (the paper's Fig. 4)."""
@@ -122,7 +86,7 @@ def view_cmd(scenario: str | None, log: Path | None, seed: int | None, robot: st
     ids = [r["id"] for r in geometry.get("robots", [])]
     if robot is not None and robot not in ids:
         raise click.BadParameter(f"{robot!r} is not a robot of this arena ({', '.join(ids)})", param_hint="--robot")
-    with _waiting_session(endpoint, config_file, wait) as session:
+    with _session(endpoint, config_file, wait_s) as session:
         keys = KeySpace(root=root)
         view = LiveView(geometry, robot=robot, ranges=ranges, colours=robot_colours(sorted(ids)), keys=keys)
         sub = session.declare_subscriber(f"{root}/**", lambda s: view.observe(str(s.key_expr), s.payload.to_bytes()))
