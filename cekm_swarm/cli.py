@@ -316,5 +316,14 @@ def _register_launch_commands() -> None:
 _register_launch_commands()
 
 
+def _register_view_command() -> None:
+    from .view.command import view_cmd
+
+    main.add_command(view_cmd)
+
+
+_register_view_command()
+
+
 def run() -> None:  # pragma: no cover - the console entry (cekm_swarm.cli_support.run_cli is tested)
     sys.exit(run_cli(main))
