@@ -48,35 +48,30 @@ def experiment() -> None:
 @click.option("--test-interval", default=10_000, show_default=True, type=click.IntRange(1))
 @click.option("--targets", "test_targets", default=50, show_default=True, type=click.IntRange(1),
               help="Test targets per test.")
-@click.option("--seed", default=2005, show_default=True, type=SEED)
+@click.option("--seed", default=2005, show_default=True, type=SEED, help="Master seed (the first, with --master-seeds).")
+@click.option("--master-seeds", default=1, show_default=True, type=click.IntRange(1, 100),
+              help="Run K independent master seeds (seed, seed+1, ...): each into OUT/seed-S, and OUT/summary.md "
+                   "with 95 % intervals and how often each headline ordering holds.")
+@click.option("--speed-unit", type=click.FloatRange(min=0.0), default=0.0, show_default=True,
+              help="Wheel speeds execute as whole multiples of this (m/s), so a command under half a unit "
+                   "stops the robot; 0: continuous. The Khepera's is 0.008 (one encoder pulse per 10 ms).")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 def target_reaching(out_dir: Path, overwrite: bool, networks: str, trials: int, steps: int, test_interval: int,
-                    test_targets: int, seed: int, quiet: bool) -> None:
+                    test_targets: int, seed: int, master_seeds: int, speed_unit: float, quiet: bool) -> None:
     """Reproduce section 4.1: Tables 1-4 and Figures 5-7 (obstacle-free target reaching)."""
-    from .experiments.report import headline_orderings, write_report
+    from .experiments.arena import Arena
     from .experiments.streams import Schedule
-    from .experiments.target_reaching import TargetReachingConfig, run_experiment
-    from .models.io import save_model
+    from .experiments.target_reaching import TargetReachingConfig
+    from .experiments.master_seeds import run_and_report
 
     try:
-        config = TargetReachingConfig(networks=_networks(networks), trials=trials, seed=seed,
+        arena = Arena(speed_unit=speed_unit)
+        config = TargetReachingConfig(networks=_networks(networks), trials=trials, seed=seed, arena=arena,
                                       schedule=Schedule(steps=steps, test_interval=test_interval, test_targets=test_targets))
     except CekmError as exc:
         raise click.UsageError(str(exc)) from None
     prepare_out_dir(out_dir, overwrite)
-    results, runs = run_experiment(config, progress=not quiet)
-    trained = {r.name: r.trained(0, config) for r in runs}
-    for r in runs:
-        for t in range(config.trials):
-            save_model(out_dir / "models" / f"{r.name}-trial{t + 1}.npz", r.trained(t, config),
-                       {"network": r.name, "trial": t + 1, "steps": steps, "seed": seed, "initial_M": "random",
-                        "experiment": "target-reaching"})
-    written = write_report(results, trained, out_dir)
-    click.echo((out_dir / "tables.md").read_text().split("### Table 2")[0].rstrip())
-    click.echo("")
-    for claim, holds in headline_orderings(results).items():
-        click.echo(f"  {'holds' if holds else 'DOES NOT HOLD'}: {claim}")
-    click.echo(f"\n{results['wall_seconds']:.1f} s; wrote " + ", ".join(str(p) for p in written))
+    run_and_report(config, out_dir, master_seeds, progress=not quiet, echo=click.echo)
 
 
 @experiment.command("obstacles")
@@ -109,6 +104,25 @@ def obstacles(seeds: str, max_time: float, model_path: Path | None, workers: int
     paths = write_suite(doc, pictures, out_dir)
     click.echo(table_markdown(doc))
     click.echo("wrote " + ", ".join(str(p) for p in paths))
+
+
+@experiment.command("tracking")
+@out_dir_options("Directory for results.json, tables.md and the figures.")
+@click.option("--seeds", default=10, show_default=True, type=click.IntRange(2, 1000), help="Seeds 1..N per team size.")
+@click.option("--robots", default="2,4,8", show_default=True, help="Team sizes, comma-separated.")
+@click.option("--duration", default=60.0, show_default=True, type=click.FloatRange(min=1.0), help="Sim seconds per run.")
+@click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path))
+@click.option("--workers", type=click.IntRange(1), help="Parallel processes (default: one per core).")
+@click.option("--quiet", is_flag=True, help="No progress bar.")
+def tracking_experiment(out_dir: Path, overwrite: bool, seeds: int, robots: str, duration: float,
+                        model_path: Path | None, workers: int | None, quiet: bool) -> None:
+    """Multi-robot tracking (Fig. 13): cooperative EKMs, A-CMOMMT and static robots on the same seeds."""
+    from .experiments.tracking import parse_team_sizes, run_tracking_experiment_cmd
+
+    sizes = parse_team_sizes(robots)
+    _model(model_path)
+    prepare_out_dir(out_dir, overwrite)
+    run_tracking_experiment_cmd(out_dir, seeds, sizes, duration, model_path, workers, quiet)
 
 
 @main.command()
@@ -160,19 +174,38 @@ def _model(path: Path | None):
 
 @main.command("run")
 @click.argument("scenario")
-@click.option("--controller", type=click.Choice(["cekm", "fusion"]), default="cekm", show_default=True)
+@click.option("--controller", type=click.Choice(["cekm", "fusion", "acmommt", "stay"]), default="cekm",
+              show_default=True, help="cekm or fusion for navigation; cekm, acmommt or stay for tracking.")
 @click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               help="A trained model (.npz from `cekm train`); default: R15 trained and cached on first use.")
 @click.option("--seed", type=SEED, help="World seed (default: the scenario's).")
-@click.option("--max-time", default=600.0, show_default=True, type=click.FloatRange(min=1.0),
-              help="Sim seconds before a robot counts as trapped.")
+@click.option("--max-time", type=click.FloatRange(min=1.0),
+              help="Sim seconds before a robot counts as trapped (default 600); for a tracking scenario, the "
+                   "run's length (default 120).")
 @out_dir_options("Directory for outcome.json and trajectory.png.")
-def run_cmd(scenario: str, controller: str, model_path: Path | None, seed: int | None, max_time: float,
+def run_cmd(scenario: str, controller: str, model_path: Path | None, seed: int | None, max_time: float | None,
             out_dir: Path, overwrite: bool) -> None:
-    """Run SCENARIO (a name under world/scenarios or a .toml path) in one process, no Zenoh."""
+    """Run SCENARIO (a name under world/scenarios or a .toml path) in one process, no Zenoh.
+
+    A scenario with targets whose robots have no goal is a tracking scenario (Fig. 13)."""
     from .experiments.navigation import plot_run, run_scenario
+    from world.tracking import is_tracking
 
     sc = _load_scenario(scenario)
+    if is_tracking(sc):
+        from .experiments.tracking import run_tracking_cmd
+
+        if controller not in ("cekm", "acmommt", "stay"):
+            raise click.UsageError(f"--controller {controller}: {sc.name!r} is a tracking scenario "
+                                   "(cekm, acmommt or stay)")
+        if controller == "cekm":
+            _model(model_path)
+        prepare_out_dir(out_dir, overwrite)
+        run_tracking_cmd(sc, controller, model_path, seed, max_time, out_dir)
+        return
+    if controller not in ("cekm", "fusion"):
+        raise click.UsageError(f"--controller {controller}: {sc.name!r} is a navigation scenario (cekm or fusion)")
+    max_time = 600.0 if max_time is None else max_time
     model = _model(model_path)
     prepare_out_dir(out_dir, overwrite)
     t0 = time.perf_counter()
@@ -281,6 +314,15 @@ def _register_launch_commands() -> None:
 
 
 _register_launch_commands()
+
+
+def _register_view_command() -> None:
+    from .view.command import view_cmd
+
+    main.add_command(view_cmd)
+
+
+_register_view_command()
 
 
 def run() -> None:  # pragma: no cover - the console entry (cekm_swarm.cli_support.run_cli is tested)
