@@ -69,6 +69,7 @@ from cekm_swarm.runtime.mcap_log import McapRecorder
 from .episode import TICK_S, Episode, TickReadings
 from .scenario import load_scenario
 from .sim import World
+from .tracking import TrackingEpisode, is_tracking
 
 log = logging.getLogger("world.server")
 SENDER = "world"
@@ -191,12 +192,13 @@ class WorldServer:
         if args.checkpoints:
             raw = Path(args.checkpoints).read_text() if not args.checkpoints.lstrip().startswith("{") else args.checkpoints
             checkpoints = {r: [tuple(map(float, c)) for c in cps] for r, cps in json.loads(raw).items()}
-        self.episode = Episode(self.world, checkpoints)
         self.robots = list(self.world.robot_ids)
         self.out = Path(args.out)
         self.out.mkdir(parents=True, exist_ok=True)
         self.lockstep = args.mode == "lockstep"
         self.max_ticks = int(math.ceil(args.max_time / TICK_S))
+        self.tracking = is_tracking(self.scenario)  # docs/tracking.md: sense/pose and sense/targets per robot
+        self.episode = TrackingEpisode(self.world, self.max_ticks) if self.tracking else Episode(self.world, checkpoints)
         self.drops = DropCounter("world", keys=self.keys)
         self.cmd_keys = {self.keys.cmd_wheels(r): r for r in self.robots}
         self.latest: dict[str, WheelCommand] = {}
@@ -283,6 +285,10 @@ class WorldServer:
                 self._put(key, payload, rd.t)
             if rd.target is not None:
                 self.last_target[rd.robot] = payload  # the last one: the target's
+            if self.tracking and rd.robot in ep.sense:
+                pose, targets = ep.sense[rd.robot]
+                self._send(self.keys.sense_targets(rd.robot), targets)
+                self._send(self.keys.sense_pose(rd.robot), pose)
         self._send(self.keys.world_clock(), Clock(ep.t, SENDER, ep.tick))
         st = w.state()
         self._send(self.keys.world_state(), WorldState(ep.t, SENDER, st["robots"], st["targets"], st["obstacles"]))
@@ -366,9 +372,12 @@ class WorldServer:
         robots = {}
         for r in self.robots:
             x, y, _ = self.world.pose(r)
-            gx, gy = self.world.goal_of(r)
             p = ep.progress[r]
-            robots[r] = {"x": round(x, 3), "y": round(y, 3), "to_goal": round(math.hypot(gx - x, gy - y), 3),
+            to_goal = None
+            if not self.tracking:
+                gx, gy = self.world.goal_of(r)
+                to_goal = round(math.hypot(gx - x, gy - y), 3)
+            robots[r] = {"x": round(x, 3), "y": round(y, 3), "to_goal": to_goal,
                          "reached": p.reached, "stopped": self.deadman.stopped.get(r, False)}
         emit("PROGRESS", {"t": ep.t, "tick": ep.tick, "robots": robots, "republished": self.republished,
                           "deadline_misses": self.deadline_misses})
@@ -417,7 +426,9 @@ class WorldServer:
             t_wall0 = time.perf_counter()
             # Every module's subscription must be known before tick 0 is published.
             for r in self.robots:
-                keys = [self.keys.sense_target(r)] + [self.keys.sense_range(r, j) for j in range(self.keys.range_sensors)]
+                first = ([self.keys.sense_targets(r), self.keys.sense_pose(r)] if self.tracking
+                         else [self.keys.sense_target(r)])
+                keys = first + [self.keys.sense_range(r, j) for j in range(self.keys.range_sensors)]
                 for k in keys:
                     if self.stop.is_set():
                         break
@@ -513,6 +524,8 @@ class WorldServer:
                "aborted": aborted, "republished": self.republished, "deadline_misses": self.deadline_misses,
                "sense_to_command_ms": {"p50": q(0.5), "p99": q(0.99), "n": len(lat)},
                "dropped_messages": self.drops.total, "recorded_messages": self.recorded, "events": self.events}
+        if self.tracking:
+            doc["tracking"] = ep.meter.summary()
         (self.out / "outcome.json").write_text(json.dumps(doc, indent=1))
         traj = {}
         for r, p in ep.progress.items():

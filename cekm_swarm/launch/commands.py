@@ -53,9 +53,7 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, connec
         raise click.UsageError(str(exc)) from None
     from world.tracking import is_tracking
 
-    if is_tracking(sc):  # docs/tracking.md
-        raise click.UsageError(f"{sc.name!r} is a tracking scenario: its distributed runtime path is not built yet; "
-                               f"run it in one process with `cekm run {scenario} --controller cekm|acmommt|stay`")
+    tracking = is_tracking(sc)  # docs/tracking.md: the tracking target module per robot, controller cekm
     if zenoh_config is not None:  # refuse a bad config file before any process starts
         from cekm_swarm.runtime.config import client_config_from_file
         from cekm_swarm.runtime.errors import RuntimeTransportError
@@ -82,8 +80,14 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, connec
     if not outcome:
         raise click.ClickException(f"the run left no outcome; see {out_dir / 'launch.log'} and {out_dir / 'logs'}")
     for r, o in outcome["robots"].items():
-        click.echo(f"{r}: {'reached' if o['reached'] else 'NOT reached'} in {o['time_s']:.1f} s, path "
-                   f"{o['path_length_m']:.2f} m, {o['collisions']} collisions")
+        if tracking:
+            click.echo(f"{r}: path {o['path_length_m']:.2f} m, {o['collisions']} collisions")
+        else:
+            click.echo(f"{r}: {'reached' if o['reached'] else 'NOT reached'} in {o['time_s']:.1f} s, path "
+                       f"{o['path_length_m']:.2f} m, {o['collisions']} collisions")
+    if tracking and "tracking" in outcome:
+        tr = outcome["tracking"]
+        click.echo(f"A = {tr['A']:.3f} ({tr['robots']} robots, {tr['targets']} targets, {tr['ticks']} ticks)")
     lat = outcome.get("sense_to_command_ms", {})
     if lat.get("n"):
         click.echo(f"sense-to-command latency p50 {lat['p50']} ms, p99 {lat['p99']} ms ({lat['n']} ticks)")

@@ -90,13 +90,20 @@ class LaunchConfig:
 
 
 def module_argv(name: str, robot: str, model: Path | str, endpoint: str, mode: str, root: str,
-                zenoh_config: Path | None = None) -> list[str]:
-    """The command line of one module process; ``model`` a file or ``"zenoh"`` (fetch it)."""
+                zenoh_config: Path | None = None, tracking: tuple[tuple[str, ...], float] | None = None) -> list[str]:
+    """The command line of one module process; ``model`` a file or ``"zenoh"`` (fetch it).
+    ``tracking`` = (every robot in scenario order, target sensing range) for a tracking
+    scenario: the target module is the tracking target module (docs/tracking.md)."""
     common = ["--robot", robot, "--model", str(model), "--connect", endpoint, "--root", root, "--mode", mode]
     if zenoh_config is not None:
         common += ["--zenoh-config", str(zenoh_config)]
+    if name == "target" and tracking is not None:
+        return [sys.executable, "-m", "cekm_swarm.modules.tracking", *common, "--team", ",".join(tracking[0]),
+                "--target-range", repr(float(tracking[1]))]
     if name == "target":
         return [sys.executable, "-m", "cekm_swarm.modules.target", *common]
+    if name == "motor" and tracking is not None:
+        return [sys.executable, "-m", "cekm_swarm.modules.motor", *common, "--tracking-range", repr(float(tracking[1]))]
     if name == "motor":
         return [sys.executable, "-m", "cekm_swarm.modules.motor", *common]
     j = int(name.split("-", 1)[1])
@@ -121,7 +128,9 @@ def plan_checkpoint_data(scenario) -> dict[str, list[list[float]]]:
 def format_progress(doc: dict[str, Any]) -> str:
     parts = [f"t={doc['t']:7.2f} s"]
     for r, s in doc["robots"].items():
-        st = "reached" if s["reached"] else ("STOPPED" if s.get("stopped") else f"{s['to_goal']:.2f} m to goal")
+        st = "reached" if s["reached"] else ("STOPPED" if s.get("stopped") else
+                                             f"at ({s['x']:.2f}, {s['y']:.2f})" if s.get("to_goal") is None else
+                                             f"{s['to_goal']:.2f} m to goal")
         parts.append(f"{r} ({s['x']:.2f}, {s['y']:.2f}) {st}")
     if doc.get("republished"):
         parts.append(f"republished {doc['republished']}")
@@ -301,9 +310,13 @@ class Launcher:
                 self.say(f"serving the model {Path(model).name} on {self.keys.world_model()}")
             watcher = LivelinessWatcher(session, self.keys.alive_all())
             module_model = ZENOH_MODEL if c.model_from_zenoh else model
+            from world.tracking import is_tracking
+
+            tracking = (tuple(all_robots), scenario.target_range) if is_tracking(scenario) else None
             for r in robots:
                 for name in module_names(self.keys.range_sensors):
-                    child = Child(r, name, module_argv(name, r, module_model, endpoint, c.mode, c.root, c.zenoh_config),
+                    child = Child(r, name, module_argv(name, r, module_model, endpoint, c.mode, c.root, c.zenoh_config,
+                                                       tracking),
                                   c.out / "logs" / f"{r}-{name}.log")
                     self.children[child.label] = child
             self.say(f"{scenario.name}: {len(robots)} robot(s), starting {len(self.children)} module processes "

@@ -73,7 +73,7 @@ def plot_log(path: str | Path, title: str | None = None, outcome: dict[str, Any]
         ys = [p[2] for p in poses]
         status = ""
         if rid in robots:
-            status = " (reached)" if robots[rid]["reached"] else " (not reached)"
+            status = "" if "reached" not in robots[rid] else (" (reached)" if robots[rid]["reached"] else " (not reached)")
         ax.plot(xs, ys, "-", color=col, lw=1.2, label=f"{rid}{status}")
         ax.plot(xs[:1], ys[:1], "o", color=col, ms=5, alpha=0.6)
     t_end = run["state"]["time"] if run["state"] else 0.0

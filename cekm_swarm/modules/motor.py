@@ -27,7 +27,8 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 
 from cekm_swarm.controller.schedule import SCHEDULE
-from cekm_swarm.protocol import DEFAULT_RANGE_SENSORS, KeySpace, ObstacleField, TargetField, WheelCommand, encode
+from cekm_swarm.protocol import (DEFAULT_RANGE_SENSORS, KeySpace, ObstacleField, TargetField, TrackingField, WheelCommand,
+                                 encode)
 from cekm_swarm.protocol.hotpath import VectorCache, obstacle_field_values, target_field_values, unpack
 
 from .shell import ModuleSpec, base_parser, keyspace, load_controller, main_of
@@ -77,8 +78,8 @@ class MotorState:
 
     # ------------------------------------------------------------------ storing
 
-    def put(self, msg: TargetField | ObstacleField) -> list[tuple[float, float, float]]:
-        if isinstance(msg, TargetField):
+    def put(self, msg: TargetField | TrackingField | ObstacleField) -> list[tuple[float, float, float]]:
+        if isinstance(msg, (TargetField, TrackingField)):  # the target module's output (tracking: its fields)
             if self.target is not None and msg.stamp < self.target.stamp:
                 return []  # out of order: keep the newer one
             self.target = msg
@@ -186,6 +187,22 @@ def controller_integrate(ekm) -> Integrate:
     return integrate
 
 
+def tracking_integrate(tekm) -> Integrate:
+    """``integrate`` of a tracking robot (Eqs. 9-11 with the teammate fields), through
+    :meth:`TrackingEKM.integrate` as ``TrackingRobot.command`` calls it; the target
+    module's output is a :class:`TrackingField`."""
+    from cekm_swarm.controller.cooperative import ObstacleActivity
+
+    from .tracking import tracking_activity
+
+    def integrate(target: TrackingField | None, obstacles: Iterable[ObstacleField]) -> tuple[float, float]:
+        act = None if target is None else tracking_activity(target)
+        out = tekm.integrate(act, [ObstacleActivity(f.stamp, f.index, f.winner, f.b) for f in obstacles])
+        return out.v_l, out.v_r
+
+    return integrate
+
+
 def build_spec(integrate: Integrate, robot: str, keys: KeySpace = KeySpace(), *, lockstep: bool = False,
                obstacle_limit: float = 2 * TICK_S, target_limit: float = 4 * TICK_S) -> ModuleSpec:
     state = MotorState(integrate, lockstep=lockstep, sensors=keys.range_sensors, obstacle_limit=obstacle_limit,
@@ -234,7 +251,13 @@ def build_spec(integrate: Integrate, robot: str, keys: KeySpace = KeySpace(), *,
 
 
 def _build(args: argparse.Namespace) -> ModuleSpec:
-    return build_spec(controller_integrate(load_controller(args.model)), args.robot, keyspace(args),
+    if args.tracking_range is not None:  # a tracking robot's motor
+        from .tracking import load_model_arg, tracking_ekm
+
+        integrate = tracking_integrate(tracking_ekm(load_model_arg(args.model), args.robot, args.tracking_range))
+    else:
+        integrate = controller_integrate(load_controller(args.model))
+    return build_spec(integrate, args.robot, keyspace(args),
                       lockstep=args.mode == "lockstep", obstacle_limit=args.obstacle_stale,
                       target_limit=args.target_stale)
 
@@ -245,6 +268,8 @@ def main(argv: list[str] | None = None) -> int:
                    help="drop an obstacle field older than this (s of sim time; default %(default)s)")
     p.add_argument("--target-stale", type=float, default=4 * TICK_S,
                    help="drop a target field older than this (s of sim time; default %(default)s)")
+    p.add_argument("--tracking-range", type=float, default=None, metavar="R",
+                   help="a tracking robot's motor (target sensing range R in m): integrate the tracking module's fields")
     return main_of(_build, p, argv)
 
 

@@ -85,6 +85,11 @@ class ModuleSpec:
     fast: FastHandler | None = None
     outputs: tuple[str, ...] = ()
     """Keys the module publishes on, declared before it listens (none: declared on first use)."""
+    also: tuple[str, ...] = ()
+    """More key expressions it listens on (the tracking target module: its pose, its targets, the teammates' shares)."""
+    liveliness: Callable[[str, bool], list[tuple[str, Message]]] | None = None
+    """Called with (token key, alive) for every liveliness token under the root appearing or
+    vanishing (history included); returns what to publish. Serialized with the handler."""
 
     def __post_init__(self) -> None:
         if self.drops is None:
@@ -151,18 +156,40 @@ async def run_module(spec: ModuleSpec, endpoint: str, *, block: bool = False,
             pubs.publisher(key)
         closed = threading.Event()
         put = zenoh.SampleKind.PUT
+        # several subscriptions may call back on different threads; re-entrant, since a put
+        # on a key this module also listens on (its own share) is delivered within the put
+        lock = threading.RLock()
 
-        def serve(sample: zenoh.Sample) -> None:
-            if closed.is_set() or sample.kind != put:
-                return
-            for key, data in respond(spec, str(sample.key_expr), sample.payload.to_bytes()):
+        def publish(out: list[tuple[str, bytes]]) -> None:
+            for key, data in out:
                 try:
                     pubs.put(key, data)
                 except Exception as exc:  # noqa: BLE001 - a closing session must not kill the thread
                     log.warning("%s: publishing on %s failed: %s", spec.sender, key, exc)
-            handled[0] += 1
+
+        def serve(sample: zenoh.Sample) -> None:
+            if closed.is_set() or sample.kind != put:
+                return
+            with lock:
+                publish(respond(spec, str(sample.key_expr), sample.payload.to_bytes()))
+                handled[0] += 1
+
+        def token(sample: zenoh.Sample) -> None:
+            if closed.is_set():
+                return
+            with lock:
+                try:
+                    out = spec.liveliness(str(sample.key_expr), sample.kind == put)
+                except Exception as exc:  # noqa: BLE001 - a module must survive any token event
+                    log.warning("%s: liveliness handler failed: %s: %s", spec.sender, type(exc).__name__, exc)
+                    out = []
+                publish([(k, encode(m)) for k, m in out])
 
         sub = InlineSubscription(session, spec.listen, serve, raw=True)
+        more = [InlineSubscription(session, k, serve, raw=True) for k in spec.also]
+        tokens = None
+        if spec.liveliness is not None:
+            tokens = session.liveliness().declare_subscriber(spec.keys.alive_all(), token, history=True)
         # The token comes last: once it is up, the subscription is in place.
         token = declare_alive(session, spec.keys.alive(spec.robot, spec.name))
         log.info("%s: up, listening on %s", spec.sender, spec.listen)
@@ -173,6 +200,10 @@ async def run_module(spec: ModuleSpec, endpoint: str, *, block: bool = False,
         finally:
             closed.set()
             sub.close()
+            for m in more:
+                m.close()
+            if tokens is not None:
+                tokens.undeclare()
             if spec.on_stop:
                 spec.on_stop()
             token.undeclare()
