@@ -31,7 +31,9 @@ from cekm_swarm.protocol import (DEFAULT_RANGE_SENSORS, KeySpace, ObstacleField,
                                  encode)
 from cekm_swarm.protocol.hotpath import VectorCache, obstacle_field_values, target_field_values, unpack
 
-from .shell import ModuleSpec, base_parser, keyspace, load_controller, main_of
+from cekm_swarm.runtime.process_args import add_params
+
+from .shell import TRACKING_RANGE_PARAM, ModuleSpec, base_parser, keyspace, load_controller, main_of
 
 NAME = "motor"
 TICK_S = SCHEDULE.tick_s
@@ -268,8 +270,7 @@ def main(argv: list[str] | None = None) -> int:
                    help="drop an obstacle field older than this (s of sim time; default %(default)s)")
     p.add_argument("--target-stale", type=float, default=4 * TICK_S,
                    help="drop a target field older than this (s of sim time; default %(default)s)")
-    p.add_argument("--tracking-range", type=float, default=None, metavar="R",
-                   help="a tracking robot's motor (target sensing range R in m): integrate the tracking module's fields")
+    add_params(p, (TRACKING_RANGE_PARAM,))
     return main_of(_build, p, argv)
 
 

@@ -36,7 +36,9 @@ from cekm_swarm.controller.tracking import TrackingActivity, TrackingRobot
 from cekm_swarm.errors import CekmError
 from cekm_swarm.protocol import KeySpace, Message, SensePose, SenseTargets, Share, TrackingField
 
-from .shell import ModuleSpec, base_parser, keyspace, main_of
+from cekm_swarm.runtime.process_args import add_params
+
+from .shell import TARGET_RANGE_PARAM, TEAM_PARAM, ModuleSpec, base_parser, keyspace, main_of
 
 NAME = "target"
 TARGET_PERIOD_S = 0.256
@@ -260,10 +262,7 @@ def _build(args: argparse.Namespace) -> ModuleSpec:
 
 
 def parser() -> argparse.ArgumentParser:
-    p = base_parser("cekm tracking target module")
-    p.add_argument("--team", required=True, help="every robot of the scenario, comma-separated, in scenario order")
-    p.add_argument("--target-range", type=float, required=True, help="the target sensing range R (m)")
-    return p
+    return add_params(base_parser("cekm tracking target module"), (TEAM_PARAM, TARGET_RANGE_PARAM))
 
 
 def main(argv: list[str] | None = None) -> int:
