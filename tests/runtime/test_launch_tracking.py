@@ -75,3 +75,37 @@ def test_lockstep_tracking_log_holds_the_tracking_channels(lockstep_run):
     for r in ("r1", "r2"):
         for key in (K.sense_pose(r), K.sense_targets(r), K.share(r), K.field_tracking(r)):
             assert counts.get(key, 0) >= target_ticks - 1, (key, counts.get(key))
+
+
+def drop_lines(out, robot: str) -> list[dict]:
+    """The ``DROP`` lines a robot's tracking target module logged."""
+    path = out / "logs" / f"{robot}-target.log"
+    return [json.loads(line.split("DROP ", 1)[1]) for line in path.read_text().splitlines() if "DROP {" in line]
+
+
+def test_realtime_crowd_drops_a_killed_robot_within_a_second_and_goes_on(tmp_path):
+    out = tmp_path / "crowd"
+    run = LaunchProcess("tracking-crowd", out, "--mode", "realtime", "--max-time", "12", "--no-plot",
+                        "--model", str(default_model_path()))
+    try:
+        run.wait_line("world started ticking", timeout=240)
+        run.wait_line(" t=", timeout=60)  # a progress line: the robots are sharing
+        victims = {label: pid for label, pid in run.pids().items() if label.startswith("r6/")}
+        assert len(victims) == 14, victims
+        killed_at = time.time()
+        for pid in victims.values():
+            os.kill(pid, signal.SIGKILL)
+        code = run.finish(timeout=240)
+    finally:
+        run.kill()
+    assert code == 0, "\n".join(run.lines[-40:])
+    outcome = run.outcome()
+    assert not outcome["aborted"] and outcome["sim_seconds"] >= 12.0 - 0.2, outcome["sim_seconds"]
+    assert outcome["tracking"]["robots"] == 6
+    delays = {}
+    for r in ("r1", "r2", "r3", "r4", "r5"):
+        drops = [d for d in drop_lines(out, r) if d["dropped"] == "r6" and d["wall"] >= killed_at]
+        assert drops, f"{r} never dropped r6"
+        delays[r] = drops[0]["wall"] - killed_at
+    print(f"teammates dropped r6 after (s from the SIGKILL): {delays}")
+    assert max(delays.values()) < 1.0, delays
