@@ -306,6 +306,8 @@ class WorldServer:
         self._record_sent()
         if self.views is not None:
             self.views.write_state(ep.t, st)
+            if self.tracking:
+                self.views.write_tracking(ep.t, st, w.target_range, ep.observed_by)
         self._drain_records()
 
     def _republish(self, readings: list[TickReadings], waiting: list[str]) -> None:

@@ -144,6 +144,7 @@ class TrackingEpisode:
         self.progress = {r: RobotProgress([]) for r in world.robot_ids}
         self.meter = ObservationMeter(list(world.target_ids), list(world.robot_ids))
         self.sense: dict[str, tuple[SensePose, SenseTargets]] = {}
+        self.observed_by: dict[str, list[str]] = {}  # at the current tick: target id -> robots within range
 
     @property
     def t(self) -> float:
@@ -161,7 +162,7 @@ class TrackingEpisode:
         from .episode import TickReadings
 
         w, t = self.world, self.t
-        self.meter.sample(w, t)
+        self.observed_by = self.meter.sample(w, t)
         out = []
         self.sense = {}
         for r in w.robot_ids:

@@ -75,6 +75,10 @@ def test_lockstep_tracking_log_holds_the_tracking_channels(lockstep_run):
     for r in ("r1", "r2"):
         for key in (K.sense_pose(r), K.sense_targets(r), K.share(r), K.field_tracking(r)):
             assert counts.get(key, 0) >= target_ticks - 1, (key, counts.get(key))
+    from cekm_swarm.runtime import foxglove_view
+
+    if foxglove_view.available():  # one sensing-circle view per tick
+        assert counts.get(foxglove_view.TRACKING_TOPIC, 0) == math.ceil(MAX_TIME / 0.128) + 1
 
 
 def drop_lines(out, robot: str) -> list[dict]:
