@@ -219,6 +219,7 @@ class WorldServer:
         self.latencies: list[float] = []  # s from publishing a tick's readings to its command
         self.sent_at: dict[float, float] = {}
         self.last_target: dict[str, bytes] = {}  # the latest target reading's payload, per robot
+        self.last_tracking: dict[str, tuple[Any, Any]] = {}  # tracking: the latest (SensePose, SenseTargets), per robot
         self._sense_encoders: dict[str, SenseEncoder] = {}
         self.stop = asyncio.Event()
         self.stop_reason = "signal"
@@ -296,7 +297,7 @@ class WorldServer:
             if rd.target is not None:
                 self.last_target[rd.robot] = payload  # the last one: the target's
             if self.tracking and rd.robot in ep.sense:
-                pose, targets = ep.sense[rd.robot]
+                pose, targets = self.last_tracking[rd.robot] = ep.sense[rd.robot]
                 self._send(self.keys.sense_targets(rd.robot), targets)
                 self._send(self.keys.sense_pose(rd.robot), pose)
         self._send(self.keys.world_clock(), Clock(ep.t, SENDER, ep.tick))
@@ -321,6 +322,10 @@ class WorldServer:
             last = self.last_target.get(rd.robot)
             if last is not None:
                 self._put(self.keys.sense_target(rd.robot), last, rd.t)
+            sensed = self.last_tracking.get(rd.robot)
+            if sensed is not None:  # tracking: the latest target tick's pose and targets
+                self._send(self.keys.sense_targets(rd.robot), sensed[1])
+                self._send(self.keys.sense_pose(rd.robot), sensed[0])
         self._record_sent()
         self.republished += 1
 

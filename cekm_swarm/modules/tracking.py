@@ -79,6 +79,7 @@ class TrackingModuleState:
     computed: int = 0
     drops: list[dict] = field(default_factory=list)
     ignored_shares: int = 0
+    last_field: TrackingField | None = None
 
     def __post_init__(self) -> None:
         self.robot = self.brain.robot
@@ -91,12 +92,11 @@ class TrackingModuleState:
 
     def put(self, msg: Message, source: str | None = None) -> list[tuple[str, Message]]:
         """``source``: the robot whose key a share came on (default: its sender)."""
-        if isinstance(msg, SensePose):
+        if isinstance(msg, (SensePose, SenseTargets)):
+            if msg.stamp == self.done and self.last_field is not None:
+                return [(self.out_field, self.last_field)]  # the world re-published a stalled tick: answer again
             if msg.stamp > self.done:
-                self._hold(self.poses, msg)
-        elif isinstance(msg, SenseTargets):
-            if msg.stamp > self.done:
-                self._hold(self.targets, msg)
+                self._hold(self.poses if isinstance(msg, SensePose) else self.targets, msg)
         elif isinstance(msg, Share):
             robot = source or msg.sender.split("/", 1)[0]
             if robot == self.robot:
@@ -137,8 +137,10 @@ class TrackingModuleState:
     # ------------------------------------------------------------------ computing
 
     def _ready(self, t: float) -> bool:
-        """Lockstep: every live teammate's share of the previous target tick is in."""
-        if not self.lockstep or t < self.period - 1e-6:
+        """Lockstep: every live teammate's share of the previous target tick is in. The
+        first tick after a (re)start waits for none: shares published before it will not
+        come again."""
+        if not self.lockstep or t < self.period - 1e-6 or self.computed == 0:
             return True
         prev = round(t - self.period, 9)
         for r in self.mates:
@@ -181,7 +183,8 @@ class TrackingModuleState:
             self.computed += 1
             act = self.brain.activity
             if isinstance(act, TrackingActivity):
-                out.append((self.out_field, tracking_field(act, self.sender)))
+                self.last_field = tracking_field(act, self.sender)
+                out.append((self.out_field, self.last_field))
             out.append((self.out_share, share))
 
 

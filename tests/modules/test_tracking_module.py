@@ -67,6 +67,19 @@ def test_lockstep_waits_for_every_live_teammates_previous_share(model):
     assert [s.stamp for s in st.pending["r2"]] == [0.256]  # kept for the next tick
 
 
+def test_a_republished_tick_is_answered_again_and_a_restart_waits_for_no_share(model):
+    st = TrackingModuleState(brain(model), ("r1", "r2"), lockstep=True)
+    p, q = sense(0.512)  # a (re)started module: its first tick waits for no share
+    st.put(p)
+    first = st.put(q)
+    assert [k for k, _ in first] == [K.field_tracking("r1"), K.share("r1")]
+    again = st.put(p)
+    assert again == [(K.field_tracking("r1"), first[0][1])]
+    p, q = sense(0.768)
+    st.put(p)
+    assert st.put(q) == []  # from now on it waits for r2's share of 0.512
+
+
 def test_a_dropped_teammate_unblocks_the_tick_and_leaves_the_fields(model):
     st = TrackingModuleState(brain(model), ("r1", "r2", "r3"), lockstep=True)
     st.put(sense(0.0)[0])

@@ -3,7 +3,9 @@ processes: the world server publishing ``sense/pose`` and ``sense/targets``, per
 the tracking target module, 12 obstacle modules and the motor, teammates' shares over
 Zenoh.
 
-* lockstep on ``tracking.toml``: Parker's A (its per-tick series included), every
+* lockstep on ``tracking.toml``, with r1's motor and an obstacle module of r2 SIGKILLed
+  once the world ticks (restarted; the world re-publishes the stalled tick's readings,
+  poses and targets, the tracking module answers again): Parker's A (its per-tick series included), every
   robot's path and the outcome equal ``cekm run``'s bit for bit, and the log records the
   tracking channels;
 * real time on ``tracking-crowd.toml`` with every process of one robot SIGKILLed: each
@@ -40,6 +42,10 @@ def lockstep_run(tmp_path_factory):
     run = LaunchProcess("tracking", out, "--mode", "lockstep", "--seed", str(SEED), "--max-time", str(MAX_TIME),
                         "--model", str(default_model_path()), "--no-plot")
     try:
+        run.wait_line("world started ticking", timeout=180)
+        pids = run.pids()
+        for label in ("r1/motor", "r2/obstacle-3"):  # restarted; the world re-publishes the stalled tick
+            os.kill(pids[label], signal.SIGKILL)
         code = run.finish(timeout=240)
     finally:
         run.kill()
@@ -53,6 +59,7 @@ def test_lockstep_tracking_equals_cekm_run_bit_for_bit(lockstep_run):
     ref = run_tracking(load_scenario("tracking"), "cekm", model, SEED, MAX_TIME)
     doc = json.loads(json.dumps(outcome_doc(ref)))
     assert outcome["mode"] == "lockstep" and not outcome["aborted"]
+    assert outcome["launcher"]["restarts"] == {"r1/motor": 1, "r2/obstacle-3": 1}
     assert outcome["tracking"]["ticks"] == doc["tracking"]["ticks"] == math.ceil(MAX_TIME / 0.128) + 1
     assert outcome["tracking"]["A"] == doc["tracking"]["A"]
     assert outcome["tracking"] == doc["tracking"]  # the per-tick series and the spreads too
