@@ -112,19 +112,22 @@ def obstacles(seeds: str, max_time: float, model_path: Path | None, workers: int
 
 
 @experiment.command("tracking")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), required=True)
+@out_dir_options("Directory for results.json, tables.md and the figures.")
 @click.option("--seeds", default=10, show_default=True, type=click.IntRange(2, 1000), help="Seeds 1..N per team size.")
 @click.option("--robots", default="2,4,8", show_default=True, help="Team sizes, comma-separated.")
 @click.option("--duration", default=60.0, show_default=True, type=click.FloatRange(min=1.0), help="Sim seconds per run.")
 @click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path))
 @click.option("--workers", type=click.IntRange(1), help="Parallel processes (default: one per core).")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
-def tracking_experiment(out_dir: Path, seeds: int, robots: str, duration: float, model_path: Path | None,
-                        workers: int | None, quiet: bool) -> None:
+def tracking_experiment(out_dir: Path, overwrite: bool, seeds: int, robots: str, duration: float,
+                        model_path: Path | None, workers: int | None, quiet: bool) -> None:
     """Multi-robot tracking (Fig. 13): cooperative EKMs, A-CMOMMT and static robots on the same seeds."""
-    from .experiments.tracking import run_tracking_experiment_cmd
+    from .experiments.tracking import parse_team_sizes, run_tracking_experiment_cmd
 
-    run_tracking_experiment_cmd(out_dir, seeds, robots, duration, model_path, workers, quiet)
+    sizes = parse_team_sizes(robots)
+    _model(model_path)
+    prepare_out_dir(out_dir, overwrite)
+    run_tracking_experiment_cmd(out_dir, seeds, sizes, duration, model_path, workers, quiet)
 
 
 @main.command()
@@ -197,6 +200,11 @@ def run_cmd(scenario: str, controller: str, model_path: Path | None, seed: int |
     if is_tracking(sc):
         from .experiments.tracking import run_tracking_cmd
 
+        if controller not in ("cekm", "acmommt", "stay"):
+            raise click.UsageError(f"--controller {controller}: {sc.name!r} is a tracking scenario "
+                                   "(cekm, acmommt or stay)")
+        if controller == "cekm":
+            _model(model_path)
         prepare_out_dir(out_dir, overwrite)
         run_tracking_cmd(sc, controller, model_path, seed, max_time, out_dir)
         return

@@ -68,6 +68,7 @@ from cekm_swarm.runtime.config import (DEFAULT_ENDPOINT, ROUTER_RUNTIME, is_loop
 from cekm_swarm.runtime.lifetime import die_with_parent
 from cekm_swarm.runtime.mcap_log import McapRecorder
 from cekm_swarm.runtime.process_args import Param, add_params, run_id_arg, to_argv
+from cekm_swarm.runtime.record import serve_geometry
 
 from .episode import TICK_S, Episode, TickReadings
 from .scenario import load_scenario
@@ -437,6 +438,7 @@ class WorldServer:
                                                          allowed_origin=zenoh.Locality.REMOTE)
             self.cmd_sub = InlineSubscription(session, self.keys.cmd_wheels_all(), self._on_command)
             token = declare_alive(session, self.keys.alive("world", "server"))
+            scene = serve_geometry(session, self.keys.world_geometry(), geometry)  # for `cekm record`
             emit("READY", {"endpoint": args.listen or args.connect, "router": bool(args.listen)})
             if args.wait_modules > 0 and not await self._wait_for_modules(session, args.wait_modules):
                 self.stop.set()
@@ -485,6 +487,7 @@ class WorldServer:
             self.cmd_sub.close()
             self._drain_records()
             token.undeclare()
+            scene.undeclare()
             self.record_sub.undeclare()
             self.pubs.close()
         finally:

@@ -18,7 +18,7 @@ Per robot (docs/tracking.md):
   - the robot's share (its pose, the targets it sees in the world frame);
 * the 12 obstacle modules, as in navigation (Eqs. 7-8);
 * the motor module: e = sum_t w_t a_t - sum_r w_r b_r - sum_j b_j (Eq. 9, section 5 of
-  the design notes), k = argmax e among the motor candidates (Eq. 10), and Eq. 11 with the
+  docs/design.md), k = argmax e among the motor candidates (Eq. 10), and Eq. 11 with the
   input u of the localized target (or search goal) whose winner is k, else M_k w_k.
 """
 

@@ -147,9 +147,6 @@ def run_tracking_cmd(scenario, controller: str, model_path, seed: int | None, du
 
     import click
 
-    if controller not in CONTROLLERS:
-        raise click.UsageError(f"--controller {controller}: {scenario.name!r} is a tracking scenario "
-                               f"(one of {', '.join(CONTROLLERS)})")
     model = None
     if controller == "cekm":
         from ..models.io import load_model
@@ -159,7 +156,6 @@ def run_tracking_cmd(scenario, controller: str, model_path, seed: int | None, du
     t0 = time.perf_counter()
     run = run_tracking(scenario, controller, model, seed, DEFAULT_DURATION if duration is None else duration)
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     doc = outcome_doc(run)
     doc["wall_seconds"] = round(time.perf_counter() - t0, 3)
     (out / "outcome.json").write_text(json.dumps(doc, indent=1))
@@ -322,18 +318,26 @@ def run_experiment(sizes: tuple[int, ...], seeds: int, duration: float, model_pa
                           "(0.05 m/s, turn noise 1 rad/sqrt(s)); target sensing range 0.5 m"}, pictures
 
 
-def run_tracking_experiment_cmd(out_dir, seeds: int, robots: str, duration: float, model_path, workers, quiet: bool) -> None:
-    """``cekm experiment tracking``."""
+def parse_team_sizes(text: str) -> tuple[int, ...]:
+    """``--robots 2,4,8`` as team sizes; a clear usage error otherwise."""
+    import click
+
+    try:
+        sizes = tuple(int(x) for x in text.split(",") if x.strip())
+    except ValueError:
+        raise click.UsageError(f"--robots {text!r}: expected team sizes like 2,4,8") from None
+    if not sizes or any(n < 1 or n > 64 for n in sizes):
+        raise click.UsageError(f"--robots {text!r}: give team sizes between 1 and 64")
+    return sizes
+
+
+def run_tracking_experiment_cmd(out_dir, seeds: int, sizes: tuple[int, ...], duration: float, model_path, workers,
+                                quiet: bool) -> None:
+    """``cekm experiment tracking`` once its options are checked."""
     import time
 
     import click
 
-    try:
-        sizes = tuple(int(x) for x in robots.split(",") if x.strip())
-    except ValueError:
-        raise click.UsageError(f"--robots {robots!r}: expected team sizes like 2,4,8") from None
-    if not sizes or any(n < 1 or n > 64 for n in sizes):
-        raise click.UsageError(f"--robots {robots!r}: give team sizes between 1 and 64")
     if model_path is None:
         from .default_model import default_model, default_model_path
 

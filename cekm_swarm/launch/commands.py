@@ -7,10 +7,22 @@ import json
 from pathlib import Path
 
 import click
+from click.core import ParameterSource
 
 from cekm_swarm.cli_support import ENDPOINT, ROOT, RUN_ID, SEED, Interrupted, RunFailed, out_dir_options, prepare_out_dir
 from cekm_swarm.errors import CekmError
 from cekm_swarm.runtime.config import DEFAULT_ENDPOINT, DEFAULT_PORT
+
+
+def _env_endpoint() -> str | None:
+    from cekm_swarm.errors import CekmError
+    from cekm_swarm.runtime.wait import resolve_endpoint
+
+    try:
+        ep = resolve_endpoint(None)
+    except CekmError as exc:
+        raise click.UsageError(str(exc)) from None
+    return ep.endpoint if ep.explicit else None
 
 
 @click.command("launch")
@@ -20,7 +32,8 @@ from cekm_swarm.runtime.config import DEFAULT_ENDPOINT, DEFAULT_PORT
 @click.option("--seed", type=SEED, help="World seed (default: the scenario's).")
 @out_dir_options("Directory for outcome.json, run.mcap, trajectory.png and the processes' logs.")
 @click.option("--connect", type=ENDPOINT, help="Join this Zenoh endpoint (e.g. tcp/10.0.0.1:7447) instead of "
-                                               "opening an embedded router.")
+                                               "opening an embedded router [default: $CEKM_CONNECT unless "
+                                               "--port is given].")
 @click.option("--port", default=DEFAULT_PORT, show_default=True, type=click.IntRange(1, 65535),
               help="Port of the embedded router on 127.0.0.1 (without --connect).")
 @click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path),
@@ -52,10 +65,14 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwr
 
     from .launcher import LaunchConfig, Launcher
 
+    if connect is None and click.get_current_context().get_parameter_source("port") is not ParameterSource.COMMANDLINE:
+        connect = _env_endpoint()  # --connect > CEKM_CONNECT > the embedded router (an explicit --port hosts it)
     try:
-        known = [r.id for r in load_scenario(scenario).robots]
+        sc = load_scenario(scenario)
     except ScenarioError as exc:
         raise click.UsageError(str(exc)) from None
+    # a tracking scenario (docs/tracking.md) runs the tracking target module per robot, controller cekm
+    known = [r.id for r in sc.robots]
     only = None if robots is None else tuple(r.strip() for r in robots.split(",") if r.strip() and r.strip() != "none")
     unknown = [r for r in only or () if r not in known]
     if unknown:

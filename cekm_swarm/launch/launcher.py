@@ -37,8 +37,9 @@ from typing import Any
 from cekm_swarm.errors import RunError
 from cekm_swarm.protocol import DEFAULT_ROOT, KeySpace, module_names
 from cekm_swarm.runtime.bridge import LivelinessWatcher
-from cekm_swarm.runtime.config import DEFAULT_HOST, DEFAULT_PORT, open_client, open_embedded_router
+from cekm_swarm.runtime.config import DEFAULT_HOST, DEFAULT_PORT, open_embedded_router
 from cekm_swarm.runtime.errors import RuntimeTransportError
+from cekm_swarm.runtime.wait import open_client_when_ready
 from cekm_swarm.runtime.model_service import ZENOH_MODEL, ModelServer
 
 from .processes import child_env, module_argv, new_run_id, server_argv
@@ -356,7 +357,7 @@ class Launcher:
             if self._world_hosts_router:
                 also = "" if self._local_host == c.listen_host else f" (listening on tcp/{c.listen_host}:{c.port})"
                 self.say(f"the world server hosts the embedded Zenoh router on {endpoint}{also}")
-        self.session = open_client(endpoint, config_file=c.zenoh_config)
+        self.session = open_client_when_ready(endpoint, c.zenoh_config, say=self.say)  # a robot host may start first
         if not c.world:
             await self._join_run_id()
             if self.stopping:

@@ -212,6 +212,12 @@ class KeySpace:
         not a publication: ``--model zenoh``; see :mod:`cekm_swarm.runtime.model_service`)."""
         return f"{self.root}/{WORLD}/model"
 
+    def world_geometry(self) -> str:
+        """World -> recorders: the queryable serving the static scene as JSON (walls, fixed
+        obstacles; what the world's own log keeps as metadata; see
+        :mod:`cekm_swarm.runtime.record`)."""
+        return f"{self.root}/{WORLD}/geometry"
+
     def alive(self, owner: str, module: str) -> str:
         """Liveliness token of a module of robot ``owner`` (or of the world server, owner
         ``world``) in this key space's run."""

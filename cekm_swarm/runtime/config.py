@@ -131,6 +131,9 @@ def embedded_router_config(port: int = DEFAULT_PORT, host: str = DEFAULT_HOST) -
     _insert(config, "mode", "router")
     _insert(config, "listen/endpoints", [check_endpoint(f"tcp/{host}:{int(port)}")])
     _common(config)
+    # Read-only admin space: `cekm topic info` asks the router who publishes and subscribes
+    # (answered only on a query; nothing runs otherwise).
+    _insert(config, "adminspace", {"enabled": True, "permissions": {"read": True, "write": False}})
     return config
 
 
