@@ -79,6 +79,7 @@ from cekm_swarm.runtime.record import serve_geometry
 from .episode import TICK_S, Episode, TickReadings
 from .scenario import load_scenario
 from .sim import World
+from .tracking import TrackingEpisode, is_tracking
 
 log = logging.getLogger("world.server")
 SENDER = "world"
@@ -262,7 +263,6 @@ class WorldServer:
         if args.checkpoints:
             raw = Path(args.checkpoints).read_text() if not args.checkpoints.lstrip().startswith("{") else args.checkpoints
             checkpoints = {r: [tuple(map(float, c)) for c in cps] for r, cps in json.loads(raw).items()}
-        self.episode = Episode(self.world, checkpoints)
         self.robots = list(self.world.robot_ids)
         self.out = Path(args.out)
         self.out.mkdir(parents=True, exist_ok=True)
@@ -271,6 +271,8 @@ class WorldServer:
         self.drops = DropCounter("world commands", keys=self.keys)
         self.record_drops = DropCounter("world recorder", keys=self.keys)
         self.record_filter = RecordFilter(self.keys, self.robots, self.record_drops)
+        self.tracking = is_tracking(self.scenario)  # docs/tracking.md: sense/pose and sense/targets per robot
+        self.episode = TrackingEpisode(self.world, self.max_ticks) if self.tracking else Episode(self.world, checkpoints)
         self.cmd_keys = {self.keys.cmd_wheels(r): r for r in self.robots}
         self.latest: dict[str, WheelCommand] = {}
         self.arrived = asyncio.Event()
@@ -280,6 +282,7 @@ class WorldServer:
         self.latencies: list[float] = []  # s from publishing a tick's readings to its command
         self.sent_at: dict[float, float] = {}
         self.last_target: dict[str, bytes] = {}  # the latest target reading's payload, per robot
+        self.last_tracking: dict[str, tuple[Any, Any]] = {}  # tracking: the latest (SensePose, SenseTargets), per robot
         self._sense_encoders: dict[str, SenseEncoder] = {}
         self.stop = asyncio.Event()
         self.stop_reason = "signal"
@@ -371,6 +374,10 @@ class WorldServer:
                 self._put(key, payload, rd.t)
             if rd.target is not None:
                 self.last_target[rd.robot] = payload  # the last one: the target's
+            if self.tracking and rd.robot in ep.sense:
+                pose, targets = self.last_tracking[rd.robot] = ep.sense[rd.robot]
+                self._send(self.keys.sense_targets(rd.robot), targets)
+                self._send(self.keys.sense_pose(rd.robot), pose)
         self._send(self.keys.world_clock(), Clock(ep.t, SENDER, ep.tick))
         st = w.state()
         self._send(self.keys.world_state(), WorldState(ep.t, SENDER, st["robots"], st["targets"], st["obstacles"]))
@@ -378,6 +385,8 @@ class WorldServer:
         self._record_sent()
         if self.views is not None:
             self.views.write_state(ep.t, st)
+            if self.tracking:
+                self.views.write_tracking(ep.t, st, w.target_range, ep.observed_by)
         self._drain_records(ep.t)
 
     def _republish(self, readings: list[TickReadings], waiting: list[str]) -> None:
@@ -391,6 +400,10 @@ class WorldServer:
             last = self.last_target.get(rd.robot)
             if last is not None:
                 self._put(self.keys.sense_target(rd.robot), last, rd.t)
+            sensed = self.last_tracking.get(rd.robot)
+            if sensed is not None:  # tracking: the latest target tick's pose and targets
+                self._send(self.keys.sense_targets(rd.robot), sensed[1])
+                self._send(self.keys.sense_pose(rd.robot), sensed[0])
         self._record_sent()
         self.republished += 1
 
@@ -454,9 +467,12 @@ class WorldServer:
         robots = {}
         for r in self.robots:
             x, y, _ = self.world.pose(r)
-            gx, gy = self.world.goal_of(r)
             p = ep.progress[r]
-            robots[r] = {"x": round(x, 3), "y": round(y, 3), "to_goal": round(math.hypot(gx - x, gy - y), 3),
+            to_goal = None
+            if not self.tracking:
+                gx, gy = self.world.goal_of(r)
+                to_goal = round(math.hypot(gx - x, gy - y), 3)
+            robots[r] = {"x": round(x, 3), "y": round(y, 3), "to_goal": to_goal,
                          "reached": p.reached, "stopped": self.deadman.stopped.get(r, False)}
         emit("PROGRESS", {"t": ep.t, "tick": ep.tick, "robots": robots, "republished": self.republished,
                           "deadline_misses": self.deadline_misses})
@@ -506,7 +522,9 @@ class WorldServer:
             t_wall0 = time.perf_counter()
             # Every module's subscription must be known before tick 0 is published.
             for r in self.robots:
-                keys = [self.keys.sense_target(r)] + [self.keys.sense_range(r, j) for j in range(self.keys.range_sensors)]
+                first = ([self.keys.sense_targets(r), self.keys.sense_pose(r)] if self.tracking
+                         else [self.keys.sense_target(r)])
+                keys = first + [self.keys.sense_range(r, j) for j in range(self.keys.range_sensors)]
                 for k in keys:
                     if self.stop.is_set():
                         break
@@ -606,6 +624,8 @@ class WorldServer:
                "drops": {"commands": self.drops.by_source(), "recorder": self.record_drops.by_source()},
                "late_commands": self.late_commands,
                "events": self.events}
+        if self.tracking:
+            doc["tracking"] = ep.meter.summary()
         (self.out / "outcome.json").write_text(json.dumps(doc, indent=1))
         traj = {}
         for r, p in ep.progress.items():

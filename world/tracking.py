@@ -123,3 +123,79 @@ class ObservationMeter:
             "series": {"t": self.t, "A": self.fraction, "robot_spread": self.robot_spread,
                        "target_spread": self.target_spread},
         }
+
+
+class TrackingEpisode:
+    """The world's side of a tracking run, tick by tick, for the world server: the same
+    order of readings as the in-process runner (:func:`cekm_swarm.experiments.tracking.run_tracking`),
+    so a distributed lockstep run equals it bit for bit. At tick k, for every robot in
+    order: its pose, its 12 distance readings and, on even ticks, :func:`tracking_sense`;
+    Parker's A is sampled first, from the true positions. The interface is
+    :class:`world.episode.Episode`'s (``readings``, ``apply``, ``advance``, ``done``,
+    ``outcome``, ``progress``), plus ``sense`` (this tick's tracking messages per robot)
+    and ``meter``."""
+
+    def __init__(self, world: World, max_ticks: int) -> None:
+        from .episode import RobotProgress
+
+        self.world = world
+        self.max_ticks = max_ticks  # the last tick: sampled, but no path point (as the in-process runner)
+        self.tick = 0
+        self.progress = {r: RobotProgress([]) for r in world.robot_ids}
+        self.meter = ObservationMeter(list(world.target_ids), list(world.robot_ids))
+        self.sense: dict[str, tuple[SensePose, SenseTargets]] = {}
+        self.observed_by: dict[str, list[str]] = {}  # at the current tick: target id -> robots within range
+
+    @property
+    def t(self) -> float:
+        from .episode import TICK_S
+
+        return round(self.tick * TICK_S, 9)
+
+    @property
+    def target_due(self) -> bool:
+        from .episode import TARGET_EVERY
+
+        return self.tick % TARGET_EVERY == 0
+
+    def readings(self) -> list:
+        from .episode import TickReadings
+
+        w, t = self.world, self.t
+        self.observed_by = self.meter.sample(w, t)
+        out = []
+        self.sense = {}
+        for r in w.robot_ids:
+            x, y, th = w.pose(r)
+            if self.tick < self.max_ticks:
+                self.progress[r].path.append((t, x, y, th))
+            ranges = w.range_readings(r)
+            if self.target_due:
+                self.sense[r] = tracking_sense(w, r, t)
+            out.append(TickReadings(r, t, ranges, None))
+        return out
+
+    def apply(self, commands: dict[str, tuple[float, float]]) -> None:
+        for r, (v_l, v_r) in commands.items():
+            self.world.set_wheels(r, v_l, v_r)
+            self.progress[r].commands.append((v_l, v_r))
+
+    def advance(self) -> None:
+        from .episode import TICK_S
+
+        self.world.advance(TICK_S)
+        self.tick += 1
+
+    @property
+    def done(self) -> bool:
+        return False  # a tracking run ends at its max time
+
+    def outcome(self) -> dict[str, dict]:
+        """Per robot, as ``cekm run`` on a tracking scenario writes it: path length, collisions, final pose."""
+        out = {}
+        for r, p in self.progress.items():
+            path = p.path
+            length = sum(math.hypot(b[1] - a[1], b[2] - a[2]) for a, b in zip(path, path[1:]))
+            out[r] = {"path_length_m": length, "collisions": int(self.world.stats(r)["collisions"]),
+                      "final_pose": list(path[-1][1:]) if path else None}
+        return out

@@ -71,11 +71,7 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwr
         sc = load_scenario(scenario)
     except ScenarioError as exc:
         raise click.UsageError(str(exc)) from None
-    from world.tracking import is_tracking
-
-    if is_tracking(sc):  # docs/tracking.md
-        raise click.UsageError(f"{sc.name!r} is a tracking scenario: its distributed runtime path is not built yet; "
-                               f"run it in one process with `cekm run {scenario} --controller cekm|acmommt|stay`")
+    # a tracking scenario (docs/tracking.md) runs the tracking target module per robot, controller cekm
     known = [r.id for r in sc.robots]
     only = None if robots is None else tuple(r.strip() for r in robots.split(",") if r.strip() and r.strip() != "none")
     unknown = [r for r in only or () if r not in known]
@@ -119,9 +115,16 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwr
         if launcher.interrupted:
             raise Interrupted("interrupted before the run started")
         raise RunFailed(f"the run left no outcome; see {out_dir / 'launch.log'} and {out_dir / 'logs'}")
+    tracking = "tracking" in outcome  # docs/tracking.md
     for r, o in outcome["robots"].items():
-        click.echo(f"{r}: {'reached' if o['reached'] else 'NOT reached'} in {o['time_s']:.1f} s, path "
-                   f"{o['path_length_m']:.2f} m, {o['collisions']} collisions")
+        if tracking:
+            click.echo(f"{r}: path {o['path_length_m']:.2f} m, {o['collisions']} collisions")
+        else:
+            click.echo(f"{r}: {'reached' if o['reached'] else 'NOT reached'} in {o['time_s']:.1f} s, path "
+                       f"{o['path_length_m']:.2f} m, {o['collisions']} collisions")
+    if tracking:
+        tr = outcome["tracking"]
+        click.echo(f"A = {tr['A']:.3f} ({tr['robots']} robots, {tr['targets']} targets, {tr['ticks']} ticks)")
     lat = outcome.get("sense_to_command_ms", {})
     if lat.get("n"):
         click.echo(f"sense-to-command latency p50 {lat['p50']} ms, p99 {lat['p99']} ms ({lat['n']} ticks)")

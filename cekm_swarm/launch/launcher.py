@@ -124,7 +124,9 @@ def plan_checkpoint_data(scenario) -> dict[str, list[list[float]]]:
 def format_progress(doc: dict[str, Any]) -> str:
     parts = [f"t={doc['t']:7.2f} s"]
     for r, s in doc["robots"].items():
-        st = "reached" if s["reached"] else ("STOPPED" if s.get("stopped") else f"{s['to_goal']:.2f} m to goal")
+        st = "reached" if s["reached"] else ("STOPPED" if s.get("stopped") else
+                                             f"at ({s['x']:.2f}, {s['y']:.2f})" if s.get("to_goal") is None else
+                                             f"{s['to_goal']:.2f} m to goal")
         parts.append(f"{r} ({s['x']:.2f}, {s['y']:.2f}) {st}")
     if doc.get("republished"):
         parts.append(f"republished {doc['republished']}")
@@ -415,10 +417,13 @@ class Launcher:
 
     async def _spawn_modules(self, scenario, robots: list[str], model: Path | str, endpoint: str) -> None:
         """Start every module process of ``robots``, each under a supervisor."""
+        from world.tracking import is_tracking
+
         c = self.c
+        tracking = (tuple(self.all_robots), scenario.target_range) if is_tracking(scenario) else None
         for r in robots:
             for name in module_names(self.keys.range_sensors):
-                argv = module_argv(name, robot=r, model=model, connect=endpoint, root=c.root, mode=c.mode,
+                argv = module_argv(name, tracking, robot=r, model=model, connect=endpoint, root=c.root, mode=c.mode,
                                    zenoh_config=c.zenoh_config, run_id=self.run_id)
                 child = Child(r, name, argv, c.out / "logs" / f"{r}-{name}.log")
                 self.children[child.label] = child

@@ -59,8 +59,8 @@ def plot_log(path: str | Path, title: str | None = None, outcome: dict[str, Any]
     geometry = run["geometry"]
     colours = robot_colours(sorted(set(run["paths"]) | {r["id"] for r in (geometry or {}).get("robots", [])}))
     robots = (outcome or {}).get("robots", {})
-    labels = {rid: f"{rid} ({'reached' if robots[rid]['reached'] else 'not reached'})" if rid in robots else rid
-              for rid in run["paths"]}
+    labels = {rid: f"{rid} ({'reached' if robots[rid]['reached'] else 'not reached'})"
+              if "reached" in robots.get(rid, {}) else rid for rid in run["paths"]}  # a tracking robot has no goal
     fig, ax = plt.subplots(figsize=(7, 6))
     if geometry is not None:
         draw_world(ax, geometry, run["state"], colours)

@@ -29,11 +29,14 @@ import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 
-from cekm_swarm.protocol import DEFAULT_RANGE_SENSORS, KeySpace, ObstacleField, TargetField, WheelCommand, encode
+from cekm_swarm.protocol import (DEFAULT_RANGE_SENSORS, KeySpace, ObstacleField, TargetField, TrackingField, WheelCommand,
+                                 encode)
 from cekm_swarm.ticks import TARGET_EVERY, TICK_S
 from cekm_swarm.protocol.hotpath import VectorCache, obstacle_field_values, target_field_values, unpack
 
-from .shell import ModuleSpec, base_parser, keyspace, load_controller, main_of
+from cekm_swarm.runtime.process_args import add_params
+
+from .shell import TRACKING_RANGE_PARAM, ModuleSpec, base_parser, keyspace, load_controller, main_of
 
 NAME = "motor"
 log = logging.getLogger("cekm_swarm.modules.motor")
@@ -84,19 +87,19 @@ class MotorState:
 
     # ------------------------------------------------------------------ storing
 
-    def _refuse(self, msg: TargetField | ObstacleField, why: str) -> list:
+    def _refuse(self, msg: TargetField | TrackingField | ObstacleField, why: str) -> list:
         if self.drop is not None:
             self.drop(msg, why)
         return []
 
-    def put(self, msg: TargetField | ObstacleField) -> list[tuple[float, float, float]]:
+    def put(self, msg: TargetField | TrackingField | ObstacleField) -> list[tuple[float, float, float]]:
         if isinstance(msg, ObstacleField) and not 0 <= msg.index < self.sensors:
             return self._refuse(msg, f"sensor index {msg.index} outside 0..{self.sensors - 1}")
-        if not isinstance(msg, (TargetField, ObstacleField)):
+        if not isinstance(msg, (TargetField, TrackingField, ObstacleField)):
             return []
         if self.lockstep:
             return self._put_lockstep(msg)
-        if isinstance(msg, TargetField):
+        if isinstance(msg, (TargetField, TrackingField)):  # the target module's output (tracking: its fields)
             if self.target is not None and msg.stamp < self.target.stamp:
                 return self._refuse(msg, f"stamp {msg.stamp} older than the latest target field's")
             self.target = msg
@@ -159,14 +162,14 @@ class MotorState:
         out += [f"obstacle-{j}" for j in range(self.sensors) if j not in have]
         return out
 
-    def _put_lockstep(self, msg: TargetField | ObstacleField) -> list[tuple[float, float, float]]:
+    def _put_lockstep(self, msg: TargetField | TrackingField | ObstacleField) -> list[tuple[float, float, float]]:
         stamp = msg.stamp
         if stamp < self.sent_stamp:
-            if isinstance(msg, TargetField) and stamp == self.target_stamp_for(self.sent_stamp):
+            if isinstance(msg, (TargetField, TrackingField)) and stamp == self.target_stamp_for(self.sent_stamp):
                 return []  # the world re-published the target reading the answered (odd) tick used
             return self._refuse(msg, f"field of tick {stamp} after tick {self.sent_stamp} was answered")
         self.newest = max(self.newest, stamp)
-        if isinstance(msg, TargetField):
+        if isinstance(msg, (TargetField, TrackingField)):
             self.targets[stamp] = msg
             self.target = msg
         else:
@@ -217,6 +220,22 @@ def controller_integrate(ekm) -> Integrate:
     return integrate
 
 
+def tracking_integrate(tekm) -> Integrate:
+    """``integrate`` of a tracking robot (Eqs. 9-11 with the teammate fields), through
+    :meth:`TrackingEKM.integrate` as ``TrackingRobot.command`` calls it; the target
+    module's output is a :class:`TrackingField`."""
+    from cekm_swarm.controller.cooperative import ObstacleActivity
+
+    from .tracking import tracking_activity
+
+    def integrate(target: TrackingField | None, obstacles: Iterable[ObstacleField]) -> tuple[float, float]:
+        act = None if target is None else tracking_activity(target)
+        out = tekm.integrate(act, [ObstacleActivity(f.stamp, f.index, f.winner, f.b) for f in obstacles])
+        return out.v_l, out.v_r
+
+    return integrate
+
+
 def build_spec(integrate: Integrate, robot: str, keys: KeySpace = KeySpace(), *, lockstep: bool = False,
                obstacle_limit: float = 2 * TICK_S, target_limit: float = 4 * TICK_S,
                neurons: int | None = None) -> ModuleSpec:
@@ -231,12 +250,18 @@ def build_spec(integrate: Integrate, robot: str, keys: KeySpace = KeySpace(), *,
                       outputs=(out_key,))
 
     def source_key(msg) -> str:
+        if isinstance(msg, TrackingField):
+            return keys.field_tracking(robot)
         return target_key if isinstance(msg, TargetField) else keys.field_obstacle(robot, msg.index)
 
     state = MotorState(integrate, lockstep=lockstep, sensors=keys.range_sensors, obstacle_limit=obstacle_limit,
                        target_limit=target_limit, drop=lambda msg, why: spec.drops.drop(source_key(msg), why))
 
     def misfit(msg) -> str | None:
+        if isinstance(msg, TrackingField):  # a and b have one length (checked on decode); winners per input
+            if msg.a.shape[0] != neurons:
+                return f"field of {msg.a.shape[0]} neurons, the lattice has {neurons}"
+            return None
         vec = msg.a if isinstance(msg, TargetField) else msg.b
         if vec is not None and vec.shape[0] != neurons:
             return f"field of {vec.shape[0]} neurons, the lattice has {neurons}"
@@ -245,7 +270,7 @@ def build_spec(integrate: Integrate, robot: str, keys: KeySpace = KeySpace(), *,
         return None
 
     def handle(msg, rec):
-        if neurons is not None and isinstance(msg, (TargetField, ObstacleField)) and (why := misfit(msg)):
+        if neurons is not None and isinstance(msg, (TargetField, TrackingField, ObstacleField)) and (why := misfit(msg)):
             spec.drops.drop(source_key(msg), why)
             return []
         out = []
@@ -286,9 +311,16 @@ def build_spec(integrate: Integrate, robot: str, keys: KeySpace = KeySpace(), *,
 
 
 def _build(args: argparse.Namespace) -> ModuleSpec:
-    ekm = load_controller(args.model)
-    return build_spec(controller_integrate(ekm), args.robot, keyspace(args), lockstep=args.mode == "lockstep",
-                      obstacle_limit=args.obstacle_stale, target_limit=args.target_stale, neurons=int(ekm.w.shape[0]))
+    if args.tracking_range is not None:  # a tracking robot's motor
+        from .tracking import load_model_arg, tracking_ekm
+
+        tekm = tracking_ekm(load_model_arg(args.model), args.robot, args.tracking_range)
+        integrate, neurons = tracking_integrate(tekm), int(tekm.model.w.shape[0])
+    else:
+        ekm = load_controller(args.model)
+        integrate, neurons = controller_integrate(ekm), int(ekm.w.shape[0])
+    return build_spec(integrate, args.robot, keyspace(args), lockstep=args.mode == "lockstep",
+                      obstacle_limit=args.obstacle_stale, target_limit=args.target_stale, neurons=neurons)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -297,6 +329,7 @@ def main(argv: list[str] | None = None) -> int:
                    help="drop an obstacle field older than this (s of sim time; default %(default)s)")
     p.add_argument("--target-stale", type=float, default=4 * TICK_S,
                    help="drop a target field older than this (s of sim time; default %(default)s)")
+    add_params(p, (TRACKING_RANGE_PARAM,))
     return main_of(_build, p, argv)
 
 

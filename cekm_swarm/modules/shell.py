@@ -57,21 +57,36 @@ INDEX_PARAM = Param("index", int, required=True, help="distance sensor index j (
 MODULE_PROGRAMS = {"target": "cekm_swarm.modules.target", "obstacle": "cekm_swarm.modules.obstacle",
                    "motor": "cekm_swarm.modules.motor"}
 
+TEAM_PARAM = Param("team", required=True, help="every robot of the scenario, comma-separated, in scenario order")
+TARGET_RANGE_PARAM = Param("target_range", float, required=True, help="the target sensing range R (m)")
+"""The tracking target module's own parameters (docs/tracking.md)."""
+TRACKING_RANGE_PARAM = Param("tracking_range", float, None, metavar="R",
+                             help="a tracking robot's motor (target sensing range R in m): integrate the tracking "
+                                  "target module's fields")
+"""The motor's parameter on a tracking scenario."""
+
 
 def base_parser(description: str) -> argparse.ArgumentParser:
     """Arguments every module takes."""
     return add_params(argparse.ArgumentParser(description=description), MODULE_PARAMS)
 
 
-def module_argv(name: str, **values: Any) -> list[str]:
+def module_argv(name: str, tracking: tuple[tuple[str, ...], float] | None = None, **values: Any) -> list[str]:
     """The command line of module ``name`` (``target``, ``obstacle-<j>``, ``motor``) with
-    ``values`` of :data:`MODULE_PARAMS`; what :func:`base_parser` parses back."""
+    ``values`` of :data:`MODULE_PARAMS`; what :func:`base_parser` parses back. ``tracking``
+    = (every robot in scenario order, the target sensing range) on a tracking scenario:
+    the target module is then the tracking target module and the motor integrates its fields."""
     kind, _, j = name.partition("-")
     if kind not in MODULE_PROGRAMS or (kind == "obstacle") != bool(j):
         raise ValueError(f"no module {name!r} (expected target, obstacle-<j> or motor)")
-    argv = [sys.executable, "-m", MODULE_PROGRAMS[kind], *to_argv(MODULE_PARAMS, **values)]
+    program = "cekm_swarm.modules.tracking" if kind == "target" and tracking else MODULE_PROGRAMS[kind]
+    argv = [sys.executable, "-m", program, *to_argv(MODULE_PARAMS, **values)]
     if kind == "obstacle":
         argv += to_argv((INDEX_PARAM,), index=int(j))
+    if tracking and kind == "target":
+        argv += to_argv((TEAM_PARAM, TARGET_RANGE_PARAM), team=",".join(tracking[0]), target_range=repr(float(tracking[1])))
+    if tracking and kind == "motor":
+        argv += to_argv((TRACKING_RANGE_PARAM,), tracking_range=repr(float(tracking[1])))
     return argv
 
 
@@ -116,6 +131,11 @@ class ModuleSpec:
     outputs: tuple[str, ...] = ()
     """Keys the module publishes on, declared before it listens (none: declared on first use)."""
     window: StampWindow = field(default_factory=StampWindow)
+    also: tuple[str, ...] = ()
+    """More key expressions it listens on (the tracking target module: its pose, its targets, the teammates' shares)."""
+    liveliness: Callable[[str, bool], list[tuple[str, Message]]] | None = None
+    """Called with (token key, alive) for every liveliness token under the root appearing or
+    vanishing (history included); returns what to publish. Serialized with the handler."""
 
     def __post_init__(self) -> None:
         if self.drops is None:
@@ -191,18 +211,40 @@ async def run_module(spec: ModuleSpec, endpoint: str, *, block: bool = False,
             pubs.publisher(key)
         closed = threading.Event()
         put = zenoh.SampleKind.PUT
+        # several subscriptions may call back on different threads; re-entrant, since a put
+        # on a key this module also listens on (its own share) is delivered within the put
+        lock = threading.RLock()
 
-        def serve(sample: zenoh.Sample) -> None:
-            if closed.is_set() or sample.kind != put:
-                return
-            for key, data in respond(spec, str(sample.key_expr), sample.payload.to_bytes()):
+        def publish(out: list[tuple[str, bytes]]) -> None:
+            for key, data in out:
                 try:
                     pubs.put(key, data)
                 except Exception as exc:  # noqa: BLE001 - a closing session must not kill the thread
                     log.warning("%s: publishing on %s failed: %s", spec.sender, key, exc)
-            handled[0] += 1
+
+        def serve(sample: zenoh.Sample) -> None:
+            if closed.is_set() or sample.kind != put:
+                return
+            with lock:
+                publish(respond(spec, str(sample.key_expr), sample.payload.to_bytes()))
+                handled[0] += 1
+
+        def token(sample: zenoh.Sample) -> None:
+            if closed.is_set():
+                return
+            with lock:
+                try:
+                    out = spec.liveliness(str(sample.key_expr), sample.kind == put)
+                except Exception as exc:  # noqa: BLE001 - a module must survive any token event
+                    log.warning("%s: liveliness handler failed: %s: %s", spec.sender, type(exc).__name__, exc)
+                    out = []
+                publish([(k, encode(m)) for k, m in out])
 
         sub = InlineSubscription(session, spec.listen, serve, raw=True)
+        more = [InlineSubscription(session, k, serve, raw=True) for k in spec.also]
+        tokens = None
+        if spec.liveliness is not None:
+            tokens = session.liveliness().declare_subscriber(spec.keys.alive_all(), token, history=True)
         # The token comes last: once it is up, the subscription is in place.
         token = declare_alive(session, spec.keys.alive(spec.robot, spec.name))
         log.info("%s: up, listening on %s", spec.sender, spec.listen)
@@ -213,6 +255,10 @@ async def run_module(spec: ModuleSpec, endpoint: str, *, block: bool = False,
         finally:
             closed.set()
             sub.close()
+            for m in more:
+                m.close()
+            if tokens is not None:
+                tokens.undeclare()
             if spec.on_stop:
                 spec.on_stop()
             token.undeclare()

@@ -9,6 +9,7 @@ Keys (root ``cekm`` by default, ``<robot>`` a robot id such as ``r1``):
 ``<root>/<robot>/sense/targets``          KeyKind.SENSE_TARGETS (tracking)
 ``<root>/<robot>/field/target``           KeyKind.FIELD_TARGET
 ``<root>/<robot>/field/obstacle/<j>``     KeyKind.FIELD_OBSTACLE
+``<root>/<robot>/field/tracking``         KeyKind.FIELD_TRACKING (tracking)
 ``<root>/<robot>/cmd/wheels``             KeyKind.CMD_WHEELS
 ``<root>/<robot>/share``                  KeyKind.SHARE
 ``<root>/world/state``                    KeyKind.WORLD_STATE
@@ -55,6 +56,7 @@ class KeyKind(str, enum.Enum):
     SENSE_TARGETS = "sense/targets"
     FIELD_TARGET = "field/target"
     FIELD_OBSTACLE = "field/obstacle"
+    FIELD_TRACKING = "field/tracking"
     CMD_WHEELS = "cmd/wheels"
     SHARE = "share"
     WORLD_STATE = "world/state"
@@ -181,6 +183,10 @@ class KeySpace:
         """Target module -> motor module: the target field."""
         return f"{self._robot(robot)}/field/target"
 
+    def field_tracking(self, robot: str) -> str:
+        """Tracking target module -> motor module: the weighted target and teammate fields (tracking scenarios)."""
+        return f"{self._robot(robot)}/field/tracking"
+
     def field_obstacle(self, robot: str, j: int) -> str:
         """Obstacle module j -> motor module: sensor j's obstacle field."""
         return f"{self._robot(robot)}/field/obstacle/{self.check_index(j)}"
@@ -306,7 +312,7 @@ class KeySpace:
         if n == 2:
             suffix = f"{rest[0]}/{rest[1]}"
             for kind in (KeyKind.SENSE_TARGET, KeyKind.FIELD_TARGET, KeyKind.CMD_WHEELS, KeyKind.SENSE_POSE,
-                         KeyKind.SENSE_TARGETS):
+                         KeyKind.SENSE_TARGETS, KeyKind.FIELD_TRACKING):
                 if suffix == kind.value:
                     return ParsedKey(kind, owner)
             if rest[0] == "alive":

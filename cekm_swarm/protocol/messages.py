@@ -440,6 +440,51 @@ class SenseTargets(_Message):
 
 
 @dataclass(eq=False, slots=True)
+class TrackingField(_Message):
+    """Tracking target module -> motor module (tracking scenarios): ``a``, the sum of the
+    weighted target fields (and the search goal's), ``b``, the sum of the weighted
+    teammate fields (float64[n] each), and per localized point (each sensed target, then
+    the search goal when searching) ``inputs`` = (winner, alpha, d, weight): the input u
+    Eq. 11 maps through M_k when k is that winner. ``weights`` = {target id: w_t}."""
+
+    stamp: float
+    sender: str
+    a: np.ndarray
+    b: np.ndarray
+    inputs: tuple[tuple[int, float, float, float], ...]
+    weights: dict[str, float]
+    searching: bool
+    KIND: ClassVar[KeyKind] = KeyKind.FIELD_TRACKING
+    _ARRAYS: ClassVar[tuple[str, ...]] = ("a", "b")
+
+    def __post_init__(self) -> None:
+        self._envelope()
+        self.a = _vector("a", self.a)
+        self.b = _vector("b", self.b)
+        n = self.a.shape[0]
+        if self.b.shape[0] != n:
+            raise _fail("b", f"length {self.b.shape[0]}, a has {n}")
+        if not isinstance(self.inputs, (list, tuple)) or len(self.inputs) > MAX_TARGETS + 1:
+            raise _fail("inputs", f"expected at most {MAX_TARGETS + 1} [winner, alpha, d, weight] entries")
+        rows = []
+        for i, row in enumerate(self.inputs):
+            if not isinstance(row, (list, tuple)) or len(row) != 4:
+                raise _fail(f"inputs[{i}]", f"expected [winner, alpha, d, weight], got {row!r}")
+            rows.append((_int(f"inputs[{i}].winner", row[0], hi=n), _float(f"inputs[{i}].alpha", row[1], angle=True),
+                         _float(f"inputs[{i}].d", row[2], lo=0.0), _float(f"inputs[{i}].weight", row[3], lo=0.0)))
+        self.inputs = tuple(rows)
+        if not isinstance(self.weights, dict) or len(self.weights) > MAX_TARGETS:
+            raise _fail("weights", f"expected a map {{target id: weight}} of at most {MAX_TARGETS} entries")
+        self.weights = {_text("weights", k, max_len=64): _float(f"weights.{k}", v, lo=0.0)
+                        for k, v in self.weights.items()}
+        self.searching = _bool("searching", self.searching)
+
+    def _body(self) -> dict[str, Any]:
+        return {"a": _array_to_wire(self.a), "b": _array_to_wire(self.b), "inputs": [list(r) for r in self.inputs],
+                "weights": dict(self.weights), "searching": self.searching}
+
+
+@dataclass(eq=False, slots=True)
 class WorldState(_Message):
     """World -> monitors: ground truth as plain nested data, as ``world.World.state()``
     gives it: ``robots`` {robot id: {x, y, theta, ...}}, ``targets`` {id: {...}},
@@ -483,12 +528,12 @@ class Clock(_Message):
 
 
 Message = Union[SenseTarget, SenseRange, TargetField, ObstacleField, WheelCommand, Share, WorldState, Clock,
-                SensePose, SenseTargets]
+                SensePose, SenseTargets, TrackingField]
 """Any message of the protocol."""
 
 MESSAGE_TYPES: dict[KeyKind, type] = {cls.KIND: cls for cls in
                                       (SenseTarget, SenseRange, TargetField, ObstacleField, WheelCommand, Share,
-                                       WorldState, Clock, SensePose, SenseTargets)}
+                                       WorldState, Clock, SensePose, SenseTargets, TrackingField)}
 """The message class of each key kind (liveliness keys carry no message)."""
 
 for _cls in MESSAGE_TYPES.values():

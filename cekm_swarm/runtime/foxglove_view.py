@@ -8,7 +8,9 @@ holds both the raw msgpack channels and these views.
 
 Channels: ``/view/scene`` (SceneUpdate: walls, static and moving obstacles, targets,
 robots with a heading arrow and a label), ``/view/tf`` (FrameTransforms ``world`` ->
-each robot), ``/view/path/<robot>`` (PosesInFrame: the robot's path so far).
+each robot), ``/view/path/<robot>`` (PosesInFrame: the robot's path so far) and, in a
+tracking run, ``/view/tracking`` (SceneUpdate: each robot's target sensing circle and a
+line from it to every target it observes).
 
 Input is plain data in the shapes ``world.World.static_geometry()`` and
 ``world.World.state()`` return (this module does not import the world package).
@@ -30,6 +32,10 @@ except ImportError:  # pragma: no cover - exercised only where foxglove-sdk is m
 SCENE_TOPIC = "/view/scene"
 TF_TOPIC = "/view/tf"
 PATH_TOPIC = "/view/path/{robot}"
+TRACKING_TOPIC = "/view/tracking"
+CIRCLE_POINTS = 48
+_SENSING = (0.1, 0.55, 0.95, 0.5)
+_OBSERVES = (0.95, 0.6, 0.1, 0.9)
 WORLD_FRAME = "world"
 PATH_STEP = 0.005
 PATH_MAX = 2000
@@ -199,3 +205,34 @@ class FoxgloveViews:
         self._put(SCENE_TOPIC, self._scene, fm.SceneUpdate(entities=entities), t)
         if transforms:
             self._put(TF_TOPIC, self._tf, fm.FrameTransforms(transforms=transforms), t)
+
+    def write_tracking(self, t: float, state: Mapping[str, Any], target_range: float,
+                       observed_by: Mapping[str, Sequence[str]]) -> None:
+        """Tracking (docs/tracking.md): each robot's target sensing circle (radius
+        ``target_range``) and a line to every target it observes (``observed_by``:
+        {target id: [robot ids]}, what :class:`world.tracking.ObservationMeter` returns)."""
+        ts = _stamp(t)
+        robots = state.get("robots", {})
+        targets = state.get("targets", {})
+        seen: dict[str, list[str]] = {}
+        for tid, who in observed_by.items():
+            for rid in who:
+                seen.setdefault(str(rid), []).append(str(tid))
+        entities = []
+        R = float(target_range)
+        for rid, rs in robots.items():
+            x, y = float(rs["x"]), float(rs["y"])
+            circle = [(x + R * math.cos(2 * math.pi * k / CIRCLE_POINTS), y + R * math.sin(2 * math.pi * k / CIRCLE_POINTS))
+                      for k in range(CIRCLE_POINTS)]
+            lines = [_loop(circle, 0.003, _SENSING, 0.003)]
+            pts = []
+            for tid in seen.get(str(rid), ()):
+                tg = targets.get(tid)
+                if tg is not None:
+                    pts += [fm.Point3(x=x, y=y, z=0.004), fm.Point3(x=float(tg["x"]), y=float(tg["y"]), z=0.004)]
+            if pts:
+                lines.append(fm.LinePrimitive(type=fm.LinePrimitiveLineType.LineList, pose=_pose(0, 0),
+                                              thickness=0.004, scale_invariant=False, points=pts,
+                                              color=_color(_OBSERVES)))
+            entities.append(fm.SceneEntity(timestamp=ts, frame_id=WORLD_FRAME, id=f"sensing/{rid}", lines=lines))
+        self._put(TRACKING_TOPIC, self._scene, fm.SceneUpdate(entities=entities), t)

@@ -87,9 +87,3 @@ def test_cekm_experiment_tracking_writes_results(tmp_path):
         assert (out / f).exists(), f
     bad = CliRunner().invoke(main, ["experiment", "tracking", "--out", str(out), "--robots", "two"])
     assert bad.exit_code == 2 and "--robots" in bad.output
-
-
-def test_cekm_launch_refuses_a_tracking_scenario_clearly(tmp_path):
-    r = CliRunner().invoke(main, ["launch", "tracking", "--out", str(tmp_path / "x"), "--port", "7461"])
-    assert r.exit_code == 2 and "tracking scenario" in r.output and "cekm run tracking" in r.output
-    assert not (tmp_path / "x").exists()

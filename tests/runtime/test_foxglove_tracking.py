@@ -1,0 +1,36 @@
+"""The Foxglove tracking view (``/view/tracking``): each robot's sensing circle and a line
+to every target it observes, decoded back with the official protobuf schema."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from cekm_swarm.runtime.mcap_log import McapRecorder, read_messages
+
+
+def test_tracking_view_draws_sensing_circles_and_who_observes_whom(tmp_path):
+    pytest.importorskip("foxglove", reason="foxglove-sdk not installed")
+    pytest.importorskip("foxglove_schemas_protobuf", reason="foxglove-schemas-protobuf not installed")
+    from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
+
+    from cekm_swarm.runtime.foxglove_view import CIRCLE_POINTS, TRACKING_TOPIC, FoxgloveViews
+
+    state = {"robots": {"r1": {"x": 1.0, "y": 1.0, "theta": 0.0}, "r2": {"x": 2.0, "y": 1.0, "theta": 0.0}},
+             "targets": {"t1": {"x": 1.3, "y": 1.0}, "t2": {"x": 1.8, "y": 1.2}, "t3": {"x": 5.0, "y": 5.0}}}
+    path = tmp_path / "view.mcap"
+    with McapRecorder(path) as rec:
+        FoxgloveViews(rec).write_tracking(0.256, state, 0.5, {"t1": ["r1"], "t2": ["r1", "r2"], "t3": []})
+    msgs = [SceneUpdate.FromString(m.data) for m in read_messages(path) if m.topic == TRACKING_TOPIC]
+    assert len(msgs) == 1
+    ents = {e.id: e for e in msgs[0].entities}
+    assert set(ents) == {"sensing/r1", "sensing/r2"}
+    circle = ents["sensing/r1"].lines[0]
+    assert len(circle.points) == CIRCLE_POINTS
+    assert all(math.hypot(p.x - 1.0, p.y - 1.0) == pytest.approx(0.5) for p in circle.points)
+    seen_r1 = ents["sensing/r1"].lines[1].points
+    assert [(p.x, p.y) for p in seen_r1[1::2]] == [(1.3, 1.0), (1.8, 1.2)]
+    seen_r2 = ents["sensing/r2"].lines[1].points
+    assert [(p.x, p.y) for p in seen_r2] == [(2.0, 1.0), (1.8, 1.2)]
+    assert msgs[0].entities[0].timestamp.nanos == 256_000_000
