@@ -80,3 +80,30 @@ def test_the_world_unit_is_the_robot_unit():
     if unit is None:
         pytest.skip("cekm_swarm.robot.Khepera.speed_unit not defined on this branch yet")
     assert unit == WHEEL_SPEED_UNIT
+
+
+def _episode(start_x, speed_unit):
+    from world.episode import Episode
+
+    doc = {"seed": 1, "arena": {"bounds": [0.0, 0.0, 2.0, 2.0]}, "plant": {"speed_unit": speed_unit},
+           "robots": [{"id": "r1", "start": [start_x, 1.0, 0.0], "goal": "g"}],
+           "targets": [{"id": "g", "position": [1.0, 1.0]}]}
+    return Episode(World(parse_scenario(doc, source="<test>")))
+
+
+def test_a_stop_within_the_goal_radius_reaches_the_goal():
+    ep = _episode(0.98, UNIT)  # 2 cm short of the goal
+    ep.readings()
+    ep.apply({"r1": (0.004, 0.003)})  # moves on: not a stop
+    assert not ep.done
+    ep.advance()
+    ep.readings()
+    ep.apply({"r1": (0.3 * UNIT, -0.2 * UNIT)})  # quantizes to zero: a stop at the goal
+    assert ep.done and ep.outcome()["r1"]["reached"] and ep.outcome()["r1"]["time_s"] == ep.t
+
+
+def test_a_stop_far_from_the_goal_is_not_reaching_it():
+    ep = _episode(0.5, UNIT)
+    ep.readings()
+    ep.apply({"r1": (0.001, 0.001)})
+    assert not ep.done and not ep.outcome()["r1"]["reached"]
