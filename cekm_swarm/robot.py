@@ -1,4 +1,4 @@
-"""The Khepera-like robot the paper uses (DESIGN.md section 2). SI units."""
+"""The Khepera-like robot the paper uses (docs/design.md section 2). SI units."""
 
 from __future__ import annotations
 

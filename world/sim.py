@@ -1,7 +1,7 @@
 """The pymunk world: Khepera-like differential-drive robots, walls, static and moving
 obstacles, moving targets, noisy range and target sensors.
 
-Physics (DESIGN.md sections 2 and 7):
+Physics (docs/design.md sections 2 and 7):
 
 * Each robot is a dynamic circle driven through a kinematic *control body* joined by a
   ``PivotJoint`` (max_bias 0, finite max_force) and a ``GearJoint`` (pymunk's tank

@@ -3,8 +3,8 @@
 Section 4.1 needs millions of robot steps (6 networks x 5 trials x 100,000 steps plus
 tests), so it runs on this exact-arc kinematic model of the differential drive rather
 than on the pymunk world of section 4.2; the robot, noise and sensor model are the same
-(DESIGN.md section 2). The arena has walls: the robot's centre is kept at least one body
-radius inside, and a step that touched a wall is not learned from (DESIGN.md section 3).
+(docs/design.md section 2). The arena has walls: the robot's centre is kept at least one body
+radius inside, and a step that touched a wall is not learned from (docs/design.md section 3).
 These are plain numba functions, shared by the reference and the fast trial runners.
 """
 
@@ -112,7 +112,7 @@ def displacement(x0, y0, th0, x1, y1, dth):
     """v: the step's displacement in polar form in the robot frame at its start.
 
     Below 1e-4 m, alpha_v = dtheta / 2 (the chord direction's limit), so pure turns
-    still train the d = 0 neurons (DESIGN.md section 3, item 2).
+    still train the d = 0 neurons (docs/design.md section 3, item 2).
     """
     dx = x1 - x0
     dy = y1 - y0

@@ -45,6 +45,7 @@ BACKOFF_MAX = 5.0
 HEALTHY_AFTER = 5.0  # s: a module up this long gets its back-off reset
 ALIVE_TIMEOUT = 180.0
 STOP_GRACE = 5.0
+ROUTER_GRACE = 10.0  # s a robots-only host with --connect waits for a lost router and the world to come back
 
 
 @dataclass
@@ -333,7 +334,7 @@ class Launcher:
             await world_reader
             code = await self.world_proc.wait()
             if code not in (0, 3):
-                self.say(f"world server ended with code {code}; see {c.out / 'logs' / 'world.log'}")
+                self._world_died(code)
         finally:
             self.stopping = True
             if self.world_proc is not None and self.world_proc.returncode is None:
@@ -413,6 +414,27 @@ class Launcher:
                 return
             self.say(f"world: {line.decode(errors='replace').rstrip()}")
 
+    def _world_died(self, code: int) -> None:
+        """The world server ended abnormally (killed, crashed): say so, and make ``run.mcap``
+        a complete, indexed log again if the world could not close it (the cut file is kept
+        as ``run.truncated.mcap``). The run ends: nothing else can tick the world."""
+        from cekm_swarm.runtime.mcap_log import is_complete, recover_log
+
+        c = self.c
+        why = f"was killed by signal {-code}" if code < 0 else f"ended with exit code {code}"
+        self.say(f"the world server {why}; the run ends (see {c.out / 'logs' / 'world.log'})")
+        log_path = c.out / "run.mcap"
+        try:
+            if not log_path.is_file() or is_complete(log_path):
+                return
+            cut = log_path.with_name("run.truncated.mcap")
+            log_path.replace(cut)
+            rep = recover_log(cut, log_path)
+            self.say(f"recovered the world's log: {rep.messages} messages on {rep.channels} channels into "
+                     f"{log_path} ({cut.name} is the file as the world left it)")
+        except (CekmError, OSError) as exc:
+            self.say(f"could not recover the world's log: {exc}")
+
     def _world_ended(self) -> bool:
         return self.world_proc is not None and self.world_proc.returncode is not None
 
@@ -431,6 +453,8 @@ class Launcher:
                 event = await watcher.next_event(timeout=1.0)
             except asyncio.TimeoutError:
                 if seen and not session.info.routers_zid():
+                    if await self._router_back(watcher, world_key, session):
+                        continue
                     self.say("the world server has ended (its host's Zenoh router is gone)")
                     return
                 continue
@@ -440,8 +464,27 @@ class Launcher:
                 self.say("the world server is up")
                 seen = True
             elif not event.alive:
+                if await self._router_back(watcher, world_key, session):
+                    continue
                 self.say("the world server has ended")
                 return
+
+    async def _router_back(self, watcher: LivelinessWatcher, world_key: str, session: Any) -> bool:
+        """The world's token went with the router: with ``--connect`` (an outside router,
+        which may be restarted) wait up to :data:`ROUTER_GRACE` s for the world's token to
+        come back (Zenoh clients reconnect and re-declare their tokens by themselves). True
+        if it did; False at once if the router is still there (the world really ended) or
+        when this host serves its own router."""
+        if not self.c.connect or session.info.routers_zid():
+            return False
+        self.say(f"lost the Zenoh router; waiting up to {ROUTER_GRACE:.0f} s for it and the world server to come back")
+        t0 = time.monotonic()
+        try:
+            await watcher.wait_for(world_key, True, ROUTER_GRACE)
+        except asyncio.TimeoutError:
+            return False
+        self.say(f"reconnected: the world server is up again after {time.monotonic() - t0:.1f} s")
+        return True
 
     def _interrupt(self) -> None:
         if self.interrupted:

@@ -13,7 +13,7 @@ from ..angles import wrap
 
 def on_branch(alpha: float, alpha_i: np.ndarray) -> np.ndarray:
     """alpha taken on each neuron's own branch, alpha_i + wrap(alpha - alpha_i), so the
-    linear model c = M_i u does not jump at +-pi (DESIGN.md section 3)."""
+    linear model c = M_i u does not jump at +-pi (docs/design.md section 3)."""
     return alpha_i + wrap(alpha - alpha_i)
 
 

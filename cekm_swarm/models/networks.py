@@ -86,7 +86,7 @@ class IndirectEKM:
     @classmethod
     def untrained(cls, size: int, rule: str, rng: np.random.Generator, comp: CompetitionParams | None = None,
                   learn_p: LearningParams | None = None, v_max: float = KHEPERA.v_max) -> "IndirectEKM":
-        """Regular input weights and uninformed random M_i (DESIGN.md section 3, item 7)."""
+        """Regular input weights and uninformed random M_i (docs/design.md section 3, item 7)."""
         if rule not in ("gd", "rls"):
             raise ParameterError(f"IndirectEKM.rule must be 'gd' or 'rls', got {rule!r}")
         lat = Lattice(size)

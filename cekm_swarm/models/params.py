@@ -1,6 +1,6 @@
 """Named parameters of the EKMs, with the defaults the project uses and why.
 
-Every number the paper leaves open is resolved here (DESIGN.md sections 3 and 7).
+Every number the paper leaves open is resolved here (docs/design.md sections 3 and 7).
 Internally the control model sees the input as (alpha, d_scale * d), so that both
 components span about +-pi; ``d_scale`` is that factor.
 """
@@ -48,7 +48,7 @@ class LearningParams:
     eta_w: Eq. 12. eta_m: gradient descent, Eq. 15. forgetting: lambda of Eq. 16.
     eta_c: the direct-mapping EKM's output rule. eta_bfn/eta_width: the basis-function
     network's output weights and widths. rinv_trace_cap bounds trace(R^-1) (safeguard).
-    d_scale: d is multiplied by it inside the control model (DESIGN.md section 7: the
+    d_scale: d is multiplied by it inside the control model (docs/design.md section 7: the
     paper's R^-1 = I does not say in which units). explore_rel/explore_abs: training-only
     exploration noise on executed wheel speeds, N(0, (rel |c| + abs)^2) per wheel.
     m_init_scale: initial M entries are uniform in +- m_init_scale * v_max / pi, so random

@@ -1,4 +1,4 @@
-"""The robot's module processes of the distributed runtime (DESIGN.md section 6).
+"""The robot's module processes of the distributed runtime (docs/design.md section 6).
 
 Each module is a thin asyncio shell (:mod:`.shell`) around a pure part that can be
 tested without Zenoh:

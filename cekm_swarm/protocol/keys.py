@@ -1,4 +1,4 @@
-"""The Zenoh key space of DESIGN.md section 6: build and parse every key.
+"""The Zenoh key space of docs/design.md section 6: build and parse every key.
 
 Keys (root ``cekm`` by default, ``<robot>`` a robot id such as ``r1``):
 
@@ -259,7 +259,7 @@ class KeySpace:
             for kind in (KeyKind.SENSE_RANGE, KeyKind.FIELD_OBSTACLE):
                 if suffix == kind.value:
                     return ParsedKey(kind, owner, self._index_in(key, rest[2]))
-        raise KeySpaceError(f"key '{key}'", "not a key of the cekm key space (DESIGN.md section 6)")
+        raise KeySpaceError(f"key '{key}'", "not a key of the cekm key space (docs/design.md section 6)")
 
     def _index_in(self, key: str, text: str) -> int:
         if not text.isdigit() or (len(text) > 1 and text[0] == "0") or not text.isascii():

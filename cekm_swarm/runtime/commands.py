@@ -2,6 +2,7 @@
 
 - ``topic list``, ``topic echo KEYEXPR``, ``topic hz KEYEXPR``: inspect a live (or replayed) run;
 - ``log info LOG.mcap``: channels, counts, rates and duration of a log (recovers a truncated one);
+- ``log recover IN.mcap OUT.mcap``: a complete, indexed copy of a log whose writer was killed;
 - ``replay LOG.mcap [--rate X] [--loop]``: republish a log onto Zenoh.
 
 Every networked command takes ``--connect ENDPOINT`` (default: the launcher's embedded
@@ -24,7 +25,7 @@ from cekm_swarm.errors import CekmError
 
 from .config import DEFAULT_ENDPOINT, client_config, load_config, open_session
 
-_ROOT_HELP = "Key-space root (DESIGN.md section 6)."
+_ROOT_HELP = "Key-space root (docs/design.md section 6)."
 
 
 def _connect_options(f: Callable[..., Any]) -> Callable[..., Any]:
@@ -163,6 +164,26 @@ def log_info_cmd(log_file: Path, recover_to: Path | None) -> None:
                 click.echo(f"recovered {rep.messages} messages on {rep.channels} channels into {rep.output}")
     except CekmError as exc:
         raise click.ClickException(str(exc)) from None
+
+
+@log_group.command("recover")
+@click.argument("log_file", metavar="IN.mcap", type=click.Path(dir_okay=False, exists=True, path_type=Path))
+@click.argument("out_file", metavar="OUT.mcap", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--force", is_flag=True, help="Overwrite OUT.mcap if it exists.")
+def log_recover_cmd(log_file: Path, out_file: Path, force: bool) -> None:
+    """Copy every complete message (and metadata) of IN.mcap, e.g. a log whose writer was
+    killed, into OUT.mcap, a complete, indexed file."""
+    from .mcap_log import recover_log
+
+    if out_file.exists() and not force:
+        raise click.ClickException(f"{out_file}: exists; use --force to overwrite it")
+    try:
+        rep = recover_log(log_file, out_file)
+    except CekmError as exc:
+        raise click.ClickException(str(exc)) from None
+    how = "the input was complete" if rep.input_complete else f"the input ends early ({rep.cut_reason})"
+    click.echo(f"recovered {rep.messages} messages on {rep.channels} channels and {rep.metadata} metadata "
+               f"records into {rep.output}; {how}")
 
 
 # --------------------------------------------------------------------------- replay

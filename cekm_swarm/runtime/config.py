@@ -76,6 +76,25 @@ def _common(config: zenoh.Config) -> None:
     _insert(config, "transport/shared_memory/enabled", False)
 
 
+RECONNECT_RETRY = {"period_init_ms": 250, "period_max_ms": 1000, "period_increase_factor": 2.0}
+"""How a client retries its router after losing it (Zenoh's ``connect/retry``): first after
+0.25 s, then doubling up to every 1 s, for ever. A client reconnects by itself, and Zenoh
+re-declares its subscriptions, publishers, queryables and liveliness tokens on the new
+link, so a router restart costs at most about 1 s after the router is back (Zenoh's
+default backs off to 4 s). The first connection is not retried: opening a session still
+fails at once when nothing listens."""
+
+
+def _reconnect(config: zenoh.Config) -> None:
+    """Set :data:`RECONNECT_RETRY` unless the config (a user's file) sets its own."""
+    try:
+        own = json.loads(config.get_json("connect/retry"))
+    except Exception:
+        own = None
+    if own is None:
+        _insert(config, "connect/retry", RECONNECT_RETRY)
+
+
 def check_endpoint(endpoint: str) -> str:
     """Return ``endpoint`` if it looks like a Zenoh locator ``proto/host:port``."""
     proto, sep, rest = endpoint.partition("/")
@@ -122,6 +141,7 @@ def client_config(endpoint: str = DEFAULT_ENDPOINT, *, user: str | None = None,
     _insert(config, "mode", "client")
     _insert(config, "connect/endpoints", [check_endpoint(endpoint)])
     _common(config)
+    _reconnect(config)
     if (user is None) != (password is None):
         raise RuntimeTransportError("client config: give both user and password, or neither")
     if user is not None:
@@ -130,8 +150,27 @@ def client_config(endpoint: str = DEFAULT_ENDPOINT, *, user: str | None = None,
     return config
 
 
+TLS_FILES = ("root_ca_certificate", "listen_certificate", "listen_private_key", "connect_certificate",
+             "connect_private_key")
+"""Keys under ``transport/link/tls`` naming a file (PEM)."""
+
+
+def check_tls_files(config: zenoh.Config, what: str) -> None:
+    """Fail with the key and the path when a TLS file the config names is missing
+    (Zenoh itself only says that it cannot connect or listen)."""
+    for key in TLS_FILES:
+        try:
+            value = json.loads(config.get_json(f"transport/link/tls/{key}"))
+        except Exception:
+            continue
+        if isinstance(value, str) and not Path(value).is_file():
+            where = "" if Path(value).is_absolute() else f" (relative to the working directory {os.getcwd()})"
+            raise RuntimeTransportError(f"zenoh config {what}: transport/link/tls/{key}: no such file {value!r}{where}")
+
+
 def load_config(path: str | Path, overrides: dict[str, object] | None = None) -> zenoh.Config:
-    """A config file (JSON5) with optional overrides {'path/in/config': value}."""
+    """A config file (JSON5) with optional overrides {'path/in/config': value}; the TLS
+    files it names must exist."""
     path = Path(path)
     if not path.is_file():
         raise RuntimeTransportError(f"zenoh config {path}: no such file")
@@ -141,6 +180,7 @@ def load_config(path: str | Path, overrides: dict[str, object] | None = None) ->
         raise RuntimeTransportError(f"zenoh config {path}: {exc}") from None
     for k, v in (overrides or {}).items():
         _insert(config, k, v)
+    check_tls_files(config, str(path))
     return config
 
 
@@ -176,6 +216,7 @@ def client_config_from_file(path: str | Path, endpoint: str = DEFAULT_ENDPOINT) 
         raise RuntimeTransportError(f"zenoh config {path}: mode is {mode!r}; a process joins as 'client'")
     _insert(config, "mode", "client")
     _common(config)
+    _reconnect(config)
     return config
 
 

@@ -24,7 +24,9 @@ from pathlib import Path
 from typing import IO, Any
 
 from mcap.exceptions import McapError
-from mcap.reader import NonSeekingReader, make_reader
+from mcap.reader import NonSeekingReader, SeekingReader, make_reader
+from mcap.records import Attachment, Channel, Footer, Message, Metadata, Schema
+from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
 
 from cekm_swarm.protocol import DEFAULT_KEYS, KeySpace, KeySpaceError, peek
@@ -148,6 +150,12 @@ class McapRecorder:
         """A metadata record (e.g. scenario, seed) in the file."""
         self._writer.add_metadata(name, {str(k): str(v) for k, v in data.items()})
 
+    def add_attachment(self, name: str, media_type: str, data: bytes, log_time_ns: int = 0,
+                       create_time_ns: int = 0) -> None:
+        """An attachment record (for copying between logs)."""
+        self._writer.add_attachment(create_time=create_time_ns, log_time=log_time_ns, name=name,
+                                    media_type=media_type, data=data)
+
     def flush(self) -> None:
         """Close the open chunk and push everything to the OS (survives a killed process)."""
         if self._file is not None:
@@ -245,19 +253,15 @@ class LoggedMessage:
     schema_encoding: str | None
 
 
-_FOOTER_LEN = 1 + 8 + 20  # opcode, record length, summary_start, summary_offset_start, summary_crc
-_FOOTER_OPCODE = 0x02
-
-
 def _has_footer(path: Path) -> bool:
-    """True when the file ends with a footer record and the closing magic (the writer finished)."""
-    size = path.stat().st_size
-    if size < 2 * len(_MAGIC) + _FOOTER_LEN:
-        return False
+    """True when the file ends with a footer record (the writer finished), read with the
+    mcap library's seeking reader, which looks for the footer at the end of the file."""
     with open(path, "rb") as f:
-        f.seek(size - len(_MAGIC) - _FOOTER_LEN)
-        tail = f.read()
-    return tail[0] == _FOOTER_OPCODE and tail.endswith(_MAGIC)
+        try:
+            SeekingReader(f).get_summary()
+        except Exception:  # no footer where it belongs: McapError, EndOfFile, struct/seek errors ...
+            return False
+    return True
 
 
 def _open(path: str | Path) -> Path:
@@ -343,7 +347,8 @@ def read_messages(path: str | Path, *, topics: Iterable[str] | None = None,
 
 @dataclass(frozen=True, slots=True)
 class RecoveryReport:
-    """What :func:`recover_log` did: messages and channels copied, and how the input ended."""
+    """What :func:`recover_log` did: messages, channels, metadata and attachment records
+    copied, and how the input ended (``cut_reason`` None when it was complete)."""
 
     source: Path
     output: Path
@@ -351,36 +356,57 @@ class RecoveryReport:
     channels: int
     input_complete: bool
     cut_reason: str | None
+    metadata: int = 0
+    attachments: int = 0
 
 
 def recover_log(path: str | Path, output: str | Path | None = None, *,
                 chunk_size: int = DEFAULT_CHUNK_SIZE) -> RecoveryReport:
     """Rewrite a (possibly truncated) log as a complete, indexed file.
 
-    Streams every record up to the cut and writes channels (with their schemas),
-    messages and their times into ``output`` (default ``<name>.recovered.mcap``). The
-    input is left untouched."""
+    Reads the input's records in file order with the mcap library's stream reader (no
+    index or footer needed) and writes every complete message, with its channel, schema,
+    times and sequence, and every metadata and attachment record into ``output``
+    (default ``<name>.recovered.mcap``). A record cut in the middle (the writer was
+    killed while writing it, or its chunk was still in memory) ends the copy: what came
+    before is kept. The input is left untouched."""
     src = _open(path)
     out = Path(output) if output is not None else src.with_name(src.stem + ".recovered.mcap")
     if out.resolve() == src.resolve():
         raise McapLogError(str(src), "recovery output must differ from the input")
-    complete, cut = True, None
-    n = 0
+    schemas: dict[int, SchemaSpec] = {}
+    channels: dict[int, int] = {}  # input channel id -> output channel id
+    footer, cut = False, None
+    n = n_meta = n_att = 0
     with McapRecorder(out, chunk_size=chunk_size, flush_interval=None) as rec, open(src, "rb") as f:
-        reader = NonSeekingReader(f, validate_crcs=True)
         try:
-            for schema, channel, message in reader.iter_messages(log_time_order=False):
-                spec = SchemaSpec(schema.name, schema.encoding, bytes(schema.data)) if schema is not None \
-                    else SchemaSpec("")
-                cid = rec.channel(channel.topic, channel.message_encoding, spec)
-                rec.add_raw(cid, message.data, message.log_time, message.publish_time, message.sequence)
-                n += 1
-        except Exception as exc:  # the cut
-            complete, cut = False, _cut_reason(exc)
-        channels = len(rec.topics)
-    if complete and not _has_footer(src):
-        complete, cut = False, "no footer"
-    return RecoveryReport(src, out, n, channels, complete, cut)
+            for record in StreamReader(f, validate_crcs=True).records:
+                if isinstance(record, Message):
+                    cid = channels.get(record.channel_id)
+                    if cid is None:
+                        raise McapError(f"message on channel {record.channel_id}, which has no channel record")
+                    rec.add_raw(cid, record.data, record.log_time, record.publish_time, record.sequence)
+                    n += 1
+                elif isinstance(record, Schema):
+                    schemas[record.id] = SchemaSpec(record.name, record.encoding, bytes(record.data))
+                elif isinstance(record, Channel):
+                    spec = schemas.get(record.schema_id, SchemaSpec("")) if record.schema_id else SchemaSpec("")
+                    channels[record.id] = rec.channel(record.topic, record.message_encoding, spec)
+                elif isinstance(record, Metadata):
+                    rec.add_metadata(record.name, dict(record.metadata))
+                    n_meta += 1
+                elif isinstance(record, Attachment):
+                    rec.add_attachment(record.name, record.media_type, bytes(record.data), record.log_time,
+                                       record.create_time)
+                    n_att += 1
+                elif isinstance(record, Footer):
+                    footer = True
+        except Exception as exc:  # the cut: EndOfFile, McapError (bad CRC), struct.error, zstd errors ...
+            cut = _cut_reason(exc)
+        n_channels = len(rec.topics)
+    if cut is None and not footer:
+        cut = "no footer"
+    return RecoveryReport(src, out, n, n_channels, cut is None, cut, n_meta, n_att)
 
 
 # --------------------------------------------------------------------------- summary

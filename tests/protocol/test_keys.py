@@ -1,4 +1,4 @@
-"""Key space: every key of DESIGN.md section 6 builds, parses back, and bad parts fail clearly."""
+"""Key space: every key of docs/design.md section 6 builds, parses back, and bad parts fail clearly."""
 
 from __future__ import annotations
 

@@ -61,7 +61,7 @@ def steady_publisher(session, key: str, period: float = 0.01) -> Iterator[None]:
 
 def test_commands_are_exported():
     assert [c.name for c in COMMANDS] == ["topic", "log", "replay", "monitor"]
-    assert set(COMMANDS[0].commands) == {"list", "echo", "hz"} and set(COMMANDS[1].commands) == {"info"}
+    assert set(COMMANDS[0].commands) == {"list", "echo", "hz"} and set(COMMANDS[1].commands) == {"info", "recover"}
 
 
 def test_topic_echo_decodes_and_reports_malformed(router, clients):

@@ -5,6 +5,8 @@ Modes (each prints ``READY`` on stdout once set up, then works):
 - ``sub ENDPOINT KEYEXPR N``: receive N samples, print each as ``key<TAB>payload hex``, then ``DONE``.
 - ``token ENDPOINT KEY``: hold a liveliness token until killed.
 - ``pub ENDPOINT KEY N``: wait for a subscriber, publish N WheelCommand messages (seq 0..N-1).
+- ``router PORT``: a Zenoh router on ``tcp/127.0.0.1:PORT`` (an "outside" router, to be
+  killed and started again), until killed.
 - ``mcap PATH N``: write N messages to an MCAP recorder, flush, print ``FLUSHED N``, then
   keep the file open (unfinished) until killed.
 """
@@ -32,6 +34,15 @@ def main(argv: list[str]) -> None:
         for i in range(n, n + 5):  # in the open chunk only: lost when killed
             rec.write(DEFAULT_KEYS.world_clock(), encode(Clock(i * 0.01, "world", i)), i * 0.01)
         threading.Event().wait()
+        return
+
+    if mode == "router":
+        from cekm_swarm.runtime.config import open_embedded_router
+
+        router = open_embedded_router(int(argv[1]))
+        print("READY", flush=True)
+        threading.Event().wait()
+        router.close()
         return
 
     from cekm_swarm.runtime.config import open_client
