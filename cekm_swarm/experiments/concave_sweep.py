@@ -182,18 +182,15 @@ def parse_floats(text: str, name: str) -> tuple[float, ...]:
 def seeds_of(text: str) -> Sequence[int]:
     """Seeds from "1,2,5" or ranges "1-20" (inclusive), mixed: "1-5,9"."""
     out: list[int] = []
-    try:
-        for part in (v.strip() for v in text.split(",")):
-            if not part:
-                continue
-            if "-" in part:
-                a, b = part.split("-", 1)
-                lo, hi = int(a), int(b)
-                if hi < lo:
-                    raise ParameterError(f"--seeds: range {part!r} runs backwards")
-                out.extend(range(lo, hi + 1))
-            else:
-                out.append(int(part))
-    except ValueError:
-        raise ParameterError(f"--seeds: expected comma-separated integers or ranges like 1-20, got {text!r}") from None
+    for part in (v.strip() for v in text.split(",")):
+        if not part:
+            continue
+        a, _, b = part.partition("-")
+        try:
+            lo, hi = int(a), int(b if b else a)
+        except ValueError:
+            raise ParameterError(f"--seeds: expected comma-separated integers or ranges like 1-20, got {text!r}") from None
+        if hi < lo:
+            raise ParameterError(f"--seeds: range {part!r} runs backwards")
+        out.extend(range(lo, hi + 1))
     return tuple(out)

@@ -20,7 +20,9 @@ def test_wilson_interval():
 def test_seeds_accept_lists_and_ranges():
     assert seeds_of("1-5") == (1, 2, 3, 4, 5)
     assert seeds_of("1-3,9, 11") == (1, 2, 3, 9, 11)
-    for bad in ("5-1", "a", "1-x"):
+    with pytest.raises(ParameterError, match="backwards"):
+        seeds_of("5-1")
+    for bad in ("a", "1-x", "-3"):
         with pytest.raises(ParameterError, match="--seeds"):
             seeds_of(bad)
 
