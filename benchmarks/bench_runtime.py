@@ -44,7 +44,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from cekm_swarm.experiments.default_model import default_model, default_model_path  # noqa: E402
-from cekm_swarm.launch.launcher import module_argv, module_names  # noqa: E402
+from cekm_swarm.launch.processes import module_argv  # noqa: E402
+from cekm_swarm.protocol import module_names  # noqa: E402
 from cekm_swarm.protocol import DEFAULT_KEYS as K  # noqa: E402
 from cekm_swarm.protocol import WheelCommand, decode  # noqa: E402
 from cekm_swarm.runtime.bridge import InlineSubscription, LivelinessWatcher, Publishers  # noqa: E402
@@ -77,7 +78,7 @@ def memory(pid: int) -> dict[str, float]:
 
 
 async def start_modules(session, endpoint: str, model: Path) -> tuple[list[subprocess.Popen], float]:
-    procs = [subprocess.Popen(module_argv(n, "r1", model, endpoint, "lockstep", "cekm"), stdout=subprocess.DEVNULL,
+    procs = [subprocess.Popen(module_argv(n, robot="r1", model=model, connect=endpoint, mode="lockstep", root="cekm"), stdout=subprocess.DEVNULL,
                               stderr=subprocess.DEVNULL) for n in module_names(12)]
     t0 = time.monotonic()
     expected = {K.alive("r1", n) for n in module_names(12)}

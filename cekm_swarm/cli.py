@@ -9,6 +9,7 @@ from pathlib import Path
 
 import click
 
+from .cli_support import SEED, out_dir_options, prepare_out_dir, run_cli
 from .errors import CekmError
 
 
@@ -38,8 +39,7 @@ def experiment() -> None:
 
 
 @experiment.command("target-reaching")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), required=True,
-              help="Directory for results.json, tables.md and the figures.")
+@out_dir_options("Directory for results.json, tables.md and the figures.")
 @click.option("--networks", default="B15,D15,G9,G12,G15,R15", show_default=True,
               help="Comma-separated networks: B (basis functions), D (direct EKM), G (indirect EKM, gradient "
                    "descent), R (indirect EKM, recursive least squares) and the lattice side.")
@@ -48,10 +48,10 @@ def experiment() -> None:
 @click.option("--test-interval", default=10_000, show_default=True, type=click.IntRange(1))
 @click.option("--targets", "test_targets", default=50, show_default=True, type=click.IntRange(1),
               help="Test targets per test.")
-@click.option("--seed", default=2005, show_default=True, type=int)
+@click.option("--seed", default=2005, show_default=True, type=SEED)
 @click.option("--quiet", is_flag=True, help="No progress bar.")
-def target_reaching(out_dir: Path, networks: str, trials: int, steps: int, test_interval: int, test_targets: int,
-                    seed: int, quiet: bool) -> None:
+def target_reaching(out_dir: Path, overwrite: bool, networks: str, trials: int, steps: int, test_interval: int,
+                    test_targets: int, seed: int, quiet: bool) -> None:
     """Reproduce section 4.1: Tables 1-4 and Figures 5-7 (obstacle-free target reaching)."""
     from .experiments.report import headline_orderings, write_report
     from .experiments.streams import Schedule
@@ -63,6 +63,7 @@ def target_reaching(out_dir: Path, networks: str, trials: int, steps: int, test_
                                       schedule=Schedule(steps=steps, test_interval=test_interval, test_targets=test_targets))
     except CekmError as exc:
         raise click.UsageError(str(exc)) from None
+    prepare_out_dir(out_dir, overwrite)
     results, runs = run_experiment(config, progress=not quiet)
     trained = {r.name: r.trained(0, config) for r in runs}
     for r in runs:
@@ -86,9 +87,9 @@ def target_reaching(out_dir: Path, networks: str, trials: int, steps: int, test_
               help="Sim seconds before a robot counts as trapped.")
 @click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path))
 @click.option("--workers", type=click.IntRange(1), help="Parallel processes (default: one per core).")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), required=True)
+@out_dir_options("Directory for outcomes.json and the figures.")
 def obstacles(seeds: str, speed_unit: float | None, max_time: float, model_path: Path | None, workers: int | None,
-              out_dir: Path) -> None:
+              out_dir: Path, overwrite: bool) -> None:
     """Reproduce section 4.2 (Figs. 8, 10-12): cooperative EKMs and command fusion over seeds."""
     from .experiments.concave_sweep import seeds_of
     from .experiments.default_model import default_model, default_model_path
@@ -100,6 +101,9 @@ def obstacles(seeds: str, speed_unit: float | None, max_time: float, model_path:
         raise click.UsageError(str(exc)) from None
     if not seed_list:
         raise click.UsageError("--seeds: give at least one seed")
+    _check_seeds(seed_list)
+    _model(model_path)
+    prepare_out_dir(out_dir, overwrite)
     if model_path is None:
         default_model()
         model_path = default_model_path()
@@ -112,9 +116,9 @@ def obstacles(seeds: str, speed_unit: float | None, max_time: float, model_path:
 @main.command()
 @click.option("--network", default="R15", show_default=True, help="Network name, e.g. R15 or G12.")
 @click.option("--steps", default=100_000, show_default=True, type=click.IntRange(1))
-@click.option("--seed", default=2005, show_default=True, type=int)
+@click.option("--seed", default=2005, show_default=True, type=SEED)
 @click.option("--out", "out_path", type=click.Path(dir_okay=False, path_type=Path), required=True,
-              help="The .npz model file to write.")
+              help="The .npz model file to write (replaced if it exists).")
 @click.option("--quiet", is_flag=True)
 def train(network: str, steps: int, seed: int, out_path: Path, quiet: bool) -> None:
     """Train one network by self-organized learning in the obstacle-free arena and save it."""
@@ -140,6 +144,12 @@ def _load_scenario(name: str):
         raise click.UsageError(str(exc)) from None
 
 
+def _check_seeds(seeds) -> None:
+    bad = [s for s in seeds if not 0 <= s < 2**32]
+    if bad:
+        raise click.UsageError(f"--seeds: every seed must be in 0..{2**32 - 1} (got {bad[0]})")
+
+
 def _model(path: Path | None):
     from .experiments.default_model import default_model
     from .models.io import load_model
@@ -155,20 +165,20 @@ def _model(path: Path | None):
 @click.option("--controller", type=click.Choice(["cekm", "fusion"]), default="cekm", show_default=True)
 @click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               help="A trained model (.npz from `cekm train`); default: R15 trained and cached on first use.")
-@click.option("--seed", type=int, help="World seed (default: the scenario's).")
+@click.option("--seed", type=SEED, help="World seed (default: the scenario's).")
 @click.option("--max-time", default=600.0, show_default=True, type=click.FloatRange(min=1.0),
               help="Sim seconds before a robot counts as trapped.")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), required=True)
+@out_dir_options("Directory for outcome.json and trajectory.png.")
 def run_cmd(scenario: str, controller: str, model_path: Path | None, seed: int | None, max_time: float,
-            out_dir: Path) -> None:
+            out_dir: Path, overwrite: bool) -> None:
     """Run SCENARIO (a name under world/scenarios or a .toml path) in one process, no Zenoh."""
     from .experiments.navigation import plot_run, run_scenario
 
     sc = _load_scenario(scenario)
     model = _model(model_path)
+    prepare_out_dir(out_dir, overwrite)
     t0 = time.perf_counter()
     run = run_scenario(sc, controller, model, seed, max_time)
-    out_dir.mkdir(parents=True, exist_ok=True)
     doc = {"scenario": sc.name, "controller": controller, "seed": run.seed, "robots": run.outcome,
            "wall_seconds": round(time.perf_counter() - t0, 3)}
     (out_dir / "outcome.json").write_text(json.dumps(doc, indent=1))
@@ -182,12 +192,13 @@ def run_cmd(scenario: str, controller: str, model_path: Path | None, seed: int |
 
 @main.command()
 @click.argument("scenario")
-@click.option("--at", "at_time", type=click.FloatRange(min=0.0), required=True, help="Sim time (s) of the snapshot.")
+@click.option("--at", "at_time", type=click.FloatRange(0.0, 600.0), required=True,
+              help="Sim time (s) of the snapshot, at most 600 (the longest run).")
 @click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path))
-@click.option("--seed", type=int, help="World seed (default: the scenario's).")
+@click.option("--seed", type=SEED, help="World seed (default: the scenario's).")
 @click.option("--robot", help="Robot id (default: the first).")
 @click.option("--out", "out_path", type=click.Path(dir_okay=False, path_type=Path), required=True,
-              help="The PNG to write.")
+              help="The PNG to write (replaced if it exists).")
 def fields(scenario: str, at_time: float, model_path: Path | None, seed: int | None, robot: str | None,
            out_path: Path) -> None:
     """Draw the activity maps of the paper's Fig 4 at sim time --at.
@@ -198,6 +209,10 @@ def fields(scenario: str, at_time: float, model_path: Path | None, seed: int | N
     from .experiments.navigation import fields_at, plot_fields
 
     sc = _load_scenario(scenario)
+    robots = [r.id for r in sc.robots]
+    if robot is not None and robot not in robots:
+        raise click.BadParameter(f"{sc.name} has no robot {robot!r} (robots: {', '.join(robots)})",
+                                 param_hint="'--robot'")
     f = fields_at(sc, _model(model_path), at_time, seed, robot)
     out_path.parent.mkdir(parents=True, exist_ok=True)
     plot_fields(f).savefig(out_path, dpi=110)
@@ -223,9 +238,9 @@ def sweep() -> None:
 @click.option("--max-time", default=300.0, show_default=True, type=click.FloatRange(min=1.0))
 @click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path))
 @click.option("--workers", type=click.IntRange(1), help="Parallel processes (default: one per core).")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), required=True)
+@out_dir_options("Directory for fig9.json, fig9.png and fig9_grid.png.")
 def sweep_concave(depths: str, widths: str, ranges: str, seeds: str, need: int, max_time: float,
-                  model_path: Path | None, workers: int | None, out_dir: Path) -> None:
+                  model_path: Path | None, workers: int | None, out_dir: Path, overwrite: bool) -> None:
     """Find the widest concave obstacle negotiated, per depth and sensing range (Fig. 9)."""
     from .experiments.concave_sweep import SweepConfig, parse_floats, run_sweep, seeds_of, write_sweep
     from .experiments.default_model import default_model, default_model_path
@@ -236,6 +251,9 @@ def sweep_concave(depths: str, widths: str, ranges: str, seeds: str, need: int, 
                              max_time=max_time)
     except CekmError as exc:
         raise click.UsageError(str(exc)) from None
+    _check_seeds(config.seeds)
+    _model(model_path)
+    prepare_out_dir(out_dir, overwrite)
     if model_path is None:
         default_model()
         model_path = default_model_path()
@@ -267,9 +285,5 @@ def _register_launch_commands() -> None:
 _register_launch_commands()
 
 
-def run() -> None:  # pragma: no cover - console entry with clean errors
-    try:
-        main(standalone_mode=True)
-    except CekmError as exc:
-        click.echo(f"error: {exc}", err=True)
-        sys.exit(2)
+def run() -> None:  # pragma: no cover - the console entry (cekm_swarm.cli_support.run_cli is tested)
+    sys.exit(run_cli(main))

@@ -1,10 +1,34 @@
-"""The project's error hierarchy: every error names what is wrong and where."""
+"""The project's error hierarchy: every error names what is wrong and where.
+
+Each class says which exit code ``cekm`` ends with when it reaches the command line:
+``EXIT_USAGE`` for bad input (an argument, a file), ``EXIT_FAILED`` when a run could not
+go on (a router unreachable, a process that did not come up)."""
 
 from __future__ import annotations
+
+EXIT_OK = 0
+EXIT_FAILED = 1
+"""The run failed: ``cekm: failed: ...``."""
+EXIT_USAGE = 2
+"""Bad usage or input: ``cekm: error: ...``."""
+EXIT_INTERRUPTED = 130
+"""Stopped by the user (Ctrl-C, SIGINT)."""
 
 
 class CekmError(Exception):
     """Base class of every error this package raises on purpose."""
+
+    exit_code = EXIT_USAGE
+
+
+class RunError(CekmError):
+    """A run could not go on (exit code 1)."""
+
+    exit_code = EXIT_FAILED
+
+
+class OutputDirError(CekmError):
+    """An output directory that cannot be used as given (not empty, not a directory)."""
 
 
 class ModelFormatError(CekmError):

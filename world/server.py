@@ -48,6 +48,7 @@ import collections
 import json
 import logging
 import math
+import os
 import signal
 import sys
 import time
@@ -64,7 +65,10 @@ from cekm_swarm.runtime.bridge import (InlineSubscription, LivelinessWatcher, Pu
                                        wait_matching_async)
 from cekm_swarm.runtime.config import (DEFAULT_ENDPOINT, ROUTER_RUNTIME, is_loopback, open_client, open_embedded_router,
                                        tcp_host_port, use_zenoh_runtime)
+from cekm_swarm.runtime.lifetime import die_with_parent
 from cekm_swarm.runtime.mcap_log import McapRecorder
+from cekm_swarm.runtime.process_args import Param, add_params, run_id_arg, to_argv
+from cekm_swarm.runtime.record import serve_geometry
 
 from .episode import TICK_S, Episode, TickReadings
 from .scenario import load_scenario
@@ -84,9 +88,16 @@ DEFAULT_MAX_TIME = 600.0
 
 
 def emit(kind: str, doc: dict[str, Any]) -> None:
-    """One progress line on stdout for the launcher."""
-    sys.stdout.write(f"{kind} {json.dumps(doc)}\n")
-    sys.stdout.flush()
+    """One progress line on stdout for the launcher. When the launcher is gone (the pipe
+    is broken: it was killed, and the server is stopping on its parent-death signal),
+    the lines go nowhere and the run still ends cleanly: outcome written, log closed."""
+    try:
+        sys.stdout.write(f"{kind} {json.dumps(doc)}\n")
+        sys.stdout.flush()
+    except BrokenPipeError:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())  # also for the interpreter's last flush
+        os.close(devnull)
 
 
 # --------------------------------------------------------------------------- pure parts
@@ -184,7 +195,7 @@ class Deadman:
 class WorldServer:
     def __init__(self, args: argparse.Namespace) -> None:
         self.args = args
-        self.keys = KeySpace(args.root)
+        self.keys = KeySpace(args.root, run=getattr(args, "run_id", None))
         self.scenario = load_scenario(args.scenario)
         self.world = World(self.scenario, seed=args.seed)
         checkpoints = None
@@ -411,6 +422,7 @@ class WorldServer:
                                                          allowed_origin=zenoh.Locality.REMOTE)
             self.cmd_sub = InlineSubscription(session, self.keys.cmd_wheels_all(), self._on_command)
             token = declare_alive(session, self.keys.alive("world", "server"))
+            scene = serve_geometry(session, self.keys.world_geometry(), geometry)  # for `cekm record`
             emit("READY", {"endpoint": args.listen or args.connect, "router": bool(args.listen)})
             if args.wait_modules > 0 and not await self._wait_for_modules(session, args.wait_modules):
                 self.stop.set()
@@ -457,6 +469,7 @@ class WorldServer:
             self.cmd_sub.close()
             self._drain_records()
             token.undeclare()
+            scene.undeclare()
             self.record_sub.undeclare()
             self.pubs.close()
         finally:
@@ -534,31 +547,42 @@ def open_world_session(args: argparse.Namespace) -> zenoh.Session:
     return open_client(args.connect, config_file=args.zenoh_config)
 
 
+WORLD_PARAMS: tuple[Param, ...] = (
+    Param("scenario", positional=True, help="scenario name (world/scenarios) or .toml path"),
+    Param("connect", default=DEFAULT_ENDPOINT, exclusive="where",
+          help="join this router as a client (default %(default)s)"),
+    Param("listen", metavar="tcp/HOST:PORT", exclusive="where",
+          help="host the router here (the embedded default) instead of joining one"),
+    Param("zenoh_config", help="Zenoh client config file (credentials, TLS; see deploy/)"),
+    Param("wait_modules", float, 0.0, metavar="S",
+          help="hold tick 0 until every robot's modules are alive, at most S s (0: do not wait)"),
+    Param("root", default=DEFAULT_ROOT),
+    Param("run_id", run_id_arg, help="the launch's run id: the world's token carries it, and it waits only for modules of this run"),
+    Param("out", required=True, help="directory for run.mcap, outcome.json, trajectory.json"),
+    Param("mode", default="realtime", choices=("realtime", "lockstep")),
+    Param("seed", int),
+    Param("max_time", float, DEFAULT_MAX_TIME),
+    Param("checkpoints", help="JSON {robot: [[x, y], ...]} or a file holding it"),
+    Param("deadman", float, DEADMAN_S, "s without commands before a robot is stopped"),
+    Param("republish", float, REPUBLISH_S, "lockstep: s before re-publishing a tick"),
+    Param("match_timeout", float, 20.0),
+    Param("progress_every", float, 1.0, "wall s between PROGRESS lines"),
+    Param("log_level", default="INFO"),
+)
+"""The world server's parameters: its parser and the launcher's argv both come from here."""
+
+
 def parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(description="cekm world server")
-    p.add_argument("scenario", help="scenario name (world/scenarios) or .toml path")
-    where = p.add_mutually_exclusive_group()
-    where.add_argument("--connect", default=DEFAULT_ENDPOINT, help="join this router as a client (default %(default)s)")
-    where.add_argument("--listen", default=None, metavar="tcp/HOST:PORT",
-                       help="host the router here (the embedded default) instead of joining one")
-    p.add_argument("--zenoh-config", default=None, help="Zenoh client config file (credentials, TLS; see deploy/)")
-    p.add_argument("--wait-modules", type=float, default=0.0, metavar="S",
-                   help="hold tick 0 until every robot's modules are alive, at most S s (0: do not wait)")
-    p.add_argument("--root", default=DEFAULT_ROOT)
-    p.add_argument("--out", required=True, help="directory for run.mcap, outcome.json, trajectory.json")
-    p.add_argument("--mode", choices=("realtime", "lockstep"), default="realtime")
-    p.add_argument("--seed", type=int, default=None)
-    p.add_argument("--max-time", type=float, default=DEFAULT_MAX_TIME)
-    p.add_argument("--checkpoints", default=None, help="JSON {robot: [[x, y], ...]} or a file holding it")
-    p.add_argument("--deadman", type=float, default=DEADMAN_S, help="s without commands before a robot is stopped")
-    p.add_argument("--republish", type=float, default=REPUBLISH_S, help="lockstep: s before re-publishing a tick")
-    p.add_argument("--match-timeout", type=float, default=20.0)
-    p.add_argument("--progress-every", type=float, default=1.0, help="wall s between PROGRESS lines")
-    p.add_argument("--log-level", default="INFO")
-    return p
+    return add_params(argparse.ArgumentParser(description="cekm world server"), WORLD_PARAMS)
+
+
+def server_argv(**values: Any) -> list[str]:
+    """The command line that starts the world server with ``values`` of :data:`WORLD_PARAMS`."""
+    return [sys.executable, "-m", "world.server", *to_argv(WORLD_PARAMS, **values)]
 
 
 def main(argv: list[str] | None = None) -> int:
+    die_with_parent()  # started by a launcher: stop (writing the outcome) when it dies, whatever kills it
     p = parser()
     args = p.parse_args(argv)
     if args.listen:

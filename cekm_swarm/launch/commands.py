@@ -2,30 +2,45 @@
 
 from __future__ import annotations
 
+import ipaddress
 import json
 from pathlib import Path
 
 import click
+from click.core import ParameterSource
 
+from cekm_swarm.cli_support import ENDPOINT, ROOT, RUN_ID, SEED, Interrupted, RunFailed, out_dir_options, prepare_out_dir
+from cekm_swarm.errors import CekmError
 from cekm_swarm.runtime.config import DEFAULT_ENDPOINT, DEFAULT_PORT
+
+
+def _env_endpoint() -> str | None:
+    from cekm_swarm.errors import CekmError
+    from cekm_swarm.runtime.wait import resolve_endpoint
+
+    try:
+        ep = resolve_endpoint(None)
+    except CekmError as exc:
+        raise click.UsageError(str(exc)) from None
+    return ep.endpoint if ep.explicit else None
 
 
 @click.command("launch")
 @click.argument("scenario")
 @click.option("--mode", type=click.Choice(["realtime", "lockstep"]), default="realtime", show_default=True,
               help="realtime: wall clock; lockstep: the world waits for every robot's command (reproducible).")
-@click.option("--seed", type=int, help="World seed (default: the scenario's).")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), required=True,
-              help="Directory for outcome.json, run.mcap, trajectory.png and the processes' logs.")
-@click.option("--connect", help="Join this Zenoh endpoint (e.g. tcp/10.0.0.1:7447) instead of opening an "
-                                "embedded router.")
+@click.option("--seed", type=SEED, help="World seed (default: the scenario's).")
+@out_dir_options("Directory for outcome.json, run.mcap, trajectory.png and the processes' logs.")
+@click.option("--connect", type=ENDPOINT, help="Join this Zenoh endpoint (e.g. tcp/10.0.0.1:7447) instead of "
+                                               "opening an embedded router [default: $CEKM_CONNECT unless "
+                                               "--port is given].")
 @click.option("--port", default=DEFAULT_PORT, show_default=True, type=click.IntRange(1, 65535),
               help="Port of the embedded router on 127.0.0.1 (without --connect).")
 @click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               help="A trained model (.npz); default: R15 trained and cached on first use.")
 @click.option("--max-time", default=600.0, show_default=True, type=click.FloatRange(min=0.2),
               help="Sim seconds before the run ends.")
-@click.option("--root", default="cekm", show_default=True, help="Key space root.")
+@click.option("--root", default="cekm", show_default=True, type=ROOT, help="Key space root.")
 @click.option("--no-plot", is_flag=True, help="Do not draw trajectory.png.")
 @click.option("--robots", "robots", default=None, metavar="R1,R2",
               help="Start only these robots' module processes here; 'none' for a world-only host "
@@ -38,19 +53,37 @@ from cekm_swarm.runtime.config import DEFAULT_ENDPOINT, DEFAULT_PORT
                    "--connect or the embedded router sets its endpoint.")
 @click.option("--model-from-zenoh", is_flag=True,
               help="Modules fetch the model from the world host's launcher (a robot host needs no model file).")
-def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, connect: str | None, port: int,
-               model_path: Path | None, max_time: float, root: str, no_plot: bool, robots: str | None,
-               no_world: bool, listen_host: str, zenoh_config: Path | None, model_from_zenoh: bool) -> None:
+@click.option("--run-id", type=RUN_ID,
+              help="The run's id (default: made by the world host; a robots-only host takes the world's).")
+def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwrite: bool, connect: str | None,
+               port: int, model_path: Path | None, max_time: float, root: str, no_plot: bool, robots: str | None,
+               no_world: bool, listen_host: str, zenoh_config: Path | None, model_from_zenoh: bool,
+               run_id: str | None) -> None:
     """Run SCENARIO through the distributed runtime: the world server and, per robot,
     1 + 12 + 1 module processes on Zenoh, supervised (restarted when they die)."""
     from world import ScenarioError, load_scenario
 
-    from .launcher import LaunchConfig, launch
+    from .launcher import LaunchConfig, Launcher
 
+    if connect is None and click.get_current_context().get_parameter_source("port") is not ParameterSource.COMMANDLINE:
+        connect = _env_endpoint()  # --connect > CEKM_CONNECT > the embedded router (an explicit --port hosts it)
     try:
-        load_scenario(scenario)
+        known = [r.id for r in load_scenario(scenario).robots]
     except ScenarioError as exc:
         raise click.UsageError(str(exc)) from None
+    only = None if robots is None else tuple(r.strip() for r in robots.split(",") if r.strip() and r.strip() != "none")
+    unknown = [r for r in only or () if r not in known]
+    if unknown:
+        raise click.BadParameter(f"{scenario} has no robot {', '.join(unknown)} (robots: {', '.join(known)})",
+                                 param_hint="'--robots'")
+    if no_world and not only:
+        raise click.UsageError("--no-world with no robot here starts nothing: name robots with --robots")
+    try:
+        ipaddress.ip_address(listen_host.strip("[]"))
+    except ValueError:
+        if listen_host != "localhost":
+            raise click.BadParameter(f"{listen_host!r} is not an IP address (e.g. 127.0.0.1, or 0.0.0.0 to serve "
+                                     f"other hosts)", param_hint="'--listen'") from None
     if zenoh_config is not None:  # refuse a bad config file before any process starts
         from cekm_swarm.runtime.config import client_config_from_file
         from cekm_swarm.runtime.errors import RuntimeTransportError
@@ -59,23 +92,27 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, connec
             client_config_from_file(zenoh_config, connect or DEFAULT_ENDPOINT)
         except RuntimeTransportError as exc:
             raise click.UsageError(str(exc)) from None
-    only = None if robots is None else tuple(r.strip() for r in robots.split(",") if r.strip() and r.strip() != "none")
+    prepare_out_dir(out_dir, overwrite)
     config = LaunchConfig(scenario, out_dir, mode=mode, seed=seed, connect=connect, port=port, model=model_path,
                           max_time=max_time, root=root, plot=not no_plot, robots=only, world=not no_world,
-                          listen_host=listen_host, zenoh_config=zenoh_config, model_from_zenoh=model_from_zenoh)
-    from cekm_swarm.errors import CekmError
-
+                          listen_host=listen_host, zenoh_config=zenoh_config, model_from_zenoh=model_from_zenoh,
+                          run_id=run_id)
+    launcher = Launcher(config, echo=lambda s: click.echo(s))
     try:
-        outcome = launch(config, echo=lambda s: click.echo(s))
+        outcome = launcher.launch()
     except ValueError as exc:
         raise click.UsageError(str(exc)) from None
     except CekmError as exc:  # the world server or the embedded router did not come up: say why, no traceback
-        raise click.ClickException(str(exc)) from None
+        raise RunFailed(str(exc)) from None
     if no_world:
         click.echo(f"modules of {', '.join(only) if only else 'every robot'} stopped; the world host writes the outcome")
+        if launcher.interrupted:
+            raise Interrupted()
         return
     if not outcome:
-        raise click.ClickException(f"the run left no outcome; see {out_dir / 'launch.log'} and {out_dir / 'logs'}")
+        if launcher.interrupted:
+            raise Interrupted("interrupted before the run started")
+        raise RunFailed(f"the run left no outcome; see {out_dir / 'launch.log'} and {out_dir / 'logs'}")
     for r, o in outcome["robots"].items():
         click.echo(f"{r}: {'reached' if o['reached'] else 'NOT reached'} in {o['time_s']:.1f} s, path "
                    f"{o['path_length_m']:.2f} m, {o['collisions']} collisions")
@@ -89,12 +126,14 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, connec
         click.echo("the run was stopped before its end (see the world's events in outcome.json)")
     written = [out_dir / n for n in ("outcome.json", "run.mcap", "trajectory.png") if (out_dir / n).is_file()]
     click.echo("wrote " + ", ".join(map(str, written)))
+    if launcher.interrupted:
+        raise Interrupted()
 
 
 @click.command("plot")
 @click.argument("log", type=click.Path(dir_okay=False, exists=True, path_type=Path))
 @click.option("--out", "out_path", type=click.Path(dir_okay=False, path_type=Path), required=True,
-              help="The PNG to write.")
+              help="The PNG to write (replaced if it exists).")
 @click.option("--title", help="Figure title.")
 def plot_cmd(log: Path, out_path: Path, title: str | None) -> None:
     """Draw the run recorded in LOG (an MCAP file of `cekm launch`): arena and robot paths."""

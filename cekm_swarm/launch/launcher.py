@@ -12,9 +12,15 @@ starting, at most 5 s), which the log shows. When the world server ends (every r
 its goal, max time) or on SIGINT/SIGTERM everything stops: the world server first (it
 writes its outcome and closes the log), then the modules (SIGTERM, SIGKILL after 5 s).
 
+Run isolation: every run has a run id (made by the world host's launcher, printed, and
+taken from the world server's token by a robots-only host unless given with
+``--run-id``); every liveliness token carries it, so the world counts only its own run's
+modules. Every child dies with the launcher, whatever kills it (``PR_SET_PDEATHSIG``,
+:mod:`cekm_swarm.runtime.lifetime`).
+
 Each child's output goes to ``OUT/logs/<robot>-<module>.log`` (``world.log`` for the
 world server); ``OUT/pids.json`` holds the live process ids; ``OUT/launch.log`` the
-launcher's own record.
+launcher's own record; ``outcome.json`` gets the run id and the launcher's record.
 """
 
 from __future__ import annotations
@@ -22,23 +28,26 @@ from __future__ import annotations
 import asyncio
 import json
 import signal
-import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from cekm_swarm.errors import CekmError
+from cekm_swarm.errors import RunError
 from cekm_swarm.protocol import DEFAULT_ROOT, KeySpace, module_names
 from cekm_swarm.runtime.bridge import LivelinessWatcher
-from cekm_swarm.runtime.config import DEFAULT_HOST, DEFAULT_PORT, open_client, open_embedded_router
+from cekm_swarm.runtime.config import DEFAULT_HOST, DEFAULT_PORT, open_embedded_router
+from cekm_swarm.runtime.errors import RuntimeTransportError
+from cekm_swarm.runtime.wait import open_client_when_ready
 from cekm_swarm.runtime.model_service import ZENOH_MODEL, ModelServer
+
+from .processes import child_env, module_argv, new_run_id, server_argv
 
 BACKOFF_MIN = 0.25
 
 
-class LaunchError(CekmError):
+class LaunchError(RunError):
     """A launch cannot go on: the world server or the modules did not come up."""
 
 BACKOFF_MAX = 5.0
@@ -87,20 +96,14 @@ class LaunchConfig:
     listen_host: str = DEFAULT_HOST  # the embedded router's address (0.0.0.0 to serve other hosts)
     zenoh_config: Path | None = None  # client config file (credentials, TLS) for every process started here
     model_from_zenoh: bool = False  # modules fetch the model from the world host's launcher (no file here)
+    run_id: str | None = None  # the run's id (None: made by a world host, learned from the world by a robots-only host)
 
 
-def module_argv(name: str, robot: str, model: Path | str, endpoint: str, mode: str, root: str,
-                zenoh_config: Path | None = None) -> list[str]:
-    """The command line of one module process; ``model`` a file or ``"zenoh"`` (fetch it)."""
-    common = ["--robot", robot, "--model", str(model), "--connect", endpoint, "--root", root, "--mode", mode]
-    if zenoh_config is not None:
-        common += ["--zenoh-config", str(zenoh_config)]
-    if name == "target":
-        return [sys.executable, "-m", "cekm_swarm.modules.target", *common]
-    if name == "motor":
-        return [sys.executable, "-m", "cekm_swarm.modules.motor", *common]
-    j = int(name.split("-", 1)[1])
-    return [sys.executable, "-m", "cekm_swarm.modules.obstacle", *common, "--index", str(j)]
+def port_hint(error_text: str, port: int) -> str:
+    """A hint to add to an error that says the router's port is taken."""
+    if "Address already in use" in error_text or "address in use" in error_text.lower():
+        return f"; port {port} is taken (another run or program listens there): choose another with --port"
+    return ""
 
 
 def plan_checkpoint_data(scenario) -> dict[str, list[list[float]]]:
@@ -141,6 +144,14 @@ class Launcher:
         self.interrupted = False
         self._log = None
         self.startup_s: float | None = None
+        self.run_id: str | None = None
+        self.all_robots: list[str] = []
+        self.router: Any = None  # a robots-only host's embedded router
+        self.session: Any = None
+        self.model_server: ModelServer | None = None
+        self.watcher: LivelinessWatcher | None = None
+        self.world_reader: asyncio.Future | None = None
+        self.supervisors: list[asyncio.Future] = []
 
     # ------------------------------------------------------------------ logging
 
@@ -165,7 +176,7 @@ class Launcher:
         with open(child.log_path, "ab") as f:
             child.proc = await asyncio.create_subprocess_exec(*child.argv, stdout=f, stderr=asyncio.subprocess.STDOUT,
                                                               stdin=asyncio.subprocess.DEVNULL,
-                                                              start_new_session=True)
+                                                              start_new_session=True, env=child_env())
         child.started = time.monotonic()
         self._write_pids()
 
@@ -238,169 +249,272 @@ class Launcher:
     # ------------------------------------------------------------------ main
 
     async def run(self) -> dict[str, Any]:
-        c = self.c
-        c.out.mkdir(parents=True, exist_ok=True)
-        (c.out / "logs").mkdir(exist_ok=True)
-        self._log = open(c.out / "launch.log", "a")
+        """The launch, as a sequence of named steps; :meth:`_teardown` runs whatever
+        happens after the first process could have started."""
+        self._open_out()
+        try:
+            self._catch_signals()
+            scenario, robots = self._resolve_robots()
+            model = self._resolve_model()
+            checkpoints = self._plan_checkpoints(scenario)
+            endpoint = self._pick_endpoint()
+            try:
+                await self._bring_up(scenario, robots, model, checkpoints, endpoint)
+            finally:
+                await self._teardown()
+            outcome = self._finish_outcome()
+            self._plot(scenario, outcome)
+            return outcome
+        finally:
+            if self._log is not None:
+                self._log.close()
+
+    # ------------------------------------------------------------------ steps
+
+    def _open_out(self) -> None:
+        """The output directory, its ``logs/`` and the launcher's own record."""
+        self.c.out.mkdir(parents=True, exist_ok=True)
+        (self.c.out / "logs").mkdir(exist_ok=True)
+        self._log = open(self.c.out / "launch.log", "a")
+
+    def _catch_signals(self) -> None:
         loop = asyncio.get_running_loop()
         for sig in (signal.SIGTERM, signal.SIGINT):
             try:
                 loop.add_signal_handler(sig, self._interrupt)
             except (NotImplementedError, RuntimeError):  # pragma: no cover
                 pass
+
+    def _resolve_robots(self) -> tuple[Any, list[str]]:
+        """The scenario, and the robots whose modules start here (ValueError: an unknown one)."""
         from world import load_scenario
 
+        c = self.c
         scenario = load_scenario(c.scenario)
-        all_robots = [r.id for r in scenario.robots]
-        unknown = sorted(set(c.robots or ()) - set(all_robots))
+        self.all_robots = [r.id for r in scenario.robots]
+        unknown = sorted(set(c.robots or ()) - set(self.all_robots))
         if unknown:
-            raise ValueError(f"{c.scenario}: no robot {', '.join(unknown)} (robots: {', '.join(all_robots)})")
-        robots = [r for r in all_robots if c.robots is None or r in c.robots]
-        model = c.model
-        if model is None and c.model_from_zenoh and not c.world:
-            model = ZENOH_MODEL  # a robot host: the world host's launcher serves the model
-        elif model is None:
-            from cekm_swarm.experiments.default_model import default_model, default_model_path
+            raise ValueError(f"{c.scenario}: no robot {', '.join(unknown)} (robots: {', '.join(self.all_robots)})")
+        return scenario, [r for r in self.all_robots if c.robots is None or r in c.robots]
 
-            default_model()
-            model = default_model_path()
-        checkpoints = None
-        if scenario.name == "checkpoints":
-            checkpoints = plan_checkpoint_data(scenario)
-            (c.out / "checkpoints.json").write_text(json.dumps(checkpoints))
-        router = None
-        world_hosts_router = c.world and not c.connect
-        local_host = DEFAULT_HOST if c.listen_host in ("0.0.0.0", "::") else c.listen_host
+    def _resolve_model(self) -> Path | str:
+        """The model file the modules load, or ``"zenoh"`` (a robot host fetching it)."""
+        c = self.c
+        if c.model is not None:
+            return c.model
+        if c.model_from_zenoh and not c.world:
+            return ZENOH_MODEL  # a robot host: the world host's launcher serves the model
+        from cekm_swarm.experiments.default_model import default_model, default_model_path
+
+        default_model()
+        return default_model_path()
+
+    def _plan_checkpoints(self, scenario) -> Path | None:
+        """Checkpoints on the known walls (Fig. 12) for a checkpoints scenario, as a file."""
+        if scenario.name != "checkpoints":
+            return None
+        path = self.c.out / "checkpoints.json"
+        path.write_text(json.dumps(plan_checkpoint_data(scenario)))
+        return path
+
+    def _pick_endpoint(self) -> str:
+        """Where every process started here connects; a robots-only host without
+        ``--connect`` opens an embedded router of its own."""
+        c = self.c
         if c.connect:
-            endpoint = c.connect
-        else:
-            endpoint = f"tcp/{local_host}:{c.port}"
-            if not world_hosts_router:  # a robots-only host serving its own router
-                router = open_embedded_router(c.port, c.listen_host)
-                self.say(f"embedded Zenoh router on {endpoint}")
-        session = None
-        model_server = None
-        watcher = None
-        world_reader = None
-        t0 = time.monotonic()
-        supervisors: list[asyncio.Task] = []
-        outcome: dict[str, Any] = {}
-        try:
-            if c.world:
-                # The world first: with the embedded default it hosts the router, and it holds
-                # tick 0 until every module of every robot, here or on other hosts, is alive.
-                await self._start_world(f"tcp/{c.listen_host}:{c.port}" if world_hosts_router else endpoint,
-                                        hosts_router=world_hosts_router, checkpoints=checkpoints is not None)
-                world_reader = asyncio.ensure_future(self._read_world(self.world_proc.stdout))
-                if world_hosts_router:
-                    also = "" if local_host == c.listen_host else f" (listening on tcp/{c.listen_host}:{c.port})"
-                    self.say(f"the world server hosts the embedded Zenoh router on {endpoint}{also}")
-            session = open_client(endpoint, config_file=c.zenoh_config)
-            if c.world:  # (a world host always has the model file)
-                model_server = ModelServer(session, self.keys.world_model(), model)
-                self.say(f"serving the model {Path(model).name} on {self.keys.world_model()}")
-            watcher = LivelinessWatcher(session, self.keys.alive_all())
-            module_model = ZENOH_MODEL if c.model_from_zenoh else model
-            for r in robots:
-                for name in module_names(self.keys.range_sensors):
-                    child = Child(r, name, module_argv(name, r, module_model, endpoint, c.mode, c.root, c.zenoh_config),
-                                  c.out / "logs" / f"{r}-{name}.log")
-                    self.children[child.label] = child
-            self.say(f"{scenario.name}: {len(robots)} robot(s), starting {len(self.children)} module processes "
-                     f"({c.mode})")
-            for child in self.children.values():
-                await self._spawn(child)
-            supervisors = [asyncio.ensure_future(self._supervise(ch)) for ch in self.children.values()]
-            # the world starts only when every module of every robot is up, here or on other hosts
-            expected = self.keys.robot_modules_alive(all_robots)
-            if not c.world:
-                expected = {self.keys.alive(ch.robot, ch.name) for ch in self.children.values()}
-            deadline = loop.time() + ALIVE_TIMEOUT
-            while not expected <= watcher.alive and not self.stopping and not self._world_ended():
-                try:
-                    await watcher.next_event(timeout=max(0.1, min(1.0, deadline - loop.time())))
-                except asyncio.TimeoutError:
-                    if loop.time() > deadline:
-                        missing = sorted(expected - watcher.alive)
-                        raise LaunchError(f"modules not alive after {ALIVE_TIMEOUT:.0f} s: {missing[:5]}...")
-            if self.stopping:
-                return {}
-            self.startup_s = round(time.monotonic() - t0, 3)
-            if not c.world:
-                await self._serve_until_world_ends(watcher, len(expected), session)
-                return {}
-            if expected <= watcher.alive:
-                self.say(f"all {len(expected)} modules alive after {self.startup_s:.1f} s; the world starts")
-            await world_reader
-            code = await self.world_proc.wait()
-            if code not in (0, 3):
-                self._world_died(code)
-        finally:
-            self.stopping = True
-            if self.world_proc is not None and self.world_proc.returncode is None:
-                self.world_proc.send_signal(signal.SIGTERM)
-                try:
-                    await asyncio.wait_for(self.world_proc.wait(), 15.0)
-                except asyncio.TimeoutError:
-                    self.world_proc.kill()
-            await self._stop_children()
-            for s in supervisors:
-                s.cancel()
-            if world_reader is not None:
-                world_reader.cancel()
+            return c.connect
+        endpoint = f"tcp/{self._local_host}:{c.port}"
+        if not self._world_hosts_router:
             try:
-                if watcher is not None:
-                    watcher.close()
-            except Exception:
-                pass
-            if model_server is not None:
-                model_server.close()
-            if session is not None:
-                session.close()
-            if router is not None:
-                router.close()
-            self.say("all processes stopped")
-        outcome_path = c.out / "outcome.json"
-        if outcome_path.is_file():
-            outcome = json.loads(outcome_path.read_text())
-            outcome["launcher"] = {
-                "modules": len(self.children), "interrupted": self.interrupted,
-                "restarts": {ch.label: ch.restarts for ch in self.children.values() if ch.restarts},
-                "exits": {ch.label: ch.exits for ch in self.children.values() if ch.exits},
-                "startup_s": self.startup_s}
-            outcome_path.write_text(json.dumps(outcome, indent=1))
-        if c.plot and (c.out / "run.mcap").is_file():
-            try:
-                from .plot import plot_log
+                self.router = open_embedded_router(c.port, c.listen_host)
+            except RuntimeTransportError as exc:
+                raise LaunchError(f"{exc}{port_hint(str(exc), c.port)}") from None
+            self.say(f"embedded Zenoh router on {endpoint}")
+        return endpoint
 
-                fig = plot_log(c.out / "run.mcap", title=f"{scenario.name} ({c.mode}, seed {outcome.get('seed')})",
-                               outcome=outcome)
-                fig.savefig(c.out / "trajectory.png", dpi=130)
-            except Exception as exc:  # noqa: BLE001 - the run's results stand without the picture
-                self.say(f"could not draw trajectory.png: {type(exc).__name__}: {exc}")
-        if self._log is not None:
-            self._log.close()
+    @property
+    def _world_hosts_router(self) -> bool:
+        return self.c.world and not self.c.connect
+
+    @property
+    def _local_host(self) -> str:
+        return DEFAULT_HOST if self.c.listen_host in ("0.0.0.0", "::") else self.c.listen_host
+
+    async def _bring_up(self, scenario, robots: list[str], model: Path | str, checkpoints: Path | None,
+                        endpoint: str) -> None:
+        """Start everything, wait for the modules, then follow the run to its end."""
+        c = self.c
+        t0 = time.monotonic()
+        if c.world:
+            self._choose_run_id()
+            # The world first: with the embedded default it hosts the router, and it holds
+            # tick 0 until every module of every robot, here or on other hosts, is alive.
+            await self._start_world(f"tcp/{c.listen_host}:{c.port}" if self._world_hosts_router else endpoint,
+                                    hosts_router=self._world_hosts_router, checkpoints=checkpoints)
+            self.world_reader = asyncio.ensure_future(self._read_world(self.world_proc.stdout))
+            if self._world_hosts_router:
+                also = "" if self._local_host == c.listen_host else f" (listening on tcp/{c.listen_host}:{c.port})"
+                self.say(f"the world server hosts the embedded Zenoh router on {endpoint}{also}")
+        self.session = open_client_when_ready(endpoint, c.zenoh_config, say=self.say)  # a robot host may start first
+        if not c.world:
+            await self._join_run_id()
+            if self.stopping:
+                return
+        if c.world:  # (a world host always has the model file)
+            self.model_server = ModelServer(self.session, self.keys.world_model(), model)
+            self.say(f"serving the model {Path(model).name} on {self.keys.world_model()}")
+        self.watcher = LivelinessWatcher(self.session, self.keys.alive_all())
+        await self._spawn_modules(scenario, robots, ZENOH_MODEL if c.model_from_zenoh else model, endpoint)
+        # the world starts only when every module of every robot is up, here or on other hosts
+        expected = (self.keys.robot_modules_alive(self.all_robots) if c.world else
+                    {self.keys.alive(ch.robot, ch.name) for ch in self.children.values()})
+        if not await self._wait_alive(expected):
+            return
+        self.startup_s = round(time.monotonic() - t0, 3)
+        if not c.world:
+            await self._serve_until_world_ends(self.watcher, len(expected), self.session)
+            return
+        if expected <= self.watcher.alive:
+            self.say(f"all {len(expected)} modules alive after {self.startup_s:.1f} s; the world starts")
+        await self.world_reader
+        code = await self.world_proc.wait()
+        if code not in (0, 3):
+            self._world_died(code)
+
+    def _choose_run_id(self) -> None:
+        """The run's id (given, or made here): every token of the run carries it."""
+        self.run_id = self.c.run_id or new_run_id()
+        self.keys = self.keys.with_run(self.run_id)
+        self.say(f"run id {self.run_id}")
+
+    async def _join_run_id(self) -> None:
+        """A robots-only host: the run id given, or the one the world server's token carries."""
+        if self.c.run_id is None:
+            self.say("waiting for the world server to learn the run id (or give --run-id)")
+            self.c.run_id = await self._world_run_id()
+            if self.c.run_id is None:
+                return
+        self._choose_run_id()
+
+    async def _world_run_id(self) -> str | None:
+        """The run id in the world server's token, once one is alive (None if interrupted)."""
+        any_run = self.keys.with_run(None)
+        with LivelinessWatcher(self.session, any_run.world_alive_any_run()) as watcher:
+            while not self.stopping:
+                runs = sorted({any_run.parse(k).run for k in watcher.alive} - {None})
+                if len(runs) > 1:
+                    raise LaunchError(f"several runs' world servers on this router ({', '.join(runs)}): "
+                                      f"give --run-id")
+                if runs:
+                    return runs[0]
+                try:
+                    await watcher.next_event(timeout=1.0)
+                except asyncio.TimeoutError:
+                    pass
+        return None
+
+    async def _spawn_modules(self, scenario, robots: list[str], model: Path | str, endpoint: str) -> None:
+        """Start every module process of ``robots``, each under a supervisor."""
+        c = self.c
+        for r in robots:
+            for name in module_names(self.keys.range_sensors):
+                argv = module_argv(name, robot=r, model=model, connect=endpoint, root=c.root, mode=c.mode,
+                                   zenoh_config=c.zenoh_config, run_id=self.run_id)
+                child = Child(r, name, argv, c.out / "logs" / f"{r}-{name}.log")
+                self.children[child.label] = child
+        self.say(f"{scenario.name}: {len(robots)} robot(s), starting {len(self.children)} module processes "
+                 f"({c.mode})")
+        for child in self.children.values():
+            await self._spawn(child)
+        self.supervisors = [asyncio.ensure_future(self._supervise(ch)) for ch in self.children.values()]
+
+    async def _wait_alive(self, expected: set[str]) -> bool:
+        """Until every token of ``expected`` is alive; False when stopped or the world ended first."""
+        loop = asyncio.get_running_loop()
+        deadline = loop.time() + ALIVE_TIMEOUT
+        while not expected <= self.watcher.alive and not self.stopping and not self._world_ended():
+            try:
+                await self.watcher.next_event(timeout=max(0.1, min(1.0, deadline - loop.time())))
+            except asyncio.TimeoutError:
+                if loop.time() > deadline:
+                    missing = sorted(expected - self.watcher.alive)
+                    raise LaunchError(f"modules not alive after {ALIVE_TIMEOUT:.0f} s: {missing[:5]}...") from None
+        return not self.stopping
+
+    async def _teardown(self) -> None:
+        """Stop and close everything this launcher started, in order: the world server
+        first (it writes its outcome and closes the log), then the modules, then the
+        Zenoh objects. Every step runs even if one before it failed."""
+        self.stopping = True
+        steps: list[tuple[str, Callable[[], Any]]] = [
+            ("stop the world server", self._stop_world),
+            ("stop the modules", self._stop_children),
+            ("cancel the supervisors", lambda: [t.cancel() for t in self.supervisors]),
+            ("stop reading the world", lambda: self.world_reader is not None and self.world_reader.cancel()),
+            ("close the liveliness watcher", lambda: self.watcher is not None and self.watcher.close()),
+            ("close the model server", lambda: self.model_server is not None and self.model_server.close()),
+            ("close the Zenoh session", lambda: self.session is not None and self.session.close()),
+            ("close the embedded router", lambda: self.router is not None and self.router.close()),
+        ]
+        for what, step in steps:
+            try:
+                result = step()
+                if asyncio.iscoroutine(result):
+                    await result
+            except Exception as exc:  # noqa: BLE001 - the rest of the teardown must still run
+                self.say(f"could not {what}: {type(exc).__name__}: {exc}")
+        self.say("all processes stopped")
+
+    async def _stop_world(self) -> None:
+        if self.world_proc is not None and self.world_proc.returncode is None:
+            self.world_proc.send_signal(signal.SIGTERM)
+            try:
+                await asyncio.wait_for(self.world_proc.wait(), 15.0)
+            except asyncio.TimeoutError:
+                self.world_proc.kill()
+
+    def _finish_outcome(self) -> dict[str, Any]:
+        """The world's ``outcome.json`` with the launcher's record added ({} without one)."""
+        outcome_path = self.c.out / "outcome.json"
+        if not outcome_path.is_file():
+            return {}
+        outcome = json.loads(outcome_path.read_text())
+        outcome["run_id"] = self.run_id
+        outcome["launcher"] = {
+            "modules": len(self.children), "interrupted": self.interrupted,
+            "restarts": {ch.label: ch.restarts for ch in self.children.values() if ch.restarts},
+            "exits": {ch.label: ch.exits for ch in self.children.values() if ch.exits},
+            "startup_s": self.startup_s}
+        outcome_path.write_text(json.dumps(outcome, indent=1))
         return outcome
 
-    async def _start_world(self, where: str, *, hosts_router: bool, checkpoints: bool) -> None:
+    def _plot(self, scenario, outcome: dict[str, Any]) -> None:
+        c = self.c
+        if not c.plot or not (c.out / "run.mcap").is_file():
+            return
+        try:
+            from .plot import plot_log
+
+            fig = plot_log(c.out / "run.mcap", title=f"{scenario.name} ({c.mode}, seed {outcome.get('seed')})",
+                           outcome=outcome)
+            fig.savefig(c.out / "trajectory.png", dpi=130)
+        except Exception as exc:  # noqa: BLE001 - the run's results stand without the picture
+            self.say(f"could not draw trajectory.png: {type(exc).__name__}: {exc}")
+
+    async def _start_world(self, where: str, *, hosts_router: bool, checkpoints: Path | None) -> None:
         """Start the world server (hosting the router at ``where``, or joining it) and wait
         for its READY line: its session is open, so modules can join."""
         c = self.c
-        world_argv = [sys.executable, "-m", "world.server", c.scenario, "--listen" if hosts_router else "--connect",
-                      where, "--root", c.root, "--out", str(c.out), "--mode", c.mode, "--max-time", str(c.max_time),
-                      "--deadman", str(c.deadman), "--republish", str(c.republish),
-                      "--progress-every", str(c.progress_every), "--wait-modules", str(ALIVE_TIMEOUT + 5)]
-        if c.seed is not None:
-            world_argv += ["--seed", str(c.seed)]
-        if c.zenoh_config is not None and not hosts_router:
-            world_argv += ["--zenoh-config", str(c.zenoh_config)]
-        if checkpoints:
-            world_argv += ["--checkpoints", str(c.out / "checkpoints.json")]
+        world_argv = server_argv(
+            scenario=c.scenario, listen=where if hosts_router else None, connect=None if hosts_router else where,
+            root=c.root, run_id=self.run_id, out=c.out, mode=c.mode, max_time=c.max_time, deadman=c.deadman,
+            republish=c.republish, progress_every=c.progress_every, wait_modules=ALIVE_TIMEOUT + 5, seed=c.seed,
+            zenoh_config=None if hosts_router else c.zenoh_config, checkpoints=checkpoints)
         log_path = c.out / "logs" / "world.log"
         with open(log_path, "ab") as werr:
             self.world_proc = await asyncio.create_subprocess_exec(
                 *world_argv, stdout=asyncio.subprocess.PIPE, stderr=werr, stdin=asyncio.subprocess.DEVNULL,
-                start_new_session=True)
+                start_new_session=True, env=child_env())
         self._write_pids()
         assert self.world_proc.stdout is not None
         while True:
@@ -408,8 +522,9 @@ class Launcher:
             if not line:
                 code = await self.world_proc.wait()
                 last = [x for x in log_path.read_text(errors="replace").splitlines() if x.strip()][-1:]
+                hint = port_hint(last[0] if last else "", c.port) if hosts_router else ""
                 raise LaunchError(f"the world server ended (code {code}) before its Zenoh session opened"
-                                   f"{': ' + last[0] if last else ''} (see {log_path})")
+                                   f"{': ' + last[0] if last else ''} (see {log_path}){hint}")
             if line.startswith(b"READY "):
                 return
             self.say(f"world: {line.decode(errors='replace').rstrip()}")
@@ -486,6 +601,11 @@ class Launcher:
         self.say(f"reconnected: the world server is up again after {time.monotonic() - t0:.1f} s")
         return True
 
+    def launch(self) -> dict[str, Any]:
+        """Run the launch to the end in a new event loop (from the main thread: children
+        die with the thread that started them)."""
+        return asyncio.run(self.run())
+
     def _interrupt(self) -> None:
         if self.interrupted:
             return
@@ -502,4 +622,4 @@ class Launcher:
 
 def launch(config: LaunchConfig, echo: Callable[[str], None] = print) -> dict[str, Any]:
     """Run a launch to the end; the outcome (``outcome.json`` plus the launcher's record)."""
-    return asyncio.run(Launcher(config, echo).run())
+    return Launcher(config, echo).launch()

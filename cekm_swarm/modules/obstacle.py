@@ -14,8 +14,9 @@ import argparse
 
 from cekm_swarm.protocol import KeySpace, ObstacleField, SenseRange
 from cekm_swarm.protocol.hotpath import Splice, sense_range_values, unpack
+from cekm_swarm.runtime.process_args import add_params
 
-from .shell import FastHandler, ModuleSpec, base_parser, keyspace, load_controller, main_of
+from .shell import INDEX_PARAM, FastHandler, ModuleSpec, base_parser, keyspace, load_controller, main_of
 
 
 def name_of(index: int) -> str:
@@ -73,7 +74,7 @@ def _build(args: argparse.Namespace) -> ModuleSpec:
 
 def main(argv: list[str] | None = None) -> int:
     p = base_parser("cekm obstacle localization module (one distance sensor)")
-    p.add_argument("--index", type=int, required=True, help="distance sensor index j (0..11)")
+    add_params(p, (INDEX_PARAM,))
     return main_of(_build, p, argv)
 
 

@@ -27,24 +27,48 @@ from cekm_swarm.errors import CekmError
 from cekm_swarm.protocol import DEFAULT_ROOT, MSGPACK_ENCODING, DropCounter, KeySpace, Message, encode
 from cekm_swarm.runtime.bridge import InlineSubscription, Publishers, Received, declare_alive
 from cekm_swarm.runtime.config import DEFAULT_ENDPOINT, ONE_THREAD_RUNTIME, open_client, use_zenoh_runtime
+from cekm_swarm.runtime.lifetime import die_with_parent
 from cekm_swarm.runtime.model_service import fetch_model_bytes, is_zenoh_source
+from cekm_swarm.runtime.process_args import Param, add_params, run_id_arg, to_argv
 
 log = logging.getLogger("cekm_swarm.modules")
 
+MODULE_PARAMS: tuple[Param, ...] = (
+    Param("robot", required=True, help="robot id, e.g. r1"),
+    Param("model", required=True,
+          help="trained model file (.npz), or 'zenoh' to fetch it from the launcher's queryable"),
+    Param("model_timeout", float, 30.0, "s to wait for the served model (--model zenoh)"),
+    Param("connect", default=DEFAULT_ENDPOINT, help="Zenoh endpoint to join (default %(default)s)"),
+    Param("zenoh_config", help="Zenoh client config file (credentials, TLS; see deploy/); --connect sets its endpoint"),
+    Param("root", default=DEFAULT_ROOT, help="key space root (default %(default)s)"),
+    Param("run_id", run_id_arg, help="the launch's run id, carried in the liveliness token (default: none)"),
+    Param("mode", default="realtime", choices=("realtime", "lockstep")),
+    Param("log_level", default="INFO"),
+)
+"""Parameters every module takes: its parser and the launcher's argv both come from here."""
+
+INDEX_PARAM = Param("index", int, required=True, help="distance sensor index j (0..11)")
+"""The obstacle module's own parameter."""
+
+MODULE_PROGRAMS = {"target": "cekm_swarm.modules.target", "obstacle": "cekm_swarm.modules.obstacle",
+                   "motor": "cekm_swarm.modules.motor"}
+
+
 def base_parser(description: str) -> argparse.ArgumentParser:
     """Arguments every module takes."""
-    p = argparse.ArgumentParser(description=description)
-    p.add_argument("--robot", required=True, help="robot id, e.g. r1")
-    p.add_argument("--model", required=True,
-                   help="trained model file (.npz), or 'zenoh' to fetch it from the launcher's queryable")
-    p.add_argument("--model-timeout", type=float, default=30.0, help="s to wait for the served model (--model zenoh)")
-    p.add_argument("--connect", default=DEFAULT_ENDPOINT, help="Zenoh endpoint to join (default %(default)s)")
-    p.add_argument("--zenoh-config", default=None,
-                   help="Zenoh client config file (credentials, TLS; see deploy/); --connect sets its endpoint")
-    p.add_argument("--root", default=DEFAULT_ROOT, help="key space root (default %(default)s)")
-    p.add_argument("--mode", choices=("realtime", "lockstep"), default="realtime")
-    p.add_argument("--log-level", default="INFO")
-    return p
+    return add_params(argparse.ArgumentParser(description=description), MODULE_PARAMS)
+
+
+def module_argv(name: str, **values: Any) -> list[str]:
+    """The command line of module ``name`` (``target``, ``obstacle-<j>``, ``motor``) with
+    ``values`` of :data:`MODULE_PARAMS`; what :func:`base_parser` parses back."""
+    kind, _, j = name.partition("-")
+    if kind not in MODULE_PROGRAMS or (kind == "obstacle") != bool(j):
+        raise ValueError(f"no module {name!r} (expected target, obstacle-<j> or motor)")
+    argv = [sys.executable, "-m", MODULE_PROGRAMS[kind], *to_argv(MODULE_PARAMS, **values)]
+    if kind == "obstacle":
+        argv += to_argv((INDEX_PARAM,), index=int(j))
+    return argv
 
 
 def load_controller(source: str | tuple[str, bytes]):
@@ -189,6 +213,7 @@ async def run_module(spec: ModuleSpec, endpoint: str, *, block: bool = False,
 def main_of(build: Callable[[argparse.Namespace], ModuleSpec], parser: argparse.ArgumentParser,
             argv: list[str] | None = None) -> int:
     """Parse arguments, build the module, serve it; the body of each module's ``main``."""
+    die_with_parent()  # started by a launcher: stop when it dies, whatever kills it
     args = parser.parse_args(argv)
     use_zenoh_runtime(ONE_THREAD_RUNTIME)  # a module receives one message and sends one per period: one thread does it
     logging.basicConfig(level=args.log_level.upper(), stream=sys.stderr,
@@ -222,4 +247,5 @@ def fetch_model(args: argparse.Namespace) -> tuple[str, bytes]:
 
 
 def keyspace(args: Any) -> KeySpace:
-    return KeySpace(args.root)
+    """The module's key space: its root, and its run id in the liveliness token."""
+    return KeySpace(args.root, run=getattr(args, "run_id", None))

@@ -11,8 +11,12 @@ Keys (root ``cekm`` by default, ``<robot>`` a robot id such as ``r1``):
 ``<root>/<robot>/share``                  KeyKind.SHARE
 ``<root>/world/state``                    KeyKind.WORLD_STATE
 ``<root>/world/clock``                    KeyKind.WORLD_CLOCK
-``<root>/<owner>/alive/<module>``         KeyKind.ALIVE (liveliness tokens)
+``<root>/<owner>/alive/<module>[/<run>]`` KeyKind.ALIVE (liveliness tokens)
 ========================================  ======================
+
+A liveliness token carries the run id of the launch its process belongs to (a key space
+built with ``run``), so the world server counts only its own run's modules: a process
+left over from another run can never be taken for one of this run.
 
 ``world`` is reserved: it is not a robot id, but it may own liveliness tokens
 (``cekm/world/alive/server``). Building a key validates every part, so a bad robot id
@@ -37,6 +41,7 @@ DEFAULT_RANGE_SENSORS = 12
 _ROBOT_RE = re.compile(r"[A-Za-z][A-Za-z0-9_-]{0,63}\Z")
 _MODULE_RE = re.compile(r"[A-Za-z][A-Za-z0-9_.-]{0,63}\Z")
 _CHUNK_RE = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*\Z")
+_RUN_RE = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}\Z")
 
 
 class KeyKind(str, enum.Enum):
@@ -66,6 +71,7 @@ class ParsedKey:
     robot: str | None = None
     index: int | None = None
     module: str | None = None
+    run: str | None = None
 
 
 def validate_robot_id(robot: object) -> str:
@@ -90,6 +96,17 @@ def validate_module_name(module: object) -> str:
     return module
 
 
+def validate_run_id(run: object) -> str:
+    """Return ``run`` if it is a valid run id (a letter or digit, then letters, digits,
+    ``_``, ``.`` or ``-``; at most 64): one plain chunk of a key."""
+    if not isinstance(run, str):
+        raise KeySpaceError("run id", f"expected a string, got {type(run).__name__}")
+    if not _RUN_RE.match(run):
+        raise KeySpaceError(f"run id {run!r}", "must start with a letter or digit and hold only letters, digits, "
+                                               "'_', '.' or '-' (at most 64)")
+    return run
+
+
 def validate_root(root: object) -> str:
     """Return ``root`` if it is a valid key root: '/'-separated plain chunks, no wildcards."""
     if not isinstance(root, str) or not root:
@@ -107,9 +124,13 @@ class KeySpace:
 
     root: str = DEFAULT_ROOT
     range_sensors: int = DEFAULT_RANGE_SENSORS
+    run: str | None = None
+    """The run id in liveliness tokens (None: tokens without one, and selectors matching any run)."""
 
     def __post_init__(self) -> None:
         validate_root(self.root)
+        if self.run is not None:
+            validate_run_id(self.run)
         if isinstance(self.range_sensors, bool) or not isinstance(self.range_sensors, int) or self.range_sensors < 1:
             raise KeySpaceError("range_sensors", f"expected a positive integer, got {self.range_sensors!r}")
 
@@ -169,10 +190,22 @@ class KeySpace:
         not a publication: ``--model zenoh``; see :mod:`cekm_swarm.runtime.model_service`)."""
         return f"{self.root}/{WORLD}/model"
 
+    def world_geometry(self) -> str:
+        """World -> recorders: the queryable serving the static scene as JSON (walls, fixed
+        obstacles; what the world's own log keeps as metadata; see
+        :mod:`cekm_swarm.runtime.record`)."""
+        return f"{self.root}/{WORLD}/geometry"
+
     def alive(self, owner: str, module: str) -> str:
-        """Liveliness token of a module of robot ``owner`` (or of the world server, owner ``world``)."""
+        """Liveliness token of a module of robot ``owner`` (or of the world server, owner
+        ``world``) in this key space's run."""
         head = f"{self.root}/{WORLD}" if owner == WORLD else self._robot(owner)
-        return f"{head}/alive/{validate_module_name(module)}"
+        key = f"{head}/alive/{validate_module_name(module)}"
+        return key if self.run is None else f"{key}/{self.run}"
+
+    def with_run(self, run: str | None) -> "KeySpace":
+        """This key space for the run ``run``."""
+        return KeySpace(self.root, self.range_sensors, run)
 
     def key(self, kind: KeyKind | str, robot: str | None = None, index: int | None = None,
             module: str | None = None) -> str:
@@ -218,8 +251,14 @@ class KeySpace:
         return {self.alive(r, m) for r in robots for m in self.module_names()}
 
     def alive_all(self) -> str:
-        """Key expression matching every liveliness token (robots' and the world's)."""
-        return f"{self.root}/*/alive/*"
+        """Key expression matching every liveliness token (robots' and the world's) of this
+        key space's run; of any run (and tokens without one) when ``run`` is None."""
+        return f"{self.root}/*/alive/**" if self.run is None else f"{self.root}/*/alive/*/{self.run}"
+
+    def world_alive_any_run(self) -> str:
+        """Key expression matching the world server's token of any run (how a robots-only
+        host learns the run it joins)."""
+        return f"{self.root}/{WORLD}/alive/server/*"
 
     # ------------------------------------------------------------------ parser
 
@@ -237,9 +276,10 @@ class KeySpace:
                 return ParsedKey(KeyKind.WORLD_STATE)
             if rest == ["clock"]:
                 return ParsedKey(KeyKind.WORLD_CLOCK)
-            if len(rest) == 2 and rest[0] == "alive":
-                return ParsedKey(KeyKind.ALIVE, WORLD, None, self._module_in(key, rest[1]))
-            raise KeySpaceError(f"key '{key}'", "unknown world key (expected world/state, world/clock or world/alive/<module>)")
+            if len(rest) in (2, 3) and rest[0] == "alive":
+                return ParsedKey(KeyKind.ALIVE, WORLD, None, self._module_in(key, rest[1]), self._run_in(key, rest[2:]))
+            raise KeySpaceError(f"key '{key}'", "unknown world key (expected world/state, world/clock or "
+                                                "world/alive/<module>[/<run>])")
         try:
             validate_robot_id(owner)
         except KeySpaceError as exc:
@@ -254,6 +294,8 @@ class KeySpace:
                     return ParsedKey(kind, owner)
             if rest[0] == "alive":
                 return ParsedKey(KeyKind.ALIVE, owner, None, self._module_in(key, rest[1]))
+        if n == 3 and rest[0] == "alive":
+            return ParsedKey(KeyKind.ALIVE, owner, None, self._module_in(key, rest[1]), self._run_in(key, rest[2:]))
         if n == 3:
             suffix = f"{rest[0]}/{rest[1]}"
             for kind in (KeyKind.SENSE_RANGE, KeyKind.FIELD_OBSTACLE):
@@ -268,6 +310,15 @@ class KeySpace:
         if j >= self.range_sensors:
             raise KeySpaceError(f"key '{key}'", f"sensor index {j} out of range 0..{self.range_sensors - 1}")
         return j
+
+    @staticmethod
+    def _run_in(key: str, rest: list[str]) -> str | None:
+        if not rest:
+            return None
+        try:
+            return validate_run_id(rest[0])
+        except KeySpaceError as exc:
+            raise KeySpaceError(f"key '{key}'", f"bad run id: {exc.problem}") from None
 
     @staticmethod
     def _module_in(key: str, text: str) -> str:

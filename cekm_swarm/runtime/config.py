@@ -131,6 +131,9 @@ def embedded_router_config(port: int = DEFAULT_PORT, host: str = DEFAULT_HOST) -
     _insert(config, "mode", "router")
     _insert(config, "listen/endpoints", [check_endpoint(f"tcp/{host}:{int(port)}")])
     _common(config)
+    # Read-only admin space: `cekm topic info` asks the router who publishes and subscribes
+    # (answered only on a query; nothing runs otherwise).
+    _insert(config, "adminspace", {"enabled": True, "permissions": {"read": True, "write": False}})
     return config
 
 
@@ -195,7 +198,37 @@ def open_session(config: zenoh.Config, what: str = "zenoh session") -> zenoh.Ses
             eps = json.loads(config.get_json("listen/endpoints" if mode == "router" else "connect/endpoints"))
         except Exception:
             mode, eps = "?", "?"
+        if mode == "client" and "Unable to connect" in detail and isinstance(eps, list):
+            detail = _why_not_connected(config, eps, detail)
         raise RuntimeTransportError(f"cannot open {what} ({mode}, endpoints {eps}): {detail}") from None
+
+
+def _why_not_connected(config: zenoh.Config, endpoints: list[str], detail: str) -> str:
+    """Zenoh says "Unable to connect" both when nothing listens and when the router refuses
+    the session: tell them apart by a plain TCP connection to each endpoint."""
+    reachable = [ep for ep in endpoints if _tcp_reachable(ep)]
+    if not reachable:
+        return f"{detail.strip()} (nothing accepts connections there: is the router running, and the address right?)"
+    try:
+        user = json.loads(config.get_json("transport/auth/usrpwd/user"))
+    except Exception:
+        user = None
+    if user:
+        return f"authentication failed for user {user!r} at {reachable[0]} (the router refused the credentials)"
+    return (f"the router at {reachable[0]} refused the session (it may require credentials or TLS: "
+            f"give a client config with --config)")
+
+
+def _tcp_reachable(endpoint: str, timeout: float = 1.0) -> bool:
+    proto, _, rest = endpoint.partition("/")
+    host, _, port = rest.split("#", 1)[0].rpartition(":")
+    if proto not in ("tcp", "tls") or not port.isdigit():
+        return False
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout):
+            return True
+    except OSError:
+        return False
 
 
 def open_embedded_router(port: int = DEFAULT_PORT, host: str = DEFAULT_HOST) -> zenoh.Session:

@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
-from cekm_swarm.errors import CekmError
+from cekm_swarm.errors import EXIT_FAILED, CekmError
 
 
 class RuntimeTransportError(CekmError):
-    """A Zenoh session cannot be opened or configured (endpoint, config file, credentials)."""
+    """A Zenoh session cannot be opened or configured (endpoint, config file, credentials).
+    At the command line a run failure (exit 1); a bad config file is refused as usage first."""
+
+    exit_code = EXIT_FAILED
 
 
 class McapLogError(CekmError):

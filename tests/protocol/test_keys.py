@@ -47,7 +47,7 @@ def test_configurable_root_and_sensor_count():
     assert ks.parse("lab/run-7/r1/field/obstacle/15").index == 15
     assert ks.everything() == "lab/run-7/**"
     assert ks.robot_keys("r3") == "lab/run-7/r3/**"
-    assert ks.alive_all() == "lab/run-7/*/alive/*"
+    assert ks.alive_all() == "lab/run-7/*/alive/**"  # tokens of any run
     with pytest.raises(KeySpaceError, match="not under the root"):
         ks.parse("cekm/r1/share")
 
@@ -105,3 +105,26 @@ def test_bad_roots_and_builders():
         K.key(KeyKind.ALIVE, "r1")
     with pytest.raises(KeySpaceError, match="module name"):
         K.alive("r1", "bad/name")
+
+
+def test_liveliness_tokens_carry_the_run_id_and_selectors_keep_runs_apart():
+    ks = KeySpace(run="20261201-134500-a1b2c3")
+    assert ks.alive("r1", "motor") == "cekm/r1/alive/motor/20261201-134500-a1b2c3"
+    assert ks.alive("world", "server") == "cekm/world/alive/server/20261201-134500-a1b2c3"
+    assert ks.alive_all() == "cekm/*/alive/*/20261201-134500-a1b2c3"
+    parsed = ks.parse(ks.alive("r1", "obstacle-3"))
+    assert (parsed.kind, parsed.robot, parsed.module, parsed.run) == (KeyKind.ALIVE, "r1", "obstacle-3",
+                                                                      "20261201-134500-a1b2c3")
+    assert ks.parse("cekm/r1/alive/motor").run is None
+    other = ks.with_run("other-run")
+    assert other.alive("r1", "motor") != ks.alive("r1", "motor")
+    assert ks.robot_modules_alive(["r1"]).isdisjoint(other.robot_modules_alive(["r1"]))
+
+
+@pytest.mark.parametrize("bad", ["", "a/b", "*", "-x", "a" * 65, 7])
+def test_a_bad_run_id_is_refused_by_name(bad):
+    with pytest.raises(KeySpaceError, match="run id"):
+        KeySpace(run=bad)
+    if isinstance(bad, str) and bad and "/" not in bad:  # one chunk of a key: refused when parsed too
+        with pytest.raises(KeySpaceError, match="run id"):
+            KeySpace().parse(f"cekm/r1/alive/motor/{bad}")

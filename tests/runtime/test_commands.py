@@ -60,8 +60,9 @@ def steady_publisher(session, key: str, period: float = 0.01) -> Iterator[None]:
 
 
 def test_commands_are_exported():
-    assert [c.name for c in COMMANDS] == ["topic", "log", "replay", "monitor"]
-    assert set(COMMANDS[0].commands) == {"list", "echo", "hz"} and set(COMMANDS[1].commands) == {"info", "recover"}
+    assert [c.name for c in COMMANDS] == ["topic", "log", "replay", "monitor", "node", "record"]
+    assert set(COMMANDS[0].commands) == {"list", "echo", "hz", "info", "pub"}
+    assert set(COMMANDS[1].commands) == {"info", "cat", "recover"} and set(COMMANDS[4].commands) == {"list"}
 
 
 def test_topic_echo_decodes_and_reports_malformed(router, clients):
@@ -136,7 +137,8 @@ def test_replay_command(router, clients, tmp_path):
 
 def test_unreachable_endpoint_is_a_clean_error():
     port = free_port()
-    res = CliRunner().invoke(cli, ["topic", "list", "--connect", f"tcp/127.0.0.1:{port}", "--window", "0.1"])
-    assert res.exit_code != 0 and "cannot open client session" in res.output
+    res = CliRunner().invoke(cli, ["topic", "list", "--connect", f"tcp/127.0.0.1:{port}", "--window", "0.1",
+                                   "--wait", "0"])
+    assert res.exit_code == 1 and f"no router at tcp/127.0.0.1:{port}" in res.output
     res = CliRunner().invoke(cli, ["topic", "list", "--connect", "127.0.0.1:7447"])
     assert res.exit_code != 0 and "expected e.g. 'tcp/127.0.0.1:7447'" in res.output

@@ -120,4 +120,6 @@ def test_a_taken_port_stops_the_launch_with_a_clear_error(tmp_path):
     assert r.returncode == 1
     assert "before its Zenoh session opened" in r.stderr and "Address already in use" in r.stderr, r.stderr
     assert str(tmp_path / "logs" / "world.log") in r.stderr and "Traceback" not in r.stderr
+    assert r.stderr.startswith("cekm: failed: ") and r.stderr.count("\n") == 1  # one line
+    assert "choose another with --port" in r.stderr
     assert not (tmp_path / "logs" / "r1-motor.log").exists()  # no module was started

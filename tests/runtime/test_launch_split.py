@@ -56,6 +56,9 @@ def split_run(tmp_path, world_args: tuple[str, ...], robot_args: tuple[str, ...]
         if robots is not None:
             robots.kill()
     assert any("the world server has ended" in line for line in robots.lines)
+    # the robot host took the run id from the world server's token: one run on both hosts
+    run_ids = [[line.rsplit("run id ", 1)[1] for line in host.lines if "] run id " in line] for host in (world, robots)]
+    assert run_ids[0] == run_ids[1] and len(run_ids[0]) == 1
     assert not (tmp_path / "robot-host" / "outcome.json").exists()
     outcome = world.outcome()
     assert outcome["launcher"]["modules"] == 0  # no module process on the world host
@@ -85,5 +88,8 @@ def test_a_wrong_password_stops_the_launch_with_a_clear_error(tmp_path, acl_rout
     p = LaunchProcess("lone_obstacle", tmp_path / "out", "--robots", "r1", "--no-world", "--connect", acl_router,
                       "--config", str(bad), "--model", str(default_model_path()))
     code = p.finish(timeout=60)
-    assert code != 0
-    assert any("cannot open client session" in line for line in p.lines), "\n".join(p.lines[-20:])
+    assert code == 1
+    failed = [line for line in p.lines if line.startswith("cekm: failed: ")]
+    assert len(failed) == 1 and "cannot open client session" in failed[0], "\n".join(p.lines[-20:])
+    assert f"authentication failed for user 'r1' at {acl_router}" in failed[0]
+    assert not any("Traceback" in line for line in p.lines)

@@ -18,9 +18,9 @@ from cekm_swarm.runtime.config import free_port
 
 
 class LaunchProcess:
-    def __init__(self, scenario: str, out: Path, *args: str) -> None:
+    def __init__(self, scenario: str, out: Path, *args: str, port: int | None = None) -> None:
         self.out = out
-        self.port = free_port()
+        self.port = port or free_port()
         env = dict(os.environ, PYTHONUNBUFFERED="1")
         self.proc = subprocess.Popen([sys.executable, "-m", "cekm_swarm", "launch", scenario, "--out", str(out),
                                       "--port", str(self.port), *args],

@@ -1,20 +1,32 @@
-"""cekm monitor: the pure view model, and the real command attached to a live router."""
+"""cekm monitor: the pure view model, its 80-column rendering, and the real command."""
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 
+import msgpack
 
 from cekm_swarm.protocol import DEFAULT_KEYS as K
 from cekm_swarm.protocol import SenseRange, WheelCommand, WorldState, encode
 from cekm_swarm.runtime.bridge import declare_alive
-from cekm_swarm.runtime.monitor import MonitorState, render_text
+from cekm_swarm.runtime.logcat import key_filter
+from cekm_swarm.runtime.jsonout import json_line
+from cekm_swarm.runtime.monitor import MonitorState, render_text, snapshot
+
+ALL_MODULES = {K.alive("r1", m) for m in K.module_names()}
+WORLD_TOKEN = K.alive("world", "server")
 
 
-def world_state(t, x):
-    return WorldState(t, "world", {"r1": {"x": x, "y": 0.5, "theta": 0.1, "in_contact": False, "goal": [2.0, 0.5]}},
-                      {}, {})
+def world_state(t, x, rid="r1", **extra):
+    r = {"x": x, "y": 0.5, "theta": 0.1, "in_contact": False, "goal": [2.0, 0.5]}
+    r.update(extra)
+    return WorldState(t, "world", {rid: r}, {}, {})
+
+
+def lines_of(text: str) -> list[str]:
+    return text.splitlines()
 
 
 def test_view_model_poses_latency_rates_and_drops():
@@ -28,21 +40,102 @@ def test_view_model_poses_latency_rates_and_drops():
     assert v.pose == (0.3, 0.5, 0.1) and v.goal == (2.0, 0.5) and v.status == "moving"
     assert abs(v.latency_ms(0.5) - 3.0) < 1e-6  # first sense of the tick to the command of the same stamp
     assert st.drops.total == 1  # the malformed command was dropped and counted
-    st.set_alive({"cekm/r1/alive/motor", "cekm/r1/alive/target"})
+    st.set_alive({"cekm/r1/alive/motor", "cekm/r1/alive/target", WORLD_TOKEN})
     n, missing = st.modules_alive("r1")
     assert n == 2 and "obstacle-0" in missing
     text = render_text(st, now=10.01)
-    assert "r1" in text and "moving" in text and "2/14" in text and "dropped: 1" in text
+    assert lines_of(text)[0] == "cekm monitor running  sim 1.00 s  dropped 1"
+    row = next(line for line in lines_of(text) if line.startswith("r1 "))
+    assert row.split() == ["r1", "0.300", "0.500", "0.10", "(2.00,0.50)", "moving", "0.100", "0.120", "2/14",
+                           "3.0/3.0"]
+    assert "missing: obstacle-0, obstacle-1" in text
     st.observe(K.cmd_wheels("r1"), encode(WheelCommand(2.0, "r1/motor", 0.0, 0.0, 2)), at=11.0)
     assert st.robots["r1"].status == "stopped"
+
+
+def test_phases_waiting_running_stale_ended_and_replay():
+    st = MonitorState()
+    text = render_text(st, now=0.0)
+    assert lines_of(text)[0].startswith("cekm monitor waiting for the world  sim -")
+    assert "waiting for the world server's first state" in text
+    st.set_alive(ALL_MODULES | {WORLD_TOKEN})
+    assert st.phase(1.0) == "waiting for the world"  # modules up, tick 0 not yet
+    st.observe(K.world_state(), encode(world_state(0.0, 0.3)), at=2.0)
+    assert st.phase(2.5) == "running"
+    assert st.phase(6.0) == "no world state for 4 s"  # still alive, but silent
+    st.set_alive(ALL_MODULES)  # the world server left
+    assert st.phase(6.0) == "run ended"
+    assert lines_of(render_text(st, now=6.0))[0].startswith("cekm monitor run ended  sim 0.00 s")
+    st.set_alive(set())  # then the modules
+    assert st.phase(6.0) == "run ended"
+    st.observe(K.world_state(), encode(world_state(9.0, 0.4)), at=7.0)  # a replay: states, no tokens
+    assert st.phase(7.5) == "replay" and st.phase(20.0) == "run ended"
+    quiet = MonitorState()
+    quiet.observe(K.world_state(), encode(world_state(0.0, 0.3)), at=0.0)
+    assert quiet.phase(5.0) == "run ended"  # no token ever, states stopped: a replay that finished
+
+
+def test_every_line_fits_80_columns_whatever_the_values():
+    st = MonitorState()
+    long_id = "r" + "x" * 63
+    st.observe(K.world_state(), encode(WorldState(1e9, "world", {
+        long_id: {"x": -1234567.891, "y": 1e300, "theta": -3.14159, "goal": [-1e6, 1e6]},
+        "r2": {"x": 0.1, "y": 0.2, "theta": 0.3, "goal": None}}, {}, {})), at=1.0)
+    st.observe(K.cmd_wheels(long_id), encode(WheelCommand(1e9, "m", -0.15625, 0.15625, 1)), at=1.0)
+    for j in range(12):
+        st.observe(K.field_obstacle(long_id, j), b"\x80", at=1.0)  # malformed, counted
+    st.set_alive({K.alive(long_id, "motor")})
+    for kw in ({}, {"key_filter": key_filter(["cekm/**"])}):
+        text = render_text(st, now=1.5, endpoint="tcp/[fe80::1234:5678:9abc:def0]:7447", **kw)
+        assert max(len(line) for line in lines_of(text)) <= 80, text
+    assert "dropped 12" in text and "cekm/rxxxxxxx" in text
+    assert sum(1 for line in lines_of(text) if line.startswith(("rxxxx", "r2 "))) == 2
+
+
+def test_robot_filter_and_key_filter():
+    st = MonitorState()
+    st.observe(K.world_state(), encode(WorldState(1.0, "world", {
+        "r1": {"x": 0.1, "y": 0.2, "theta": 0.0}, "r2": {"x": 1.1, "y": 1.2, "theta": 0.0}}, {}, {})), at=1.0)
+    st.observe(K.cmd_wheels("r1"), encode(WheelCommand(1.0, "r1/motor", 0.1, 0.1, 1)), at=1.0)
+    st.observe(K.cmd_wheels("r2"), encode(WheelCommand(1.0, "r2/motor", 0.1, 0.1, 1)), at=1.0)
+    text = render_text(st, now=1.1, robots={"r2", "r9"}, key_filter=key_filter(["cekm/r2/**"]))
+    rows = [line.split()[0] for line in lines_of(text)]
+    assert "r2" in rows and "r1" not in rows and "r9:" in rows and "not seen" in text
+    assert "cekm/r2/cmd/wheels" in text and "cekm/r1/cmd/wheels" not in text and "cekm/world/state" not in text
+    summary = render_text(st, now=1.1)
+    assert "3 keys active" in summary and "cekm/r1/cmd/wheels" not in summary  # no key list unless asked
+    doc = json.loads(json_line(snapshot(st, 1.1, robots={"r2"}, key_filter=key_filter(["cekm/r2/**"]))))
+    assert doc["phase"] == "replay" and list(doc["robots"]) == ["r2"] and doc["robots"]["r2"]["status"] == "moving"
+    assert doc["robots"]["r2"]["pose"] == [1.1, 1.2, 0.0] and doc["robots"]["r2"]["latency_ms_p50"] is None
+    assert [k["key"] for k in doc["keys"]] == ["cekm/r2/cmd/wheels"]
+
+
+def test_a_world_state_it_cannot_draw_is_dropped_and_counted_not_a_crash():
+    st = MonitorState()
+    st.observe(K.world_state(), encode(world_state(1.0, 0.3)), at=1.0)
+    bad_states = [
+        WorldState(2.0, "world", {"r1": {"y": 0.5, "theta": 0.0}}, {}, {}),  # no x
+        WorldState(2.0, "world", {"r1": {"x": "left", "y": 0.5, "theta": 0.0}}, {}, {}),
+        WorldState(2.0, "world", {"r1": {"x": 0.1, "y": 0.5, "theta": 0.0, "goal": [1.0]}}, {}, {}),
+        WorldState(2.0, "world", {"r1": {"x": 0.1, "y": 0.5, "theta": 0.0, "in_contact": "yes"}}, {}, {}),
+        WorldState(2.0, "world", {"r1": {"x": True, "y": 0.5, "theta": 0.0}}, {}, {}),
+    ]
+    for i, s in enumerate(bad_states):
+        st.observe(K.world_state(), encode(s), at=2.0 + i)
+    wire = msgpack.unpackb(encode(world_state(3.0, 0.3)))
+    wire["robots"]["r1"]["x"] = float("nan")
+    st.observe(K.world_state(), msgpack.packb(wire), at=9.0)
+    assert st.drops.total == len(bad_states) + 1
+    assert st.robots["r1"].pose == (0.3, 0.5, 0.1) and st.sim_time == 1.0  # the last good state stays
+    assert "dropped 6" in render_text(st, now=9.0)
 
 
 def test_monitor_command_attaches_to_a_live_run(router, clients):
     """`cekm monitor --once` in another process sees the robot, its module and the keys."""
     pub = clients()
     token = declare_alive(pub, "cekm/r1/alive/motor")
-    proc = subprocess.Popen([sys.executable, "-m", "cekm_swarm", "monitor", "--connect", router, "--once", "2"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen([sys.executable, "-m", "cekm_swarm", "monitor", "--connect", router, "--once", "2",
+                             "--keys", "cekm/**"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     t = 0.0
     while proc.poll() is None:  # publish a steady run until the monitor has taken its snapshot
         t += 0.128
@@ -54,6 +147,32 @@ def test_monitor_command_attaches_to_a_live_run(router, clients):
             pass
     out, err = proc.communicate(timeout=10)
     assert proc.returncode == 0, err
+    assert out.startswith("cekm monitor running") and max(len(line) for line in out.splitlines()) <= 80
     assert "r1" in out and "moving" in out and "1/14" in out
     assert "cekm/r1/cmd/wheels" in out and "cekm/world/state" in out
     del token
+
+
+def test_invented_keys_and_robots_cannot_grow_the_monitor_without_bound(monkeypatch):
+    from cekm_swarm.runtime import monitor
+
+    monkeypatch.setattr(monitor, "MAX_KEYS", 5)
+    monkeypatch.setattr(monitor, "MAX_ROBOTS", 3)
+    st = MonitorState()
+    for i in range(10):
+        st.observe(K.cmd_wheels(f"r{i}"), encode(WheelCommand(1.0, "m", 0.1, 0.1, 1)), at=1.0)
+    assert len(st.arrivals) == 5 and len(st.robots) == 3 and st.untracked == 5 + 2
+    assert "untracked 7" in render_text(st, now=1.0)
+
+
+def test_tokens_with_a_run_id_count_as_the_world_and_modules():
+    from cekm_swarm.protocol import KeySpace
+
+    run = KeySpace(run="run-7")
+    st = MonitorState()
+    st.set_alive({run.alive("r1", m) for m in run.module_names()} | {run.alive("world", "server")})
+    st.observe(K.world_state(), encode(world_state(0.5, 0.3)), at=1.0)
+    assert st.phase(1.2) == "running" and st.modules_alive("r1") == (14, [])
+    assert "  run run-7" in lines_of(render_text(st, now=1.2))[0]
+    st.set_alive({run.alive("r1", m) for m in run.module_names()})
+    assert st.phase(2.5) == "run ended"  # the world's token went away

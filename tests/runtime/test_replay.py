@@ -10,7 +10,8 @@ import pytest
 from cekm_swarm.protocol import DEFAULT_KEYS
 from cekm_swarm.runtime.bridge import Publishers
 from cekm_swarm.runtime.mcap_log import McapRecorder
-from cekm_swarm.runtime.replay import replay_log
+from cekm_swarm.runtime.config import free_port
+from cekm_swarm.runtime.replay import ReplayControl, replay_log
 
 from runtime_samples import sample_traffic, write_log
 
@@ -97,3 +98,100 @@ def test_replay_loops_and_filters_and_stops(tmp_path, clients):
     assert stopped.stopped and stopped.published == 0
     sub.undeclare()
     pubs.close()
+
+
+def test_replay_starts_at_an_offset_and_reports_progress(tmp_path, clients):
+    path = tmp_path / "run.mcap"
+    write_log(path, [(K.world_clock(), bytes([0x80 + 0]), t) for t in (0.0, 0.5, 1.0, 1.5, 2.0)])
+    a, b = clients(), clients()
+    got: list[float] = []
+    done = threading.Event()
+    sub = b.declare_subscriber(K.world_clock(), lambda s: (got.append(time.monotonic()), len(got) == 3 and done.set()))
+    pubs = ready_publishers(a, K.world_clock())
+    reports = []
+    result = replay_log(a, path, rate=None, start=0.9, publishers=pubs, on_progress=reports.append)
+    assert done.wait(T)
+    sub.undeclare()
+    pubs.close()
+    assert result.published == 3 and result.sim_seconds == pytest.approx(1.0)  # 1.0, 1.5, 2.0
+    last = reports[-1]
+    assert (last.sim_time, last.start, last.end, last.published, last.fraction) == (2.0, 0.0, 2.0, 3, 1.0)
+    assert last.line().startswith("replay    2.00 / 2.00 s  100%  3 msgs  loop 1")
+
+
+def test_replay_pauses_and_resumes(tmp_path, clients):
+    """Paused before the first message, the replay publishes nothing and reports it is
+    paused; resumed, it publishes everything, keeping the recorded gaps."""
+    path = tmp_path / "run.mcap"
+    write_log(path, [(K.world_clock(), b"\x80", t) for t in (0.0, 0.2, 0.4)])
+    a = clients()
+    pubs = Publishers(a, block=True)
+    control = ReplayControl()
+    control.pause()
+    paused = threading.Event()
+    reports = []
+
+    def on_progress(p):
+        reports.append(p)
+        if p.paused:
+            paused.set()
+
+    out: list = []
+    t = threading.Thread(target=lambda: out.append(replay_log(a, path, rate=1.0, publishers=pubs, control=control,
+                                                               on_progress=on_progress)))
+    t.start()
+    assert paused.wait(T)
+    assert all(p.published == 0 for p in reports) and reports[-1].line().endswith("[paused: space to resume]")
+    t_resume = time.perf_counter()
+    control.resume()
+    t.join(T)
+    pubs.close()
+    result = out[0]
+    assert result.published == 3 and not result.stopped
+    assert time.perf_counter() - t_resume >= 0.4  # the gaps after the pause were kept (never ahead of schedule)
+    stop = threading.Event()
+    control.pause()
+    stopper = threading.Thread(target=lambda: paused.wait(T) and stop.set())
+    paused.clear()
+    stopper.start()
+    stopped = replay_log(a, path, rate=1.0, publishers=Publishers(a, block=True), control=control, stop=stop,
+                         on_progress=on_progress)
+    stopper.join(T)
+    assert stopped.stopped and stopped.published == 0  # a stop ends a paused replay
+
+
+def test_replay_command_hosts_the_router_when_told_no_endpoint(tmp_path):
+    """`cekm replay LOG --port P` with no --connect and no CEKM_CONNECT hosts the router:
+    a client joins it (waiting until it is up), receives the replay, and Ctrl-C ends it
+    with exit code 130. A taken port is a clear error."""
+    import os
+    import signal
+    import subprocess
+    import sys
+
+    from cekm_swarm.runtime.wait import ENV_CONNECT, open_client_when_ready
+
+    path = tmp_path / "run.mcap"
+    write_log(path, sample_traffic(10))
+    port = free_port()
+    env = {k: v for k, v in os.environ.items() if k != ENV_CONNECT}
+    proc = subprocess.Popen([sys.executable, "-m", "cekm_swarm", "replay", str(path), "--port", str(port), "--loop",
+                             "--rate", "10"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    try:
+        session = open_client_when_ready(f"tcp/127.0.0.1:{port}", timeout=T)
+        got = threading.Event()
+        sub = session.declare_subscriber(K.cmd_wheels("r1"), lambda s: got.set())
+        assert got.wait(T)
+        sub.undeclare()
+        taken = subprocess.run([sys.executable, "-m", "cekm_swarm", "replay", str(path), "--port", str(port)],
+                               capture_output=True, text=True, env=env, timeout=60)
+        session.close()
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=T)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 130, err
+    assert f"replay: hosting the router on tcp/127.0.0.1:{port}" in err and out.startswith("published ")
+    assert taken.returncode == 1 and f"holds port {port}?" in taken.stderr

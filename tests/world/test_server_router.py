@@ -121,3 +121,24 @@ def test_listen_is_refused_with_a_client_config_and_a_non_tcp_endpoint(tmp_path)
     r = subprocess.run([*base, "--listen", "tcp/127.0.0.1:7447", "--connect", "tcp/127.0.0.1:7448"],
                        capture_output=True, text=True, timeout=60)
     assert r.returncode == 2 and "not allowed with argument" in r.stderr
+
+
+def test_the_world_counts_only_the_tokens_of_its_own_run(world):
+    """Modules of another run (left over, or sharing the router) are never counted: with
+    every module of run B alive and all but the motor of run A, the world of run A still
+    misses run A's motor."""
+    w = world("--mode", "lockstep", "--wait-modules", "1.5", "--run-id", "run-a")
+    assert w.next_kind()[0] == "READY"
+    mine, other = K.with_run("run-a"), K.with_run("run-b")
+    session = open_client(w.endpoint)
+    tokens = [session.liveliness().declare_token(other.alive("r1", m)) for m in K.module_names()]
+    tokens += [session.liveliness().declare_token(mine.alive("r1", m)) for m in K.module_names() if m != "motor"]
+    try:
+        kind, doc = w.next_kind()
+        assert kind == "EVENT" and doc["event"] == "modules_missing"
+        assert doc["missing"] == [mine.alive("r1", "motor")]
+        assert "START" not in w.rest()
+    finally:
+        for t in tokens:
+            t.undeclare()
+        session.close()

@@ -1,0 +1,166 @@
+"""What every ``cekm`` command shares: argument types that validate and name the option,
+output directories that never mix two runs, and one error style with fixed exit codes.
+
+Exit codes (``cekm_swarm.errors``): 0 done, 1 the run failed (``cekm: failed: ...``),
+2 bad usage or input (``cekm: error: ...``), 130 interrupted (``cekm: interrupted``).
+Every error is one line on stderr; a traceback means a bug.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import click
+
+from .errors import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, CekmError, OutputDirError
+
+# ---------------------------------------------------------------------------- types
+
+
+class _Checked(click.ParamType):
+    """A text option checked by ``check`` (a function raising CekmError or ValueError)."""
+
+    def __init__(self, name: str, check: Callable[[str], Any]) -> None:
+        self.name = name
+        self._check = check
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        if not isinstance(value, str):
+            return value
+        try:
+            return self._check(value)
+        except (CekmError, ValueError) as exc:
+            self.fail(str(exc), param, ctx)
+
+
+def _endpoint(text: str) -> str:
+    from .runtime.config import check_endpoint
+
+    return check_endpoint(text)
+
+
+def _root(text: str) -> str:
+    from .protocol import validate_root
+
+    return validate_root(text)
+
+
+def _run_id(text: str) -> str:
+    from .protocol import validate_run_id
+
+    return validate_run_id(text)
+
+
+SEED = click.IntRange(0, 2**32 - 1)
+"""A seed: 0 .. 2^32 - 1 (what every random generator of the package accepts)."""
+ENDPOINT = _Checked("endpoint", _endpoint)
+ROOT = _Checked("root", _root)
+RUN_ID = _Checked("run id", _run_id)
+
+
+# ---------------------------------------------------------------------------- output directories
+
+
+def out_dir_options(help_text: str) -> Callable[[Callable], Callable]:
+    """``--out DIR`` (required) and ``--overwrite`` for a command that writes a directory."""
+
+    def decorate(f: Callable) -> Callable:
+        f = click.option("--overwrite", is_flag=True,
+                         help="Clear a non-empty --out directory first (without it, one is refused).")(f)
+        return click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), required=True,
+                            help=help_text)(f)
+
+    return decorate
+
+
+def prepare_out_dir(path: Path, overwrite: bool) -> Path:
+    """Make ``path`` an empty directory for one run's files: a non-empty one is refused
+    unless ``overwrite`` (then its contents are removed first), so a run never mixes its
+    files with another's. Call it once the other arguments are checked, before writing."""
+    if path.exists() and not path.is_dir():
+        raise OutputDirError(f"--out {path}: exists and is not a directory")
+    if path.is_dir():
+        entries = sorted(p.name for p in path.iterdir())
+        if entries:
+            if not overwrite:
+                shown = ", ".join(entries[:4]) + (", ..." if len(entries) > 4 else "")
+                raise OutputDirError(f"--out {path}: not empty ({len(entries)} entries: {shown}); "
+                                     f"give --overwrite to clear it first, or choose another directory")
+            _refuse_to_clear(path)
+            for p in path.iterdir():
+                if p.is_dir() and not p.is_symlink():
+                    shutil.rmtree(p)
+                else:
+                    p.unlink()
+    path.mkdir(parents=True, exist_ok=True)
+    return path
+
+
+def _refuse_to_clear(path: Path) -> None:
+    here = Path.cwd().resolve()
+    target = path.resolve()
+    if target == Path(target.anchor) or target == Path.home().resolve() or here == target or target in here.parents:
+        raise OutputDirError(f"--out {path}: refusing to clear {target} (the root, the home directory, "
+                             f"or the working directory or one above it)")
+
+
+# ---------------------------------------------------------------------------- errors
+
+
+class RunFailed(click.ClickException):
+    """A command's run failed (exit 1): the router unreachable, a process that did not come up."""
+
+    exit_code = EXIT_FAILED
+
+
+class Interrupted(click.ClickException):
+    """The user stopped the command (Ctrl-C): exit 130, after what it could save was saved."""
+
+    exit_code = EXIT_INTERRUPTED
+
+    def __init__(self, message: str = "interrupted") -> None:
+        super().__init__(message)
+
+
+def say_error(kind: str, message: str) -> None:
+    """One line on stderr: ``cekm: error: ...`` (usage) or ``cekm: failed: ...`` (a run)."""
+    text = " ".join(str(message).split())  # one line, whatever the message held
+    click.echo(f"cekm: {kind}: {text}" if kind else f"cekm: {text}", err=True)
+
+
+def run_cli(group: click.Group, argv: list[str] | None = None) -> int:
+    """Run the ``cekm`` group and map every outcome to one line and an exit code."""
+    try:
+        rv = group.main(args=argv, prog_name="cekm", standalone_mode=False)
+    except click.exceptions.Exit as exc:
+        return exc.exit_code
+    except click.exceptions.Abort:
+        say_error("", "interrupted")
+        return EXIT_INTERRUPTED
+    except KeyboardInterrupt:
+        say_error("", "interrupted")
+        return EXIT_INTERRUPTED
+    except click.UsageError as exc:
+        hint = f" (see '{exc.ctx.command_path} --help')" if exc.ctx is not None else ""
+        say_error("error", exc.format_message() + hint)
+        return EXIT_USAGE
+    except Interrupted as exc:
+        say_error("", exc.format_message())
+        return EXIT_INTERRUPTED
+    except click.ClickException as exc:
+        say_error("failed" if exc.exit_code == EXIT_FAILED else "error", exc.format_message())
+        return exc.exit_code
+    except CekmError as exc:
+        say_error("failed" if exc.exit_code == EXIT_FAILED else "error", str(exc))
+        return exc.exit_code
+    except BrokenPipeError:  # the reader of our output went away (``cekm topic echo | head``)
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())  # the interpreter's last flush goes nowhere
+        os.close(devnull)
+        return EXIT_OK
+    return rv if isinstance(rv, int) else EXIT_OK

@@ -1,0 +1,201 @@
+"""``cekm record``: record live keys into an MCAP log like the world server's own.
+
+The same recorder (:class:`~cekm_swarm.runtime.mcap_log.McapRecorder`: one msgpack
+channel per key, log time = the message's sim-time stamp) and, from ``world/state``, the
+same Foxglove view channels (:class:`~cekm_swarm.runtime.foxglove_view.FoxgloveViews`:
+robots, targets, moving obstacles, transforms, paths). The static scene (walls, fixed
+obstacles) is not published: the world server serves it on a queryable
+(:func:`serve_geometry`, key ``<root>/world/geometry``), which the recorder asks once it
+sees the first world state, and writes as the world's log does (the ``geometry``
+metadata record and the first ``/view/scene``). A router that refuses the query (access
+control) leaves the recording without it, and says so.
+
+A message whose stamp cannot be read is still recorded, at the latest sim time seen; a
+``world/state`` that does not decode is recorded but drawn in no view, and counted.
+"""
+
+from __future__ import annotations
+
+import json
+import queue
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import zenoh
+
+from cekm_swarm.protocol import DEFAULT_KEYS, DropCounter, KeyKind, KeySpace, KeySpaceError, WorldState, peek
+
+from .mcap_log import McapRecorder
+
+
+GEOMETRY_ENCODING = "application/json"
+
+
+def serve_geometry(session: zenoh.Session, key: str, geometry: dict[str, Any]) -> zenoh.Queryable:
+    """Answer queries on ``key`` with ``geometry`` as JSON (the world server calls this);
+    undeclare the returned queryable when done."""
+    blob = json.dumps(geometry).encode()
+
+    def reply(query: zenoh.Query) -> None:
+        query.reply(key, blob, encoding=zenoh.Encoding(GEOMETRY_ENCODING))
+
+    return session.declare_queryable(key, zenoh.handlers.Callback(reply, indirect=True))
+
+
+def fetch_geometry(session: zenoh.Session, key: str, timeout: float = 2.0) -> dict[str, Any] | None:
+    """The static scene served on ``key``, or None (no answer, or an answer that is not a
+    JSON map: a malformed reply is ignored, never raised)."""
+    try:
+        replies = list(session.get(key, timeout=timeout))
+    except Exception:
+        return None
+    for r in replies:
+        if r.ok is None:
+            continue
+        try:
+            doc = json.loads(r.ok.payload.to_bytes())
+        except ValueError:
+            continue
+        if isinstance(doc, dict):
+            return doc
+    return None
+
+
+@dataclass
+class RecordResult:
+    """What a recording holds: messages per key, view messages written, malformed seen."""
+
+    messages: int = 0
+    per_key: dict[str, int] = field(default_factory=dict)
+    malformed: int = 0
+    views: bool = False
+    geometry: bool = False
+    wall_seconds: float = 0.0
+    first_stamp: float | None = None
+    last_stamp: float | None = None
+
+
+class Recording:
+    """The pure part: feed (key, payload) in arrival order; writes the log. One thread."""
+
+    def __init__(self, recorder: McapRecorder, keys: KeySpace = DEFAULT_KEYS, views: bool = True,
+                 geometry: Callable[[], dict[str, Any] | None] | None = None) -> None:
+        self.recorder = recorder
+        self._geometry = geometry  # asked once, at the first world state
+        self.keys = keys
+        self.drops = DropCounter("record", keys=keys)
+        self.result = RecordResult()
+        self._last = 0.0
+        self._views = None
+        if views:
+            try:
+                from . import foxglove_view
+
+                if foxglove_view.available():
+                    self._views = foxglove_view.FoxgloveViews(recorder)
+                    self.result.views = True
+            except ImportError:  # pragma: no cover - foxglove-sdk missing
+                self._views = None
+
+    def add(self, key: str, payload: bytes) -> None:
+        """Record one message received on ``key``."""
+        _, stamp = peek(payload)
+        t = self._last if stamp is None else stamp
+        self._last = max(self._last, t)
+        self.recorder.write(key, payload, t)
+        r = self.result
+        r.messages += 1
+        r.per_key[key] = r.per_key.get(key, 0) + 1
+        if stamp is not None:
+            r.first_stamp = stamp if r.first_stamp is None else min(r.first_stamp, stamp)
+            r.last_stamp = stamp if r.last_stamp is None else max(r.last_stamp, stamp)
+        if self._is_state(key):
+            msg = self.drops.decode(key, payload)
+            if isinstance(msg, WorldState) and self._geometry is not None:
+                self._add_geometry(msg.stamp)
+            if isinstance(msg, WorldState) and self._views is not None:
+                try:
+                    self._views.write_state(msg.stamp, {"robots": msg.robots, "targets": msg.targets,
+                                                        "obstacles": msg.obstacles})
+                except (KeyError, TypeError, ValueError) as exc:  # well-formed plain data, wrong shape
+                    self.drops.drop(key, f"world state not drawable: {exc!r}")
+        r.malformed = self.drops.total
+
+    def _add_geometry(self, t: float) -> None:
+        source, self._geometry = self._geometry, None
+        geometry = source() if source is not None else None
+        if geometry is None:
+            return
+        self.recorder.add_metadata("geometry", {"json": json.dumps(geometry)})
+        if self._views is not None:
+            try:
+                self._views.write_geometry(t, geometry)
+            except (KeyError, TypeError, ValueError, IndexError) as exc:  # a scene it cannot draw
+                self.drops.drop(self.keys.world_geometry(), f"geometry not drawable: {exc!r}")
+                return
+        self.result.geometry = True
+
+    def _is_state(self, key: str) -> bool:
+        try:
+            return self.keys.parse(key).kind is KeyKind.WORLD_STATE
+        except KeySpaceError:
+            return False
+
+
+def record(session: zenoh.Session, out: str | Path, key_expr: str, *, keys: KeySpace = DEFAULT_KEYS,
+           stop: threading.Event, duration: float | None = None, count: int | None = None,
+           metadata: dict[str, str] | None = None, views: bool = True,
+           on_first: Callable[[], None] | None = None,
+           on_progress: Callable[[RecordResult], None] | None = None, progress_every: float = 1.0) -> RecordResult:
+    """Record every sample on ``key_expr`` into ``out`` until ``stop`` is set, ``duration``
+    seconds passed, or ``count`` messages were recorded. The file is closed (indexed) at the
+    end, and flushed every half second on the way, so a killed recorder leaves a log that
+    ``cekm log info --recover`` restores."""
+    inbox: queue.SimpleQueue[tuple[str, bytes] | None] = queue.SimpleQueue()
+
+    def on_sample(sample: zenoh.Sample) -> None:  # Zenoh's thread: hand over and return
+        if sample.kind == zenoh.SampleKind.PUT:
+            inbox.put((str(sample.key_expr), sample.payload.to_bytes()))
+
+    meta = {"recorded_by": "cekm record", "key_expr": key_expr}
+    meta.update(metadata or {})
+    t0 = time.monotonic()
+    with McapRecorder(out, keys=keys, metadata=meta) as recorder:
+        rec = Recording(recorder, keys, views, geometry=lambda: fetch_geometry(session, keys.world_geometry()))
+        sub = session.declare_subscriber(key_expr, on_sample)
+        last_progress = t0
+        try:
+            while not stop.is_set():
+                now = time.monotonic()
+                if duration is not None and now - t0 >= duration:
+                    break
+                if count is not None and rec.result.messages >= count:
+                    break
+                wait = 0.1 if duration is None else max(0.0, min(0.1, t0 + duration - now))
+                try:
+                    item = inbox.get(timeout=wait)
+                except queue.Empty:
+                    recorder.maybe_flush()
+                    item = None
+                if item is not None:
+                    if rec.result.messages == 0 and on_first is not None:
+                        on_first()
+                    rec.add(*item)
+                if on_progress is not None and time.monotonic() - last_progress >= progress_every:
+                    last_progress = time.monotonic()
+                    on_progress(rec.result)
+        finally:
+            sub.undeclare()
+            while count is None or rec.result.messages < count:  # what arrived before the stop
+                try:
+                    item = inbox.get_nowait()
+                except queue.Empty:
+                    break
+                if item is not None:
+                    rec.add(*item)
+    rec.result.wall_seconds = time.monotonic() - t0
+    return rec.result

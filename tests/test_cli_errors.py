@@ -1,0 +1,184 @@
+"""Bad arguments to every ``cekm`` command end in one line on stderr, in one style, with
+the documented exit code, and never a traceback; ``--out`` never mixes two runs."""
+
+from __future__ import annotations
+
+import click
+import pytest
+
+from cekm_swarm.cli import main
+from cekm_swarm.cli_support import SEED, Interrupted, prepare_out_dir, run_cli
+from cekm_swarm.errors import CekmError, OutputDirError, RunError
+
+
+def leaf_commands(group: click.Group = main, path: tuple[str, ...] = ()) -> list[tuple[tuple[str, ...], click.Command]]:
+    out = []
+    for name, cmd in sorted(group.commands.items()):
+        if isinstance(cmd, click.Group):
+            out += leaf_commands(cmd, path + (name,))
+        else:
+            out.append((path + (name,), cmd))
+    return out
+
+
+COMMANDS = leaf_commands()
+
+
+def one_error_line(capsys, argv: list[str], code: int = 2, kind: str = "error") -> str:
+    """Run ``cekm argv``; assert the exit code and exactly one stderr line of the style."""
+    assert run_cli(main, argv) == code
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    lines = err.splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith(f"cekm: {kind}: "), lines[0]
+    return lines[0]
+
+
+def test_every_command_is_covered():
+    names = {" ".join(p) for p, _ in COMMANDS}
+    assert {"run", "launch", "train", "experiment target-reaching", "experiment obstacles", "sweep concave",
+            "fields", "plot"} <= names
+
+
+@pytest.mark.parametrize("path", [p for p, _ in COMMANDS], ids=lambda p: " ".join(p))
+def test_an_unknown_option_is_a_usage_error_naming_it(capsys, path):
+    line = one_error_line(capsys, [*path, "--no-such-option"])
+    assert "--no-such-option" in line and f"cekm {' '.join(path)} --help" in line
+
+
+@pytest.mark.parametrize("path", [p for p, c in COMMANDS if any(q.required for q in c.params)],
+                         ids=lambda p: " ".join(p))
+def test_a_missing_required_argument_is_a_usage_error(capsys, path):
+    one_error_line(capsys, list(path))
+
+
+def valid_argv(cmd: click.Command, tmp_path) -> list[str]:
+    """The required arguments of ``cmd`` with values that pass its parser."""
+    existing = tmp_path / "exists.bin"
+    existing.write_bytes(b"")
+    values = {"scenario": "lone_obstacle", "out_dir": str(tmp_path / "new-out"), "out_path": str(tmp_path / "o.png"),
+              "at_time": "1", "key_expr": "cekm/**", "log_file": str(existing), "log": str(existing),
+              "key": "cekm/r1/cmd/wheels", "message": "{}", "out_file": str(tmp_path / "out.mcap")}
+    argv: list[str] = []
+    for p in cmd.params:
+        if p.required:
+            if isinstance(p, click.Argument):
+                argv.append(values[p.name])
+            else:
+                argv += [p.opts[0], values[p.name]]
+    return argv
+
+
+def bad_values(param: click.Parameter) -> list[str]:
+    """Values the parameter's type must refuse."""
+    t = param.type
+    if t is SEED:
+        return ["-1", "x"]
+    if isinstance(t, (click.IntRange, click.FloatRange)):
+        return [str(b) for b in (None if t.min is None else t.min - 1, None if t.max is None else t.max + 1)
+                if b is not None] + ["x"]
+    if isinstance(t, click.Choice):
+        return ["no-such-choice"]
+    if t in (click.INT, click.FLOAT):
+        return ["x"]
+    if isinstance(t, click.Path) and t.exists:
+        return ["/no/such/path"]
+    if getattr(t, "name", "") in ("endpoint", "root", "run id"):
+        return ["a*b"]
+    return []
+
+
+CASES = [(path, p.opts[0], bad) for path, c in COMMANDS for p in c.params
+         if isinstance(p, click.Option) and not p.is_flag for bad in bad_values(p)]
+
+
+@pytest.mark.parametrize("path,option,bad", CASES, ids=lambda v: " ".join(v) if isinstance(v, tuple) else str(v))
+def test_a_bad_option_value_is_refused_by_name_before_the_command_runs(capsys, tmp_path, monkeypatch, path, option,
+                                                                      bad):
+    cmd = dict(COMMANDS)[path]
+    ran = []
+    monkeypatch.setattr(cmd, "callback", lambda **kw: ran.append(kw))  # the checks are the parser's: nothing runs
+    argv = valid_argv(cmd, tmp_path)
+    line = one_error_line(capsys, [*path, *argv, option, bad])
+    assert option in line and not ran
+
+
+@pytest.mark.parametrize("argv,needle", [
+    (["run", "no_such_scenario", "--out", "{out}"], "no such scenario"),
+    (["launch", "lone_obstacle", "--robots", "r9", "--out", "{out}"], "no robot r9"),
+    (["launch", "lone_obstacle", "--no-world", "--robots", "none", "--out", "{out}"], "--no-world"),
+    (["launch", "lone_obstacle", "--listen", "not a host!", "--out", "{out}"], "--listen"),
+    (["fields", "lone_obstacle", "--at", "1", "--robot", "r9", "--out", "{out}/f.png"], "no robot 'r9'"),
+    (["sweep", "concave", "--seeds", "1,-2", "--out", "{out}"], "--seeds"),
+    (["sweep", "concave", "--depths", "x", "--out", "{out}"], "--depths"),
+    (["experiment", "obstacles", "--seeds", "a", "--out", "{out}"], "--seeds"),
+    (["experiment", "target-reaching", "--networks", "Q9", "--out", "{out}"], "Q9"),
+    (["train", "--network", "Z1", "--out", "{out}/m.npz"], "Z1"),
+])
+def test_values_checked_in_the_command_are_named_too(capsys, tmp_path, argv, needle):
+    line = one_error_line(capsys, [a.replace("{out}", str(tmp_path / "out")) for a in argv])
+    assert needle in line
+    assert not (tmp_path / "out").exists()  # refused before anything was written
+
+
+def test_a_non_empty_out_directory_is_refused_and_left_alone(capsys, tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "trajectory.png").write_bytes(b"old run")
+    line = one_error_line(capsys, ["run", "lone_obstacle", "--out", str(out)])
+    assert f"--out {out}: not empty" in line and "--overwrite" in line
+    assert (out / "trajectory.png").read_bytes() == b"old run"
+
+
+def test_overwrite_clears_the_directory_first(tmp_path):
+    out = tmp_path / "out"
+    (out / "logs").mkdir(parents=True)
+    (out / "logs" / "r9-motor.log").write_text("an old robot's log")
+    (out / "trajectory.png").write_bytes(b"another scenario's picture")
+    assert prepare_out_dir(out, overwrite=True) == out
+    assert list(out.iterdir()) == []
+    (tmp_path / "f").write_text("x")
+    with pytest.raises(OutputDirError, match="not a directory"):
+        prepare_out_dir(tmp_path / "f", overwrite=True)
+
+
+def test_overwrite_refuses_to_clear_the_working_directory(tmp_path, monkeypatch):
+    (tmp_path / "keep").write_text("x")
+    monkeypatch.chdir(tmp_path)
+    for target in (tmp_path, tmp_path.parent):
+        with pytest.raises(OutputDirError, match="refusing to clear"):
+            prepare_out_dir(target, overwrite=True)
+    assert (tmp_path / "keep").exists()
+
+
+@click.group()
+def toy() -> None:
+    pass
+
+
+@toy.command()
+@click.option("--what")
+def fail(what: str) -> None:
+    raise {"run": RunError("the router went away"), "input": CekmError("model.npz: field 'W': bad shape"),
+           "interrupt": KeyboardInterrupt(), "interrupted": Interrupted(),
+           "multi": RunError("line one\nline two")}[what]
+
+
+@pytest.mark.parametrize("what,code,start", [
+    ("run", 1, "cekm: failed: the router went away"),
+    ("input", 2, "cekm: error: model.npz: field 'W': bad shape"),
+    ("interrupt", 130, "cekm: interrupted"),
+    ("interrupted", 130, "cekm: interrupted"),
+    ("multi", 1, "cekm: failed: line one line two"),
+])
+def test_exit_codes_and_one_line_per_kind_of_failure(capsys, what, code, start):
+    assert run_cli(toy, ["fail", "--what", what]) == code
+    err = capsys.readouterr().err
+    assert [line for line in err.splitlines() if line] == [start]  # (click ends a Ctrl-C's line first)
+
+
+def test_help_and_version_exit_0(capsys):
+    assert run_cli(main, ["--help"]) == 0
+    assert run_cli(main, ["launch", "--help"]) == 0
+    assert "--overwrite" in capsys.readouterr().out
