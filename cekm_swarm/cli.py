@@ -113,6 +113,25 @@ def obstacles(seeds: str, speed_unit: float | None, max_time: float, model_path:
     click.echo("wrote " + ", ".join(str(p) for p in paths))
 
 
+@experiment.command("tracking")
+@out_dir_options("Directory for results.json, tables.md and the figures.")
+@click.option("--seeds", default=10, show_default=True, type=click.IntRange(2, 1000), help="Seeds 1..N per team size.")
+@click.option("--robots", default="2,4,8", show_default=True, help="Team sizes, comma-separated.")
+@click.option("--duration", default=60.0, show_default=True, type=click.FloatRange(min=1.0), help="Sim seconds per run.")
+@click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path))
+@click.option("--workers", type=click.IntRange(1), help="Parallel processes (default: one per core).")
+@click.option("--quiet", is_flag=True, help="No progress bar.")
+def tracking_experiment(out_dir: Path, overwrite: bool, seeds: int, robots: str, duration: float,
+                        model_path: Path | None, workers: int | None, quiet: bool) -> None:
+    """Multi-robot tracking (Fig. 13): cooperative EKMs, A-CMOMMT and static robots on the same seeds."""
+    from .experiments.tracking import parse_team_sizes, run_tracking_experiment_cmd
+
+    sizes = parse_team_sizes(robots)
+    _model(model_path)
+    prepare_out_dir(out_dir, overwrite)
+    run_tracking_experiment_cmd(out_dir, seeds, sizes, duration, model_path, workers, quiet)
+
+
 @main.command()
 @click.option("--network", default="R15", show_default=True, help="Network name, e.g. R15 or G12.")
 @click.option("--steps", default=100_000, show_default=True, type=click.IntRange(1))
@@ -162,19 +181,38 @@ def _model(path: Path | None):
 
 @main.command("run")
 @click.argument("scenario")
-@click.option("--controller", type=click.Choice(["cekm", "fusion"]), default="cekm", show_default=True)
+@click.option("--controller", type=click.Choice(["cekm", "fusion", "acmommt", "stay"]), default="cekm",
+              show_default=True, help="cekm or fusion for navigation; cekm, acmommt or stay for tracking.")
 @click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               help="A trained model (.npz from `cekm train`); default: R15 trained and cached on first use.")
 @click.option("--seed", type=SEED, help="World seed (default: the scenario's).")
-@click.option("--max-time", default=600.0, show_default=True, type=click.FloatRange(min=1.0),
-              help="Sim seconds before a robot counts as trapped.")
+@click.option("--max-time", type=click.FloatRange(min=1.0),
+              help="Sim seconds before a robot counts as trapped (default 600); for a tracking scenario, the "
+                   "run's length (default 120).")
 @out_dir_options("Directory for outcome.json and trajectory.png.")
-def run_cmd(scenario: str, controller: str, model_path: Path | None, seed: int | None, max_time: float,
+def run_cmd(scenario: str, controller: str, model_path: Path | None, seed: int | None, max_time: float | None,
             out_dir: Path, overwrite: bool) -> None:
-    """Run SCENARIO (a name under world/scenarios or a .toml path) in one process, no Zenoh."""
+    """Run SCENARIO (a name under world/scenarios or a .toml path) in one process, no Zenoh.
+
+    A scenario with targets whose robots have no goal is a tracking scenario (Fig. 13)."""
     from .experiments.navigation import plot_run, run_scenario
+    from world.tracking import is_tracking
 
     sc = _load_scenario(scenario)
+    if is_tracking(sc):
+        from .experiments.tracking import run_tracking_cmd
+
+        if controller not in ("cekm", "acmommt", "stay"):
+            raise click.UsageError(f"--controller {controller}: {sc.name!r} is a tracking scenario "
+                                   "(cekm, acmommt or stay)")
+        if controller == "cekm":
+            _model(model_path)
+        prepare_out_dir(out_dir, overwrite)
+        run_tracking_cmd(sc, controller, model_path, seed, max_time, out_dir)
+        return
+    if controller not in ("cekm", "fusion"):
+        raise click.UsageError(f"--controller {controller}: {sc.name!r} is a navigation scenario (cekm or fusion)")
+    max_time = 600.0 if max_time is None else max_time
     model = _model(model_path)
     prepare_out_dir(out_dir, overwrite)
     t0 = time.perf_counter()

@@ -68,9 +68,15 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwr
     if connect is None and click.get_current_context().get_parameter_source("port") is not ParameterSource.COMMANDLINE:
         connect = _env_endpoint()  # --connect > CEKM_CONNECT > the embedded router (an explicit --port hosts it)
     try:
-        known = [r.id for r in load_scenario(scenario).robots]
+        sc = load_scenario(scenario)
     except ScenarioError as exc:
         raise click.UsageError(str(exc)) from None
+    from world.tracking import is_tracking
+
+    if is_tracking(sc):  # docs/tracking.md
+        raise click.UsageError(f"{sc.name!r} is a tracking scenario: its distributed runtime path is not built yet; "
+                               f"run it in one process with `cekm run {scenario} --controller cekm|acmommt|stay`")
+    known = [r.id for r in sc.robots]
     only = None if robots is None else tuple(r.strip() for r in robots.split(",") if r.strip() and r.strip() != "none")
     unknown = [r for r in only or () if r not in known]
     if unknown:

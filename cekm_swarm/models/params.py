@@ -111,3 +111,97 @@ class FieldParams:
 def params_to_dict(*objs) -> dict:
     """A JSON-ready dict of several parameter dataclasses, keyed by class name."""
     return {type(o).__name__: asdict(o) for o in objs}
+
+
+@dataclass(frozen=True)
+class TrackingParams:
+    """Multi-robot tracking with cooperative EKMs (Fig. 13; docs/tracking.md).
+
+    Distances are fractions of the robot's target sensing range R, so one set of values
+    serves any range.
+
+    standoff: a target farther than standoff * R is localized at (alpha, d - standoff * R)
+    (drive until it is standoff * R away); a nearer one at (alpha, 0), the goal state,
+    whose motor command only turns the robot to face it. The robot keeps a target inside
+    its sensing range instead of driving onto it.
+    watched_factor: a sensed target's weight is watched_factor ** n, n = teammates that
+    observe it (by their latest share) and are nearer to it than this robot: 1 when no
+    nearer teammate sees it, falling as more do (A-CMOMMT's rule, with the nearest
+    observer keeping full weight so that two robots on one target do not both leave it).
+    urgency: a sensed target's field is also scaled by (1 - urgency) + urgency * min(d / R,
+    1): a target near the edge of the sensing range, about to be lost, pulls harder than
+    one close by (0: no scaling).
+    teammate_near, teammate_far: a teammate's inhibitory field has weight 1 within
+    teammate_near * R, falling linearly to 0 at teammate_far * R (A-CMOMMT's shape).
+    teammate_sigma_alpha, teammate_sigma_d_beyond, teammate_sigma_d_near: its widths
+    (Eq. 8's form), wider than an obstacle field's so the robots spread out.
+    search_weight: weight of the search goal's target field (see :mod:`controller.search`).
+    search_reached: a last reported position is searched until the robot is within
+    search_reached * R of it without seeing the target; then it is forgotten.
+    wander_ahead_m: with nothing to search, the search goal is this far straight ahead.
+    share_timeout_s: a teammate whose latest share is older than this drops out of the
+    fields (the runtime also drops it when its liveliness tokens vanish).
+    memory_s: a target's last reported position is forgotten after this long.
+    """
+
+    standoff: float = 0.7
+    watched_factor: float = 0.25
+    urgency: float = 0.5
+    teammate_near: float = 0.5
+    teammate_far: float = 1.5
+    teammate_sigma_alpha: float = 0.99
+    teammate_sigma_d_beyond: float = 2.475
+    teammate_sigma_d_near: float = 0.0495
+    search_weight: float = 0.8
+    search_reached: float = 0.5
+    wander_ahead_m: float = 0.3
+    share_timeout_s: float = 1.0
+    memory_s: float = 30.0
+
+    def __post_init__(self) -> None:
+        _check_positive(self, "teammate_near", "teammate_far", "teammate_sigma_alpha", "teammate_sigma_d_beyond",
+                        "teammate_sigma_d_near", "search_weight", "search_reached", "wander_ahead_m",
+                        "share_timeout_s", "memory_s")
+        if not 0.0 <= self.standoff < 1.0:
+            raise ParameterError(f"TrackingParams.standoff must be in [0, 1), got {self.standoff!r}")
+        if not 0.0 <= self.urgency <= 1.0:
+            raise ParameterError(f"TrackingParams.urgency must be in [0, 1], got {self.urgency!r}")
+        if not 0.0 <= self.watched_factor <= 1.0:
+            raise ParameterError(f"TrackingParams.watched_factor must be in [0, 1], got {self.watched_factor!r}")
+        if not self.teammate_near < self.teammate_far:
+            raise ParameterError("TrackingParams.teammate_near must be below teammate_far")
+
+
+@dataclass(frozen=True)
+class ACMOMMTParams:
+    """The A-CMOMMT baseline (Parker, Autonomous Robots 12(3), 2002), distances as
+    fractions of the target sensing range R (Parker's do3 = R).
+
+    Robot-to-target force magnitude, piecewise linear in distance d: -1 at 0, 0 at do1,
+    +1 at do2, +1 up to do3, 0 at do4 (the predictive tracking range). Robot-to-robot:
+    -1 up to dr1, rising to 0 at dr2. The values scale one published reimplementation's
+    (0, 4, 8, 25, 30; 12.5, 20 with a sensing range of 25) by 1/25.
+    watched_weight: a target's weight when another robot observes it (1 otherwise).
+    obstacle_gain: repulsion from each distance sensor's obstacle, gain * (1 - r / range)
+    away from it (the robot's obstacle handling). turn_gain (1/s): omega = turn_gain *
+    heading error; forward speed v* |F| cos(error) when the error is below pi/2.
+    """
+
+    do1: float = 0.16
+    do2: float = 0.32
+    do3: float = 1.0
+    do4: float = 1.2
+    dr1: float = 0.5
+    dr2: float = 0.8
+    watched_weight: float = 0.25
+    obstacle_gain: float = 2.0
+    turn_gain: float = 4.0
+
+    def __post_init__(self) -> None:
+        _check_positive(self, "do1", "do2", "do3", "do4", "dr1", "dr2", "obstacle_gain", "turn_gain")
+        if not (self.do1 < self.do2 <= self.do3 < self.do4):
+            raise ParameterError("ACMOMMTParams: need do1 < do2 <= do3 < do4")
+        if not self.dr1 < self.dr2:
+            raise ParameterError("ACMOMMTParams: need dr1 < dr2")
+        if not 0.0 <= self.watched_weight <= 1.0:
+            raise ParameterError(f"ACMOMMTParams.watched_weight must be in [0, 1], got {self.watched_weight!r}")

@@ -5,6 +5,8 @@ Keys (root ``cekm`` by default, ``<robot>`` a robot id such as ``r1``):
 ========================================  ======================
 ``<root>/<robot>/sense/target``           KeyKind.SENSE_TARGET
 ``<root>/<robot>/sense/range/<j>``        KeyKind.SENSE_RANGE
+``<root>/<robot>/sense/pose``             KeyKind.SENSE_POSE (tracking)
+``<root>/<robot>/sense/targets``          KeyKind.SENSE_TARGETS (tracking)
 ``<root>/<robot>/field/target``           KeyKind.FIELD_TARGET
 ``<root>/<robot>/field/obstacle/<j>``     KeyKind.FIELD_OBSTACLE
 ``<root>/<robot>/cmd/wheels``             KeyKind.CMD_WHEELS
@@ -49,6 +51,8 @@ class KeyKind(str, enum.Enum):
 
     SENSE_TARGET = "sense/target"
     SENSE_RANGE = "sense/range"
+    SENSE_POSE = "sense/pose"
+    SENSE_TARGETS = "sense/targets"
     FIELD_TARGET = "field/target"
     FIELD_OBSTACLE = "field/obstacle"
     CMD_WHEELS = "cmd/wheels"
@@ -160,6 +164,18 @@ class KeySpace:
     def sense_range(self, robot: str, j: int) -> str:
         """World -> obstacle module j: distance sensor j's reading."""
         return f"{self._robot(robot)}/sense/range/{self.check_index(j)}"
+
+    def sense_pose(self, robot: str) -> str:
+        """World -> tracking module: the robot's own pose (tracking scenarios)."""
+        return f"{self._robot(robot)}/sense/pose"
+
+    def sense_targets(self, robot: str) -> str:
+        """World -> tracking module: every target within sensing range (tracking scenarios)."""
+        return f"{self._robot(robot)}/sense/targets"
+
+    def share_all(self) -> str:
+        """Key expression matching every robot's share (what teammates subscribe to)."""
+        return f"{self.root}/*/share"
 
     def field_target(self, robot: str) -> str:
         """Target module -> motor module: the target field."""
@@ -289,7 +305,8 @@ class KeySpace:
             return ParsedKey(KeyKind.SHARE, owner)
         if n == 2:
             suffix = f"{rest[0]}/{rest[1]}"
-            for kind in (KeyKind.SENSE_TARGET, KeyKind.FIELD_TARGET, KeyKind.CMD_WHEELS):
+            for kind in (KeyKind.SENSE_TARGET, KeyKind.FIELD_TARGET, KeyKind.CMD_WHEELS, KeyKind.SENSE_POSE,
+                         KeyKind.SENSE_TARGETS):
                 if suffix == kind.value:
                     return ParsedKey(kind, owner)
             if rest[0] == "alive":

@@ -374,16 +374,69 @@ class Share(_Message):
     def __post_init__(self) -> None:
         self._envelope()
         self.pose = _xy("pose", self.pose, 3)
-        if not isinstance(self.targets, dict):
-            raise _fail("targets", f"expected a map {{target id: [x, y]}}, got {type(self.targets).__name__}")
-        targets = {}
-        for tid, xy in self.targets.items():
-            _text("targets", tid, max_len=64)
-            targets[tid] = _xy(f"targets.{tid}", xy, 2)
-        self.targets = targets
+        self.targets = _targets_map("targets", self.targets, 2)
 
     def _body(self) -> dict[str, Any]:
         return {"pose": list(self.pose), "targets": {k: list(v) for k, v in self.targets.items()}}
+
+
+MAX_TARGETS = 4096
+"""Sanity bound on the number of targets in one message."""
+
+
+def _targets_map(field: str, x: Any, n: int, *, polar: bool = False) -> dict[str, tuple[float, ...]]:
+    """{target id: n numbers}; ``polar``: (alpha, d) with alpha an angle and d >= 0."""
+    if not isinstance(x, dict):
+        raise _fail(field, f"expected a map {{target id: [{n} numbers]}}, got {type(x).__name__}")
+    if len(x) > MAX_TARGETS:
+        raise _fail(field, f"{len(x)} targets, at most {MAX_TARGETS}")
+    out = {}
+    for tid, v in x.items():
+        _text(field, tid, max_len=64)
+        xy = _xy(f"{field}.{tid}", v, n)
+        if polar:
+            _float(f"{field}.{tid}[0]", xy[0], angle=True)
+            _float(f"{field}.{tid}[1]", xy[1], lo=0.0)
+        out[tid] = xy
+    return out
+
+
+@dataclass(eq=False, slots=True)
+class SensePose(_Message):
+    """World -> a tracking robot's modules: the robot's own ``pose`` (x, y, theta) in the
+    world frame, as an external localization system (an overhead camera) would give it;
+    the simulator sends the true pose."""
+
+    stamp: float
+    sender: str
+    pose: tuple[float, float, float]
+    KIND: ClassVar[KeyKind] = KeyKind.SENSE_POSE
+
+    def __post_init__(self) -> None:
+        self._envelope()
+        self.pose = _xy("pose", self.pose, 3)
+
+    def _body(self) -> dict[str, Any]:
+        return {"pose": list(self.pose)}
+
+
+@dataclass(eq=False, slots=True)
+class SenseTargets(_Message):
+    """World -> a tracking robot's modules: every target within the robot's target sensing
+    range, ``targets`` = {target id: (alpha, d)} in the robot's frame (the target sensor's
+    noise model, the same as :class:`SenseTarget`); an empty map when it sees none."""
+
+    stamp: float
+    sender: str
+    targets: dict[str, tuple[float, float]]
+    KIND: ClassVar[KeyKind] = KeyKind.SENSE_TARGETS
+
+    def __post_init__(self) -> None:
+        self._envelope()
+        self.targets = _targets_map("targets", self.targets, 2, polar=True)
+
+    def _body(self) -> dict[str, Any]:
+        return {"targets": {k: list(v) for k, v in self.targets.items()}}
 
 
 @dataclass(eq=False, slots=True)
@@ -429,12 +482,13 @@ class Clock(_Message):
         self.tick = _int("tick", self.tick, hi=1 << 63)
 
 
-Message = Union[SenseTarget, SenseRange, TargetField, ObstacleField, WheelCommand, Share, WorldState, Clock]
+Message = Union[SenseTarget, SenseRange, TargetField, ObstacleField, WheelCommand, Share, WorldState, Clock,
+                SensePose, SenseTargets]
 """Any message of the protocol."""
 
 MESSAGE_TYPES: dict[KeyKind, type] = {cls.KIND: cls for cls in
                                       (SenseTarget, SenseRange, TargetField, ObstacleField, WheelCommand, Share,
-                                       WorldState, Clock)}
+                                       WorldState, Clock, SensePose, SenseTargets)}
 """The message class of each key kind (liveliness keys carry no message)."""
 
 for _cls in MESSAGE_TYPES.values():

@@ -294,3 +294,24 @@ def test_target_field_states_are_consistent(kwargs, field):
     with pytest.raises(MessageFieldError) as err:
         TargetField(1.0, "r1/target", **kwargs)
     assert err.value.field == field
+
+
+def test_tracking_sense_messages_round_trip_and_reject_bad_fields():
+    from cekm_swarm.protocol.messages import SensePose, SenseTargets
+
+    K = KeySpace()
+    p = SensePose(0.256, "world", (1.0, 2.0, -0.5))
+    assert decode(K.sense_pose("r1"), encode(p)) == p
+    t = SenseTargets(0.256, "world", {"t1": (0.3, 0.2), "t2": (-3.0, 0.0)})
+    assert decode(K.sense_targets("r1"), encode(t)) == t
+    assert decode(K.sense_targets("r1"), encode(SenseTargets(0.0, "world", {}))).targets == {}
+    with pytest.raises(MessageFieldError, match="pose"):
+        SensePose(0.0, "world", (1.0, 2.0, 4.0))  # heading outside [-pi, pi]
+    with pytest.raises(MessageFieldError, match="targets.t1"):
+        SenseTargets(0.0, "world", {"t1": (0.3, -0.1)})  # negative distance
+    with pytest.raises(MessageFieldError, match="targets.t1"):
+        SenseTargets(0.0, "world", {"t1": (4.0, 0.1)})  # angle outside [-pi, pi]
+    with pytest.raises(MessageFieldError, match="targets"):
+        SenseTargets(0.0, "world", [("t1", 0.3, 0.1)])
+    with pytest.raises(MessageKindError):
+        decode(K.sense_pose("r1"), encode(t))  # a targets message on the pose key

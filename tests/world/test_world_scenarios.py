@@ -14,7 +14,8 @@ import world
 from world import ScenarioError, World, load_scenario, scenario_names
 
 REPO = Path(__file__).resolve().parents[2]
-SHIPPED = ["checkpoints", "concave", "crossing", "doorway", "lone_obstacle", "rooms", "tracking", "training"]
+SHIPPED = ["checkpoints", "concave", "crossing", "doorway", "lone_obstacle", "rooms", "tracking", "tracking-crowd",
+           "training"]
 
 
 def test_all_shipped_scenarios_are_listed():
@@ -134,7 +135,7 @@ def test_lone_obstacle_and_tracking():
     assert o.shape == "disc" and 2 * o.radius == pytest.approx(0.1)
     sc = load_scenario("tracking")
     assert sc.robot_ids == ["r1", "r2"] and len(sc.targets) == 3
-    assert sc.target_range == 0.5 and sc.bounds == (0.0, 0.0, 2.0, 2.0)
+    assert sc.target_range == 0.5 and sc.bounds == (0.0, 0.0, 3.0, 2.0)
     assert all(t.motion.kind == "random_walk" for t in sc.targets)
     w = World(sc)
     w.advance(60.0)

@@ -1,0 +1,215 @@
+"""Multi-robot tracking with cooperative EKMs (the paper's Fig. 13 extension): pure
+functions of messages, in the style of :mod:`cekm_swarm.controller.cooperative`.
+
+Per robot (docs/tracking.md):
+
+* the tracking target module (every 0.256 s, on ``sense/pose``, ``sense/targets`` and the
+  teammates' shares, see :mod:`.team` for which shares a tick uses) computes
+  - one target field per sensed target t, weighted by w_t = watched_factor ** n_t (n_t:
+    teammates that observe t and are nearer to it) and by its urgency (a target near
+    the edge of the range pulls harder), localized at a stand-off: a target
+    at distance d > standoff * R is localized at (alpha, d - standoff * R), a nearer one
+    at (alpha, 0), so the robot closes in to 0.7 of its sensing range and then only turns
+    to face the target; it keeps the target in range instead of driving onto it;
+  - when no sensed target has full weight, the target field of the search goal (the
+    one search behaviour, :meth:`.team.TeamView.search_goal`), weighted search_weight;
+  - one inhibitory field per teammate (Eq. 8's form with wider widths), weighted 1 within
+    teammate_near * R, falling linearly to 0 at teammate_far * R, so the robots spread;
+  - the robot's share (its pose, the targets it sees in the world frame);
+* the 12 obstacle modules, as in navigation (Eqs. 7-8);
+* the motor module: e = sum_t w_t a_t - sum_r w_r b_r - sum_j b_j (Eq. 9, section 5 of
+  docs/design.md), k = argmax e among the motor candidates (Eq. 10), and Eq. 11 with the
+  input u of the localized target (or search goal) whose winner is k, else M_k w_k.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..models.networks import IndirectEKM
+from ..models.params import FieldParams, TrackingParams
+from ..protocol.messages import SensePose, SenseTargets, Share
+from .cooperative import CooperativeEKM, MotorOutput, ObstacleActivity, motor_command
+from .readings import RangeReading
+from .team import TeamView, observers_nearer, to_robot, to_world
+
+
+def target_weight(n_watching: int, params: TrackingParams) -> float:
+    """w_t = watched_factor ** n: 1 when no (nearer) teammate observes the target, falling as more do."""
+    return params.watched_factor ** n_watching
+
+
+def teammate_weight(d: float, target_range: float, params: TrackingParams) -> float:
+    """A teammate's field weight at distance d: 1 within teammate_near * R, 0 beyond teammate_far * R, linear between."""
+    near, far = params.teammate_near * target_range, params.teammate_far * target_range
+    if d <= near:
+        return 1.0
+    if d >= far:
+        return 0.0
+    return (far - d) / (far - near)
+
+
+def teammate_field(w: np.ndarray, s: int, params: TrackingParams) -> np.ndarray:
+    """b_i for a teammate whose winner is s: Eq. 8's form, wider than an obstacle field."""
+    da = np.angle(np.exp(1j * (w[s, 0] - w[:, 0])))
+    dd = w[s, 1] - w[:, 1]
+    sd = np.where(w[:, 1] >= w[s, 1], params.teammate_sigma_d_beyond, params.teammate_sigma_d_near)
+    return np.exp(-da * da / (2.0 * params.teammate_sigma_alpha ** 2) - dd * dd / (2.0 * sd * sd))
+
+
+_SHARED: dict = {}
+
+
+@dataclass(frozen=True)
+class TrackingActivity:
+    """The tracking target module's output at one tick."""
+
+    stamp: float
+    a: np.ndarray  # sum of the weighted target fields (and the search goal's)
+    b_team: np.ndarray  # sum of the weighted teammate fields
+    inputs: tuple[tuple[int, float, float, float], ...]  # (winner, alpha, d, weight) per localized point
+    weights: dict[str, float]  # w_t per sensed target
+    searching: bool
+
+
+@dataclass
+class TrackingEKM:
+    """The cooperative-EKM tracking controller of one robot."""
+
+    robot: str
+    model: IndirectEKM
+    target_range: float
+    params: TrackingParams = field(default_factory=TrackingParams)
+    fields: FieldParams = field(default_factory=FieldParams)
+    backend: str = "numba"
+
+    def __post_init__(self) -> None:
+        if not math.isfinite(self.target_range):
+            raise ValueError("tracking needs a finite target sensing range (sensors.target_range)")
+        key = (id(self.model), self.fields, self.params, self.backend)
+        held = _SHARED.get(key)
+        if held is None or held[0] is not self.model:
+            ekm = CooperativeEKM(self.model, self.fields, backend=self.backend)
+            T = np.stack([teammate_field(ekm.w, s, self.params) for s in range(ekm.n)])
+            T.flags.writeable = False
+            if len(_SHARED) >= 8:
+                _SHARED.clear()
+            held = _SHARED[key] = (self.model, ekm, T)
+        # the EKM and the field tables are pure functions of the model and parameters:
+        # the robots of one process share them (the winner memo is exact per input)
+        self.ekm, self._T = held[1], held[2]
+
+    def localize(self, t: float, pose: tuple[float, float, float], sensed: dict[str, tuple[float, float]],
+                 view: TeamView) -> TrackingActivity:
+        """The tracking target module (see the module docstring)."""
+        p, R, ekm = self.params, self.target_range, self.ekm
+        team = view.teammates(t)
+        own = {tid: to_world(pose, a, d) for tid, (a, d) in sensed.items()}
+        view.update_memory(t, own, team)
+        a = np.zeros(ekm.n)
+        inputs = []
+        weights = {}
+        standoff = p.standoff * R
+        full = False
+        for tid in sorted(sensed):
+            alpha, d = sensed[tid]
+            wt = target_weight(observers_nearer(tid, d, team), p)
+            weights[tid] = wt
+            full = full or wt >= 1.0
+            u_d = d - standoff if d > standoff else 0.0
+            s = ekm.winner(alpha, u_d)
+            a += (wt * (1.0 - p.urgency + p.urgency * min(d / R, 1.0))) * ekm.target_activity(s)
+            inputs.append((s, alpha, u_d, wt))
+        if not full:
+            goal = view.search_goal(t, pose, own, team, p.search_reached * R, p.wander_ahead_m)
+            ga, gd = to_robot(pose, goal)
+            s = ekm.winner(ga, gd)
+            a += p.search_weight * ekm.target_activity(s)
+            inputs.append((s, ga, gd, p.search_weight))
+        b = np.zeros(ekm.n)
+        for sh in team.values():
+            ra, rd = to_robot(pose, (sh.pose[0], sh.pose[1]))
+            wr = teammate_weight(rd, R, p)
+            if wr > 0.0:
+                b += wr * self._T[ekm.winner(ra, rd)]
+        return TrackingActivity(t, a, b, tuple(inputs), weights, not full)
+
+    def integrate(self, act: TrackingActivity | None, obstacles) -> MotorOutput:
+        """The motor module (Eqs. 9-11): nothing localized yet, the robot stands still."""
+        if act is None:
+            return MotorOutput(0.0, 0.0, None, None)
+        e = act.a - act.b_team
+        for ob in obstacles:
+            if ob.b is not None:
+                e = e - ob.b
+        ekm = self.ekm
+        k = int(np.argmax(np.where(ekm.eligible, e, -np.inf)))
+        match = [(wt, i) for i, (s, _, _, wt) in enumerate(act.inputs) if s == k]
+        m = self.model
+        if match:
+            _, i = max(match)
+            s, alpha, d, _ = act.inputs[i]
+            v_l, v_r = motor_command(ekm._M, ekm.w, alpha, d, k, s, m.v_max, m.learn_p.d_scale)
+            return MotorOutput(v_l, v_r, k, s)
+        v_l, v_r = motor_command(ekm._M, ekm.w, 0.0, 0.0, k, None, m.v_max, m.learn_p.d_scale)
+        return MotorOutput(v_l, v_r, k, None)
+
+
+@dataclass
+class TrackingRobot:
+    """One robot's side of a tracking run, as its module processes run it: the tracking
+    target module (:meth:`on_sense`, returns the share to publish), the obstacle modules
+    (:meth:`on_ranges`), the motor module (:meth:`command`), and the team view fed by
+    teammates' shares (:meth:`receive`, :meth:`drop`).
+
+    ``controller`` is a :class:`TrackingEKM`, an :class:`~.acmommt.ACMOMMT` or a
+    :class:`Stay`; each has ``localize(t, pose, sensed, view)`` and ``integrate(act, x)``
+    (``x``: obstacle activities for the EKM, range readings for A-CMOMMT)."""
+
+    robot: str
+    controller: object
+    view: TeamView
+    activity: object | None = None
+    obstacles: dict[int, ObstacleActivity] = field(default_factory=dict)
+    ranges: list[RangeReading] = field(default_factory=list)
+
+    def on_sense(self, pose_msg: SensePose, targets_msg: SenseTargets) -> Share:
+        t = pose_msg.stamp
+        pose = pose_msg.pose
+        self.activity = self.controller.localize(t, pose, targets_msg.targets, self.view)
+        own = {tid: to_world(pose, a, d) for tid, (a, d) in sorted(targets_msg.targets.items())}
+        return Share(t, self.robot, pose, own)
+
+    def on_ranges(self, t: float, ranges: list[RangeReading]) -> None:
+        self.ranges = ranges
+        if isinstance(self.controller, TrackingEKM):
+            for ob in self.controller.ekm.localize_obstacles(ranges, t):
+                self.obstacles[ob.index] = ob
+
+    def command(self) -> tuple[float, float]:
+        if isinstance(self.controller, TrackingEKM):
+            out = self.controller.integrate(self.activity, self.obstacles.values())
+            return out.v_l, out.v_r
+        return self.controller.integrate(self.activity, self.ranges)
+
+    def receive(self, robot: str, share: Share) -> None:
+        self.view.receive(robot, share)
+
+    def drop(self, robot: str) -> None:
+        self.view.drop(robot)
+
+
+@dataclass
+class Stay:
+    """The static baseline: the robot stays where it starts."""
+
+    robot: str
+
+    def localize(self, t, pose, sensed, view) -> None:
+        return None
+
+    def integrate(self, act, ranges) -> tuple[float, float]:
+        return 0.0, 0.0

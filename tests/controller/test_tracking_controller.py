@@ -1,0 +1,157 @@
+"""The tracking controllers as pure functions: target weights, the scripted two-robots-
+one-target situation, A-CMOMMT's force profile, and the lockstep share semantics."""
+
+import math
+
+import numpy as np
+import pytest
+
+from cekm_swarm.controller.acmommt import ACMOMMT, robot_force, target_force
+from cekm_swarm.controller.team import TeamView, to_robot, to_world
+from cekm_swarm.controller.tracking import TrackingEKM, target_weight, teammate_weight
+from cekm_swarm.experiments.default_model import default_model
+from cekm_swarm.models.params import ACMOMMTParams, TrackingParams
+from cekm_swarm.protocol.messages import Share
+
+R = 0.5
+
+
+@pytest.fixture(scope="module")
+def model():
+    return default_model()
+
+
+def test_target_weight_falls_as_more_teammates_observe():
+    p = TrackingParams()
+    w = [target_weight(n, p) for n in range(5)]
+    assert w[0] == 1.0
+    assert all(a > b for a, b in zip(w, w[1:])) and w[-1] >= 0.0
+
+
+def test_weights_in_the_controller_count_nearer_observers(model):
+    """The sensed target's weight is 1 alone, and falls with each nearer teammate whose share reports it."""
+    ctl = TrackingEKM("r1", model, R)
+    pose = (1.0, 1.0, 0.0)
+    sensed = {"a": (0.0, 0.3)}  # 0.3 m ahead: at (1.3, 1.0)
+    weights = []
+    for n in range(4):
+        view = TeamView("r1")
+        for k in range(n):  # teammates at 0.1 m from the target, reporting it
+            view.receive(f"q{k}", Share(0.0, f"q{k}", (1.3, 1.1 + 0.01 * k, 0.0), {"a": (1.3, 1.0)}))
+        weights.append(ctl.localize(0.256, pose, sensed, view).weights["a"])
+    assert weights[0] == 1.0 and all(a > b for a, b in zip(weights, weights[1:]))
+    # a teammate farther from the target than this robot does not lower its weight
+    view = TeamView("r1")
+    view.receive("q", Share(0.0, "q", (1.7, 1.0, 0.0), {"a": (1.3, 1.0)}))
+    assert ctl.localize(0.256, pose, sensed, view).weights["a"] == 1.0
+
+
+def test_teammate_weight_shape():
+    p = TrackingParams()
+    assert teammate_weight(0.0, R, p) == 1.0 and teammate_weight(p.teammate_near * R, R, p) == 1.0
+    assert teammate_weight(p.teammate_far * R, R, p) == 0.0
+    mid = 0.5 * (p.teammate_near + p.teammate_far) * R
+    assert teammate_weight(mid, R, p) == pytest.approx(0.5)
+
+
+def _step(pose, vl, vr, dt=0.128, axle=0.053):
+    """Ideal differential drive (exact arc), in 4 sub-steps."""
+    x, y, th = pose
+    for _ in range(4):
+        h = dt / 4
+        v, w = 0.5 * (vl + vr), (vr - vl) / axle
+        x += v * h * math.cos(th + 0.5 * w * h)
+        y += v * h * math.sin(th + 0.5 * w * h)
+        th = math.remainder(th + w * h, 2 * math.pi)
+    return (x, y, th)
+
+
+def test_two_robots_on_one_target_do_not_both_stay_while_another_is_unobserved(model):
+    """Scripted: r1 and r2 both see target a; target b was last reported by r3, whose
+    share has since timed out, so nobody observes b. Closed loop on an ideal drive, shares
+    exchanged every 0.256 s: the nearer robot keeps a, the other leaves a for b."""
+    a_pos, b_pos = (1.0, 1.0), (2.0, 1.8)
+    poses = {"r1": (1.15, 1.0, math.pi), "r2": (1.0, 0.7, math.pi / 2)}
+    ctls = {r: TrackingEKM(r, model, R) for r in poses}
+    views = {r: TeamView(r) for r in poses}
+    for v in views.values():
+        v.receive("r3", Share(0.0, "r3", (1.9, 1.7, 0.0), {"b": b_pos}))
+    acts = {}
+    first = {}
+    for tick in range(1, 400):
+        t = round(tick * 0.128, 9)
+        if tick % 2 == 0:
+            shares = {}
+            for r, pose in poses.items():
+                sensed = {k: to_robot(pose, p) for k, p in (("a", a_pos), ("b", b_pos))
+                          if math.dist(pose[:2], p) <= R}
+                acts[r] = ctls[r].localize(t, pose, sensed, views[r])
+                if tick == 4:  # the first tick with the teammate's share (one tick late)
+                    first[r] = acts[r]
+                shares[r] = Share(t, r, pose, {k: to_world(pose, *u) for k, u in sensed.items()})
+            for q, s in shares.items():
+                for r in poses:
+                    views[r].receive(q, s)
+        for r in poses:
+            out = ctls[r].integrate(acts.get(r), [])
+            poses[r] = _step(poses[r], out.v_l, out.v_r)
+    assert first["r1"].weights["a"] == 1.0 and not first["r1"].searching
+    assert first["r2"].weights["a"] < 1.0 and first["r2"].searching
+    d = {r: (math.dist(p[:2], a_pos), math.dist(p[:2], b_pos)) for r, p in poses.items()}
+    assert d["r1"][0] <= R  # r1 kept a
+    assert d["r2"][1] <= R  # r2 went to b
+
+
+def test_acmommt_force_profile_at_its_breakpoints():
+    p = ACMOMMTParams()
+    do1, do2, do3, do4 = p.do1 * R, p.do2 * R, p.do3 * R, p.do4 * R
+    assert target_force(0.0, R, p) == -1.0
+    assert target_force(do1, R, p) == pytest.approx(0.0, abs=1e-12)
+    assert target_force(do2, R, p) == pytest.approx(1.0)
+    assert target_force(do3, R, p) == 1.0
+    assert target_force(do4, R, p) == pytest.approx(0.0, abs=1e-12)
+    assert target_force(do4 + 0.1, R, p) == 0.0
+    assert target_force(0.5 * do1, R, p) == pytest.approx(-0.5)  # linear between breakpoints
+    assert target_force(0.5 * (do1 + do2), R, p) == pytest.approx(0.5)
+    assert target_force(0.5 * (do3 + do4), R, p) == pytest.approx(0.5)
+    dr1, dr2 = p.dr1 * R, p.dr2 * R
+    assert robot_force(0.0, R, p) == -1.0 and robot_force(dr1, R, p) == -1.0
+    assert robot_force(0.5 * (dr1 + dr2), R, p) == pytest.approx(-0.5)
+    assert robot_force(dr2, R, p) == pytest.approx(0.0, abs=1e-12) and robot_force(dr2 + 0.01, R, p) == 0.0
+
+
+def test_acmommt_drives_toward_a_far_target_and_backs_off_a_near_one():
+    ctl = ACMOMMT("r1", R, 0.17, 0.03, 0.053, 0.16 / 1.024)
+    far = ctl.localize(0.0, (0.0, 0.0, 0.0), {"a": (0.0, 0.4)}, TeamView("r1"))
+    vl, vr = ctl.integrate(far, [])
+    assert vl > 0 and vr > 0 and vl == pytest.approx(vr)
+    near = ctl.localize(0.0, (0.0, 0.0, 0.0), {"a": (0.0, 0.02)}, TeamView("r1"))
+    assert near.fx < 0  # too close: repelled
+
+
+def test_shares_are_used_one_tick_late_and_dropped_when_stale_or_gone():
+    view = TeamView("r1", share_timeout_s=1.0)
+    view.receive("r2", Share(0.256, "r2", (0.0, 0.0, 0.0), {}))
+    assert "r2" not in view.teammates(0.256)  # same tick: not yet
+    assert "r2" in view.teammates(0.512)
+    assert "r2" not in view.teammates(1.5)  # stale
+    view.receive("r1", Share(0.256, "r1", (0.0, 0.0, 0.0), {}))
+    assert "r1" not in view.shares  # own share ignored
+    view.drop("r2")
+    assert view.teammates(0.512) == {}
+
+
+def test_frames_round_trip():
+    pose = (0.3, -0.2, 2.5)
+    for alpha, d in ((0.0, 0.3), (-2.0, 0.1), (3.0, 0.45)):
+        a2, d2 = to_robot(pose, to_world(pose, alpha, d))
+        assert a2 == pytest.approx(alpha) and d2 == pytest.approx(d)
+
+
+def test_stand_off_turns_in_place_near_a_target(model):
+    """A target inside the stand-off is localized at the goal state: the winning move is short."""
+    ctl = TrackingEKM("r1", model, R)
+    act = ctl.localize(0.0, (1.0, 1.0, 0.0), {"a": (0.5, 0.1)}, TeamView("r1"))
+    out = ctl.integrate(act, [])
+    assert ctl.ekm.w[out.k][1] < 0.03
+    assert np.isfinite([out.v_l, out.v_r]).all()

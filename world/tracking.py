@@ -1,0 +1,125 @@
+"""The world's side of multi-robot tracking (Fig. 13): what each robot's own sensors give
+it, and the ground-truth observation metric.
+
+* :func:`tracking_sense` builds a robot's two tracking messages from the simulation: its
+  pose (``sense/pose``: the true pose, as an external localization system would give it)
+  and every target within its target sensing range (``sense/targets``: (alpha, d) in the
+  robot's frame, with the target sensor's noise model of :meth:`World.target_reading`).
+  The target sensor is read for every target in scenario order, in range or not, so the
+  noise stream a robot draws from never depends on what it sees.
+* :class:`ObservationMeter` measures Parker's observation metric A: at every tick, the
+  fraction of targets within the target sensing range of at least one robot (true
+  distances, no noise), averaged over the run's ticks; per target; as a time series;
+  and the spread of the robots and of the targets (mean pairwise distance) over time, the
+  measure of "the robots move apart when the targets part".
+
+Ground truth lives here because the world must not import controller code, and the
+experiments may import the world.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+from cekm_swarm.protocol.messages import SensePose, SenseTargets
+
+from .sim import World
+
+SENDER = "world"
+
+
+def is_tracking(scenario: Any) -> bool:
+    """A tracking scenario: it has targets and none of its robots has a goal."""
+    return bool(scenario.targets) and bool(scenario.robots) and all(r.goal is None for r in scenario.robots)
+
+
+def tracking_sense(world: World, robot: str, stamp: float) -> tuple[SensePose, SenseTargets]:
+    """The robot's ``sense/pose`` and ``sense/targets`` messages at ``stamp``."""
+    pose = SensePose(stamp, SENDER, world.pose(robot))
+    seen = {}
+    for tid in world.target_ids:
+        alpha, d, visible = world.target_reading(robot, tid)
+        if visible:
+            seen[tid] = (alpha, d)
+    return pose, SenseTargets(stamp, SENDER, seen)
+
+
+def mean_pairwise(points: list[tuple[float, float]]) -> float:
+    """Mean distance over all pairs of points (0 for fewer than two)."""
+    n = len(points)
+    if n < 2:
+        return 0.0
+    total = 0.0
+    for i in range(n):
+        for j in range(i + 1, n):
+            total += math.hypot(points[i][0] - points[j][0], points[i][1] - points[j][1])
+    return total / (n * (n - 1) / 2)
+
+
+@dataclass
+class ObservationMeter:
+    """Parker's observation metric A, sampled once per tick (call :meth:`sample`)."""
+
+    targets: list[str]
+    robots: list[str]
+    t: list[float] = field(default_factory=list)
+    fraction: list[float] = field(default_factory=list)
+    seen: dict[str, int] = field(default_factory=dict)
+    robot_spread: list[float] = field(default_factory=list)
+    target_spread: list[float] = field(default_factory=list)
+    observed_by: list[dict[str, list[str]]] = field(default_factory=list)
+
+    def sample(self, world: World, t: float) -> dict[str, list[str]]:
+        """Record tick ``t`` of ``world``; returns who observes which target now."""
+        state = world.state()
+        return self.sample_positions(t, {r: (p["x"], p["y"]) for r, p in state["robots"].items()},
+                                     {k: (p["x"], p["y"]) for k, p in state["targets"].items()}, world.target_range)
+
+    def sample_positions(self, t: float, robots: dict[str, tuple[float, float]],
+                         targets: dict[str, tuple[float, float]], target_range: float) -> dict[str, list[str]]:
+        """Record tick ``t`` from true positions: a target is observed when it is within
+        ``target_range`` of at least one robot. Returns who observes which target."""
+        obs = {tid: [r for r, rp in robots.items() if math.hypot(tp[0] - rp[0], tp[1] - rp[1]) <= target_range]
+               for tid, tp in targets.items()}
+        m = len(self.targets)
+        watched = [tid for tid in self.targets if obs.get(tid)]
+        for tid in watched:
+            self.seen[tid] = self.seen.get(tid, 0) + 1
+        self.t.append(t)
+        self.fraction.append(len(watched) / m if m else 0.0)
+        self.robot_spread.append(mean_pairwise(list(robots.values())))
+        self.target_spread.append(mean_pairwise(list(targets.values())))
+        self.observed_by.append(obs)
+        return obs
+
+    @property
+    def A(self) -> float:
+        """The fraction of targets observed by at least one robot, averaged over the ticks."""
+        return sum(self.fraction) / len(self.fraction) if self.fraction else 0.0
+
+    def summary(self) -> dict[str, Any]:
+        """The ``tracking`` object of ``outcome.json``."""
+        n = len(self.t)
+        k = max(1, n // 10)
+
+        def head_tail(xs: list[float]) -> tuple[float, float]:
+            return (sum(xs[:k]) / k, sum(xs[-k:]) / k) if xs else (0.0, 0.0)
+
+        rs0, rs1 = head_tail(self.robot_spread)
+        ts0, ts1 = head_tail(self.target_spread)
+        return {
+            "A": self.A,
+            "A_per_target": {tid: (self.seen.get(tid, 0) / n if n else 0.0) for tid in self.targets},
+            "robots": len(self.robots),
+            "targets": len(self.targets),
+            "ticks": n,
+            "spread": {
+                "what": "mean pairwise distance (m), averaged over the first and the last tenth of the run",
+                "robots_start": rs0, "robots_end": rs1, "targets_start": ts0, "targets_end": ts1,
+                "robots_moved_apart_m": rs1 - rs0, "targets_moved_apart_m": ts1 - ts0,
+            },
+            "series": {"t": self.t, "A": self.fraction, "robot_spread": self.robot_spread,
+                       "target_spread": self.target_spread},
+        }
