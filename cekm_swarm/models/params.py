@@ -86,6 +86,10 @@ class LearningParams:
         return self.sigma_final + (self.sigma_initial - self.sigma_final) * math.exp(-t / self.sigma_tau)
 
 
+PAPER_SIGMA_B_ALPHA = 0.495
+"""The paper's obstacle-field angular width (section 4.2), rad."""
+
+
 @dataclass(frozen=True)
 class FieldParams:
     """Target field (Eq. 6) and obstacle field (Eq. 8) widths.
@@ -106,6 +110,12 @@ class FieldParams:
 
     def __post_init__(self) -> None:
         _check_positive(self, *(f.name for f in fields(self)))
+
+    @classmethod
+    def paper(cls) -> "FieldParams":
+        """The paper's values throughout (sigma_b_alpha 0.495): what the multi-robot
+        tracking controller was tuned and measured with (docs/tracking.md)."""
+        return cls(sigma_b_alpha=PAPER_SIGMA_B_ALPHA)
 
 
 def params_to_dict(*objs) -> dict:
