@@ -48,35 +48,30 @@ def experiment() -> None:
 @click.option("--test-interval", default=10_000, show_default=True, type=click.IntRange(1))
 @click.option("--targets", "test_targets", default=50, show_default=True, type=click.IntRange(1),
               help="Test targets per test.")
-@click.option("--seed", default=2005, show_default=True, type=SEED)
+@click.option("--seed", default=2005, show_default=True, type=SEED, help="Master seed (the first, with --master-seeds).")
+@click.option("--master-seeds", default=1, show_default=True, type=click.IntRange(1, 100),
+              help="Run K independent master seeds (seed, seed+1, ...): each into OUT/seed-S, and OUT/summary.md "
+                   "with 95 % intervals and how often each headline ordering holds.")
+@click.option("--speed-unit", type=click.FloatRange(min=0.0), default=0.0, show_default=True,
+              help="Wheel speeds execute as whole multiples of this (m/s), so a command under half a unit "
+                   "stops the robot; 0: continuous. The Khepera's is 0.008 (one encoder pulse per 10 ms).")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 def target_reaching(out_dir: Path, overwrite: bool, networks: str, trials: int, steps: int, test_interval: int,
-                    test_targets: int, seed: int, quiet: bool) -> None:
+                    test_targets: int, seed: int, master_seeds: int, speed_unit: float, quiet: bool) -> None:
     """Reproduce section 4.1: Tables 1-4 and Figures 5-7 (obstacle-free target reaching)."""
-    from .experiments.report import headline_orderings, write_report
+    from .experiments.arena import Arena
     from .experiments.streams import Schedule
-    from .experiments.target_reaching import TargetReachingConfig, run_experiment
-    from .models.io import save_model
+    from .experiments.target_reaching import TargetReachingConfig
+    from .experiments.master_seeds import run_and_report
 
     try:
-        config = TargetReachingConfig(networks=_networks(networks), trials=trials, seed=seed,
+        arena = Arena(speed_unit=speed_unit)
+        config = TargetReachingConfig(networks=_networks(networks), trials=trials, seed=seed, arena=arena,
                                       schedule=Schedule(steps=steps, test_interval=test_interval, test_targets=test_targets))
     except CekmError as exc:
         raise click.UsageError(str(exc)) from None
     prepare_out_dir(out_dir, overwrite)
-    results, runs = run_experiment(config, progress=not quiet)
-    trained = {r.name: r.trained(0, config) for r in runs}
-    for r in runs:
-        for t in range(config.trials):
-            save_model(out_dir / "models" / f"{r.name}-trial{t + 1}.npz", r.trained(t, config),
-                       {"network": r.name, "trial": t + 1, "steps": steps, "seed": seed, "initial_M": "random",
-                        "experiment": "target-reaching"})
-    written = write_report(results, trained, out_dir)
-    click.echo((out_dir / "tables.md").read_text().split("### Table 2")[0].rstrip())
-    click.echo("")
-    for claim, holds in headline_orderings(results).items():
-        click.echo(f"  {'holds' if holds else 'DOES NOT HOLD'}: {claim}")
-    click.echo(f"\n{results['wall_seconds']:.1f} s; wrote " + ", ".join(str(p) for p in written))
+    run_and_report(config, out_dir, master_seeds, progress=not quiet, echo=click.echo)
 
 
 @experiment.command("obstacles")
@@ -321,6 +316,15 @@ def _register_launch_commands() -> None:
 
 
 _register_launch_commands()
+
+
+def _register_view_command() -> None:
+    from .view.command import view_cmd
+
+    main.add_command(view_cmd)
+
+
+_register_view_command()
 
 
 def run() -> None:  # pragma: no cover - the console entry (cekm_swarm.cli_support.run_cli is tested)

@@ -9,7 +9,7 @@ dashed; goals as stars, other targets as crosses.
 from __future__ import annotations
 
 import math
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 from matplotlib.axes import Axes
 from matplotlib.patches import Circle, Polygon, Rectangle
@@ -21,6 +21,15 @@ MOVING_FACE = "#9dc3e6"
 MOVING_EDGE = "#2e75b6"
 ROBOT_FACE = "#a9d18e"
 ROBOT_EDGE = "#38761d"
+
+
+ROBOT_COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#17becf", "#8c564b", "#e377c2")
+"""One colour per robot (its path, start, goal and body share it), in robot order."""
+
+
+def robot_colours(robots: Sequence[str]) -> dict[str, str]:
+    """Robot id -> its colour; the order of ``robots`` decides (sorted ids give a stable map)."""
+    return {rid: ROBOT_COLOURS[i % len(ROBOT_COLOURS)] for i, rid in enumerate(robots)}
 
 
 def _style(known: bool) -> dict[str, Any]:
@@ -43,10 +52,15 @@ def _pose_on_path(motion: Mapping[str, Any], t: float) -> tuple[float, float]:
     return (ax_ + (bx - ax_) * f, ay + (by - ay) * f)
 
 
-def draw_world(ax: Axes, geometry: Mapping[str, Any], state: Mapping[str, Any] | None = None) -> Axes:
+def draw_world(ax: Axes, geometry: Mapping[str, Any], state: Mapping[str, Any] | None = None,
+               colours: Mapping[str, str] | None = None) -> Axes:
     """Draw walls, static obstacles (known vs unknown), moving obstacles with their
     paths, targets/goals and, if ``state`` is given, robots at their current poses.
-    Sets equal aspect and the limits to the arena bounds (plus the walls)."""
+    Each robot's goal and body take its colour from ``colours`` (default
+    :func:`robot_colours` of the robots in id order). Sets equal aspect, the limits to
+    the arena bounds (plus the walls) and the axes' labels in metres."""
+    ids = sorted({r["id"] for r in geometry.get("robots", [])} | set((state or {}).get("robots", {})))
+    colours = dict(colours) if colours is not None else robot_colours(ids)
     xmin, ymin, xmax, ymax = geometry["bounds"]
     for w in geometry.get("walls", []):
         ax.add_patch(Polygon(w["vertices"], closed=True, zorder=2, **_style(w["known"])))
@@ -91,22 +105,24 @@ def draw_world(ax: Axes, geometry: Mapping[str, Any], state: Mapping[str, Any] |
             verts = [(ox + c * x - s_ * y, oy + s_ * x + c * y) for x, y in m["vertices"]]
             ax.add_patch(Polygon(verts, closed=True, facecolor=MOVING_FACE, edgecolor=MOVING_EDGE, zorder=3))
 
-    goals: set[str] = {r["goal"] for r in geometry.get("robots", []) if r.get("goal")}
+    goals: dict[str, str] = {r["goal"]: r["id"] for r in geometry.get("robots", []) if r.get("goal")}
     tstate = state.get("targets", {}) if state is not None else {}
     for tg in geometry.get("targets", []):
         x, y = (tstate[tg["id"]]["x"], tstate[tg["id"]]["y"]) if tg["id"] in tstate else tg["position"]
         if tg["id"] in goals:
-            ax.plot([x], [y], marker="*", markersize=12, color="#c00000", zorder=5, linestyle="none")
+            goal_marker(ax, (x, y), colours.get(goals[tg["id"]], "#c00000"), goals[tg["id"]])
         else:
             ax.plot([x], [y], marker="X", markersize=8, color="#7030a0", zorder=5, linestyle="none")
     if state is not None:
         radius = geometry.get("body_radius", 0.03)
         for rid, r in state.get("robots", {}).items():
-            ax.add_patch(Circle((r["x"], r["y"]), radius, facecolor=ROBOT_FACE, edgecolor=ROBOT_EDGE, zorder=4))
+            col = colours.get(rid, ROBOT_EDGE)
+            ax.add_patch(Circle((r["x"], r["y"]), radius, facecolor=col, edgecolor="k", alpha=0.85, lw=0.6, zorder=4,
+                                gid=f"robot:{rid}"))
             ax.plot(
                 [r["x"], r["x"] + radius * math.cos(r["theta"])],
                 [r["y"], r["y"] + radius * math.sin(r["theta"])],
-                color=ROBOT_EDGE,
+                color="k",
                 lw=1.0,
                 zorder=4,
             )
@@ -114,10 +130,133 @@ def draw_world(ax: Axes, geometry: Mapping[str, Any], state: Mapping[str, Any] |
             if g is not None and not any(
                 abs(g[0] - tv["x"]) < 1e-12 and abs(g[1] - tv["y"]) < 1e-12 for tv in tstate.values()
             ):
-                ax.plot([g[0]], [g[1]], marker="*", markersize=12, color="#c00000", zorder=5, linestyle="none")
+                goal_marker(ax, (g[0], g[1]), col, rid)
     pad = max(0.05, max((w["thickness"] for w in geometry.get("walls", [])), default=0.0) * 1.5)
     ax.set_xlim(xmin - pad, xmax + pad)
     ax.set_ylim(ymin - pad, ymax + pad)
     ax.set_aspect("equal")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
     ax.add_patch(Rectangle((xmin, ymin), xmax - xmin, ymax - ymin, fill=False, edgecolor="0.8", linewidth=0.5, zorder=0))
     return ax
+
+
+def goal_marker(ax: Axes, xy: Sequence[float], colour: str, robot: str | None = None):
+    """A robot's goal: a star in the robot's colour with a black edge."""
+    return ax.plot([xy[0]], [xy[1]], marker="*", markersize=14, color=colour, markeredgecolor="k", markeredgewidth=0.6,
+                   zorder=6, linestyle="none", gid=f"goal:{robot}" if robot else None)[0]
+
+
+def nice_step(span: float, marks: int = 12) -> float:
+    """A round time step (1, 2 or 5 times a power of ten) giving about ``marks`` marks over ``span``."""
+    if not span > 0:
+        return 1.0
+    raw = span / marks
+    p = 10 ** math.floor(math.log10(raw))
+    return next(m * p for m in (1, 2, 5, 10) if m * p >= raw)
+
+
+def draw_paths(ax: Axes, paths: Mapping[str, tuple[Sequence[float], Sequence[float], Sequence[float]]],
+               colours: Mapping[str, str], labels: Mapping[str, str] | None = None,
+               time_step: float | None = None) -> float:
+    """Each robot's path (t, x, y) in its colour: the line, a filled circle at the start and
+    time marks (small dots) every ``time_step`` s of sim time, the same instants on every
+    robot so crossings can be told apart; every other mark is labelled with its time.
+    Returns the time step used (default :func:`nice_step` of the longest run)."""
+    t_end = max((ts[-1] for ts, _, _ in paths.values() if len(ts)), default=0.0)
+    step = time_step or nice_step(t_end)
+    for rid, (ts, xs, ys) in paths.items():
+        if not len(ts):
+            continue
+        col = colours[rid]
+        ax.plot(xs, ys, "-", color=col, lw=1.3, zorder=3, label=(labels or {}).get(rid, rid), gid=f"path:{rid}")
+        ax.plot(xs[:1], ys[:1], "o", color=col, ms=7, markeredgecolor="k", markeredgewidth=0.6, zorder=6,
+                gid=f"start:{rid}")
+        last = len(ts) - 1  # no marks once the robot has stopped for good (they would pile up)
+        while last > 0 and math.hypot(xs[last - 1] - xs[-1], ys[last - 1] - ys[-1]) < 1e-3:
+            last -= 1
+        mx, my, mt = [], [], []
+        i = 0
+        for n in range(1, int(ts[last] / step) + 1):
+            while i < len(ts) - 1 and ts[i] < n * step:
+                i += 1
+            mx.append(xs[i])
+            my.append(ys[i])
+            mt.append(n * step)
+        ax.plot(mx, my, "o", color=col, ms=3.5, markeredgecolor="white", markeredgewidth=0.4, zorder=5,
+                gid=f"time:{rid}")
+        for x, y, t in list(zip(mx, my, mt))[1::2]:
+            if math.hypot(x - xs[-1], y - ys[-1]) < 0.02:
+                continue  # not on the final pose's goal star
+            ax.annotate(f"{t:g}", (x, y), xytext=(3, 3), textcoords="offset points", fontsize=6, color=col, zorder=7)
+    return step
+
+
+def content_points(geometry: Mapping[str, Any]) -> list[tuple[float, float]]:
+    """Extreme points of what is inside the arena: static obstacles, the reach of moving
+    obstacles' paths, targets (the walls are the frame, not content)."""
+    pts: list[tuple[float, float]] = []
+    for p in geometry.get("polygons", []):
+        pts += [(v[0], v[1]) for v in p["vertices"]]
+    for d in geometry.get("discs", []):
+        (cx, cy), r = d["center"], d["radius"]
+        pts += [(cx - r, cy - r), (cx + r, cy + r)]
+    for m in geometry.get("moving_obstacles", []):
+        mo = m["motion"]
+        if mo["type"] == "circle":
+            (cx, cy), r = mo["center"], mo["radius"]
+            pts += [(cx - r, cy - r), (cx + r, cy + r)]
+        else:
+            pts += [tuple(mo["a"]), tuple(mo["b"])]
+    pts += [tuple(t["position"]) for t in geometry.get("targets", [])]
+    return [(float(x), float(y)) for x, y in pts]
+
+
+def fit_bounds(ax: Axes, geometry: Mapping[str, Any] | None, points: Sequence[Sequence[float]],
+               margin: float = 0.15) -> tuple[float, float, float, float]:
+    """Limits that fit the content: the bounding box of ``points`` (paths, starts, goals)
+    and of the arena's obstacles and targets (:func:`content_points`, walls excluded)
+    plus ``margin`` m, clipped to the arena (plus its walls) when ``geometry`` is given.
+    Returns (xmin, xmax, ymin, ymax)."""
+    pts = [(float(p[0]), float(p[1])) for p in points]
+    if geometry is not None and pts:
+        pts += content_points(geometry)
+    xs = [p[0] for p in pts]
+    ys = [p[1] for p in pts]
+    if not xs:
+        x0, x1 = ax.get_xlim()
+        y0, y1 = ax.get_ylim()
+        return x0, x1, y0, y1
+    x0, x1, y0, y1 = min(xs) - margin, max(xs) + margin, min(ys) - margin, max(ys) + margin
+    if geometry is not None:
+        bx0, by0, bx1, by1 = geometry["bounds"]
+        wall = max((w["thickness"] for w in geometry.get("walls", [])), default=0.0) + 0.02
+        x0, x1 = max(x0, bx0 - wall), min(x1, bx1 + wall)
+        y0, y1 = max(y0, by0 - wall), min(y1, by1 + wall)
+    ax.set_xlim(x0, x1)
+    ax.set_ylim(y0, y1)
+    ax.set_aspect("equal")
+    return x0, x1, y0, y1
+
+
+def legend_outside(ax: Axes, title: str | None = None, time_step: float | None = None):
+    """The legend to the right of the axes (never over the arena); with ``time_step`` an
+    entry says what the dots mean."""
+    handles, labels = ax.get_legend_handles_labels()
+    if time_step is not None:
+        h = ax.plot([], [], "o", color="0.4", ms=3.5, linestyle="none")[0]
+        handles.append(h)
+        labels.append(f"dot every {time_step:g} s")
+    if not handles:
+        return None
+    return ax.legend(handles, labels, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, fontsize=7,
+                     title=title, title_fontsize=7, frameon=False)
+
+
+def figure_size(x0: float, x1: float, y0: float, y1: float, height: float = 5.5,
+                legend_width: float = 1.7) -> tuple[float, float]:
+    """Figure (width, height) in inches for an equal-aspect map of these limits with the
+    legend to its right, so the map fills its axes without empty margins."""
+    aspect = (x1 - x0) / max(y1 - y0, 1e-9)
+    h = height if aspect <= 1.6 else max(2.5, 8.0 / aspect)
+    return (1.0 + (h - 0.9) * aspect + legend_width, h)

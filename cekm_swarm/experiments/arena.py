@@ -16,13 +16,22 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from ..errors import ParameterError
 from ..models.fast import wrap
-from ..robot import KHEPERA, STEP_S, SUBSTEP_S, SUBSTEPS_PER_STEP
+from ..robot import KHEPERA, STEP_S, SUBSTEP_S, SUBSTEPS_PER_STEP, quantize_speed
 
 
 @dataclass(frozen=True)
 class Arena:
-    """A square arena [0, size]^2 and the robot that moves in it."""
+    """A square arena [0, size]^2 and the robot that moves in it.
+
+    speed_unit: 0 (the default) gives continuous wheel speeds, where a robot stops only at
+    the goal state d = 0 (every network commands c = 0 there). A positive unit, e.g. the
+    Khepera's 8 mm/s (:class:`cekm_swarm.robot.Khepera`), executes wheel speeds as whole
+    multiples of it, so a command under half a unit is a stop for every network (the
+    paper's "come to a stop (motor control c = 0)"); it reproduces the paper's orderings
+    worse (docs/reproduction-4.1.md), so it is an option.
+    """
 
     size: float = 5.0
     target_margin: float = 0.05  # targets at least this far from the edge
@@ -32,6 +41,17 @@ class Arena:
     step_s: float = STEP_S
     substeps: int = SUBSTEPS_PER_STEP
     target_resolution: float = KHEPERA.target_resolution
+    speed_unit: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.speed_unit) and 0.0 <= self.speed_unit < self.v_max):
+            raise ParameterError(f"Arena.speed_unit must be 0 (continuous) or a positive speed below v_max "
+                                 f"({self.v_max:.4f} m/s), got {self.speed_unit!r}")
+
+    @property
+    def quantized(self) -> bool:
+        """Whether executed wheel speeds are whole multiples of speed_unit."""
+        return self.speed_unit > 0.0
 
     @property
     def substep_s(self) -> float:
@@ -44,11 +64,25 @@ class Arena:
     def vector(self) -> np.ndarray:
         """The float64 vector the kernels read (layout: A_* below)."""
         return np.array([self.size, self.body_radius, self.axle, self.v_max, self.substep_s,
-                         float(self.substeps), self.target_resolution])
+                         float(self.substeps), self.target_resolution, self.speed_unit])
 
 
-A_SIZE, A_RADIUS, A_AXLE, A_VMAX, A_DT, A_NSUB, A_RES = range(7)
+A_SIZE, A_RADIUS, A_AXLE, A_VMAX, A_DT, A_NSUB, A_RES, A_UNIT = range(8)
 assert abs(SUBSTEP_S * SUBSTEPS_PER_STEP - STEP_S) < 1e-12
+
+
+quantize = njit(cache=True)(quantize_speed)
+"""numba copy of :func:`cekm_swarm.robot.quantize_speed` (one formula, two callers)."""
+
+
+@njit(cache=True)
+def executed_command(c0, c1, arena):
+    """What the wheels execute for command (c0, c1): clipped to c*, then quantized to the
+    speed unit (arena[A_UNIT] = 0: unchanged). Both 0 is a stop."""
+    v_max = arena[A_VMAX]
+    c0 = min(max(c0, -v_max), v_max)
+    c1 = min(max(c1, -v_max), v_max)
+    return quantize(c0, arena[A_UNIT], v_max), quantize(c1, arena[A_UNIT], v_max)
 
 
 @njit(cache=True)

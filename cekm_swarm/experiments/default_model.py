@@ -11,15 +11,17 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+from dataclasses import asdict
 from pathlib import Path
 
 from ..models.io import FORMAT_VERSION, load_model, save_model
 from ..models.params import CompetitionParams, LearningParams, params_to_dict
+from .arena import Arena
 
 DEFAULT_NETWORK = "R15"
 DEFAULT_STEPS = 100_000
 DEFAULT_SEED = 2005
-TRAINING_CODE_VERSION = 2  # bump when the training loop changes what it produces (2: convergence mask)
+TRAINING_CODE_VERSION = 3  # bump when the training loop changes what it produces (2: convergence mask; 3: stop = c executes as 0)
 
 
 def cache_dir() -> Path:
@@ -33,7 +35,8 @@ def cache_dir() -> Path:
 def default_model_path(network: str = DEFAULT_NETWORK, steps: int = DEFAULT_STEPS, seed: int = DEFAULT_SEED) -> Path:
     key = json.dumps({"network": network, "steps": steps, "seed": seed, "format": FORMAT_VERSION,
                       "code": TRAINING_CODE_VERSION,
-                      "params": params_to_dict(CompetitionParams(), LearningParams())}, sort_keys=True)
+                      "params": params_to_dict(CompetitionParams(), LearningParams()),
+                      "arena": asdict(Arena())}, sort_keys=True)
     digest = hashlib.sha256(key.encode()).hexdigest()[:12]
     return cache_dir() / f"{network}-{steps}-seed{seed}-{digest}.npz"
 

@@ -174,35 +174,30 @@ def plot_run(run: NavigationRun, ax=None, title: str | None = None):
     import matplotlib.pyplot as plt
     from matplotlib.patches import Circle
 
-    from world.draw import draw_world
+    from world.draw import draw_paths, draw_world, figure_size, fit_bounds, legend_outside, robot_colours
 
     own = ax is None
     if own:
-        xmin, ymin, xmax, ymax = run.geometry["bounds"]
-        aspect = (ymax - ymin) / max(xmax - xmin, 1e-9)
-        fig, ax = plt.subplots(figsize=(7, max(2.5, 7 * aspect)))
-    draw_world(ax, run.geometry, run.final_state)
-    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    for i, (r, log) in enumerate(run.logs.items()):
-        col = colours[i % len(colours)]
-        ax.plot(log.x, log.y, "-", color=col, lw=1.2, label=f"{r} ({'reached' if log.reached else 'not reached'})")
-        step = max(1, len(log.x) // 40)
-        for x, y in zip(log.x[::step], log.y[::step]):
+        fig, ax = plt.subplots(figsize=(7, 6))
+    colours = robot_colours(sorted(run.logs))
+    draw_world(ax, run.geometry, run.final_state, colours)
+    labels = {r: f"{r} ({'reached' if log.reached else 'not reached'})" for r, log in run.logs.items()}
+    step = draw_paths(ax, {r: (log.t, log.x, log.y) for r, log in run.logs.items()}, colours, labels)
+    for r, log in run.logs.items():
+        col = colours[r]
+        n = max(1, len(log.x) // 40)
+        for x, y in zip(log.x[::n], log.y[::n]):
             ax.add_patch(Circle((x, y), 0.03, fill=False, edgecolor=col, lw=0.4, alpha=0.5))
-        ax.add_patch(Circle((log.x[0], log.y[0]), 0.03, color=col, alpha=0.6))
         cps = log.checkpoints
         if len(cps) > 1:
             ax.plot([c[0] for c in cps[:-1]], [c[1] for c in cps[:-1]], "o", color="k", ms=4, label="checkpoints")
-        ax.plot(cps[-1][0], cps[-1][1], "*", color="k", ms=10)
-    xs = [v for log in run.logs.values() for v in log.x] + [c[0] for log in run.logs.values() for c in log.checkpoints]
-    ys = [v for log in run.logs.values() for v in log.y] + [c[1] for log in run.logs.values() for c in log.checkpoints]
-    bx0, by0, bx1, by1 = run.geometry["bounds"]
-    pad = 0.25
-    ax.set_xlim(max(bx0 - 0.03, min(xs) - pad), min(bx1 + 0.03, max(xs) + pad))
-    ax.set_ylim(max(by0 - 0.03, min(ys) - pad), min(by1 + 0.03, max(ys) + pad))
-    ax.set_aspect("equal")
+    points = [p for log in run.logs.values() for p in zip(log.x, log.y)] + [c for log in run.logs.values()
+                                                                          for c in log.checkpoints]
+    x0, x1, y0, y1 = fit_bounds(ax, run.geometry, points)
     ax.set_title(title or f"{run.scenario}: {run.controller}, seed {run.seed}")
-    ax.legend(loc="best", fontsize=7)
+    legend_outside(ax, time_step=step)
+    if own:
+        fig.set_size_inches(figure_size(x0, x1, y0, y1))
     if own:
         fig.tight_layout()
         return fig

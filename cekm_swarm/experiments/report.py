@@ -93,9 +93,11 @@ def tables_markdown(results: dict) -> str:
     sch = s["schedule"]
     out = ["# Target reaching (paper section 4.1): Tables 1-4", "",
            f"{s['trials']} trials x {sch['steps']:,} steps, tested every {sch['test_interval']:,} steps on "
-           f"{sch['test_targets']} targets; seed {s['seed']}. Mean ± std over trials (ours) beside the paper's. "
-           "Absolute E is not comparable with the paper's: ours is set mostly by the target sensor's 1 mm "
-           "resolution (a stop needs the rounded d to be 0; see README).", ""]
+           f"{sch['test_targets']} targets; seed {s['seed']}. Mean ± std over trials (ours) beside the paper's. " + (
+               f"Wheel speeds quantized to {s['arena']['speed_unit'] * 1000:g} mm/s: a stop is a command under half "
+               "a unit on both wheels (docs/reproduction-4.1.md)." if s["arena"].get("speed_unit", 0.0) > 0 else
+               "Continuous wheel speeds: absolute E is not comparable with the paper's, ours is set mostly by the "
+               "target sensor's 1 mm resolution (a stop needs the rounded d to be 0; docs/reproduction-4.1.md)."), ""]
     out += _perf_table(results, ("E_mm", "T_s_per_m", "D"), PAPER_TABLE1, "Table 1: performance after training")
     out += ["", "Targets that ended by the step budget rather than a stop (per trial, mean ± std): " + ", ".join(
         f"{n} {_ms(e.get('ended_by_budget'), 1)}" for n, e in results["networks"].items()), ""]
@@ -216,3 +218,64 @@ def write_report(results: dict, trained: dict, out_dir: Path) -> list[Path]:
     written[0].write_text(json.dumps(results, indent=1))
     written[1].write_text(tables_markdown(results))
     return written + plot_all(results, trained, out_dir)
+
+
+def _ci(entry: dict, digits: int) -> str:
+    if entry is None or entry.get("mean") is None:
+        return "n/a"
+    if entry["n"] < 2:
+        return f"{entry['mean']:.{digits}f}"
+    return f"{entry['mean']:.{digits}f} [{entry['lo']:.{digits}f}, {entry['hi']:.{digits}f}]"
+
+
+def _seeds_table(summary: dict, keys: tuple[str, str, str], paper: dict, title: str) -> list[str]:
+    lines = [f"### {title}", "",
+             "| Network | " + " | ".join(f"{_LABEL[k]} ours | {_LABEL[k]} paper" for k in keys) + " |",
+             "|---|" + "---:|---:|" * len(keys)]
+    for name, e in summary["networks"].items():
+        cells = []
+        for j, k in enumerate(keys):
+            cells.append(_ci(e.get(k), 2))
+            cells.append(_paper(paper[name][j], 2) if name in paper else "")
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def seeds_markdown(summary: dict) -> str:
+    """Tables 1 and 3 over master seeds (mean of the per-seed trial means, 95 % interval),
+    how often each headline ordering holds, and every trial that ended targets by budget."""
+    s = summary["settings"]
+    sch = s["schedule"]
+    seeds = s["master_seeds"]
+    unit = s["arena"].get("speed_unit", 0.0)
+    plant = (f"wheel speeds quantized to {unit * 1000:g} mm/s" if unit > 0 else "continuous wheel speeds")
+    out = ["# Target reaching (paper section 4.1) over master seeds", "",
+           f"Master seeds {', '.join(map(str, seeds))}; each: {s['trials']} trials x {sch['steps']:,} steps, "
+           f"tested on {sch['test_targets']} targets; {plant}. Ours: the mean over seeds of each seed's trial "
+           "mean, with its 95 % interval (Student t, "
+           f"{len(seeds) - 1} degrees of freedom); the paper's: mean ± std over its 5 trials.", ""]
+    out += _seeds_table(summary, ("E_mm", "T_s_per_m", "D"), PAPER_TABLE1, "Table 1: performance after training")
+    out += ["", "Targets ended by the step budget (of the test's targets, per trial, mean over seeds): " + ", ".join(
+        f"{n} {_ci(e.get('ended_by_budget'), 1)}" for n, e in summary["networks"].items()), ""]
+    out += _seeds_table(summary, ("P5", "T5_s_per_m", "D5"), PAPER_TABLE3, "Table 3: performance at eps = 5 mm")
+    out += ["", "### The paper's headline orderings", "", "| claim | holds in | fails with seeds |", "|---|---:|---|"]
+    for claim, o in summary["orderings"].items():
+        out.append(f"| {claim} | {o['holds']} of {o['seeds']} | {', '.join(map(str, o['fails_in'])) or '-'} |")
+    out += ["", "### Trials that ended test targets by the step budget", ""]
+    rows = [(seed, b) for seed, lst in summary["budget_ended"].items() for b in lst]
+    if not rows:
+        out.append("None.")
+    else:
+        out += ["| seed | network | trial | targets | E (mm) |", "|---:|---|---:|---:|---:|"]
+        out += [f"| {seed} | {b['network']} | {b['trial']} | {b['targets']} | {b['E_mm']:.2f} |" for seed, b in rows]
+    return "\n".join(out) + "\n"
+
+
+def write_seeds_report(summary: dict, out_dir: Path) -> list[Path]:
+    """summary.json and summary.md into out_dir."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    paths = [out_dir / "summary.json", out_dir / "summary.md"]
+    paths[0].write_text(json.dumps(summary, indent=1))
+    paths[1].write_text(seeds_markdown(summary))
+    return paths

@@ -182,13 +182,13 @@ def plot_tracking(run: TrackingRun, ax=None, title: str | None = None, instants:
     import matplotlib.pyplot as plt
     from matplotlib.patches import Circle
 
-    from world.draw import draw_world
+    from world.draw import draw_paths, draw_world, legend_outside, robot_colours
 
     own = ax is None
     if own:
         xmin, ymin, xmax, ymax = run.geometry["bounds"]
         aspect = (ymax - ymin) / max(xmax - xmin, 1e-9)
-        fig, ax = plt.subplots(figsize=(6.5, max(3.0, 6.5 * aspect)))
+        fig, ax = plt.subplots(figsize=(6.5 + 1.7, max(3.0, 6.5 * aspect)))
     draw_world(ax, run.geometry, None)
     for tid, pts in run.target_paths.items():
         xs, ys = [p[0] for p in pts], [p[1] for p in pts]
@@ -196,12 +196,12 @@ def plot_tracking(run: TrackingRun, ax=None, title: str | None = None, instants:
         ax.plot(xs[0], ys[0], "o", color="0.45", ms=3)
         ax.plot(xs[-1], ys[-1], "X", color="k", ms=6)
         ax.annotate(tid, (xs[-1], ys[-1]), fontsize=7, xytext=(3, 3), textcoords="offset points")
-    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    for i, (r, p) in enumerate(run.paths.items()):
-        col = colours[i % len(colours)]
+    colours = robot_colours(sorted(run.paths))
+    step = draw_paths(ax, {r: ([q[0] for q in p], [q[1] for q in p], [q[2] for q in p]) for r, p in run.paths.items()},
+                      colours)
+    for r, p in run.paths.items():
+        col = colours[r]
         xs, ys = [q[1] for q in p], [q[2] for q in p]
-        ax.plot(xs, ys, "-", color=col, lw=1.3, label=r)
-        ax.plot(xs[0], ys[0], "o", color=col, ms=4)
         n = len(p)
         for j in range(instants):
             k = min(n - 1, round(j * (n - 1) / max(1, instants - 1)))
@@ -214,7 +214,7 @@ def plot_tracking(run: TrackingRun, ax=None, title: str | None = None, instants:
     ax.set_aspect("equal")
     ax.set_title(title or f"{run.scenario}: {run.controller}, seed {run.seed}, A = {run.tracking['A']:.3f}",
                  fontsize=9)
-    ax.legend(loc="upper right", fontsize=7)
+    legend_outside(ax, time_step=step)
     if own:
         fig.tight_layout()
         return fig

@@ -6,9 +6,12 @@
   the trials in parallel threads: the experiments use this one.
 
 One training step: sense the target (u), command c by the network's target-reaching rule,
-add training-only exploration noise and clip to c*, drive 32 noisy sub-steps, then learn
-from the displacement v unless the robot touched a wall. A target is replaced when the
-robot reaches the goal state (d = 0, the robot stops) or its step budget runs out.
+add training-only exploration noise, clip to c* and quantize to the wheels' speed unit
+(when the arena has one), drive 32 noisy sub-steps, then learn from the displacement v
+unless the robot touched a wall. A target is replaced when the robot stops (the network's
+command executes as c = 0: always at the goal state d = 0, and with a speed unit whenever
+both wheel commands are under half a unit; the stop takes that step) or its step budget
+runs out.
 A test presents the fixed test targets in sequence from the centre, with no learning.
 """
 
@@ -22,8 +25,7 @@ import numpy as np
 from numba import njit, prange
 
 from ..models import fast
-from ..models.networks import at_goal
-from .arena import A_RES, displacement, drive, sense_target
+from .arena import A_RES, displacement, drive, executed_command, sense_target
 from .streams import TrialStreams, batch_train_chunk
 
 EMPTY = np.empty(0)
@@ -73,7 +75,13 @@ def train_reference(net, pose: np.ndarray, cursor: list[int], streams: TrialStre
             cursor[0] += 1
             cursor[1] = 0
         u = np.array([alpha, d])
-        c = _explore(net.command(u), explore[j], lp.explore_rel, lp.explore_abs, arena.v_max)
+        c_net = net.command(u)
+        if executed_command(c_net[0], c_net[1], av) == (0.0, 0.0):  # a stop: the next target, next step
+            cursor[0] += 1
+            cursor[1] = 0
+            continue
+        c = _explore(c_net, explore[j], lp.explore_rel, lp.explore_abs, arena.v_max)
+        c = np.array(executed_command(c[0], c[1], av))
         x0, y0, th0 = pose
         _, touched, dth = drive(pose, c[0], c[1], wheel[j], av, 0.0, 0.0, EMPTY, EMPTY, EMPTY, 0.0, 0.0)
         cursor[1] += 1
@@ -95,10 +103,11 @@ def test_reference(command: Callable[[np.ndarray], np.ndarray], streams: TrialSt
         path, steps = 0.0, wheel.shape[1]
         for j in range(wheel.shape[1]):
             u = np.array(sense_target(pose[0], pose[1], pose[2], tx, ty, sense[i, j, 0], sense[i, j, 1], av[A_RES]))
-            if at_goal(u):
+            c = command(u)
+            c = executed_command(c[0], c[1], av)
+            if c == (0.0, 0.0):  # the robot has come to a stop (c = 0; at the goal state d = 0 every network commands 0)
                 out.stopped[i], steps = True, j
                 break
-            c = np.clip(command(u), -arena.v_max, arena.v_max)
             ds, _, _ = drive(pose, c[0], c[1], wheel[i, j], av, tx, ty, eps, t_eps, path_eps, j * arena.step_s, path)
             path += ds
         out.steps[i], out.path[i] = steps, path
@@ -144,8 +153,14 @@ def _train_batch(kind, size, W, P, R, p, arena, poses, cursors, targets, t0, whe
                 cursors[b, 0] += 1
                 cursors[b, 1] = 0
             fast.command(kind, alpha, d, w, Pb, Rb, p, c)
+            q0, q1 = executed_command(c[0], c[1], arena)
+            if q0 == 0.0 and q1 == 0.0:  # a stop: the next target, next step
+                cursors[b, 0] += 1
+                cursors[b, 1] = 0
+                continue
             c0 = min(max(c[0] + explore[b, j, 0] * (rel * abs(c[0]) + abs_), -v_max), v_max)
             c1 = min(max(c[1] + explore[b, j, 1] * (rel * abs(c[1]) + abs_), -v_max), v_max)
+            c0, c1 = executed_command(c0, c1, arena)
             x0, y0, th0 = pose[0], pose[1], pose[2]
             _, touched, dth = drive(pose, c0, c1, wheel[b, j], arena, 0.0, 0.0, empty, empty, empty, 0.0, 0.0)
             cursors[b, 1] += 1
@@ -161,7 +176,6 @@ def _train_batch(kind, size, W, P, R, p, arena, poses, cursors, targets, t0, whe
 def _test_batch(kind, W, P, R, p, arena, cx, cy, step_s, targets, wheel, sense, eps,
                 final_dist, stopped, steps, path_out, straight, t_eps, path_eps):
     B = W.shape[0]
-    v_max = p[fast.P_VMAX]
     for b in prange(B):
         c = np.empty(2)
         pose = np.array([cx, cy, 0.0])
@@ -173,13 +187,12 @@ def _test_batch(kind, W, P, R, p, arena, cx, cy, step_s, targets, wheel, sense, 
             n_steps = wheel.shape[2]
             for j in range(wheel.shape[2]):
                 alpha, d = sense_target(pose[0], pose[1], pose[2], tx, ty, sense[b, i, j, 0], sense[b, i, j, 1], arena[A_RES])
-                if d == 0.0:
+                fast.command(kind, alpha, d, W[b], P[b], R[b], p, c)
+                c0, c1 = executed_command(c[0], c[1], arena)
+                if c0 == 0.0 and c1 == 0.0:  # a stop (c = 0)
                     stopped[b, i] = True
                     n_steps = j
                     break
-                fast.command(kind, alpha, d, W[b], P[b], R[b], p, c)
-                c0 = min(max(c[0], -v_max), v_max)
-                c1 = min(max(c[1], -v_max), v_max)
                 ds, _, _ = drive(pose, c0, c1, wheel[b, i, j], arena, tx, ty, eps, t_eps[b, i], path_eps[b, i],
                                  j * step_s, path)
                 path += ds

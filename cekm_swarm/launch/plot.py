@@ -45,40 +45,38 @@ def read_run(path: str | Path, keys: KeySpace = KeySpace()) -> dict[str, Any]:
 
 
 def plot_log(path: str | Path, title: str | None = None, outcome: dict[str, Any] | None = None):
-    """A matplotlib figure of the run in the log at ``path``."""
+    """A matplotlib figure of the run in the log at ``path``: one colour per robot for its
+    path, start and goal, time marks along the paths, axes in metres, the legend outside
+    the arena and the limits fitted to what the robots covered."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from world.draw import draw_paths, draw_world, figure_size, fit_bounds, legend_outside, robot_colours
+
     run = read_run(path)
     geometry = run["geometry"]
+    colours = robot_colours(sorted(set(run["paths"]) | {r["id"] for r in (geometry or {}).get("robots", [])}))
+    robots = (outcome or {}).get("robots", {})
+    labels = {rid: f"{rid} ({'reached' if robots[rid]['reached'] else 'not reached'})" if rid in robots else rid
+              for rid in run["paths"]}
+    fig, ax = plt.subplots(figsize=(7, 6))
     if geometry is not None:
-        xmin, ymin, xmax, ymax = geometry["bounds"]
-        aspect = (ymax - ymin) / max(xmax - xmin, 1e-9)
-    else:
-        aspect = 1.0
-    fig, ax = plt.subplots(figsize=(7, max(2.5, 7 * aspect)))
-    if geometry is not None:
-        from world.draw import draw_world
-
-        draw_world(ax, geometry, run["state"])
+        draw_world(ax, geometry, run["state"], colours)
     else:
         ax.set_aspect("equal")
-    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    robots = (outcome or {}).get("robots", {})
-    for i, (rid, poses) in enumerate(run["paths"].items()):
-        col = colours[i % len(colours)]
-        xs = [p[1] for p in poses]
-        ys = [p[2] for p in poses]
-        status = ""
-        if rid in robots:
-            status = " (reached)" if robots[rid]["reached"] else " (not reached)"
-        ax.plot(xs, ys, "-", color=col, lw=1.2, label=f"{rid}{status}")
-        ax.plot(xs[:1], ys[:1], "o", color=col, ms=5, alpha=0.6)
+        ax.set_xlabel("x (m)")
+        ax.set_ylabel("y (m)")
+    paths = {rid: ([p[0] for p in ps], [p[1] for p in ps], [p[2] for p in ps]) for rid, ps in run["paths"].items()}
+    step = draw_paths(ax, paths, colours, labels)
+    points = [(x, y) for _, xs, ys in paths.values() for x, y in zip(xs, ys)]
+    if run["state"] is not None:
+        points += [tuple(r["goal"]) for r in run["state"]["robots"].values() if r.get("goal") is not None]
+    x0, x1, y0, y1 = fit_bounds(ax, geometry, points)
     t_end = run["state"]["time"] if run["state"] else 0.0
-    ax.set_title(title or f"{Path(path).name}: {t_end:.1f} s of sim time")
-    if run["paths"]:
-        ax.legend(loc="best", fontsize=7)
+    ax.set_title(title or f"{Path(path).name}: {t_end:.1f} s of sim time", fontsize=9)
+    legend_outside(ax, time_step=step if paths else None)
+    fig.set_size_inches(figure_size(x0, x1, y0, y1))
     fig.tight_layout()
     return fig

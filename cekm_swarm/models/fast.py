@@ -77,26 +77,38 @@ def winner(alpha, d, w, p):
 
 
 @njit(cache=True)
-def bfn_activations(alpha, d, w, P, R, out):
+def bfn_activations(alpha, d, w, P, R, p, out):
     """Normalized Gaussian activations of the basis-function network (widths in P[:, 1]).
 
-    R[i, 0, 0] > 0 marks a centre that has won for some training input; d is limited to
-    the farthest such centre (the network's local workspace).
+    R[i, 0, 0] > 0 marks a centre that has won for some training input; only those units
+    take part (all, before the first), and d is limited to the farthest of them in the
+    direction set A(alpha) (the network's local workspace in that direction).
     """
     n = w.shape[0]
+    any_won = False
+    for i in range(n):
+        if R[i, 0, 0] > 0.0:
+            any_won = True
+    da_min = np.inf
+    for i in range(n):
+        if R[i, 0, 0] > 0.0 or not any_won:
+            da_min = min(da_min, abs(wrap(alpha - w[i, 0])))
     d_edge = -1.0
     for i in range(n):
-        if R[i, 0, 0] > 0.0 and w[i, 1] > d_edge:
+        if (R[i, 0, 0] > 0.0 or not any_won) and abs(wrap(alpha - w[i, 0])) <= da_min + p[P_TOL] and w[i, 1] > d_edge:
             d_edge = w[i, 1]
-    if d_edge >= 0.0 and d > d_edge:
+    if d > d_edge:
         d = d_edge
     qmin = np.inf
     for i in range(n):
-        za = wrap(alpha - w[i, 0]) / P[i, 1, 0]
-        zd = (d - w[i, 1]) / P[i, 1, 1]
-        out[i] = 0.5 * (za * za + zd * zd)
-        if out[i] < qmin:
-            qmin = out[i]
+        if R[i, 0, 0] > 0.0 or not any_won:
+            za = wrap(alpha - w[i, 0]) / P[i, 1, 0]
+            zd = (d - w[i, 1]) / P[i, 1, 1]
+            out[i] = 0.5 * (za * za + zd * zd)
+            if out[i] < qmin:
+                qmin = out[i]
+        else:
+            out[i] = np.inf
     total = 0.0
     for i in range(n):
         out[i] = math.exp(-(out[i] - qmin))
@@ -117,7 +129,7 @@ def command(kind, alpha, d, w, P, R, p, out):
         return
     if kind == KIND_BFN:
         phis = np.empty(w.shape[0])
-        bfn_activations(alpha, d, w, P, R, phis)
+        bfn_activations(alpha, d, w, P, R, p, phis)
         out[0] = 0.0
         out[1] = 0.0
         for i in range(w.shape[0]):
@@ -224,7 +236,7 @@ def learn(kind, va, vd, c0, c1, t, w, P, R, size, p, idx_buf, g_buf):
         o0 = 0.0
         o1 = 0.0
         phis = np.empty(n)
-        bfn_activations(va, vd, w, P, R, phis)
+        bfn_activations(va, vd, w, P, R, p, phis)
         for i in range(n):
             o0 += phis[i] * P[i, 0, 0]
             o1 += phis[i] * P[i, 0, 1]
@@ -238,18 +250,19 @@ def learn(kind, va, vd, c0, c1, t, w, P, R, size, p, idx_buf, g_buf):
             i = idx_buf[j]
             r = i // size
             c = i - r * size
-            for axis in range(2):
-                best = np.inf
-                for side in (-1, 1):
-                    rr = r + side * axis
-                    cc = c + side * (1 - axis)
-                    if 0 <= rr < size and 0 <= cc < size:
-                        q = rr * size + cc
-                        da = wrap(w[i, 0] - w[q, 0])
-                        dd = w[i, 1] - w[q, 1]
-                        best = min(best, math.sqrt(da * da + dd * dd))
-                rho = max(best, p[P_WIDTH_FLOOR])
-                P[i, 1, axis] += p[P_ETA_WIDTH] * g_buf[j] * (rho - P[i, 1, axis])
+            best = np.inf
+            for side in range(4):
+                rr = r + (side == 2) - (side == 3)
+                cc = c + (side == 0) - (side == 1)
+                if 0 <= rr < size and 0 <= cc < size:
+                    q = rr * size + cc
+                    da = wrap(w[i, 0] - w[q, 0])
+                    dd = w[i, 1] - w[q, 1]
+                    best = min(best, math.sqrt(p[P_BETA_A] * da * da + p[P_BETA_D] * dd * dd))
+            rho_a = max(best / math.sqrt(p[P_BETA_A]), p[P_WIDTH_FLOOR])
+            rho_d = max(best / math.sqrt(p[P_BETA_D]), p[P_WIDTH_FLOOR])
+            P[i, 1, 0] += p[P_ETA_WIDTH] * g_buf[j] * (rho_a - P[i, 1, 0])
+            P[i, 1, 1] += p[P_ETA_WIDTH] * g_buf[j] * (rho_d - P[i, 1, 1])
         for j in range(m):
             _update_input_weight(w, idx_buf[j], va, vd, eta_w * g_buf[j])
         R[k, 0, 0] = 1.0

@@ -169,19 +169,22 @@ class DirectEKM:
 BFN_WIDTH_FLOOR = 1e-3  # smallest basis width (raw (alpha [rad], d [m]) units), so no width collapses to 0
 
 
-def lattice_neighbour_distances(w: np.ndarray, size: int, i: int) -> np.ndarray:
-    """(rho_alpha, rho_d): raw Euclidean distance from centre i to its nearest lattice neighbour
-    along the direction (column) axis and along the distance (row) axis, floored."""
+def neighbour_widths(w: np.ndarray, size: int, i: int, comp: CompetitionParams) -> np.ndarray:
+    """(sigma_alpha, sigma_d) that unit i's widths move toward: rho, the distance from centre i
+    to its nearest of up to 4 lattice neighbours measured as the competition measures it
+    (Eq. 3: rho^2 = beta_alpha dalpha^2 + beta_d dd^2, angles wrapped), expressed per axis
+    (rho / sqrt(beta_alpha) rad, rho / sqrt(beta_d) m) and floored. Measured in raw (rad, m)
+    units instead, a neighbour's angle difference would set a width in metres many times the
+    whole distance range, and that unit would swamp the normalized activations."""
     r, c = divmod(int(i), size)
-    out = np.full(2, np.inf)
-    for axis, nbrs in ((0, ((r, c - 1), (r, c + 1))), (1, ((r - 1, c), (r + 1, c)))):
-        for rr, cc in nbrs:
-            if 0 <= rr < size and 0 <= cc < size:
-                j = rr * size + cc
-                da = wrap(w[i, 0] - w[j, 0])
-                dd = w[i, 1] - w[j, 1]
-                out[axis] = min(out[axis], math.sqrt(da * da + dd * dd))
-    return np.maximum(out, BFN_WIDTH_FLOOR)
+    best = np.inf
+    for rr, cc in ((r, c - 1), (r, c + 1), (r - 1, c), (r + 1, c)):
+        if 0 <= rr < size and 0 <= cc < size:
+            j = rr * size + cc
+            da = wrap(w[i, 0] - w[j, 0])
+            dd = w[i, 1] - w[j, 1]
+            best = min(best, math.sqrt(comp.beta_alpha * da * da + comp.beta_d * dd * dd))
+    return np.maximum([best / math.sqrt(comp.beta_alpha), best / math.sqrt(comp.beta_d)], BFN_WIDTH_FLOOR)
 
 
 @dataclass
@@ -222,17 +225,22 @@ class BasisFunctionNetwork:
     def activations(self, u: np.ndarray) -> np.ndarray:
         """Normalized Gaussian activations phi_i(u) / sum_j phi_j(u), computed stably.
 
-        Normalized, so that every input activates its nearest units however far it is; and
-        an input beyond the network's local workspace (the farthest centre that has won for
-        a training input) is presented at its edge, as the EKM's winner stands in for a
+        Only units whose centre has won for a training input take part (all, before the
+        first): a unit no data reached keeps its random initial output, which would steer
+        the robot away from ever producing such data. Normalized, so that every input
+        activates its nearest units however far it is; and an input beyond the network's
+        local workspace in its direction (the farthest active centre in the direction set
+        A(alpha) of Eq. 4) is presented at that edge, as the EKM's winner stands in for a
         target outside U' (section 3.2).
         """
-        d = u[1]
-        if np.any(self.won):
-            d = min(d, float(self.w[self.won, 1].max()))
+        active = self.won if np.any(self.won) else np.ones(len(self.w), dtype=bool)
+        da = np.abs(wrap(u[0] - self.w[:, 0]))
+        da_min = da[active].min()
+        edge = active & (da <= da_min + self.comp.direction_tolerance)  # A(alpha) of Eq. 4 among active units
+        d = min(u[1], float(self.w[edge, 1].max()))
         za = wrap(u[0] - self.w[:, 0]) / self.widths[:, 0]
         zd = (d - self.w[:, 1]) / self.widths[:, 1]
-        q = 0.5 * (za * za + zd * zd)
+        q = np.where(active, 0.5 * (za * za + zd * zd), np.inf)
         phi = np.exp(-(q - q.min()))
         return phi / phi.sum()
 
@@ -246,7 +254,7 @@ class BasisFunctionNetwork:
         phi = self.activations(v)
         err = c - phi @ self.W
         k, idx, g = updated_neighbourhood(v, self.w, self.lattice, self.comp, self.learn_p, t)
-        rho = np.array([lattice_neighbour_distances(self.w, self.lattice.size, i) for i in idx])
+        rho = np.array([neighbour_widths(self.w, self.lattice.size, i, self.comp) for i in idx])
         self.W += self.learn_p.eta_bfn * phi[:, None] * err[None, :]
         self.widths[idx] += (self.learn_p.eta_width * g)[:, None] * (rho - self.widths[idx])
         learning.update_input_weights(self.w, v, idx, g, self.learn_p.eta_w)

@@ -58,3 +58,70 @@ def test_learning_moves_the_winner_toward_the_displacement():
     moved = np.flatnonzero(np.any(net.w != w0, axis=1))
     assert moved.size > 0
     assert np.all(np.abs(net.w[moved, 1] - v[1]) <= np.abs(w0[moved, 1] - v[1]) + 1e-12)
+
+
+def _small_bfn():
+    """A 2 x 2 B-network by hand: centres at alpha +-1 rad, d 0 and 0.1 m; units 0 and 1 have won."""
+    from cekm_swarm.models.lattice import Lattice
+    from cekm_swarm.models.networks import BasisFunctionNetwork
+
+    w = np.array([[-1.0, 0.0], [1.0, 0.0], [-1.0, 0.1], [1.0, 0.1]])
+    widths = np.tile([1.0, 0.05], (4, 1))
+    W = np.array([[0.01, 0.02], [0.03, 0.04], [0.05, 0.06], [0.07, 0.08]])
+    return BasisFunctionNetwork(Lattice(2), w, widths, W, np.array([True, True, False, False]))
+
+
+def test_bfn_command_matches_hand_computed_values():
+    """u = (0.5, 0.04): only the won units 0 and 1 take part; the direction set A(0.5) among them
+    is unit 1 (|0.5 - 1| = 0.5 against 1.5), so d is presented at its edge, d_1 = 0; then
+    q_0 = 1.5^2 / 2 = 1.125, q_1 = 0.5^2 / 2 = 0.125, phi = (e^-1, 1) / (1 + e^-1)."""
+    net = _small_bfn()
+    phi0, phi1 = 0.2689414213699951, 0.7310585786300049
+    np.testing.assert_allclose(net.activations(np.array([0.5, 0.04])), [phi0, phi1, 0.0, 0.0], rtol=1e-12)
+    np.testing.assert_allclose(net.command(np.array([0.5, 0.04])), [phi0 * 0.01 + phi1 * 0.03, phi0 * 0.02 + phi1 * 0.04],
+                               rtol=1e-12)
+
+
+def test_bfn_learning_step_matches_hand_computed_values():
+    """One learn(v, c, t=0) with v = (0.5, 0.04), c = (0.1, 0):
+    * output weights, gradient descent on every unit: W_i += eta_bfn phi_i (c - phi . W);
+    * winner of v (Eq. 2-4 over all centres): unit 1; sigma(0) = 1, so G = exp(-|r_1 - r_i|^2 / 2)
+      = (e^-0.5, 1, e^-1, e^-0.5) over lattice positions (0,0), (0,1), (1,0), (1,1);
+    * widths toward the nearest lattice neighbour's distance in Eq. 3's metric: every unit's nearest
+      is its direction-axis neighbour, 2 rad away (its distance-axis one is 0.1 m x 2 pi / 0.16 = 3.93),
+      so the targets are (2 rad, 2 x 0.16 / (2 pi) m); sigma += eta_width G (target - sigma);
+    * centres by Eq. 12: w_i += eta_w G (v - w_i)."""
+    net = _small_bfn()
+    lp = net.learn_p
+    phi = np.array([0.2689414213699951, 0.7310585786300049, 0.0, 0.0])
+    out = np.array([phi[0] * 0.01 + phi[1] * 0.03, phi[0] * 0.02 + phi[1] * 0.04])
+    err = np.array([0.1, 0.0]) - out
+    W_expected = net.W + lp.eta_bfn * phi[:, None] * err[None, :]
+    G = np.exp(-np.array([1.0, 0.0, 2.0, 1.0]) / 2.0)
+    target = np.array([2.0, 2.0 * 0.16 / (2.0 * np.pi)])
+    widths_expected = net.widths + (lp.eta_width * G)[:, None] * (target[None, :] - net.widths)
+    v = np.array([0.5, 0.04])
+    w_expected = net.w + (lp.eta_w * G)[:, None] * (v[None, :] - net.w)  # no angle crosses +-pi here
+    net.learn(v, np.array([0.1, 0.0]), 0.0)
+    np.testing.assert_allclose(net.W, W_expected, rtol=1e-12)
+    np.testing.assert_allclose(net.widths, widths_expected, rtol=1e-12)
+    np.testing.assert_allclose(net.w, w_expected, rtol=1e-12, atol=1e-15)
+    assert net.won.tolist() == [True, True, False, False]  # unit 1 won again
+
+
+def test_bfn_fast_path_equals_the_hand_computed_case():
+    from cekm_swarm.models import fast
+    from cekm_swarm.models.networks import BFN_WIDTH_FLOOR
+
+    ref = _small_bfn()
+    w, P, R = fast.network_arrays(ref)
+    p = fast.pack_params(ref.comp, ref.learn_p, 0.15625, BFN_WIDTH_FLOOR)
+    c = np.empty(2)
+    fast.command(fast.KIND_BFN, 0.5, 0.04, w, P, R, p, c)
+    np.testing.assert_allclose(c, ref.command(np.array([0.5, 0.04])), rtol=1e-12)
+    fast.learn(fast.KIND_BFN, 0.5, 0.04, 0.1, 0.0, 0.0, w, P, R, 2, p, np.empty(4, dtype=np.int64), np.empty(4))
+    ref.learn(np.array([0.5, 0.04]), np.array([0.1, 0.0]), 0.0)
+    w2, P2, R2 = fast.network_arrays(ref)
+    np.testing.assert_allclose(w, w2, rtol=1e-12)
+    np.testing.assert_allclose(P, P2, rtol=1e-12)
+    np.testing.assert_array_equal(R, R2)

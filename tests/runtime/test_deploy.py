@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import queue
 import shutil
+import time
 from pathlib import Path
 
 import pytest
@@ -170,3 +171,20 @@ def test_other_robot_and_operator(acl_router):
 def test_wrong_password_is_refused(acl_router):
     with pytest.raises(RuntimeTransportError, match="cannot open robot-r1"):
         acl_router("robot-r1", password="wrong")
+
+
+def test_monitor_fetches_the_scene_the_world_serves_and_a_robot_does_not(acl_router):
+    """``cekm record`` and monitors ask the world for the static scene (a queryable): the
+    monitor identity may query it and get the world's reply; a robot may not."""
+    world, monitor, r1 = acl_router("world"), acl_router("monitor"), acl_router("robot-r1")
+    key = K.world_geometry()
+    queryable = world.declare_queryable(key, lambda q: q.reply(key, b"scene"))
+    try:
+        deadline = time.monotonic() + T
+        got: list[bytes] = []
+        while not got and time.monotonic() < deadline:  # until the router has the queryable
+            got = [r.ok.payload.to_bytes() for r in monitor.get(key, timeout=1.0) if r.ok is not None]
+        assert got == [b"scene"]
+        assert [r for r in r1.get(key, timeout=1.0) if r.ok is not None] == []
+    finally:
+        queryable.undeclare()

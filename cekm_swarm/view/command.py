@@ -1,0 +1,117 @@
+"""``cekm view``: serve the live view of a running or replayed run on a local port."""
+
+from __future__ import annotations
+
+import math
+import threading
+from pathlib import Path
+
+import click
+
+from cekm_swarm.errors import CekmError
+from cekm_swarm.runtime.commands import _connect_options, _session
+
+
+def _geometry(scenario: str | None, log: Path | None, seed: int | None):
+    """(static geometry, sensing radii) from a scenario or from a run's MCAP log."""
+    from world import ScenarioError, load_scenario
+    from world.sim import World
+
+    if log is not None:
+        from cekm_swarm.launch.plot import read_geometry
+
+        geometry = read_geometry(log)
+        if geometry is None:
+            raise click.BadParameter(f"{log}: no geometry in the log's metadata (an unfinished log has no index)",
+                                     param_hint="--log")
+        return geometry, []
+    try:
+        sc = load_scenario(scenario)
+    except ScenarioError as exc:
+        raise click.BadParameter(str(exc), param_hint="SCENARIO") from None
+    geometry = World(sc, seed=seed if seed is not None else sc.seed).static_geometry()
+    r = geometry.get("body_radius", 0.03)
+    ranges = [r + sc.sensor_range] + ([sc.target_range] if math.isfinite(sc.target_range) else [])
+    return geometry, ranges
+
+
+def _lattice(session, model_path: Path | None, root: str, timeout: float):
+    """The motor map's input weights w: from --model, else from the run's model queryable
+    (None if nothing answers within ``timeout`` s: neurons are then placed by index)."""
+    from cekm_swarm.models.io import load_model, load_model_bytes
+    from cekm_swarm.protocol import KeySpace
+    from cekm_swarm.runtime.model_service import fetch_model_bytes
+
+    if model_path is not None:
+        return load_model(model_path).w
+    key = KeySpace(root=root).world_model()
+    try:
+        return load_model_bytes(fetch_model_bytes(session, key, timeout=timeout), key).w
+    except CekmError as exc:
+        click.echo(f"no model on {key} ({exc}); neurons placed by index", err=True)
+        return None
+
+
+@click.command("view")
+@click.argument("scenario", required=False)
+@click.option("--log", "log", type=click.Path(dir_okay=False, exists=True, path_type=Path),
+              help="Take the arena from this run's MCAP log (e.g. for `cekm replay`) instead of a scenario.")
+@click.option("--seed", type=int, help="World seed of the scenario (default: the scenario's).")
+@click.option("--robot", help="Robot whose fields are drawn (default: the first).")
+@click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path),
+              help="Model file for the lattice (default: ask the run's model queryable).")
+@_connect_options
+@click.option("--root", default="cekm", show_default=True, help="Key-space root.")
+@click.option("--http", "http_port", default=8470, show_default=True, type=click.IntRange(0, 65535),
+              help="Local HTTP port of the page (0: any free one).")
+@click.option("--host", default="127.0.0.1", show_default=True, help="Address the page is served on.")
+@click.option("--foxglove", "foxglove_port", type=click.IntRange(0, 65535), default=None, metavar="PORT",
+              help="Also serve the view channels live on a Foxglove WebSocket server on this port "
+                   "(for the Foxglove desktop app).")
+def view_cmd(scenario: str | None, log: Path | None, seed: int | None, robot: str | None, model_path: Path | None,
+             endpoint: str | None, config_file: Path | None, root: str, http_port: int, host: str,
+             wait_s: float, foxglove_port: int | None) -> None:
+    """A live 2-D view of a running or replayed run in the browser: arena, obstacles,
+    robots with headings, paths and sensing circles, targets, and for one robot its
+    target field, obstacle fields and motor-EKM activity (the paper's Fig. 4)."""
+    from cekm_swarm.protocol import KeySpace
+    from world.draw import robot_colours
+
+    from .live import LiveView
+    from .server import ViewServer
+
+    if (scenario is None) == (log is None):
+        raise click.UsageError("give a SCENARIO (name or TOML file) or --log RUN.mcap, not both or neither")
+    geometry, ranges = _geometry(scenario, log, seed)
+    ids = [r["id"] for r in geometry.get("robots", [])]
+    if robot is not None and robot not in ids:
+        raise click.BadParameter(f"{robot!r} is not a robot of this arena ({', '.join(ids)})", param_hint="--robot")
+    with _session(endpoint, config_file, wait_s) as session:
+        keys = KeySpace(root=root)
+        view = LiveView(geometry, robot=robot, ranges=ranges, colours=robot_colours(sorted(ids)), keys=keys)
+        sub = session.declare_subscriber(f"{root}/**", lambda s: view.observe(str(s.key_expr), s.payload.to_bytes()))
+        try:
+            server = ViewServer(view, host, http_port)
+        except OSError as exc:
+            raise click.ClickException(f"--http {http_port}: cannot serve on {host}: {exc.strerror}") from None
+        fox = None
+        if foxglove_port is not None:
+            from .foxglove_live import FoxgloveLive
+
+            try:
+                fox = FoxgloveLive(view, host, foxglove_port)
+            except Exception as exc:  # noqa: BLE001 - foxglove's own error types; the page still serves
+                server.close()
+                raise click.ClickException(f"--foxglove {foxglove_port}: cannot serve on {host}: {exc}") from None
+            click.echo(f"foxglove WebSocket server on ws://{host}:{fox.port}", err=True)
+        click.echo(f"live view on {server.url} (Ctrl-C to stop)", err=True)
+        view.w = _lattice(session, model_path, root, timeout=5.0)
+        try:
+            threading.Event().wait()
+        except KeyboardInterrupt:
+            pass
+        finally:
+            if fox is not None:
+                fox.close()
+            server.close()
+            sub.undeclare()

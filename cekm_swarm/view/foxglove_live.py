@@ -1,0 +1,80 @@
+"""``cekm view --foxglove PORT``: the same view channels as the MCAP log's (``/view/scene``,
+``/view/tf``, ``/view/path/<robot>``, built by
+:class:`cekm_swarm.runtime.foxglove_view.FoxgloveViews`) served live on foxglove-sdk's
+WebSocket server, for the Foxglove desktop app ("Open connection", ws://HOST:PORT).
+
+:class:`ChannelSink` stands where the views expect an MCAP recorder and logs each message
+on a foxglove channel instead; :class:`FoxgloveLive` feeds the views from a
+:class:`~cekm_swarm.view.live.LiveView` in its own thread.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from typing import Any
+
+from cekm_swarm.runtime.foxglove_view import FoxgloveViews
+from cekm_swarm.runtime.mcap_log import SchemaSpec
+
+from .live import LiveView
+
+GEOMETRY_EVERY = 2.0
+"""Wall seconds between re-sends of the static scene (a late-joining app gets it too)."""
+
+
+class ChannelSink:
+    """``write_encoded`` as :class:`McapRecorder` has it, onto live foxglove channels."""
+
+    def __init__(self) -> None:
+        self.channels: dict[str, Any] = {}
+        self.messages = 0
+
+    def write_encoded(self, topic: str, message_encoding: str, schema: SchemaSpec, data: bytes,
+                      sim_time: float) -> None:
+        import foxglove
+
+        ch = self.channels.get(topic)
+        if ch is None:
+            ch = self.channels[topic] = foxglove.Channel(
+                topic, message_encoding=message_encoding,
+                schema=foxglove.Schema(name=schema.name, encoding=schema.encoding, data=schema.data))
+        ch.log(data, log_time=max(0, int(round(sim_time * 1e9))))
+        self.messages += 1
+
+
+class FoxgloveLive:
+    """A foxglove WebSocket server on ``host:port`` (0: any free port) showing ``view``."""
+
+    def __init__(self, view: LiveView, host: str = "127.0.0.1", port: int = 0, rate: float = 20.0) -> None:
+        import foxglove
+
+        self.view = view
+        self.rate = rate
+        self.sink = ChannelSink()
+        self.views = FoxgloveViews(self.sink, robot_radius=float(view.geometry.get("body_radius", 0.03)))
+        self.server = foxglove.start_server(name="cekm view", host=host, port=port)
+        self.port = self.server.port
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="view-foxglove", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        version, sent_geometry = -1, -float("inf")
+        while not self._stop.is_set():
+            changed = self.view.wait_change(version, timeout=0.5)
+            tick = self.view.tick()
+            version = tick["version"]
+            t = tick["time"] or 0.0
+            if time.monotonic() - sent_geometry >= GEOMETRY_EVERY:
+                self.views.write_geometry(t, self.view.geometry)
+                sent_geometry = time.monotonic()
+            if changed and tick["robots"]:
+                self.views.write_state(t, {"robots": tick["robots"], "targets": tick["targets"],
+                                           "obstacles": tick["obstacles"]})
+            self._stop.wait(1.0 / self.rate)  # at most `rate` updates a second
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join(timeout=5)
+        self.server.stop()

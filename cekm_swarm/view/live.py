@@ -1,0 +1,149 @@
+"""What the live view shows, from (key, payload): the world's ground truth (poses,
+targets, moving obstacles), each robot's path, and for the chosen robot its target
+field a, obstacle fields b_j and the motor-EKM activity e = a - sum_j b_j (Eq. 9) with
+the winners s (target) and k = argmax e (Eq. 10).
+
+Messages are decoded with the protocol's validating decoders; a malformed one is
+dropped and counted (``drops``), never a crash. Everything handed out is plain JSON data.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from cekm_swarm.protocol import DEFAULT_KEYS, DropCounter, KeySpace, ObstacleField, TargetField, WorldState
+
+PATH_STEP = 0.004
+"""A path point is kept when the robot has moved this far (m) since the last one."""
+PATH_MAX = 5000
+
+
+def _r(x: float, nd: int = 4) -> float:
+    return round(float(x), nd)
+
+
+class LiveView:
+    """The view's state. ``geometry`` is the world's static geometry (as
+    ``world.World.static_geometry()`` gives it); ``w`` the motor map's input weights
+    (n x 2: alpha in rad, d in m) used to place neurons, None to place them by index;
+    ``ranges`` the sensing radii drawn around each robot (m from the centre)."""
+
+    def __init__(self, geometry: Mapping[str, Any], *, robot: str | None = None, w: np.ndarray | None = None,
+                 ranges: Sequence[float] = (), colours: Mapping[str, str] | None = None,
+                 keys: KeySpace = DEFAULT_KEYS) -> None:
+        self.geometry = dict(geometry)
+        self.keys = keys
+        ids = [r["id"] for r in geometry.get("robots", [])]
+        self.robot = robot if robot is not None else (ids[0] if ids else None)
+        self.w = None if w is None else np.asarray(w, dtype=np.float64)
+        self.ranges = [float(r) for r in ranges]
+        self.colours = dict(colours or {})
+        self.drops = DropCounter("view", keys=keys)
+        self.time = math.nan
+        self.poses: dict[str, dict[str, Any]] = {}
+        self.targets: dict[str, Any] = {}
+        self.obstacles: dict[str, Any] = {}
+        self.paths: dict[str, list[list[float]]] = {}
+        self.target_field: TargetField | None = None
+        self.obstacle_fields: dict[int, ObstacleField] = {}
+        self.version = 0
+        self.changed = threading.Condition()
+
+    # ------------------------------------------------------------------ input
+    def observe(self, key: str, payload: bytes) -> None:
+        """One received message (Zenoh's thread): decoded, or dropped and counted."""
+        msg = self.drops.decode(key, payload)
+        if msg is None:
+            return
+        with self.changed:
+            if isinstance(msg, WorldState):
+                self._world(msg)
+            elif isinstance(msg, TargetField) or isinstance(msg, ObstacleField):
+                parsed = self.keys.parse(key)
+                if parsed.robot != self.robot:
+                    return
+                if isinstance(msg, TargetField):
+                    self.target_field = msg
+                else:
+                    self.obstacle_fields[msg.index] = msg
+            else:
+                return
+            self.version += 1
+            self.changed.notify_all()
+
+    def _world(self, msg: WorldState) -> None:
+        self.time = msg.stamp
+        self.targets = msg.targets
+        self.obstacles = msg.obstacles
+        for rid, r in msg.robots.items():
+            try:
+                x, y, th = float(r["x"]), float(r["y"]), float(r["theta"])
+            except (KeyError, TypeError, ValueError):
+                self.drops.drop(self.keys.world_state(), f"robots.{rid}: no numeric x, y, theta")
+                continue
+            g = r.get("goal")
+            self.poses[rid] = {"x": _r(x), "y": _r(y), "theta": _r(th), "in_contact": bool(r.get("in_contact", False)),
+                               "goal": [_r(g[0]), _r(g[1])] if isinstance(g, (list, tuple)) and len(g) == 2 else None}
+            path = self.paths.setdefault(rid, [])
+            if not path or math.hypot(x - path[-1][1], y - path[-1][2]) >= PATH_STEP:
+                path.append([_r(msg.stamp, 3), _r(x), _r(y)])
+                if len(path) > PATH_MAX:
+                    del path[1:len(path) // 2:2]  # thin the older half, keep the start
+
+    # ------------------------------------------------------------------ output
+    def fields(self) -> dict[str, Any] | None:
+        """The chosen robot's latest fields, as its motor module holds them: the latest
+        target field a (the target sensor may run slower than the range sensors) and the
+        obstacle fields of the newest range tick; sum_j b_j, e (Eq. 9), s, k (Eq. 10) and
+        which sensors see something. None before any field."""
+        tf = self.target_field
+        obstacle_stamps = [f.stamp for f in self.obstacle_fields.values()]
+        if tf is None and not obstacle_stamps:
+            return None
+        newest = max(obstacle_stamps + ([tf.stamp] if tf is not None else []))
+        newest_b = max(obstacle_stamps, default=newest)
+        b = [f for f in self.obstacle_fields.values() if f.stamp == newest_b and f.b is not None]
+        a = tf.a if tf is not None else None
+        n = a.shape[0] if a is not None else (b[0].b.shape[0] if b else 0)
+        if n == 0:
+            return {"stamp": newest, "n": 0, "seeing": [], "at_goal": bool(tf is not None and tf.at_goal)}
+        bsum = np.zeros(n)
+        for f in b:
+            if f.b.shape[0] == n:
+                bsum += f.b
+        out: dict[str, Any] = {"stamp": newest, "n": n, "seeing": sorted(f.index for f in b),
+                               "b": [_r(v) for v in bsum], "at_goal": bool(tf is not None and tf.at_goal)}
+        if a is not None:
+            e = a - bsum  # Eq. 9
+            out.update(a=[_r(v) for v in a], e=[_r(v) for v in e], s=int(tf.winner), k=int(np.argmax(e)))  # Eq. 10
+        return out
+
+    def lattice(self) -> list[list[float]] | None:
+        """Neuron positions (alpha, d) from the model's w, or None (placed by index)."""
+        return None if self.w is None else [[_r(a), _r(d)] for a, d in self.w]
+
+    def init(self) -> dict[str, Any]:
+        """Everything a page needs to start: geometry, colours, lattice, ranges, paths so far."""
+        with self.changed:
+            return {"geometry": self.geometry, "colours": self.colours, "robot": self.robot, "lattice": self.lattice(),
+                    "ranges": self.ranges, "paths": {k: list(v) for k, v in self.paths.items()}, **self._tick()}
+
+    def tick(self) -> dict[str, Any]:
+        """The current state (poses, targets, obstacles, fields, drop count, version)."""
+        with self.changed:
+            return self._tick()
+
+    def _tick(self) -> dict[str, Any]:
+        return {"version": self.version, "time": None if math.isnan(self.time) else _r(self.time, 3),
+                "robots": dict(self.poses), "targets": self.targets, "obstacles": self.obstacles,
+                "fields": self.fields(), "dropped": self.drops.total}
+
+    def wait_change(self, version: int, timeout: float) -> bool:
+        """Block until the version differs from ``version`` (True) or ``timeout`` s pass."""
+        with self.changed:
+            return self.changed.wait_for(lambda: self.version != version, timeout)

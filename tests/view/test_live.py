@@ -1,0 +1,108 @@
+"""The live view's state and its HTTP server, without Zenoh: fields combined as Eq. 9,
+paths, malformed messages dropped and counted, the page and the event stream."""
+
+from __future__ import annotations
+
+import json
+import threading
+import urllib.request
+
+import numpy as np
+import pytest
+
+from cekm_swarm.protocol import DEFAULT_KEYS as K
+from cekm_swarm.protocol import ObstacleField, TargetField, WorldState, encode
+from cekm_swarm.view.live import PATH_STEP, LiveView
+from cekm_swarm.view.server import ViewServer
+
+GEOMETRY = {"bounds": [0.0, 0.0, 2.0, 1.0], "body_radius": 0.03, "walls": [], "polygons": [], "discs": [],
+            "moving_obstacles": [], "targets": [{"id": "g1", "position": [1.8, 0.5]}],
+            "robots": [{"id": "r1", "start": [0.2, 0.5, 0.0], "goal": "g1"}, {"id": "r2", "start": [0.2, 0.2, 0.0]}]}
+
+
+def _state(t: float, x: float) -> bytes:
+    robots = {"r1": {"x": x, "y": 0.5, "theta": 0.1, "goal": [1.8, 0.5]}, "r2": {"x": 0.2, "y": 0.2, "theta": 0.0}}
+    return encode(WorldState(t, "world", robots, {"g1": {"x": 1.8, "y": 0.5}}, {}))
+
+
+def test_fields_of_the_chosen_robot_combine_as_eq_9():
+    v = LiveView(GEOMETRY)
+    assert v.robot == "r1" and v.fields() is None
+    a = np.linspace(1.0, 0.0, 9)
+    b3 = np.zeros(9)
+    b3[0] = 0.7
+    b5 = np.zeros(9)
+    b5[1] = 0.4
+    v.observe(K.field_target("r1"), encode(TargetField(0.25, "r1/target", 0, a, 0.0, 1.0)))  # the target sensor is slower
+    v.observe(K.field_obstacle("r1", 3), encode(ObstacleField(0.5, "r1/obstacle-3", 3, 0, b3)))
+    v.observe(K.field_obstacle("r1", 5), encode(ObstacleField(0.5, "r1/obstacle-5", 5, 1, b5)))
+    v.observe(K.field_obstacle("r1", 7), encode(ObstacleField(0.5, "r1/obstacle-7", 7, None, None)))  # sees nothing
+    v.observe(K.field_obstacle("r1", 9), encode(ObstacleField(0.25, "r1/obstacle-9", 9, 2, np.ones(9))))  # stale
+    v.observe(K.field_target("r2"), encode(TargetField(0.5, "r2/target", 8, a[::-1].copy(), 0.0, 1.0)))  # other robot
+    f = v.fields()
+    e = a - b3 - b5
+    assert f["seeing"] == [3, 5] and f["s"] == 0
+    assert f["e"] == pytest.approx(list(e), abs=1e-4) and f["b"] == pytest.approx(list(b3 + b5), abs=1e-4)
+    assert f["k"] == int(np.argmax(e)) == 2  # the obstacles push the motor winner off the target winner
+
+
+def test_paths_accumulate_and_malformed_messages_are_dropped_and_counted():
+    v = LiveView(GEOMETRY, robot="r2")
+    for i in range(10):
+        v.observe(K.world_state(), _state(0.1 * i, 0.2 + 0.001 * i))  # 1 mm steps: kept every PATH_STEP
+    v.observe(K.world_state(), b"\x93garbage")
+    v.observe(K.field_target("r2"), encode(ObstacleField(0.5, "r2/obstacle-3", 3, 0, np.ones(4))))  # wrong kind
+    v.observe(K.world_state(), encode(WorldState(1.0, "world", {"r1": {"x": "far"}}, {}, {})))  # no numeric pose
+    tick = v.tick()
+    assert tick["dropped"] == 3
+    assert tick["time"] == 1.0 and tick["robots"]["r1"]["x"] == pytest.approx(0.209)
+    p = v.init()["paths"]["r1"]
+    assert len(p) == 1 + int(0.009 / PATH_STEP + 1e-9) and p[0] == [0.0, 0.2, 0.5]
+
+
+def test_server_inlines_the_state_and_streams_ticks():
+    v = LiveView(GEOMETRY, w=np.array([[0.0, 0.1], [0.5, 0.2]]), ranges=[0.13], colours={"r1": "#123456"})
+    v.observe(K.world_state(), _state(0.3, 0.4))
+    server = ViewServer(v, port=0)
+    try:
+        page = urllib.request.urlopen(server.url, timeout=10).read().decode()
+        assert "const S = {" in page and '"#123456"' in page and "/*INIT*/" not in page
+        state = json.loads(urllib.request.urlopen(server.url + "state.json", timeout=10).read())
+        assert state["lattice"] == [[0.0, 0.1], [0.5, 0.2]] and state["paths"]["r1"] == [[0.3, 0.4, 0.5]]
+        events: list[dict] = []
+        got_two = threading.Event()
+
+        def read() -> None:
+            with urllib.request.urlopen(server.url + "events", timeout=10) as stream:
+                for line in stream:
+                    if line.startswith(b"data: "):
+                        events.append(json.loads(line[6:]))
+                        if len(events) == 2:
+                            got_two.set()
+                            return
+
+        threading.Thread(target=read, daemon=True).start()
+        assert v.wait_change(-1, 0)  # the first event is the current state
+        for _ in range(200):  # keep changing until the reader has seen a second tick
+            if got_two.wait(0.05):
+                break
+            v.observe(K.world_state(), _state(0.6, 0.5))
+        assert got_two.is_set()
+        assert events[0]["time"] == 0.3 and events[1]["time"] == 0.6 and events[1]["robots"]["r1"]["x"] == 0.5
+        with pytest.raises(urllib.error.HTTPError):
+            urllib.request.urlopen(server.url + "nothing", timeout=10)
+    finally:
+        server.close()
+
+
+def test_cli_errors_name_the_option():
+    from click.testing import CliRunner
+
+    from cekm_swarm.cli import main
+
+    r = CliRunner().invoke(main, ["view"])
+    assert r.exit_code == 2 and "give a SCENARIO" in r.output
+    r = CliRunner().invoke(main, ["view", "crossing", "--robot", "r9", "--wait", "0"])
+    assert r.exit_code == 2 and "--robot" in r.output and "'r9' is not a robot of this arena (r1, r2, r3)" in r.output
+    r = CliRunner().invoke(main, ["view", "no_such_scenario"])
+    assert r.exit_code == 2 and "SCENARIO" in r.output and "no_such_scenario" in r.output

@@ -1,0 +1,180 @@
+"""`cekm view` end to end in a real browser: a lockstep `cekm launch` of the lone_obstacle
+scenario on a free port, `cekm view` attached to it, headless Chromium loading the page
+at two moments of the run. The screenshots are not blank and differ where the robots
+moved; a protocol-level client decodes the live event stream, whose poses equal the
+run's MCAP log at the same sim time, and whose fields obey Eq. 9. The run's
+trajectory.png (``cekm plot``'s drawing) has the shared picture style.
+
+The two moments are held still by SIGSTOPping r1's motor module (the lockstep world then
+waits for its command), so the test does not depend on how fast the machine runs."""
+
+from __future__ import annotations
+
+import json
+import os
+import queue
+import shutil
+import signal
+import subprocess
+import sys
+import threading
+import time
+import urllib.request
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).parents[1] / "runtime"))
+from test_foxglove_live import WsClient  # noqa: E402
+from test_launch_support import LaunchProcess  # noqa: E402
+
+from cekm_swarm.experiments.default_model import default_model_path  # noqa: E402
+from cekm_swarm.runtime.config import free_port  # noqa: E402
+from cekm_swarm.launch.plot import plot_log, read_run  # noqa: E402
+
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser") or shutil.which("google-chrome")
+pytestmark = pytest.mark.skipif(CHROMIUM is None, reason="needs headless Chromium (.ci/run installs Debian's chromium)")
+R1 = (0x1F, 0x77, 0xB4)  # world.draw.ROBOT_COLOURS[0], r1's colour on the page
+
+
+class Stream:
+    """A protocol-level client of the view's Server-Sent Events stream: every ``tick``
+    event decoded from JSON, in order."""
+
+    def __init__(self, url: str) -> None:
+        self.ticks: list[dict] = []
+        self._q: queue.Queue[dict] = queue.Queue()
+        threading.Thread(target=self._read, args=(url,), daemon=True).start()
+
+    def _read(self, url: str) -> None:
+        with urllib.request.urlopen(url, timeout=120) as s:
+            event = None
+            for line in s:
+                if line.startswith(b"event: "):
+                    event = line[7:].strip().decode()
+                elif line.startswith(b"data: ") and event == "tick":
+                    tick = json.loads(line[6:])
+                    self.ticks.append(tick)
+                    self._q.put(tick)
+
+    def wait(self, pred, timeout: float, what: str) -> dict:
+        deadline = time.monotonic() + timeout
+        while True:
+            try:
+                tick = self._q.get(timeout=max(0.0, deadline - time.monotonic()))
+            except queue.Empty:
+                raise AssertionError(f"no tick with {what} in {timeout} s (last: {self.ticks[-1:]})") from None
+            if pred(tick):
+                return tick
+
+
+def _screenshot(url: str, path: Path):
+    from PIL import Image
+
+    subprocess.run([CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars",
+                    "--window-size=1000,720", f"--screenshot={path}", url],
+                   check=True, capture_output=True, timeout=120)
+    return np.asarray(Image.open(path).convert("RGB")).astype(int)
+
+
+def _centroid(img, rgb) -> np.ndarray:
+    ys, xs = np.nonzero(np.all(np.abs(img - np.array(rgb)) <= 2, axis=2))
+    assert len(xs) > 30, "r1's colour is not on the page"
+    return np.array([xs.mean(), ys.mean()])
+
+
+def test_live_view_in_headless_chromium(tmp_path):
+    port = free_port()
+    # the view first: it waits for the launch's router and subscribes as soon as it is up,
+    # seconds before the 14 modules are alive and the lockstep world ticks
+    view = subprocess.Popen([sys.executable, "-m", "cekm_swarm", "view", "lone_obstacle", "--http", "0",
+                             "--foxglove", "0", "--connect", f"tcp/127.0.0.1:{port}",
+                             "--model", str(default_model_path())],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=True,
+                            env=dict(os.environ, PYTHONUNBUFFERED="1"))
+    run = LaunchProcess("lone_obstacle", tmp_path / "run", "--mode", "lockstep", "--max-time", "8",
+                        "--model", str(default_model_path()), port=port)
+    motor = None
+    try:
+        said = [view.stderr.readline() for _ in range(2)]
+        if said[0].startswith("waiting"):  # for the router
+            said = said[1:] + [view.stderr.readline()]
+        assert said[0].startswith("foxglove WebSocket server on ws://127.0.0.1:"), said
+        assert said[1].startswith("live view on http://"), said
+        fox_port = int(said[0].split(":")[-1])
+        url = said[1].split()[3]
+        stream = Stream(url + "events")
+        run.wait_line("world started ticking", timeout=120)
+        motor = run.pids()["r1/motor"]
+
+        def hold(after: float) -> dict:
+            """Let the run pass sim time ``after``, then hold it still; the state it shows."""
+            stream.wait(lambda t: (t["time"] or 0) >= after, 120, f"time >= {after}")
+            os.kill(motor, signal.SIGSTOP)
+            state = json.loads(urllib.request.urlopen(url + "state.json", timeout=30).read())
+            while True:  # the world may finish the tick it had begun: wait until the view has it
+                try:  # (a held world republishes its last tick's state: same time, not news)
+                    stream.wait(lambda t: t["time"] != state["time"], 1.5, "a new time")
+                    state = json.loads(urllib.request.urlopen(url + "state.json", timeout=30).read())
+                except AssertionError:
+                    return state
+
+        a = hold(1.0)
+        ws = WsClient(fox_port)  # the Foxglove server of the same view advertises the scene
+        while True:
+            op, data = ws.frame()
+            if op == 1 and any(c["topic"] == "/view/scene" for c in json.loads(data).get("channels", [])):
+                break
+        img_a = _screenshot(url, tmp_path / "a.png")
+        os.kill(motor, signal.SIGCONT)
+        b = hold(a["time"] + 3.0)
+        img_b = _screenshot(url, tmp_path / "b.png")
+        os.kill(motor, signal.SIGCONT)
+        motor = None
+        assert run.finish(timeout=300) == 0, "\n".join(run.lines[-20:])
+    finally:
+        if motor is not None:
+            os.kill(motor, signal.SIGCONT)
+        view.terminate()
+        view.wait(10)
+        run.kill()
+
+    # not blank: a white page with some grey would pass neither
+    for img in (img_a, img_b):
+        assert (img.sum(axis=2) < 600).mean() > 0.02
+        assert len(np.unique(img.reshape(-1, 3), axis=0)) > 30
+    # they differ, and r1's pixels moved the way r1 moved (it drives towards +x)
+    assert (np.abs(img_a - img_b).sum(axis=2) > 30).sum() > 500
+    ra, rb = a["robots"]["r1"], b["robots"]["r1"]
+    assert rb["x"] > ra["x"] + 0.05
+    assert _centroid(img_b, R1)[0] > _centroid(img_a, R1)[0] + 5
+
+    # the stream: every tick's poses equal the log's at that sim time; fields obey Eq. 9
+    logged = {round(t, 3): (x, y) for rid, poses in read_run(tmp_path / "run" / "run.mcap")["paths"].items()
+              if rid == "r1" for t, x, y, _ in poses}
+    with_time = [t for t in stream.ticks if t["time"] is not None and "r1" in t["robots"]]
+    assert len(with_time) >= 5
+    for t in with_time:
+        if t["time"] in logged:
+            assert (t["robots"]["r1"]["x"], t["robots"]["r1"]["y"]) == pytest.approx(logged[t["time"]], abs=1e-4)
+    assert sum(t["time"] in logged for t in with_time) >= len(with_time) // 2
+    fields = [t["fields"] for t in stream.ticks if t["fields"] and "e" in t["fields"]]
+    assert fields, "no target field of r1 in the stream"
+    for f in fields:
+        assert f["n"] == 225 and len(f["a"]) == len(f["b"]) == len(f["e"]) == 225
+        assert np.allclose(np.array(f["a"]) - np.array(f["b"]), f["e"], atol=2e-4)
+        assert f["k"] == int(np.argmax(f["e"]))
+    assert b["dropped"] == 0
+    assert b["fields"] is not None and "e" in b["fields"]  # the held page shows r1's three fields
+
+    # cekm plot's drawing of this run: one colour per robot, time marks, units, legend outside
+    assert (tmp_path / "run" / "trajectory.png").is_file()
+    fig = plot_log(tmp_path / "run" / "run.mcap")
+    fig.canvas.draw()
+    ax = fig.axes[0]
+    gids = {a.get_gid(): a for a in ax.lines + ax.patches if a.get_gid()}
+    for rid in ("r1",):
+        assert gids[f"path:{rid}"].get_color() == gids[f"start:{rid}"].get_color() == gids[f"goal:{rid}"].get_color()
+        assert len(gids[f"time:{rid}"].get_xdata()) >= 2
+    assert ax.get_xlabel() == "x (m)" and ax.get_legend().get_window_extent().x0 >= ax.get_window_extent().x1
