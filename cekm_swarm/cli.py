@@ -75,18 +75,20 @@ def target_reaching(out_dir: Path, overwrite: bool, networks: str, trials: int, 
 
 
 @experiment.command("obstacles")
-@click.option("--seeds", default="1,2,3,4,5", show_default=True)
+@click.option("--seeds", default="1-20", show_default=True, help="Seeds: a list and/or ranges, e.g. 1-20 or 1,2,7.")
+@click.option("--speed-unit", type=click.FloatRange(min=0.0, max=0.05),
+              help="Wheel speed unit of the plant (m/s) for every run, 0 = continuous (default: each scenario's).")
 @click.option("--max-time", default=300.0, show_default=True, type=click.FloatRange(min=1.0),
               help="Sim seconds before a robot counts as trapped.")
 @click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path))
 @click.option("--workers", type=click.IntRange(1), help="Parallel processes (default: one per core).")
 @out_dir_options("Directory for outcomes.json and the figures.")
-def obstacles(seeds: str, max_time: float, model_path: Path | None, workers: int | None, out_dir: Path,
-              overwrite: bool) -> None:
+def obstacles(seeds: str, speed_unit: float | None, max_time: float, model_path: Path | None, workers: int | None,
+              out_dir: Path, overwrite: bool) -> None:
     """Reproduce section 4.2 (Figs. 8, 10-12): cooperative EKMs and command fusion over seeds."""
     from .experiments.concave_sweep import seeds_of
     from .experiments.default_model import default_model, default_model_path
-    from .experiments.obstacle_suite import run_suite, table_markdown, write_suite
+    from .experiments.obstacle_suite import run_suite, summary_markdown, write_suite
 
     try:
         seed_list = tuple(seeds_of(seeds))
@@ -100,9 +102,9 @@ def obstacles(seeds: str, max_time: float, model_path: Path | None, workers: int
     if model_path is None:
         default_model()
         model_path = default_model_path()
-    doc, pictures = run_suite(seed_list, model_path, max_time, workers)
+    doc, pictures = run_suite(seed_list, model_path, max_time, workers, speed_unit=speed_unit)
     paths = write_suite(doc, pictures, out_dir)
-    click.echo(table_markdown(doc))
+    click.echo(summary_markdown(doc))
     click.echo("wrote " + ", ".join(str(p) for p in paths))
 
 
@@ -269,7 +271,7 @@ def sweep() -> None:
 @click.option("--max-time", default=300.0, show_default=True, type=click.FloatRange(min=1.0))
 @click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path))
 @click.option("--workers", type=click.IntRange(1), help="Parallel processes (default: one per core).")
-@out_dir_options("Directory for fig9.json and fig9.png.")
+@out_dir_options("Directory for fig9.json, fig9.png and fig9_grid.png.")
 def sweep_concave(depths: str, widths: str, ranges: str, seeds: str, need: int, max_time: float,
                   model_path: Path | None, workers: int | None, out_dir: Path, overwrite: bool) -> None:
     """Find the widest concave obstacle negotiated, per depth and sensing range (Fig. 9)."""

@@ -11,7 +11,10 @@ A tick is 0.128 s (4 sub-steps). At tick k (sim time k * 0.128 s) the world:
 3. applies each robot's command and advances 0.128 s.
 
 A robot has reached its goal when its target reading at the final goal is the goal state
-(d = 0, the controller stops). Plain data in, plain data out: no controller code here.
+(d = 0, the controller stops), or when it stops there: the command it is given
+quantizes to zero on the plant (``[plant] speed_unit``; the paper's stop criterion)
+while its last reading of the final goal was within ``checkpoint_radius``. Plain data
+in, plain data out: no controller code here.
 """
 
 from __future__ import annotations
@@ -48,6 +51,7 @@ class RobotProgress:
     reached_time: float | None = None
     path: list[tuple[float, float, float, float]] = field(default_factory=list)  # t, x, y, theta per tick
     commands: list[tuple[float, float]] = field(default_factory=list)
+    last_d: float = math.inf  # the last sensed distance to the current goal
 
     @property
     def final(self) -> bool:
@@ -95,6 +99,7 @@ class Episode:
                     p.checkpoint_times.append(self.t)
                     w.set_goal(r, p.checkpoints[p.next_index])
                     target = w.target_reading(r)
+                p.last_d = target[1] if target[2] and math.isfinite(target[1]) else math.inf
                 if p.final and not p.reached and target[2] and target[1] == 0.0:
                     p.reached, p.reached_time = True, self.t
                     p.checkpoint_times.append(self.t)
@@ -105,7 +110,12 @@ class Episode:
         """Step 3: set every robot's wheels (a robot without a command keeps its last one)."""
         for r, (v_l, v_r) in commands.items():
             self.world.set_wheels(r, v_l, v_r)
-            self.progress[r].commands.append((v_l, v_r))
+            p = self.progress[r]
+            p.commands.append((v_l, v_r))
+            if (p.final and not p.reached and p.last_d <= self.radius
+                    and self.world.wheel_command(r) == (0.0, 0.0)):
+                p.reached, p.reached_time = True, self.t  # a stop at the goal
+                p.checkpoint_times.append(self.t)
 
     def advance(self) -> None:
         self.world.advance(TICK_S)

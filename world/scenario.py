@@ -28,6 +28,12 @@ BODY_RADIUS = 0.03
 DEFAULT_WALL_THICKNESS = 0.02
 #: Default distance-sensor range from the body surface (m).
 DEFAULT_SENSOR_RANGE = 0.17
+#: Wheel speed unit of the Khepera's motor controller (m/s): speeds are set in whole
+#: encoder pulses per 10 ms, and one pulse is 0.08 mm of wheel travel, so one unit is
+#: 8 mm/s (K-Team's Khepera user manual). ``[plant] speed_unit`` defaults to it.
+WHEEL_SPEED_UNIT = 0.008
+#: Default of ``[plant] speed_unit`` (0: continuous wheel speeds).
+DEFAULT_SPEED_UNIT = 0.0
 #: Default inset of a random-walk target's bounds from the arena bounds (m).
 RANDOM_WALK_INSET = 0.05
 
@@ -111,6 +117,7 @@ class Scenario:
     walls: tuple[WallSpec, ...]
     obstacles: tuple[ObstacleSpec, ...]
     targets: tuple[TargetSpec, ...]
+    speed_unit: float = DEFAULT_SPEED_UNIT  # [plant]: wheel speeds are whole multiples of it; 0 = continuous
 
     @property
     def robot_ids(self) -> list[str]:
@@ -312,7 +319,7 @@ class _Parser:
             dict(raw),
             "",
             ("arena", "robots"),
-            ("name", "description", "seed", "sensors", "targets", "walls", "obstacles"),
+            ("name", "description", "seed", "sensors", "plant", "targets", "walls", "obstacles"),
         )
         name = self.string(doc.get("name", default_name), "name")
         description = self.string(doc.get("description", ""), "description")
@@ -330,6 +337,9 @@ class _Parser:
         target_range = self.number(
             sensors.get("target_range", math.inf), "sensors.target_range", gt=0.0, allow_inf=True
         )
+
+        plant = self.table(doc.get("plant", {}), "plant", (), ("speed_unit",))
+        speed_unit = self.number(plant.get("speed_unit", DEFAULT_SPEED_UNIT), "plant.speed_unit", ge=0.0, le=0.05)
 
         ids: dict[str, str] = {}
 
@@ -417,6 +427,7 @@ class _Parser:
             walls=tuple(walls),
             obstacles=tuple(obstacles),
             targets=tuple(targets),
+            speed_unit=speed_unit,
         )
         self.check_overlaps(sc)
         return sc

@@ -40,7 +40,7 @@ from pymunk._chipmunk_cffi import ffi, lib
 from . import _physics as ph
 from . import geometry as geo
 from .motion import CircleMotion, Fixed, LineMotion, RandomWalk
-from .scenario import BODY_RADIUS, Scenario
+from .scenario import BODY_RADIUS, WHEEL_SPEED_UNIT, Scenario
 
 #: Robot body radius (m).
 ROBOT_RADIUS = BODY_RADIUS
@@ -70,6 +70,18 @@ TRACTION_FORCE = 0.5 * ROBOT_MASS * 9.81
 COLLISION_DEBOUNCE = 0.256
 #: Max torque of the gear joint (N m).
 TRACTION_TORQUE = 0.01
+
+
+def quantize_speed(v: float, unit: float, v_max: float = V_MAX) -> float:
+    """A wheel speed as the Khepera's motor controller executes it: the nearest whole
+    number of speed units (half a unit rounds away from zero), at most the largest whole
+    number within +-v_max. A command below half a unit is a stop. ``unit`` 0: unchanged."""
+    if unit <= 0.0:
+        return v
+    n = math.floor(abs(v) / unit + 0.5)
+    n = min(n, math.floor(v_max / unit + 1e-9))
+    return math.copysign(n * unit, v) if n else 0.0
+
 
 _FIELDS = (
     pbatch.BodyFields.POSITION
@@ -269,13 +281,29 @@ class World:
             raise KeyError(f"unknown robot id {robot_id!r} (robots: {self._ids})") from None
 
     def set_wheels(self, robot_id: str, v_l: float, v_r: float) -> None:
-        """Set the wheel speeds (m/s), clipped to +-v*; held until changed."""
+        """Set the wheel speeds (m/s), clipped to +-v* and quantized to the plant's speed
+        unit (:func:`quantize_speed`, when ``[plant] speed_unit`` > 0); held until changed."""
         i = self._i(robot_id)
         vl, vr = float(v_l), float(v_r)
         if not (math.isfinite(vl) and math.isfinite(vr)):
             raise ValueError(f"wheel speeds must be finite, got ({v_l}, {v_r})")
-        self._cmd[i, 0] = min(max(vl, -V_MAX), V_MAX)
-        self._cmd[i, 1] = min(max(vr, -V_MAX), V_MAX)
+        vl, vr = min(max(vl, -V_MAX), V_MAX), min(max(vr, -V_MAX), V_MAX)
+        unit = self.scenario.speed_unit
+        if unit > 0.0:
+            vl, vr = quantize_speed(vl, unit), quantize_speed(vr, unit)
+        self._cmd[i, 0] = vl
+        self._cmd[i, 1] = vr
+
+    def wheel_command(self, robot_id: str) -> tuple[float, float]:
+        """The wheel speeds the robot's motor controller holds (m/s): the last command,
+        clipped to +-v* and, with ``[plant] speed_unit`` > 0, quantized; slip noise acts on these."""
+        i = self._i(robot_id)
+        return float(self._cmd[i, 0]), float(self._cmd[i, 1])
+
+    @property
+    def speed_unit(self) -> float:
+        """Wheel speed unit (m/s) of this world's plant; 0 = continuous speeds."""
+        return self.scenario.speed_unit
 
     def set_goal(self, robot_id: str, goal: str | tuple[float, float]) -> None:
         """Point the robot's target sensor at a target id or at a fixed point (x, y)

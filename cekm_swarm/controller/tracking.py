@@ -83,7 +83,7 @@ class TrackingEKM:
     model: IndirectEKM
     target_range: float
     params: TrackingParams = field(default_factory=TrackingParams)
-    fields: FieldParams = field(default_factory=FieldParams)
+    fields: FieldParams = field(default_factory=FieldParams.paper)  # the values tracking was tuned with
     backend: str = "numba"
 
     def __post_init__(self) -> None:

@@ -52,7 +52,7 @@ def make_robot(kind: str, robot: str, world, model, tparams: TrackingParams | No
     view = TeamView(robot, tp.share_timeout_s, tp.memory_s)
     R = world.target_range
     if kind == "cekm":
-        ctl: object = TrackingEKM(robot, model, R, tp, fields or FieldParams())
+        ctl: object = TrackingEKM(robot, model, R, tp, fields or FieldParams.paper())
     elif kind == "acmommt":
         ctl = ACMOMMT(robot, R, world.sensor_range, world.body_radius, world.axle, world.v_max,
                       aparams or ACMOMMTParams(), tp.search_reached, tp.wander_ahead_m)

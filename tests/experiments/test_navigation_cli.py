@@ -56,7 +56,15 @@ def test_sweep_writes_grid(tmp_path, model):
     doc = json.loads((out / "fig9.json").read_text())
     assert len(doc["runs"]) == 2 and len(doc["grid"]) == 1
     assert {x["width"] for x in doc["runs"]} == {0.1, 0.34}
-    assert (out / "fig9.png").is_file()
+    # every (range, depth, width) cell with its success rate over the seeds
+    assert [(c["range"], c["depth"], c["width"]) for c in doc["cells"]] == [(0.17, 0.12, 0.1), (0.17, 0.12, 0.34)]
+    for c in doc["cells"]:
+        assert set(c) == {"range", "depth", "width", "reached", "of", "rate"}
+        run = next(x for x in doc["runs"] if x["width"] == c["width"])
+        assert c["of"] == 1 and c["reached"] == int(run["reached"]) and c["rate"] == c["reached"] / c["of"]
+    assert set(doc["grid"][0]) == {"range", "depth", "max_width", "negotiated_widths", "max_width_no_hole"}
+    for name in ("fig9.png", "fig9_grid.png"):
+        assert (out / name).read_bytes()[:4] == b"\x89PNG"
 
 
 def test_bad_scenario_and_model_are_refused(tmp_path, model):

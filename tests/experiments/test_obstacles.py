@@ -41,7 +41,9 @@ def test_obstacles_command_writes_table_and_pictures(tmp_path, model):
     r = CliRunner().invoke(main, ["experiment", "obstacles", "--seeds", "2", "--max-time", "60", "--workers", "1",
                                   "--model", str(default_model_path()), "--out", str(tmp_path)])
     assert r.exit_code == 0, r.output
-    assert "| doorway | cekm | yes" in r.output
+    assert "| doorway (Fig. 10) | cekm | 1/1 (21-100 %) | 1/1 (21-100 %) | 0 | 0 |" in r.output
+    table = (tmp_path / "table.md").read_text()
+    assert "| doorway | cekm | yes" in table  # and per seed
     for name in ("outcomes.json", "table.md", "fig8_concave.png", "fig10_doorway.png", "fig11_rooms.png",
                  "fig12_checkpoints.png"):
         assert (tmp_path / name).is_file(), name

@@ -32,7 +32,7 @@ def test_obstacle_field_eq8_both_branches():
     near = math.exp(-0.05 ** 2 / (2 * 0.02475 ** 2))  # neuron 3 is nearer than it
     assert math.isclose(b[2], beyond) and math.isclose(b[3], near)
     assert b[2] > 0.99 > 0.5 > b[3]  # neurons beyond the obstacle are inhibited too
-    assert math.isclose(b[1], math.exp(-1.0 / (2 * 0.495 ** 2)) * 1.0)
+    assert math.isclose(b[1], math.exp(-1.0 / (2 * P.sigma_b_alpha ** 2)) * 1.0)
 
 
 def test_integration_eq9_and_winner_eq10():
