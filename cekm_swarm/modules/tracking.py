@@ -241,7 +241,7 @@ def tracking_ekm(model, robot: str, target_range: float):
     from cekm_swarm.controller.tracking import TrackingEKM
     from cekm_swarm.models.params import FieldParams, TrackingParams
 
-    return TrackingEKM(robot, model, target_range, TrackingParams(), FieldParams(), backend="numpy")
+    return TrackingEKM(robot, model, target_range, TrackingParams(), FieldParams.paper(), backend="numpy")
 
 
 def load_model_arg(source):
