@@ -20,7 +20,7 @@ A range reading's ``d`` is the obstacle input u_j, the distance from the robot's
 (surface range + body radius), None when nothing is in range; an out-of-range target is
 sent as alpha = d = 0, visible False.
 
-Everything under ``<root>/**`` that passes the checks of :class:`RecordFilter` is recorded
+Everything under ``<root>/**`` that passes the checks of :class:`world.recorder.RecordFilter` is recorded
 into ``OUT/run.mcap`` (log time: the server's sim time when it is recorded, at most a
 tick after it arrived; publish time: its checked stamp), with Foxglove view channels; what fails them is dropped
 and counted per source (``drops`` in ``outcome.json``). The world trusts nothing from the
@@ -61,22 +61,21 @@ from typing import Any
 
 import zenoh
 
-from cekm_swarm.protocol import (DEFAULT_ROOT, Clock, DropCounter, KeySpace, KeySpaceError, SenseRange, SenseTarget,
-                                 WheelCommand, WorldState, encode)
+from cekm_swarm.protocol import (DEFAULT_ROOT, Clock, DropCounter, KeySpace, SenseRange, SenseTarget, WheelCommand,
+                                 WorldState, encode)
 from cekm_swarm.errors import CekmError
-from cekm_swarm.protocol import KeyKind
-from cekm_swarm.protocol.hotpath import Splice, VectorCache, obstacle_field_values, target_field_values, unpack
+from cekm_swarm.protocol.hotpath import Splice
 from cekm_swarm.protocol.stamps import PAST_S, stamp_problem
 from cekm_swarm.runtime.bridge import (InlineSubscription, LivelinessWatcher, Publishers, Received, declare_alive,
                                        wait_matching_async)
 from cekm_swarm.runtime.config import (DEFAULT_ENDPOINT, ROUTER_RUNTIME, is_loopback, open_client, open_embedded_router,
                                        tcp_host_port, use_zenoh_runtime)
 from cekm_swarm.runtime.lifetime import die_with_parent
-from cekm_swarm.runtime.mcap_log import McapRecorder
 from cekm_swarm.runtime.process_args import Param, add_params, run_id_arg, to_argv
 from cekm_swarm.runtime.record import serve_geometry
 
 from .episode import TICK_S, Episode, TickReadings
+from .recorder import RECORD_QUEUE, RecordFilter, open_run_log
 from .scenario import load_scenario
 from .sim import World
 from .tracking import TrackingEpisode, is_tracking
@@ -89,8 +88,6 @@ DEADMAN_MARGIN_S = 0.025
 second run of 56 processes beside it); the dead-man stops a robot this much early rather
 than late."""
 REPUBLISH_S = 1.0
-RECORD_QUEUE = 1 << 16
-"""Samples the recording queue holds between two drains (one per tick); the oldest go first."""
 DEFAULT_MAX_TIME = 600.0
 
 
@@ -166,60 +163,6 @@ class SenseEncoder:
             else:
                 out.append((self.target_key, encode(target_message(t, rd.target))))
         return out
-
-
-class RecordFilter:
-    """What the world's recorder takes from other sessions: a message on a key of this
-    run (a robot of the scenario, or the world's keys) that decodes as its key's message,
-    with a stamp on the tick grid no older than ``PAST_S`` and not ahead of the world's
-    sim time (no peer is ahead of the world's clock: the world starts each tick). Anything
-    else is dropped and counted per source key (a key outside the key space, or of a robot
-    this run does not have, is counted without a channel being opened for it), so the log
-    holds at most a fixed set of channels and no stamp a writer cannot hold."""
-
-    def __init__(self, keys: KeySpace, robots: list[str], drops: DropCounter) -> None:
-        self.keys, self.robots, self.drops = keys, frozenset(robots), drops
-        self._known: dict[str, tuple[KeyKind, int | None] | None] = {}
-        self.vectors = VectorCache()  # the fields' rows, checked once (protocol.hotpath)
-
-    def _key(self, key: str) -> tuple[KeyKind, int | None] | None:
-        """(kind, sensor index) of a key of this run, None for any other key."""
-        hit = self._known.get(key, False)
-        if hit is False:
-            try:
-                p = self.keys.parse(key)
-                hit = (p.kind, p.index) if p.robot is None or p.robot in self.robots else None
-            except KeySpaceError:
-                hit = None
-            if len(self._known) < 4096:  # only ever a bounded memo: foreign keys are unbounded
-                self._known[key] = hit
-        return hit
-
-    def check(self, key: str, payload: bytes, now: float) -> float | None:
-        """The message's stamp when it is to be recorded at sim time ``now``, else None
-        (dropped and counted). A field takes the modules' fast check first (a few us
-        instead of a full decode: the world does this for every field of every tick)."""
-        kind = self._key(key)
-        if kind is None:
-            self.drops.drop(key, "key outside this run's key space")
-            return None
-        u = None
-        if kind[0] is KeyKind.FIELD_OBSTACLE:
-            u = obstacle_field_values(unpack(payload), kind[1], self.vectors)
-        elif kind[0] is KeyKind.FIELD_TARGET:
-            u = target_field_values(unpack(payload), self.vectors)
-        if u is not None:  # exactly what decode accepts (tests/protocol/test_hotpath.py)
-            stamp = u[0]
-        else:
-            msg = self.drops.decode(key, payload)
-            if msg is None:
-                return None
-            stamp = msg.stamp
-        why = stamp_problem(stamp, now, PAST_S, 0.0)
-        if why is not None:
-            self.drops.drop(key, why)
-            return None
-        return stamp
 
 
 def target_message(t: float, target: tuple[float, float, bool]) -> SenseTarget:
@@ -490,18 +433,8 @@ class WorldServer:
         self._lat_seen: dict[tuple[str, float], float] = {}
         self.deadman = Deadman(self.robots, args.deadman, time.monotonic())
         geometry = self.world.static_geometry()
-        self.recorder = McapRecorder(self.out / "run.mcap", metadata={
-            "scenario": self.scenario.name, "seed": str(self.world.seed), "mode": args.mode})
-        self.recorder.add_metadata("geometry", {"json": json.dumps(geometry)})
-        self.views = None
-        try:
-            from cekm_swarm.runtime import foxglove_view
-
-            if foxglove_view.available():
-                self.views = foxglove_view.FoxgloveViews(self.recorder, robot_radius=self.world.body_radius)
-                self.views.write_geometry(0.0, geometry)
-        except ImportError:  # pragma: no cover - foxglove-sdk missing
-            self.views = None
+        self.recorder, self.views = open_run_log(self.out / "run.mcap", self.scenario.name, self.world.seed, args.mode,
+                                                 geometry, self.world.body_radius)
         try:
             session = open_world_session(args)
         except BaseException:

@@ -1,11 +1,11 @@
-"""What the world's recorder takes from other sessions (world.server.RecordFilter)."""
+"""What the world's recorder takes from other sessions (world.recorder.RecordFilter)."""
 
 import numpy as np
 
 from cekm_swarm.protocol import DEFAULT_KEYS as K
 from cekm_swarm.protocol import DropCounter, ObstacleField, WheelCommand, encode
 from cekm_swarm.ticks import tick_time
-from world.server import RecordFilter
+from world.recorder import RecordFilter
 
 
 def test_only_this_runs_keys_with_decodable_messages_and_believable_stamps_are_recorded():

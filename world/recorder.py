@@ -1,0 +1,90 @@
+"""The world server's log: what its recorder takes from other sessions
+(:class:`RecordFilter`) and the opening of ``run.mcap`` with its metadata and Foxglove
+views (:func:`open_run_log`)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from cekm_swarm.protocol import DropCounter, KeyKind, KeySpace, KeySpaceError
+from cekm_swarm.protocol.hotpath import VectorCache, obstacle_field_values, target_field_values, unpack
+from cekm_swarm.protocol.stamps import PAST_S, stamp_problem
+from cekm_swarm.runtime.mcap_log import McapRecorder
+
+RECORD_QUEUE = 1 << 16
+"""Samples the recording queue holds between two drains (one per tick); the oldest go first."""
+
+
+class RecordFilter:
+    """What the world's recorder takes from other sessions: a message on a key of this
+    run (a robot of the scenario, or the world's keys) that decodes as its key's message,
+    with a stamp on the tick grid no older than ``PAST_S`` and not ahead of the world's
+    sim time (no peer is ahead of the world's clock: the world starts each tick). Anything
+    else is dropped and counted per source key (a key outside the key space, or of a robot
+    this run does not have, is counted without a channel being opened for it), so the log
+    holds at most a fixed set of channels and no stamp a writer cannot hold."""
+
+    def __init__(self, keys: KeySpace, robots: list[str], drops: DropCounter) -> None:
+        self.keys, self.robots, self.drops = keys, frozenset(robots), drops
+        self._known: dict[str, tuple[KeyKind, int | None] | None] = {}
+        self.vectors = VectorCache()  # the fields' rows, checked once (protocol.hotpath)
+
+    def _key(self, key: str) -> tuple[KeyKind, int | None] | None:
+        """(kind, sensor index) of a key of this run, None for any other key."""
+        hit = self._known.get(key, False)
+        if hit is False:
+            try:
+                p = self.keys.parse(key)
+                hit = (p.kind, p.index) if p.robot is None or p.robot in self.robots else None
+            except KeySpaceError:
+                hit = None
+            if len(self._known) < 4096:  # only ever a bounded memo: foreign keys are unbounded
+                self._known[key] = hit
+        return hit
+
+    def check(self, key: str, payload: bytes, now: float) -> float | None:
+        """The message's stamp when it is to be recorded at sim time ``now``, else None
+        (dropped and counted). A field takes the modules' fast check first (a few us
+        instead of a full decode: the world does this for every field of every tick)."""
+        kind = self._key(key)
+        if kind is None:
+            self.drops.drop(key, "key outside this run's key space")
+            return None
+        u = None
+        if kind[0] is KeyKind.FIELD_OBSTACLE:
+            u = obstacle_field_values(unpack(payload), kind[1], self.vectors)
+        elif kind[0] is KeyKind.FIELD_TARGET:
+            u = target_field_values(unpack(payload), self.vectors)
+        if u is not None:  # exactly what decode accepts (tests/protocol/test_hotpath.py)
+            stamp = u[0]
+        else:
+            msg = self.drops.decode(key, payload)
+            if msg is None:
+                return None
+            stamp = msg.stamp
+        why = stamp_problem(stamp, now, PAST_S, 0.0)
+        if why is not None:
+            self.drops.drop(key, why)
+            return None
+        return stamp
+
+
+def open_run_log(path: Path, scenario: str, seed: int, mode: str, geometry: dict[str, Any],
+                 robot_radius: float) -> tuple[McapRecorder, Any]:
+    """The run's MCAP log with its metadata (scenario, seed, mode, the static geometry)
+    and, when foxglove-sdk is installed, its Foxglove views with the scene written at
+    t = 0 (else None for the views)."""
+    recorder = McapRecorder(path, metadata={"scenario": scenario, "seed": str(seed), "mode": mode})
+    recorder.add_metadata("geometry", {"json": json.dumps(geometry)})
+    views = None
+    try:
+        from cekm_swarm.runtime import foxglove_view
+
+        if foxglove_view.available():
+            views = foxglove_view.FoxgloveViews(recorder, robot_radius=robot_radius)
+            views.write_geometry(0.0, geometry)
+    except ImportError:  # pragma: no cover - foxglove-sdk missing
+        views = None
+    return recorder, views
