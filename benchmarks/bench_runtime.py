@@ -53,7 +53,7 @@ from cekm_swarm.runtime.config import (ROUTER_RUNTIME, free_port, open_embedded_
                                        use_zenoh_runtime)
 from world import World, load_scenario  # noqa: E402
 from world.episode import TICK_S, Episode  # noqa: E402
-from world.server import SenseEncoder  # noqa: E402
+from world.sense import SenseEncoder  # noqa: E402
 
 
 def pct(xs: list[float], q: float) -> float:

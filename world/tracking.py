@@ -25,9 +25,8 @@ from typing import Any
 
 from cekm_swarm.protocol.messages import SensePose, SenseTargets
 
+from .sense import SENDER
 from .sim import World
-
-SENDER = "world"
 
 
 def is_tracking(scenario: Any) -> bool:

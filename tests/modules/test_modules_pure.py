@@ -18,7 +18,7 @@ from cekm_swarm.protocol import SenseRange, SenseTarget, decode, encode
 from cekm_swarm.runtime.bridge import Received
 from world import World, load_scenario
 from world.episode import Episode
-from world.server import sense_messages
+from world.sense import sense_messages
 
 
 @pytest.fixture(scope="module")

@@ -9,7 +9,7 @@ from cekm_swarm.protocol import DEFAULT_KEYS as K
 from cekm_swarm.protocol import MessageError, encode
 from world import World, load_scenario
 from world.episode import Episode, TickReadings
-from world.server import SenseEncoder, sense_messages
+from world.sense import SenseEncoder, sense_messages
 
 
 def general(world, rd):
