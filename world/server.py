@@ -56,6 +56,7 @@ import os
 import signal
 import sys
 import time
+from dataclasses import make_dataclass
 from pathlib import Path
 from typing import Any
 
@@ -69,6 +70,7 @@ from cekm_swarm.runtime.bridge import (InlineSubscription, LivelinessWatcher, Pu
 from cekm_swarm.runtime.config import (DEFAULT_ENDPOINT, ROUTER_RUNTIME, is_loopback, open_client, open_embedded_router,
                                        tcp_host_port, use_zenoh_runtime)
 from cekm_swarm.runtime.lifetime import die_with_parent
+from cekm_swarm.runtime.mcap_log import McapRecorder
 from cekm_swarm.runtime.process_args import Param, add_params, run_id_arg, to_argv
 from cekm_swarm.runtime.record import serve_geometry
 
@@ -130,20 +132,23 @@ class Deadman:
 
 
 class WorldServer:
-    def __init__(self, args: argparse.Namespace) -> None:
-        self.args = args
-        self.keys = KeySpace(args.root, run=getattr(args, "run_id", None))
-        self.scenario = load_scenario(args.scenario)
-        self.world = World(self.scenario, seed=args.seed)
+    """One run of a scenario over Zenoh (see the module's docstring), set up from a
+    :class:`WorldConfig`; :meth:`run` runs it and writes its outputs."""
+
+    def __init__(self, config: WorldConfig) -> None:
+        self.config = cfg = config
+        self.keys = KeySpace(cfg.root, run=cfg.run_id)
+        self.scenario = load_scenario(cfg.scenario)
+        self.world = World(self.scenario, seed=cfg.seed)
         checkpoints = None
-        if args.checkpoints:
-            raw = Path(args.checkpoints).read_text() if not args.checkpoints.lstrip().startswith("{") else args.checkpoints
+        if cfg.checkpoints:
+            raw = Path(cfg.checkpoints).read_text() if not cfg.checkpoints.lstrip().startswith("{") else cfg.checkpoints
             checkpoints = {r: [tuple(map(float, c)) for c in cps] for r, cps in json.loads(raw).items()}
         self.robots = list(self.world.robot_ids)
-        self.out = Path(args.out)
+        self.out = Path(cfg.out)
         self.out.mkdir(parents=True, exist_ok=True)
-        self.lockstep = args.mode == "lockstep"
-        self.max_ticks = int(math.ceil(args.max_time / TICK_S))
+        self.lockstep = cfg.mode == "lockstep"
+        self.max_ticks = int(math.ceil(cfg.max_time / TICK_S))
         self.drops = DropCounter("world commands", keys=self.keys)
         self.record_drops = DropCounter("world recorder", keys=self.keys)
         self.record_filter = RecordFilter(self.keys, self.robots, self.record_drops)
@@ -167,6 +172,16 @@ class WorldServer:
         self._unrecorded: list[tuple[str, bytes, float]] = []
         self.now = 0.0  # the sim time of the tick whose readings are out (read by Zenoh's thread)
         self.late_commands = 0
+        # set when the run starts (run()); declared here so every attribute has one home
+        self.deadman = Deadman(self.robots, cfg.deadman, time.monotonic())  # restarted at the run's start
+        self._loop: asyncio.AbstractEventLoop | None = None  # the run's loop: Zenoh's thread wakes it
+        self._lat_pending: collections.deque[tuple[str, float, float]] = collections.deque()
+        self._lat_seen: dict[tuple[str, float], float] = {}
+        self.recorder: McapRecorder | None = None  # run.mcap, open while the run runs
+        self.views: Any = None  # Foxglove views of the log, when foxglove-sdk is installed
+        self.pubs: Publishers | None = None
+        self.record_sub: Any = None  # Zenoh subscriber with a ring channel (RECORD_QUEUE)
+        self.cmd_sub: InlineSubscription | None = None
 
     # ------------------------------------------------------------------ receiving
 
@@ -288,7 +303,7 @@ class WorldServer:
     async def _lockstep_commands(self, readings: list[TickReadings]) -> dict[str, tuple[float, float]]:
         t = self.episode.t
         loop = asyncio.get_running_loop()
-        next_republish = loop.time() + self.args.republish
+        next_republish = loop.time() + self.config.republish
         while True:
             waiting = [r for r in self.robots if (c := self.latest.get(r)) is None or c.stamp != t]
             if not waiting:
@@ -300,7 +315,7 @@ class WorldServer:
             if timeout <= 0:
                 self._event("republish", {"waiting": waiting})
                 self._republish(readings, waiting)
-                next_republish = loop.time() + self.args.republish
+                next_republish = loop.time() + self.config.republish
                 continue
             stopper = asyncio.ensure_future(self.stop.wait())
             waiter = asyncio.ensure_future(self.arrived.wait())
@@ -354,7 +369,7 @@ class WorldServer:
                           "deadline_misses": self.deadline_misses})
 
     async def run(self) -> dict[str, Any]:
-        args = self.args
+        cfg = self.config
         loop = asyncio.get_running_loop()
         for sig in (signal.SIGTERM, signal.SIGINT):
             try:
@@ -362,14 +377,12 @@ class WorldServer:
             except (NotImplementedError, RuntimeError):  # pragma: no cover
                 pass
         self._loop = loop
-        self._lat_pending: collections.deque[tuple[str, float, float]] = collections.deque()
-        self._lat_seen: dict[tuple[str, float], float] = {}
-        self.deadman = Deadman(self.robots, args.deadman, time.monotonic())
+        self.deadman = Deadman(self.robots, cfg.deadman, time.monotonic())
         geometry = self.world.static_geometry()
-        self.recorder, self.views = open_run_log(self.out / "run.mcap", self.scenario.name, self.world.seed, args.mode,
+        self.recorder, self.views = open_run_log(self.out / "run.mcap", self.scenario.name, self.world.seed, cfg.mode,
                                                  geometry, self.world.body_radius)
         try:
-            session = open_world_session(args)
+            session = open_world_session(cfg)
         except BaseException:
             self.recorder.close()
             raise
@@ -382,8 +395,8 @@ class WorldServer:
             self.cmd_sub = InlineSubscription(session, self.keys.cmd_wheels_all(), self._on_command)
             token = declare_alive(session, self.keys.alive("world", "server"))
             scene = serve_geometry(session, self.keys.world_geometry(), geometry)  # for `cekm record`
-            emit("READY", {"endpoint": args.listen or args.connect, "router": bool(args.listen)})
-            if args.wait_modules > 0 and not await self._wait_for_modules(session, args.wait_modules):
+            emit("READY", {"endpoint": cfg.listen or cfg.connect, "router": bool(cfg.listen)})
+            if cfg.wait_modules > 0 and not await self._wait_for_modules(session, cfg.wait_modules):
                 self.stop.set()
             t_wall0 = time.perf_counter()
             # Every module's subscription must be known before tick 0 is published.
@@ -394,15 +407,15 @@ class WorldServer:
                 for k in keys:
                     if self.stop.is_set():
                         break
-                    if not await wait_matching_async(self.pubs.publisher(k), args.match_timeout):
-                        log.warning("no subscriber on %s after %.0f s; starting anyway", k, args.match_timeout)
+                    if not await wait_matching_async(self.pubs.publisher(k), cfg.match_timeout):
+                        log.warning("no subscriber on %s after %.0f s; starting anyway", k, cfg.match_timeout)
             start = loop.time()
             last_progress = -1e9
             ep = self.episode
             try:
                 if self.stop.is_set():  # interrupted (or modules missing) before tick 0
                     raise asyncio.CancelledError
-                emit("START", {"mode": args.mode, "robots": self.robots, "scenario": self.scenario.name,
+                emit("START", {"mode": cfg.mode, "robots": self.robots, "scenario": self.scenario.name,
                                "seed": self.world.seed})
                 while True:
                     readings = ep.readings()
@@ -414,7 +427,7 @@ class WorldServer:
                     self._collect_latency(ep.t)
                     ep.apply(commands)
                     now = time.monotonic()
-                    if now - last_progress >= args.progress_every:
+                    if now - last_progress >= cfg.progress_every:
                         last_progress = now
                         self._progress()
                     if ep.done or ep.tick >= self.max_ticks:
@@ -483,7 +496,7 @@ class WorldServer:
 
         doc = {"scenario": self.scenario.name, "controller": "cekm", "seed": self.world.seed, "robots": ep.outcome(),
                "wall_seconds": round(wall, 3), "tick_loop_seconds": round(self.tick_loop_seconds, 3),
-               "mode": self.args.mode, "sim_seconds": ep.t, "ticks": ep.tick,
+               "mode": self.config.mode, "sim_seconds": ep.t, "ticks": ep.tick,
                "aborted": aborted, "republished": self.republished, "deadline_misses": self.deadline_misses,
                "sense_to_command_ms": {"p50": q(0.5), "p99": q(0.99), "n": len(lat)},
                "dropped_messages": self.drops.total + self.record_drops.total, "recorded_messages": self.recorded,
@@ -504,13 +517,13 @@ class WorldServer:
         return doc
 
 
-def open_world_session(args: argparse.Namespace) -> zenoh.Session:
+def open_world_session(cfg: WorldConfig) -> zenoh.Session:
     """The world's Zenoh session: the router itself with ``--listen``, else a client of
     ``--connect``."""
-    if args.listen:
-        host, port = tcp_host_port(args.listen)
+    if cfg.listen:
+        host, port = tcp_host_port(cfg.listen)
         return open_embedded_router(port, host)
-    return open_client(args.connect, config_file=args.zenoh_config)
+    return open_client(cfg.connect, config_file=cfg.zenoh_config)
 
 
 WORLD_PARAMS: tuple[Param, ...] = (
@@ -535,7 +548,28 @@ WORLD_PARAMS: tuple[Param, ...] = (
     Param("progress_every", float, 1.0, "wall s between PROGRESS lines"),
     Param("log_level", default="INFO"),
 )
-"""The world server's parameters: its parser and the launcher's argv both come from here."""
+"""The world server's parameters: its parser, the launcher's argv and :class:`WorldConfig`
+all come from here."""
+
+
+def _field_type(p: Param) -> Any:
+    """A config field's type: the parameter's parsed type (a validating function such as
+    ``run_id_arg`` gives a str), optional when the parameter may be absent."""
+    kind = p.type if isinstance(p.type, type) else str
+    return kind if p.required or p.positional or p.default is not None else kind | None
+
+
+def _from_args(cls: type, args: argparse.Namespace) -> Any:
+    """The config of a parsed command line (a parser built from :data:`WORLD_PARAMS`)."""
+    return cls(**{p.name: getattr(args, p.name) for p in WORLD_PARAMS})
+
+
+WorldConfig = make_dataclass(
+    "WorldConfig", [(p.name, _field_type(p)) for p in WORLD_PARAMS], frozen=True,
+    namespace={"from_args": classmethod(_from_args),
+               "__doc__": "The world server's settings, one frozen field per parameter of WORLD_PARAMS "
+                          "(built from them, not declared twice): WorldConfig.from_args(parser().parse_args())."})
+WorldConfig.__module__ = __name__
 
 
 def parser() -> argparse.ArgumentParser:
@@ -562,7 +596,7 @@ def main(argv: list[str] | None = None) -> int:
             use_zenoh_runtime(ROUTER_RUNTIME)  # one thread wakes per message; a second for Zenoh's blocking steps
     logging.basicConfig(level=args.log_level.upper(), stream=sys.stderr,
                         format="%(asctime)s.%(msecs)03d %(name)s %(levelname)s %(message)s", datefmt="%H:%M:%S")
-    server = WorldServer(args)
+    server = WorldServer(WorldConfig.from_args(args))
     try:
         doc = asyncio.run(server.run())
     except CekmError as exc:  # e.g. the router's port is taken: one clear line for the launcher's log

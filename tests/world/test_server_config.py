@@ -1,0 +1,39 @@
+"""The world server's typed config: one frozen field per declared parameter, built from
+the parsed command line; the server sets every attribute it has in ``__init__``."""
+
+from __future__ import annotations
+
+import ast
+import dataclasses
+import inspect
+import textwrap
+
+import pytest
+
+from world import server
+from world.server import WORLD_PARAMS, WorldConfig, WorldServer, parser, server_argv
+
+
+def test_the_config_has_one_field_per_declared_parameter_and_is_frozen(tmp_path):
+    assert [f.name for f in dataclasses.fields(WorldConfig)] == [p.name for p in WORLD_PARAMS]
+    argv = server_argv(scenario="concave", listen="tcp/127.0.0.1:7500", out=tmp_path, mode="lockstep", seed=3,
+                       max_time=12.5, run_id="run-1", deadman=0.25)
+    cfg = WorldConfig.from_args(parser().parse_args(argv[3:]))
+    assert (cfg.scenario, cfg.listen, cfg.connect, cfg.out, cfg.mode, cfg.seed, cfg.max_time, cfg.run_id,
+            cfg.deadman, cfg.republish) == ("concave", "tcp/127.0.0.1:7500", server.DEFAULT_ENDPOINT, str(tmp_path),
+                                            "lockstep", 3, 12.5, "run-1", 0.25, server.REPUBLISH_S)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        cfg.seed = 4
+
+
+def test_the_server_is_built_from_a_config_with_every_attribute_set_in_init(tmp_path):
+    cfg = WorldConfig.from_args(parser().parse_args(["lone_obstacle", "--out", str(tmp_path), "--mode", "lockstep"]))
+    ws = WorldServer(cfg)
+    assert ws.config is cfg and ws.lockstep and ws.robots == ["r1"]
+    # every attribute assigned anywhere in the class already exists after __init__
+    tree = ast.parse(textwrap.dedent(inspect.getsource(WorldServer)))
+    assigned = {t.attr for node in ast.walk(tree) if isinstance(node, (ast.Assign, ast.AnnAssign, ast.AugAssign))
+                for t in (node.targets if isinstance(node, ast.Assign) else [node.target])
+                for t in ast.walk(t) if isinstance(t, ast.Attribute) and isinstance(t.value, ast.Name)
+                and t.value.id == "self"}
+    assert assigned and not assigned - set(vars(ws))
