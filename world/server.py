@@ -74,6 +74,7 @@ from cekm_swarm.runtime.mcap_log import McapRecorder
 from cekm_swarm.runtime.process_args import Param, add_params, run_id_arg, to_argv
 from cekm_swarm.runtime.record import serve_geometry
 
+from .deadman import DEADMAN_S, Deadman
 from .episode import TICK_S, Episode, TickReadings
 from .recorder import RECORD_QUEUE, RecordFilter, open_run_log
 from .scenario import load_scenario
@@ -82,11 +83,6 @@ from .sim import World
 from .tracking import TrackingEpisode, is_tracking
 
 log = logging.getLogger("world.server")
-DEADMAN_S = 0.5
-DEADMAN_MARGIN_S = 0.025
-"""How late a tick boundary may come on a loaded machine (measured: up to a few ms with a
-second run of 56 processes beside it); the dead-man stops a robot this much early rather
-than late."""
 REPUBLISH_S = 1.0
 DEFAULT_MAX_TIME = 600.0
 
@@ -102,30 +98,6 @@ def emit(kind: str, doc: dict[str, Any]) -> None:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())  # also for the interpreter's last flush
         os.close(devnull)
-
-
-# --------------------------------------------------------------------------- pure parts
-
-
-class Deadman:
-    """Per robot: when did its last command arrive (monotonic s), and is it stopped."""
-
-    def __init__(self, robots: list[str], limit: float, now: float, margin: float = DEADMAN_MARGIN_S) -> None:
-        self.limit = limit
-        self.margin = margin
-        self.last = {r: now for r in robots}
-        self.stopped = {r: False for r in robots}
-
-    def heard(self, robot: str, at: float) -> None:
-        self.last[robot] = at
-
-    def check(self, robot: str, now: float, horizon: float) -> tuple[bool, bool]:
-        """(stop now?, newly stopped?): stop when the coming ``horizon`` s (plus the margin
-        for a late boundary) would run past ``limit`` s of silence."""
-        silent = now + horizon + self.margin - self.last[robot] > self.limit
-        newly = silent and not self.stopped[robot]
-        self.stopped[robot] = silent
-        return silent, newly
 
 
 # --------------------------------------------------------------------------- the server
