@@ -41,6 +41,11 @@ Progress goes to stdout as lines ``READY {json}`` (the session is open and the t
 ``python -m world.server SCENARIO --connect tcp/127.0.0.1:7447 --out DIR [--mode lockstep]``
 ``python -m world.server SCENARIO --listen tcp/127.0.0.1:7447 --wait-modules 180 --out DIR``
 
+Its pure parts live beside it: the sense messages and their encoder in :mod:`world.sense`,
+the recorder's filter and the log's opening in :mod:`world.recorder`, the dead-man in
+:mod:`world.deadman`, the tracking episode in :mod:`world.tracking`; its settings are a
+:class:`WorldConfig` made from :data:`WORLD_PARAMS`.
+
 Imports only ``world``, ``cekm_swarm.protocol``, ``cekm_swarm.runtime`` and ``cekm_swarm.errors``.
 """
 
