@@ -6,6 +6,10 @@ message of a tick to the motor command stamped with the same tick). Above them, 
 run's phase: waiting for the world, running, no world state for a while, or ended (the
 world server's liveliness token went away). Per key, with a filter: rate, age, stamp.
 It fits an 80-column terminal and works the same on a live run and on ``cekm replay``.
+In a tracking run (targets in the world state, and robots' ``share`` or
+``sense/targets`` seen) a tracking block says, per target, which robots observe it, how
+many targets at least one robot observes (the instantaneous A), and per robot how many
+targets it sees.
 
 :class:`MonitorState` is the pure part (fed with key, payload and arrival time, tested
 without Zenoh); it validates what it draws: a ``world/state`` whose robots lack a finite
@@ -28,8 +32,8 @@ import zenoh
 from rich.console import Console, Group
 from rich.text import Text
 
-from cekm_swarm.protocol import (DEFAULT_KEYS, WORLD, DropCounter, KeyKind, KeySpace, SenseRange, SenseTarget, WheelCommand,
-                                 WorldState)
+from cekm_swarm.protocol import (DEFAULT_KEYS, WORLD, DropCounter, KeyKind, KeySpace, SenseRange, SenseTarget,
+                                 SenseTargets, Share, WheelCommand, WorldState)
 
 from .topics import HzStats, hz_stats
 
@@ -48,6 +52,13 @@ MAX_ROBOTS = 512
 
 FRESH = 1.0
 """A world state younger than this (s) means the run is going, whatever the tokens say."""
+
+OBSERVATION_SPAN = 2.0
+"""Sim seconds: a robot's share or sense/targets older than this against the newest world
+state no longer counts as observing (a robot whose modules died stops observing)."""
+
+MAX_TARGET_LINES = 12
+"""Target rows the tracking block draws; the rest are summed up in one line."""
 
 
 @dataclass
@@ -84,6 +95,26 @@ def _finite(x: Any) -> bool:
     return type(x) in (int, float) and math.isfinite(x)
 
 
+def target_entry(tid: str, t: Any) -> tuple[float, float]:
+    """(x, y) of one target of a world state; ValueError naming the field when it is not a
+    map with finite x and y."""
+    if not isinstance(t, dict):
+        raise ValueError(f"targets.{tid}: expected a map")
+    for name in ("x", "y"):
+        if not _finite(t.get(name)):
+            raise ValueError(f"targets.{tid}.{name}: expected a finite number, got {t.get(name)!r}")
+    return float(t["x"]), float(t["y"])
+
+
+@dataclass
+class Observation:
+    """The targets one robot observes, from its latest message of one ``source``."""
+
+    stamp: float
+    targets: frozenset[str]
+    source: str  # "share" (what the robot reports) or "sense" (what the world says it senses)
+
+
 def robot_entry(rid: str, r: Any) -> tuple[tuple[float, float, float], tuple[float, float] | None, bool]:
     """(pose, goal, in_contact) of one robot of a world state; ValueError naming the field
     when it is not drawable (x, y, theta finite numbers; goal None or two finite numbers)."""
@@ -116,6 +147,9 @@ class MonitorState:
         self.sim_time = math.nan
         self.world_at: float | None = None  # arrival time of the newest world state
         self.world_token_seen = False
+        self.targets: dict[str, tuple[float, float]] = {}  # target id -> (x, y), from the newest world state
+        self.shares: dict[str, Observation] = {}  # robot -> its latest share
+        self.sensed: dict[str, Observation] = {}  # robot -> its latest sense/targets
         self.untracked = 0  # messages on keys (or robots) beyond MAX_KEYS (MAX_ROBOTS)
         self.drops = DropCounter("monitor", keys=keys)
         self._lock = threading.Lock()
@@ -154,9 +188,14 @@ class MonitorState:
             if isinstance(msg, WorldState):
                 try:
                     entries = {rid: robot_entry(rid, r) for rid, r in msg.robots.items()}
+                    targets = {tid: target_entry(tid, t) for tid, t in msg.targets.items()}
                 except ValueError as exc:
                     self.drops.drop(key, f"world state not drawable: {exc}")
                     return
+                if math.isfinite(self.sim_time) and msg.stamp < self.sim_time:  # a new run or replay
+                    self.shares.clear()
+                    self.sensed.clear()
+                self.targets = targets
                 self.last_stamp[key] = msg.stamp
                 self.sim_time = msg.stamp
                 self.world_at = at
@@ -169,6 +208,12 @@ class MonitorState:
                         v.goal = goal
                 return
             self.last_stamp[key] = msg.stamp
+            if robot and isinstance(msg, (Share, SenseTargets)):
+                book = self.shares if isinstance(msg, Share) else self.sensed
+                if robot in book or self.robot(robot) is not None:
+                    book[robot] = Observation(msg.stamp, frozenset(msg.targets),
+                                              "share" if isinstance(msg, Share) else "sense")
+                return
             v = self.robot(robot) if robot and isinstance(msg, (SenseRange, SenseTarget, WheelCommand)) else None
             if v is None:
                 return
@@ -183,6 +228,47 @@ class MonitorState:
                 first = v.sense_first.get(round(msg.stamp, 6))
                 if first is not None:
                     v.latencies.append(at - first)
+
+    def is_tracking(self) -> bool:
+        """A tracking run: targets in the world state, and shares or sense/targets seen."""
+        return bool(self.targets) and bool(self.shares or self.sensed)
+
+    def observations(self) -> dict[str, Observation]:
+        """{robot: what it observes now}: the newer (by stamp) of its latest share and its
+        latest sense/targets (the share on a tie), skipping those older than
+        :data:`OBSERVATION_SPAN` sim seconds against the newest world state."""
+        with self._lock:
+            out: dict[str, Observation] = {}
+            for rid in set(self.shares) | set(self.sensed):
+                cands = [o for o in (self.shares.get(rid), self.sensed.get(rid)) if o is not None]
+                best = max(cands, key=lambda o: (o.stamp, o.source == "share"))
+                if math.isfinite(self.sim_time) and self.sim_time - best.stamp > OBSERVATION_SPAN:
+                    continue
+                out[rid] = best
+            return out
+
+    def tracking(self, robots: set[str] | None = None) -> dict[str, Any]:
+        """The tracking status: ``targets`` {id: {x, y, observed_by}} (observers among
+        ``robots`` if given), ``observed`` (targets observed by at least one robot of the
+        whole team) out of ``total`` (the world's targets), ``A`` their ratio, and
+        ``per_robot`` {robot: targets it sees, source}."""
+        obs = self.observations()
+        with self._lock:
+            targets = dict(self.targets)
+        by: dict[str, list[str]] = {tid: [] for tid in targets}
+        for rid in sorted(obs):
+            for tid in obs[rid].targets:
+                by.setdefault(tid, []).append(rid)
+        observed = sum(1 for tid in targets if by[tid])
+        shown = (lambda r: robots is None or r in robots)
+        return {
+            "targets": {tid: {"x": targets[tid][0] if tid in targets else None,
+                              "y": targets[tid][1] if tid in targets else None,
+                              "observed_by": [r for r in by[tid] if shown(r)]} for tid in sorted(by)},
+            "observed": observed, "total": len(targets), "A": observed / len(targets) if targets else None,
+            "per_robot": {rid: {"sees": len(o.targets), "source": o.source} for rid, o in sorted(obs.items())
+                          if shown(rid)},
+        }
 
     def set_alive(self, tokens: set[str]) -> None:
         """The liveliness tokens alive now (of any run: ``<root>/<owner>/alive/<module>[/<run>]``)."""
@@ -272,6 +358,53 @@ _HEADER = (f"{_fit('robot', 6, '<')} {_fit('x', 6)} {_fit('y', 6)} {_fit('theta'
            f"{_fit('status', 7, '<')} {_fit('v_l', 6)} {_fit('v_r', 6)} {_fit('mods', 5)} {_fit('lat ms', 11)}")
 
 
+def _packed(prefix: str, items: list[str], width: int) -> list[str]:
+    """``items`` joined by two spaces after ``prefix``, over as many lines as ``width`` needs
+    (continuation lines indented like the first; an item longer than a line is cut)."""
+    pad = " " * len(prefix)
+    lines, cur = [], prefix
+    for it in items:
+        it = _fit(it, min(len(it), width - len(pad)), "<")
+        sep = "" if cur in (prefix, pad) else "  "
+        if len(cur) + len(sep) + len(it) > width and cur not in (prefix, pad):
+            lines.append(cur)
+            cur, sep = pad, ""
+        cur += sep + it
+    lines.append(cur)
+    return lines
+
+
+def _tracking_lines(state: MonitorState, robots: set[str] | None, width: int) -> list[Text]:
+    """The tracking block: A, then per target who observes it, then per robot how many it sees."""
+    tr = state.tracking(robots)
+    a = "-" if tr["A"] is None else f"{tr['A']:.2f}"
+    head = Text(no_wrap=True, overflow="ellipsis")
+    head.append("tracking", style="bold")
+    head.append(f"  A {a}  observed {tr['observed']}/{tr['total']} targets", style="bold")
+    if robots is not None:
+        head.append("  (team; observers of --robot only)", style="dim")
+    out = [head, Text(f"{_fit('target', 10, '<')} {_fit('x', 7)} {_fit('y', 7)}  observed by", style="bold",
+                      no_wrap=True, overflow="ellipsis")]
+    items = list(tr["targets"].items())
+    for tid, t in items[:MAX_TARGET_LINES]:
+        who = " ".join(t["observed_by"]) or "-"
+        x = math.nan if t["x"] is None else t["x"]
+        y = math.nan if t["y"] is None else t["y"]
+        row = Text(no_wrap=True, overflow="ellipsis")
+        row.append(f"{_fit(tid, 10, '<')} {_num(x, 7, 3)} {_num(y, 7, 3)}  ")
+        row.append(_fit(who, width - 28, "<").rstrip(), style="green" if t["observed_by"] else "dim")
+        out.append(row)
+    if len(items) > MAX_TARGET_LINES:
+        rest = items[MAX_TARGET_LINES:]
+        seen = sum(1 for _, t in rest if t["observed_by"])
+        out.append(Text(f"… {len(rest)} more targets, {seen} of them observed", style="dim", no_wrap=True,
+                        overflow="ellipsis"))
+    sees = [f"{rid} {p['sees']}" for rid, p in tr["per_robot"].items()]
+    for line in _packed("sees  ", sees or ["-"], width):
+        out.append(Text(line, no_wrap=True, overflow="ellipsis"))
+    return out
+
+
 def render(state: MonitorState, now: float, *, robots: set[str] | None = None, key_filter: Callable[[str], bool] | None
            = None, endpoint: str = "", width: int = WIDTH) -> Group:
     """The view as a rich renderable, every line at most ``width`` (80) columns: the run's
@@ -318,6 +451,8 @@ def render(state: MonitorState, now: float, *, robots: set[str] | None = None, k
         if missing and n:
             lines.append(Text(f"       missing: {', '.join(missing)}", style="red", no_wrap=True,
                               overflow="ellipsis"))
+    if state.is_tracking():
+        lines.extend(_tracking_lines(state, robots, width))
     stats = state.key_stats(now)
     if key_filter is None:
         active = [s for s in stats if s.count]
@@ -350,6 +485,8 @@ def snapshot(state: MonitorState, now: float, *, robots: set[str] | None = None,
         out["robots"][rid] = {"pose": v.pose, "goal": v.goal, "in_contact": v.in_contact, "status": v.status,
                               "command": v.command, "modules_alive": n, "modules_missing": missing,
                               "latency_ms_p50": v.latency_ms(0.5), "latency_ms_p99": v.latency_ms(0.99)}
+    if state.is_tracking():
+        out["tracking"] = state.tracking(robots)
     if key_filter is not None:
         out["keys"] = [{"key": s.key, "rate_hz": s.rate, "age_s": s.age, "stamp": state.last_stamp.get(s.key)}
                        for s in state.key_stats(now) if key_filter(s.key)]

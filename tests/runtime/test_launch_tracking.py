@@ -88,6 +88,41 @@ def test_lockstep_tracking_log_holds_the_tracking_channels(lockstep_run):
         assert counts.get(foxglove_view.TRACKING_TOPIC, 0) == math.ceil(MAX_TIME / 0.128) + 1
 
 
+def test_lockstep_tracking_log_through_the_monitor_gives_the_runs_a(lockstep_run):
+    """The run's log fed through `cekm monitor`'s own intake: at every target tick each
+    target's observers are the robots whose sense/targets of that tick hold it, its
+    instantaneous A is the run's per-tick A, and every message decodes (nothing dropped)."""
+    import itertools
+
+    from cekm_swarm.protocol import decode
+    from cekm_swarm.runtime.mcap_log import read_messages
+    from cekm_swarm.runtime.monitor import MonitorState
+
+    run, _ = lockstep_run
+    series = run.outcome()["tracking"]["series"]
+    want = {round(t, 6): a for t, a in zip(series["t"], series["A"])}
+    st = MonitorState()
+    got = {}
+    msgs = [m for m in read_messages(run.out / "run.mcap") if m.topic.startswith("cekm/")]
+    for stamp, group in itertools.groupby(msgs, key=lambda m: m.log_time):
+        sensed = {}
+        for m in group:
+            st.observe(m.topic, m.data, stamp / 1e9)
+            for r in ("r1", "r2"):
+                if m.topic == K.sense_targets(r):
+                    sensed[r] = set(decode(m.topic, m.data).targets)
+        if len(sensed) == 2:  # a target tick: fresh observations
+            assert st.is_tracking()
+            tr = st.tracking()
+            for tid, t in tr["targets"].items():
+                assert t["observed_by"] == [r for r in ("r1", "r2") if tid in sensed[r]], (stamp, tid)
+            assert {r: p["sees"] for r, p in tr["per_robot"].items()} == {r: len(v) for r, v in sensed.items()}
+            got[round(st.sim_time, 6)] = tr["A"]
+    assert st.drops.total == 0
+    assert len(got) >= math.ceil(MAX_TIME / 0.128) // 2
+    assert got == {t: want[t] for t in got}
+
+
 def drop_lines(out, robot: str) -> list[dict]:
     """The ``DROP`` lines a robot's tracking target module logged."""
     path = out / "logs" / f"{robot}-target.log"

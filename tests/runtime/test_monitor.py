@@ -9,7 +9,7 @@ import sys
 import msgpack
 
 from cekm_swarm.protocol import DEFAULT_KEYS as K
-from cekm_swarm.protocol import SenseRange, WheelCommand, WorldState, encode
+from cekm_swarm.protocol import SenseRange, SenseTargets, Share, WheelCommand, WorldState, encode
 from cekm_swarm.runtime.bridge import declare_alive
 from cekm_swarm.runtime.logcat import key_filter
 from cekm_swarm.runtime.jsonout import json_line
@@ -128,6 +128,72 @@ def test_a_world_state_it_cannot_draw_is_dropped_and_counted_not_a_crash():
     assert st.drops.total == len(bad_states) + 1
     assert st.robots["r1"].pose == (0.3, 0.5, 0.1) and st.sim_time == 1.0  # the last good state stays
     assert "dropped 6" in render_text(st, now=9.0)
+
+
+def tracking_state(t, targets, robots=("r1", "r2", "r3")):
+    rob = {r: {"x": 0.1 * i, "y": 0.2, "theta": 0.0, "goal": None} for i, r in enumerate(robots)}
+    return WorldState(t, "world", rob, {tid: {"x": x, "y": y} for tid, (x, y) in targets.items()}, {})
+
+
+TARGETS = {"t1": (0.5, 1.2), "t2": (1.0, 0.3), "t3": (2.0, 2.0)}
+
+
+def test_tracking_block_who_observes_which_target_and_the_instantaneous_a():
+    st = MonitorState()
+    st.observe(K.world_state(), encode(world_state(1.0, 0.3)), at=1.0)
+    assert not st.is_tracking() and "tracking" not in render_text(st, now=1.1)  # no targets: no block
+    st.observe(K.world_state(), encode(tracking_state(1.0, TARGETS)), at=1.0)
+    assert not st.is_tracking()  # targets, but nobody reports observing yet
+    st.observe(K.share("r1"), encode(Share(1.0, "r1", (0.0, 0.2, 0.0), {"t1": (0.5, 1.2), "t2": (1.0, 0.3)})), at=1.0)
+    st.observe(K.sense_targets("r3"), encode(SenseTargets(1.0, "world", {"t1": (0.3, 0.5)})), at=1.0)
+    st.observe(K.share("r2"), b"\x00garbage", at=1.0)  # malformed: dropped and counted
+    st.observe(K.share("r2"), encode(Share(0.9, "r2", (0.1, 0.2, 0.0), {"t2": (1.0, 0.3)})), at=1.0)
+    # r2's sense/targets is newer than its share: it wins (the world says r2 now sees nothing)
+    st.observe(K.sense_targets("r2"), encode(SenseTargets(1.0, "world", {})), at=1.0)
+    text = render_text(st, now=1.1)
+    lines = lines_of(text)
+    assert lines[0] == "cekm monitor replay  sim 1.00 s  dropped 1"
+    i = lines.index("tracking  A 0.67  observed 2/3 targets")
+    assert lines[i + 1].split() == ["target", "x", "y", "observed", "by"]
+    assert [line.split() for line in lines[i + 2:i + 6]] == [
+        ["t1", "0.500", "1.200", "r1", "r3"], ["t2", "1.000", "0.300", "r1"], ["t3", "2.000", "2.000", "-"],
+        ["sees", "r1", "2", "r2", "0", "r3", "1"]]
+    tr = json.loads(json_line(snapshot(st, 1.1)))["tracking"]
+    assert tr["observed"] == 2 and tr["total"] == 3 and abs(tr["A"] - 2 / 3) < 1e-12
+    assert tr["targets"]["t1"] == {"x": 0.5, "y": 1.2, "observed_by": ["r1", "r3"]}
+    assert tr["per_robot"] == {"r1": {"sees": 2, "source": "share"}, "r2": {"sees": 0, "source": "sense"},
+                               "r3": {"sees": 1, "source": "sense"}}
+    # --robot r3: its observations only, A stays the team's
+    only = render_text(st, now=1.1, robots={"r3"})
+    assert "A 0.67  observed 2/3" in only and "sees  r3 1" in only and "r1" not in only
+    assert json.loads(json_line(snapshot(st, 1.1, robots={"r3"})))["tracking"]["targets"]["t2"]["observed_by"] == []
+    # time goes on: r1 keeps sharing, r3's last sense/targets grows older than the span and stops counting
+    st.observe(K.world_state(), encode(tracking_state(3.5, TARGETS)), at=3.5)
+    st.observe(K.share("r1"), encode(Share(3.5, "r1", (0.0, 0.2, 0.0), {"t3": (2.0, 2.0)})), at=3.5)
+    tr = st.tracking()
+    assert tr["targets"]["t1"]["observed_by"] == [] and tr["targets"]["t3"]["observed_by"] == ["r1"]
+    assert tr["observed"] == 1 and list(tr["per_robot"]) == ["r1"]
+    # a world state with a target it cannot draw is dropped whole; the last good one stays
+    st.observe(K.world_state(), encode(tracking_state(3.6, {"t1": ("left", 0.0)})), at=3.6)
+    assert st.drops.total == 2 and st.targets == TARGETS and st.sim_time == 3.5
+    # a new run (sim time back to 0) forgets the old run's observations
+    st.observe(K.world_state(), encode(tracking_state(0.0, TARGETS)), at=5.0)
+    assert not st.is_tracking() and st.tracking()["observed"] == 0
+
+
+def test_tracking_block_fits_80_columns_with_many_targets_and_robots():
+    st = MonitorState()
+    robots = [f"robot-with-a-long-name-{i:02d}" for i in range(20)]
+    targets = {f"target-{'x' * 30}-{k}": (1e6 * k, -1e300) for k in range(30)}
+    st.observe(K.world_state(), encode(tracking_state(1.0, targets, robots)), at=1.0)
+    for r in robots:
+        st.observe(K.share(r), encode(Share(1.0, r, (0.0, 0.0, 0.0), {t: (0.0, 0.0) for t in targets})), at=1.0)
+    for kw in ({}, {"robots": set(robots[:3])}):
+        text = render_text(st, now=1.1, **kw)
+        assert max(len(line) for line in lines_of(text)) <= 80, text
+        assert "A 1.00  observed 30/30 targets" in text and "… 18 more targets, 18 of them observed" in text
+    sees = [line for line in lines_of(render_text(st, now=1.1)) if line.startswith(("sees  ", "      robot"))]
+    assert " ".join(sees).count(" 30") == 20  # every robot's count, over as many lines as it takes
 
 
 def test_monitor_command_attaches_to_a_live_run(router, clients):
