@@ -53,17 +53,25 @@ def _paper(pair, digits: int) -> str:
     return f"{pair[0]:.{digits}f} ± {pair[1]:.{digits}f}"
 
 
-def _perf_table(results: dict, keys: tuple[str, str, str], paper: dict, title: str) -> list[str]:
+def _network_table(networks: dict, keys: tuple[str, str, str], paper: dict, title: str, cell,
+                   parameters: bool) -> list[str]:
+    """Ours beside the paper's, one row per network; ``cell`` formats our entry (mean ±
+    std of one run's trials, or a mean with its interval over master seeds)."""
     lines = [f"### {title}", "",
-             "| Network | Parameters | " + " | ".join(f"{_LABEL[k]} ours | {_LABEL[k]} paper" for k in keys) + " |",
-             "|---|---:|" + "---:|---:|" * len(keys)]
-    for name, e in results["networks"].items():
-        cells = []
+             "| Network | " + ("Parameters | " if parameters else "")
+             + " | ".join(f"{_LABEL[k]} ours | {_LABEL[k]} paper" for k in keys) + " |",
+             "|---|" + ("---:|" if parameters else "") + "---:|---:|" * len(keys)]
+    for name, e in networks.items():
+        cells = [str(e["parameters"])] if parameters else []
         for j, k in enumerate(keys):
-            cells.append(_ms(e.get(k), 2))
+            cells.append(cell(e.get(k), 2))
             cells.append(_paper(paper[name][j], 2) if name in paper else "")
-        lines.append(f"| {name} | {e['parameters']} | " + " | ".join(cells) + " |")
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
     return lines
+
+
+def _perf_table(results: dict, keys: tuple[str, str, str], paper: dict, title: str) -> list[str]:
+    return _network_table(results["networks"], keys, paper, title, _ms, parameters=True)
 
 
 def _p_table(results: dict, key: str) -> list[str]:
@@ -229,16 +237,7 @@ def _ci(entry: dict, digits: int) -> str:
 
 
 def _seeds_table(summary: dict, keys: tuple[str, str, str], paper: dict, title: str) -> list[str]:
-    lines = [f"### {title}", "",
-             "| Network | " + " | ".join(f"{_LABEL[k]} ours | {_LABEL[k]} paper" for k in keys) + " |",
-             "|---|" + "---:|---:|" * len(keys)]
-    for name, e in summary["networks"].items():
-        cells = []
-        for j, k in enumerate(keys):
-            cells.append(_ci(e.get(k), 2))
-            cells.append(_paper(paper[name][j], 2) if name in paper else "")
-        lines.append(f"| {name} | " + " | ".join(cells) + " |")
-    return lines
+    return _network_table(summary["networks"], keys, paper, title, _ci, parameters=False)
 
 
 def seeds_markdown(summary: dict) -> str:
