@@ -4,6 +4,7 @@ scouting off), client sessions, and helper processes."""
 from __future__ import annotations
 
 import queue
+import shutil
 import subprocess
 import sys
 import threading
@@ -14,9 +15,26 @@ from pathlib import Path
 import pytest
 import zenoh
 
-from cekm_swarm.runtime.config import free_port, open_client, open_embedded_router
+from cekm_swarm.runtime.config import free_port, load_config, open_client, open_embedded_router, open_session
 
 HELPER = Path(__file__).with_name("zenoh_helper.py")
+
+
+DEPLOY = Path(__file__).resolve().parents[2] / "deploy"
+
+
+@pytest.fixture
+def acl_endpoint(tmp_path) -> Iterator[str]:
+    """A router started from deploy/router.json5 (access control) with the example
+    credentials, on a free loopback port; its endpoint."""
+    creds = tmp_path / "credentials.txt"
+    shutil.copy(DEPLOY / "credentials.example.txt", creds)
+    port = free_port()
+    config = load_config(DEPLOY / "router.json5", {"listen/endpoints": [f"tcp/127.0.0.1:{port}"],
+                                                    "transport/auth/usrpwd/dictionary_file": str(creds)})
+    router = open_session(config, "ACL router")
+    yield f"tcp/127.0.0.1:{port}"
+    router.close()
 
 
 @pytest.fixture

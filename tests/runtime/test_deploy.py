@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import json
 import queue
-import shutil
 import time
 from pathlib import Path
 
@@ -18,7 +17,7 @@ import zenoh
 
 from cekm_swarm.protocol import DEFAULT_KEYS, WheelCommand, encode
 from cekm_swarm.runtime.bridge import Publishers, declare_alive
-from cekm_swarm.runtime.config import free_port, load_config, open_session
+from cekm_swarm.runtime.config import load_config, open_session
 from cekm_swarm.runtime.errors import RuntimeTransportError
 
 DEPLOY = Path(__file__).resolve().parents[2] / "deploy"
@@ -54,15 +53,9 @@ def test_every_config_loads_and_says_what_it_should():
 
 
 @pytest.fixture
-def acl_router(tmp_path):
-    """deploy/router.json5 on a free loopback port with the example credentials."""
-    creds = tmp_path / "credentials.txt"
-    shutil.copy(DEPLOY / "credentials.example.txt", creds)
-    port = free_port()
-    config = load_config(DEPLOY / "router.json5", {"listen/endpoints": [f"tcp/127.0.0.1:{port}"],
-                                                    "transport/auth/usrpwd/dictionary_file": str(creds)})
-    router = open_session(config, "ACL router")
-    endpoint = f"tcp/127.0.0.1:{port}"
+def acl_router(acl_endpoint):
+    """Clients of deploy/router.json5 (conftest's ``acl_endpoint``), by config name."""
+    endpoint = acl_endpoint
     opened: list[zenoh.Session] = []
 
     def client(name: str, password: str | None = None) -> zenoh.Session:
@@ -76,7 +69,6 @@ def acl_router(tmp_path):
     yield client
     for s in opened:
         s.close()
-    router.close()
 
 
 def _kind(sample: zenoh.Sample) -> str:

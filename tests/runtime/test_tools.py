@@ -4,7 +4,6 @@ control), topic info, node list, log cat, record."""
 from __future__ import annotations
 
 import json
-import shutil
 import threading
 from pathlib import Path
 
@@ -18,7 +17,7 @@ from cekm_swarm.protocol import DEFAULT_KEYS as K
 from cekm_swarm.protocol import WheelCommand, WorldState, decode, encode
 from cekm_swarm.runtime.bridge import Publishers, declare_alive
 from cekm_swarm.runtime.commands import COMMANDS
-from cekm_swarm.runtime.config import free_port, load_config, open_session
+from cekm_swarm.runtime.config import load_config, open_session
 from cekm_swarm.launch.plot import read_geometry
 from cekm_swarm.runtime.mcap_log import log_info, read_messages
 from cekm_swarm.runtime.record import serve_geometry
@@ -79,19 +78,6 @@ def test_topic_pub_publishes_a_validated_message(router, clients):
 def test_topic_pub_refuses_a_bad_message_naming_the_field(key, body, problem):
     res = CliRunner().invoke(cli, ["topic", "pub", key, body, "--wait", "0"])
     assert res.exit_code == 2 and problem in res.output, res.output
-
-
-@pytest.fixture
-def acl_endpoint(tmp_path):
-    """deploy/router.json5 (access control) on a free loopback port."""
-    creds = tmp_path / "credentials.txt"
-    shutil.copy(DEPLOY / "credentials.example.txt", creds)
-    port = free_port()
-    config = load_config(DEPLOY / "router.json5", {"listen/endpoints": [f"tcp/127.0.0.1:{port}"],
-                                                    "transport/auth/usrpwd/dictionary_file": str(creds)})
-    router = open_session(config, "ACL router")
-    yield f"tcp/127.0.0.1:{port}"
-    router.close()
 
 
 def test_topic_pub_is_refused_where_access_control_denies_it(acl_endpoint):
