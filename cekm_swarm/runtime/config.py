@@ -44,6 +44,39 @@ dead-man (``tests/runtime/test_launch_stalled_client.py``). A router serving oth
 keeps Zenoh's default threads."""
 
 
+MAX_MESSAGE_BYTES = 32 * 1024
+"""The largest message the runtime's Zenoh carries: payload plus attachment, in bytes
+(inclusive). The largest legitimate one is the served model's reply (the R15 model file,
+18,441 bytes, and its 64-byte digest); every other message of a run is under 4 KB (a
+tracking field of 6 robots and 10 targets, 3.8 KB; the largest scene, 4.0 KB). Half of
+Zenoh's 64 KB batch, so no message anyone may send is ever cut into fragments: a
+fragmented message (over 64 KB) forwarded by a router whose Zenoh runs on a shared pool
+of threads (:data:`ROUTER_RUNTIME`) stalled the receiving module for 5 s at a time and
+was lost (``benchmarks/bench_large_messages.py``, docs/robustness.md).
+
+Every router the runtime opens drops a bigger message as it comes in
+(:func:`message_size_limits`), before any subscriber, the world's recorder included, sees
+it; Zenoh counts no such drop. Every process also refuses to reassemble a fragmented
+message over this size (bounded memory whatever a router forwards). A model file over
+it cannot be served (:class:`cekm_swarm.runtime.model_service.ModelServer` says so)."""
+
+
+def message_size_limits(config: zenoh.Config, *, router: bool) -> None:
+    """Apply :data:`MAX_MESSAGE_BYTES`: at a router, a low-pass filter on every message
+    coming in (put, delete, query, reply; any key); everywhere, Zenoh's reassembly buffer
+    (``transport/link/rx/max_message_size``) unless the config sets a smaller one."""
+    try:
+        own = int(json.loads(config.get_json("transport/link/rx/max_message_size")))
+    except Exception:
+        own = None
+    if own is None or own > MAX_MESSAGE_BYTES:
+        _insert(config, "transport/link/rx/max_message_size", MAX_MESSAGE_BYTES)
+    if router:
+        _insert(config, "low_pass_filter", [{
+            "id": "max-message-size", "flows": ["ingress"], "messages": ["put", "delete", "query", "reply"],
+            "key_exprs": ["**"], "size_limit": MAX_MESSAGE_BYTES}])
+
+
 def use_zenoh_runtime(spec: str) -> None:
     """Run this process's Zenoh as ``spec`` says (:data:`ONE_THREAD_RUNTIME`,
     :data:`ROUTER_RUNTIME`), unless ``ZENOH_RUNTIME`` is already set; call before the
@@ -131,6 +164,7 @@ def embedded_router_config(port: int = DEFAULT_PORT, host: str = DEFAULT_HOST) -
     _insert(config, "mode", "router")
     _insert(config, "listen/endpoints", [check_endpoint(f"tcp/{host}:{int(port)}")])
     _common(config)
+    message_size_limits(config, router=True)
     # Read-only admin space: `cekm topic info` asks the router who publishes and subscribes
     # (answered only on a query; nothing runs otherwise).
     _insert(config, "adminspace", {"enabled": True, "permissions": {"read": True, "write": False}})
@@ -144,6 +178,7 @@ def client_config(endpoint: str = DEFAULT_ENDPOINT, *, user: str | None = None,
     _insert(config, "mode", "client")
     _insert(config, "connect/endpoints", [check_endpoint(endpoint)])
     _common(config)
+    message_size_limits(config, router=False)
     _reconnect(config)
     if (user is None) != (password is None):
         raise RuntimeTransportError("client config: give both user and password, or neither")
@@ -249,6 +284,7 @@ def client_config_from_file(path: str | Path, endpoint: str = DEFAULT_ENDPOINT) 
         raise RuntimeTransportError(f"zenoh config {path}: mode is {mode!r}; a process joins as 'client'")
     _insert(config, "mode", "client")
     _common(config)
+    message_size_limits(config, router=False)
     _reconnect(config)
     return config
 
