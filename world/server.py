@@ -74,6 +74,7 @@ from cekm_swarm.runtime.bridge import (InlineSubscription, LivelinessWatcher, Pu
                                        wait_matching_async)
 from cekm_swarm.runtime.config import (DEFAULT_ENDPOINT, ROUTER_RUNTIME, is_loopback, open_client, open_embedded_router,
                                        tcp_host_port, use_zenoh_runtime)
+from cekm_swarm.runtime.gc_tuning import freeze_startup_heap
 from cekm_swarm.runtime.lifetime import die_with_parent
 from cekm_swarm.runtime.mcap_log import McapRecorder
 from cekm_swarm.runtime.process_args import Param, add_params, run_id_arg, to_argv
@@ -405,6 +406,7 @@ class WorldServer:
             try:
                 if self.stop.is_set():  # interrupted (or modules missing) before tick 0
                     raise asyncio.CancelledError
+                freeze_startup_heap()  # no full collection walks the world, its log and its session mid-run
                 emit("START", {"mode": cfg.mode, "robots": self.robots, "scenario": self.scenario.name,
                                "seed": self.world.seed})
                 while True:
