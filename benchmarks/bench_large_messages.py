@@ -1,21 +1,32 @@
 """Large messages from an outside client against a lockstep run (docs/robustness.md).
 
-``cekm launch concave --mode lockstep --seed 4`` (313 ticks) while a client publishes ten
-messages of zeros, one every 4 ticks from tick 20, on one key: a key only the world's
-recorder hears (the baseline), the motor's key, an obstacle module's key. Prints, per
-case, the re-published ticks (each a 1 s wait for a command), the run's wall seconds and
-its ratio to the baseline's, and how many of the ten messages the module counted.
+A lockstep ``cekm launch`` of the paper's concave obstacle with its goal walled in (seed 4,
+313 ticks to --max-time, as in tests/runtime/test_fuzz.py) while a client publishes
+``--count`` messages of zeros, one every 4 ticks from tick 20, on one key: a key only the
+world's recorder hears, the motor's key, an obstacle module's key. Prints, per case, the
+re-published ticks (each a 1 s wait for a command), the run's wall seconds and its ratio to
+a run with no message at all, and how many of the messages the world's recorder and the
+module counted (dropped as malformed: they are zeros). A message the router refuses
+(over ``MAX_MESSAGE_BYTES``) is counted by neither.
 
-Run: python benchmarks/bench_large_messages.py [--size 1048576] [--port 7462]
+``--before REV`` runs the same cases first on the code of git revision REV (exported
+with ``git archive``), so one run prints the story before and after a change.
+``--code DIR`` runs the launches from another source tree; ``--env NAME=VALUE`` sets a
+variable in the launch's environment (e.g. ``ZENOH_RUNTIME=()``: Zenoh's default threads).
+
+Run: python benchmarks/bench_large_messages.py [--sizes 49152,102400,1048576] [--port 7462]
+         [--before REV]
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import re
 import subprocess
 import sys
+import tarfile
 import tempfile
 import threading
 import time
@@ -23,9 +34,29 @@ from pathlib import Path
 
 import zenoh
 
-from cekm_swarm.protocol import DEFAULT_KEYS as K
-from cekm_swarm.protocol import Clock, MessageError, decode
-from cekm_swarm.runtime.config import open_client
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from cekm_swarm.experiments.default_model import default_model_path  # noqa: E402
+from cekm_swarm.protocol import DEFAULT_KEYS as K  # noqa: E402
+from cekm_swarm.protocol import Clock, MessageError, decode  # noqa: E402
+from cekm_swarm.runtime.config import open_client  # noqa: E402
+
+START_TICK = 20
+EVERY = 4  # ticks between two messages
+NONE = "(no message)"
+
+
+def shut_concave(folder: Path) -> Path:
+    """Fig. 8's concave obstacle with its goal shut in by four walls (as in
+    tests/runtime/test_fuzz.py): the run lasts to --max-time (313 ticks), whatever arrives."""
+    path = folder / "concave-shut.toml"
+    path.write_text((ROOT / "world" / "scenarios" / "concave.toml").read_text()
+                    .replace('name = "concave"', 'name = "concave-shut"')
+                    + "".join(f"\n[[walls]]\na = {a}\nb = {b}\n" for a, b in (
+                        ([1.94, 1.44], [2.06, 1.44]), ([2.06, 1.44], [2.06, 1.56]),
+                        ([2.06, 1.56], [1.94, 1.56]), ([1.94, 1.56], [1.94, 1.44]))))
+    return path
 
 
 def wait_tick(sub, past: int, timeout: float) -> int:
@@ -45,10 +76,23 @@ def wait_tick(sub, past: int, timeout: float) -> int:
     raise TimeoutError(f"the world did not pass tick {past}")
 
 
-def case(key: str, size: int, port: int, out: Path) -> dict:
-    proc = subprocess.Popen([sys.executable, "-m", "cekm_swarm", "launch", "concave", "--mode", "lockstep", "--seed",
-                             "4", "--max-time", "40", "--no-plot", "--port", str(port), "--out", str(out)],
-                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+def module_log(key: str) -> str | None:
+    """The log of the r1 module that listens on ``key`` (None: no module does)."""
+    m = re.match(r"cekm/r1/(field/|sense/range/(\d+))", key)
+    if not m:
+        return None
+    return "r1-motor.log" if m.group(1) == "field/" else f"r1-obstacle-{m.group(2)}.log"
+
+
+def case(key: str, size: int, count: int, burst: int, port: int, out: Path, scenario: Path, code: Path,
+         env: dict[str, str]) -> dict:
+    """One lockstep run with ``count`` messages of ``size`` zeros on ``key`` (none for NONE),
+    ``burst`` back to back every EVERY ticks."""
+    run_env = dict(os.environ, PYTHONPATH=str(code), PYTHONUNBUFFERED="1", **env)
+    proc = subprocess.Popen([sys.executable, "-m", "cekm_swarm", "launch", str(scenario), "--mode", "lockstep",
+                             "--seed", "4", "--max-time", "40", "--model", str(default_model_path()), "--no-plot",
+                             "--port", str(port), "--out", str(out)],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=run_env, cwd=code)
     started = threading.Event()
 
     def read() -> None:
@@ -57,42 +101,76 @@ def case(key: str, size: int, port: int, out: Path) -> dict:
                 started.set()
 
     threading.Thread(target=read, daemon=True).start()
-    if not started.wait(120):
-        proc.kill()
-        raise RuntimeError("the launch did not start ticking")
-    session = open_client(f"tcp/127.0.0.1:{port}")
-    sub = session.declare_subscriber(K.world_clock(), zenoh.handlers.RingChannel(16))
-    tick = wait_tick(sub, 19, 60)
-    for _ in range(10):
-        session.put(key, bytes(size), congestion_control=zenoh.CongestionControl.BLOCK)
-        tick = wait_tick(sub, tick + 3, 120)
-    session.close()
-    proc.wait(300)
+    try:
+        if not started.wait(180):
+            raise RuntimeError("the launch did not start ticking")
+        if key != NONE:
+            session = open_client(f"tcp/127.0.0.1:{port}")
+            sub = session.declare_subscriber(K.world_clock(), zenoh.handlers.RingChannel(16))
+            tick = wait_tick(sub, START_TICK - 1, 60)
+            for _ in range(count // burst):
+                for _ in range(burst):
+                    session.put(key, bytes(size), congestion_control=zenoh.CongestionControl.BLOCK)
+                tick = wait_tick(sub, tick + EVERY - 1, 180)
+            session.close()
+        proc.wait(600)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
     o = json.loads((out / "outcome.json").read_text())
-    counted = None
-    m = re.match(r"cekm/r1/(field/obstacle/\d+|sense/range/(\d+))", key)
-    if m:
-        log = out / "logs" / ("r1-motor.log" if "field" in key else f"r1-obstacle-{m.group(2)}.log")
-        doc = json.loads(re.findall(r"DROPS (\{.*\})", log.read_text())[0])
-        counted = doc["dropped"].get(key, 0)
-    return {"republished": o["republished"], "wall_s": o["wall_seconds"], "module_counted": counted}
+    r = {"republished": o["republished"], "wall_s": o["wall_seconds"],
+         "world_counted": o["drops"]["recorder"].get(key, 0) if key != NONE else None, "module_counted": None}
+    log = module_log(key)
+    if log:
+        doc = json.loads(re.findall(r"DROPS (\{.*\})", (out / "logs" / log).read_text())[0])
+        r["module_counted"] = doc["dropped"].get(key, 0)
+    return r
+
+
+def export(rev: str, folder: Path) -> Path:
+    """The source tree of git revision ``rev`` in ``folder``."""
+    archive = subprocess.run(["git", "-C", str(ROOT), "archive", "--format=tar", rev], check=True,
+                             capture_output=True).stdout
+    folder.mkdir(parents=True)
+    with tarfile.open(fileobj=__import__("io").BytesIO(archive)) as tar:
+        tar.extractall(folder, filter="data")
+    return folder
+
+
+def report(title: str, count: int, results: dict[tuple[str, int], dict]) -> None:
+    base = results[(NONE, 0)]["wall_s"]
+    print(f"\n{title}: {count} messages of zeros, one every {EVERY} ticks from tick {START_TICK}, "
+          f"lockstep shut concave seed 4 (313 ticks)")
+    print(f"{'key':28s} {'bytes':>8s} {'re-pub':>6s} {'wall s':>7s} {'x base':>6s} {'world':>5s} {'module':>6s}")
+    for (key, size), r in results.items():
+        print(f"{key:28s} {size:8d} {r['republished']:6d} {r['wall_s']:7.1f} {r['wall_s'] / base:6.1f} "
+              f"{'-' if r['world_counted'] is None else r['world_counted']:>5} "
+              f"{'-' if r['module_counted'] is None else r['module_counted']:>6}", flush=True)
 
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--size", type=int, default=1 << 20)
+    p.add_argument("--sizes", default="49152,102400,1048576", help="comma-separated payload sizes in bytes")
+    p.add_argument("--keys", default=f"cekm/fuzz/big,{K.field_obstacle('r1', 3)},{K.sense_range('r1', 3)}")
+    p.add_argument("--count", type=int, default=10)
+    p.add_argument("--burst", type=int, default=1, help="messages back to back at each event")
     p.add_argument("--port", type=int, default=7462)
+    p.add_argument("--before", metavar="REV", help="first run the cases on the code of this git revision")
+    p.add_argument("--code", type=Path, default=ROOT, help="source tree to launch from (default: this one)")
+    p.add_argument("--env", action="append", default=[], metavar="NAME=VALUE")
     args = p.parse_args()
-    keys = ["cekm/fuzz/big", K.field_obstacle("r1", 3), K.sense_range("r1", 3)]
-    results = {}
+    env = dict(e.split("=", 1) for e in args.env)
+    cases = [(NONE, 0)] + [(k, int(s)) for s in args.sizes.split(",") for k in args.keys.split(",")]
     with tempfile.TemporaryDirectory() as tmp:
-        for i, key in enumerate(keys):
-            results[key] = case(key, args.size, args.port, Path(tmp) / str(i))
-    base = results[keys[0]]["wall_s"]
-    print(f"10 messages of {args.size} bytes, lockstep concave seed 4 (313 ticks)")
-    for key, r in results.items():
-        print(f"{key:28s} re-published {r['republished']:3d}  wall {r['wall_s']:6.1f} s  "
-              f"x{r['wall_s'] / base:5.1f} of the baseline  module counted {r['module_counted']}")
+        scenario = shut_concave(Path(tmp))
+        trees = [(f"before ({args.before})", export(args.before, Path(tmp) / "before"))] if args.before else []
+        trees.append(("after (this tree)" if args.code == ROOT else str(args.code), args.code))
+        for t, (title, code) in enumerate(trees):
+            results = {}
+            for i, (key, size) in enumerate(cases):
+                out = Path(tmp) / f"run-{t}-{i}"
+                results[(key, size)] = case(key, size, args.count, args.burst, args.port, out, scenario, code, env)
+            report(title, args.count, results)
 
 
 if __name__ == "__main__":

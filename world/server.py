@@ -585,7 +585,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.zenoh_config:
             p.error("--zenoh-config is a client's config; with --listen the world hosts the router")
         if is_loopback(host):
-            use_zenoh_runtime(ROUTER_RUNTIME)  # one thread wakes per message; a second for Zenoh's blocking steps
+            use_zenoh_runtime(ROUTER_RUNTIME)  # one thread routes a message; sending on a thread of its own
     logging.basicConfig(level=args.log_level.upper(), stream=sys.stderr,
                         format="%(asctime)s.%(msecs)03d %(name)s %(levelname)s %(message)s", datefmt="%H:%M:%S")
     server = WorldServer(WorldConfig.from_args(args))

@@ -32,16 +32,59 @@ period: each hand-off between Zenoh's receiving, sending and timer threads is a 
 wake-up, which costs more than the work it hands over on this 2-core machine
 (``benchmarks/bench_runtime.py``)."""
 
-ROUTER_RUNTIME = ("(rx: (handover: app), tx: (handover: app), net: (handover: app), acc: (handover: app), "
-                  "app: (worker_threads: 2))")
-"""Zenoh's runtimes in the world server when it hosts the router on loopback: all on one
-runtime, as in a module, but with two worker threads. One thread does a message's work,
-so a tick costs the router about 10 thread wake-ups instead of 35 (1.6 ms of CPU instead
-of 2.2). The second thread is there for Zenoh's blocking steps: with a single thread, a
-client that goes silent without closing (a stopped ``cekm topic echo``) froze all routing
-for 10 s when its lease expired, and a real-time run's robots were stopped by the
-dead-man (``tests/runtime/test_launch_stalled_client.py``). A router serving other hosts
-keeps Zenoh's default threads."""
+ROUTER_RUNTIME = "(rx: (handover: app), net: (handover: app), acc: (handover: app), app: (worker_threads: 2))"
+"""Zenoh's runtimes in the world server when it hosts the router on loopback: receiving,
+timers and accepting on one runtime with two worker threads, sending on a thread of its
+own. A message's routing is done on one thread, so a tick costs the router about 15
+thread wake-ups instead of 35 with Zenoh's default threads. The second worker is there for Zenoh's
+blocking steps: with a single thread, a client that goes silent without closing (a
+stopped ``cekm topic echo``) froze all routing for 10 s when its lease expired, and a
+real-time run's robots were stopped by the dead-man
+(``tests/runtime/test_launch_stalled_client.py``).
+
+Sending stays apart. A router forwards a message into the receiver's send queue (two
+64 KB batches) on the thread that received it, and waits there while the queue is full
+until the sending task has written a batch out. With sending handed to the same two
+workers, two such waits took both (a burst of 128 KB towards one module: four 32 KB
+messages or 200 of 1 KB; or one message Zenoh cut into fragments), nothing was sent any
+more, and after 5 s Zenoh closed the module's session ("Unable to push non droppable
+network message ... Closing transport"): the run stalled 5-10 s at a time and the
+messages were lost (``benchmarks/bench_large_messages.py``, docs/robustness.md). The
+sending thread cost nothing measurable (docs/performance.md). A router serving other
+hosts keeps Zenoh's default threads."""
+
+MAX_MESSAGE_BYTES = 32 * 1024
+"""The largest message the runtime's Zenoh carries: payload plus attachment, in bytes
+(inclusive). The largest legitimate one is the served model's reply (the R15 model file,
+18,441 bytes, and its 64-byte digest); every other message of a run is under 4 KB (a
+tracking field of 6 robots and 10 targets, 3.8 KB; the largest scene, 4.0 KB). Half of
+Zenoh's 64 KB batch: no message anyone may send is cut into fragments, and none costs a
+receiver more than 32 KB of memory and decoding. Before this limit (and before
+:data:`ROUTER_RUNTIME` kept sending apart), ten messages of 100 KB or 1 MB on a module's
+key made a 313-tick lockstep run last 70-116 s instead of 2-11 s, and none of them was
+delivered (``benchmarks/bench_large_messages.py``, docs/robustness.md).
+
+Every router the runtime opens drops a bigger message as it comes in
+(:func:`message_size_limits`), before any subscriber, the world's recorder included, sees
+it; Zenoh counts no such drop. Every process also refuses to reassemble a fragmented
+message over this size (bounded memory whatever a router forwards). A model file over
+it cannot be served (:class:`cekm_swarm.runtime.model_service.ModelServer` says so)."""
+
+
+def message_size_limits(config: zenoh.Config, *, router: bool) -> None:
+    """Apply :data:`MAX_MESSAGE_BYTES`: at a router, a low-pass filter on every message
+    coming in (put, delete, query, reply; any key); everywhere, Zenoh's reassembly buffer
+    (``transport/link/rx/max_message_size``) unless the config sets a smaller one."""
+    try:
+        own = int(json.loads(config.get_json("transport/link/rx/max_message_size")))
+    except Exception:
+        own = None
+    if own is None or own > MAX_MESSAGE_BYTES:
+        _insert(config, "transport/link/rx/max_message_size", MAX_MESSAGE_BYTES)
+    if router:
+        _insert(config, "low_pass_filter", [{
+            "id": "max-message-size", "flows": ["ingress"], "messages": ["put", "delete", "query", "reply"],
+            "key_exprs": ["**"], "size_limit": MAX_MESSAGE_BYTES}])
 
 
 def use_zenoh_runtime(spec: str) -> None:
@@ -131,6 +174,7 @@ def embedded_router_config(port: int = DEFAULT_PORT, host: str = DEFAULT_HOST) -
     _insert(config, "mode", "router")
     _insert(config, "listen/endpoints", [check_endpoint(f"tcp/{host}:{int(port)}")])
     _common(config)
+    message_size_limits(config, router=True)
     # Read-only admin space: `cekm topic info` asks the router who publishes and subscribes
     # (answered only on a query; nothing runs otherwise).
     _insert(config, "adminspace", {"enabled": True, "permissions": {"read": True, "write": False}})
@@ -144,6 +188,7 @@ def client_config(endpoint: str = DEFAULT_ENDPOINT, *, user: str | None = None,
     _insert(config, "mode", "client")
     _insert(config, "connect/endpoints", [check_endpoint(endpoint)])
     _common(config)
+    message_size_limits(config, router=False)
     _reconnect(config)
     if (user is None) != (password is None):
         raise RuntimeTransportError("client config: give both user and password, or neither")
@@ -249,6 +294,7 @@ def client_config_from_file(path: str | Path, endpoint: str = DEFAULT_ENDPOINT) 
         raise RuntimeTransportError(f"zenoh config {path}: mode is {mode!r}; a process joins as 'client'")
     _insert(config, "mode", "client")
     _common(config)
+    message_size_limits(config, router=False)
     _reconnect(config)
     return config
 

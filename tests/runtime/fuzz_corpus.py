@@ -9,6 +9,11 @@ lattice) must drop it. Every other message is refused by every receiver: by the 
 or by the stamp check (a stamp far from any tick the run is at, or not on the tick grid).
 None is a well-formed message for a tick the run is at: that one an in-key-space peer can
 always send (docs/robustness.md says what that leaves to access control).
+
+Messages of the class "over the limit" (payload over the transport's MAX_MESSAGE_BYTES:
+just over it, 48 KB, 100 KB, 1 MB) never reach a receiver: the router drops them as they
+come in (:attr:`Fuzz.over_limit`). One exactly at the limit reaches every subscriber and
+is refused by its decoder like any other.
 """
 
 from __future__ import annotations
@@ -22,6 +27,7 @@ import numpy as np
 from cekm_swarm.protocol import (DEFAULT_KEYS, Clock, ObstacleField, SenseRange, SenseTarget, TargetField,
                                  WheelCommand, WorldState)
 from cekm_swarm.protocol.messages import to_wire
+from cekm_swarm.runtime.config import MAX_MESSAGE_BYTES
 from cekm_swarm.ticks import TICK_S, tick_time
 
 K = DEFAULT_KEYS
@@ -33,6 +39,16 @@ class Fuzz:
     payload: bytes
     cls: str
     decodes: bool = False
+
+    @property
+    def over_limit(self) -> bool:
+        """Over the transport's limit: dropped by the router, reaching no process."""
+        return len(self.payload) > MAX_MESSAGE_BYTES
+
+
+OVER_LIMIT_SIZES = (MAX_MESSAGE_BYTES + 1, MAX_MESSAGE_BYTES + 1000, 48 * 1024, 100 * 1024, 1 << 20)
+"""Payload sizes of the class "over the limit": just over it, under Zenoh's 64 KB batch
+(one piece), over it (in fragments: 2 and 17 of them)."""
 
 
 def _pack(m) -> bytes:
@@ -142,18 +158,27 @@ def make_corpus(rng: np.random.Generator, n: int, tick: int, robots: list[str], 
             else:
                 m["index" if "index" in m else "stamp"] = [13, -1, 2 ** 63][i % 3]
             out.append(Fuzz(key, _pack(m), "wrong length"))
-        elif c == 12:  # beyond a limit: a sender name over 128 characters, a declared vector of more
-            # than 2^20 floats, 900 bytes of zeros. Payloads stay under 1 KB: larger ones (48 KB,
-            # 1 MB) stalled the router for seconds at a time (docs/robustness.md); the decoder,
-            # VectorCache and the recorder take them in the unit tests.
-            if i % 3 == 0 and ("a" in m or "b" in m):
+        elif c == 12 and i % 2:  # beyond a limit of the decoder: a sender name over 128 characters,
+            # a declared vector of more than 2^20 floats, 900 bytes of zeros, a payload of
+            # exactly the transport's limit
+            if i % 8 == 1 and ("a" in m or "b" in m):
                 m["a" if "a" in m else "b"] = {"dtype": "<f8", "shape": [(1 << 20) + 1], "data": bytes(800)}
                 out.append(Fuzz(key, _pack(m), "oversized"))
-            elif i % 3 == 1:
+            elif i % 8 in (1, 3):
                 out.append(Fuzz(key, bytes(900), "oversized"))
-            else:
+            elif i % 8 == 5:
                 m["sender"] = "s" * (129 + i % 600)
                 out.append(Fuzz(key, _pack(m), "oversized"))
+            else:  # exactly the transport's limit (the message and zeros after it): delivered, and
+                # refused by the decoder (trailing bytes)
+                payload = _pack(m)
+                out.append(Fuzz(key, payload + bytes(MAX_MESSAGE_BYTES - len(payload)), "at the limit"))
+        elif c == 12:  # over the transport's limit, on the run's keys and invented ones: the router
+            # drops them as they come in, before any process sees them
+            size = OVER_LIMIT_SIZES[(i // 2) % len(OVER_LIMIT_SIZES)]
+            where = key if i % 3 else f"cekm/fuzz/big{i}"
+            payload = _pack(m)
+            out.append(Fuzz(where, payload + bytes(size - len(payload)), "over the limit"))
         elif c == 13:  # nested deeply
             x: object = 1
             for _ in range(40):

@@ -4,10 +4,12 @@ of the world, and on keys it invents under the root.
 
 * lockstep, 10,000 messages on the paper's concave obstacle: every process survives (no
   restart), the trajectory equals the in-process run bit for bit, and the drop counters
-  account for every message at every receiver (the world's recorder, the world's command
-  subscription, each of the 14 modules), exactly: what a receiver did not drop is in the
-  log (only the class the world cannot refuse without the model), nothing else is. The
-  warning lines stay bounded.
+  account for every message that reached a receiver (the world's recorder, the world's
+  command subscription, each of the 14 modules), exactly: what a receiver did not drop is
+  in the log (only the class the world cannot refuse without the model), nothing else is.
+  Messages over the transport's size limit (just over it up to 1 MB) reach no receiver:
+  the router drops them as they come in, no process counts them (nor does Zenoh), and the
+  run is not slowed (no tick re-published). The warning lines stay bounded.
 * real time, a smaller run: the same accounting, and the robot never stops (no dead-man,
   no zero command) although far-future stamps were thrown at every one of its keys.
 """
@@ -32,7 +34,7 @@ from cekm_swarm.protocol.drops import MAX_SOURCES
 from cekm_swarm.runtime.config import open_client
 from world import load_scenario
 
-from fuzz_corpus import Fuzz, make_corpus
+from fuzz_corpus import OVER_LIMIT_SIZES, Fuzz, make_corpus
 from test_launch_support import LaunchProcess
 
 SEED = 4
@@ -136,24 +138,30 @@ def fuzz_in_log(out: Path) -> Counter:
 
 
 def check_accounting(run: LaunchProcess, sent: list[Fuzz]) -> dict[str, int]:
-    """Every fuzzed message is counted by every receiver it reached, exactly: dropped, or
-    (at the world's recorder, only for the class it cannot refuse) in the log."""
+    """Every fuzzed message under the transport's limit is counted by every receiver it
+    reached, exactly: dropped, or (at the world's recorder, only for the class it cannot
+    refuse) in the log. Every one over the limit reached no receiver: the counts are
+    those of the messages under it, to the message, and none is in the log."""
     outcome = run.outcome()
     assert outcome["launcher"]["restarts"] == {}, outcome["launcher"]  # every process survived
     drops = outcome["drops"]
     n_rec = sum(drops["recorder"].values())
     assert FENCE in drops["recorder"] or "(other sources)" in drops["recorder"], (n_rec, len(drops["recorder"]),
                                                                                   outcome["recorded_messages"])
+    delivered = [f for f in sent if not f.over_limit]  # the router dropped the rest as they came in
     recorded = fuzz_in_log(run.out)
-    assert all(sent[i].decodes for i in recorded), [sent[i].cls for i in recorded if not sent[i].decodes]
+    assert all(sent[i].decodes and not sent[i].over_limit for i in recorded), \
+        [sent[i].cls for i in recorded if not sent[i].decodes]
     assert set(recorded.values()) <= {1}
-    counts = {"world recorder": sum(drops["recorder"].values()), "world commands": sum(drops["commands"].values())}
-    assert counts["world recorder"] + len(recorded) == len(sent)
-    assert counts["world commands"] == receiving(K.cmd_wheels_all(), sent)
+    counts = {"over the limit, dropped by the router": len(sent) - len(delivered),
+              "world recorder": sum(drops["recorder"].values()), "world commands": sum(drops["commands"].values())}
+    assert counts["world recorder"] + len(recorded) == len(delivered)
+    assert not [k for k in drops["recorder"] if k.startswith("cekm/fuzz/big")]  # keys only over-limit ones used
+    assert counts["world commands"] == receiving(K.cmd_wheels_all(), delivered)
     for name, expr in module_listens().items():
         doc = module_drops(run.out, name)
         counts[name] = sum(doc["dropped"].values())
-        assert counts[name] == receiving(expr, sent), (name, doc, receiving(expr, sent))
+        assert counts[name] == receiving(expr, delivered), (name, doc, receiving(expr, delivered))
         assert doc["handled"] >= counts[name]
     # the warning lines stay bounded: one per source that had drops, sources capped
     for log in (run.out / "logs").glob("*.log"):
@@ -200,7 +208,15 @@ def test_lockstep_fuzz_changes_nothing_and_every_message_is_counted(lockstep_fuz
     assert len(sent) > 10_000 and len({f.key for f in sent}) > MAX_SOURCES  # more sources than a counter tells apart
     assert {f.cls for f in sent} >= {"not msgpack", "not a map", "schema version", "missing field", "extra field",
                                      "wrong type", "non-finite", "bogus stamp", "wrong kind", "wrong length",
-                                     "oversized", "nested", "invented key"}
+                                     "oversized", "nested", "invented key", "at the limit", "over the limit"}
+    big = [f for f in sent if f.over_limit]
+    assert {len(f.payload) for f in big} == set(OVER_LIMIT_SIZES)  # 1 MB among them
+    assert {K.field_obstacle("r1", j) for j in range(12)} & {f.key for f in big}  # on module keys,
+    assert {K.world_state(), K.world_clock()} & {f.key for f in big}  # world keys and invented ones
+    assert [f for f in big if f.key.startswith("cekm/fuzz/big")]
+    # the run was not slowed: without the router's limit, a 1 MB message on a module's key
+    # cost 8-9 re-published ticks (1 s each) and this corpus 40 or more
+    assert run.outcome()["republished"] <= 1, run.outcome()["republished"]
     # the bit-for-bit outcome of the in-process run
     traj = json.loads((run.out / "trajectory.json").read_text())["r1"]
     log = ref.logs["r1"]
@@ -210,7 +226,9 @@ def test_lockstep_fuzz_changes_nothing_and_every_message_is_counted(lockstep_fuz
     assert traj["v_l"] == log.v_l and traj["v_r"] == log.v_r
     assert run.outcome()["robots"] == json.loads(json.dumps(ref.outcome))
     counts = check_accounting(run, sent)
-    print("lockstep fuzz:", len(sent), "messages;", counts)
+    o = run.outcome()
+    print("lockstep fuzz:", len(sent), "messages;", counts, "; republished", o["republished"], "; world wall s",
+          o["wall_seconds"])
 
 
 @pytest.fixture(scope="module")
@@ -231,6 +249,7 @@ def realtime_fuzzed(tmp_path_factory):
 
 def test_realtime_fuzz_stops_no_robot_and_every_message_is_counted(realtime_fuzzed):
     run, sent, last_tick = realtime_fuzzed
+    assert {f.cls for f in sent} >= {"at the limit", "over the limit"}
     outcome = run.outcome()
     traj = json.loads((run.out / "trajectory.json").read_text())["r1"]
     assert last_tick < len(traj["t"]) - 1, "the run ended before the fuzz did"

@@ -4,6 +4,8 @@ give errors that name the key."""
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 
@@ -12,7 +14,8 @@ from cekm_swarm.experiments.default_model import default_model, default_model_pa
 from cekm_swarm.models.io import load_model, load_model_bytes
 from cekm_swarm.modules.shell import load_controller
 from cekm_swarm.protocol import DEFAULT_KEYS as K
-from cekm_swarm.runtime.config import client_config_from_file, free_port, open_client, open_embedded_router
+from cekm_swarm.runtime.config import (MAX_MESSAGE_BYTES, client_config_from_file, free_port, open_client,
+                                       open_embedded_router)
 from cekm_swarm.runtime.errors import RuntimeTransportError
 from cekm_swarm.runtime.model_service import ModelServer, fetch_model_bytes, is_zenoh_source
 
@@ -55,6 +58,21 @@ def test_tampered_bytes_are_refused(two_sessions):
             fetch_model_bytes(asking, K.world_model(), timeout=10)
     finally:
         server.close()
+
+
+def test_a_model_too_large_for_the_transport_is_refused_at_once(two_sessions, tmp_path):
+    big = tmp_path / "big.npz"
+    big.write_bytes(bytes(MAX_MESSAGE_BYTES))  # with its digest, over the limit: the router would drop the reply
+    serving, asking = two_sessions
+    server = ModelServer(serving, K.world_model(), big)
+    t0 = time.monotonic()
+    try:
+        with pytest.raises(RuntimeTransportError, match=r"big.npz is too large to serve over Zenoh: 32832 bytes.*"
+                                                        r"--model PATH"):
+            fetch_model_bytes(asking, K.world_model(), timeout=30)
+    finally:
+        server.close()
+    assert time.monotonic() - t0 < 10 and server.served == 0  # not the 30 s timeout
 
 
 def test_no_server_is_a_clear_error(two_sessions):
