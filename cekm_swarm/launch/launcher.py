@@ -57,6 +57,7 @@ BACKOFF_MAX = 5.0
 HEALTHY_AFTER = 5.0  # s: a module up this long gets its back-off reset
 ALIVE_TIMEOUT = 180.0
 STOP_GRACE = 5.0
+ROUTER_SETTLE = 1.0  # s a token's DELETE may come before the session notices its router is gone
 ROUTER_GRACE = 10.0  # s a robots-only host with --connect waits for a lost router and the world to come back
 
 
@@ -612,7 +613,7 @@ class Launcher:
         come back (Zenoh clients reconnect and re-declare their tokens by themselves). True
         if it did; False at once if the router is still there (the world really ended) or
         when this host serves its own router."""
-        if not self.c.connect or session.info.routers_zid():
+        if not self.c.connect or not await self._router_lost(session):
             return False
         self.say(f"lost the Zenoh router; waiting up to {ROUTER_GRACE:.0f} s for it and the world server to come back")
         t0 = time.monotonic()
@@ -621,6 +622,19 @@ class Launcher:
         except asyncio.TimeoutError:
             return False
         self.say(f"reconnected: the world server is up again after {time.monotonic() - t0:.1f} s")
+        return True
+
+    @staticmethod
+    async def _router_lost(session: Any) -> bool:
+        """True once the session has no router. A router's death reaches us as the DELETE
+        of every token it carried, which can come a moment before the session drops the
+        router from its list: so a token gone with a router still listed is looked at
+        again for up to :data:`ROUTER_SETTLE` s before it counts as really gone."""
+        deadline = time.monotonic() + ROUTER_SETTLE
+        while session.info.routers_zid():
+            if time.monotonic() >= deadline:
+                return False
+            await asyncio.sleep(0.05)
         return True
 
     def launch(self) -> dict[str, Any]:
