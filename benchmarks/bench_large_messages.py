@@ -43,7 +43,8 @@ from cekm_swarm.protocol import Clock, MessageError, decode  # noqa: E402
 from cekm_swarm.runtime.config import open_client  # noqa: E402
 
 START_TICK = 20
-EVERY = 4  # ticks between two messages
+EVERY = 4  # ticks between two messages (or bursts)
+STUCK_S = 120.0  # the world not past the next message's tick in this long: stop sending
 NONE = "(no message)"
 
 
@@ -104,6 +105,7 @@ def case(key: str, size: int, count: int, burst: int, port: int, out: Path, scen
     try:
         if not started.wait(180):
             raise RuntimeError("the launch did not start ticking")
+        stuck = None
         if key != NONE:
             session = open_client(f"tcp/127.0.0.1:{port}")
             sub = session.declare_subscriber(K.world_clock(), zenoh.handlers.RingChannel(16))
@@ -111,14 +113,18 @@ def case(key: str, size: int, count: int, burst: int, port: int, out: Path, scen
             for _ in range(count // burst):
                 for _ in range(burst):
                     session.put(key, bytes(size), congestion_control=zenoh.CongestionControl.BLOCK)
-                tick = wait_tick(sub, tick + EVERY - 1, 180)
+                try:
+                    tick = wait_tick(sub, tick + EVERY - 1, STUCK_S)
+                except TimeoutError:  # give up sending; the run goes on to its end
+                    stuck = tick
+                    break
             session.close()
-        proc.wait(600)
+        proc.wait(900)
     finally:
         if proc.poll() is None:
             proc.kill()
     o = json.loads((out / "outcome.json").read_text())
-    r = {"republished": o["republished"], "wall_s": o["wall_seconds"],
+    r = {"republished": o["republished"], "wall_s": o["wall_seconds"], "stuck_at": stuck,
          "world_counted": o["drops"]["recorder"].get(key, 0) if key != NONE else None, "module_counted": None}
     log = module_log(key)
     if log:
@@ -137,15 +143,18 @@ def export(rev: str, folder: Path) -> Path:
     return folder
 
 
-def report(title: str, count: int, results: dict[tuple[str, int], dict]) -> None:
+def report(title: str, count: int, burst: int, results: dict[tuple[str, int], dict]) -> None:
     base = results[(NONE, 0)]["wall_s"]
-    print(f"\n{title}: {count} messages of zeros, one every {EVERY} ticks from tick {START_TICK}, "
-          f"lockstep shut concave seed 4 (313 ticks)")
+    how = "one" if burst == 1 else f"a burst of {burst} back to back"
+    print(f"\n{title}: {count} messages of zeros, {how} every {EVERY} ticks from tick {START_TICK}, "
+          f"lockstep shut concave seed 4 (313 ticks); world, module: messages they counted")
     print(f"{'key':28s} {'bytes':>8s} {'re-pub':>6s} {'wall s':>7s} {'x base':>6s} {'world':>5s} {'module':>6s}")
     for (key, size), r in results.items():
+        stuck = "" if r["stuck_at"] is None else \
+            f"  (the world did not pass tick {r['stuck_at'] + EVERY - 1} in {STUCK_S:.0f} s: sending stopped)"
         print(f"{key:28s} {size:8d} {r['republished']:6d} {r['wall_s']:7.1f} {r['wall_s'] / base:6.1f} "
               f"{'-' if r['world_counted'] is None else r['world_counted']:>5} "
-              f"{'-' if r['module_counted'] is None else r['module_counted']:>6}", flush=True)
+              f"{'-' if r['module_counted'] is None else r['module_counted']:>6}{stuck}", flush=True)
 
 
 def main() -> None:
@@ -170,7 +179,7 @@ def main() -> None:
             for i, (key, size) in enumerate(cases):
                 out = Path(tmp) / f"run-{t}-{i}"
                 results[(key, size)] = case(key, size, args.count, args.burst, args.port, out, scenario, code, env)
-            report(title, args.count, results)
+            report(title, args.count, args.burst, results)
 
 
 if __name__ == "__main__":
