@@ -74,6 +74,7 @@ from cekm_swarm.runtime.bridge import (InlineSubscription, LivelinessWatcher, Pu
                                        wait_matching_async)
 from cekm_swarm.runtime.config import (DEFAULT_ENDPOINT, ROUTER_RUNTIME, is_loopback, open_client, open_embedded_router,
                                        tcp_host_port, use_zenoh_runtime)
+from cekm_swarm.runtime.gc_tuning import freeze_startup_heap
 from cekm_swarm.runtime.lifetime import die_with_parent
 from cekm_swarm.runtime.mcap_log import McapRecorder
 from cekm_swarm.runtime.process_args import Param, add_params, run_id_arg, to_argv
@@ -188,8 +189,17 @@ class WorldServer:
         sent = self.sent_at.get(msg.stamp)
         if sent is not None:
             self._lat_pending.append((robot, msg.stamp, rec.at - sent))
-        if self.lockstep:
+        if self.lockstep and self._tick_answered():  # one wake-up of the tick loop per tick, not per robot
             self._loop.call_soon_threadsafe(self.arrived.set)
+
+    def _tick_answered(self) -> bool:
+        """Lockstep: every robot's latest command is for the current tick."""
+        now, latest = self.now, self.latest
+        for r in self.robots:
+            c = latest.get(r)
+            if c is None or c.stamp != now:
+                return False
+        return True
 
     def _drain_records(self, now: float) -> None:
         """Record what other sessions sent under ``<root>/**`` since the last drain (it
@@ -294,11 +304,10 @@ class WorldServer:
                 self._republish(readings, waiting)
                 next_republish = loop.time() + self.config.republish
                 continue
-            stopper = asyncio.ensure_future(self.stop.wait())
-            waiter = asyncio.ensure_future(self.arrived.wait())
-            await asyncio.wait({stopper, waiter}, timeout=timeout, return_when=asyncio.FIRST_COMPLETED)
-            stopper.cancel()
-            waiter.cancel()
+            try:  # woken when the tick is answered, or by a stop (_request_stop sets both)
+                await asyncio.wait_for(self.arrived.wait(), timeout)
+            except asyncio.TimeoutError:
+                pass
 
     async def _realtime_commands(self, start: float) -> dict[str, tuple[float, float]]:
         loop = asyncio.get_running_loop()
@@ -345,12 +354,17 @@ class WorldServer:
         emit("PROGRESS", {"t": ep.t, "tick": ep.tick, "robots": robots, "republished": self.republished,
                           "deadline_misses": self.deadline_misses})
 
+    def _request_stop(self) -> None:
+        """End the run: the tick loop sees ``stop`` at its next wait (waking a lockstep wait)."""
+        self.stop.set()
+        self.arrived.set()
+
     async def run(self) -> dict[str, Any]:
         cfg = self.config
         loop = asyncio.get_running_loop()
         for sig in (signal.SIGTERM, signal.SIGINT):
             try:
-                loop.add_signal_handler(sig, self.stop.set)
+                loop.add_signal_handler(sig, self._request_stop)
             except (NotImplementedError, RuntimeError):  # pragma: no cover
                 pass
         self._loop = loop
@@ -374,7 +388,7 @@ class WorldServer:
             scene = serve_geometry(session, self.keys.world_geometry(), geometry)  # for `cekm record`
             emit("READY", {"endpoint": cfg.listen or cfg.connect, "router": bool(cfg.listen)})
             if cfg.wait_modules > 0 and not await self._wait_for_modules(session, cfg.wait_modules):
-                self.stop.set()
+                self._request_stop()
             t_wall0 = time.perf_counter()
             # Every module's subscription must be known before tick 0 is published.
             for r in self.robots:
@@ -392,6 +406,7 @@ class WorldServer:
             try:
                 if self.stop.is_set():  # interrupted (or modules missing) before tick 0
                     raise asyncio.CancelledError
+                freeze_startup_heap()  # no full collection walks the world, its log and its session mid-run
                 emit("START", {"mode": cfg.mode, "robots": self.robots, "scenario": self.scenario.name,
                                "seed": self.world.seed})
                 while True:

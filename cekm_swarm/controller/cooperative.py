@@ -5,7 +5,7 @@ Each module is what one process of the distributed runtime runs:
 * target localization (every 0.256 s): the sensed target u -> winner s and target field a;
 * obstacle localization j (every 0.128 s, one per distance sensor): u_j -> winner and
   obstacle field b_j, or nothing when the sensor sees nothing;
-* motor integration (on every arriving field): e = a - sum_j b_j (Eq. 9), k = argmax e
+* motor integration (once per tick of fields): e = a - sum_j b_j (Eq. 9), k = argmax e
   (Eq. 10), c by Eq. 11 with M_k; at the goal state c = 0. What the wheels execute is c
   clipped to c*.
 

@@ -42,6 +42,9 @@ from cekm_swarm.runtime.errors import RuntimeTransportError
 from cekm_swarm.runtime.wait import open_client_when_ready
 from cekm_swarm.runtime.model_service import ZENOH_MODEL, ModelServer
 
+from cekm_swarm.ticks import tick_of
+
+from .cpu import CpuSnapshot, cpu_per_tick, snapshot
 from .processes import child_env, module_argv, new_run_id, server_argv
 
 BACKOFF_MIN = 0.25
@@ -54,6 +57,7 @@ BACKOFF_MAX = 5.0
 HEALTHY_AFTER = 5.0  # s: a module up this long gets its back-off reset
 ALIVE_TIMEOUT = 180.0
 STOP_GRACE = 5.0
+ROUTER_SETTLE = 1.0  # s a token's DELETE may come before the session notices its router is gone
 ROUTER_GRACE = 10.0  # s a robots-only host with --connect waits for a lost router and the world to come back
 
 
@@ -154,6 +158,8 @@ class Launcher:
         self.watcher: LivelinessWatcher | None = None
         self.world_reader: asyncio.Future | None = None
         self.supervisors: list[asyncio.Future] = []
+        self._cpu: list[CpuSnapshot] = []  # when the world starts ticking and when it is done
+        self._ticks = 0
 
     # ------------------------------------------------------------------ logging
 
@@ -164,10 +170,15 @@ class Launcher:
             self._log.write(line + "\n")
             self._log.flush()
 
-    def _write_pids(self) -> None:
+    def _pids(self) -> dict[str, int]:
+        """Every live process this launcher started, by label."""
         pids = {c.label: c.proc.pid for c in self.children.values() if c.proc is not None and c.proc.returncode is None}
         if self.world_proc is not None and self.world_proc.returncode is None:
             pids["world/server"] = self.world_proc.pid
+        return pids
+
+    def _write_pids(self) -> None:
+        pids = self._pids()
         tmp = self.c.out / "pids.json.tmp"
         tmp.write_text(json.dumps(pids, indent=1))
         tmp.replace(self.c.out / "pids.json")
@@ -242,8 +253,12 @@ class Launcher:
                 extra = {k: v for k, v in doc.items() if k not in ("event", "t")}
                 self.say(f"world event at t={doc['t']:.2f} s: {doc['event']} {extra}")
             elif kind == "START" and doc is not None:
+                self._cpu = [snapshot(self._pids())]
                 self.say(f"world started ticking ({doc['mode']}, seed {doc['seed']})")
             elif kind == "DONE" and doc is not None:
+                if len(self._cpu) == 1:
+                    self._cpu.append(snapshot(self._pids()))
+                    self._ticks = tick_of(float(doc.get("sim_seconds", 0.0)))
                 self.say(f"world done at t={doc['sim_seconds']:.2f} s of sim time, {doc['wall_seconds']:.1f} s of wall time")
             elif text:
                 self.say(f"world: {text}")
@@ -490,6 +505,9 @@ class Launcher:
             "restarts": {ch.label: ch.restarts for ch in self.children.values() if ch.restarts},
             "exits": {ch.label: ch.exits for ch in self.children.values() if ch.exits},
             "startup_s": self.startup_s}
+        if len(self._cpu) == 2:  # where the tick loop's CPU went (cekm_swarm.launch.cpu)
+            robots = len({ch.robot for ch in self.children.values()})
+            outcome["launcher"]["cpu"] = cpu_per_tick(self._cpu[0], self._cpu[1], self._ticks, robots)
         outcome_path.write_text(json.dumps(outcome, indent=1))
         return outcome
 
@@ -595,7 +613,7 @@ class Launcher:
         come back (Zenoh clients reconnect and re-declare their tokens by themselves). True
         if it did; False at once if the router is still there (the world really ended) or
         when this host serves its own router."""
-        if not self.c.connect or session.info.routers_zid():
+        if not self.c.connect or not await self._router_lost(session):
             return False
         self.say(f"lost the Zenoh router; waiting up to {ROUTER_GRACE:.0f} s for it and the world server to come back")
         t0 = time.monotonic()
@@ -604,6 +622,19 @@ class Launcher:
         except asyncio.TimeoutError:
             return False
         self.say(f"reconnected: the world server is up again after {time.monotonic() - t0:.1f} s")
+        return True
+
+    @staticmethod
+    async def _router_lost(session: Any) -> bool:
+        """True once the session has no router. A router's death reaches us as the DELETE
+        of every token it carried, which can come a moment before the session drops the
+        router from its list: so a token gone with a router still listed is looked at
+        again for up to :data:`ROUTER_SETTLE` s before it counts as really gone."""
+        deadline = time.monotonic() + ROUTER_SETTLE
+        while session.info.routers_zid():
+            if time.monotonic() >= deadline:
+                return False
+            await asyncio.sleep(0.05)
         return True
 
     def launch(self) -> dict[str, Any]:

@@ -5,8 +5,8 @@ tested without Zenoh:
 
 * :mod:`.target`: target localization, on each ``sense/target`` (every 0.256 s);
 * :mod:`.obstacle`: obstacle localization j, on each ``sense/range/<j>`` (every 0.128 s);
-* :mod:`.motor`: motor integration, on every arriving field (real time) or once per
-  tick when the tick's fields are complete (lockstep).
+* :mod:`.motor`: motor integration, once per tick when the tick's fields are in (real
+  time: those of live sources, or when the next tick begins; lockstep: every one).
 
 They compute exactly what :meth:`cekm_swarm.experiments.navigation.RobotBrain.tick`
 computes in one process, through :class:`cekm_swarm.controller.cooperative.CooperativeEKM`.

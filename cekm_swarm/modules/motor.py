@@ -3,10 +3,22 @@ published on ``cmd/wheels``.
 
 Two ways of deciding when to integrate (:class:`MotorState`):
 
-* real time: on every arriving field, with the latest field of each source, leaving out
-  a source whose field is older than its staleness limit (by default two of its periods:
-  0.256 s for an obstacle module, 0.512 s for the target module), measured in sim time
-  against the newest stamp seen. A stale target means no target: the robot stops.
+* real time: with the latest field of each source, leaving out a source whose field is
+  older than its staleness limit (by default two of its periods: 0.256 s for an obstacle
+  module, 0.512 s for the target module), measured in sim time against the newest stamp
+  seen. A stale target means no target: the robot stops. When (``--integrate``):
+
+  - ``tick`` (the default): once per stamp, as soon as every live source has delivered
+    its field for the newest stamp (each obstacle module every tick, the target module on
+    target ticks; a source silent past its staleness limit is not waited for); and if the
+    first field of a newer stamp arrives first, at once for the stamp before, with what
+    came. The world applies the latest command at each tick boundary, so the commands
+    ``every`` sends before a tick's last field are overwritten unread: sending one per
+    tick cut the motor's and the world's CPU per tick by a third to a half
+    (``benchmarks/bench_runtime_scale.py``), which is what lets 16 robots run in real time
+    on 2 cores.
+  - ``every``: on every arriving field (13 commands a tick), as the project's first
+    design had it.
 * lockstep: exactly one command per tick, when every field expected for the tick's stamp
   t has arrived: the 12 obstacle fields stamped t and the target field of the latest
   target tick at or before t (t itself on even ticks). The fields are then exactly the
@@ -39,6 +51,8 @@ from cekm_swarm.runtime.process_args import add_params
 from .shell import TRACKING_RANGE_PARAM, ModuleSpec, base_parser, keyspace, load_controller, main_of
 
 NAME = "motor"
+INTEGRATE_ON = ("tick", "every")
+"""Real-time integration policies (:class:`MotorState`): once per tick, or on every field."""
 log = logging.getLogger("cekm_swarm.modules.motor")
 
 # integrate(target_field | None, obstacle_fields in index order) -> (v_l, v_r)
@@ -65,6 +79,8 @@ class MotorState:
 
     integrate: Integrate
     lockstep: bool = False
+    integrate_on: str = "tick"
+    """Real time: ``tick`` integrates once per stamp, when :meth:`complete`; ``every`` on every field."""
     sensors: int = DEFAULT_RANGE_SENSORS
     tick_s: float = TICK_S
     target_every: int = TARGET_EVERY
@@ -99,17 +115,7 @@ class MotorState:
             return []
         if self.lockstep:
             return self._put_lockstep(msg)
-        if isinstance(msg, (TargetField, TrackingField)):  # the target module's output (tracking: its fields)
-            if self.target is not None and msg.stamp < self.target.stamp:
-                return self._refuse(msg, f"stamp {msg.stamp} older than the latest target field's")
-            self.target = msg
-        else:
-            old = self.obstacles.get(msg.index)
-            if old is not None and msg.stamp < old.stamp:
-                return self._refuse(msg, f"stamp {msg.stamp} older than the latest field of obstacle-{msg.index}")
-            self.obstacles[msg.index] = msg
-        self.newest = max(self.newest, msg.stamp)
-        return [self._realtime()]
+        return self._put_realtime(msg)
 
     # ------------------------------------------------------------------ real time
 
@@ -140,10 +146,44 @@ class MotorState:
             self.stale_drops[name] = self.stale_drops.get(name, 0) + 1
             log.warning("stale field dropped: %s (stamp %.3f, newest %.3f)", name, stamp, self.newest)
 
+    def _put_realtime(self, msg: TargetField | TrackingField | ObstacleField) -> list[tuple[float, float, float]]:
+        out = []
+        every = self.integrate_on == "every"
+        if not every and msg.stamp > self.newest > self.sent_stamp:
+            out.append(self._realtime())  # a newer tick began before the last one was complete: send that now
+        if isinstance(msg, (TargetField, TrackingField)):  # the target module's output (tracking: its fields)
+            if self.target is not None and msg.stamp < self.target.stamp:
+                return out + self._refuse(msg, f"stamp {msg.stamp} older than the latest target field's")
+            self.target = msg
+        else:
+            old = self.obstacles.get(msg.index)
+            if old is not None and msg.stamp < old.stamp:
+                return out + self._refuse(msg, f"stamp {msg.stamp} older than the latest field of obstacle-{msg.index}")
+            self.obstacles[msg.index] = msg
+        self.newest = max(self.newest, msg.stamp)
+        if every or (self.sent_stamp < self.newest and self.complete()):
+            out.append(self._realtime())
+        return out
+
+    def complete(self) -> bool:
+        """Real time: every live source has delivered its field for the newest stamp (an
+        obstacle module each tick, the target module on target ticks). A source not heard
+        from within its staleness limit is not waited for."""
+        t = self.newest
+        for f in self.obstacles.values():
+            if f.stamp < t and t - f.stamp <= self.obstacle_limit + 1e-9:
+                return False
+        target = self.target
+        if (target is not None and target.stamp < t and t - target.stamp <= self.target_limit + 1e-9
+                and self.target_stamp_for(t) == t):
+            return False
+        return True
+
     def _realtime(self) -> tuple[float, float, float]:
         target, obstacles = self.fresh()
         v_l, v_r = self.integrate(target, obstacles)
         self.commands += 1
+        self.sent_stamp = self.newest
         return (self.newest, v_l, v_r)
 
     # ------------------------------------------------------------------ lockstep
@@ -238,7 +278,7 @@ def tracking_integrate(tekm) -> Integrate:
 
 def build_spec(integrate: Integrate, robot: str, keys: KeySpace = KeySpace(), *, lockstep: bool = False,
                obstacle_limit: float = 2 * TICK_S, target_limit: float = 4 * TICK_S,
-               neurons: int | None = None) -> ModuleSpec:
+               neurons: int | None = None, integrate_on: str = "tick") -> ModuleSpec:
     """The motor module; with ``neurons`` (the lattice size) a field whose vector or
     winner does not fit the lattice is dropped and counted instead of reaching Eq. 9."""
     out_key = keys.cmd_wheels(robot)
@@ -254,8 +294,8 @@ def build_spec(integrate: Integrate, robot: str, keys: KeySpace = KeySpace(), *,
             return keys.field_tracking(robot)
         return target_key if isinstance(msg, TargetField) else keys.field_obstacle(robot, msg.index)
 
-    state = MotorState(integrate, lockstep=lockstep, sensors=keys.range_sensors, obstacle_limit=obstacle_limit,
-                       target_limit=target_limit, drop=lambda msg, why: spec.drops.drop(source_key(msg), why))
+    state = MotorState(integrate, lockstep=lockstep, integrate_on=integrate_on, sensors=keys.range_sensors,
+                       obstacle_limit=obstacle_limit, target_limit=target_limit, drop=lambda msg, why: spec.drops.drop(source_key(msg), why))
 
     def misfit(msg) -> str | None:
         if isinstance(msg, TrackingField):  # a and b have one length (checked on decode); winners per input
@@ -320,7 +360,8 @@ def _build(args: argparse.Namespace) -> ModuleSpec:
         ekm = load_controller(args.model)
         integrate, neurons = controller_integrate(ekm), int(ekm.w.shape[0])
     return build_spec(integrate, args.robot, keyspace(args), lockstep=args.mode == "lockstep",
-                      obstacle_limit=args.obstacle_stale, target_limit=args.target_stale, neurons=neurons)
+                      obstacle_limit=args.obstacle_stale, target_limit=args.target_stale, neurons=neurons,
+                      integrate_on=args.integrate)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -329,6 +370,8 @@ def main(argv: list[str] | None = None) -> int:
                    help="drop an obstacle field older than this (s of sim time; default %(default)s)")
     p.add_argument("--target-stale", type=float, default=4 * TICK_S,
                    help="drop a target field older than this (s of sim time; default %(default)s)")
+    p.add_argument("--integrate", choices=INTEGRATE_ON, default="tick",
+                   help="real time: integrate once per tick when its fields are in (default), or on every field")
     add_params(p, (TRACKING_RANGE_PARAM,))
     return main_of(_build, p, argv)
 

@@ -31,6 +31,7 @@ from cekm_swarm.protocol import DEFAULT_ROOT, MSGPACK_ENCODING, DropCounter, Key
 from cekm_swarm.protocol.stamps import StampWindow
 from cekm_swarm.runtime.bridge import InlineSubscription, Publishers, Received, declare_alive
 from cekm_swarm.runtime.config import DEFAULT_ENDPOINT, ONE_THREAD_RUNTIME, open_client, use_zenoh_runtime
+from cekm_swarm.runtime.gc_tuning import freeze_startup_heap
 from cekm_swarm.runtime.lifetime import die_with_parent
 from cekm_swarm.runtime.model_service import fetch_model_bytes, is_zenoh_source
 from cekm_swarm.runtime.process_args import Param, add_params, run_id_arg, to_argv
@@ -290,6 +291,7 @@ def main_of(build: Callable[[argparse.Namespace], ModuleSpec], parser: argparse.
         log.error("%s/%s: cannot start: %s", args.robot, parser.prog, exc)
         return 2
     log.info("%s: model loaded in %.2f s (pid %d)", spec.sender, time.perf_counter() - t0, os.getpid())
+    freeze_startup_heap()  # the model and tables stay; per message only short-lived objects
     asyncio.run(run_module(spec, args.connect, block=args.mode == "lockstep", config_file=args.zenoh_config))
     # The session is closed and everything logged: skip the interpreter's teardown (about
     # 0.4 s of CPU per process with numba loaded, seconds for a robot's 14 processes).

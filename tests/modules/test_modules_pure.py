@@ -173,16 +173,17 @@ def test_target_fast_path_sends_the_bytes_of_the_general_path(model):
     assert all(fresh.fast(key, p) is None for p in odd)
 
 
-@pytest.mark.parametrize("lockstep", [True, False], ids=["lockstep", "realtime"])
-def test_motor_fast_path_sends_the_bytes_of_the_general_path(model, lockstep):
+@pytest.mark.parametrize("lockstep,integrate_on", [(True, "tick"), (False, "tick"), (False, "every")],
+                         ids=["lockstep", "realtime-tick", "realtime-every"])
+def test_motor_fast_path_sends_the_bytes_of_the_general_path(model, lockstep, integrate_on):
     """The fields of a lone_obstacle run (from the obstacle and target modules), fed to a
     motor module with and to one without its fast path: the same commands, byte for byte."""
     ekm = CooperativeEKM(model)
     world = World(load_scenario("lone_obstacle"))
     episode = Episode(world)
     integrate = motor.controller_integrate(ekm)
-    fast = motor.build_spec(integrate, "r1", lockstep=lockstep)
-    slow = motor.build_spec(integrate, "r1", lockstep=lockstep)
+    fast = motor.build_spec(integrate, "r1", lockstep=lockstep, integrate_on=integrate_on)
+    slow = motor.build_spec(integrate, "r1", lockstep=lockstep, integrate_on=integrate_on)
     slow.fast = None
     took = [0]
     inner = fast.fast
@@ -214,7 +215,7 @@ def test_motor_fast_path_sends_the_bytes_of_the_general_path(model, lockstep):
         assert command is not None
         episode.apply({"r1": (command.v_l, command.v_r)})
         episode.advance()
-    assert sent == (60 if lockstep else 60 * 12 + 30)
+    assert sent == (60 * 12 + 30 if integrate_on == "every" else 60)  # one command a tick, or one a field
     assert took[0] == n_fields  # every field of the run took the fast path
 
 

@@ -97,9 +97,9 @@ def test_lockstep_keeps_fields_per_tick_so_a_stray_stamp_displaces_nothing():
     assert m.missing(t5) == ["target"] + [f"obstacle-{j}" for j in range(1, N)]
 
 
-def test_realtime_integrates_on_every_field_with_the_latest_of_each():
+def test_realtime_every_integrates_on_every_field_with_the_latest_of_each():
     calls = []
-    m = MotorState(fake_integrate(calls))
+    m = MotorState(fake_integrate(calls), integrate_on="every")
     assert m.put(obstacle(0.0, 0)) == [(0.0, 0.0, 1.0)]  # no target yet: the robot stops (c = 0 via integrate)
     assert m.put(target(0.0)) == [(0.0, 2.0, 1.0)]
     assert m.put(obstacle(0.0, 1)) == [(0.0, 2.0, 2.0)]
@@ -108,7 +108,7 @@ def test_realtime_integrates_on_every_field_with_the_latest_of_each():
 
 def test_realtime_drops_a_stale_obstacle_field_and_counts_it_once():
     calls = []
-    m = MotorState(fake_integrate(calls))
+    m = MotorState(fake_integrate(calls), integrate_on="every")
     for k in range(3):
         t = stamp_of(k)
         m.put(target(stamp_of(k - k % 2)))
@@ -128,13 +128,78 @@ def test_realtime_drops_a_stale_obstacle_field_and_counts_it_once():
 
 def test_realtime_stale_target_means_no_target():
     calls = []
-    m = MotorState(fake_integrate(calls))
+    m = MotorState(fake_integrate(calls), integrate_on="every")
     m.put(target(0.0))
     m.put(obstacle(stamp_of(4), 0))  # 0.512 s later: at the limit
     assert calls[-1][0] is not None
     m.put(obstacle(stamp_of(5), 0))
     assert calls[-1][0] is None
     assert m.stale_drops == {"target": 1}
+
+
+def feed_tick(m, k, skip=(), with_target=True):
+    """Tick k's fields in a real-time order: obstacles, then (target ticks) the target; the commands sent."""
+    t, out = stamp_of(k), []
+    for j in range(N):
+        if j not in skip:
+            out += m.put(obstacle(t, j))
+    if with_target and k % 2 == 0:
+        out += m.put(target(t))
+    return out
+
+
+def test_realtime_tick_sends_one_command_once_the_ticks_fields_are_in():
+    calls = []
+    m = MotorState(fake_integrate(calls))
+    assert feed_tick(m, 0) == [(0.0, 0.0, 1.0)]  # start-up: no source known yet, the first field is the tick
+    for k in (1, 2, 3):
+        t = stamp_of(k)
+        assert feed_tick(m, k) == [(t, 2.0, 12.0)]
+        assert calls[-1][2] == [t] * N  # every obstacle field of this tick
+    # on a target tick the command waits for the target field too
+    t4 = stamp_of(4)
+    assert sum((m.put(obstacle(t4, j)) for j in range(N)), []) == []
+    assert m.put(target(t4, winner=7)) == [(t4, 7.0, 12.0)]
+    assert m.commands == 5  # ticks 0-4, one each
+
+
+def test_realtime_tick_sends_the_last_tick_when_the_next_one_begins_first():
+    calls = []
+    m = MotorState(fake_integrate(calls))
+    feed_tick(m, 0)
+    feed_tick(m, 1)
+    assert feed_tick(m, 2, skip={4}) == []  # obstacle 4's field of tick 2 is late: no command yet
+    t2, t3 = stamp_of(2), stamp_of(3)
+    assert m.put(obstacle(t3, 0)) == [(t2, 2.0, 12.0)]  # tick 3 began: tick 2's command, with 4's older field
+    assert calls[-1][2][4] == stamp_of(1)
+    # the late field of tick 2 arrives now: kept (it is 4's newest), no command of its own
+    assert m.put(obstacle(t2, 4)) == []
+    assert sum((m.put(obstacle(t3, j)) for j in range(1, N)), []) == [(t3, 2.0, 12.0)]
+
+
+def test_realtime_tick_stops_waiting_for_a_dead_source_after_its_staleness_limit():
+    calls = []
+    m = MotorState(fake_integrate(calls))
+    for k in range(3):
+        feed_tick(m, k)
+    # obstacle 4's module dies after tick 2: ticks 3 and 4 wait for it, each sent when the next begins
+    assert feed_tick(m, 3, skip={4}) == []
+    assert feed_tick(m, 4, skip={4}) == [(stamp_of(3), 2.0, 12.0)]
+    # tick 5: 4's last field (tick 2) is past 0.256 s: not waited for, the tick is sent at once without it
+    assert feed_tick(m, 5, skip={4}) == [(stamp_of(4), 2.0, 12.0), (stamp_of(5), 2.0, 11.0)]
+    assert m.stale_drops == {"obstacle-4": 1}
+
+
+def test_realtime_tick_refused_field_keeps_the_command_it_released():
+    dropped = []
+    m = MotorState(fake_integrate([]), drop=lambda msg, why: dropped.append(why))
+    feed_tick(m, 0)
+    feed_tick(m, 1, skip={3})
+    m.put(obstacle(stamp_of(2), 3))  # obstacle 3 is at tick 2 now
+    # tick 2 began with tick 1 unsent: obstacle 3's stale tick-1 field releases tick 1's command and is refused
+    assert m.put(obstacle(stamp_of(1), 3)) == []
+    out = m.put(obstacle(stamp_of(3), 5))
+    assert out == [(stamp_of(2), 2.0, 12.0)] and len(dropped) == 1
 
 
 @pytest.mark.parametrize("k", [0, 1, 2, 3, 100, 101])

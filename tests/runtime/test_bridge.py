@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from cekm_swarm.protocol import DEFAULT_KEYS, DropCounter, TargetField, WheelCommand, decode, encode
-from cekm_swarm.runtime.bridge import (AsyncSubscription, LatestValues, LivelinessWatcher, Publishers, declare_alive,
-                                       ring_subscriber, wait_matching_async)
+from cekm_swarm.runtime.bridge import (AsyncSubscription, InlineSubscription, LatestValues, LivelinessWatcher,
+                                       Publishers, declare_alive, ring_subscriber, wait_matching_async)
 
 K = DEFAULT_KEYS
 T = 10.0  # generous timeout for every wait
@@ -88,6 +88,41 @@ def test_latest_values_keep_newest_per_key(clients):
                 await latest.wait_updates(0.05)  # nothing new
 
     asyncio.run(run())
+
+
+def test_inline_callbacks_keep_their_thread_state(clients):
+    """Zenoh's thread keeps one Python thread state across callbacks (``keep_thread_state``):
+    a thread-local value set in one callback is still there in the next one on that thread
+    (a state made and destroyed per callback would lose it, and cost an mmap per message)."""
+    import threading
+    import time
+
+    a, b = clients(), clients()
+    key = K.cmd_wheels("r1")
+    local = threading.local()
+    seen: list[tuple[int, int | None]] = []
+    done = threading.Event()
+
+    def on(sample) -> None:
+        seen.append((threading.get_native_id(), getattr(local, "n", None)))
+        local.n = len(seen)
+        if len(seen) == 20:
+            done.set()
+
+    sub = InlineSubscription(b, key, on, raw=True)
+    with Publishers(a, block=True) as pubs:
+        assert pubs.wait_matching(key, T)
+        for i in range(20):
+            pubs.send(key, cmd(i))
+            time.sleep(0.002)  # one callback at a time, as a module receives them
+        assert done.wait(T)
+    sub.close()
+    first_on_thread: set[int] = set()
+    for tid, before in seen:
+        if tid in first_on_thread:
+            assert before is not None, "a callback's thread state was made afresh"
+        first_on_thread.add(tid)
+    assert len(first_on_thread) < len(seen)
 
 
 def test_ring_subscriber_keeps_only_newest(clients):

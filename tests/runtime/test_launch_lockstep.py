@@ -63,6 +63,18 @@ def test_lockstep_reaches_the_goal_and_equals_the_in_process_run(lockstep_run):
     assert outcome["robots"] == json.loads(json.dumps(ref.outcome))
 
 
+def test_launcher_reports_where_the_tick_loop_cpu_went(lockstep_run):
+    run, _ = lockstep_run
+    outcome = run.outcome()
+    cpu = outcome["launcher"]["cpu"]
+    assert cpu["ticks"] == round(outcome["sim_seconds"] / 0.128)
+    per = cpu["ms_per_tick"]
+    assert set(per) == {"world", "target", "obstacle", "launcher"}  # the motor was restarted: left out
+    assert all(per[k] > 0 for k in ("world", "target", "obstacle"))
+    assert cpu["total_ms_per_tick"] == pytest.approx(sum(per.values()), abs=0.01)
+    assert cpu["ms_per_robot_tick"] == pytest.approx(cpu["total_ms_per_tick"], abs=0.01)  # one robot
+
+
 def test_lockstep_log_holds_the_sense_field_and_command_channels(lockstep_run):
     from mcap.reader import make_reader
 

@@ -1,0 +1,80 @@
+"""Where a run's CPU goes: the CPU seconds of every process a launcher started, read
+from ``/proc`` when the world starts ticking and when it is done, per tick and per kind of
+process (world server, target, obstacle, motor module, and the launcher itself).
+
+A tick's CPU on this machine is the budget of a real-time run (2 cores give 256 ms of CPU
+per 128 ms tick), so this is what tells which process to make cheaper
+(``benchmarks/bench_runtime_scale.py`` prints it against the number of robots). Linux
+only: elsewhere (no ``/proc``) :func:`cpu_seconds` gives None and the split is empty. A
+process restarted between the two readings (another pid) is left out.
+"""
+
+from __future__ import annotations
+
+import os
+import resource
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+_HZ = os.sysconf("SC_CLK_TCK") if hasattr(os, "sysconf") else 100
+
+
+def cpu_seconds(pid: int) -> float | None:
+    """User + system CPU seconds of process ``pid`` (None if it is gone or there is no ``/proc``)."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            fields = f.read().rsplit(b")", 1)[1].split()
+    except (OSError, IndexError):
+        return None
+    return (int(fields[11]) + int(fields[12])) / _HZ  # utime, stime (proc(5), fields 14 and 15)
+
+
+def own_cpu_seconds() -> float:
+    """This process's user + system CPU seconds."""
+    r = resource.getrusage(resource.RUSAGE_SELF)
+    return r.ru_utime + r.ru_stime
+
+
+def kind_of(label: str) -> str:
+    """The kind of a process from its launcher label (``r1/obstacle-3`` -> ``obstacle``)."""
+    name = label.rpartition("/")[2]
+    return name.partition("-")[0]
+
+
+@dataclass(frozen=True)
+class CpuSnapshot:
+    """CPU seconds per process label (``world/server``, ``launcher``, ``r1/motor``, ...), keyed with its pid."""
+
+    seconds: Mapping[tuple[str, int], float]
+
+
+def snapshot(pids: Mapping[str, int]) -> CpuSnapshot:
+    """Read every process of ``pids`` (label -> pid) and the launcher's own CPU now."""
+    out: dict[tuple[str, int], float] = {("launcher", os.getpid()): own_cpu_seconds()}
+    for label, pid in pids.items():
+        s = cpu_seconds(pid)
+        if s is not None:
+            out[(label, pid)] = s
+    return CpuSnapshot(out)
+
+
+def cpu_per_tick(start: CpuSnapshot, end: CpuSnapshot, ticks: int, robots: int) -> dict:
+    """Milliseconds of CPU per tick by kind of process, between two snapshots: the
+    processes present in both (same pid), summed over robots; also the total per tick and
+    per robot-tick. Empty when nothing could be read or no tick passed."""
+    if ticks <= 0:
+        return {}
+    by_kind: dict[str, float] = {}
+    for key, s1 in end.seconds.items():
+        s0 = start.seconds.get(key)
+        if s0 is None:
+            continue
+        kind = "world" if key[0] == "world/server" else kind_of(key[0])
+        by_kind[kind] = by_kind.get(kind, 0.0) + (s1 - s0)
+    if not by_kind:
+        return {}
+    total = sum(by_kind.values())
+    return {"ticks": ticks,
+            "ms_per_tick": {k: round(1000 * v / ticks, 3) for k, v in sorted(by_kind.items(), key=lambda kv: -kv[1])},
+            "total_ms_per_tick": round(1000 * total / ticks, 3),
+            "ms_per_robot_tick": round(1000 * total / ticks / max(1, robots), 3)}

@@ -1,0 +1,44 @@
+"""The launcher's CPU accounting (cekm_swarm.launch.cpu) on this process and on made-up snapshots."""
+
+from __future__ import annotations
+
+import os
+import sys
+
+import pytest
+
+from cekm_swarm.launch.cpu import CpuSnapshot, cpu_per_tick, cpu_seconds, kind_of, snapshot
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="/proc is Linux's")
+def test_cpu_seconds_of_a_process_grows_with_work():
+    before = cpu_seconds(os.getpid())
+    x = 0
+    for i in range(3_000_000):
+        x += i
+    after = cpu_seconds(os.getpid())
+    assert before is not None and after is not None and after > before
+    assert cpu_seconds(2**22 + 12345) is None  # no such process
+
+
+def test_kinds_of_processes():
+    assert kind_of("r1/obstacle-3") == "obstacle" and kind_of("r12/motor") == "motor"
+    assert kind_of("r1/target") == "target" and kind_of("launcher") == "launcher"
+
+
+def test_cpu_per_tick_sums_kinds_over_robots_and_skips_restarted_processes():
+    start = CpuSnapshot({("world/server", 1): 1.0, ("r1/obstacle-0", 2): 0.5, ("r2/obstacle-0", 3): 0.5,
+                         ("r1/motor", 4): 0.2, ("launcher", 9): 3.0})
+    end = CpuSnapshot({("world/server", 1): 2.0, ("r1/obstacle-0", 2): 0.7, ("r2/obstacle-0", 3): 0.8,
+                       ("r1/motor", 44): 9.0,  # restarted: another pid, not counted
+                       ("launcher", 9): 3.1})
+    doc = cpu_per_tick(start, end, ticks=10, robots=2)
+    assert doc["ms_per_tick"] == {"world": 100.0, "obstacle": 50.0, "launcher": 10.0}
+    assert list(doc["ms_per_tick"]) == ["world", "obstacle", "launcher"]  # largest first
+    assert doc["total_ms_per_tick"] == 160.0 and doc["ms_per_robot_tick"] == 80.0
+    assert cpu_per_tick(start, end, ticks=0, robots=2) == {}
+
+
+def test_snapshot_includes_the_launcher_itself():
+    snap = snapshot({"gone/motor": 2**22 + 12345})
+    assert [k[0] for k in snap.seconds] == ["launcher"]
