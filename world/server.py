@@ -192,14 +192,13 @@ class WorldServer:
         if self.lockstep and self._tick_answered():  # one wake-up of the tick loop per tick, not per robot
             self._loop.call_soon_threadsafe(self.arrived.set)
 
+    def _waiting(self, t: float) -> list[str]:
+        """The robots whose latest command is not for the tick at sim time ``t``."""
+        return [r for r in self.robots if (c := self.latest.get(r)) is None or c.stamp != t]
+
     def _tick_answered(self) -> bool:
         """Lockstep: every robot's latest command is for the current tick."""
-        now, latest = self.now, self.latest
-        for r in self.robots:
-            c = latest.get(r)
-            if c is None or c.stamp != now:
-                return False
-        return True
+        return not self._waiting(self.now)
 
     def _drain_records(self, now: float) -> None:
         """Record what other sessions sent under ``<root>/**`` since the last drain (it
@@ -292,7 +291,7 @@ class WorldServer:
         loop = asyncio.get_running_loop()
         next_republish = loop.time() + self.config.republish
         while True:
-            waiting = [r for r in self.robots if (c := self.latest.get(r)) is None or c.stamp != t]
+            waiting = self._waiting(t)
             if not waiting:
                 return {r: (self.latest[r].v_l, self.latest[r].v_r) for r in self.robots}
             if self.stop.is_set():

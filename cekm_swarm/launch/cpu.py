@@ -36,7 +36,10 @@ def own_cpu_seconds() -> float:
 
 
 def kind_of(label: str) -> str:
-    """The kind of a process from its launcher label (``r1/obstacle-3`` -> ``obstacle``)."""
+    """The kind of a process from its launcher label (``r1/obstacle-3`` -> ``obstacle``,
+    ``world/server`` -> ``world``)."""
+    if label == "world/server":
+        return "world"
     name = label.rpartition("/")[2]
     return name.partition("-")[0]
 
@@ -69,7 +72,7 @@ def cpu_per_tick(start: CpuSnapshot, end: CpuSnapshot, ticks: int, robots: int) 
         s0 = start.seconds.get(key)
         if s0 is None:
             continue
-        kind = "world" if key[0] == "world/server" else kind_of(key[0])
+        kind = kind_of(key[0])
         by_kind[kind] = by_kind.get(kind, 0.0) + (s1 - s0)
     if not by_kind:
         return {}

@@ -158,8 +158,8 @@ class Launcher:
         self.watcher: LivelinessWatcher | None = None
         self.world_reader: asyncio.Future | None = None
         self.supervisors: list[asyncio.Future] = []
-        self._cpu: list[CpuSnapshot] = []  # when the world starts ticking and when it is done
-        self._ticks = 0
+        self._cpu_start: CpuSnapshot | None = None  # when the world starts ticking
+        self._cpu_end: CpuSnapshot | None = None  # when it is done
 
     # ------------------------------------------------------------------ logging
 
@@ -253,12 +253,11 @@ class Launcher:
                 extra = {k: v for k, v in doc.items() if k not in ("event", "t")}
                 self.say(f"world event at t={doc['t']:.2f} s: {doc['event']} {extra}")
             elif kind == "START" and doc is not None:
-                self._cpu = [snapshot(self._pids())]
+                self._cpu_start, self._cpu_end = snapshot(self._pids()), None
                 self.say(f"world started ticking ({doc['mode']}, seed {doc['seed']})")
             elif kind == "DONE" and doc is not None:
-                if len(self._cpu) == 1:
-                    self._cpu.append(snapshot(self._pids()))
-                    self._ticks = tick_of(float(doc.get("sim_seconds", 0.0)))
+                if self._cpu_start is not None and self._cpu_end is None:
+                    self._cpu_end = snapshot(self._pids())
                 self.say(f"world done at t={doc['sim_seconds']:.2f} s of sim time, {doc['wall_seconds']:.1f} s of wall time")
             elif text:
                 self.say(f"world: {text}")
@@ -505,9 +504,10 @@ class Launcher:
             "restarts": {ch.label: ch.restarts for ch in self.children.values() if ch.restarts},
             "exits": {ch.label: ch.exits for ch in self.children.values() if ch.exits},
             "startup_s": self.startup_s}
-        if len(self._cpu) == 2:  # where the tick loop's CPU went (cekm_swarm.launch.cpu)
+        if self._cpu_start is not None and self._cpu_end is not None:  # where the tick loop's CPU went
             robots = len({ch.robot for ch in self.children.values()})
-            outcome["launcher"]["cpu"] = cpu_per_tick(self._cpu[0], self._cpu[1], self._ticks, robots)
+            ticks = tick_of(float(outcome.get("sim_seconds", 0.0)))
+            outcome["launcher"]["cpu"] = cpu_per_tick(self._cpu_start, self._cpu_end, ticks, robots)
         outcome_path.write_text(json.dumps(outcome, indent=1))
         return outcome
 

@@ -122,9 +122,8 @@ class MotorState:
     def fresh(self) -> tuple[TargetField | None, list[ObstacleField]]:
         """The latest field of each source, without those older than their limit (counted
         in ``stale_drops`` once each time a source goes stale, and logged)."""
-        newest = self.newest
         target = self.target
-        if target is not None and newest - target.stamp > self.target_limit + 1e-9:
+        if target is not None and not self._live(target.stamp, self.target_limit):
             self._stale("target", target.stamp)
             target = None
         else:
@@ -133,12 +132,16 @@ class MotorState:
         for j in sorted(self.obstacles):
             f = self.obstacles[j]
             name = f"obstacle-{j}"
-            if newest - f.stamp > self.obstacle_limit + 1e-9:
+            if not self._live(f.stamp, self.obstacle_limit):
                 self._stale(name, f.stamp)
                 continue
             self._stale_now.discard(name)
             obstacles.append(f)
         return target, obstacles
+
+    def _live(self, stamp: float, limit: float) -> bool:
+        """A source whose latest field has ``stamp`` is within its staleness ``limit`` of the newest stamp."""
+        return self.newest - stamp <= limit + 1e-9
 
     def _stale(self, name: str, stamp: float) -> None:
         if name not in self._stale_now:
@@ -170,14 +173,11 @@ class MotorState:
         obstacle module each tick, the target module on target ticks). A source not heard
         from within its staleness limit is not waited for."""
         t = self.newest
-        for f in self.obstacles.values():
-            if f.stamp < t and t - f.stamp <= self.obstacle_limit + 1e-9:
-                return False
-        target = self.target
-        if (target is not None and target.stamp < t and t - target.stamp <= self.target_limit + 1e-9
-                and self.target_stamp_for(t) == t):
+        if any(f.stamp < t and self._live(f.stamp, self.obstacle_limit) for f in self.obstacles.values()):
             return False
-        return True
+        target = self.target
+        return not (target is not None and target.stamp < t and self._live(target.stamp, self.target_limit)
+                    and self.target_stamp_for(t) == t)
 
     def _realtime(self) -> tuple[float, float, float]:
         target, obstacles = self.fresh()
@@ -295,7 +295,8 @@ def build_spec(integrate: Integrate, robot: str, keys: KeySpace = KeySpace(), *,
         return target_key if isinstance(msg, TargetField) else keys.field_obstacle(robot, msg.index)
 
     state = MotorState(integrate, lockstep=lockstep, integrate_on=integrate_on, sensors=keys.range_sensors,
-                       obstacle_limit=obstacle_limit, target_limit=target_limit, drop=lambda msg, why: spec.drops.drop(source_key(msg), why))
+                       obstacle_limit=obstacle_limit, target_limit=target_limit,
+                       drop=lambda msg, why: spec.drops.drop(source_key(msg), why))
 
     def misfit(msg) -> str | None:
         if isinstance(msg, TrackingField):  # a and b have one length (checked on decode); winners per input

@@ -184,22 +184,29 @@ def unreachable_concave(folder: Path) -> Path:
     return path
 
 
+def fuzzed_launch(out, scenario: str, args: tuple[str, ...], n: int, per_tick: int, neurons: int, *, seed: int):
+    """Launch ``scenario`` with ``args``, fuzz it with ``n`` messages (``per_tick`` a tick)
+    once it ticks, and let it finish: (run, messages sent, tick the fuzz ended at)."""
+    run = LaunchProcess(scenario, out, *args, "--model", str(default_model_path()), "--no-plot")
+    try:
+        run.wait_line("world started ticking", timeout=90)
+        sent, last_tick = fuzz(run.port, n, per_tick, neurons, seed=seed, paced=True)
+        code = run.finish(timeout=120)
+    finally:
+        run.kill()
+    assert code == 0, "\n".join(run.lines)
+    return run, sent, last_tick
+
+
 @pytest.fixture(scope="module")
 def lockstep_fuzzed(tmp_path_factory):
     model = default_model(progress=False)
     scenario = unreachable_concave(tmp_path_factory.mktemp("fuzz-scenario"))
     ref = run_scenario(load_scenario(scenario), "cekm", model, SEED, max_time=float(MAX_TIME))
     assert len(ref.logs["r1"].t) > 300, "the run must last to --max-time, past the fuzz"
-    out = tmp_path_factory.mktemp("fuzz-lockstep")
-    run = LaunchProcess(str(scenario), out, "--mode", "lockstep", "--seed", str(SEED), "--max-time", MAX_TIME,
-                        "--model", str(default_model_path()), "--no-plot")
-    try:
-        run.wait_line("world started ticking", timeout=90)
-        sent, last_tick = fuzz(run.port, 10_000, 50, model.w.shape[0], seed=11, paced=True)
-        code = run.finish(timeout=120)
-    finally:
-        run.kill()
-    assert code == 0, "\n".join(run.lines)
+    run, sent, last_tick = fuzzed_launch(tmp_path_factory.mktemp("fuzz-lockstep"), str(scenario),
+                                         ("--mode", "lockstep", "--seed", str(SEED), "--max-time", MAX_TIME),
+                                         10_000, 50, model.w.shape[0], seed=11)
     return run, ref, sent, last_tick
 
 
@@ -234,17 +241,9 @@ def test_lockstep_fuzz_changes_nothing_and_every_message_is_counted(lockstep_fuz
 @pytest.fixture(scope="module")
 def realtime_fuzzed(tmp_path_factory):
     model = default_model(progress=False)
-    out = tmp_path_factory.mktemp("fuzz-realtime")
-    run = LaunchProcess("lone_obstacle", out, "--mode", "realtime", "--seed", "1", "--max-time", "8",
-                        "--model", str(default_model_path()), "--no-plot")
-    try:
-        run.wait_line("world started ticking", timeout=90)
-        sent, last_tick = fuzz(run.port, 1_500, 100, model.w.shape[0], seed=12, paced=True)
-        code = run.finish(timeout=120)
-    finally:
-        run.kill()
-    assert code == 0, "\n".join(run.lines)
-    return run, sent, last_tick
+    return fuzzed_launch(tmp_path_factory.mktemp("fuzz-realtime"), "lone_obstacle",
+                         ("--mode", "realtime", "--seed", "1", "--max-time", "8"), 1_500, 100, model.w.shape[0],
+                         seed=12)
 
 
 def test_realtime_fuzz_stops_no_robot_and_every_message_is_counted(realtime_fuzzed):
