@@ -6,7 +6,9 @@ counts a deadline miss whenever a robot's latest command at a tick boundary is o
 than that tick (its fields and command did not make it within 128 ms). Beside misses and
 sense-to-command latency it prints where the tick loop's CPU went (the launcher's
 ``launcher.cpu`` in outcome.json: ms of CPU per tick by kind of process, from /proc):
-2 cores give 256 ms of CPU per 128 ms tick. Baseline, the same run with one robot.
+2 cores give 256 ms of CPU per 128 ms tick, and the share of the machine's CPU time the
+hypervisor stole meanwhile (a shared virtual machine's capacity moves with it). Baseline,
+the same run with one robot.
 Goal: 16 robots, 224 module processes, with no deadline miss.
 
 Run: python benchmarks/bench_runtime_scale.py [--robots 1,2,4,8,12,16] [--sim 10]
@@ -66,7 +68,8 @@ def main() -> None:
     base = rows[0]
     print(f"load average {os.getloadavg()[0]:.1f} (2 cores: 256 ms of CPU per 128 ms tick)")
     print(f"{'robots':>6} {'modules':>8} {'misses':>7} {'robot-ticks':>12} {'miss %':>7} {'lat p50 ms':>11} "
-          f"{'lat p99 ms':>11} {'startup s':>10} {'CPU ms/tick':>12} {'per robot':>10} {'x 1 robot':>9}  split (ms/tick)")
+          f"{'lat p99 ms':>11} {'startup s':>10} {'CPU ms/tick':>12} {'per robot':>10} {'x 1 robot':>9} {'stolen':>7}  "
+          f"split (ms/tick)")
     base_cpu = (base.get("cpu") or {}).get("ms_per_robot_tick")
     for r in rows:
         if "error" in r:
@@ -78,9 +81,11 @@ def main() -> None:
         per = cpu.get("ms_per_robot_tick", math.nan)
         ratio = per / base_cpu if base_cpu else math.nan
         split = ", ".join(f"{k} {v:.1f}" for k, v in cpu.get("ms_per_tick", {}).items())
+        stolen = cpu.get("host", {}).get("steal")
+        steal = "?" if stolen is None else f"{100 * stolen:.0f}%"
         print(f"{r['robots']:>6} {r['modules']:>8} {r['deadline_misses']:>7} {r['robot_ticks']:>12} {pct:>6.1f}% "
               f"{lat.get('p50', math.nan):>11} {lat.get('p99', math.nan):>11} {r['startup_s']:>10} "
-              f"{cpu.get('total_ms_per_tick', math.nan):>12} {per:>10} {ratio:>9.2f}  {split}")
+              f"{cpu.get('total_ms_per_tick', math.nan):>12} {per:>10} {ratio:>9.2f} {steal:>7}  {split}")
     ok = [r["robots"] for r in rows if "error" not in r and r["deadline_misses"] == 0]
     print(f"baseline (1 robot): {base.get('deadline_misses')} misses; largest N with no deadline miss: "
           f"{max(ok) if ok else 'none'} (goal: 16)")

@@ -7,6 +7,12 @@ per 128 ms tick), so this is what tells which process to make cheaper
 (``benchmarks/bench_runtime_scale.py`` prints it against the number of robots). Linux
 only: elsewhere (no ``/proc``) :func:`cpu_seconds` gives None and the split is empty. A
 process restarted between the two readings (another pid) is left out.
+
+It also says what the machine was doing meanwhile (``host``, from ``/proc/stat``): the
+share of all cores' time that was idle, and the share *stolen*, which a virtual
+machine's hypervisor gave to other guests while this one wanted to run. On a shared host
+the same run's wall time moves by a factor of two with steal, so a speed measured
+without it cannot be compared with another.
 """
 
 from __future__ import annotations
@@ -29,6 +35,31 @@ def cpu_seconds(pid: int) -> float | None:
     return (int(fields[11]) + int(fields[12])) / _HZ  # utime, stime (proc(5), fields 14 and 15)
 
 
+def host_times() -> tuple[int, int, int] | None:
+    """(all, idle + iowait, steal) clock ticks of every core since boot, from ``/proc/stat``
+    (None without it)."""
+    try:
+        with open("/proc/stat", "rb") as f:
+            fields = f.readline().split()
+    except OSError:
+        return None
+    if not fields or fields[0] != b"cpu":
+        return None
+    ticks = [int(x) for x in fields[1:9]]  # user nice system idle iowait irq softirq steal (proc(5))
+    while len(ticks) < 8:
+        ticks.append(0)
+    return sum(ticks), ticks[3] + ticks[4], ticks[7]
+
+
+def host_shares(start: tuple[int, int, int] | None, end: tuple[int, int, int] | None) -> dict:
+    """Between two :func:`host_times`: the shares of all cores' time that were idle and
+    stolen by the hypervisor (empty when unknown or no time passed)."""
+    if start is None or end is None or end[0] <= start[0]:
+        return {}
+    span = end[0] - start[0]
+    return {"idle": round((end[1] - start[1]) / span, 3), "steal": round((end[2] - start[2]) / span, 3)}
+
+
 def own_cpu_seconds() -> float:
     """This process's user + system CPU seconds."""
     r = resource.getrusage(resource.RUSAGE_SELF)
@@ -49,6 +80,8 @@ class CpuSnapshot:
     """CPU seconds per process label (``world/server``, ``launcher``, ``r1/motor``, ...), keyed with its pid."""
 
     seconds: Mapping[tuple[str, int], float]
+    host: tuple[int, int, int] | None = None
+    """The machine's :func:`host_times` at the same moment."""
 
 
 def snapshot(pids: Mapping[str, int]) -> CpuSnapshot:
@@ -58,13 +91,14 @@ def snapshot(pids: Mapping[str, int]) -> CpuSnapshot:
         s = cpu_seconds(pid)
         if s is not None:
             out[(label, pid)] = s
-    return CpuSnapshot(out)
+    return CpuSnapshot(out, host_times())
 
 
 def cpu_per_tick(start: CpuSnapshot, end: CpuSnapshot, ticks: int, robots: int) -> dict:
     """Milliseconds of CPU per tick by kind of process, between two snapshots: the
     processes present in both (same pid), summed over robots; also the total per tick and
-    per robot-tick. Empty when nothing could be read or no tick passed."""
+    per robot-tick, and the machine's idle and stolen shares meanwhile (:func:`host_shares`).
+    Empty when nothing could be read or no tick passed."""
     if ticks <= 0:
         return {}
     by_kind: dict[str, float] = {}
@@ -80,4 +114,5 @@ def cpu_per_tick(start: CpuSnapshot, end: CpuSnapshot, ticks: int, robots: int) 
     return {"ticks": ticks,
             "ms_per_tick": {k: round(1000 * v / ticks, 3) for k, v in sorted(by_kind.items(), key=lambda kv: -kv[1])},
             "total_ms_per_tick": round(1000 * total / ticks, 3),
-            "ms_per_robot_tick": round(1000 * total / ticks / max(1, robots), 3)}
+            "ms_per_robot_tick": round(1000 * total / ticks / max(1, robots), 3),
+            "host": host_shares(start.host, end.host)}

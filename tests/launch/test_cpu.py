@@ -7,7 +7,7 @@ import sys
 
 import pytest
 
-from cekm_swarm.launch.cpu import CpuSnapshot, cpu_per_tick, cpu_seconds, kind_of, snapshot
+from cekm_swarm.launch.cpu import CpuSnapshot, cpu_per_tick, cpu_seconds, host_shares, host_times, kind_of, snapshot
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="/proc is Linux's")
@@ -36,9 +36,32 @@ def test_cpu_per_tick_sums_kinds_over_robots_and_skips_restarted_processes():
     assert doc["ms_per_tick"] == {"world": 100.0, "obstacle": 50.0, "launcher": 10.0}
     assert list(doc["ms_per_tick"]) == ["world", "obstacle", "launcher"]  # largest first
     assert doc["total_ms_per_tick"] == 160.0 and doc["ms_per_robot_tick"] == 80.0
+    assert doc["host"] == {}  # the made-up snapshots carry no machine reading
     assert cpu_per_tick(start, end, ticks=0, robots=2) == {}
 
 
 def test_snapshot_includes_the_launcher_itself():
     snap = snapshot({"gone/motor": 2**22 + 12345})
     assert [k[0] for k in snap.seconds] == ["launcher"]
+
+
+def test_host_shares_of_idle_and_stolen_time():
+    # all, idle + iowait, steal clock ticks: 1000 ticks passed, 250 idle, 100 stolen
+    assert host_shares((5000, 2000, 300), (6000, 2250, 400)) == {"idle": 0.25, "steal": 0.1}
+    assert host_shares(None, (6000, 2250, 400)) == {} and host_shares((6000, 0, 0), (6000, 0, 0)) == {}
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="/proc is Linux's")
+def test_host_times_move_forward_and_reach_the_outcome():
+    a = host_times()
+    x = 0
+    for i in range(3_000_000):
+        x += i
+    b = host_times()
+    assert a is not None and b is not None and b[0] > a[0] and b[1] >= a[1] and b[2] >= a[2]
+    start, end = snapshot({}), None
+    for i in range(3_000_000):
+        x += i
+    end = snapshot({})
+    doc = cpu_per_tick(start, end, ticks=5, robots=1)
+    assert set(doc["host"]) == {"idle", "steal"} and 0.0 <= doc["host"]["steal"] <= 1.0
