@@ -199,3 +199,23 @@ def test_no_reading_or_field_is_lost_in_transit(faulty_run):
             read, answered = stamps[K.sense_range(r, j)], stamps[K.field_obstacle(r, j)]
             missing = sorted(read - answered)
             assert missing in ([], [max(read)]), (r, j, missing[:10], len(read))
+
+
+def test_a_ticks_fields_and_commands_are_logged_within_that_tick(faulty_run):
+    """In real time the world writes a tick's log once every robot's command is in (or at
+    RECORD_BY of the tick), out of the burst in which the modules compute: so what the
+    robots sent for a tick is recorded at that tick's sim time (log time = its stamp), not a
+    tick later. Ticks of the faults (a dead motor, a restarting module) may be later."""
+    from mcap.reader import make_reader
+
+    run, _ = faulty_run
+    same = late = 0
+    with open(run.out / "run.mcap", "rb") as f:
+        for _, channel, message in make_reader(f).iter_messages():
+            if "/field/" in channel.topic or channel.topic.endswith("/cmd/wheels"):
+                if message.log_time == message.publish_time:
+                    same += 1
+                else:
+                    late += 1
+    assert same + late > 1000
+    assert same > 0.9 * (same + late), (same, late)
