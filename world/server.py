@@ -95,6 +95,10 @@ right after the readings went out, the log (about a seventh of the world's CPU, 
 a tick with 16 robots, py-spy) landed in the burst in which every robot's modules and
 motor compete for the two cores."""
 
+MISSED_TICKS_KEPT = 200
+"""Real time: how many ticks with a deadline miss ``outcome.json`` lists (tick -> robots
+that missed it), to tell a start-up hiccup from misses spread over the run."""
+
 log = logging.getLogger("world.server")
 REPUBLISH_S = 1.0
 DEFAULT_MAX_TIME = 600.0
@@ -145,6 +149,7 @@ class WorldServer:
         self.events: list[dict[str, Any]] = []
         self.republished = 0
         self.deadline_misses = 0
+        self.missed_ticks: dict[int, int] = {}  # real time: tick -> robots that missed it (the first MISSED_TICKS_KEPT ticks)
         self.latencies: list[float] = []  # s from publishing a tick's readings to its command
         self.sent_at: dict[float, float] = {}
         self.last_target: dict[str, bytes] = {}  # the latest target reading's payload, per robot
@@ -352,6 +357,8 @@ class WorldServer:
             c = self.latest.get(r)
             if c is None or c.stamp < ep.t:
                 self.deadline_misses += 1
+                if ep.tick in self.missed_ticks or len(self.missed_ticks) < MISSED_TICKS_KEPT:
+                    self.missed_ticks[ep.tick] = self.missed_ticks.get(ep.tick, 0) + 1
             stop, newly = self.deadman.check(r, now, TICK_S)
             if stop or c is None:
                 commands[r] = (0.0, 0.0)
@@ -518,6 +525,7 @@ class WorldServer:
                "wall_seconds": round(wall, 3), "tick_loop_seconds": round(self.tick_loop_seconds, 3),
                "mode": self.config.mode, "sim_seconds": ep.t, "ticks": ep.tick,
                "aborted": aborted, "republished": self.republished, "deadline_misses": self.deadline_misses,
+               "deadline_miss_ticks": {str(k): v for k, v in self.missed_ticks.items()},
                "sense_to_command_ms": {"p50": q(0.5), "p99": q(0.99), "n": len(lat)},
                "dropped_messages": self.drops.total + self.record_drops.total, "recorded_messages": self.recorded,
                "drops": {"commands": self.drops.by_source(), "recorder": self.record_drops.by_source()},

@@ -164,6 +164,11 @@ def test_world_stops_the_robot_whose_motor_died_within_the_deadman_limit(faulty_
     assert first["t"] >= KILL_AT
     # r1's motor never went silent
     assert not [e for e in run.outcome()["events"] if e["event"] == "deadman" and e["robot"] == "r1"]
+    # r2's missing commands are deadline misses, listed by tick from the kill on
+    doc = run.outcome()
+    ticks = {int(k): v for k, v in doc["deadline_miss_ticks"].items()}
+    assert doc["deadline_misses"] >= 3 and sum(ticks.values()) == doc["deadline_misses"]
+    assert any(k * 0.128 >= first["t"] - 0.2 for k in ticks)
 
 
 def test_realtime_log_holds_every_robots_channels(faulty_run):
