@@ -111,8 +111,11 @@ def _vector(field: str, x: Any) -> np.ndarray:
         raise MessageArrayError(f"length {n} outside 1..{MAX_ARRAY_LEN}", field=field)
     # One cheap reduction (0.5 us for 225 values): any NaN or infinity makes the sum of
     # squares non-finite, and NaN/inf inputs raise no FP warning; only then, or when
-    # finite values beyond 1e154 overflow it, look element by element.
-    if not math.isfinite(x.dot(x)):
+    # finite values beyond 1e154 overflow it (silently: a peer's huge values are not this
+    # process's floating-point error), look element by element.
+    with np.errstate(over="ignore"):
+        energy = x.dot(x)
+    if not math.isfinite(energy):
         bad = np.flatnonzero(~np.isfinite(x))
         if bad.size:
             raise MessageFieldError(f"not finite at index {int(bad[0])} ({x[bad[0]]})", field=field)
