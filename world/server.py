@@ -11,7 +11,9 @@ robot's latest ``cmd/wheels`` and advances.
   tick's sim time has arrived. If one is missing after ``--republish`` seconds, the tick's
   readings (and each robot's latest target reading) are published again, so a restarted
   module catches up. Same scenario and seed give the same trajectory as ``cekm run``.
-* ``realtime``: ticks follow the wall clock. At each tick boundary the latest command of
+* ``realtime``: ticks follow the wall clock, which starts once every robot has answered
+  tick 0 (at most ``FIRST_TICK_WAIT_S``: a start-up burst is not a missed deadline; its
+  time is ``first_tick_ms``). At each tick boundary the latest command of
   each robot is applied; a robot whose commands have stopped (the next tick would end
   more than ``--deadman`` s after its last command arrived) is stopped (wheels 0) and
   the stop is reported.
@@ -95,6 +97,10 @@ right after the readings went out, the log (about a seventh of the world's CPU, 
 a tick with 16 robots, py-spy) landed in the burst in which every robot's modules and
 motor compete for the two cores."""
 
+FIRST_TICK_WAIT_S = 10.0
+"""Real time: how long the world waits for every robot's answer to tick 0 before its wall
+clock starts anyway (:meth:`WorldServer._first_answers`)."""
+
 MISSED_TICKS_KEPT = 200
 """Real time: how many ticks with a deadline miss ``outcome.json`` lists (tick -> robots
 that missed it), to tell a start-up hiccup from misses spread over the run."""
@@ -149,6 +155,7 @@ class WorldServer:
         self.events: list[dict[str, Any]] = []
         self.republished = 0
         self.deadline_misses = 0
+        self.first_tick_s: float | None = None  # real time: tick 0's readings to its last command
         self.missed_ticks: dict[int, int] = {}  # real time: tick -> robots that missed it (the first MISSED_TICKS_KEPT ticks)
         self.latencies: list[float] = []  # s from publishing a tick's readings to its command
         self.sent_at: dict[float, float] = {}
@@ -332,6 +339,29 @@ class WorldServer:
             except asyncio.TimeoutError:
                 pass
 
+    async def _first_answers(self) -> float:
+        """Real time: wait (at most :data:`FIRST_TICK_WAIT_S`) until every robot's command
+        for tick 0 is in, and return the loop time at which the wall clock starts: tick 0's
+        deadline is then a tick later. The first message every process handles, and the
+        router's first routing of every key, cost a start-up burst of a few hundred ms (16
+        robots: 0.3 s), which otherwise made robots miss the first ticks' deadlines one
+        after another. How long it took is ``first_tick_ms`` in ``outcome.json``."""
+        loop = asyncio.get_running_loop()
+        until = loop.time() + FIRST_TICK_WAIT_S
+        while not self._tick_answered() and not self.stop.is_set() and loop.time() < until:
+            self.arrived.clear()
+            if self._tick_answered():
+                break
+            try:
+                await asyncio.wait_for(self.arrived.wait(), max(0.0, until - loop.time()))
+            except asyncio.TimeoutError:
+                pass
+        waiting = self._waiting(self.now)
+        if waiting and not self.stop.is_set():
+            self._event("first_tick_unanswered", {"after_s": FIRST_TICK_WAIT_S, "waiting": waiting})
+        self.first_tick_s = time.monotonic() - self.sent_at.get(self.now, time.monotonic())
+        return loop.time()
+
     async def _realtime_commands(self, start: float) -> dict[str, tuple[float, float]]:
         loop = asyncio.get_running_loop()
         ep = self.episode
@@ -450,7 +480,9 @@ class WorldServer:
                     if self.lockstep:
                         commands = await self._lockstep_commands(readings)
                     else:
-                        commands = await self._realtime_commands(start)
+                        if ep.tick == 0:  # the wall clock starts once tick 0 is answered
+                            clock0 = await self._first_answers()
+                        commands = await self._realtime_commands(clock0)
                     self._collect_latency(ep.t)
                     ep.apply(commands)
                     now = time.monotonic()
@@ -507,9 +539,10 @@ class WorldServer:
         while self._lat_pending:
             robot, stamp, lat = self._lat_pending.popleft()
             seen[(robot, stamp)] = lat
+        first = not self.lockstep and self.episode.tick == 0  # the start-up burst: first_tick_ms
         for r in self.robots:
             lat = seen.pop((r, t), None)
-            if lat is not None:
+            if lat is not None and not first:
                 self.latencies.append(lat)
         for k in [k for k in seen if k[1] <= t]:
             del seen[k]
@@ -526,6 +559,7 @@ class WorldServer:
                "mode": self.config.mode, "sim_seconds": ep.t, "ticks": ep.tick,
                "aborted": aborted, "republished": self.republished, "deadline_misses": self.deadline_misses,
                "deadline_miss_ticks": {str(k): v for k, v in self.missed_ticks.items()},
+               "first_tick_ms": None if self.first_tick_s is None else round(1000 * self.first_tick_s, 3),
                "sense_to_command_ms": {"p50": q(0.5), "p99": q(0.99), "n": len(lat)},
                "dropped_messages": self.drops.total + self.record_drops.total, "recorded_messages": self.recorded,
                "drops": {"commands": self.drops.by_source(), "recorder": self.record_drops.by_source()},

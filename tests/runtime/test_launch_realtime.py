@@ -169,6 +169,8 @@ def test_world_stops_the_robot_whose_motor_died_within_the_deadman_limit(faulty_
     ticks = {int(k): v for k, v in doc["deadline_miss_ticks"].items()}
     assert doc["deadline_misses"] >= 3 and sum(ticks.values()) == doc["deadline_misses"]
     assert any(k * 0.128 >= first["t"] - 0.2 for k in ticks)
+    # the clock started once tick 0 was answered: its time is reported, and it is no miss
+    assert doc["first_tick_ms"] > 0 and 0 not in ticks
 
 
 def test_realtime_log_holds_every_robots_channels(faulty_run):
