@@ -11,9 +11,9 @@ robot's latest ``cmd/wheels`` and advances.
   tick's sim time has arrived. If one is missing after ``--republish`` seconds, the tick's
   readings (and each robot's latest target reading) are published again, so a restarted
   module catches up. Same scenario and seed give the same trajectory as ``cekm run``.
-* ``realtime``: ticks follow the wall clock, which starts once every robot has answered
-  tick 0 (at most ``FIRST_TICK_WAIT_S``: a start-up burst is not a missed deadline; its
-  time is ``first_tick_ms``). At each tick boundary the latest command of
+* ``realtime``: ticks follow the wall clock, which (with ``--wait-modules``) starts once
+  every robot has answered tick 0 (at most ``FIRST_TICK_WAIT_S``: a start-up burst is not
+  a missed deadline; its time is ``first_tick_ms``). At each tick boundary the latest command of
   each robot is applied; a robot whose commands have stopped (the next tick would end
   more than ``--deadman`` s after its last command arrived) is stopped (wheels 0) and
   the stop is reported.
@@ -340,7 +340,8 @@ class WorldServer:
                 pass
 
     async def _first_answers(self) -> float:
-        """Real time: wait (at most :data:`FIRST_TICK_WAIT_S`) until every robot's command
+        """Real time, with ``--wait-modules`` (the launcher's way: every module is known to
+        listen): wait (at most :data:`FIRST_TICK_WAIT_S`) until every robot's command
         for tick 0 is in, and return the loop time at which the wall clock starts: tick 0's
         deadline is then a tick later. The first message every process handles, and the
         router's first routing of every key, cost a start-up burst of a few hundred ms (16
@@ -480,8 +481,9 @@ class WorldServer:
                     if self.lockstep:
                         commands = await self._lockstep_commands(readings)
                     else:
-                        if ep.tick == 0:  # the wall clock starts once tick 0 is answered
-                            clock0 = await self._first_answers()
+                        if ep.tick == 0:  # the wall clock starts once tick 0 is answered (or now,
+                            # when the world was not told to wait for the modules: none may listen yet)
+                            clock0 = await self._first_answers() if cfg.wait_modules > 0 else loop.time()
                         commands = await self._realtime_commands(clock0)
                     self._collect_latency(ep.t)
                     ep.apply(commands)
