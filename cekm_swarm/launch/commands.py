@@ -115,28 +115,59 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwr
         if launcher.interrupted:
             raise Interrupted("interrupted before the run started")
         raise RunFailed(f"the run left no outcome; see {out_dir / 'launch.log'} and {out_dir / 'logs'}")
-    tracking = "tracking" in outcome  # docs/tracking.md
-    for r, o in outcome["robots"].items():
-        if tracking:
-            click.echo(f"{r}: path {o['path_length_m']:.2f} m, {o['collisions']} collisions")
-        else:
-            click.echo(f"{r}: {'reached' if o['reached'] else 'NOT reached'} in {o['time_s']:.1f} s, path "
-                       f"{o['path_length_m']:.2f} m, {o['collisions']} collisions")
-    if tracking:
-        tr = outcome["tracking"]
-        click.echo(f"A = {tr['A']:.3f} ({tr['robots']} robots, {tr['targets']} targets, {tr['ticks']} ticks)")
-    lat = outcome.get("sense_to_command_ms", {})
-    if lat.get("n"):
-        click.echo(f"sense-to-command latency p50 {lat['p50']} ms, p99 {lat['p99']} ms ({lat['n']} ticks)")
-    restarts = outcome.get("launcher", {}).get("restarts")
-    if restarts:
-        click.echo(f"restarts: {restarts}")
+    for line in outcome_summary(outcome):
+        click.echo(line)
     if outcome.get("aborted"):
         click.echo("the run was stopped before its end (see the world's events in outcome.json)")
     written = [out_dir / n for n in ("outcome.json", "run.mcap", "trajectory.png") if (out_dir / n).is_file()]
     click.echo("wrote " + ", ".join(map(str, written)))
     if launcher.interrupted:
         raise Interrupted()
+
+
+def outcome_summary(outcome: dict) -> list[str]:
+    """The lines a finished launch prints: each robot, tracking's A, latency, in real time
+    the deadline misses and the ticks they fell on, where a tick's CPU went and how much of
+    the machine's time the host stole meanwhile, restarts."""
+    lines = []
+    tracking = "tracking" in outcome  # docs/tracking.md
+    for r, o in outcome["robots"].items():
+        if tracking:
+            lines.append(f"{r}: path {o['path_length_m']:.2f} m, {o['collisions']} collisions")
+        else:
+            lines.append(f"{r}: {'reached' if o['reached'] else 'NOT reached'} in {o['time_s']:.1f} s, path "
+                         f"{o['path_length_m']:.2f} m, {o['collisions']} collisions")
+    if tracking:
+        tr = outcome["tracking"]
+        lines.append(f"A = {tr['A']:.3f} ({tr['robots']} robots, {tr['targets']} targets, {tr['ticks']} ticks)")
+    lat = outcome.get("sense_to_command_ms", {})
+    if lat.get("n"):
+        lines.append(f"sense-to-command latency p50 {lat['p50']} ms, p99 {lat['p99']} ms ({lat['n']} robot-ticks)")
+    if outcome.get("mode") == "realtime":
+        misses = outcome.get("deadline_misses", 0)
+        robot_ticks = outcome.get("ticks", 0) * len(outcome["robots"])
+        line = f"deadline misses: {misses} of {robot_ticks} robot-ticks"
+        ticks = sorted(int(k) for k in outcome.get("deadline_miss_ticks", {}))
+        if ticks:
+            shown = ", ".join(map(str, ticks[:8])) + (", ..." if len(ticks) > 8 else "")
+            line += f", in {len(ticks)}{'+' if len(ticks) >= 200 else ''} ticks ({shown})"
+        if outcome.get("first_tick_ms") is not None:
+            line += f"; tick 0 answered after {outcome['first_tick_ms']:.0f} ms (the clock started then)"
+        lines.append(line)
+    cpu = outcome.get("launcher", {}).get("cpu", {})
+    if cpu.get("total_ms_per_tick") is not None:
+        split = ", ".join(f"{k} {v:.1f}" for k, v in cpu.get("ms_per_tick", {}).items())
+        line = f"CPU per tick: {cpu['total_ms_per_tick']:.1f} ms ({split})"
+        steal = cpu.get("host", {}).get("steal")
+        if steal is not None:
+            line += f"; the host stole {100 * steal:.0f} % of this machine's time meanwhile"
+            if steal >= 0.1:
+                line += " (timings are slower for it)"
+        lines.append(line)
+    restarts = outcome.get("launcher", {}).get("restarts")
+    if restarts:
+        lines.append(f"restarts: {restarts}")
+    return lines
 
 
 @click.command("plot")

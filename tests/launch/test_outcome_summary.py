@@ -1,0 +1,44 @@
+"""What a finished `cekm launch` prints (cekm_swarm.launch.commands.outcome_summary)."""
+
+from __future__ import annotations
+
+from cekm_swarm.launch.commands import outcome_summary
+
+
+def _outcome(**more) -> dict:
+    doc = {"robots": {"r1": {"reached": True, "time_s": 12.34, "path_length_m": 1.5, "collisions": 0},
+                      "r2": {"reached": False, "time_s": 40.0, "path_length_m": 0.7, "collisions": 1}},
+           "sense_to_command_ms": {"p50": 3.1, "p99": 9.8, "n": 200}, "ticks": 100, "mode": "lockstep"}
+    doc.update(more)
+    return doc
+
+
+def test_lockstep_robots_latency_and_no_deadline_line():
+    lines = outcome_summary(_outcome())
+    assert lines[0] == "r1: reached in 12.3 s, path 1.50 m, 0 collisions"
+    assert lines[1].startswith("r2: NOT reached")
+    assert "p99 9.8 ms (200 robot-ticks)" in lines[2]
+    assert not any("deadline" in x for x in lines)
+
+
+def test_real_time_misses_their_ticks_cpu_and_the_hosts_steal():
+    cpu = {"total_ms_per_tick": 18.64, "ms_per_tick": {"world": 7.7, "obstacle": 6.7},
+           "host": {"idle": 0.2, "steal": 0.31}}
+    doc = _outcome(mode="realtime", deadline_misses=12, first_tick_ms=171.2,
+                   deadline_miss_ticks={str(k): 1 for k in (30, 4, 5, 6, 7, 8, 9, 10, 11, 12)},
+                   launcher={"cpu": cpu, "restarts": {"r1/motor": 1}})
+    lines = outcome_summary(doc)
+    miss = next(x for x in lines if x.startswith("deadline misses"))
+    assert miss.startswith("deadline misses: 12 of 200 robot-ticks, in 10 ticks (4, 5, 6, 7, 8, 9, 10, 11, ...)")
+    assert "tick 0 answered after 171 ms" in miss
+    cpu_line = next(x for x in lines if x.startswith("CPU per tick"))
+    assert cpu_line == ("CPU per tick: 18.6 ms (world 7.7, obstacle 6.7); the host stole 31 % of this machine's "
+                        "time meanwhile (timings are slower for it)")
+    assert lines[-1] == "restarts: {'r1/motor': 1}"
+
+
+def test_a_tracking_run_prints_a_and_no_goal():
+    doc = _outcome(tracking={"A": 0.8851, "robots": 2, "targets": 3, "ticks": 100})
+    lines = outcome_summary(doc)
+    assert lines[0] == "r1: path 1.50 m, 0 collisions"
+    assert "A = 0.885 (2 robots, 3 targets, 100 ticks)" in lines
