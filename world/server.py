@@ -217,7 +217,7 @@ class WorldServer:
         return [r for r in self.robots if (c := self.latest.get(r)) is None or c.stamp != t]
 
     def _tick_answered(self) -> bool:
-        """Lockstep: every robot's latest command is for the current tick."""
+        """Every robot's latest command is for the current tick."""
         return not self._waiting(self.now)
 
     def _drain_records(self, now: float) -> None:
@@ -339,6 +339,19 @@ class WorldServer:
             except asyncio.TimeoutError:
                 pass
 
+    async def _await_answers(self, until: float) -> None:
+        """Wait until every robot's command for the current tick is in, the run is stopped,
+        or the loop's clock reaches ``until`` (woken by :meth:`_on_command` once per tick)."""
+        loop = asyncio.get_running_loop()
+        while not self._tick_answered() and not self.stop.is_set() and loop.time() < until:
+            self.arrived.clear()
+            if self._tick_answered():  # a command in between: its wake-up came before the clear
+                break
+            try:
+                await asyncio.wait_for(self.arrived.wait(), max(0.0, until - loop.time()))
+            except asyncio.TimeoutError:
+                pass
+
     async def _first_answers(self) -> float:
         """Real time, with ``--wait-modules`` (the launcher's way: every module is known to
         listen): wait (at most :data:`FIRST_TICK_WAIT_S`) until every robot's command
@@ -348,15 +361,7 @@ class WorldServer:
         robots: 0.3 s), which otherwise made robots miss the first ticks' deadlines one
         after another. How long it took is ``first_tick_ms`` in ``outcome.json``."""
         loop = asyncio.get_running_loop()
-        until = loop.time() + FIRST_TICK_WAIT_S
-        while not self._tick_answered() and not self.stop.is_set() and loop.time() < until:
-            self.arrived.clear()
-            if self._tick_answered():
-                break
-            try:
-                await asyncio.wait_for(self.arrived.wait(), max(0.0, until - loop.time()))
-            except asyncio.TimeoutError:
-                pass
+        await self._await_answers(loop.time() + FIRST_TICK_WAIT_S)
         waiting = self._waiting(self.now)
         if waiting and not self.stop.is_set():
             self._event("first_tick_unanswered", {"after_s": FIRST_TICK_WAIT_S, "waiting": waiting})
@@ -367,13 +372,7 @@ class WorldServer:
         loop = asyncio.get_running_loop()
         ep = self.episode
         boundary = start + (ep.tick + 1) * TICK_S
-        if not self._tick_answered():  # the tick's burst: every robot's modules and motor at work
-            self.arrived.clear()
-            if not self._tick_answered():  # (a command in between: its wake-up comes after the clear)
-                try:  # woken when every robot's command is in, or by a stop
-                    await asyncio.wait_for(self.arrived.wait(), max(0.0, boundary - (1 - RECORD_BY) * TICK_S - loop.time()))
-                except asyncio.TimeoutError:
-                    pass
+        await self._await_answers(boundary - (1 - RECORD_BY) * TICK_S)  # the tick's burst
         if self.stop.is_set():
             raise asyncio.CancelledError
         self._record_tick()

@@ -6,10 +6,11 @@
   :mod:`cekm_swarm.runtime.foxglove_view`) go through :meth:`McapRecorder.write_encoded`.
 - ``log_time`` and ``publish_time`` are sim time in integer nanoseconds.
 - Chunked, indexed, zstd-compressed, written by :class:`.mcap_writer.ChunkedWriter` (the
-  bytes of ``mcap.writer.Writer``, with a message path about twice as fast). Loss on a crash is bounded: a chunk is written
-  out when it exceeds ``chunk_size`` bytes, and :meth:`McapRecorder.maybe_flush` (called
-  on every write, and by :func:`record_zenoh` on a timer) closes the open chunk and
-  flushes it to the OS at least every ``flush_interval`` seconds. A killed writer leaves a
+  bytes of ``mcap.writer.Writer``, with a message path about twice as fast). Loss on a
+  crash is bounded: a chunk is written out when it exceeds ``chunk_size`` bytes, and
+  :meth:`McapRecorder.maybe_flush` (called on every write, and by :func:`record_zenoh` on
+  a timer) closes the open chunk and flushes it to the OS at least every
+  ``flush_interval`` seconds. A killed writer leaves a
   file with no footer; :func:`read_messages` still streams it up to the cut and
   :func:`recover_log` rewrites an indexed copy.
 """
@@ -32,7 +33,7 @@ from mcap.stream_reader import StreamReader
 from cekm_swarm.protocol import DEFAULT_KEYS, KeySpace, KeySpaceError, peek
 
 from .errors import McapLogError
-from .mcap_writer import ChunkedWriter
+from .mcap_writer import COMPRESSIONS, ChunkedWriter
 
 MSGPACK = "msgpack"
 """MCAP message encoding of the key-space channels."""
@@ -80,8 +81,8 @@ class McapRecorder:
         self.path = Path(path)
         self.keys = keys
         self.flush_interval = flush_interval
-        if compression not in ("zstd", "none"):
-            raise McapLogError(str(path), f"compression {compression!r}: use zstd or none")
+        if compression not in COMPRESSIONS:  # before the file is opened
+            raise McapLogError(str(path), f"compression {compression!r}: use {' or '.join(COMPRESSIONS)}")
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             self._file: IO[bytes] | None = open(self.path, "wb")
@@ -132,13 +133,12 @@ class McapRecorder:
         """Record msgpack ``payload`` received on ``key`` at ``sim_time`` seconds. False
         (counted in :attr:`refused`) for a new key once :data:`MAX_CHANNELS` are in use."""
         entry = self._channels.get(key)
-        if entry is None or entry[1] != MSGPACK:
-            if entry is None and len(self._channels) >= MAX_CHANNELS:
-                self.refused += 1
-                return False
-            self.channel(key, MSGPACK, self._msgpack_schema(key))
-            entry = self._channels[key]
-        self._add(entry[0], payload, sim_time, sim_time if publish_time is None else publish_time)
+        if entry is None and len(self._channels) >= MAX_CHANNELS:
+            self.refused += 1
+            return False
+        cid = entry[0] if entry is not None and entry[1] == MSGPACK else self.channel(key, MSGPACK,
+                                                                                     self._msgpack_schema(key))
+        self._add(cid, payload, sim_time, sim_time if publish_time is None else publish_time)
         return True
 
     def write_encoded(self, topic: str, message_encoding: str, schema: SchemaSpec, data: bytes,
@@ -153,8 +153,7 @@ class McapRecorder:
         log_ns = sim_ns(log_time)
         self._writer.add_message(cid, log_ns, data, log_ns if publish_time == log_time else sim_ns(publish_time), seq)
         self.messages += 1
-        if self.flush_interval is not None:
-            self.maybe_flush()
+        self.maybe_flush()
 
     def add_raw(self, channel_id: int, data: bytes, log_time_ns: int, publish_time_ns: int, sequence: int) -> None:
         """Add a message with times already in nanoseconds (for copying between logs)."""

@@ -38,6 +38,10 @@ def _message_index(channel_id: int, records: list[tuple[int, int]]) -> bytes:
     return struct.pack(f"<BQHI{2 * n}Q", Opcode.MESSAGE_INDEX, 2 + 4 + 16 * n, channel_id, 16 * n, *flat)
 
 
+COMPRESSIONS = ("zstd", "none")
+"""The chunk compressions :class:`ChunkedWriter` writes."""
+
+
 def _compress(kind: str):
     """(name written in the chunk, function) of a chunk compression."""
     if kind == "zstd":
@@ -46,7 +50,7 @@ def _compress(kind: str):
         return "zstd", zstandard.compress
     if kind == "none":
         return "", None
-    raise ValueError(f"compression {kind!r}: use zstd or none")
+    raise ValueError(f"compression {kind!r}: use {' or '.join(COMPRESSIONS)}")
 
 
 class ChunkedWriter:
