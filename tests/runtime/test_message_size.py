@@ -40,6 +40,26 @@ class Inbox:
         return got + [item]
 
 
+def handshake(session: zenoh.Session, *inboxes: Inbox) -> None:
+    """Return once every inbox's subscription has reached the router: ``big/0`` is sent
+    until each inbox has one (a subscription travels to the router on its own, so a put
+    right after declaring may find no route), then ``big/ready`` once, which arrives after
+    every extra ``big/0`` (in order, from one session) and leaves every inbox empty."""
+    deadline, pending = time.monotonic() + T, list(inboxes)
+    while pending:
+        assert time.monotonic() < deadline, "a subscription never reached the router"
+        session.put("big/0", b"", congestion_control=BLOCK)
+        for inbox in list(pending):
+            try:
+                inbox.q.get(timeout=0.1)
+                pending.remove(inbox)
+            except queue.Empty:
+                pass
+    session.put("big/ready", b"", congestion_control=BLOCK)
+    for inbox in inboxes:
+        inbox.until("big/ready")
+
+
 def test_the_limit_is_above_every_legitimate_message_and_below_zenohs_batch():
     from cekm_swarm.experiments.default_model import default_model, default_model_path
 
@@ -55,9 +75,7 @@ def test_the_embedded_router_drops_what_is_over_the_limit_before_anyone_sees_it(
     sub, pub = open_client(f"tcp/127.0.0.1:{port}"), open_client(f"tcp/127.0.0.1:{port}")
     try:
         remote, local = Inbox(sub, "big/**"), Inbox(router, "big/**")  # local: the world's recorder is there
-        with pub.declare_publisher("big/0") as p:  # (a publisher: wait until the router knows both subscribers)
-            p.put(b"")
-        remote.until("big/0"), local.until("big/0")
+        handshake(pub, remote, local)
         for n in sizes:
             pub.put(f"big/{n}", bytes(n), congestion_control=BLOCK)
         pub.put("big/att", bytes(L - 10), attachment=bytes(11), congestion_control=BLOCK)  # the attachment counts
@@ -115,9 +133,7 @@ def test_a_client_refuses_to_reassemble_a_fragmented_message():
     sub, pub = open_client(f"tcp/127.0.0.1:{port}"), open_client(f"tcp/127.0.0.1:{port}")
     try:
         inbox = Inbox(sub, "big/**")
-        with pub.declare_publisher("big/0") as p:
-            p.put(b"")
-        inbox.until("big/0")
+        handshake(pub, inbox)
         for n in (L, 100_000, 1 << 20):
             pub.put(f"big/{n}", bytes(n), congestion_control=BLOCK)
         pub.put("big/last", b"x", congestion_control=BLOCK)
