@@ -32,15 +32,19 @@ from cekm_swarm.protocol import DEFAULT_KEYS as K
 from cekm_swarm.protocol import Clock, MessageError, decode
 from cekm_swarm.protocol.drops import MAX_SOURCES
 from cekm_swarm.runtime.config import open_client
+from cekm_swarm.ticks import TICK_S
 from world import load_scenario
 
 from fuzz_corpus import OVER_LIMIT_SIZES, Fuzz, make_corpus
 from test_launch_support import LaunchProcess
 
 SEED = 4
-MAX_TIME = "40"  # s of sim time: 313 ticks
+MAX_TIME = "80"  # s of sim time: 625 ticks for the 200 batches of the lockstep fuzz. A batch of 50
+# takes about 8 ms to send on 2 cores, a lockstep tick about 16: with two busy processes beside the
+# run, the world passed up to 3 ticks a batch, and a 313-tick run ran out before the fuzz did
 START_TICK = 20  # fuzz from here: a stamp of the run's first ticks is then outside every window
 FENCE = "cekm/fuzz/fence"
+AFTER_FENCE = 10  # ticks the fuzzer waits after its fence, before it closes its session
 
 
 class Clockwatch:
@@ -79,25 +83,33 @@ class Clockwatch:
             return self.tick
 
 
-def fuzz(port: int, total: int, batch: int, neurons: int, seed: int, paced: bool) -> tuple[list[Fuzz], int]:
-    """Publish ``total`` malformed messages in batches, each built at the world's latest
-    tick (``paced``: one batch per tick), then a fence; returns what was sent (fence
-    included) and the tick at which the last batch was built."""
+def fuzz(port: int, total: int, batch: int, neurons: int, seed: int, last_tick: int) -> tuple[list[Fuzz], int]:
+    """Publish ``total`` malformed messages, ``batch`` at a time, then a fence; returns what
+    was sent (fence included) and the tick at which the last batch was built.
+
+    The batches are spread evenly over the run's ticks from START_TICK to ``last_tick``
+    (less a margin for the fence): each one waits for the world to reach the tick it is
+    due at and is built at the world's latest tick. One that is late (in lockstep the world
+    does not wait for us, and on a loaded host it can outpace us) goes out at once. Fails,
+    saying so, if the world gets to the margin first."""
     rng = np.random.default_rng(seed)
     session = open_client(f"tcp/127.0.0.1:{port}")
     block = zenoh.CongestionControl.BLOCK  # nothing of ours lost on the way: the accounting is exact
     sent: list[Fuzz] = []
+    end = last_tick - 2 * AFTER_FENCE
+    batches = -(-total // batch)
     try:
         clock = Clockwatch(session)
-        tick = clock.wait_past(START_TICK - 1, timeout=60)
-        while len(sent) < total:
+        for i in range(batches):
+            tick = clock.wait_past(START_TICK + i * (end - START_TICK) // batches - 1, timeout=60)
+            assert tick < end, f"the world reached tick {tick} of {last_tick} with {total - len(sent)} of {total} " \
+                               "messages unsent"
             for f in make_corpus(rng, min(batch, total - len(sent)), tick, ["r1"], neurons, start=len(sent)):
                 session.put(f.key, f.payload, congestion_control=block)
                 sent.append(f)
-            tick = clock.wait_past(tick, timeout=30) if paced else max(tick, clock.tick)
         session.put(FENCE, b"fence", congestion_control=block)
         sent.append(Fuzz(FENCE, b"fence", "invented key"))
-        clock.wait_past(tick + 10, timeout=30)  # before closing: what is queued in our session goes out
+        clock.wait_past(tick + AFTER_FENCE, timeout=30)  # before closing: what is queued in our session goes out
         clock.sub.undeclare()
     finally:
         session.close()
@@ -173,7 +185,7 @@ def check_accounting(run: LaunchProcess, sent: list[Fuzz]) -> dict[str, int]:
 
 def unreachable_concave(folder: Path) -> Path:
     """Fig. 8's concave obstacle with its goal shut in by four walls: the robot works at it
-    until --max-time (313 ticks), so the run outlasts the fuzz whatever the controller's
+    until --max-time, so the run outlasts the fuzz whatever the controller's
     tuning (the goal behind an open U is reached in about 17 s)."""
     path = folder / "concave-shut.toml"
     path.write_text((Path(__file__).resolve().parents[2] / "world" / "scenarios" / "concave.toml").read_text()
@@ -184,13 +196,17 @@ def unreachable_concave(folder: Path) -> Path:
     return path
 
 
-def fuzzed_launch(out, scenario: str, args: tuple[str, ...], n: int, per_tick: int, neurons: int, *, seed: int):
-    """Launch ``scenario`` with ``args``, fuzz it with ``n`` messages (``per_tick`` a tick)
-    once it ticks, and let it finish: (run, messages sent, tick the fuzz ended at)."""
-    run = LaunchProcess(scenario, out, *args, "--model", str(default_model_path()), "--no-plot")
+def fuzzed_launch(out, scenario: str, max_time: str, args: tuple[str, ...], n: int, per_tick: int, neurons: int, *,
+                  seed: int):
+    """Launch ``scenario`` for ``max_time`` s with ``args``, fuzz it with ``n`` messages (at
+    least ``per_tick`` a tick) once it ticks, and let it finish: (run, messages sent, tick
+    the fuzz ended at)."""
+    run = LaunchProcess(scenario, out, "--max-time", max_time, *args, "--model", str(default_model_path()),
+                        "--no-plot")
     try:
         run.wait_line("world started ticking", timeout=90)
-        sent, last_tick = fuzz(run.port, n, per_tick, neurons, seed=seed, paced=True)
+        sent, last_tick = fuzz(run.port, n, per_tick, neurons, seed=seed,
+                               last_tick=int(float(max_time) / TICK_S))
         code = run.finish(timeout=120)
     finally:
         run.kill()
@@ -204,8 +220,8 @@ def lockstep_fuzzed(tmp_path_factory):
     scenario = unreachable_concave(tmp_path_factory.mktemp("fuzz-scenario"))
     ref = run_scenario(load_scenario(scenario), "cekm", model, SEED, max_time=float(MAX_TIME))
     assert len(ref.logs["r1"].t) > 300, "the run must last to --max-time, past the fuzz"
-    run, sent, last_tick = fuzzed_launch(tmp_path_factory.mktemp("fuzz-lockstep"), str(scenario),
-                                         ("--mode", "lockstep", "--seed", str(SEED), "--max-time", MAX_TIME),
+    run, sent, last_tick = fuzzed_launch(tmp_path_factory.mktemp("fuzz-lockstep"), str(scenario), MAX_TIME,
+                                         ("--mode", "lockstep", "--seed", str(SEED)),
                                          10_000, 50, model.w.shape[0], seed=11)
     return run, ref, sent, last_tick
 
@@ -241,8 +257,8 @@ def test_lockstep_fuzz_changes_nothing_and_every_message_is_counted(lockstep_fuz
 @pytest.fixture(scope="module")
 def realtime_fuzzed(tmp_path_factory):
     model = default_model(progress=False)
-    return fuzzed_launch(tmp_path_factory.mktemp("fuzz-realtime"), "lone_obstacle",
-                         ("--mode", "realtime", "--seed", "1", "--max-time", "8"), 1_500, 100, model.w.shape[0],
+    return fuzzed_launch(tmp_path_factory.mktemp("fuzz-realtime"), "lone_obstacle", "8",
+                         ("--mode", "realtime", "--seed", "1"), 1_500, 100, model.w.shape[0],
                          seed=12)
 
 
