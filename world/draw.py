@@ -192,6 +192,34 @@ def draw_paths(ax: Axes, paths: Mapping[str, tuple[Sequence[float], Sequence[flo
     return step
 
 
+def draw_tracking(ax: Axes, paths: Mapping[str, tuple[Sequence[float], Sequence[float]]],
+                  target_paths: Mapping[str, Sequence[Sequence[float]]], target_range: float | None,
+                  colours: Mapping[str, str], instants: int = 4) -> None:
+    """The paper's Fig. 13 on top of :func:`draw_world` and :func:`draw_paths`: each
+    target's path (grey, a dot at its start, a black cross and its id at its end) and each
+    robot's target-sensing circle of radius ``target_range`` at ``instants`` evenly spaced
+    points of its path ``(xs, ys)`` (fainter earlier; none if the range is unknown)."""
+    for tid, pts in target_paths.items():
+        if not len(pts):
+            continue
+        xs, ys = [p[0] for p in pts], [p[1] for p in pts]
+        ax.plot(xs, ys, "-", color="0.45", lw=1.0, gid=f"target:{tid}")
+        ax.plot(xs[0], ys[0], "o", color="0.45", ms=3)
+        ax.plot(xs[-1], ys[-1], "X", color="k", ms=6)
+        ax.annotate(tid, (xs[-1], ys[-1]), fontsize=7, xytext=(3, 3), textcoords="offset points")
+    for rid, (xs, ys) in paths.items():
+        n = len(xs)
+        if not n:
+            continue
+        for j in range(instants):
+            k = min(n - 1, round(j * (n - 1) / max(1, instants - 1)))
+            fade = 0.25 + 0.6 * j / max(1, instants - 1)
+            if target_range is not None:
+                ax.add_patch(Circle((xs[k], ys[k]), target_range, fill=False, edgecolor=colours[rid], lw=0.8,
+                                    alpha=fade, ls="--", gid=f"sensing:{rid}"))
+            ax.add_patch(Circle((xs[k], ys[k]), 0.03, color=colours[rid]))
+
+
 def content_points(geometry: Mapping[str, Any]) -> list[tuple[float, float]]:
     """Extreme points of what is inside the arena: static obstacles, the reach of moving
     obstacles' paths, targets (the walls are the frame, not content)."""

@@ -688,6 +688,7 @@ class World:
             "name": sc.name,
             "bounds": list(sc.bounds),
             "body_radius": ROBOT_RADIUS,
+            "target_range": sc.target_range,
             "walls": walls,
             "polygons": polygons,
             "discs": discs,

@@ -180,9 +180,8 @@ def plot_tracking(run: TrackingRun, ax=None, title: str | None = None, instants:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.patches import Circle
 
-    from world.draw import draw_paths, draw_world, legend_outside, robot_colours
+    from world.draw import draw_paths, draw_tracking, draw_world, legend_outside, robot_colours
 
     own = ax is None
     if own:
@@ -190,24 +189,11 @@ def plot_tracking(run: TrackingRun, ax=None, title: str | None = None, instants:
         aspect = (ymax - ymin) / max(xmax - xmin, 1e-9)
         fig, ax = plt.subplots(figsize=(6.5 + 1.7, max(3.0, 6.5 * aspect)))
     draw_world(ax, run.geometry, None)
-    for tid, pts in run.target_paths.items():
-        xs, ys = [p[0] for p in pts], [p[1] for p in pts]
-        ax.plot(xs, ys, "-", color="0.45", lw=1.0)
-        ax.plot(xs[0], ys[0], "o", color="0.45", ms=3)
-        ax.plot(xs[-1], ys[-1], "X", color="k", ms=6)
-        ax.annotate(tid, (xs[-1], ys[-1]), fontsize=7, xytext=(3, 3), textcoords="offset points")
     colours = robot_colours(sorted(run.paths))
     step = draw_paths(ax, {r: ([q[0] for q in p], [q[1] for q in p], [q[2] for q in p]) for r, p in run.paths.items()},
                       colours)
-    for r, p in run.paths.items():
-        col = colours[r]
-        xs, ys = [q[1] for q in p], [q[2] for q in p]
-        n = len(p)
-        for j in range(instants):
-            k = min(n - 1, round(j * (n - 1) / max(1, instants - 1)))
-            ax.add_patch(Circle((xs[k], ys[k]), run.target_range, fill=False, edgecolor=col, lw=0.8,
-                                alpha=0.25 + 0.6 * j / max(1, instants - 1), ls="--"))
-            ax.add_patch(Circle((xs[k], ys[k]), 0.03, color=col))
+    draw_tracking(ax, {r: ([q[1] for q in p], [q[2] for q in p]) for r, p in run.paths.items()}, run.target_paths,
+                  run.target_range, colours, instants)
     bx0, by0, bx1, by1 = run.geometry["bounds"]
     ax.set_xlim(bx0 - 0.05, bx1 + 0.05)
     ax.set_ylim(by0 - 0.05, by1 + 0.05)

@@ -1,5 +1,7 @@
 """Draw a run from its MCAP log: the arena (the geometry the world server stores in the
-log's metadata), each robot's path from ``world/state``, goals and final poses."""
+log's metadata), each robot's path from ``world/state``, goals and final poses; in a
+tracking run also the targets' paths and the robots' sensing circles, as ``cekm run``
+draws them (the paper's Fig. 13)."""
 
 from __future__ import annotations
 
@@ -26,8 +28,10 @@ def read_geometry(path: str | Path) -> dict[str, Any] | None:
 
 
 def read_run(path: str | Path, keys: KeySpace = KeySpace()) -> dict[str, Any]:
-    """Per robot the poses (t, x, y, theta) from ``world/state``, and the last state."""
+    """Per robot the poses (t, x, y, theta) and per target the positions (x, y) from
+    ``world/state``, and the last state."""
     paths: dict[str, list[tuple[float, float, float, float]]] = {}
+    target_paths: dict[str, list[tuple[float, float]]] = {}
     last = None
     state_key = keys.world_state()
     for m in read_messages(path, topics=[state_key]):
@@ -37,11 +41,13 @@ def read_run(path: str | Path, keys: KeySpace = KeySpace()) -> dict[str, Any]:
             continue
         for rid, r in msg.robots.items():
             paths.setdefault(rid, []).append((msg.stamp, r["x"], r["y"], r["theta"]))
+        for tid, tg in msg.targets.items():
+            target_paths.setdefault(tid, []).append((tg["x"], tg["y"]))
         last = msg
     state = None
     if last is not None:
         state = {"time": last.stamp, "robots": last.robots, "targets": last.targets, "obstacles": last.obstacles}
-    return {"paths": paths, "state": state, "geometry": read_geometry(path)}
+    return {"paths": paths, "target_paths": target_paths, "state": state, "geometry": read_geometry(path)}
 
 
 def plot_log(path: str | Path, title: str | None = None, outcome: dict[str, Any] | None = None):
@@ -53,7 +59,7 @@ def plot_log(path: str | Path, title: str | None = None, outcome: dict[str, Any]
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from world.draw import draw_paths, draw_world, figure_size, fit_bounds, legend_outside, robot_colours
+    from world.draw import draw_paths, draw_tracking, draw_world, figure_size, fit_bounds, legend_outside, robot_colours
 
     run = read_run(path)
     geometry = run["geometry"]
@@ -71,6 +77,12 @@ def plot_log(path: str | Path, title: str | None = None, outcome: dict[str, Any]
     paths = {rid: ([p[0] for p in ps], [p[1] for p in ps], [p[2] for p in ps]) for rid, ps in run["paths"].items()}
     step = draw_paths(ax, paths, colours, labels)
     points = [(x, y) for _, xs, ys in paths.values() for x, y in zip(xs, ys)]
+    goals = {r["goal"] for r in (geometry or {}).get("robots", []) if r.get("goal")}
+    tracked = {tid: ps for tid, ps in run["target_paths"].items() if tid not in goals}
+    if tracked:  # a tracking run: the targets are followed, not reached
+        draw_tracking(ax, {rid: (xs, ys) for rid, (_, xs, ys) in paths.items()}, tracked,
+                      (geometry or {}).get("target_range"), colours)
+        points += [p for ps in tracked.values() for p in ps]
     if run["state"] is not None:
         points += [tuple(r["goal"]) for r in run["state"]["robots"].values() if r.get("goal") is not None]
     x0, x1, y0, y1 = fit_bounds(ax, geometry, points)

@@ -20,8 +20,8 @@ from cekm_swarm.runtime.mcap_log import McapRecorder  # noqa: E402
 from world import World, load_scenario  # noqa: E402
 
 
-def _log(path) -> dict:
-    w = World(load_scenario("crossing"), seed=1)
+def _log(path, scenario: str = "crossing") -> dict:
+    w = World(load_scenario(scenario), seed=1)
     geometry = w.static_geometry()
     rec = McapRecorder(path)
     rec.add_metadata("geometry", {"json": json.dumps(geometry)})
@@ -57,6 +57,25 @@ def test_plot_log_has_the_shared_style(tmp_path):
     bx0, by0, bx1, by1 = geometry["bounds"]
     (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
     assert bx0 - 0.1 < x0 and x1 < bx1 + 0.1 and by0 - 0.1 < y0 and y1 < by1 + 0.1
+    plt.close(fig)
+
+
+def test_a_tracking_log_is_drawn_like_fig_13(tmp_path):
+    """The targets' paths from world/state, and sensing circles of the range the geometry
+    carries, as `cekm run tracking` draws them; the limits take in every target's path."""
+    geometry = _log(tmp_path / "run.mcap", "tracking")
+    fig = plot_log(tmp_path / "run.mcap")
+    ax = fig.axes[0]
+    target_lines = {a.get_gid(): a for a in ax.lines if (a.get_gid() or "").startswith("target:")}
+    assert set(target_lines) == {f"target:{t['id']}" for t in geometry["targets"]}
+    for t in geometry["targets"]:
+        xs, ys = target_lines[f"target:{t['id']}"].get_data()
+        assert (xs[0], ys[0]) == tuple(t["position"]) and len(xs) == 60
+        (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+        assert x0 <= min(xs) and max(xs) <= x1 and y0 <= min(ys) and max(ys) <= y1
+    circles = [a for a in ax.patches if (a.get_gid() or "").startswith("sensing:")]
+    assert {c.get_gid() for c in circles} == {"sensing:r1", "sensing:r2"}
+    assert {c.get_radius() for c in circles} == {geometry["target_range"]} == {0.5}
     plt.close(fig)
 
 
