@@ -158,6 +158,17 @@ def _load_scenario(name: str):
         raise click.UsageError(str(exc)) from None
 
 
+def _run_kind(scenario) -> str:
+    """``"tracking"`` or ``"navigation"``; a usage error for a scenario that is neither."""
+    from world import ScenarioError
+    from world.tracking import run_kind
+
+    try:
+        return run_kind(scenario)
+    except ScenarioError as exc:
+        raise click.UsageError(str(exc)) from None
+
+
 def _check_seeds(seeds) -> None:
     bad = [s for s in seeds if not 0 <= s < 2**32]
     if bad:
@@ -191,10 +202,9 @@ def run_cmd(scenario: str, controller: str, model_path: Path | None, seed: int |
 
     A scenario with targets whose robots have no goal is a tracking scenario (Fig. 13)."""
     from .experiments.navigation import plot_run, run_scenario
-    from world.tracking import is_tracking
 
     sc = _load_scenario(scenario)
-    if is_tracking(sc):
+    if _run_kind(sc) == "tracking":
         from .experiments.tracking import run_tracking_cmd
 
         if controller not in ("cekm", "acmommt", "stay"):

@@ -122,6 +122,31 @@ def test_values_checked_in_the_command_are_named_too(capsys, tmp_path, argv, nee
     assert not (tmp_path / "out").exists()  # refused before anything was written
 
 
+MIXED = """name = "mixed"
+[arena]
+bounds = [0.0, 0.0, 2.0, 2.0]
+[[robots]]
+id = "a"
+start = [0.5, 0.5, 0.0]
+goal = "t1"
+[[robots]]
+id = "b"
+start = [1.5, 0.5, 0.0]
+[[targets]]
+id = "t1"
+position = [1.0, 1.5]
+"""
+
+
+@pytest.mark.parametrize("command", ["run", "launch"])
+def test_a_scenario_neither_for_tracking_nor_for_navigation_is_refused_by_robot(capsys, tmp_path, command):
+    scenario = tmp_path / "mixed.toml"
+    scenario.write_text(MIXED)
+    line = one_error_line(capsys, [command, str(scenario), "--out", str(tmp_path / "out")])
+    assert f"{scenario}: robots[1].goal: robot 'b' has none while 'a' has one" in line
+    assert not (tmp_path / "out").exists()
+
+
 def test_a_non_empty_out_directory_is_refused_and_left_alone(capsys, tmp_path):
     out = tmp_path / "out"
     out.mkdir()

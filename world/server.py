@@ -85,10 +85,10 @@ from cekm_swarm.runtime.record import serve_geometry
 from .deadman import DEADMAN_S, Deadman
 from .episode import TICK_S, Episode, TickReadings
 from .recorder import RECORD_QUEUE, RecordFilter, open_run_log
-from .scenario import load_scenario
+from .scenario import ScenarioError, load_scenario
 from .sense import SENDER, SenseEncoder
 from .sim import World
-from .tracking import TrackingEpisode, is_tracking
+from .tracking import TrackingEpisode, run_kind
 
 RECORD_BY = 0.75
 """Real time: the fraction of a tick by which the world writes the tick's log if some
@@ -134,11 +134,12 @@ class WorldServer:
         self.config = cfg = config
         self.keys = KeySpace(cfg.root, run=cfg.run_id)
         self.scenario = load_scenario(cfg.scenario)
-        self.world = World(self.scenario, seed=cfg.seed)
         checkpoints = None
         if cfg.checkpoints:
             raw = Path(cfg.checkpoints).read_text() if not cfg.checkpoints.lstrip().startswith("{") else cfg.checkpoints
             checkpoints = {r: [tuple(map(float, c)) for c in cps] for r, cps in json.loads(raw).items()}
+        self.tracking = run_kind(self.scenario, checkpoints or {}) == "tracking"  # docs/tracking.md
+        self.world = World(self.scenario, seed=cfg.seed)
         self.robots = list(self.world.robot_ids)
         self.out = Path(cfg.out)
         self.out.mkdir(parents=True, exist_ok=True)
@@ -147,7 +148,6 @@ class WorldServer:
         self.drops = DropCounter("world commands", keys=self.keys)
         self.record_drops = DropCounter("world recorder", keys=self.keys)
         self.record_filter = RecordFilter(self.keys, self.robots, self.record_drops)
-        self.tracking = is_tracking(self.scenario)  # docs/tracking.md: sense/pose and sense/targets per robot
         self.episode = TrackingEpisode(self.world, self.max_ticks) if self.tracking else Episode(self.world, checkpoints)
         self.cmd_keys = {self.keys.cmd_wheels(r): r for r in self.robots}
         self.latest: dict[str, WheelCommand] = {}
@@ -659,7 +659,10 @@ def main(argv: list[str] | None = None) -> int:
             use_zenoh_runtime(ROUTER_RUNTIME)  # one thread routes a message; sending on a thread of its own
     logging.basicConfig(level=args.log_level.upper(), stream=sys.stderr,
                         format="%(asctime)s.%(msecs)03d %(name)s %(levelname)s %(message)s", datefmt="%H:%M:%S")
-    server = WorldServer(WorldConfig.from_args(args))
+    try:
+        server = WorldServer(WorldConfig.from_args(args))
+    except ScenarioError as exc:  # refused before the session opens or the log starts
+        p.error(str(exc))
     try:
         doc = asyncio.run(server.run())
     except CekmError as exc:  # e.g. the router's port is taken: one clear line for the launcher's log

@@ -25,6 +25,7 @@ from typing import Any
 
 from cekm_swarm.protocol.messages import SensePose, SenseTargets
 
+from .scenario import ScenarioError
 from .sense import SENDER
 from .sim import World
 
@@ -32,6 +33,28 @@ from .sim import World
 def is_tracking(scenario: Any) -> bool:
     """A tracking scenario: it has targets and none of its robots has a goal."""
     return bool(scenario.targets) and bool(scenario.robots) and all(r.goal is None for r in scenario.robots)
+
+
+def run_kind(scenario: Any, checkpoints: Any = ()) -> str:
+    """``"tracking"`` or ``"navigation"``: what a run of ``scenario`` is. Raises
+    :class:`ScenarioError`, naming the file and the robot, for a scenario that is neither,
+    so that it is refused before anything starts: robots with goals beside robots without
+    (with targets), or a navigation robot with no goal (and no checkpoints, whose ids are
+    ``checkpoints``' keys)."""
+    if is_tracking(scenario):
+        return "tracking"
+    for i, r in enumerate(scenario.robots):
+        if r.goal is None and r.id not in checkpoints:
+            with_goal = [q.id for q in scenario.robots if q.goal is not None]
+            if with_goal:
+                why = (f"robot {r.id!r} has none while {', '.join(map(repr, with_goal))} "
+                       f"{'has' if len(with_goal) == 1 else 'have'} one: a scenario is for tracking (no robot "
+                       "has a goal) or for navigation (every robot has one)")
+            else:
+                why = (f"robot {r.id!r} has none and the scenario has no targets to track: a navigation run needs "
+                       "a goal (a target id) for every robot")
+            raise ScenarioError(f"{scenario.source}: robots[{i}].goal: {why}")
+    return "navigation"
 
 
 def tracking_sense(world: World, robot: str, stamp: float) -> tuple[SensePose, SenseTargets]:

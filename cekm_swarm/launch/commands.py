@@ -67,8 +67,11 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwr
 
     if connect is None and click.get_current_context().get_parameter_source("port") is not ParameterSource.COMMANDLINE:
         connect = _env_endpoint()  # --connect > CEKM_CONNECT > the embedded router (an explicit --port hosts it)
+    from world.tracking import run_kind
+
     try:
         sc = load_scenario(scenario)
+        run_kind(sc)  # a tracking or a navigation scenario, or refused here
     except ScenarioError as exc:
         raise click.UsageError(str(exc)) from None
     # a tracking scenario (docs/tracking.md) runs the tracking target module per robot, controller cekm

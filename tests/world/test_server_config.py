@@ -6,6 +6,8 @@ from __future__ import annotations
 import ast
 import dataclasses
 import inspect
+import subprocess
+import sys
 import textwrap
 
 import pytest
@@ -37,3 +39,18 @@ def test_the_server_is_built_from_a_config_with_every_attribute_set_in_init(tmp_
                 for t in ast.walk(t) if isinstance(t, ast.Attribute) and isinstance(t.value, ast.Name)
                 and t.value.id == "self"}
     assert assigned and not assigned - set(vars(ws))
+
+
+@pytest.mark.parametrize("text,needle", [
+    ('name = "x"\n[[robots]]\nid = "a"\nstart = [1.0, 1.0, 0.0]\n', "arena: missing"),
+    ('name = "x"\n[arena]\nbounds = [0.0, 0.0, 2.0, 2.0]\n[[robots]]\nid = "a"\nstart = [1.0, 1.0, 0.0]\n',
+     "robots[0].goal: robot 'a' has none"),
+])
+def test_a_bad_scenario_is_refused_in_one_line_before_anything_is_written(tmp_path, text, needle):
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    r = subprocess.run([sys.executable, "-m", "world.server", str(path), "--out", str(tmp_path / "out")],
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2
+    assert f"error: {path}: {needle}" in r.stderr and "Traceback" not in r.stderr, r.stderr
+    assert not (tmp_path / "out").exists()

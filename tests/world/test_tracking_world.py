@@ -6,13 +6,33 @@ import pytest
 
 from cekm_swarm.protocol.keys import DEFAULT_KEYS as K
 from cekm_swarm.protocol.messages import SensePose, SenseTargets, decode, encode
-from world import World, load_scenario
-from world.tracking import ObservationMeter, is_tracking, mean_pairwise, tracking_sense
+from world import ScenarioError, World, load_scenario, parse_scenario
+from world.tracking import ObservationMeter, is_tracking, mean_pairwise, run_kind, tracking_sense
 
 
 def test_tracking_scenarios_are_tracking_and_navigation_ones_are_not():
     assert is_tracking(load_scenario("tracking")) and is_tracking(load_scenario("tracking-crowd"))
     assert not is_tracking(load_scenario("crossing")) and not is_tracking(load_scenario("concave"))
+
+
+def test_run_kind_refuses_a_scenario_that_is_neither_naming_the_robot():
+    assert [run_kind(load_scenario(n)) for n in ("tracking", "tracking-crowd", "crossing", "concave")] == \
+        ["tracking", "tracking", "navigation", "navigation"]
+
+    def scenario(goals: dict[str, str | None], targets: bool = True):
+        return parse_scenario({"name": "s", "arena": {"bounds": [0.0, 0.0, 2.0, 2.0]},
+                               "robots": [{"id": r, "start": [0.5 + 0.5 * i, 0.5, 0.0]} | ({"goal": g} if g else {})
+                                          for i, (r, g) in enumerate(goals.items())],
+                               "targets": [{"id": "t1", "position": [1.0, 1.5]}] if targets else []}, source="s.toml")
+
+    assert run_kind(scenario({"a": "t1", "b": "t1"})) == "navigation"
+    assert run_kind(scenario({"a": None, "b": None})) == "tracking"
+    with pytest.raises(ScenarioError, match=r"^s.toml: robots\[0\]\.goal: robot 'a' has none while 'b' has one"):
+        run_kind(scenario({"a": None, "b": "t1", "c": None}))
+    with pytest.raises(ScenarioError, match=r"^s.toml: robots\[1\]\.goal: robot 'b' has none and the scenario has no "
+                                            "targets"):
+        run_kind(scenario({"a": None, "b": None}, targets=False), checkpoints={"a": [[1.0, 1.0]]})
+    assert run_kind(scenario({"a": "t1", "b": None}), checkpoints={"b": [[1.0, 1.0]]}) == "navigation"
 
 
 def test_sense_messages_hold_the_pose_and_exactly_the_targets_in_range():
