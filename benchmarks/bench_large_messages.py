@@ -12,6 +12,10 @@ module counted (dropped as malformed: they are zeros). A message the router refu
 
 ``--before REV`` runs the same cases first on the code of git revision REV (exported
 with ``git archive``), so one run prints the story before and after a change.
+``--reading`` sends, instead of zeros, well-formed ``sense/range`` readings stamped with
+the world's latest tick (``--keys`` then an obstacle module's key), the burst a peer inside
+the key space can send.
+
 ``--code DIR`` runs the launches from another source tree; ``--env NAME=VALUE`` sets a
 variable in the launch's environment (e.g. ``ZENOH_RUNTIME=()``: Zenoh's default threads).
 
@@ -43,7 +47,8 @@ sys.path.insert(0, str(ROOT))
 
 from cekm_swarm.experiments.default_model import default_model_path  # noqa: E402
 from cekm_swarm.protocol import DEFAULT_KEYS as K  # noqa: E402
-from cekm_swarm.protocol import Clock, MessageError, decode  # noqa: E402
+from cekm_swarm.protocol import Clock, MessageError, SenseRange, decode, encode  # noqa: E402
+from cekm_swarm.ticks import tick_time  # noqa: E402
 from cekm_swarm.runtime.config import open_client  # noqa: E402
 
 START_TICK = 20
@@ -89,10 +94,18 @@ def module_log(key: str) -> str | None:
     return "r1-motor.log" if m.group(1) == "field/" else f"r1-obstacle-{m.group(2)}.log"
 
 
+def reading(key: str, tick: int) -> bytes:
+    """A well-formed reading for the obstacle module of ``key`` at ``tick``: an obstacle
+    0.1 m away along its sensor."""
+    j = int(key.rsplit("/", 1)[1])
+    return encode(SenseRange(tick_time(tick), "burst", j, -3.141592653589793 + (j + 0.5) * 2 * 3.141592653589793 / 12,
+                             0.1))
+
+
 def case(key: str, size: int, count: int, burst: int, port: int, out: Path, scenario: Path, code: Path,
-         env: dict[str, str]) -> dict:
+         env: dict[str, str], readings: bool = False) -> dict:
     """One lockstep run with ``count`` messages of ``size`` zeros on ``key`` (none for NONE),
-    ``burst`` back to back every EVERY ticks."""
+    ``burst`` back to back every EVERY ticks (``readings``: well-formed readings instead)."""
     run_env = dict(os.environ, PYTHONPATH=str(code), PYTHONUNBUFFERED="1", **env)
     proc = subprocess.Popen([sys.executable, "-m", "cekm_swarm", "launch", str(scenario), "--mode", "lockstep",
                              "--seed", "4", "--max-time", "40", "--model", str(default_model_path()), "--no-plot",
@@ -115,8 +128,9 @@ def case(key: str, size: int, count: int, burst: int, port: int, out: Path, scen
             sub = session.declare_subscriber(K.world_clock(), zenoh.handlers.RingChannel(16))
             tick = wait_tick(sub, START_TICK - 1, 60)
             for _ in range(count // burst):
+                payload = reading(key, tick) if readings else bytes(size)
                 for _ in range(burst):
-                    session.put(key, bytes(size), congestion_control=zenoh.CongestionControl.BLOCK)
+                    session.put(key, payload, congestion_control=zenoh.CongestionControl.BLOCK)
                 try:
                     tick = wait_tick(sub, tick + EVERY - 1, STUCK_S)
                 except TimeoutError:  # give up sending; the run goes on to its end
@@ -147,10 +161,11 @@ def export(rev: str, folder: Path) -> Path:
     return folder
 
 
-def report(title: str, count: int, burst: int, results: dict[tuple[str, int], dict]) -> None:
+def report(title: str, count: int, burst: int, results: dict[tuple[str, int], dict], readings: bool = False) -> None:
     base = results[(NONE, 0)]["wall_s"]
     how = "one" if burst == 1 else f"a burst of {burst} back to back"
-    print(f"\n{title}: {count} messages of zeros, {how} every {EVERY} ticks from tick {START_TICK}, "
+    what = "well-formed readings for the tick" if readings else "messages of zeros"
+    print(f"\n{title}: {count} {what}, {how} every {EVERY} ticks from tick {START_TICK}, "
           f"lockstep shut concave seed 4 (313 ticks); world, module: messages they counted")
     print(f"{'key':28s} {'bytes':>8s} {'re-pub':>6s} {'wall s':>7s} {'x base':>6s} {'world':>5s} {'module':>6s}")
     for (key, size), r in results.items():
@@ -171,6 +186,7 @@ def main() -> None:
     p.add_argument("--before", metavar="REV", help="first run the cases on the code of this git revision")
     p.add_argument("--code", type=Path, default=ROOT, help="source tree to launch from (default: this one)")
     p.add_argument("--env", action="append", default=[], metavar="NAME=VALUE")
+    p.add_argument("--reading", action="store_true", help="well-formed readings for the tick instead of zeros")
     args = p.parse_args()
     env = dict(e.split("=", 1) for e in args.env)
     cases = [(NONE, 0)] + [(k, int(s)) for s in args.sizes.split(",") for k in args.keys.split(",")]
@@ -182,8 +198,9 @@ def main() -> None:
             results = {}
             for i, (key, size) in enumerate(cases):
                 out = Path(tmp) / f"run-{t}-{i}"
-                results[(key, size)] = case(key, size, args.count, args.burst, args.port, out, scenario, code, env)
-            report(title, args.count, args.burst, results)
+                results[(key, size)] = case(key, size, args.count, args.burst, args.port, out, scenario, code, env,
+                                               args.reading)
+            report(title, args.count, args.burst, results, args.reading)
 
 
 if __name__ == "__main__":

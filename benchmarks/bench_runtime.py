@@ -23,7 +23,13 @@ waits for the command.
 * memory: resident set (VmRSS) and proportional set (Pss, shared pages split among the
   processes sharing them) of one obstacle module process.
 
-Run: python benchmarks/bench_runtime.py [--ticks 400] [--no-launch]
+* CPU: the 14 module processes' CPU time per paced tick, and the share of the host's time
+  stolen meanwhile (docs/performance.md: steal moves every number here).
+
+``--module-runtime SPEC`` starts the modules with ``ZENOH_RUNTIME=SPEC`` instead of their
+own choice (runtime.config.MODULE_RUNTIME), to compare Zenoh thread layouts.
+
+Run: python benchmarks/bench_runtime.py [--ticks 400] [--no-launch] [--module-runtime SPEC]
 """
 
 from __future__ import annotations
@@ -44,6 +50,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from cekm_swarm.experiments.default_model import default_model, default_model_path  # noqa: E402
+from cekm_swarm.launch.cpu import cpu_seconds, host_shares, host_times  # noqa: E402
 from cekm_swarm.launch.processes import module_argv  # noqa: E402
 from cekm_swarm.protocol import module_names  # noqa: E402
 from cekm_swarm.protocol import DEFAULT_KEYS as K  # noqa: E402
@@ -163,6 +170,7 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--ticks", type=int, default=400)
     ap.add_argument("--no-launch", action="store_true")
+    ap.add_argument("--module-runtime", metavar="SPEC", help="the modules' ZENOH_RUNTIME (default: their own)")
     args = ap.parse_args()
     default_model(progress=False)
     model = default_model_path()
@@ -171,12 +179,16 @@ def main() -> None:
     router = open_embedded_router(port)
     if os.environ.get("ZENOH_RUNTIME") == ROUTER_RUNTIME:  # read once, at the router's opening:
         del os.environ["ZENOH_RUNTIME"]  # the children choose their own
+    if args.module_runtime:
+        os.environ["ZENOH_RUNTIME"] = args.module_runtime
     endpoint = f"tcp/127.0.0.1:{port}"
     session = router  # the world publishes on the router's own session
     procs, startup = asyncio.run(start_modules(session, endpoint, model))
     try:
         mem = memory(procs[1].pid)
+        cpu0, host0 = [cpu_seconds(p.pid) or 0.0 for p in procs], host_times()
         paced_lat, _, _ = graph_run(session, args.ticks, paced=True)
+        cpu1, host1 = [cpu_seconds(p.pid) or 0.0 for p in procs], host_times()
         fast_lat, wall, n = graph_run(session, args.ticks, paced=False, first_tick=args.ticks + args.ticks % 2)
     finally:
         for p in procs:
@@ -200,6 +212,8 @@ def main() -> None:
         "raw_one_way_2_hops_ms": {"asyncio_p50": round(pct(raw, 50) / 1000, 3), "asyncio_p99": round(pct(raw, 99) / 1000, 3),
                                   "callback_p50": round(pct(raw_cb, 50) / 1000, 3),
                                   "callback_p99": round(pct(raw_cb, 99) / 1000, 3)},
+        "module_cpu_ms_per_paced_tick": round(1000 * (sum(cpu1) - sum(cpu0)) / len(paced_lat), 2),
+        "host_stolen_share_paced": host_shares(host0, host1).get("steal"),
         "lockstep_bare_loop": {"ticks": n, "wall_s": round(wall, 3), "speedup": round(n * TICK_S / wall, 1)},
         "module_memory_mb": {k: round(v, 1) for k, v in mem.items()},
     }

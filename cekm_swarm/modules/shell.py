@@ -30,7 +30,8 @@ from cekm_swarm.errors import CekmError
 from cekm_swarm.protocol import DEFAULT_ROOT, MSGPACK_ENCODING, DropCounter, KeySpace, Message, encode
 from cekm_swarm.protocol.stamps import StampWindow
 from cekm_swarm.runtime.bridge import InlineSubscription, Publishers, Received, declare_alive
-from cekm_swarm.runtime.config import DEFAULT_ENDPOINT, ONE_THREAD_RUNTIME, open_client, use_zenoh_runtime
+from cekm_swarm.runtime.config import (DEFAULT_ENDPOINT, LOCKSTEP_MODULE_RUNTIME, ONE_THREAD_RUNTIME, open_client,
+                                       use_zenoh_runtime)
 from cekm_swarm.runtime.gc_tuning import freeze_startup_heap
 from cekm_swarm.runtime.lifetime import die_with_parent
 from cekm_swarm.runtime.model_service import fetch_model_bytes, is_zenoh_source
@@ -279,7 +280,9 @@ def main_of(build: Callable[[argparse.Namespace], ModuleSpec], parser: argparse.
     """Parse arguments, build the module, serve it; the body of each module's ``main``."""
     die_with_parent()  # started by a launcher: stop when it dies, whatever kills it
     args = parser.parse_args(argv)
-    use_zenoh_runtime(ONE_THREAD_RUNTIME)  # a module receives one message and sends one per period: one thread does it
+    # a module receives one message and sends one per period: one thread does it (sending
+    # apart in lockstep, where a put may wait for the send queue: runtime.config)
+    use_zenoh_runtime(LOCKSTEP_MODULE_RUNTIME if args.mode == "lockstep" else ONE_THREAD_RUNTIME)
     logging.basicConfig(level=args.log_level.upper(), stream=sys.stderr,
                         format="%(asctime)s.%(msecs)03d %(name)s %(levelname)s %(message)s", datefmt="%H:%M:%S")
     t0 = time.perf_counter()

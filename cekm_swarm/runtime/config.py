@@ -32,6 +32,19 @@ period: each hand-off between Zenoh's receiving, sending and timer threads is a 
 wake-up, which costs more than the work it hands over on this 2-core machine
 (``benchmarks/bench_runtime.py``)."""
 
+LOCKSTEP_MODULE_RUNTIME = "(rx: (handover: app), net: (handover: app), acc: (handover: app), app: (worker_threads: 1))"
+"""A module's Zenoh in lockstep: :data:`ONE_THREAD_RUNTIME` with sending on a thread of
+its own. In lockstep a module publishes with congestion control BLOCK from Zenoh's
+receiving callback. With sending on that same thread, a put that found the send queue
+full waited for the one thread that would empty it: a burst of well-formed readings for
+the current tick (300 back to back, as any peer on the key can send) closed the module's
+session after 5 s, and the run re-published 26 ticks (docs/robustness.md). The sending
+thread costs a wake-up per message sent: about 0.9 ms more CPU per tick for one robot's
+14 modules (5.1 -> 6.0 ms, three runs each in alternation, ``benchmarks/bench_runtime.py
+--module-runtime``) with no change in lockstep speed. In real time modules publish with
+congestion control DROP, which waits at most 1 ms for room (Zenoh's ``wait_before_drop``)
+and then drops the message, and keep :data:`ONE_THREAD_RUNTIME`."""
+
 ROUTER_RUNTIME = "(rx: (handover: app), net: (handover: app), acc: (handover: app), app: (worker_threads: 2))"
 """Zenoh's runtimes in the world server when it hosts the router on loopback: receiving,
 timers and accepting on one runtime with two worker threads, sending on a thread of its

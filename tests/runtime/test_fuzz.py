@@ -29,10 +29,10 @@ import zenoh
 from cekm_swarm.experiments.default_model import default_model, default_model_path
 from cekm_swarm.experiments.navigation import run_scenario
 from cekm_swarm.protocol import DEFAULT_KEYS as K
-from cekm_swarm.protocol import Clock, MessageError, decode
+from cekm_swarm.protocol import Clock, MessageError, SenseRange, decode, encode
 from cekm_swarm.protocol.drops import MAX_SOURCES
 from cekm_swarm.runtime.config import open_client
-from cekm_swarm.ticks import TICK_S
+from cekm_swarm.ticks import TICK_S, tick_time
 from world import load_scenario
 
 from fuzz_corpus import OVER_LIMIT_SIZES, Fuzz, make_corpus
@@ -275,3 +275,39 @@ def test_realtime_fuzz_stops_no_robot_and_every_message_is_counted(realtime_fuzz
     assert all(moving), moving.index(False)
     counts = check_accounting(run, sent)
     print("real-time fuzz:", len(sent), "messages;", counts)
+
+
+def test_a_burst_of_well_formed_readings_stalls_no_lockstep_module(tmp_path):
+    """Five bursts of 300 well-formed readings for the current tick on obstacle module 3's
+    key (what any peer allowed on the key can send): the module publishes 300 fields at
+    once with congestion control BLOCK. With Zenoh's sending on its receiving thread, the
+    put waited for the thread it blocked until Zenoh gave up after 5 s, and the run
+    re-published 25 ticks (runtime.config.LOCKSTEP_MODULE_RUNTIME). Now the module handles
+    every one and the run never waits for a command."""
+    scenario = unreachable_concave(tmp_path)
+    run = LaunchProcess(str(scenario), tmp_path / "out", "--mode", "lockstep", "--seed", str(SEED), "--max-time",
+                        "40", "--model", str(default_model_path()), "--no-plot")
+    key, bursts, burst = K.sense_range("r1", 3), 5, 300
+    try:
+        run.wait_line("world started ticking", timeout=90)
+        session = open_client(f"tcp/127.0.0.1:{run.port}")
+        try:
+            clock = Clockwatch(session)
+            tick = START_TICK - 1
+            for _ in range(bursts):
+                tick = clock.wait_past(tick + 3, timeout=60)
+                payload = encode(SenseRange(tick_time(tick), "burst", 3, 0.5, 0.1))
+                for _ in range(burst):
+                    session.put(key, payload, congestion_control=zenoh.CongestionControl.BLOCK)
+            clock.wait_past(tick + AFTER_FENCE, timeout=60)
+            clock.sub.undeclare()
+        finally:
+            session.close()
+        assert run.finish(timeout=120) == 0, "\n".join(run.lines)
+    finally:
+        run.kill()
+    outcome = run.outcome()
+    assert outcome["launcher"]["restarts"] == {}, outcome["launcher"]
+    doc = module_drops(run.out, "obstacle-3")
+    assert doc["dropped"] == {} and doc["handled"] >= bursts * burst + 300, doc  # the bursts and the run's readings
+    assert outcome["republished"] <= 1, outcome["republished"]
