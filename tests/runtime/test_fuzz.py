@@ -39,9 +39,9 @@ from fuzz_corpus import OVER_LIMIT_SIZES, Fuzz, make_corpus
 from test_launch_support import LaunchProcess
 
 SEED = 4
-MAX_TIME = "80"  # s of sim time: 625 ticks for the 200 batches of the lockstep fuzz. A batch of 50
-# takes about 8 ms to send on 2 cores, a lockstep tick about 16: with two busy processes beside the
-# run, the world passed up to 3 ticks a batch, and a 313-tick run ran out before the fuzz did
+MAX_TIME = "160"  # s of sim time: 1250 ticks for the 200 batches of the lockstep fuzz, one due every
+# 6 ticks. A batch of 50 takes about 8 ms to send on 2 cores, a lockstep tick 8-16 ms; with two busy
+# processes beside the run the world passed up to 3 ticks a batch (606 of a 625-tick run)
 START_TICK = 20  # fuzz from here: a stamp of the run's first ticks is then outside every window
 FENCE = "cekm/fuzz/fence"
 AFTER_FENCE = 10  # ticks the fuzzer waits after its fence, before it closes its session
