@@ -126,6 +126,41 @@ def emit(kind: str, doc: dict[str, Any]) -> None:
 # --------------------------------------------------------------------------- the server
 
 
+class CheckpointsError(ValueError):
+    """``--checkpoints`` is unreadable or malformed; the message names what is wrong."""
+
+
+def parse_checkpoints(value: str, robots: list[str]) -> dict[str, list[tuple[float, float]]]:
+    """``--checkpoints``: JSON ``{robot: [[x, y], ...]}``, or the path of a file holding it.
+    Raises :class:`CheckpointsError` naming what is wrong (the file, the robot, the entry)."""
+    where = "--checkpoints"
+    raw = value
+    if not value.lstrip().startswith("{"):
+        where = f"--checkpoints {value}"
+        try:
+            raw = Path(value).read_text()
+        except OSError as exc:
+            raise CheckpointsError(f"{where}: cannot read it ({exc.strerror or exc})") from None
+    try:
+        doc = json.loads(raw)
+    except json.JSONDecodeError as exc:
+        raise CheckpointsError(f"{where}: not JSON ({exc})") from None
+    if not isinstance(doc, dict):
+        raise CheckpointsError(f"{where}: must be a JSON object {{robot: [[x, y], ...]}}, got {type(doc).__name__}")
+    out: dict[str, list[tuple[float, float]]] = {}
+    for robot, cps in doc.items():
+        if robot not in robots:
+            raise CheckpointsError(f"{where}: no robot {robot!r} in the scenario (robots: {', '.join(robots)})")
+        if not isinstance(cps, list) or not cps:
+            raise CheckpointsError(f"{where}: {robot}: must be a non-empty list of [x, y]")
+        for i, c in enumerate(cps):
+            if not (isinstance(c, list) and len(c) == 2
+                    and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in c)):
+                raise CheckpointsError(f"{where}: {robot}[{i}]: must be [x, y] with finite numbers, got {c!r}")
+        out[robot] = [(float(c[0]), float(c[1])) for c in cps]
+    return out
+
+
 class WorldServer:
     """One run of a scenario over Zenoh (see the module's docstring), set up from a
     :class:`WorldConfig`; :meth:`run` runs it and writes its outputs."""
@@ -134,10 +169,7 @@ class WorldServer:
         self.config = cfg = config
         self.keys = KeySpace(cfg.root, run=cfg.run_id)
         self.scenario = load_scenario(cfg.scenario)
-        checkpoints = None
-        if cfg.checkpoints:
-            raw = Path(cfg.checkpoints).read_text() if not cfg.checkpoints.lstrip().startswith("{") else cfg.checkpoints
-            checkpoints = {r: [tuple(map(float, c)) for c in cps] for r, cps in json.loads(raw).items()}
+        checkpoints = parse_checkpoints(cfg.checkpoints, [r.id for r in self.scenario.robots]) if cfg.checkpoints else None
         self.tracking = run_kind(self.scenario, checkpoints or {}) == "tracking"  # docs/tracking.md
         self.world = World(self.scenario, seed=cfg.seed)
         self.robots = list(self.world.robot_ids)
@@ -661,7 +693,7 @@ def main(argv: list[str] | None = None) -> int:
                         format="%(asctime)s.%(msecs)03d %(name)s %(levelname)s %(message)s", datefmt="%H:%M:%S")
     try:
         server = WorldServer(WorldConfig.from_args(args))
-    except ScenarioError as exc:  # refused before the session opens or the log starts
+    except (ScenarioError, CheckpointsError) as exc:  # a bad scenario or --checkpoints: refused before anything starts
         p.error(str(exc))
     try:
         doc = asyncio.run(server.run())

@@ -6,6 +6,7 @@ from __future__ import annotations
 import ast
 import dataclasses
 import inspect
+import re
 import subprocess
 import sys
 import textwrap
@@ -53,4 +54,30 @@ def test_a_bad_scenario_is_refused_in_one_line_before_anything_is_written(tmp_pa
                        capture_output=True, text=True, timeout=60)
     assert r.returncode == 2
     assert f"error: {path}: {needle}" in r.stderr and "Traceback" not in r.stderr, r.stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_checkpoints_are_parsed_or_refused_naming_what_is_wrong(tmp_path):
+    from world.server import CheckpointsError, parse_checkpoints
+
+    assert parse_checkpoints('{"r1": [[1, 2.5], [3.0, 4]]}', ["r1", "r2"]) == {"r1": [(1.0, 2.5), (3.0, 4.0)]}
+    path = tmp_path / "cps.json"
+    path.write_text('{"r2": [[0.5, 0.5]]}')
+    assert parse_checkpoints(str(path), ["r1", "r2"]) == {"r2": [(0.5, 0.5)]}
+    for value, needle in [('{"r1": [[1, 2]', "--checkpoints: not JSON"),
+                          (str(tmp_path / "missing.json"), f"--checkpoints {tmp_path / 'missing.json'}: cannot read"),
+                          ('{"r9": [[1, 2]]}', "no robot 'r9' in the scenario (robots: r1, r2)"),
+                          ('{"r1": []}', "r1: must be a non-empty list"),
+                          ('{"r1": [[1, 2], [1, NaN]]}', "r1[1]: must be [x, y] with finite numbers"),
+                          ('{"r1": [[1, 2, 3]]}', "r1[0]: must be [x, y]"),
+                          ('{"r1": [[true, 2]]}', "r1[0]: must be [x, y]")]:
+        with pytest.raises(CheckpointsError, match=re.escape(needle)):
+            parse_checkpoints(value, ["r1", "r2"])
+
+
+def test_bad_checkpoints_are_refused_in_one_line(tmp_path):
+    r = subprocess.run([sys.executable, "-m", "world.server", "concave", "--out", str(tmp_path / "out"),
+                        "--checkpoints", '{"r1": [[1, "x"]]}'], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2
+    assert "error: --checkpoints: r1[0]: must be [x, y]" in r.stderr and "Traceback" not in r.stderr, r.stderr
     assert not (tmp_path / "out").exists()
