@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import re
 import subprocess
@@ -98,8 +99,7 @@ def reading(key: str, tick: int) -> bytes:
     """A well-formed reading for the obstacle module of ``key`` at ``tick``: an obstacle
     0.1 m away along its sensor."""
     j = int(key.rsplit("/", 1)[1])
-    return encode(SenseRange(tick_time(tick), "burst", j, -3.141592653589793 + (j + 0.5) * 2 * 3.141592653589793 / 12,
-                             0.1))
+    return encode(SenseRange(tick_time(tick), "burst", j, -math.pi + (j + 0.5) * 2 * math.pi / 12, 0.1))
 
 
 def case(key: str, size: int, count: int, burst: int, port: int, out: Path, scenario: Path, code: Path,

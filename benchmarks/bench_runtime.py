@@ -27,7 +27,8 @@ waits for the command.
   stolen meanwhile (docs/performance.md: steal moves every number here).
 
 ``--module-runtime SPEC`` starts the modules with ``ZENOH_RUNTIME=SPEC`` instead of their
-own choice (runtime.config.MODULE_RUNTIME), to compare Zenoh thread layouts.
+own choice (runtime.config.ONE_THREAD_RUNTIME, or LOCKSTEP_MODULE_RUNTIME in lockstep), to compare
+Zenoh thread layouts.
 
 Run: python benchmarks/bench_runtime.py [--ticks 400] [--no-launch] [--module-runtime SPEC]
 """

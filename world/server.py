@@ -249,8 +249,9 @@ class WorldServer:
         return [r for r in self.robots if (c := self.latest.get(r)) is None or c.stamp != t]
 
     def _tick_answered(self) -> bool:
-        """Every robot's latest command is for the current tick."""
-        return not self._waiting(self.now)
+        """Every robot's latest command is for the current tick (on Zenoh's thread, per command)."""
+        now, latest = self.now, self.latest
+        return all((c := latest.get(r)) is not None and c.stamp == now for r in self.robots)
 
     def _drain_records(self, now: float) -> None:
         """Record what other sessions sent under ``<root>/**`` since the last drain (it
@@ -405,8 +406,6 @@ class WorldServer:
         ep = self.episode
         boundary = start + (ep.tick + 1) * TICK_S
         await self._await_answers(boundary - (1 - RECORD_BY) * TICK_S)  # the tick's burst
-        if self.stop.is_set():
-            raise asyncio.CancelledError
         self._record_tick()
         try:
             await asyncio.wait_for(self.stop.wait(), max(0.0, boundary - loop.time()))

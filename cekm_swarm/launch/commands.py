@@ -132,6 +132,8 @@ def outcome_summary(outcome: dict) -> list[str]:
     """The lines a finished launch prints: each robot, tracking's A, latency, in real time
     the deadline misses and the ticks they fell on, where a tick's CPU went and how much of
     the machine's time the host stole meanwhile, restarts."""
+    from world.server import MISSED_TICKS_KEPT
+
     lines = []
     tracking = "tracking" in outcome  # docs/tracking.md
     for r, o in outcome["robots"].items():
@@ -153,7 +155,7 @@ def outcome_summary(outcome: dict) -> list[str]:
         ticks = sorted(int(k) for k in outcome.get("deadline_miss_ticks", {}))
         if ticks:
             shown = ", ".join(map(str, ticks[:8])) + (", ..." if len(ticks) > 8 else "")
-            line += f", in {len(ticks)}{'+' if len(ticks) >= 200 else ''} ticks ({shown})"
+            line += f", in {len(ticks)}{'+' if len(ticks) >= MISSED_TICKS_KEPT else ''} ticks ({shown})"
         if outcome.get("first_tick_ms") is not None:
             line += f"; tick 0 answered after {outcome['first_tick_ms']:.0f} ms (the clock started then)"
         lines.append(line)

@@ -196,21 +196,29 @@ def unreachable_concave(folder: Path) -> Path:
     return path
 
 
+def launched(out, scenario: str, max_time: str, args: tuple[str, ...], send):
+    """Launch ``scenario`` for ``max_time`` s with ``args``, call ``send(port, last_tick)``
+    once the world ticks (an outside client's traffic), and let the run finish:
+    (run, what ``send`` returned)."""
+    run = LaunchProcess(scenario, out, "--max-time", max_time, *args, "--model", str(default_model_path()),
+                        "--no-plot")
+    try:
+        run.wait_line("world started ticking", timeout=90)
+        sent = send(run.port, int(float(max_time) / TICK_S))
+        code = run.finish(timeout=120)
+    finally:
+        run.kill()
+    assert code == 0, "\n".join(run.lines)
+    return run, sent
+
+
 def fuzzed_launch(out, scenario: str, max_time: str, args: tuple[str, ...], n: int, per_tick: int, neurons: int, *,
                   seed: int):
     """Launch ``scenario`` for ``max_time`` s with ``args``, fuzz it with ``n`` messages (at
     least ``per_tick`` a tick) once it ticks, and let it finish: (run, messages sent, tick
     the fuzz ended at)."""
-    run = LaunchProcess(scenario, out, "--max-time", max_time, *args, "--model", str(default_model_path()),
-                        "--no-plot")
-    try:
-        run.wait_line("world started ticking", timeout=90)
-        sent, last_tick = fuzz(run.port, n, per_tick, neurons, seed=seed,
-                               last_tick=int(float(max_time) / TICK_S))
-        code = run.finish(timeout=120)
-    finally:
-        run.kill()
-    assert code == 0, "\n".join(run.lines)
+    run, (sent, last_tick) = launched(out, scenario, max_time, args,
+                                      lambda port, last: fuzz(port, n, per_tick, neurons, seed=seed, last_tick=last))
     return run, sent, last_tick
 
 
@@ -284,13 +292,10 @@ def test_a_burst_of_well_formed_readings_stalls_no_lockstep_module(tmp_path):
     put waited for the thread it blocked until Zenoh gave up after 5 s, and the run
     re-published 25 ticks (runtime.config.LOCKSTEP_MODULE_RUNTIME). Now the module handles
     every one and the run never waits for a command."""
-    scenario = unreachable_concave(tmp_path)
-    run = LaunchProcess(str(scenario), tmp_path / "out", "--mode", "lockstep", "--seed", str(SEED), "--max-time",
-                        "40", "--model", str(default_model_path()), "--no-plot")
     key, bursts, burst = K.sense_range("r1", 3), 5, 300
-    try:
-        run.wait_line("world started ticking", timeout=90)
-        session = open_client(f"tcp/127.0.0.1:{run.port}")
+
+    def send(port: int, last_tick: int) -> None:
+        session = open_client(f"tcp/127.0.0.1:{port}")
         try:
             clock = Clockwatch(session)
             tick = START_TICK - 1
@@ -303,9 +308,9 @@ def test_a_burst_of_well_formed_readings_stalls_no_lockstep_module(tmp_path):
             clock.sub.undeclare()
         finally:
             session.close()
-        assert run.finish(timeout=120) == 0, "\n".join(run.lines)
-    finally:
-        run.kill()
+
+    run, _ = launched(tmp_path / "out", str(unreachable_concave(tmp_path)), "40",
+                      ("--mode", "lockstep", "--seed", str(SEED)), send)
     outcome = run.outcome()
     assert outcome["launcher"]["restarts"] == {}, outcome["launcher"]
     doc = module_drops(run.out, "obstacle-3")
