@@ -50,3 +50,39 @@ def quantize_speed(c: float, unit: float, v_max: float) -> float:
 
 
 KHEPERA = Khepera()
+
+
+@dataclass(frozen=True)
+class RobotBody:
+    """What a robot's controller knows of its own body and sensors (a node's
+    :attr:`cekm_swarm.node.Context.body`): taken from the scenario by whoever starts the
+    controller (``cekm run``, ``cekm launch``), so no node needs the world.
+
+    ``sensor_angles``: each distance sensor's direction relative to the heading (rad);
+    ``sensor_range``: how far a distance sensor sees beyond the body surface (m);
+    ``target_range``: the target sensor's range (m; inf: unlimited)."""
+
+    body_radius: float = KHEPERA.body_radius
+    axle: float = KHEPERA.axle
+    v_max: float = KHEPERA.v_max
+    sensor_range: float = KHEPERA.sensor_range
+    sensor_angles: tuple[float, ...] = tuple(
+        math.atan2(math.sin(2 * math.pi * j / KHEPERA.n_range_sensors), math.cos(2 * math.pi * j / KHEPERA.n_range_sensors))
+        for j in range(KHEPERA.n_range_sensors))
+    target_range: float = math.inf
+
+    @property
+    def sensors(self) -> int:
+        """How many distance sensors the robot has."""
+        return len(self.sensor_angles)
+
+    def to_dict(self) -> dict:
+        return {"body_radius": self.body_radius, "axle": self.axle, "v_max": self.v_max,
+                "sensor_range": self.sensor_range, "sensor_angles": list(self.sensor_angles),
+                "target_range": None if math.isinf(self.target_range) else self.target_range}
+
+    @classmethod
+    def from_dict(cls, doc: dict) -> "RobotBody":
+        tr = doc.get("target_range")
+        return cls(float(doc["body_radius"]), float(doc["axle"]), float(doc["v_max"]), float(doc["sensor_range"]),
+                   tuple(float(a) for a in doc["sensor_angles"]), math.inf if tr is None else float(tr))

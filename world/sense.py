@@ -18,16 +18,30 @@ SENDER = "world"
 """The sender of every message the world publishes."""
 
 
+_KEYS: dict[tuple[KeySpace, str, int], tuple[list[str], str]] = {}
+
+
+def _sense_keys(keys: KeySpace, robot: str, n: int) -> tuple[list[str], str]:
+    """The robot's range keys and target key (built once: building a key validates it)."""
+    hit = _KEYS.get((keys, robot, n))
+    if hit is None:
+        if len(_KEYS) > 4096:
+            _KEYS.clear()
+        hit = _KEYS[(keys, robot, n)] = ([keys.sense_range(robot, j) for j in range(n)], keys.sense_target(robot))
+    return hit
+
+
 def sense_messages(keys: KeySpace, rd: TickReadings, sensor_angles, body_radius: float) -> list[tuple[str, Any]]:
     """The sense messages of one robot's readings at one tick: 12 ranges (+ the target)."""
     out: list[tuple[str, Any]] = []
     t = rd.t
+    range_keys, target_key = _sense_keys(keys, rd.robot, len(rd.ranges))
     for j, r in enumerate(rd.ranges):
         r = float(r)
         d = None if not math.isfinite(r) else r + body_radius
-        out.append((keys.sense_range(rd.robot, j), SenseRange(t, SENDER, j, float(sensor_angles[j]), d)))
+        out.append((range_keys[j], SenseRange(t, SENDER, j, float(sensor_angles[j]), d)))
     if rd.target is not None:
-        out.append((keys.sense_target(rd.robot), target_message(t, rd.target)))
+        out.append((target_key, target_message(t, rd.target)))
     return out
 
 

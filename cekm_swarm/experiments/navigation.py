@@ -1,10 +1,7 @@
-"""Section 4.2 in one process: a pymunk world and the robots' controllers, stepped in the
-tick order of :mod:`cekm_swarm.controller.schedule` (the runtime's lockstep mode must
-reproduce it exactly).
-
-This module composes the two sides: it reads the world's sensors, hands the controllers
-plain readings (the message protocol's content) and applies their wheel commands. The
-controller modules never import the world, and the world never imports them.
+"""Section 4.2 in one process: a scenario and a controller's graph (cooperative EKMs or
+command fusion) run by :func:`.graph_run.run_graph`, the results as a
+:class:`NavigationRun`, and the paper's pictures (the run as in Figs. 8-12; Fig. 4's
+activities).
 """
 
 from __future__ import annotations
@@ -15,10 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from ..controller.cooperative import CooperativeEKM, ObstacleActivity, TargetActivity
-from ..controller.fusion import CommandFusion
 from ..controller.planner import plan_checkpoints
-from ..controller.readings import TargetReading, range_readings
 from ..errors import ParameterError
 from ..models.params import FieldParams
 
@@ -44,47 +38,6 @@ class RobotLog:
 
 
 @dataclass
-class RobotBrain:
-    """Per robot: its controller and the latest output of every module."""
-
-    kind: str
-    controller: Any
-    target: TargetActivity | None = None
-    obstacles: dict[int, ObstacleActivity] = field(default_factory=dict)
-    c_target: np.ndarray = field(default_factory=lambda: np.zeros(2))
-    goal_state: bool = False
-
-    def tick(self, t: float, target_reading: TargetReading | None, ranges) -> tuple[float, float]:
-        """Steps 2-3 of a tick: the modules due compute, then the motor integrates the latest of each."""
-        if self.kind == "cekm":
-            ekm: CooperativeEKM = self.controller
-            if target_reading is not None:
-                self.target = ekm.localize_target(target_reading, t)
-            for ob in ekm.localize_obstacles(ranges, t):
-                self.obstacles[ob.index] = ob
-            out = ekm.integrate(self.target, self.obstacles.values())
-            self.goal_state = self.target is not None and self.target.at_goal
-            return out.v_l, out.v_r
-        fusion: CommandFusion = self.controller
-        if target_reading is not None:
-            self.c_target = fusion.target_command(target_reading)
-            self.goal_state = target_reading.at_goal
-        if self.goal_state:
-            return 0.0, 0.0
-        c = fusion.fuse(self.c_target, fusion.avoid_command(ranges))
-        return float(c[0]), float(c[1])
-
-
-def make_brain(kind: str, model, world_constants: dict, fields: FieldParams | None = None) -> RobotBrain:
-    if kind == "cekm":
-        return RobotBrain(kind, CooperativeEKM(model, fields or FieldParams()))
-    if kind == "fusion":
-        return RobotBrain(kind, CommandFusion(model, body_radius=world_constants["body_radius"],
-                                              sensor_range=world_constants["sensor_range"]))
-    raise ParameterError(f"unknown controller {kind!r}; expected one of {list(CONTROLLERS)}")
-
-
-@dataclass
 class NavigationRun:
     scenario: str
     controller: str
@@ -98,58 +51,52 @@ class NavigationRun:
 
 def run_scenario(scenario, controller: str = "cekm", model=None, seed: int | None = None,
                  max_time: float = DEFAULT_MAX_TIME, use_checkpoints: bool | None = None,
-                 fields: FieldParams | None = None, progress=None) -> NavigationRun:
-    """Run a scenario to the end (every robot reached its goal, or max_time).
+                 fields: FieldParams | None = None, progress=None, graph=None) -> NavigationRun:
+    """Run a scenario to the end (every robot reached its goal, or max_time) with the
+    controller's graph in one process (:func:`.graph_run.run_graph`; a distributed
+    lockstep run computes the same, bit for bit).
 
-    The world's side of every tick is :class:`world.episode.Episode` (the world server
-    runs the same); the robots' side is their controllers. ``use_checkpoints``: plan
-    checkpoints on the known walls (Fig. 12); default: when the scenario is called
-    "checkpoints". ``progress(t)`` is called every simulated second.
+    ``use_checkpoints``: plan checkpoints on the known walls (Fig. 12); default: when the
+    scenario is called "checkpoints". ``fields``: the field widths of the cooperative
+    EKM's nodes (Eqs. 6, 8). ``graph``: a graph file instead of the controller's own.
+    ``progress(t)`` is called every simulated second.
     """
     from world import World
-    from world.episode import TICK_S, Episode
 
-    if controller not in CONTROLLERS:
+    from .graph_run import run_graph
+
+    if graph is None and controller not in CONTROLLERS:
         raise ParameterError(f"unknown controller {controller!r}; expected one of {list(CONTROLLERS)}")
     if model is None:
         from .default_model import default_model
 
         model = default_model()
-    world = World(scenario, seed=seed)
-    consts = {"body_radius": world.body_radius, "sensor_range": world.sensor_range}
-    geometry = world.static_geometry()
     if use_checkpoints is None:
         use_checkpoints = scenario.name == "checkpoints"
-    robots = list(world.robot_ids)
-    brains = {r: make_brain(controller, model, consts, fields) for r in robots}
-    checkpoints, plan_paths = plan_all(world, geometry) if use_checkpoints else (None, {})
-    episode = Episode(world, checkpoints)
-    max_ticks = int(math.ceil(max_time / TICK_S))
-    while True:
-        if progress and episode.tick % 8 == 0:
-            progress(episode.t)
-        control_tick(episode, brains)
-        if episode.done or episode.tick >= max_ticks:
-            break
-        episode.advance()
+    checkpoints, plan_paths = (None, {})
+    if use_checkpoints:
+        w = World(scenario, seed=seed)
+        checkpoints, plan_paths = plan_all(w, w.static_geometry())
+    run = run_graph(scenario, controller, graph=graph, model=model, seed=seed, max_time=max_time,
+                    checkpoints=checkpoints, params=field_overrides(fields), progress=progress)
+    world, episode = run.world, run.episode
     logs = {}
     for r, p in episode.progress.items():
         t, x, y, th = (list(col) for col in zip(*p.path))
         logs[r] = RobotLog(r, t, x, y, th, [c[0] for c in p.commands], [c[1] for c in p.commands],
                            list(p.checkpoints), list(p.checkpoint_times), p.reached, p.reached_time)
     return NavigationRun(scenario.name, controller, world_seed(world, seed, scenario), logs, episode.outcome(),
-                         geometry, world.state(), plan_paths)
+                         world.static_geometry(), world.state(), plan_paths)
 
 
-def control_tick(episode, brains: dict[str, RobotBrain]) -> None:
-    """Steps 1-3 of a tick: the world's readings, every robot's modules, the commands applied."""
-    world = episode.world
-    commands = {}
-    for rd in episode.readings():
-        ranges = range_readings(rd.ranges, world.sensor_angles, world.body_radius)
-        target = TargetReading(*rd.target) if rd.target is not None else None
-        commands[rd.robot] = brains[rd.robot].tick(rd.t, target, ranges)
-    episode.apply(commands)
+def field_overrides(fields: FieldParams | None) -> dict | None:
+    """Field widths as parameters of the nodes that take them (a graph without such nodes,
+    command fusion's, ignores them)."""
+    if fields is None:
+        return None
+    from dataclasses import asdict
+
+    return {"lenient": True, **asdict(fields)}
 
 
 def plan_all(world, geometry) -> tuple[dict, dict]:
@@ -210,31 +157,36 @@ def fields_at(scenario, model, at_time: float, controller_seed: int | None = Non
     the target field, each obstacle field, the combined obstacle fields and the integrated
     activity, with the winners, the robot's pose and the input weights."""
     from world import World
-    from world.episode import TICK_S, Episode
+    from world.episode import TICK_S
 
-    world = World(scenario, seed=controller_seed)
-    robot = robot or world.robot_ids[0]
-    consts = {"body_radius": world.body_radius, "sensor_range": world.sensor_range}
-    brains = {r: make_brain("cekm", model, consts, fields) for r in world.robot_ids}
-    checkpoints = plan_all(world, world.static_geometry())[0] if scenario.name == "checkpoints" else None
-    episode = Episode(world, checkpoints)
+    from ..controller.cooperative import CooperativeEKM
+    from .graph_run import run_graph
+
+    checkpoints = None
+    if scenario.name == "checkpoints":
+        w = World(scenario, seed=controller_seed)
+        checkpoints = plan_all(w, w.static_geometry())[0]
     last = int(round(at_time / TICK_S))
-    while True:
-        control_tick(episode, brains)
-        if episode.tick >= last:
-            break
-        episode.advance()
-    b = brains[robot]
+    run = run_graph(scenario, "cekm", model=model, seed=controller_seed, checkpoints=checkpoints,
+                    params=field_overrides(fields), stop_at=last, max_time=max(at_time, TICK_S) + 1.0)
+    world, episode, ex = run.world, run.episode, run.executor
+    robot = robot or world.robot_ids[0]
+    k, keys = episode.tick, run.plan.keys
+    target = ex.output(keys.field_target(robot), k - k % 2)
     n = model.w.shape[0]
-    a = b.target.a if b.target is not None and b.target.a is not None else np.zeros(n)
-    obstacle = {j: o.b for j, o in sorted(b.obstacles.items()) if o.b is not None}
+    a = target.a if target is not None and target.a is not None else np.zeros(n)
+    obs_fields = {j: ex.output(keys.field_obstacle(robot, j), k) for j in range(len(world.sensor_angles))}
+    obstacle = {j: f.b for j, f in sorted(obs_fields.items()) if f is not None and f.b is not None}
     combined = np.sum(list(obstacle.values()), axis=0) if obstacle else np.zeros(n)
     e = a - combined
-    decision = b.controller.integrate(b.target, b.obstacles.values())
+    ekm: CooperativeEKM = ex.node(robot, "motor").ekm
+    from ..modules.motor_integration import target_activity
+
+    decision = ekm.integrate(target_activity(target), [f for f in obs_fields.values() if f is not None])
     return {"time": episode.t, "robot": robot, "pose": world.pose(robot), "w": model.w.copy(),
-            "a": a, "s": None if b.target is None else b.target.winner, "obstacle": obstacle,
-            "obstacle_winners": {j: o.winner for j, o in b.obstacles.items() if o.winner is not None},
-            "combined": combined, "e": e, "k": decision.k, "eligible": b.controller.eligible.copy(),
+            "a": a, "s": None if target is None else target.winner, "obstacle": obstacle,
+            "obstacle_winners": {j: f.winner for j, f in obs_fields.items() if f is not None and f.winner is not None},
+            "combined": combined, "e": e, "k": decision.k, "eligible": ekm.eligible.copy(),
             "command": (decision.v_l, decision.v_r), "sensor_angles": world.sensor_angles.copy(),
             "geometry": world.static_geometry(), "state": world.state()}
 

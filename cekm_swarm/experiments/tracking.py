@@ -1,13 +1,10 @@
 """Multi-robot tracking (Fig. 13) in one process, and the experiment over team sizes.
 
-The tick order is navigation's (:mod:`cekm_swarm.controller.schedule`): at tick k (sim
-time t = 0.128 k) the world takes, per robot in order, the 12 distance readings and, on
-even ticks, the robot's ``sense/pose`` and ``sense/targets`` messages; every robot's
-modules compute (the tracking target module on even ticks, using the teammates' shares
-stamped before t); the motors integrate; the shares published at t are delivered to the
-teammates; the world applies the commands and advances. Every message goes through
-``encode``/``decode``, as it would through Zenoh, so a distributed lockstep run can
-equal this one bit for bit. Parker's A is sampled at every tick before the readings.
+A run is the controller's graph (cooperative EKMs, A-CMOMMT, or robots that stay) on a
+tracking scenario, run by :func:`.graph_run.run_graph` with the world server's tracking
+episode (:class:`world.tracking.TrackingEpisode`): at tick k each robot's nodes see the
+world's readings of tick k and their teammates' shares of their previous run (the rule
+of :mod:`cekm_swarm.graph.plan`). Parker's A is sampled at every tick before the readings.
 """
 
 from __future__ import annotations
@@ -18,14 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from ..controller.acmommt import ACMOMMT
-from ..controller.readings import range_readings
-from ..controller.team import TeamView
-from ..controller.tracking import Stay, TrackingEKM, TrackingRobot
 from ..errors import ParameterError
-from ..models.params import ACMOMMTParams, FieldParams, TrackingParams
-from ..protocol.keys import DEFAULT_KEYS as KEYS
-from ..protocol.messages import decode, encode
+from ..models.params import ACMOMMTParams, TrackingParams
 
 CONTROLLERS = ("cekm", "acmommt", "stay")
 DEFAULT_DURATION = 120.0  # s of sim time of a tracking run
@@ -45,87 +36,40 @@ class TrackingRun:
     collisions: dict[str, int] = field(default_factory=dict)
 
 
-def make_robot(kind: str, robot: str, world, model, tparams: TrackingParams | None = None,
-               aparams: ACMOMMTParams | None = None, fields: FieldParams | None = None) -> TrackingRobot:
-    """One robot's modules for controller ``kind``."""
-    tp = tparams or TrackingParams()
-    view = TeamView(robot, tp.share_timeout_s, tp.memory_s)
-    R = world.target_range
-    if kind == "cekm":
-        ctl: object = TrackingEKM(robot, model, R, tp, fields or FieldParams.paper())
-    elif kind == "acmommt":
-        ctl = ACMOMMT(robot, R, world.sensor_range, world.body_radius, world.axle, world.v_max,
-                      aparams or ACMOMMTParams(), tp.search_reached, tp.wander_ahead_m)
-    elif kind == "stay":
-        ctl = Stay(robot)
-    else:
-        raise ParameterError(f"unknown tracking controller {kind!r}; expected one of {list(CONTROLLERS)}")
-    return TrackingRobot(robot, ctl, view)
-
-
 def run_tracking(scenario, controller: str = "cekm", model=None, seed: int | None = None,
                  duration: float = DEFAULT_DURATION, tparams: TrackingParams | None = None,
-                 aparams: ACMOMMTParams | None = None) -> TrackingRun:
-    """Run a tracking scenario for ``duration`` s of sim time."""
-    from world import World
-    from world.episode import TARGET_EVERY, TICK_S
-    from world.tracking import ObservationMeter, is_tracking, tracking_sense
+                 aparams: ACMOMMTParams | None = None, graph=None) -> TrackingRun:
+    """Run a tracking scenario for ``duration`` s of sim time with the controller's graph
+    in one process (:func:`.graph_run.run_graph`; a distributed lockstep run computes the
+    same, bit for bit). ``tparams``/``aparams``: the tracking controllers' parameters."""
+    from dataclasses import asdict
 
-    if controller not in CONTROLLERS:
+    from world.tracking import is_tracking
+
+    from .graph_run import run_graph
+
+    if graph is None and controller not in CONTROLLERS:
         raise ParameterError(f"unknown tracking controller {controller!r}; expected one of {list(CONTROLLERS)}")
     if not is_tracking(scenario):
         raise ParameterError(f"scenario {scenario.name!r} is not a tracking scenario (it needs targets and robots "
                              "without a goal)")
     if not math.isfinite(scenario.target_range):
         raise ParameterError(f"scenario {scenario.name!r}: sensors.target_range must be finite for tracking")
-    if model is None and controller == "cekm":
-        from .default_model import default_model
-
-        model = default_model()
-    world = World(scenario, seed=seed)
+    overrides: dict[str, Any] = {}
+    for p in (tparams, aparams):
+        if p is not None:
+            overrides.update(asdict(p))
+    if overrides:
+        overrides["lenient"] = True
+    run = run_graph(scenario, controller, graph=graph, model=model, seed=seed, max_time=duration,
+                    params=overrides or None)
+    world, episode = run.world, run.episode
     robots = list(world.robot_ids)
-    brains = {r: make_robot(controller, r, world, model, tparams, aparams) for r in robots}
-    meter = ObservationMeter(world.target_ids, robots)
-    paths: dict[str, list] = {r: [] for r in robots}
-    tpaths: dict[str, list] = {t: [] for t in world.target_ids}
-    angles, body = world.sensor_angles, world.body_radius
-    ticks = int(math.ceil(duration / TICK_S))
-    for tick in range(ticks + 1):
-        t = round(tick * TICK_S, 9)
-        st = world.state()
-        tpos = {tid: (p["x"], p["y"]) for tid, p in st["targets"].items()}
-        meter.sample_positions(t, {r: (p["x"], p["y"]) for r, p in st["robots"].items()}, tpos, world.target_range)
-        for tid, xy in tpos.items():
-            tpaths[tid].append(xy)
-        if tick == ticks:
-            break
-        due = tick % TARGET_EVERY == 0
-        sensed = {}
-        for r in robots:
-            x, y, th = world.pose(r)
-            paths[r].append((t, x, y, th))
-            ranges = range_readings(world.range_readings(r), angles, body)
-            brains[r].on_ranges(t, ranges)
-            if due:
-                pm, tm = tracking_sense(world, r, t)
-                sensed[r] = (decode(KEYS.sense_pose(r), encode(pm)), decode(KEYS.sense_targets(r), encode(tm)))
-        shares = {}
-        commands = {}
-        for r in robots:
-            if due:
-                shares[r] = encode(brains[r].on_sense(*sensed[r]))
-            commands[r] = brains[r].command()
-        for sender, data in shares.items():
-            msg = decode(KEYS.share(sender), data)
-            for r in robots:
-                if r != sender:
-                    brains[r].receive(sender, msg)
-        for r, (vl, vr) in commands.items():
-            world.set_wheels(r, vl, vr)
-        world.advance(TICK_S)
+    paths = {r: list(episode.progress[r].path) for r in robots}
     collisions = {r: int(world.stats(r)["collisions"]) for r in robots}
-    return TrackingRun(scenario.name, controller, int(seed if seed is not None else scenario.seed), paths, tpaths,
-                       meter.summary(), world.static_geometry(), world.state(), world.target_range, collisions)
+    return TrackingRun(scenario.name, controller, int(seed if seed is not None else scenario.seed), paths,
+                       run.target_paths, episode.meter.summary(), world.static_geometry(), world.state(),
+                       world.target_range, collisions)
 
 
 def outcome_doc(run: TrackingRun) -> dict[str, Any]:

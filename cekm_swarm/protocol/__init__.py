@@ -10,7 +10,7 @@ from .errors import (KeySpaceError, MessageArrayError, MessageError, MessageFiel
 from .keys import (DEFAULT_KEYS, DEFAULT_RANGE_SENSORS, DEFAULT_ROOT, WORLD, KeyKind, KeySpace, ParsedKey,
                    module_names, validate_module_name, validate_robot_id, validate_root, validate_run_id)
 from .messages import (MESSAGE_TYPES, MSGPACK_ENCODING, SCHEMA_VERSION, Clock, Message, ObstacleField, SenseRange,
-                       SensePose, SenseTarget, SenseTargets, Share, TargetField, TrackingField, WheelCommand, WorldState, decode, encode, peek, summary,
+                       SensePose, SenseTarget, SenseTargets, Share, TargetField, TrackingField, WheelCommand, WorldState, Data, decode, encode, peek, summary,
                        to_plain)
 
 __all__ = [
@@ -20,6 +20,6 @@ __all__ = [
     "DEFAULT_KEYS", "DEFAULT_RANGE_SENSORS", "DEFAULT_ROOT", "WORLD", "KeyKind", "KeySpace", "ParsedKey",
     "module_names", "validate_module_name", "validate_robot_id", "validate_root", "validate_run_id",
     "MESSAGE_TYPES", "MSGPACK_ENCODING", "SCHEMA_VERSION", "Clock", "Message", "ObstacleField", "SenseRange",
-    "SensePose", "SenseTarget", "SenseTargets", "Share", "TargetField", "TrackingField", "WheelCommand", "WorldState", "decode", "encode", "peek", "summary",
+    "SensePose", "SenseTarget", "SenseTargets", "Share", "TargetField", "TrackingField", "WheelCommand", "WorldState", "Data", "decode", "encode", "peek", "summary",
     "to_plain",
 ]

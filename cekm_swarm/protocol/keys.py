@@ -15,7 +15,12 @@ Keys (root ``cekm`` by default, ``<robot>`` a robot id such as ``r1``):
 ``<root>/world/state``                    KeyKind.WORLD_STATE
 ``<root>/world/clock``                    KeyKind.WORLD_CLOCK
 ``<root>/<owner>/alive/<module>[/<run>]`` KeyKind.ALIVE (liveliness tokens)
+``<root>/<robot>/<path>``                 KeyKind.NODE (a key a graph's node declares)
 ========================================  ======================
+
+A controller's graph (:mod:`cekm_swarm.graph`) may give its nodes keys of their own
+under the robot (``cekm/r1/fusion/avoid``): they parse as ``KeyKind.NODE`` and carry
+the message kind their node declares (``KeyKind.DATA`` for a node's own named values).
 
 A liveliness token carries the run id of the launch its process belongs to (a key space
 built with ``run``), so the world server counts only its own run's modules: a process
@@ -62,6 +67,10 @@ class KeyKind(str, enum.Enum):
     WORLD_STATE = "world/state"
     WORLD_CLOCK = "world/clock"
     ALIVE = "alive"
+    NODE = "node"
+    """A key a graph declares for a node's output (``<root>/<robot>/<path>``); not a message kind."""
+    DATA = "data"
+    """The message kind of a node's own named values (:class:`~cekm_swarm.protocol.messages.Data`); no key has it."""
 
     @property
     def indexed(self) -> bool:
@@ -78,6 +87,7 @@ class ParsedKey:
     index: int | None = None
     module: str | None = None
     run: str | None = None
+    path: str | None = None  # KeyKind.NODE: the key below the robot
 
 
 def validate_robot_id(robot: object) -> str:
@@ -190,6 +200,10 @@ class KeySpace:
     def field_obstacle(self, robot: str, j: int) -> str:
         """Obstacle module j -> motor module: sensor j's obstacle field."""
         return f"{self._robot(robot)}/field/obstacle/{self.check_index(j)}"
+
+    def node_key(self, robot: str, path: str) -> str:
+        """A key a graph declares for a node of ``robot`` (``path`` below the robot, e.g. ``fusion/avoid``)."""
+        return f"{self._robot(robot)}/{path}"
 
     def cmd_wheels(self, robot: str) -> str:
         """Motor module -> world: the wheel command."""
@@ -324,6 +338,8 @@ class KeySpace:
             for kind in (KeyKind.SENSE_RANGE, KeyKind.FIELD_OBSTACLE):
                 if suffix == kind.value:
                     return ParsedKey(kind, owner, self._index_in(key, rest[2]))
+        if 1 <= n <= 8 and rest[0] not in ("alive", "sense") and all(_CHUNK_RE.match(c) for c in rest):
+            return ParsedKey(KeyKind.NODE, owner, path="/".join(rest))
         raise KeySpaceError(f"key '{key}'", "not a key of the cekm key space (docs/design.md section 6)")
 
     def _index_in(self, key: str, text: str) -> int:

@@ -530,13 +530,32 @@ class Clock(_Message):
         self.tick = _int("tick", self.tick, hi=1 << 63)
 
 
+@dataclass(eq=False, slots=True)
+class Data(_Message):
+    """A node's own named values (on a key its graph declares): ``values`` = {name: plain
+    data}, where plain data is None, bool, int, finite float, str, and lists and
+    string-keyed maps of them. What a controller's intermediate results (command fusion's
+    two proposals, A-CMOMMT's force) and a user's own node send."""
+
+    stamp: float
+    sender: str
+    values: dict[str, Any]
+    KIND: ClassVar[KeyKind] = KeyKind.DATA
+
+    def __post_init__(self) -> None:
+        self._envelope()
+        if not isinstance(self.values, dict):
+            raise _fail("values", f"expected a map, got {type(self.values).__name__}")
+        self.values = _plain("values", self.values)
+
+
 Message = Union[SenseTarget, SenseRange, TargetField, ObstacleField, WheelCommand, Share, WorldState, Clock,
-                SensePose, SenseTargets, TrackingField]
+                SensePose, SenseTargets, TrackingField, Data]
 """Any message of the protocol."""
 
 MESSAGE_TYPES: dict[KeyKind, type] = {cls.KIND: cls for cls in
                                       (SenseTarget, SenseRange, TargetField, ObstacleField, WheelCommand, Share,
-                                       WorldState, Clock, SensePose, SenseTargets, TrackingField)}
+                                       WorldState, Clock, SensePose, SenseTargets, TrackingField, Data)}
 """The message class of each key kind (liveliness keys carry no message)."""
 
 for _cls in MESSAGE_TYPES.values():
@@ -587,8 +606,13 @@ def _parse_cached(keys: KeySpace, key: str) -> tuple[KeyKind, int | None]:
     return hit
 
 
-def decode(key: str | KeyKind, data: bytes | bytearray | memoryview, *, keys: KeySpace = DEFAULT_KEYS) -> Message:
+def decode(key: str | KeyKind, data: bytes | bytearray | memoryview, *, keys: KeySpace = DEFAULT_KEYS,
+           expect: KeyKind | None = None) -> Message:
     """Decode and validate the payload received on ``key`` (a key string, or a KeyKind).
+
+    A key a graph declares for a node (``KeyKind.NODE``) carries the kind its node
+    declares: ``expect`` (from the graph), or, when not given, whatever kind of the
+    protocol the payload says.
 
     Raises a MessageError subclass naming the key and field for anything wrong: bytes
     that are not one msgpack map, a wrong or missing version, a kind that does not match
@@ -603,6 +627,8 @@ def decode(key: str | KeyKind, data: bytes | bytearray | memoryview, *, keys: Ke
             kind, key_index = _parse_cached(keys, where)
         except KeySpaceError as exc:
             raise MessageKindError(exc.problem, key=where) from None
+        if kind is KeyKind.NODE:
+            kind = expect if expect is not None else _payload_kind(data, where)
     cls = MESSAGE_TYPES.get(kind)
     if cls is None:
         raise MessageKindError(f"keys of kind '{kind.value}' carry no message", key=where)
@@ -641,6 +667,18 @@ def decode(key: str | KeyKind, data: bytes | bytearray | memoryview, *, keys: Ke
     if "index" in expected and not key_index_ok(keys, msg.index):
         raise MessageFieldError(f"{msg.index} out of range 0..{keys.range_sensors - 1}", key=where, field="index")
     return msg
+
+
+def _payload_kind(data: bytes | bytearray | memoryview, where: str) -> KeyKind:
+    """The kind a payload on a graph's own key says it is (checked again by the decode)."""
+    got, _ = peek(bytes(data))
+    try:
+        kind = KeyKind(got)
+    except ValueError:
+        raise MessageKindError(f"message kind {got!r} is not a kind of the protocol", key=where, field="kind") from None
+    if kind not in MESSAGE_TYPES:
+        raise MessageKindError(f"message kind {got!r} is not a kind of the protocol", key=where, field="kind")
+    return kind
 
 
 def key_index_ok(keys: KeySpace, index: int) -> bool:

@@ -1,0 +1,180 @@
+"""``cekm run``: a scenario and a controller's graph in one process.
+
+The world's side of every tick is the world server's (:class:`world.episode.Episode` for
+navigation, :class:`world.tracking.TrackingEpisode` for tracking; the sense messages of
+:mod:`world.sense` and :func:`world.tracking.tracking_sense`); the robots' side is the
+graph's nodes, run by :class:`cekm_swarm.node.inprocess.GraphExecutor` by the same rule
+a lockstep run's processes follow. This module is where the two sides meet, as the
+message protocol: the controller never imports the world, and the world never imports
+the controller.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from ..errors import ParameterError
+from ..graph.check import CheckedGraph, check_graph
+from ..graph.spec import Graph, GraphError, graph_for
+from ..node.api import Context
+from ..node.inprocess import GraphExecutor
+from ..protocol import DEFAULT_KEYS, Clock, KeySpace, WorldState
+from ..robot import RobotBody
+from ..ticks import TICK_S
+
+DEFAULT_MAX_TIME = {"navigation": 600.0, "tracking": 120.0}
+"""Sim seconds of a run unless told otherwise, by task: the same for ``cekm run`` and
+``cekm launch`` (a navigation run ends sooner when every robot is at its goal)."""
+
+
+def default_max_time(task: str) -> float:
+    return DEFAULT_MAX_TIME[task]
+
+
+def resolve_graph(controller: str | None, graph: str | Graph | CheckedGraph | None, task: str) -> CheckedGraph:
+    """The checked graph of ``--controller NAME`` (its shipped graph for the task) or ``--graph FILE``."""
+    if isinstance(graph, CheckedGraph):
+        return graph
+    if graph is not None:
+        return check_graph(graph)
+    return check_graph(str(graph_for(controller or "cekm", task)))
+
+
+def with_params(checked: CheckedGraph, overrides: dict[str, Any] | None) -> CheckedGraph:
+    """``checked`` with ``overrides`` given to every node that declares them (like the
+    graph's ``[params]``); a name no node declares is a ParameterError, unless the
+    overrides say ``lenient = True`` (a whole parameter set handed to any graph)."""
+    if not overrides:
+        return checked
+    from ..node.api import param_fields
+
+    overrides = dict(overrides)
+    lenient = overrides.pop("lenient", False)
+
+    used: set[str] = set()
+    params = {}
+    for name, cls in checked.classes.items():
+        declared = param_fields(cls)
+        values = dict(checked.params[name])
+        for k, v in overrides.items():
+            if k in declared:
+                values[k] = v
+                used.add(k)
+        params[name] = values
+    unused = sorted(set(overrides) - used)
+    if unused and not lenient:
+        raise ParameterError(f"no node of graph {checked.graph.name!r} has a parameter {unused[0]!r}")
+    out = CheckedGraph(checked.graph, checked.classes, checked.ports, params)
+    for name in out.classes:
+        out.make_params(name)  # checks the values
+    return out
+
+
+def robot_body(world) -> RobotBody:
+    """What a robot's nodes know of their body and sensors, from the world."""
+    return RobotBody(world.body_radius, world.axle, world.v_max, world.sensor_range,
+                     tuple(float(a) for a in world.sensor_angles), world.target_range)
+
+
+@dataclass
+class GraphRun:
+    """One finished in-process run: the world, its episode, the plan and the executor."""
+
+    world: Any
+    episode: Any
+    plan: Any
+    executor: GraphExecutor
+    task: str
+    ticks: int
+    target_paths: dict[str, list[tuple[float, float]]] = field(default_factory=dict)
+
+
+def run_graph(scenario, controller: str | None = "cekm", *, graph: str | Graph | CheckedGraph | None = None,
+              model=None, seed: int | None = None, max_time: float | None = None, checkpoints=None,
+              params: dict[str, Any] | None = None, progress: Callable[[float], None] | None = None,
+              stop_at: int | None = None, codec: bool = False, keys: KeySpace = DEFAULT_KEYS) -> GraphRun:
+    """Run ``scenario`` with a controller's graph to the end (navigation: every robot at
+    its goal, or ``max_time``; tracking: ``max_time``). ``stop_at``: stop after computing
+    that tick (for a look at the fields, Fig. 4). ``progress(t)`` every simulated second."""
+    from world import World
+    from world.episode import Episode
+    from world.sense import SENDER, sense_messages
+    from world.tracking import TrackingEpisode, run_kind
+
+    task = run_kind(scenario, checkpoints or {})
+    checked = with_params(resolve_graph(controller, graph, task), params)
+    if max_time is None:
+        max_time = default_max_time(task)
+    world = World(scenario, seed=seed)
+    team = tuple(world.robot_ids)
+    angles = world.sensor_angles
+    try:
+        plan = checked.plan(team, task, len(angles), keys)
+    except GraphError:
+        raise
+    if checked.uses_model and model is None:
+        from .default_model import default_model
+
+        model = default_model()
+    body = robot_body(world)
+
+    def context(node) -> Context:
+        return Context(node.robot, node.decl.name, node.instance, team, body, "inprocess", model, "numba")
+
+    executor = GraphExecutor(plan, checked, context, codec=codec)
+    max_ticks = int(math.ceil(max_time / TICK_S))
+    episode = TrackingEpisode(world, max_ticks) if task == "tracking" else Episode(world, checkpoints)
+    reads = {r: set(plan.world_keys(r)) for r in team}
+    read_clock = any(n.clock_key is not None or any(s.key == keys.world_clock() for b in n.bindings for s in b.sources)
+                     for r in team for n in plan.nodes[r])
+    read_state = any(s.key == keys.world_state() for r in team for n in plan.nodes[r] for b in n.bindings
+                     for s in b.sources)
+    tpaths: dict[str, list[tuple[float, float]]] = {t: [] for t in getattr(world, "target_ids", [])}
+    while True:
+        k, t = episode.tick, episode.t
+        if progress and k % 8 == 0:
+            progress(t)
+        readings = episode.readings()
+        if task == "tracking":
+            st = world.state()
+            for tid, p in st["targets"].items():
+                tpaths.setdefault(tid, []).append((p["x"], p["y"]))
+        for rd in readings:
+            want = reads[rd.robot]
+            for key, msg in sense_messages(keys, rd, angles, world.body_radius):
+                if key in want:
+                    executor.put(key, k, msg)
+            sensed = getattr(episode, "sense", {}).get(rd.robot) if task == "tracking" else None
+            if sensed is not None:
+                pose, targets = sensed
+                executor.put(keys.sense_pose(rd.robot), k, pose)
+                executor.put(keys.sense_targets(rd.robot), k, targets)
+        if read_clock:
+            executor.put(keys.world_clock(), k, Clock(t, SENDER, k))
+        if read_state:
+            st = world.state()
+            executor.put(keys.world_state(), k, WorldState(t, SENDER, st["robots"], st["targets"], st["obstacles"]))
+        answers = executor.tick(k)
+        episode.apply({r: (c.v_l, c.v_r) for r, c in answers.items()})
+        if episode.done or episode.tick >= max_ticks or (stop_at is not None and k >= stop_at):
+            break
+        episode.advance()
+    return GraphRun(world, episode, plan, executor, task, episode.tick, tpaths)
+
+
+def controller_names() -> list[str]:
+    """Every controller that has a shipped graph."""
+    from ..graph.spec import shipped_graphs
+
+    return sorted({n.rsplit("-", 1)[0] if n.endswith(("-navigation", "-tracking")) else n for n in shipped_graphs()})
+
+
+def check_controller(controller: str, task: str) -> None:
+    """ParameterError when ``controller`` has no shipped graph for ``task``."""
+    try:
+        graph_for(controller, task)
+    except GraphError as exc:
+        raise ParameterError(exc.problem) from None

@@ -1,0 +1,16 @@
+"""The static baseline: the robot stays where it starts (c = 0 every tick)."""
+
+from __future__ import annotations
+
+from cekm_swarm.node import Node, Out
+from cekm_swarm.protocol import WheelCommand
+from cekm_swarm.ticks import tick_of
+
+
+class Stay(Node):
+    """No inputs: runs on the world's clock and always commands c = 0."""
+
+    outputs = {"command": Out(WheelCommand)}
+
+    def step(self, t, inputs):
+        return {"command": WheelCommand(t, self.ctx.sender, 0.0, 0.0, tick_of(t))}

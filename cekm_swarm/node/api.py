@@ -1,0 +1,284 @@
+"""The module API: what a node of a robot's controller declares and what it computes.
+
+A node is one module of a controller (target localization, one obstacle localization,
+motor integration, or a user's own). It declares, as class attributes:
+
+* ``inputs``: its input ports, ``{port: In(MessageType, many=False)}``; a graph binds each
+  port to keys (the robot's own, or every teammate's);
+* ``outputs``: its output ports, ``{port: Out(MessageType)}``; a graph gives each its key;
+* ``Params``: a frozen dataclass of its parameters with their defaults (a graph may set
+  them; a parameter the node does not declare is refused before anything starts);
+* ``stateful``: True when its outputs depend on more than the inputs of the tick (a
+  memory across ticks), so a restart changes what it computes;
+* ``uses_model``: True when it reads the run's trained model (:meth:`Context.model`).
+
+and computes in :meth:`Node.step`: ``step(t, inputs) -> {port: message}``, one message per
+output port every time it runs. The framework does the rest (the session, the liveliness
+token, validation and drop counting, stamp checks, which inputs of which tick a step sees
+in lockstep and in real time, restart and shutdown): :mod:`cekm_swarm.node.process` runs a
+node as its own process, :mod:`cekm_swarm.node.inprocess` runs a whole graph in one
+process, both by the same rule (:mod:`cekm_swarm.node.timing`). docs/modules.md walks
+through writing one.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+import threading
+import typing
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+from cekm_swarm.errors import CekmError
+from cekm_swarm.protocol import MESSAGE_TYPES
+from cekm_swarm.robot import RobotBody
+
+
+class NodeError(CekmError):
+    """A node cannot be built or run as declared (a bad parameter, a model it cannot use);
+    the message names the node and what is wrong. A node that raises it while starting is
+    a permanent failure: the launch ends with this line, and the node is not restarted."""
+
+
+@dataclass(frozen=True)
+class In:
+    """An input port: the message type it takes, and whether it takes many keys (every
+    instance of a node, or every teammate) or one."""
+
+    type: type
+    many: bool = False
+    doc: str = ""
+
+    def __post_init__(self) -> None:
+        if self.type not in MESSAGE_TYPES.values():
+            raise TypeError(f"In({self.type!r}): not a message type of cekm_swarm.protocol")
+
+
+@dataclass(frozen=True)
+class Out:
+    """An output port: the message type it sends."""
+
+    type: type
+    doc: str = ""
+
+    def __post_init__(self) -> None:
+        if self.type not in MESSAGE_TYPES.values():
+            raise TypeError(f"Out({self.type!r}): not a message type of cekm_swarm.protocol")
+
+
+@dataclass(frozen=True)
+class NoParams:
+    """A node without parameters."""
+
+
+_MODELS: dict[str, Any] = {}
+_SHARED: dict[Any, Any] = {}
+_LOCK = threading.Lock()
+
+
+@dataclass(frozen=True)
+class Context:
+    """What a node knows of where it runs: its robot, its name and instance, the team,
+    its body and sensors, the run's mode and model.
+
+    ``mode`` is ``lockstep``, ``realtime`` or ``inprocess`` (``cekm run``); ``backend``
+    is how EKM winners are found: ``numba`` in one process, ``numpy`` in a module process
+    (a third of the memory); both give the same winners bit for bit."""
+
+    robot: str
+    node: str
+    instance: int | None = None
+    team: tuple[str, ...] = ()
+    body: RobotBody = field(default_factory=RobotBody)
+    mode: str = "inprocess"
+    model_source: Any = None
+    backend: str = "numba"
+    log: logging.Logger = field(default_factory=lambda: logging.getLogger("cekm_swarm.node"), compare=False)
+
+    @property
+    def name(self) -> str:
+        """The node's name in the run: ``obstacle-3`` for instance 3 of ``obstacle``."""
+        return self.node if self.instance is None else f"{self.node}-{self.instance}"
+
+    @property
+    def sender(self) -> str:
+        """The ``sender`` of every message this node sends: ``r1/obstacle-3``."""
+        return f"{self.robot}/{self.name}"
+
+    @property
+    def teammates(self) -> tuple[str, ...]:
+        """The other robots of the team, in scenario order."""
+        return tuple(r for r in self.team if r != self.robot)
+
+    def model(self) -> Any:
+        """The run's trained model (loaded once per process, shared by its nodes)."""
+        src = self.model_source
+        if src is None:
+            raise NodeError(f"{self.sender}: this run has no model (give --model)")
+        if not isinstance(src, (str, tuple)):
+            return src  # an in-process run hands the model object itself
+        key = src if isinstance(src, str) else src[0]
+        with _LOCK:
+            held = _MODELS.get(key)
+        if held is None:
+            from cekm_swarm.models.io import load_model, load_model_bytes
+
+            held = load_model(src) if isinstance(src, str) else load_model_bytes(src[1], src[0])
+            with _LOCK:
+                if len(_MODELS) >= 8:
+                    _MODELS.clear()
+                _MODELS[key] = held
+        return held
+
+    def shared(self, key: Any, make: Callable[[], Any]) -> Any:
+        """A value computed once per process for ``key`` (say the EKM tables of a model
+        and its field parameters) and shared by every node of the process: what a pure
+        function of the key gives, so sharing never changes a result."""
+        with _LOCK:
+            if key in _SHARED:
+                return _SHARED[key]
+        value = make()
+        with _LOCK:
+            if len(_SHARED) >= 64:
+                _SHARED.clear()
+            return _SHARED.setdefault(key, value)
+
+
+class Node:
+    """Base class of a node (see the module's docstring). A subclass sets ``inputs``,
+    ``outputs`` and, when it has any, ``Params``; it may override :meth:`setup` (called
+    once, before the first step) and must override :meth:`step`."""
+
+    inputs: ClassVar[Mapping[str, In]] = {}
+    outputs: ClassVar[Mapping[str, Out]] = {}
+    Params: ClassVar[type] = NoParams
+    stateful: ClassVar[bool] = False
+    uses_model: ClassVar[bool] = False
+
+    def __init__(self, ctx: Context, params: Any = None) -> None:
+        self.ctx = ctx
+        self.params = params if params is not None else self.Params()
+        self.setup()
+
+    def setup(self) -> None:
+        """Build what the node needs (load the model, tabulate fields). Raise
+        :class:`NodeError` for a configuration it cannot use."""
+
+    def step(self, t: float, inputs: "Inputs") -> dict[str, Any]:
+        """Compute the outputs of the tick at sim time ``t``: one message per output port."""
+        raise NotImplementedError
+
+    def close(self) -> None:
+        """Called once when the node stops."""
+
+
+class Inputs(Mapping[str, Any]):
+    """The inputs a step sees: ``inputs[port]`` is the message (None when it is missing:
+    not sent yet, or stale in real time) for a one-key port, and a dict ``{source:
+    message}`` for a many-key port (sources are instance numbers or robot ids, in
+    instance or team order; missing ones left out)."""
+
+    __slots__ = ("_values",)
+
+    def __init__(self, values: dict[str, Any]) -> None:
+        self._values = values
+
+    def __getitem__(self, port: str) -> Any:
+        try:
+            return self._values[port]
+        except KeyError:
+            raise KeyError(f"no input port {port!r} (ports: {', '.join(self._values) or 'none'})") from None
+
+    def __iter__(self):
+        return iter(self._values)
+
+    def __len__(self) -> int:
+        return len(self._values)
+
+
+# --------------------------------------------------------------------------- parameters
+
+
+def param_fields(cls: type[Node]) -> dict[str, dataclasses.Field]:
+    """The declared parameters of a node class: name -> dataclass field."""
+    P = cls.Params
+    if not dataclasses.is_dataclass(P):
+        raise TypeError(f"{cls.__qualname__}.Params must be a dataclass, got {P!r}")
+    return {f.name: f for f in dataclasses.fields(P)}
+
+
+def param_default(f: dataclasses.Field) -> Any:
+    if f.default is not dataclasses.MISSING:
+        return f.default
+    if f.default_factory is not dataclasses.MISSING:  # type: ignore[misc]
+        return f.default_factory()  # type: ignore[misc]
+    return dataclasses.MISSING
+
+
+def _type_of(cls: type[Node], name: str) -> Any:
+    hints = typing.get_type_hints(cls.Params)
+    return hints.get(name, Any)
+
+
+def _coerce(value: Any, kind: Any, where: str) -> Any:
+    """``value`` as a parameter of type ``kind`` (bool, int, float, str, tuples of them), or
+    a ValueError naming ``where``."""
+    origin = typing.get_origin(kind)
+    if kind is Any:
+        return value
+    if kind is bool:
+        if type(value) is not bool:
+            raise ValueError(f"{where}: expected true or false, got {value!r}")
+        return value
+    if kind is int:
+        if type(value) is not int:
+            raise ValueError(f"{where}: expected an integer, got {value!r}")
+        return value
+    if kind is float:
+        if type(value) not in (int, float):
+            raise ValueError(f"{where}: expected a number, got {value!r}")
+        value = float(value)
+        if math.isnan(value):
+            raise ValueError(f"{where}: expected a number, got NaN")
+        return value
+    if kind is str:
+        if type(value) is not str:
+            raise ValueError(f"{where}: expected a string, got {value!r}")
+        return value
+    if origin is tuple:
+        if not isinstance(value, (list, tuple)):
+            raise ValueError(f"{where}: expected a list, got {value!r}")
+        args = typing.get_args(kind)
+        item = args[0] if args else Any
+        return tuple(_coerce(v, item, f"{where}[{i}]") for i, v in enumerate(value))
+    if origin in (typing.Union, getattr(__import__("types"), "UnionType", ())):
+        errors = []
+        for arm in typing.get_args(kind):
+            if arm is type(None):
+                if value is None:
+                    return None
+                continue
+            try:
+                return _coerce(value, arm, where)
+            except ValueError as exc:
+                errors.append(str(exc))
+        raise ValueError(errors[0] if errors else f"{where}: {value!r} does not fit {kind}")
+    return value
+
+
+def make_params(cls: type[Node], values: Mapping[str, Any], where: str) -> Any:
+    """The node's ``Params`` from ``values`` (a graph's settings), checked: an undeclared
+    name or a value of the wrong type is a ValueError naming ``where`` and the field."""
+    declared = param_fields(cls)
+    unknown = sorted(set(values) - set(declared))
+    if unknown:
+        raise ValueError(f"{where}: parameter {unknown[0]!r} is not declared by {cls.__module__}.{cls.__qualname__} "
+                         f"(its parameters: {', '.join(declared) or 'none'})")
+    kw = {name: _coerce(v, _type_of(cls, name), f"{where}.{name}") for name, v in values.items()}
+    try:
+        return cls.Params(**kw)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{where}: {exc}") from None

@@ -1,0 +1,95 @@
+"""A whole graph in one process (``cekm run``): every node instance of every robot, run at
+each tick in the graph's order with the inputs the rule names (:func:`.timing.gather`),
+the same values a lockstep run's processes wait for. So ``cekm launch --mode lockstep``
+equals ``cekm run`` bit for bit, by construction rather than by a second copy of the
+controller's schedule.
+
+Messages pass between nodes as objects. They are validated and normalized when built
+(floats, read-only float64 arrays), which is what decoding gives, so a process reading
+them off the wire computes the same; ``codec=True`` sends every message through
+``encode``/``decode`` anyway, to check exactly that (tests do).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+from cekm_swarm.graph.check import CheckedGraph
+from cekm_swarm.graph.plan import NodePlan, RunPlan
+from cekm_swarm.protocol import KeyKind, decode, encode
+from cekm_swarm.ticks import TICK_S
+
+from .api import Context, NodeError
+from .timing import Runner, gather
+
+KEEP_TICKS = 16
+"""Ticks of values kept per key (more than any shipped node's period and delay need)."""
+
+
+class GraphExecutor:
+    """Run ``plan``'s nodes tick by tick: :meth:`put` the world's messages of tick k, then
+    :meth:`tick` (k) returns each robot's answer (its wheel command of tick k)."""
+
+    def __init__(self, plan: RunPlan, checked: CheckedGraph, context: Callable[[NodePlan], Context],
+                 codec: bool = False) -> None:
+        self.plan = plan
+        self.codec = codec
+        self.runners: list[Runner] = []
+        for robot in plan.team:
+            for node in plan.nodes[robot]:
+                cls = checked.classes[node.decl.name]
+                self.runners.append(Runner(node, cls(context(node), checked.make_params(node.decl.name))))
+        self.values: dict[str, dict[int, Any]] = {}
+        self.answer_keys = {r: plan.answer_key(r) for r in plan.team}
+        keep = max([n.period for r in plan.team for n in plan.nodes[r]] + [1])
+        self.keep = max(KEEP_TICKS, 4 * keep)
+        self.kinds = {k: KeyKind(v) for r in plan.team for k, v in plan.sent_keys(r).items()}
+
+    def _lookup(self, key: str, tick: int) -> Any:
+        held = self.values.get(key)
+        return None if held is None else held.get(tick)
+
+    def _store(self, key: str, tick: int, msg: Any) -> None:
+        if self.codec:
+            msg = decode(key, encode(msg), keys=self.plan.keys, expect=self.kinds.get(key))
+        self.values.setdefault(key, {})[tick] = msg
+
+    def put(self, key: str, tick: int, msg: Any) -> None:
+        """A world message of tick ``tick`` on ``key``."""
+        self._store(key, tick, msg)
+
+    def tick(self, k: int) -> dict[str, Any]:
+        """Run every node due at tick ``k``; each robot's answer."""
+        for runner in self.runners:
+            node = runner.plan
+            if k % node.period:
+                continue
+            inputs, missing = gather(node, k, self._lookup)
+            if missing:
+                raise NodeError(f"{node.label}: at t={round(k * TICK_S, 9)} nothing has sent {missing[0]} (in lockstep "
+                                f"this node would wait for it forever)")
+            for key, msg in runner.run(k, inputs):
+                self._store(key, k, msg)
+        answers = {r: self._lookup(key, k) for r, key in self.answer_keys.items()}
+        if k % self.keep == 0:
+            old = k - self.keep
+            for held in self.values.values():
+                for t in [t for t in held if t < old]:
+                    del held[t]
+        return answers
+
+    def output(self, key: str, tick: int) -> Any:
+        """What was sent on ``key`` at ``tick`` (while it is kept), e.g. a robot's fields for Fig. 4."""
+        return self._lookup(key, tick)
+
+    def node(self, robot: str, name: str):
+        """The node object of ``robot``'s node instance ``name``."""
+        for r in self.runners:
+            if r.plan.robot == robot and r.plan.name == name:
+                return r.node
+        raise KeyError(f"{robot}/{name}")
+
+    def close(self) -> None:
+        for r in self.runners:
+            r.node.close()

@@ -1,0 +1,332 @@
+"""When a node runs and what it sees: the one rule of :mod:`cekm_swarm.graph.plan`, for a
+node in its own process (lockstep and real time) and for a whole graph in one process.
+
+* :func:`gather` builds a step's inputs at tick k from any store of received values, by
+  the rule (delay 0: the producer's latest run at or before k; delay 1: strictly before).
+* :class:`LockstepGate`: a node runs at a due tick once it holds every value the rule
+  names from every live producer, whatever order they arrive in; ticks run in increasing
+  order. A value that arrives again for what the last run used (the world re-publishes a
+  stalled tick so a restarted module catches up) makes it send that run's outputs again.
+* :class:`RealtimeGate`: a node runs at its newest due tick as soon as every live
+  same-tick producer has delivered (or at once, with what came, when a later tick
+  begins), with the latest value of each source; a value older than its staleness limit
+  counts as missing.
+
+Everything here is plain Python, free of Zenoh: :mod:`cekm_swarm.node.process` feeds it
+from subscriptions, :mod:`cekm_swarm.node.inprocess` from a whole graph's outputs.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from cekm_swarm.graph.plan import Binding, NodePlan, needed_tick
+from cekm_swarm.ticks import TICK_S, tick_time
+
+from .api import Inputs, Node, NodeError
+
+KEEP_TICKS = 64
+"""Ticks of received values a gate keeps behind its last run (a bound whatever arrives)."""
+
+Drop = Callable[[str, str], None]
+"""Called with (source key, reason) for a value a gate refuses (the shell counts it)."""
+
+
+def tick_of(stamp: float) -> int:
+    return int(round(stamp / TICK_S))
+
+
+def _never(owner: str) -> bool:
+    return False
+
+
+def gather(node: NodePlan, k: int, lookup: Callable[[str, int], Any], skip: Callable[[str], bool] = _never
+           ) -> tuple[Inputs, list[str]]:
+    """The inputs of ``node``'s run at tick ``k``, by the rule, from ``lookup(key, tick)``
+    (a message or None); and the keys still missing (a source whose owner ``skip`` names,
+    a gone teammate, is not missing). Many-key ports hold what is there, in source order."""
+    values: dict[str, Any] = {}
+    missing: list[str] = []
+    for b in node.bindings:
+        delay = b.delay
+        if b.many:
+            got = {}
+            for s in b.sources:
+                n = needed_tick(k, s.period, delay)
+                if n is None or skip(s.owner):
+                    continue
+                m = lookup(s.key, n)
+                if m is None:
+                    missing.append(s.key)
+                else:
+                    got[s.label] = m
+            values[b.port] = got
+        else:
+            s = b.sources[0]
+            n = needed_tick(k, s.period, delay)
+            m = None if n is None else lookup(s.key, n)
+            if m is None and n is not None and not skip(s.owner):
+                missing.append(s.key)
+            values[b.port] = m
+    return Inputs(values), missing
+
+
+class Runner:
+    """A node and the checks of what its step returns: one message per output port, of
+    the port's type, stamped with the tick's time."""
+
+    __slots__ = ("plan", "node", "runs", "_outs")
+
+    def __init__(self, plan: NodePlan, node: Node) -> None:
+        self.plan, self.node, self.runs = plan, node, 0
+        self._outs = [(port, key, node.outputs[port].type) for port, key in plan.outputs.items()]
+
+    def run(self, k: int, inputs: Inputs) -> list[tuple[str, Any]]:
+        t = tick_time(k)
+        out = self.node.step(t, inputs)
+        if type(out) is not dict or len(out) != len(self._outs):
+            self._refuse(out, t)
+        sent = []
+        for port, key, want in self._outs:
+            msg = out.get(port)
+            if type(msg) is not want or msg.stamp != t:
+                self._refuse(out, t)
+            sent.append((key, msg))
+        self.runs += 1
+        return sent
+
+    def _refuse(self, out: Any, t: float) -> None:
+        """Raise the NodeError that says what is wrong with a step's return value."""
+        label = self.plan.label
+        if not isinstance(out, dict):
+            raise NodeError(f"{label}: step() returned {type(out).__name__}, expected a dict of its outputs")
+        extra = set(out) - {p for p, _, _ in self._outs}
+        if extra:
+            raise NodeError(f"{label}: step() returned unknown output {sorted(extra)[0]!r}")
+        for port, _, want in self._outs:
+            msg = out.get(port)
+            if msg is None:
+                raise NodeError(f"{label}: step() at t={t} gave no message for output {port!r}")
+            if type(msg) is not want:
+                raise NodeError(f"{label}: output {port!r} must be {want.__name__}, got {type(msg).__name__}")
+            if msg.stamp != t:
+                raise NodeError(f"{label}: output {port!r} is stamped {msg.stamp}, the tick is {t}")
+        raise NodeError(f"{label}: step() returned {out!r}")
+
+
+def _triggers(node: NodePlan) -> dict[str, tuple[int, int]]:
+    """Keys whose arrival opens due ticks: key -> (producer period, 0); the clock -> (1, 0)."""
+    out = {}
+    for b in node.bindings:
+        if b.delay == 0:
+            for s in b.sources:
+                out[s.key] = (s.period, 0)
+    if node.clock_key is not None:
+        out[node.clock_key] = (1, 0)
+    return out
+
+
+@dataclass
+class LockstepGate:
+    """A node's lockstep timing (see the module docstring). ``put(key, msg)`` returns the
+    messages to send now; ``teammate(robot, alive)`` marks a teammate gone or back."""
+
+    runner: Runner
+    drop: Drop = lambda key, why: None
+    done: int = -1
+    last_out: list[tuple[str, Any]] = field(default_factory=list)
+    recent_out: list[list[tuple[str, Any]]] = field(default_factory=list)
+    used: dict[str, int] = field(default_factory=dict)
+    gone: set[str] = field(default_factory=set)
+    store: dict[str, dict[int, Any]] = field(default_factory=dict)
+    candidates: set[int] = field(default_factory=set)
+    repeats: int = 0
+
+    def __post_init__(self) -> None:
+        self.node = self.runner.plan
+        self.trigger = _triggers(self.node)
+        self.watched = {s.key for b in self.node.bindings for s in b.sources}
+
+    def _lookup(self, key: str, tick: int) -> Any:
+        return self.store.get(key, {}).get(tick)
+
+    def put(self, key: str, msg: Any) -> list[tuple[str, Any]]:
+        k = tick_of(msg.stamp)
+        if key not in self.watched and key not in self.trigger:
+            return []
+        if k <= self.done and key in self.used and self.used[key] == k:
+            self.repeats += 1
+            return list(self.last_out)  # a value again for what the last run used: send that run again
+        if key in self.watched:
+            held = self.store.setdefault(key, {})
+            held[k] = msg
+            if len(held) > KEEP_TICKS:
+                for old in sorted(held)[:len(held) - KEEP_TICKS]:
+                    del held[old]
+        trig = self.trigger.get(key)
+        if trig is not None:
+            period = trig[0]
+            for c in range(k, k + period):
+                if c > self.done and self.node.due(c):
+                    self.candidates.add(c)
+        return self._advance()
+
+    def teammate(self, robot: str, alive: bool) -> list[tuple[str, Any]]:
+        if alive:
+            self.gone.discard(robot)
+            return []
+        self.gone.add(robot)
+        return self._advance()
+
+    def _advance(self) -> list[tuple[str, Any]]:
+        out: list[tuple[str, Any]] = []
+        while self.candidates:
+            ready = None
+            for c in sorted(self.candidates):
+                inputs, missing = gather(self.node, c, self._lookup, self.gone.__contains__)
+                if not missing:
+                    ready = (c, inputs)
+                    break
+            if ready is None:
+                return out
+            c, inputs = ready
+            sent = self.runner.run(c, inputs)
+            self.done = c
+            self.last_out = sent
+            self.recent_out = (self.recent_out + [sent])[-4:]
+            self.used = {}
+            for b in self.node.bindings:
+                for s in b.sources:
+                    n = needed_tick(c, s.period, b.delay)
+                    if n is not None:
+                        self.used[s.key] = n
+            self.candidates = {x for x in self.candidates if x > c}
+            self._forget(c)
+            out += sent
+        return out
+
+    def _forget(self, c: int) -> None:
+        """Values no run after tick ``c`` can read (older than every source's need at c)."""
+        for b in self.node.bindings:
+            for s in b.sources:
+                n = needed_tick(c, s.period, b.delay)
+                held = self.store.get(s.key)
+                if held and n is not None:
+                    for old in [t for t in held if t < n]:
+                        del held[old]
+
+    def resend(self) -> list[tuple[str, Any]]:
+        """The recent runs' outputs, oldest first: what a (re)started reader of them asks
+        for (a teammate reads the previous run's share, which it missed while down)."""
+        return [m for run in self.recent_out for m in run]
+
+
+@dataclass
+class RealtimeGate:
+    """A node's real-time timing (see the module docstring)."""
+
+    runner: Runner
+    drop: Drop = lambda key, why: None
+    latest: dict[str, tuple[int, Any]] = field(default_factory=dict)
+    open_tick: int = -1  # the newest due tick seen
+    done: int = -1
+    gone: set[str] = field(default_factory=set)
+    stale_drops: dict[str, int] = field(default_factory=dict)
+    _stale_now: set[str] = field(default_factory=set)
+
+    def __post_init__(self) -> None:
+        self.node = self.runner.plan
+        self.trigger = _triggers(self.node)
+        self.watched = {s.key for b in self.node.bindings for s in b.sources}
+        self.binding_of: dict[str, tuple[Binding, Any]] = {s.key: (b, s) for b in self.node.bindings for s in b.sources}
+
+    def _due_at_or_before(self, k: int) -> int:
+        return k - k % self.node.period
+
+    def put(self, key: str, msg: Any) -> list[tuple[str, Any]]:
+        k = tick_of(msg.stamp)
+        out: list[tuple[str, Any]] = []
+        trig = self.trigger.get(key)
+        if trig is not None:
+            c = self._due_at_or_before(k)
+            if c > self.open_tick:
+                if self.open_tick > self.done:
+                    out += self._run(self.open_tick)  # a later tick began: the open one runs with what came
+                self.open_tick = c
+        if key in self.watched:
+            held = self.latest.get(key)
+            if held is not None and k < held[0]:
+                self.drop(key, f"stamp {msg.stamp} older than the latest from this source ({tick_time(held[0])})")
+                return out
+            self.latest[key] = (k, msg)
+        if self.open_tick > self.done and self._complete(self.open_tick):
+            out += self._run(self.open_tick)
+        return out
+
+    def teammate(self, robot: str, alive: bool) -> list[tuple[str, Any]]:
+        if alive:
+            self.gone.discard(robot)
+        else:
+            self.gone.add(robot)
+            for key, (b, s) in self.binding_of.items():
+                if s.owner == robot:
+                    self.latest.pop(key, None)
+        return []
+
+    def _live(self, key: str, c: int) -> bool:
+        held = self.latest.get(key)
+        if held is None:
+            return False
+        b, _ = self.binding_of[key]
+        return (c - held[0]) * TICK_S <= b.stale_s + 1e-9
+
+    def _complete(self, c: int) -> bool:
+        for b in self.node.bindings:
+            if b.delay != 0:
+                continue
+            for s in b.sources:
+                if not self._live(s.key, c):
+                    continue  # not heard from within its limit: not waited for
+                if self.latest[s.key][0] < needed_tick(c, s.period, 0):
+                    return False
+        return True
+
+    def _lookup_at(self, c: int) -> Callable[[str, int], Any]:
+        def lookup(key: str, tick: int) -> Any:
+            held = self.latest.get(key)
+            if held is None:
+                return None
+            b, _ = self.binding_of[key]
+            if held[0] > c or (b.delay == 1 and held[0] >= c):
+                return None
+            if not self._live(key, c):
+                self._stale(key, held[0], c)
+                return None
+            self._stale_now.discard(key)
+            return held[1]
+
+        return lookup
+
+    def _stale(self, key: str, tick: int, c: int) -> None:
+        if key not in self._stale_now:
+            self._stale_now.add(key)
+            self.stale_drops[key] = self.stale_drops.get(key, 0) + 1
+
+    def _run(self, c: int) -> list[tuple[str, Any]]:
+        inputs, _ = gather(self.node, c, self._lookup_at(c), self.gone.__contains__)
+        self.done = c
+        return self.runner.run(c, inputs)
+
+    def resend(self) -> list[tuple[str, Any]]:
+        return []
+
+
+def realtime_inputs_stale(node: NodePlan) -> dict[str, float]:
+    """Each source key's staleness limit (s), for logs."""
+    return {s.key: b.stale_s for b in node.bindings for s in b.sources}
+
+
+__all__ = ["gather", "Runner", "LockstepGate", "RealtimeGate", "KEEP_TICKS", "tick_of", "math"]
