@@ -187,8 +187,11 @@ def _model(path: Path | None):
 
 @main.command("run")
 @click.argument("scenario")
-@click.option("--controller", type=click.Choice(["cekm", "fusion", "acmommt", "stay"]), default="cekm",
-              show_default=True, help="cekm or fusion for navigation; cekm, acmommt or stay for tracking.")
+@click.option("--controller", default="cekm", show_default=True, metavar="NAME",
+              help="The controller whose graph runs (cekm graph list): cekm or fusion for navigation; cekm, acmommt "
+                   "or stay for tracking.")
+@click.option("--graph", "graph_file", type=click.Path(dir_okay=False, exists=True, path_type=Path),
+              help="Run a graph file of your own instead (docs/modules.md).")
 @click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               help="A trained model (.npz from `cekm train`); default: R15 trained and cached on first use.")
 @click.option("--seed", type=SEED, help="World seed (default: the scenario's).")
@@ -196,33 +199,38 @@ def _model(path: Path | None):
               help="Sim seconds before a robot counts as trapped (default 600); for a tracking scenario, the "
                    "run's length (default 120).")
 @out_dir_options("Directory for outcome.json and trajectory.png.")
-def run_cmd(scenario: str, controller: str, model_path: Path | None, seed: int | None, max_time: float | None,
-            out_dir: Path, overwrite: bool) -> None:
-    """Run SCENARIO (a name under world/scenarios or a .toml path) in one process, no Zenoh.
+def run_cmd(scenario: str, controller: str, graph_file: Path | None, model_path: Path | None, seed: int | None,
+            max_time: float | None, out_dir: Path, overwrite: bool) -> None:
+    """Run SCENARIO (a name under world/scenarios or a .toml path) in one process, no Zenoh:
+    the controller's graph, every node in this process, by the rule a lockstep launch
+    follows (so `cekm launch --mode lockstep` gives the same run).
 
     A scenario with targets whose robots have no goal is a tracking scenario (Fig. 13)."""
+    from .experiments.graph_run import default_max_time, resolve_graph
     from .experiments.navigation import plot_run, run_scenario
+    from .graph.spec import GraphError
 
     sc = _load_scenario(scenario)
-    if _run_kind(sc) == "tracking":
+    task = _run_kind(sc)
+    try:
+        checked = resolve_graph(controller, None if graph_file is None else str(graph_file), task)
+        checked.plan([r.id for r in sc.robots], task)
+    except GraphError as exc:
+        raise click.UsageError(str(exc)) from None
+    controller = checked.graph.controller
+    model = _model(model_path) if checked.uses_model else None
+    if task == "tracking":
         from .experiments.tracking import run_tracking_cmd
 
-        if controller not in ("cekm", "acmommt", "stay"):
-            raise click.UsageError(f"--controller {controller}: {sc.name!r} is a tracking scenario "
-                                   "(cekm, acmommt or stay)")
-        if controller == "cekm":
-            _model(model_path)
         prepare_out_dir(out_dir, overwrite)
-        run_tracking_cmd(sc, controller, model_path, seed, max_time, out_dir)
+        run_tracking_cmd(sc, controller, model_path, seed, max_time, out_dir, graph=checked, model=model)
         return
-    if controller not in ("cekm", "fusion"):
-        raise click.UsageError(f"--controller {controller}: {sc.name!r} is a navigation scenario (cekm or fusion)")
-    max_time = 600.0 if max_time is None else max_time
-    model = _model(model_path)
+    max_time = default_max_time(task) if max_time is None else max_time
     prepare_out_dir(out_dir, overwrite)
     t0 = time.perf_counter()
-    run = run_scenario(sc, controller, model, seed, max_time)
-    doc = {"scenario": sc.name, "controller": controller, "seed": run.seed, "robots": run.outcome,
+    run = run_scenario(sc, controller, model, seed, max_time, graph=checked)
+    doc = {"scenario": sc.name, "controller": controller, "graph": checked.graph.name, "seed": run.seed,
+           "robots": run.outcome,
            "wall_seconds": round(time.perf_counter() - t0, 3)}
     (out_dir / "outcome.json").write_text(json.dumps(doc, indent=1))
     fig = plot_run(run)
@@ -329,9 +337,11 @@ _register_launch_commands()
 
 
 def _register_view_command() -> None:
+    from .graph.commands import graph_group
     from .view.command import view_cmd
 
     main.add_command(view_cmd)
+    main.add_command(graph_group)
 
 
 _register_view_command()

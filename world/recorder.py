@@ -26,18 +26,30 @@ class RecordFilter:
     this run does not have, is counted without a channel being opened for it), so the log
     holds at most a fixed set of channels and no stamp a writer cannot hold."""
 
-    def __init__(self, keys: KeySpace, robots: list[str], drops: DropCounter) -> None:
+    def __init__(self, keys: KeySpace, robots: list[str], drops: DropCounter,
+                 declared: dict[str, str] | None = None) -> None:
         self.keys, self.robots, self.drops = keys, frozenset(robots), drops
+        self.declared = None if declared is None else {k: KeyKind(v) for k, v in declared.items()}
         self._known: dict[str, tuple[KeyKind, int | None] | None] = {}
         self.vectors = VectorCache()  # the fields' rows, checked once (protocol.hotpath)
+        self._expect: dict[str, KeyKind] = {}
 
     def _key(self, key: str) -> tuple[KeyKind, int | None] | None:
-        """(kind, sensor index) of a key of this run, None for any other key."""
+        """(kind, sensor index) of a key of this run, None for any other key. With the run's
+        graph (``declared``: every key its nodes send, and its kind), a robot's key is one
+        of those; without it, any key of a robot of the run."""
         hit = self._known.get(key, False)
         if hit is False:
             try:
                 p = self.keys.parse(key)
                 hit = (p.kind, p.index) if p.robot is None or p.robot in self.robots else None
+                if hit is not None and p.robot is not None and self.declared is not None:
+                    kind = self.declared.get(key)
+                    hit = None if kind is None else (kind if p.kind is KeyKind.NODE else p.kind, p.index)
+                    if kind is not None:
+                        self._expect[key] = kind
+                elif hit is not None and p.kind is KeyKind.NODE:
+                    hit = None  # no graph: only the key space's own keys
             except KeySpaceError:
                 hit = None
             if len(self._known) < 4096:  # only ever a bounded memo: foreign keys are unbounded
@@ -50,7 +62,8 @@ class RecordFilter:
         instead of a full decode: the world does this for every field of every tick)."""
         kind = self._key(key)
         if kind is None:
-            self.drops.drop(key, "key outside this run's key space")
+            self.drops.drop(key, "key outside this run's key space" if self.declared is None
+                            else "not a key of this run's world or of its graph's nodes")
             return None
         u = None
         if kind[0] is KeyKind.FIELD_OBSTACLE:
@@ -60,7 +73,7 @@ class RecordFilter:
         if u is not None:  # exactly what decode accepts (tests/protocol/test_hotpath.py)
             stamp = u[0]
         else:
-            msg = self.drops.decode(key, payload)
+            msg = self.drops.decode(key, payload, expect=self._expect.get(key))
             if msg is None:
                 return None
             stamp = msg.stamp

@@ -71,6 +71,8 @@ import zenoh
 
 from cekm_swarm.protocol import DEFAULT_ROOT, Clock, DropCounter, KeySpace, WheelCommand, WorldState, encode
 from cekm_swarm.errors import CekmError
+from cekm_swarm.graph.runspec import RunSpec
+from cekm_swarm.graph.spec import GraphError
 from cekm_swarm.protocol.stamps import PAST_S, stamp_problem
 from cekm_swarm.runtime.bridge import (InlineSubscription, LivelinessWatcher, Publishers, Received, declare_alive,
                                        wait_matching_async)
@@ -80,7 +82,8 @@ from cekm_swarm.runtime.gc_tuning import freeze_startup_heap
 from cekm_swarm.runtime.lifetime import die_with_parent
 from cekm_swarm.runtime.mcap_log import McapRecorder
 from cekm_swarm.runtime.process_args import Param, add_params, run_id_arg, to_argv
-from cekm_swarm.runtime.record import serve_geometry
+from cekm_swarm.runtime.record import serve_geometry, serve_json
+from cekm_swarm.runtime.rungraph import default_nodes
 
 from .deadman import DEADMAN_S, Deadman
 from .episode import TICK_S, Episode, TickReadings
@@ -161,6 +164,25 @@ def parse_checkpoints(value: str, robots: list[str]) -> dict[str, list[tuple[flo
     return out
 
 
+def load_run_graph(path: str | None, scenario: Any, robots: list[str], task: str, root: str,
+                   run_id: str | None) -> tuple[Any, Any]:
+    """The run spec at ``path`` and its plan for this run (None, None without one),
+    refused with a :class:`CheckpointsError`-like one-line error when it does not fit the
+    scenario (another team, task or key root)."""
+    if not path:
+        return None, None
+    spec = RunSpec.read(path)
+    if tuple(spec.team) != tuple(robots):
+        raise GraphError(path, "team", f"the run spec is for robots {', '.join(spec.team)}, the scenario "
+                                       f"{scenario.name!r} has {', '.join(robots)}")
+    if spec.task != task:
+        raise GraphError(path, "task", f"the run spec is for a {spec.task} run, {scenario.name!r} is a {task} scenario")
+    if spec.root != root:
+        raise GraphError(path, "root", f"the run spec's key root is {spec.root!r}, the world's {root!r}")
+    spec = spec.with_(run_id=run_id)
+    return spec, spec.plan()
+
+
 class WorldServer:
     """One run of a scenario over Zenoh (see the module's docstring), set up from a
     :class:`WorldConfig`; :meth:`run` runs it and writes its outputs."""
@@ -170,18 +192,26 @@ class WorldServer:
         self.keys = KeySpace(cfg.root, run=cfg.run_id)
         self.scenario = load_scenario(cfg.scenario)
         checkpoints = parse_checkpoints(cfg.checkpoints, [r.id for r in self.scenario.robots]) if cfg.checkpoints else None
-        self.tracking = run_kind(self.scenario, checkpoints or {}) == "tracking"  # docs/tracking.md
+        task = run_kind(self.scenario, checkpoints or {})
+        self.tracking = task == "tracking"  # docs/tracking.md
         self.world = World(self.scenario, seed=cfg.seed)
         self.robots = list(self.world.robot_ids)
+        self.spec, self.plan = load_run_graph(cfg.spec, self.scenario, self.robots, task, cfg.root, cfg.run_id)
+        self.controller = self.spec.graph.controller if self.spec is not None else "cekm"
         self.out = Path(cfg.out)
         self.out.mkdir(parents=True, exist_ok=True)
         self.lockstep = cfg.mode == "lockstep"
         self.max_ticks = int(math.ceil(cfg.max_time / TICK_S))
         self.drops = DropCounter("world commands", keys=self.keys)
         self.record_drops = DropCounter("world recorder", keys=self.keys)
-        self.record_filter = RecordFilter(self.keys, self.robots, self.record_drops)
+        declared = None if self.plan is None else {k: v for r in self.robots for k, v in self.plan.sent_keys(r).items()}
+        self.record_filter = RecordFilter(self.keys, self.robots, self.record_drops, declared)
         self.episode = TrackingEpisode(self.world, self.max_ticks) if self.tracking else Episode(self.world, checkpoints)
-        self.cmd_keys = {self.keys.cmd_wheels(r): r for r in self.robots}
+        self.cmd_keys = ({self.plan.answer_key(r): r for r in self.robots} if self.plan is not None
+                         else {self.keys.cmd_wheels(r): r for r in self.robots})
+        # what the world publishes per robot: the sense keys its graph reads (no graph: every one of the task)
+        self.sends: dict[str, set[str]] | None = (None if self.plan is None else
+                                                   {r: set(self.plan.world_keys(r)) for r in self.robots})
         self.latest: dict[str, WheelCommand] = {}
         self.arrived = asyncio.Event()
         self.events: list[dict[str, Any]] = []
@@ -211,7 +241,7 @@ class WorldServer:
         self.views: Any = None  # Foxglove views of the log, when foxglove-sdk is installed
         self.pubs: Publishers | None = None
         self.record_sub: Any = None  # Zenoh subscriber with a ring channel (RECORD_QUEUE)
-        self.cmd_sub: InlineSubscription | None = None
+        self.cmd_subs: list[InlineSubscription] = []
 
     # ------------------------------------------------------------------ receiving
 
@@ -299,15 +329,19 @@ class WorldServer:
         self.sent_at[ep.t] = time.monotonic()
         if len(self.sent_at) > 64:
             self.sent_at.pop(next(iter(self.sent_at)))
+        sends = self.sends
         for rd in readings:
+            want = None if sends is None else sends[rd.robot]
             for key, payload in self._sense(rd):
-                self._put(key, payload, rd.t)
+                if want is None or key in want:
+                    self._put(key, payload, rd.t)
             if rd.target is not None:
                 self.last_target[rd.robot] = payload  # the last one: the target's
             if self.tracking and rd.robot in ep.sense:
                 pose, targets = self.last_tracking[rd.robot] = ep.sense[rd.robot]
-                self._send(self.keys.sense_targets(rd.robot), targets)
-                self._send(self.keys.sense_pose(rd.robot), pose)
+                for key, msg in ((self.keys.sense_targets(rd.robot), targets), (self.keys.sense_pose(rd.robot), pose)):
+                    if want is None or key in want:
+                        self._send(key, msg)
         self._send(self.keys.world_clock(), Clock(ep.t, SENDER, ep.tick))
         st = w.state()
         self._send(self.keys.world_state(), WorldState(ep.t, SENDER, st["robots"], st["targets"], st["obstacles"]))
@@ -335,16 +369,19 @@ class WorldServer:
         for rd in readings:
             if rd.robot not in waiting:
                 continue
+            want = None if self.sends is None else self.sends[rd.robot]
             sense = self._sense(rd)
             for key, payload in sense[:len(w.sensor_angles)]:
-                self._put(key, payload, rd.t)
+                if want is None or key in want:
+                    self._put(key, payload, rd.t)
             last = self.last_target.get(rd.robot)
-            if last is not None:
+            if last is not None and (want is None or self.keys.sense_target(rd.robot) in want):
                 self._put(self.keys.sense_target(rd.robot), last, rd.t)
             sensed = self.last_tracking.get(rd.robot)
             if sensed is not None:  # tracking: the latest target tick's pose and targets
-                self._send(self.keys.sense_targets(rd.robot), sensed[1])
-                self._send(self.keys.sense_pose(rd.robot), sensed[0])
+                for key, msg in ((self.keys.sense_targets(rd.robot), sensed[1]), (self.keys.sense_pose(rd.robot), sensed[0])):
+                    if want is None or key in want:
+                        self._send(key, msg)
         self._record_sent()
         self.republished += 1
 
@@ -479,18 +516,24 @@ class WorldServer:
             self.pubs = Publishers(session, block=True, express=False)
             self.record_sub = session.declare_subscriber(self.keys.everything(), zenoh.handlers.RingChannel(RECORD_QUEUE),
                                                          allowed_origin=zenoh.Locality.REMOTE)
-            self.cmd_sub = InlineSubscription(session, self.keys.cmd_wheels_all(), self._on_command)
+            answers_on = ([self.keys.cmd_wheels_all()] if all(k == self.keys.cmd_wheels(r) for k, r in self.cmd_keys.items())
+                          else list(self.cmd_keys))
+            self.cmd_subs = [InlineSubscription(session, k, self._on_command) for k in answers_on]
             token = declare_alive(session, self.keys.alive("world", "server"))
             scene = serve_geometry(session, self.keys.world_geometry(), geometry)  # for `cekm record`
+            graph_q = None if self.spec is None else serve_json(session, self.keys.world_graph(), self.spec.to_dict())
             emit("READY", {"endpoint": cfg.listen or cfg.connect, "router": bool(cfg.listen)})
             if cfg.wait_modules > 0 and not await self._wait_for_modules(session, cfg.wait_modules):
                 self._request_stop()
             t_wall0 = time.perf_counter()
             # Every module's subscription must be known before tick 0 is published.
             for r in self.robots:
-                first = ([self.keys.sense_targets(r), self.keys.sense_pose(r)] if self.tracking
-                         else [self.keys.sense_target(r)])
-                keys = first + [self.keys.sense_range(r, j) for j in range(self.keys.range_sensors)]
+                if self.plan is not None:
+                    keys = self.plan.world_keys(r)
+                else:
+                    first = ([self.keys.sense_targets(r), self.keys.sense_pose(r)] if self.tracking
+                             else [self.keys.sense_target(r)])
+                    keys = first + [self.keys.sense_range(r, j) for j in range(self.keys.range_sensors)]
                 for k in keys:
                     if self.stop.is_set():
                         break
@@ -531,10 +574,13 @@ class WorldServer:
             self._progress()
             # what is still in flight gets recorded
             await asyncio.sleep(0.05)
-            self.cmd_sub.close()
+            for sub in self.cmd_subs:
+                sub.close()
             self._record_tick()
             token.undeclare()
             scene.undeclare()
+            if graph_q is not None:
+                graph_q.undeclare()
             self.record_sub.undeclare()
             self.pubs.close()
         finally:
@@ -546,7 +592,11 @@ class WorldServer:
         """Hold tick 0 until every module of every robot holds its liveliness token (at most
         ``timeout`` s, or until SIGTERM); False, with an event naming the missing ones, if
         some never came."""
-        expected = self.keys.robot_modules_alive(self.robots)
+        if self.plan is not None:
+            expected = self.plan.tokens(self.robots)
+        else:  # no run spec: the nodes of the default controller's graph (cekm)
+            names = default_nodes("tracking" if self.tracking else "navigation", self.keys.range_sensors)
+            expected = {self.keys.alive(r, n) for r in self.robots for n in names}
         with LivelinessWatcher(session, self.keys.alive_all()) as watcher:
             waiter = asyncio.ensure_future(watcher.wait_all(expected, timeout))
             stopper = asyncio.ensure_future(self.stop.wait())
@@ -586,7 +636,8 @@ class WorldServer:
         def q(p: float) -> float | None:
             return None if not lat else round(lat[min(len(lat) - 1, int(p * len(lat)))] * 1000, 3)
 
-        doc = {"scenario": self.scenario.name, "controller": "cekm", "seed": self.world.seed, "robots": ep.outcome(),
+        doc = {"scenario": self.scenario.name, "controller": self.controller,
+               "graph": None if self.spec is None else self.spec.graph.name, "seed": self.world.seed, "robots": ep.outcome(),
                "wall_seconds": round(wall, 3), "tick_loop_seconds": round(self.tick_loop_seconds, 3),
                "mode": self.config.mode, "sim_seconds": ep.t, "ticks": ep.tick,
                "aborted": aborted, "republished": self.republished, "deadline_misses": self.deadline_misses,
@@ -622,6 +673,9 @@ def open_world_session(cfg: WorldConfig) -> zenoh.Session:
 
 WORLD_PARAMS: tuple[Param, ...] = (
     Param("scenario", positional=True, help="scenario name (world/scenarios) or .toml path"),
+    Param("spec", help="the run spec (cekm launch writes OUT/run-spec.json): the controller's graph, from which the "
+                       "world takes the nodes it waits for, the readings it publishes and the keys it records "
+                       "(default: every reading of the scenario's task, commands on cmd/wheels)"),
     Param("connect", default=DEFAULT_ENDPOINT, exclusive="where",
           help="join this router as a client (default %(default)s)"),
     Param("listen", metavar="tcp/HOST:PORT", exclusive="where",
@@ -692,7 +746,7 @@ def main(argv: list[str] | None = None) -> int:
                         format="%(asctime)s.%(msecs)03d %(name)s %(levelname)s %(message)s", datefmt="%H:%M:%S")
     try:
         server = WorldServer(WorldConfig.from_args(args))
-    except (ScenarioError, CheckpointsError) as exc:  # a bad scenario or --checkpoints: refused before anything starts
+    except (ScenarioError, CheckpointsError, GraphError) as exc:  # refused before anything starts
         p.error(str(exc))
     try:
         doc = asyncio.run(server.run())

@@ -34,6 +34,7 @@ class TrackingRun:
     final_state: dict
     target_range: float
     collisions: dict[str, int] = field(default_factory=dict)
+    graph: str | None = None
 
 
 def run_tracking(scenario, controller: str = "cekm", model=None, seed: int | None = None,
@@ -69,7 +70,7 @@ def run_tracking(scenario, controller: str = "cekm", model=None, seed: int | Non
     collisions = {r: int(world.stats(r)["collisions"]) for r in robots}
     return TrackingRun(scenario.name, controller, int(seed if seed is not None else scenario.seed), paths,
                        run.target_paths, episode.meter.summary(), world.static_geometry(), world.state(),
-                       world.target_range, collisions)
+                       world.target_range, collisions, run.plan.graph.name)
 
 
 def outcome_doc(run: TrackingRun) -> dict[str, Any]:
@@ -79,11 +80,12 @@ def outcome_doc(run: TrackingRun) -> dict[str, Any]:
         length = sum(math.hypot(b[1] - a[1], b[2] - a[2]) for a, b in zip(p, p[1:]))
         robots[r] = {"path_length_m": length, "collisions": run.collisions.get(r, 0),
                      "final_pose": list(p[-1][1:]) if p else None}
-    return {"scenario": run.scenario, "controller": run.controller, "seed": run.seed, "robots": robots,
-            "tracking": run.tracking}
+    return {"scenario": run.scenario, "controller": run.controller, "graph": run.graph, "seed": run.seed,
+            "robots": robots, "tracking": run.tracking}
 
 
-def run_tracking_cmd(scenario, controller: str, model_path, seed: int | None, duration: float | None, out_dir) -> None:
+def run_tracking_cmd(scenario, controller: str, model_path, seed: int | None, duration: float | None, out_dir,
+                     graph=None, model=None) -> None:
     """``cekm run`` on a tracking scenario: outcome.json (with ``tracking``) and trajectory.png."""
     import json
     import time
@@ -91,14 +93,14 @@ def run_tracking_cmd(scenario, controller: str, model_path, seed: int | None, du
 
     import click
 
-    model = None
-    if controller == "cekm":
+    if model is None and controller == "cekm" and graph is None:
         from ..models.io import load_model
         from .default_model import default_model
 
         model = load_model(model_path) if model_path else default_model()
     t0 = time.perf_counter()
-    run = run_tracking(scenario, controller, model, seed, DEFAULT_DURATION if duration is None else duration)
+    run = run_tracking(scenario, controller, model, seed, DEFAULT_DURATION if duration is None else duration,
+                       graph=graph)
     out = Path(out_dir)
     doc = outcome_doc(run)
     doc["wall_seconds"] = round(time.perf_counter() - t0, 3)

@@ -144,13 +144,21 @@ class NodePlan:
     def due(self, k: int) -> bool:
         return k % self.period == 0
 
-    @property
-    def listen(self) -> tuple[str, ...]:
-        """Every key this node subscribes to (its inputs', the clock when it is triggered by it)."""
-        keys = [s.key for b in self.bindings for s in b.sources]
+    def subscriptions(self, root: str) -> list[str]:
+        """The key expressions the node's process subscribes to: each input's keys, an
+        input of many keys as one expression (``<root>/r1/field/obstacle/*``, every
+        teammate's ``<root>/*/share``), the world's clock when it triggers the node."""
+        exprs: list[str] = []
+        for b, d in zip(self.bindings, self.decl.inputs):
+            if d.scope == "teammates":
+                exprs.append(f"{root}/*/{d.key}")
+            elif d.key.endswith("/*"):
+                exprs.append(f"{root}/{d.key}" if d.key.startswith("world/") else f"{root}/{self.robot}/{d.key}")
+            else:
+                exprs += [s.key for s in b.sources]
         if self.clock_key is not None:
-            keys.append(self.clock_key)
-        return tuple(dict.fromkeys(keys))
+            exprs.append(self.clock_key)
+        return list(dict.fromkeys(exprs))
 
 
 @dataclass

@@ -117,6 +117,18 @@ class Graph:
                 return n
         raise KeyError(name)
 
+    def node_names(self, sensors: int = 12) -> list[str]:
+        """Every node instance one robot runs, in the file's order (``target``,
+        ``obstacle-0`` .. ``obstacle-11``, ``motor``): its processes and tokens."""
+        out = []
+        for n in self.nodes:
+            if n.instances is None:
+                out.append(n.name)
+            else:
+                count = sensors if n.instances == "sensors" else int(n.instances)
+                out += [f"{n.name}-{i}" for i in range(count)]
+        return out
+
     def to_dict(self) -> dict[str, Any]:
         """Plain data (what a run spec carries to every process)."""
         return {"name": self.name, "controller": self.controller, "task": self.task, "description": self.description,
@@ -169,7 +181,7 @@ def graph_for(controller: str, task: str) -> Path:
             return shipped[name]
     names = sorted({n.rsplit("-", 1)[0] if n.endswith(("-navigation", "-tracking")) else n for n in shipped})
     raise GraphError(f"--controller {controller}", None,
-                     f"no shipped graph for the {task} task (controllers: {', '.join(names)}; or give --graph FILE)")
+                     f"no shipped graph for a {task} scenario (controllers: {', '.join(names)}; or give --graph FILE)")
 
 
 def load_graph(name_or_path: str | Path) -> Graph:

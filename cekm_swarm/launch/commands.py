@@ -38,8 +38,12 @@ def _env_endpoint() -> str | None:
               help="Port of the embedded router on 127.0.0.1 (without --connect).")
 @click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               help="A trained model (.npz); default: R15 trained and cached on first use.")
-@click.option("--max-time", default=600.0, show_default=True, type=click.FloatRange(min=0.2),
-              help="Sim seconds before the run ends.")
+@click.option("--max-time", type=click.FloatRange(min=0.2),
+              help="Sim seconds before the run ends (default: as cekm run, 600 for navigation, 120 for tracking).")
+@click.option("--controller", default="cekm", show_default=True, metavar="NAME",
+              help="The controller whose graph runs (cekm graph list): cekm, fusion, acmommt, stay, ...")
+@click.option("--graph", "graph_file", type=click.Path(dir_okay=False, exists=True, path_type=Path),
+              help="Run a graph file of your own instead (docs/modules.md).")
 @click.option("--root", default="cekm", show_default=True, type=ROOT, help="Key space root.")
 @click.option("--no-plot", is_flag=True, help="Do not draw trajectory.png.")
 @click.option("--robots", "robots", default=None, metavar="R1,R2",
@@ -56,11 +60,12 @@ def _env_endpoint() -> str | None:
 @click.option("--run-id", type=RUN_ID,
               help="The run's id (default: made by the world host; a robots-only host takes the world's).")
 def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwrite: bool, connect: str | None,
-               port: int, model_path: Path | None, max_time: float, root: str, no_plot: bool, robots: str | None,
-               no_world: bool, listen_host: str, zenoh_config: Path | None, model_from_zenoh: bool,
-               run_id: str | None) -> None:
-    """Run SCENARIO through the distributed runtime: the world server and, per robot,
-    1 + 12 + 1 module processes on Zenoh, supervised (restarted when they die)."""
+               port: int, model_path: Path | None, max_time: float | None, controller: str, graph_file: Path | None,
+               root: str, no_plot: bool, robots: str | None, no_world: bool, listen_host: str,
+               zenoh_config: Path | None, model_from_zenoh: bool, run_id: str | None) -> None:
+    """Run SCENARIO through the distributed runtime: the world server and, per robot, every
+    node of the controller's graph as its own process on Zenoh (cekm: 1 + 12 + 1),
+    supervised (restarted when they die)."""
     from world import ScenarioError, load_scenario
 
     from .launcher import LaunchConfig, Launcher
@@ -97,16 +102,27 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwr
             client_config_from_file(zenoh_config, connect or DEFAULT_ENDPOINT)
         except RuntimeTransportError as exc:
             raise click.UsageError(str(exc)) from None
+    from cekm_swarm.graph.spec import GraphError
+
+    from .launcher import NodeCannotStart
+    from .prepare import PreflightError, resolve
+
+    try:  # the graph, checked before anything is written or started
+        resolve(sc, controller, graph_file)
+    except GraphError as exc:
+        raise click.UsageError(str(exc)) from None
     prepare_out_dir(out_dir, overwrite)
     config = LaunchConfig(scenario, out_dir, mode=mode, seed=seed, connect=connect, port=port, model=model_path,
-                          max_time=max_time, root=root, plot=not no_plot, robots=only, world=not no_world,
-                          listen_host=listen_host, zenoh_config=zenoh_config, model_from_zenoh=model_from_zenoh,
-                          run_id=run_id)
+                          max_time=max_time, controller=controller, graph=graph_file, root=root, plot=not no_plot,
+                          robots=only, world=not no_world, listen_host=listen_host, zenoh_config=zenoh_config,
+                          model_from_zenoh=model_from_zenoh, run_id=run_id)
     launcher = Launcher(config, echo=lambda s: click.echo(s))
     try:
         outcome = launcher.launch()
     except ValueError as exc:
         raise click.UsageError(str(exc)) from None
+    except (GraphError, PreflightError, NodeCannotStart):  # bad input: cekm: error: <the one line>
+        raise
     except CekmError as exc:  # the world server or the embedded router did not come up: say why, no traceback
         raise RunFailed(str(exc)) from None
     if no_world:

@@ -34,8 +34,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from cekm_swarm.errors import RunError
-from cekm_swarm.protocol import DEFAULT_ROOT, KeySpace, module_names
+from cekm_swarm.errors import CekmError, RunError
+from cekm_swarm.node.process import CANNOT_START, EXIT_CANNOT_START
+from cekm_swarm.protocol import DEFAULT_ROOT, KeySpace
 from cekm_swarm.runtime.bridge import LivelinessWatcher
 from cekm_swarm.runtime.config import DEFAULT_HOST, DEFAULT_PORT, open_embedded_router
 from cekm_swarm.runtime.errors import RuntimeTransportError
@@ -45,13 +46,17 @@ from cekm_swarm.runtime.model_service import ZENOH_MODEL, ModelServer
 from cekm_swarm.ticks import tick_of
 
 from .cpu import CpuSnapshot, cpu_per_tick, snapshot
-from .processes import child_env, module_argv, new_run_id, server_argv
+from .processes import child_env, new_run_id, node_argv, server_argv
 
 BACKOFF_MIN = 0.25
 
 
 class LaunchError(RunError):
     """A launch cannot go on: the world server or the modules did not come up."""
+
+
+class NodeCannotStart(CekmError):
+    """A node of the graph cannot start (a bad model, a bad parameter): its own line."""
 
 BACKOFF_MAX = 5.0
 HEALTHY_AFTER = 5.0  # s: a module up this long gets its back-off reset
@@ -74,6 +79,7 @@ class Child:
     restarts: int = 0
     backoff: float = BACKOFF_MIN
     exits: list[int] = field(default_factory=list)
+    stateful: bool = False
 
     @property
     def label(self) -> str:
@@ -89,7 +95,10 @@ class LaunchConfig:
     connect: str | None = None
     port: int = DEFAULT_PORT
     model: Path | None = None
-    max_time: float = 600.0
+    max_time: float | None = None  # None: the task's default (cekm_swarm.experiments.graph_run.DEFAULT_MAX_TIME)
+    controller: str = "cekm"  # a controller's shipped graph (--controller)
+    graph: Path | None = None  # or a graph file of the user's own (--graph)
+    params: dict | None = None  # parameter overrides for the graph's nodes
     root: str = DEFAULT_ROOT
     deadman: float = 0.5
     republish: float = 1.0
@@ -128,10 +137,14 @@ def plan_checkpoint_data(scenario) -> dict[str, list[list[float]]]:
 def format_progress(doc: dict[str, Any]) -> str:
     parts = [f"t={doc['t']:7.2f} s"]
     for r, s in doc["robots"].items():
-        st = "reached" if s["reached"] else ("STOPPED" if s.get("stopped") else
-                                             f"at ({s['x']:.2f}, {s['y']:.2f})" if s.get("to_goal") is None else
-                                             f"{s['to_goal']:.2f} m to goal")
-        parts.append(f"{r} ({s['x']:.2f}, {s['y']:.2f}) {st}")
+        where = f"{r} ({s['x']:.2f}, {s['y']:.2f})"
+        if s["reached"]:
+            where += " reached"
+        elif s.get("stopped"):
+            where += " STOPPED"
+        elif s.get("to_goal") is not None:  # a tracking robot has no goal: its position says it all
+            where += f" {s['to_goal']:.2f} m to goal"
+        parts.append(where)
     if doc.get("republished"):
         parts.append(f"republished {doc['republished']}")
     if doc.get("deadline_misses"):
@@ -160,6 +173,10 @@ class Launcher:
         self.supervisors: list[asyncio.Future] = []
         self._cpu_start: CpuSnapshot | None = None  # when the world starts ticking
         self._cpu_end: CpuSnapshot | None = None  # when it is done
+        self.checked: Any = None  # the controller's graph, checked (cekm_swarm.graph.check)
+        self.plan: Any = None  # ... resolved for the team
+        self.spec_path: Path | None = None
+        self.failure: str | None = None  # a node that cannot start: the launch ends with its line
 
     # ------------------------------------------------------------------ logging
 
@@ -200,6 +217,11 @@ class Launcher:
             if self.stopping:
                 return
             child.exits.append(code)
+            if code == EXIT_CANNOT_START:  # a bad model or parameter: restarting cannot help
+                self.failure = self._cannot_start_line(child)
+                self.say(f"node {child.label} cannot start: {self.failure}; the launch ends")
+                self._interrupt_for_failure()
+                return
             up = time.monotonic() - child.started
             if up >= HEALTHY_AFTER:
                 child.backoff = BACKOFF_MIN
@@ -215,6 +237,27 @@ class Launcher:
             child.restarts += 1
             await self._spawn(child)
             self.say(f"module {child.label} restarted (pid {child.proc.pid})")
+
+    @staticmethod
+    def _cannot_start_line(child: Child) -> str:
+        """The node's own one-line reason (its log's CANNOT-START line)."""
+        try:
+            lines = child.log_path.read_text(errors="replace").splitlines()
+        except OSError:
+            lines = []
+        for line in reversed(lines):
+            if line.startswith(CANNOT_START):
+                return line[len(CANNOT_START):].strip()
+        return f"exit code {EXIT_CANNOT_START} (see {child.log_path})"
+
+    def _interrupt_for_failure(self) -> None:
+        """End the run: the world first (it writes what it has), then everything else."""
+        self.stopping = True
+        if self.world_proc is not None and self.world_proc.returncode is None:
+            self.world_proc.send_signal(signal.SIGTERM)
+        for ch in self.children.values():
+            if ch.proc is not None and ch.proc.returncode is None:
+                ch.proc.send_signal(signal.SIGTERM)
 
     async def _stop_children(self) -> None:
         procs = [c.proc for c in self.children.values() if c.proc is not None and c.proc.returncode is None]
@@ -271,13 +314,17 @@ class Launcher:
         try:
             self._catch_signals()
             scenario, robots = self._resolve_robots()
+            self._resolve_graph(scenario)
             model = self._resolve_model()
+            self._preflight(model)
             checkpoints = self._plan_checkpoints(scenario)
             endpoint = self._pick_endpoint()
             try:
                 await self._bring_up(scenario, robots, model, checkpoints, endpoint)
             finally:
                 await self._teardown()
+            if self.failure is not None:
+                raise NodeCannotStart(self.failure)
             outcome = self._finish_outcome()
             self._plot(scenario, outcome)
             return outcome
@@ -313,9 +360,47 @@ class Launcher:
             raise ValueError(f"{c.scenario}: no robot {', '.join(unknown)} (robots: {', '.join(self.all_robots)})")
         return scenario, [r for r in self.all_robots if c.robots is None or r in c.robots]
 
-    def _resolve_model(self) -> Path | str:
-        """The model file the modules load, or ``"zenoh"`` (a robot host fetching it)."""
+    def _resolve_graph(self, scenario) -> None:
+        """The controller's graph, checked and resolved for the team (GraphError: refused now)."""
+        from .prepare import body_of, plan_of, resolve
+
         c = self.c
+        self.checked, self.task = resolve(scenario, c.controller, c.graph, c.params)
+        self.body = body_of(scenario)
+        self.plan = plan_of(self.checked, tuple(self.all_robots), self.task, self.body, c.root)
+        for w in self.plan.warnings:
+            self.say(f"warning: {w}")
+        if c.max_time is None:
+            from cekm_swarm.experiments.graph_run import default_max_time
+
+            c.max_time = default_max_time(self.task)
+
+    def _preflight(self, model) -> None:
+        """One node of every kind built here: a bad model or parameter is refused before
+        any process starts (a robot host fetching the model checks it when it has it)."""
+        from .prepare import preflight
+
+        if model == ZENOH_MODEL:
+            return
+        preflight(self.checked, self.plan, self.body, None if model is None else str(model))
+
+    def _write_spec(self, model, endpoint: str) -> Path:
+        """``OUT/run-spec.json``: what every process of this launch reads."""
+        from .prepare import run_spec
+
+        c = self.c
+        spec = run_spec(self.checked, tuple(self.all_robots), self.task, self.body, root=c.root, run_id=self.run_id,
+                        mode=c.mode, connect=endpoint, zenoh_config=None if c.zenoh_config is None else str(c.zenoh_config),
+                        model=None if model is None else str(model))
+        self.spec_path = spec.write(c.out / "run-spec.json")
+        return self.spec_path
+
+    def _resolve_model(self) -> Path | str | None:
+        """The model file the modules load, or ``"zenoh"`` (a robot host fetching it); None
+        when no node of the graph reads a model."""
+        c = self.c
+        if not self.checked.uses_model:
+            return None
         if c.model is not None:
             return c.model
         if c.model_from_zenoh and not c.world:
@@ -363,6 +448,7 @@ class Launcher:
         t0 = time.monotonic()
         if c.world:
             self._choose_run_id()
+            self._write_spec(model, endpoint)
             # The world first: with the embedded default it hosts the router, and it holds
             # tick 0 until every module of every robot, here or on other hosts, is alive.
             await self._start_world(f"tcp/{c.listen_host}:{c.port}" if self._world_hosts_router else endpoint,
@@ -376,13 +462,14 @@ class Launcher:
             await self._join_run_id()
             if self.stopping:
                 return
-        if c.world:  # (a world host always has the model file)
+            self._write_spec(ZENOH_MODEL if c.model_from_zenoh else model, endpoint)
+        if c.world and model is not None:  # (a world host always has the model file)
             self.model_server = ModelServer(self.session, self.keys.world_model(), model)
             self.say(f"serving the model {Path(model).name} on {self.keys.world_model()}")
         self.watcher = LivelinessWatcher(self.session, self.keys.alive_all())
         await self._spawn_modules(scenario, robots, ZENOH_MODEL if c.model_from_zenoh else model, endpoint)
         # the world starts only when every module of every robot is up, here or on other hosts
-        expected = (self.keys.robot_modules_alive(self.all_robots) if c.world else
+        expected = (self.plan_tokens(self.all_robots) if c.world else
                     {self.keys.alive(ch.robot, ch.name) for ch in self.children.values()})
         if not await self._wait_alive(expected):
             return
@@ -396,6 +483,10 @@ class Launcher:
         code = await self.world_proc.wait()
         if code not in (0, 3):
             self._world_died(code)
+
+    def plan_tokens(self, robots) -> set[str]:
+        """The liveliness tokens of every node of ``robots`` in this run."""
+        return {self.keys.alive(r, n.name) for r in robots for n in self.plan.nodes[r]}
 
     def _choose_run_id(self) -> None:
         """The run's id (given, or made here): every token of the run carries it."""
@@ -430,19 +521,15 @@ class Launcher:
         return None
 
     async def _spawn_modules(self, scenario, robots: list[str], model: Path | str, endpoint: str) -> None:
-        """Start every module process of ``robots``, each under a supervisor."""
-        from world.tracking import is_tracking
-
+        """Start every node process of ``robots`` (the graph's node instances), each under a supervisor."""
         c = self.c
-        tracking = (tuple(self.all_robots), scenario.target_range) if is_tracking(scenario) else None
         for r in robots:
-            for name in module_names(self.keys.range_sensors):
-                argv = module_argv(name, tracking, robot=r, model=model, connect=endpoint, root=c.root, mode=c.mode,
-                                   zenoh_config=c.zenoh_config, run_id=self.run_id)
-                child = Child(r, name, argv, c.out / "logs" / f"{r}-{name}.log")
+            for node in self.plan.nodes[r]:
+                argv = node_argv(str(self.spec_path), r, node.name, self.run_id)
+                child = Child(r, node.name, argv, c.out / "logs" / f"{r}-{node.name}.log", stateful=node.stateful)
                 self.children[child.label] = child
-        self.say(f"{scenario.name}: {len(robots)} robot(s), starting {len(self.children)} module processes "
-                 f"({c.mode})")
+        self.say(f"{scenario.name}: {self.checked.graph.name} ({self.checked.graph.controller}), {len(robots)} robot(s), "
+                 f"starting {len(self.children)} node processes ({c.mode})")
         for child in self.children.values():
             await self._spawn(child)
         self.supervisors = [asyncio.ensure_future(self._supervise(ch)) for ch in self.children.values()]
@@ -504,6 +591,12 @@ class Launcher:
             "restarts": {ch.label: ch.restarts for ch in self.children.values() if ch.restarts},
             "exits": {ch.label: ch.exits for ch in self.children.values() if ch.exits},
             "startup_s": self.startup_s}
+        if self.c.mode == "lockstep":
+            lost = sorted(ch.label for ch in self.children.values() if ch.restarts and ch.stateful)
+            outcome["reproducible"] = {"equals_cekm_run": not lost, "stateful_restarts": lost,
+                                       "why": ("a node that keeps state across ticks restarted without it, so what "
+                                               "it computed after its restart may differ from cekm run") if lost else
+                                              "every restarted node keeps no state across ticks"}
         if self._cpu_start is not None and self._cpu_end is not None:  # where the tick loop's CPU went
             robots = len({ch.robot for ch in self.children.values()})
             ticks = tick_of(float(outcome.get("sim_seconds", 0.0)))
@@ -529,7 +622,8 @@ class Launcher:
         for its READY line: its session is open, so modules can join."""
         c = self.c
         world_argv = server_argv(
-            scenario=c.scenario, listen=where if hosts_router else None, connect=None if hosts_router else where,
+            scenario=c.scenario, spec=self.spec_path, listen=where if hosts_router else None,
+            connect=None if hosts_router else where,
             root=c.root, run_id=self.run_id, out=c.out, mode=c.mode, max_time=c.max_time, deadman=c.deadman,
             republish=c.republish, progress_every=c.progress_every, wait_modules=ALIVE_TIMEOUT + 5, seed=c.seed,
             zenoh_config=None if hosts_router else c.zenoh_config, checkpoints=checkpoints)

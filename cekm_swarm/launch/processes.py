@@ -17,10 +17,10 @@ import secrets
 import time
 from typing import Any
 
-from cekm_swarm.modules.shell import module_argv
+from cekm_swarm.node.process import node_argv
 from cekm_swarm.runtime.lifetime import child_env
 
-__all__ = ["child_env", "module_argv", "new_run_id", "server_argv"]
+__all__ = ["child_env", "new_run_id", "node_argv", "server_argv"]
 
 
 def new_run_id() -> str:

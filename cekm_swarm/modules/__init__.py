@@ -1,15 +1,11 @@
-"""The robot's module processes of the distributed runtime (docs/design.md section 6).
+"""The built-in node programs of the shipped graphs (``cekm_swarm/graph/shipped``): each a
+small :class:`cekm_swarm.node.Node` around the controller's pure functions.
 
-Each module is a thin asyncio shell (:mod:`.shell`) around a pure part that can be
-tested without Zenoh:
+* cooperative EKMs: :mod:`.target_localization`, :mod:`.obstacle_localization` (one per
+  distance sensor), :mod:`.motor_integration`; for tracking :mod:`.tracking_localization`
+  and :mod:`.tracking_motor`;
+* the baselines: :mod:`.fusion` (command fusion), :mod:`.acmommt`, :mod:`.stay`.
 
-* :mod:`.target`: target localization, on each ``sense/target`` (every 0.256 s);
-* :mod:`.obstacle`: obstacle localization j, on each ``sense/range/<j>`` (every 0.128 s);
-* :mod:`.motor`: motor integration, once per tick when the tick's fields are in (real
-  time: those of live sources, or when the next tick begins; lockstep: every one).
-
-They compute exactly what :meth:`cekm_swarm.experiments.navigation.RobotBrain.tick`
-computes in one process, through :class:`cekm_swarm.controller.cooperative.CooperativeEKM`.
-Started as ``python -m cekm_swarm.modules.<name> --robot r1 --model M.npz --connect ENDPOINT``.
-Module processes never import the world.
+Each runs as its own process (:mod:`cekm_swarm.node.process`) or, with the rest of its
+graph, in one process (``cekm run``). They never import the world.
 """

@@ -14,8 +14,8 @@ def indirect_model(ctx: Context):
 
     try:
         model = ctx.model()
-    except CekmError as exc:
-        raise NodeError(f"{ctx.sender}: {exc}") from None
+    except CekmError as exc:  # names the model file and what is wrong with it
+        raise NodeError(str(exc)) from None
     if not str(getattr(model, "kind", "")).startswith("indirect"):
         where = ctx.model_source if isinstance(ctx.model_source, str) else "the model"
         raise NodeError(f"{where}: the controller needs an indirect-mapping EKM, not {getattr(model, 'kind', model)!r}")

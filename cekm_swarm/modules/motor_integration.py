@@ -30,6 +30,21 @@ def obstacle_activities(fields) -> list[ObstacleActivity]:
     return [ObstacleActivity(f.stamp, f.index, f.winner, f.b) for f in fields]
 
 
+def field_misfit(msg, n: int) -> str | None:
+    """Why a field does not fit a lattice of ``n`` neurons (None: it does)."""
+    for name in ("a", "b"):
+        v = getattr(msg, name, None)
+        if v is not None and v.shape[0] != n:
+            return f"field {name} has {v.shape[0]} values, the model's lattice {n} neurons"
+    w = getattr(msg, "winner", None)
+    if w is not None and not 0 <= w < n:
+        return f"winner {w} outside the lattice's 0..{n - 1}"
+    for i, row in enumerate(getattr(msg, "inputs", ()) or ()):
+        if not 0 <= row[0] < n:
+            return f"inputs[{i}].winner {row[0]} outside the lattice's 0..{n - 1}"
+    return None
+
+
 class MotorIntegration(Node):
     """Motor EKM: target field and obstacle fields -> wheel command (Eqs. 9-11)."""
 
@@ -45,6 +60,9 @@ class MotorIntegration(Node):
 
     def setup(self) -> None:
         self.ekm = cooperative_ekm(self.ctx, None, self.params.allow_reverse, self.params.reverse_min_d)
+
+    def check_input(self, port, msg):
+        return field_misfit(msg, self.ekm.n)
 
     def step(self, t, inputs):
         out = self.ekm.integrate(target_activity(inputs["target"]), inputs["obstacles"].values())  # Eqs. 9-11

@@ -9,6 +9,7 @@ from cekm_swarm.node import In, Node, Out
 from cekm_swarm.protocol import ObstacleField, TrackingField, WheelCommand
 from cekm_swarm.ticks import tick_of
 
+from .motor_integration import field_misfit
 from .tracking_localization import tracking_activity, tracking_ekm
 
 
@@ -22,6 +23,9 @@ class TrackingMotor(Node):
 
     def setup(self) -> None:
         self.tekm = tracking_ekm(self.ctx, TrackingParams())
+
+    def check_input(self, port, msg):
+        return field_misfit(msg, self.tekm.ekm.n)
 
     def step(self, t, inputs):
         f = inputs["tracking"]

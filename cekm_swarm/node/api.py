@@ -171,6 +171,15 @@ class Node:
         """Compute the outputs of the tick at sim time ``t``: one message per output port."""
         raise NotImplementedError
 
+    def check_input(self, port: str, msg: Any) -> str | None:
+        """Why a well-formed message on input ``port`` cannot be used here (None: it can),
+        say a field whose vector does not fit this model's lattice: the framework drops and
+        counts it before it can take the place of the real one."""
+        return None
+
+    def teammate_left(self, robot: str) -> None:
+        """Every process of teammate ``robot`` is gone (its liveliness tokens vanished)."""
+
     def close(self) -> None:
         """Called once when the node stops."""
 

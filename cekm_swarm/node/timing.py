@@ -18,6 +18,7 @@ from subscriptions, :mod:`cekm_swarm.node.inprocess` from a whole graph's output
 
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -27,6 +28,8 @@ from cekm_swarm.graph.plan import Binding, NodePlan, needed_tick
 from cekm_swarm.ticks import TICK_S, tick_time
 
 from .api import Inputs, Node, NodeError
+
+log = logging.getLogger("cekm_swarm.node")
 
 KEEP_TICKS = 64
 """Ticks of received values a gate keeps behind its last run (a bound whatever arrives)."""
@@ -314,6 +317,8 @@ class RealtimeGate:
         if key not in self._stale_now:
             self._stale_now.add(key)
             self.stale_drops[key] = self.stale_drops.get(key, 0) + 1
+            log.warning("%s: stale input left out: %s (stamp %.3f at tick %.3f)", self.node.label, key,
+                        tick_time(tick), tick_time(c))
 
     def _run(self, c: int) -> list[tuple[str, Any]]:
         inputs, _ = gather(self.node, c, self._lookup_at(c), self.gone.__contains__)

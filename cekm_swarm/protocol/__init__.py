@@ -8,7 +8,7 @@ from .drops import DropCounter, DropRecord
 from .errors import (KeySpaceError, MessageArrayError, MessageError, MessageFieldError, MessageFormatError,
                      MessageKindError, MessageVersionError, ProtocolError)
 from .keys import (DEFAULT_KEYS, DEFAULT_RANGE_SENSORS, DEFAULT_ROOT, WORLD, KeyKind, KeySpace, ParsedKey,
-                   module_names, validate_module_name, validate_robot_id, validate_root, validate_run_id)
+                   validate_module_name, validate_robot_id, validate_root, validate_run_id)
 from .messages import (MESSAGE_TYPES, MSGPACK_ENCODING, SCHEMA_VERSION, Clock, Message, ObstacleField, SenseRange,
                        SensePose, SenseTarget, SenseTargets, Share, TargetField, TrackingField, WheelCommand, WorldState, Data, decode, encode, peek, summary,
                        to_plain)
@@ -18,7 +18,7 @@ __all__ = [
     "KeySpaceError", "MessageArrayError", "MessageError", "MessageFieldError", "MessageFormatError",
     "MessageKindError", "MessageVersionError", "ProtocolError",
     "DEFAULT_KEYS", "DEFAULT_RANGE_SENSORS", "DEFAULT_ROOT", "WORLD", "KeyKind", "KeySpace", "ParsedKey",
-    "module_names", "validate_module_name", "validate_robot_id", "validate_root", "validate_run_id",
+    "validate_module_name", "validate_robot_id", "validate_root", "validate_run_id",
     "MESSAGE_TYPES", "MSGPACK_ENCODING", "SCHEMA_VERSION", "Clock", "Message", "ObstacleField", "SenseRange",
     "SensePose", "SenseTarget", "SenseTargets", "Share", "TargetField", "TrackingField", "WheelCommand", "WorldState", "Data", "decode", "encode", "peek", "summary",
     "to_plain",

@@ -7,7 +7,7 @@ import threading
 from dataclasses import dataclass
 
 from .errors import MessageError
-from .keys import DEFAULT_KEYS, KeySpace
+from .keys import DEFAULT_KEYS, KeyKind, KeySpace
 from .messages import Message, decode
 
 log = logging.getLogger("cekm_swarm.protocol")
@@ -61,10 +61,11 @@ class DropCounter:
             self._log.warning("%s: dropped a message from %s (further drops from it are only counted): %s",
                               self.name, source, text)
 
-    def decode(self, key: str, data: bytes) -> Message | None:
-        """Decode ``data`` received on ``key``; on a MessageError drop it and return None."""
+    def decode(self, key: str, data: bytes, expect: "KeyKind | None" = None) -> Message | None:
+        """Decode ``data`` received on ``key`` (of kind ``expect`` on a graph's own key); on
+        a MessageError drop it and return None."""
         try:
-            return decode(key, data, keys=self.keys)
+            return decode(key, data, keys=self.keys, expect=expect)
         except MessageError as exc:
             self.drop(key, exc)
             return None

@@ -232,6 +232,12 @@ class KeySpace:
         :mod:`cekm_swarm.runtime.record`)."""
         return f"{self.root}/{WORLD}/geometry"
 
+    def world_graph(self) -> str:
+        """World -> tools: the queryable serving the run spec as JSON (the graph the run
+        runs: which nodes ``cekm node list`` and the monitor expect, which fields the view
+        draws)."""
+        return f"{self.root}/{WORLD}/graph"
+
     def alive(self, owner: str, module: str) -> str:
         """Liveliness token of a module of robot ``owner`` (or of the world server, owner
         ``world``) in this key space's run."""
@@ -276,15 +282,6 @@ class KeySpace:
     def cmd_wheels_all(self) -> str:
         """Key expression matching every robot's wheel command (what the world listens to)."""
         return f"{self.root}/*/cmd/wheels"
-
-    def module_names(self) -> list[str]:
-        """Every module process of one robot, in launch order: ``target``, ``obstacle-0``
-        .. ``obstacle-<range_sensors - 1>``, ``motor`` (the ``<module>`` of its token)."""
-        return module_names(self.range_sensors)
-
-    def robot_modules_alive(self, robots: list[str] | tuple[str, ...]) -> set[str]:
-        """The liveliness tokens of every module of ``robots`` (what the world waits for)."""
-        return {self.alive(r, m) for r in robots for m in self.module_names()}
 
     def alive_all(self) -> str:
         """Key expression matching every liveliness token (robots' and the world's) of this
@@ -365,12 +362,6 @@ class KeySpace:
             return validate_module_name(text)
         except KeySpaceError as exc:
             raise KeySpaceError(f"key '{key}'", f"bad module name: {exc.problem}") from None
-
-
-def module_names(sensors: int) -> list[str]:
-    """The module processes of a robot with ``sensors`` distance sensors: the target
-    module, one obstacle module per sensor, the motor module."""
-    return ["target"] + [f"obstacle-{j}" for j in range(sensors)] + ["motor"]
 
 
 DEFAULT_KEYS = KeySpace()

@@ -324,7 +324,7 @@ def topic_pub_cmd(endpoint: str | None, config_file: Path | None, wait_s: float,
 
 @click.group("node")
 def node() -> None:
-    """The module processes of a run (like ros2 node)."""
+    """The node processes of a run (like ros2 node)."""
 
 
 @node.command("list")
@@ -335,9 +335,12 @@ def node() -> None:
 @click.option("--json", "as_json", is_flag=True, help="One JSON object per owner: alive and missing modules.")
 def node_list_cmd(endpoint: str | None, config_file: Path | None, wait_s: float, root: str, timeout: float,
                   as_json: bool) -> None:
-    """Live modules per robot (and the world server), from their liveliness tokens."""
+    """Live nodes per robot (and the world server), from their liveliness tokens, against
+    the nodes of the graph the run runs (which the world serves)."""
     from .jsonout import json_line
     from .nodes import format_nodes, group_tokens, wait_for_tokens
+
+    from .rungraph import fetch_run_graph
 
     keys = _keys(root)
     with _session(endpoint, config_file, wait_s) as session:
@@ -347,7 +350,10 @@ def node_list_cmd(endpoint: str | None, config_file: Path | None, wait_s: float,
             tokens = wait_for_tokens(session, keys, timeout)
         except KeyboardInterrupt:
             raise Interrupted() from None
-    groups, other = group_tokens(tokens, keys)
+        graph = fetch_run_graph(session, keys.world_graph()) if tokens else None
+    groups, other = group_tokens(tokens, keys, None if graph is None else graph.nodes)
+    if graph is not None and not as_json:
+        click.echo(f"graph {graph.name} (controller {graph.controller}): {len(graph.nodes)} nodes per robot")
     if as_json:
         for g in groups:
             click.echo(json_line(g.as_dict()))

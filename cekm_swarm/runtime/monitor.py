@@ -152,6 +152,8 @@ class MonitorState:
         self.sensed: dict[str, Observation] = {}  # robot -> its latest sense/targets
         self.untracked = 0  # messages on keys (or robots) beyond MAX_KEYS (MAX_ROBOTS)
         self.drops = DropCounter("monitor", keys=keys)
+        self.expected: tuple[str, ...] | None = None  # one robot's nodes, from the run's graph (None: not known)
+        self.graph: str | None = None  # the run's graph's name
         self._lock = threading.Lock()
 
     def robot(self, rid: str) -> RobotView | None:
@@ -332,10 +334,23 @@ class MonitorState:
         return out
 
     def modules_alive(self, rid: str) -> tuple[int, list[str]]:
-        """(number alive, the names of the missing ones) of a robot's modules."""
+        """(number alive, the names of the missing ones) of a robot's nodes: those of the
+        run's graph (all that are alive when the graph is not known)."""
         names = self._alive_modules().get(rid, set())
-        expected = self.keys.module_names()
-        return len(names & set(expected)), [m for m in expected if m not in names]
+        if self.expected is None:
+            return len(names), []
+        return len(names & set(self.expected)), [m for m in self.expected if m not in names]
+
+    def world_run(self) -> str | None:
+        """The run id of the world server alive now (its token's last chunk)."""
+        for t in self.alive:
+            try:
+                parsed = self.keys.parse(t)
+            except Exception:
+                continue
+            if parsed.kind is KeyKind.ALIVE and parsed.robot == WORLD and parsed.run:
+                return parsed.run
+        return None
 
 
 # --------------------------------------------------------------------------- drawing
@@ -433,7 +448,7 @@ def render(state: MonitorState, now: float, *, robots: set[str] | None = None, k
             lines.append(Text(f"{r}: not seen", style="dim", no_wrap=True, overflow="ellipsis"))
     if shown:
         lines.append(Text(_HEADER, style="bold", no_wrap=True, overflow="ellipsis"))
-    expected = len(state.keys.module_names())
+    expected = len(state.expected) if state.expected is not None else None
     for rid in shown:
         v = state.robots[rid]
         x, y, th = v.pose if v.pose else (math.nan,) * 3
@@ -445,7 +460,8 @@ def render(state: MonitorState, now: float, *, robots: set[str] | None = None, k
         row.append(f"{_fit(rid, 6, '<')} {_num(x, 6, 3)} {_num(y, 6, 3)} {_num(th, 5, 2)} {_fit(goal, 13)} ")
         row.append(_fit(v.status, 7, "<"), style=_STATUS_STYLE.get(v.status, ""))
         row.append(f" {_num(vl, 6, 3)} {_num(vr, 6, 3)} ")
-        row.append(_fit(f"{n}/{expected}", 5), style="" if n == expected else "bold red")
+        row.append(_fit(f"{n}/{expected}" if expected is not None else f"{n}", 5),
+                   style="" if expected is None or n == expected else "bold red")
         row.append(f" {_fit(lat, 11)}")
         lines.append(row)
         if missing and n:
@@ -531,10 +547,23 @@ def run_monitor(session: zenoh.Session, root: str = "cekm", refresh: float = 0.5
     sub = session.declare_subscriber(keys.everything(), on_sample)
     live = session.liveliness().declare_subscriber(keys.alive_all(), on_token, history=True)
     kw = {"robots": robots, "key_filter": key_filter, "endpoint": endpoint}
+    seen_run: list[str | None] = [None]
+
+    def learn_graph() -> None:
+        """The nodes each robot should have: from the run's graph, asked again for a new run."""
+        run = state.world_run()
+        if run is not None and run != seen_run[0]:
+            seen_run[0] = run
+            from .rungraph import fetch_run_graph
+
+            g = fetch_run_graph(session, keys.world_graph())
+            state.expected, state.graph = (g.nodes, g.name) if g is not None else (None, None)
+
     try:
         if once_after is not None:
             stop.wait(once_after)  # the observation window of a one-shot snapshot
             state.set_alive(current_tokens())
+            learn_graph()
             if as_json:
                 from .jsonout import json_line
 
@@ -548,6 +577,7 @@ def run_monitor(session: zenoh.Session, root: str = "cekm", refresh: float = 0.5
                   screen=False, auto_refresh=False) as view:
             while not stop.is_set():
                 state.set_alive(current_tokens())
+                learn_graph()
                 view.update(render(state, time.monotonic(), **kw), refresh=True)
                 stop.wait(refresh)
     except KeyboardInterrupt:

@@ -30,9 +30,11 @@ class OwnerNodes:
         return {"owner": self.owner, "alive": list(self.alive), "missing": list(self.missing), "runs": list(self.runs)}
 
 
-def group_tokens(tokens: set[str] | list[str], keys: KeySpace) -> tuple[list[OwnerNodes], list[str]]:
-    """(owners with their live and missing modules, sorted; tokens that are not module
-    tokens of ``keys``). A robot's expected modules are ``keys.module_names()``."""
+def group_tokens(tokens: set[str] | list[str], keys: KeySpace,
+                 expected: tuple[str, ...] | list[str] | None = None) -> tuple[list[OwnerNodes], list[str]]:
+    """(owners with their live and missing nodes, sorted; tokens that are not node tokens
+    of ``keys``). A robot's ``expected`` nodes come from the run's graph (None: unknown,
+    so nothing counts as missing)."""
     owners: dict[str, set[str]] = {}
     runs: dict[str, set[str]] = {}
     other: list[str] = []
@@ -48,14 +50,15 @@ def group_tokens(tokens: set[str] | list[str], keys: KeySpace) -> tuple[list[Own
         owners.setdefault(parsed.robot, set()).add(parsed.module)
         if parsed.run:
             runs.setdefault(parsed.robot, set()).add(parsed.run)
-    expected = keys.module_names()
+    known = expected is not None
+    expected = list(expected or ())
     order = {m: i for i, m in enumerate(expected)}
     out = []
     for owner in sorted(owners, key=lambda o: (o != WORLD, o)):
         mods = owners[owner]
         alive = tuple(sorted(mods, key=lambda m: (order.get(m, len(order)), m)))
-        missing = () if owner == WORLD else tuple(m for m in expected if m not in mods)
-        out.append(OwnerNodes(owner, alive, missing, 0 if owner == WORLD else len(expected),
+        missing = () if owner == WORLD or not known else tuple(m for m in expected if m not in mods)
+        out.append(OwnerNodes(owner, alive, missing, 0 if owner == WORLD or not known else len(expected),
                               tuple(sorted(runs.get(owner, ())))))
     return out, other
 
@@ -112,7 +115,8 @@ def format_nodes(groups: list[OwnerNodes], other: list[str]) -> str:
         if g.owner == WORLD:
             lines.append(f"{g.owner:<8} {', '.join(g.alive)}{run}")
             continue
-        line = f"{g.owner:<8} {g.expected - len(g.missing):>2}/{g.expected} modules alive{run}"
+        line = (f"{g.owner:<8} {g.expected - len(g.missing):>2}/{g.expected} nodes alive{run}" if g.expected
+                else f"{g.owner:<8} {len(g.alive):>2} nodes alive{run}: {', '.join(g.alive)}")
         if g.missing:
             line += f"; missing: {', '.join(g.missing)}"
         lines.append(line)

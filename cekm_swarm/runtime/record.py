@@ -38,7 +38,12 @@ GEOMETRY_ENCODING = "application/json"
 def serve_geometry(session: zenoh.Session, key: str, geometry: dict[str, Any]) -> zenoh.Queryable:
     """Answer queries on ``key`` with ``geometry`` as JSON (the world server calls this);
     undeclare the returned queryable when done."""
-    blob = json.dumps(geometry).encode()
+    return serve_json(session, key, geometry)
+
+
+def serve_json(session: zenoh.Session, key: str, doc: dict[str, Any]) -> zenoh.Queryable:
+    """Answer queries on ``key`` with ``doc`` as JSON (the static scene, the run's graph)."""
+    blob = json.dumps(doc).encode()
 
     def reply(query: zenoh.Query) -> None:
         query.reply(key, blob, encoding=zenoh.Encoding(GEOMETRY_ENCODING))
@@ -49,6 +54,11 @@ def serve_geometry(session: zenoh.Session, key: str, geometry: dict[str, Any]) -
 def fetch_geometry(session: zenoh.Session, key: str, timeout: float = 2.0) -> dict[str, Any] | None:
     """The static scene served on ``key``, or None (no answer, or an answer that is not a
     JSON map: a malformed reply is ignored, never raised)."""
+    return fetch_json(session, key, timeout)
+
+
+def fetch_json(session: zenoh.Session, key: str, timeout: float = 2.0) -> dict[str, Any] | None:
+    """The JSON map served on ``key``, or None (no answer, or a malformed one)."""
     try:
         replies = list(session.get(key, timeout=timeout))
     except Exception:

@@ -20,7 +20,7 @@ from typing import Any
 
 import zenoh
 
-from cekm_swarm.protocol import DEFAULT_KEYS, KeySpace, MessageError, decode, summary, to_plain
+from cekm_swarm.protocol import DEFAULT_KEYS, KeyKind, KeySpace, MessageError, decode, summary, to_plain
 
 from .bridge import Received
 
@@ -334,15 +334,23 @@ def build_message(key: str, fields_json: str, keys: KeySpace = DEFAULT_KEYS, *, 
         parsed = keys.parse(key)
     except KeySpaceError as exc:
         raise MessageError(str(exc)) from None
-    cls = MESSAGE_TYPES.get(parsed.kind)
-    if cls is None:
-        raise MessageError(f"{key}: a {parsed.kind.value} key carries no message")
     try:
         doc = json.loads(fields_json)
     except ValueError as exc:
         raise MessageError(f"{key}: the message is not JSON ({exc})") from None
     if not isinstance(doc, dict):
         raise MessageError(f"{key}: the message must be a JSON map of fields, got {type(doc).__name__}")
+    kind = parsed.kind
+    if kind is KeyKind.NODE:  # a graph's own key: the message says its kind
+        named = doc.pop("kind", None)
+        kinds = sorted(k.value for k in MESSAGE_TYPES)
+        if named not in kinds:
+            raise MessageError(f"{key}: a graph's own key; say the message's kind in the JSON map, \"kind\": one of "
+                               f"{', '.join(kinds)}")
+        kind = KeyKind(named)
+    cls = MESSAGE_TYPES.get(kind)
+    if cls is None:
+        raise MessageError(f"{key}: a {kind.value} key carries no message")
     if stamp is not None:
         doc["stamp"] = stamp
     doc.setdefault("stamp", 0.0)
@@ -352,7 +360,7 @@ def build_message(key: str, fields_json: str, keys: KeySpace = DEFAULT_KEYS, *, 
     names = [f.name for f in dataclasses.fields(cls)]
     unknown = sorted(set(doc) - set(names))
     if unknown:
-        raise MessageError(f"{key}: unknown field(s) {', '.join(unknown)}; a {parsed.kind.value} message has "
+        raise MessageError(f"{key}: unknown field(s) {', '.join(unknown)}; a {kind.value} message has "
                            f"{', '.join(names)}")
     try:
         msg = cls(**doc)
@@ -361,7 +369,7 @@ def build_message(key: str, fields_json: str, keys: KeySpace = DEFAULT_KEYS, *, 
                    if n not in doc and f.default is dataclasses.MISSING]
         raise MessageError(f"{key}: missing field(s) {', '.join(missing)}") from None
     data = encode(msg)
-    decode(key, data, keys=keys)  # the checks a receiver makes (index matches the key, ...)
+    decode(key, data, keys=keys, expect=kind)  # the checks a receiver makes (index matches the key, ...)
     return data
 
 

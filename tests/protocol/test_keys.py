@@ -78,7 +78,8 @@ def test_bad_sensor_indices(index, match):
     ("cekm/r1/sense/range/x", "not a plain"),
     ("cekm/r1/sense/range/-1", "not a plain"),
     ("cekm/r1/sense/range", "not a key of the cekm key space"),
-    ("cekm/r1/cmd/wheels/extra", "not a key"),
+    ("cekm/r1/sense/bogus", "not a key"),
+    ("cekm/r1/alive", "not a key"),
     ("cekm/world/other", "unknown world key"),
     ("cekm/1r/share", "bad robot id"),
     ("cekm/r1/alive/3x", "bad module name"),
@@ -118,7 +119,8 @@ def test_liveliness_tokens_carry_the_run_id_and_selectors_keep_runs_apart():
     assert ks.parse("cekm/r1/alive/motor").run is None
     other = ks.with_run("other-run")
     assert other.alive("r1", "motor") != ks.alive("r1", "motor")
-    assert ks.robot_modules_alive(["r1"]).isdisjoint(other.robot_modules_alive(["r1"]))
+    names = ("target", "obstacle-0", "motor")
+    assert {ks.alive("r1", m) for m in names}.isdisjoint({other.alive("r1", m) for m in names})
 
 
 @pytest.mark.parametrize("bad", ["", "a/b", "*", "-x", "a" * 65, 7])
@@ -128,3 +130,12 @@ def test_a_bad_run_id_is_refused_by_name(bad):
     if isinstance(bad, str) and bad and "/" not in bad:  # one chunk of a key: refused when parsed too
         with pytest.raises(KeySpaceError, match="run id"):
             KeySpace().parse(f"cekm/r1/alive/motor/{bad}")
+
+
+def test_a_graphs_own_keys_parse_as_node_keys_under_the_robot():
+    """A graph may give its nodes keys of their own below the robot; sense/ and alive/ stay the world's and the tokens'."""
+    ks = KeySpace()
+    for path in ("fusion/avoid", "cmd/wheels/extra", "my_node/out.1"):
+        p = ks.parse(f"cekm/r1/{path}")
+        assert (p.kind, p.robot, p.path) == (KeyKind.NODE, "r1", path)
+    assert ks.node_key("r2", "fusion/avoid") == "cekm/r2/fusion/avoid"

@@ -10,7 +10,7 @@ import msgpack
 import numpy as np
 import pytest
 
-from cekm_swarm.protocol import (DEFAULT_KEYS, SCHEMA_VERSION, Clock, DropCounter, KeyKind, KeySpace,
+from cekm_swarm.protocol import (DEFAULT_KEYS, SCHEMA_VERSION, Clock, Data, DropCounter, KeyKind, KeySpace,
                                  MessageArrayError, MessageError, MessageFieldError, MessageFormatError,
                                  MessageKindError, MessageVersionError, ObstacleField, SenseRange, SenseTarget, Share,
                                  TargetField, WheelCommand, WorldState, decode, encode, peek, summary, to_plain)
@@ -184,8 +184,25 @@ def test_truncated_and_garbage_bytes():
 def test_kind_must_match_the_key():
     raises(MessageKindError, K.cmd_wheels("r1"), encode(FIELD), "kind", "does not match")
     raises(MessageKindError, FKEY, tampered(FIELD, kind=KeyError), "kind")
-    raises(MessageKindError, "cekm/r1/nonsense", encode(FIELD), None, "not a key of the cekm key space")
+    raises(MessageKindError, "cekm/r1/sense/nonsense", encode(FIELD), None, "not a key of the cekm key space")
     raises(MessageKindError, K.alive("r1", "motor"), encode(FIELD), None, "carry no message")
+
+
+def test_a_graphs_own_key_carries_the_kind_its_node_declares():
+    """On a node's own key (a graph declares it) the payload says its kind; a receiver that
+    knows the graph expects one and refuses any other."""
+    assert decode("cekm/r1/my/field", encode(FIELD)) == FIELD
+    assert decode("cekm/r1/my/field", encode(FIELD), expect=KeyKind.FIELD_TARGET) == FIELD
+    with pytest.raises(MessageKindError, match="does not match"):
+        decode("cekm/r1/my/field", encode(FIELD), expect=KeyKind.CMD_WHEELS)
+    with pytest.raises(MessageKindError, match="not a kind of the protocol"):
+        decode("cekm/r1/my/field", msgpack.packb({"v": 1, "kind": "bogus", "stamp": 0.0, "sender": "x"}))
+    data = Data(0.128, "r1/mine", {"d": 0.25, "seen": [1, 2], "ok": True, "none": None})
+    assert decode("cekm/r1/mine/out", encode(data)) == data
+    with pytest.raises(MessageFieldError, match="not finite"):
+        Data(0.0, "x", {"d": float("nan")})
+    with pytest.raises(MessageFieldError, match="not plain data"):
+        Data(0.0, "x", {"a": object()})
 
 
 def test_missing_and_unexpected_fields():

@@ -112,7 +112,7 @@ def test_robot_publishes_on_its_own_keys_only(acl_router):
 def test_robot_receives_only_its_own_sense_keys(acl_router):
     world, r1 = acl_router("world"), acl_router("robot-r1")
     wide = Inbox(r1, "cekm/**")  # more than r1 may receive: the router refuses this subscription
-    own = Inbox(r1, "cekm/r1/sense/**")
+    own = Inbox(r1, K.sense_target("r1"))  # what its target node subscribes to
     clock = Inbox(r1, K.world_clock())
     with Publishers(world, block=True) as pubs:
         assert pubs.wait_matching(K.sense_target("r1"), T)
@@ -180,3 +180,38 @@ def test_monitor_fetches_the_scene_the_world_serves_and_a_robot_does_not(acl_rou
         assert [r for r in r1.get(key, timeout=1.0) if r.ok is not None] == []
     finally:
         queryable.undeclare()
+
+
+def test_the_shipped_router_configs_are_the_generators_output_for_every_shipped_graph():
+    """deploy/router.json5 and deploy/tls/router.json5 come from `cekm graph acl` (the
+    graphs' own keys, robots r1-r4): regenerate them with that command, never by hand."""
+    from cekm_swarm.graph.acl import shipped
+
+    assert (DEPLOY / "router.json5").read_text() == shipped()
+    assert (DEPLOY / "tls" / "router.json5").read_text() == shipped(tls=True)
+    head = (DEPLOY / "router.json5").read_text().splitlines()[1]
+    assert "cekm graph acl acmommt-tracking cekm-navigation cekm-tracking fusion-navigation stay --robots r1,r2,r3,r4" \
+        in head
+
+
+def test_a_graphs_own_keys_are_its_robots_only(acl_router):
+    """Keys a graph gives its nodes (command fusion's proposals) are r1's to send under r1
+    only: r1 publishing r2's is dropped by the router, the monitor publishes nothing."""
+    from cekm_swarm.runtime.record import serve_json
+
+    world, r1, monitor = acl_router("world"), acl_router("robot-r1"), acl_router("monitor")
+    inbox = Inbox(world, "cekm/**")
+    scene = serve_json(world, K.world_geometry(), {"walls": []})
+    with Publishers(monitor, block=True) as mon:
+        mon.put(K.cmd_wheels("r1"), b"\x80")  # the monitor: denied
+        mon.put(K.world_state(), b"\x80")  # denied
+    # the monitor's query reaches the world after its puts would have (one session, in
+    # order; the world's callbacks run in order too): once the reply is back, they were dropped
+    assert [r for r in monitor.get(K.world_geometry(), timeout=T) if r.ok is not None]
+    with Publishers(r1, block=True) as pubs:
+        assert pubs.wait_matching("cekm/r1/fusion/avoid", T)
+        pubs.put("cekm/r2/fusion/avoid", b"\x80")  # another robot's: denied
+        pubs.put("cekm/r1/fusion/avoid", b"\x80")  # its own: allowed
+    assert inbox.until("cekm/r1/fusion/avoid") == ["cekm/r1/fusion/avoid"]
+    scene.undeclare()
+    inbox.sub.undeclare()

@@ -116,16 +116,17 @@ def fuzz(port: int, total: int, batch: int, neurons: int, seed: int, last_tick: 
     return sent, tick
 
 
-def module_listens() -> dict[str, str]:
-    """Each r1 module's subscription."""
-    out = {"target": K.sense_target("r1"), "motor": "cekm/r1/field/**"}
-    out.update({f"obstacle-{j}": K.sense_range("r1", j) for j in range(12)})
-    return out
+def module_listens() -> dict[str, list[str]]:
+    """Each r1 node's subscriptions, as the graph that runs derives them."""
+    from cekm_swarm.graph.check import check_graph
+
+    plan = check_graph("cekm-navigation").plan(("r1",), "navigation")
+    return {n.name: n.subscriptions("cekm") for n in plan.nodes["r1"]}
 
 
-def receiving(expr: str, sent: list[Fuzz]) -> int:
-    ke = zenoh.KeyExpr(expr)
-    return sum(ke.intersects(zenoh.KeyExpr(f.key)) for f in sent)
+def receiving(expr: str | list[str], sent: list[Fuzz]) -> int:
+    kes = [zenoh.KeyExpr(e) for e in ([expr] if isinstance(expr, str) else expr)]
+    return sum(any(ke.intersects(zenoh.KeyExpr(f.key)) for ke in kes) for f in sent)
 
 
 def module_drops(out: Path, name: str) -> dict:

@@ -7,20 +7,19 @@ import argparse
 
 import pytest
 
-from cekm_swarm.launch.processes import module_argv, new_run_id, server_argv
-from cekm_swarm.modules.shell import INDEX_PARAM, base_parser
+from cekm_swarm.launch.processes import new_run_id, node_argv, server_argv
+from cekm_swarm.node.process import parser as node_parser
 from cekm_swarm.protocol import KeySpace
 from cekm_swarm.runtime.process_args import Param, add_params, to_argv
 from world.server import parser as world_parser
 
 
-def test_a_module_command_line_parses_back_to_its_values():
-    argv = module_argv("obstacle-7", robot="r2", model="m.npz", connect="tcp/10.0.0.1:7447", root="lab",
-                       mode="lockstep", zenoh_config="c.json5", run_id="run-1")
-    assert argv[1:3] == ["-m", "cekm_swarm.modules.obstacle"]
-    args = add_params(base_parser("x"), (INDEX_PARAM,)).parse_args(argv[3:])
-    assert (args.robot, args.model, args.connect, args.root, args.mode, args.zenoh_config, args.run_id, args.index) == (
-        "r2", "m.npz", "tcp/10.0.0.1:7447", "lab", "lockstep", "c.json5", "run-1", 7)
+def test_a_node_command_line_parses_back_to_its_values(tmp_path):
+    """A node takes the run spec (every setting of the run, declared once) and which node it is."""
+    argv = node_argv(str(tmp_path / "run-spec.json"), "r2", "obstacle-7")
+    assert argv[1:3] == ["-m", "cekm_swarm.node"]
+    args = node_parser().parse_args(argv[3:])
+    assert (args.spec, args.robot, args.node) == (str(tmp_path / "run-spec.json"), "r2", "obstacle-7")
 
 
 def test_the_world_server_command_line_parses_back_to_its_values(tmp_path):
@@ -34,11 +33,7 @@ def test_the_world_server_command_line_parses_back_to_its_values(tmp_path):
 
 def test_an_undeclared_or_missing_parameter_fails_in_the_launcher_not_in_the_child():
     with pytest.raises(TypeError, match="wheels"):
-        module_argv("motor", robot="r1", model="m", wheels=2)
-    with pytest.raises(TypeError, match="--robot"):
-        module_argv("motor", model="m")
-    with pytest.raises(ValueError, match="obstacle-<j>"):
-        module_argv("obstacle", robot="r1", model="m")
+        server_argv(scenario="concave", out="o", wheels=2)
     with pytest.raises(TypeError, match="scenario"):
         to_argv((Param("scenario", positional=True),))
 

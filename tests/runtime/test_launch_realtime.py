@@ -151,7 +151,8 @@ def test_killed_modules_are_restarted_and_the_log_shows_it(faulty_run):
 def test_motor_drops_the_dead_obstacle_modules_stale_field(faulty_run):
     run, _ = faulty_run
     log = (run.out / "logs" / "r1-motor.log").read_text()
-    assert "stale field dropped: obstacle-0" in log
+    assert "stale input left out: cekm/r1/field/obstacle/0" in log
+    assert '"stale": {"cekm/r1/field/obstacle/0": 1}' in log  # counted once in the node's final report
 
 
 def test_world_stops_the_robot_whose_motor_died_within_the_deadman_limit(faulty_run):

@@ -12,7 +12,8 @@ import pytest
 from cekm_swarm.errors import ModelFormatError
 from cekm_swarm.experiments.default_model import default_model, default_model_path
 from cekm_swarm.models.io import load_model, load_model_bytes
-from cekm_swarm.modules.shell import load_controller
+from cekm_swarm.modules.ekm import cooperative_ekm
+from cekm_swarm.node import Context
 from cekm_swarm.protocol import DEFAULT_KEYS as K
 from cekm_swarm.runtime.config import (MAX_MESSAGE_BYTES, client_config_from_file, free_port, open_client,
                                        open_embedded_router)
@@ -44,7 +45,7 @@ def test_served_model_equals_the_file(two_sessions):
     assert blob == path.read_bytes() and server.served == 1
     got, want = load_model_bytes(blob, "zenoh:x"), load_model(path)
     assert np.array_equal(got.w, want.w) and np.array_equal(got.M, want.M)
-    ekm = load_controller(("zenoh:" + K.world_model(), blob))
+    ekm = cooperative_ekm(Context("r1", "target", model_source=("zenoh:" + K.world_model(), blob), backend="numpy"))
     assert ekm.n == want.w.shape[0]
 
 

@@ -12,10 +12,12 @@ from cekm_swarm.protocol import DEFAULT_KEYS as K
 from cekm_swarm.protocol import SenseRange, SenseTargets, Share, WheelCommand, WorldState, encode
 from cekm_swarm.runtime.bridge import declare_alive
 from cekm_swarm.runtime.logcat import key_filter
+from cekm_swarm.runtime.rungraph import default_nodes
 from cekm_swarm.runtime.jsonout import json_line
 from cekm_swarm.runtime.monitor import MonitorState, render_text, snapshot
 
-ALL_MODULES = {K.alive("r1", m) for m in K.module_names()}
+NODES = default_nodes()  # the cekm navigation graph's nodes of one robot
+ALL_MODULES = {K.alive("r1", m) for m in NODES}
 WORLD_TOKEN = K.alive("world", "server")
 
 
@@ -41,6 +43,8 @@ def test_view_model_poses_latency_rates_and_drops():
     assert abs(v.latency_ms(0.5) - 3.0) < 1e-6  # first sense of the tick to the command of the same stamp
     assert st.drops.total == 1  # the malformed command was dropped and counted
     st.set_alive({"cekm/r1/alive/motor", "cekm/r1/alive/target", WORLD_TOKEN})
+    assert st.modules_alive("r1") == (2, [])  # the run's graph not known yet: nothing counts as missing
+    st.expected = NODES  # what the monitor learns from the graph the world serves
     n, missing = st.modules_alive("r1")
     assert n == 2 and "obstacle-0" in missing
     text = render_text(st, now=10.01)
@@ -214,7 +218,8 @@ def test_monitor_command_attaches_to_a_live_run(router, clients):
     out, err = proc.communicate(timeout=10)
     assert proc.returncode == 0, err
     assert out.startswith("cekm monitor running") and max(len(line) for line in out.splitlines()) <= 80
-    assert "r1" in out and "moving" in out and "1/14" in out
+    row = next(line for line in out.splitlines() if line.startswith("r1 "))
+    assert "moving" in row and row.split()[-2] == "1"  # one node alive; no world serves a graph to compare with
     assert "cekm/r1/cmd/wheels" in out and "cekm/world/state" in out
     del token
 
@@ -236,9 +241,10 @@ def test_tokens_with_a_run_id_count_as_the_world_and_modules():
 
     run = KeySpace(run="run-7")
     st = MonitorState()
-    st.set_alive({run.alive("r1", m) for m in run.module_names()} | {run.alive("world", "server")})
+    st.expected = NODES
+    st.set_alive({run.alive("r1", m) for m in NODES} | {run.alive("world", "server")})
     st.observe(K.world_state(), encode(world_state(0.5, 0.3)), at=1.0)
     assert st.phase(1.2) == "running" and st.modules_alive("r1") == (14, [])
     assert "  run run-7" in lines_of(render_text(st, now=1.2))[0]
-    st.set_alive({run.alive("r1", m) for m in run.module_names()})
+    st.set_alive({run.alive("r1", m) for m in NODES})
     assert st.phase(2.5) == "run ended"  # the world's token went away

@@ -21,6 +21,7 @@ from cekm_swarm.runtime.config import load_config, open_session
 from cekm_swarm.launch.plot import read_geometry
 from cekm_swarm.runtime.mcap_log import log_info, read_messages
 from cekm_swarm.runtime.record import serve_geometry
+from cekm_swarm.runtime.rungraph import default_nodes
 
 DEPLOY = Path(__file__).resolve().parents[2] / "deploy"
 T = 20.0
@@ -73,7 +74,8 @@ def test_topic_pub_publishes_a_validated_message(router, clients):
     ("cekm/r1/cmd/wheels", '{"v_l": "fast", "v_r": 0, "seq": 1}', "v_l"),
     ("cekm/r1/cmd/wheels", "[1, 2]", "must be a JSON map"),
     ("cekm/r1/alive/motor", "{}", "carries no message"),
-    ("cekm/r1/nothing", "{}", "not a key of the cekm key space"),
+    ("cekm/r1/nothing", "{}", "a graph's own key"),
+    ("cekm/r1/sense/nothing", "{}", "not a key of the cekm key space"),
 ])
 def test_topic_pub_refuses_a_bad_message_naming_the_field(key, body, problem):
     res = CliRunner().invoke(cli, ["topic", "pub", key, body, "--wait", "0"])
@@ -137,16 +139,25 @@ def test_topic_info_names_publishers_and_subscribers_and_measures_the_rate(route
 
 
 def test_node_list_groups_live_modules_and_names_the_missing(router, clients):
+    """The nodes each robot should have come from the graph the world serves (as a world server does)."""
+    from cekm_swarm.graph.check import check_graph
+    from cekm_swarm.launch.prepare import run_spec
+    from cekm_swarm.robot import RobotBody
+    from cekm_swarm.runtime.record import serve_json
+
     a = clients()
-    tokens = [declare_alive(a, K.alive("r1", m)) for m in K.module_names()]
+    spec = run_spec(check_graph("cekm-navigation"), ("r1", "r2"), "navigation", RobotBody())
+    served = serve_json(a, K.world_graph(), spec.to_dict())
+    tokens = [declare_alive(a, K.alive("r1", m)) for m in default_nodes()]
     tokens += [declare_alive(a, K.alive("r2", "motor")), declare_alive(a, K.alive("r2", "target")),
                declare_alive(a, K.alive("world", "server"))]
     res = run("node", "list", "--connect", router)
     assert res.exit_code == 0, res.output
     lines = res.output.splitlines()
-    assert lines[0] == "world    server"
-    assert lines[1] == "r1       14/14 modules alive"
-    assert lines[2].startswith("r2        2/14 modules alive; missing: obstacle-0, obstacle-1")
+    assert lines[0] == "graph cekm-navigation (controller cekm): 14 nodes per robot"
+    assert lines[1] == "world    server"
+    assert lines[2] == "r1       14/14 nodes alive"
+    assert lines[3].startswith("r2        2/14 nodes alive; missing: obstacle-0, obstacle-1")
     listed = run("node", "list", "--connect", router, "--json")
     js = [json.loads(line) for line in listed.output.splitlines()]
     assert len(js) == 3, listed.output
@@ -162,6 +173,7 @@ def test_node_list_groups_live_modules_and_names_the_missing(router, clients):
     for _ in tokens:  # the router has taken every token away
         assert gone.acquire(timeout=T)
     watch.undeclare()
+    served.undeclare()
     empty = run("node", "list", "--connect", router, "--timeout", "0.2")
     assert empty.output.splitlines()[-1] == "no live modules"
 
@@ -174,10 +186,13 @@ def test_node_list_names_the_run():
     from cekm_swarm.runtime.nodes import format_nodes, group_tokens
 
     run = KeySpace(run="abc-1")
-    groups, other = group_tokens({run.alive("world", "server"), run.alive("r1", "motor"), "cekm/r1/nothing"}, K)
+    nodes = default_nodes()
+    groups, other = group_tokens({run.alive("world", "server"), run.alive("r1", "motor"), "cekm/r1/nothing"}, K, nodes)
     assert format_nodes(groups, other).splitlines() == [
-        "world    server (run abc-1)", "r1        1/14 modules alive (run abc-1); missing: " +
+        "world    server (run abc-1)", "r1        1/14 nodes alive (run abc-1); missing: " +
         ", ".join(["target"] + [f"obstacle-{j}" for j in range(12)]), "other token: cekm/r1/nothing"]
+    groups, other = group_tokens({run.alive("r1", "motor")}, K)  # no graph known: what is alive, nothing missing
+    assert format_nodes(groups, other) == "r1        1 nodes alive (run abc-1): motor"
 
 
 def test_log_cat_prints_decoded_messages_text_and_json(tmp_path):

@@ -16,6 +16,7 @@ from pathlib import Path
 import pytest
 
 from cekm_swarm.protocol import DEFAULT_KEYS as K
+from cekm_swarm.runtime.rungraph import default_nodes
 from cekm_swarm.runtime.config import free_port, open_client
 
 
@@ -73,7 +74,7 @@ def test_the_world_hosts_the_router_and_reports_missing_modules_by_name(world, t
     kind, doc = w.next_kind()
     assert kind == "READY" and doc == {"endpoint": w.endpoint, "router": True}
     session = open_client(w.endpoint)  # nothing else listens on this port: the world server is the router
-    tokens = [session.liveliness().declare_token(K.alive("r1", m)) for m in K.module_names() if m != "motor"]
+    tokens = [session.liveliness().declare_token(K.alive("r1", m)) for m in default_nodes() if m != "motor"]
     try:
         kind, doc = w.next_kind()
         assert kind == "EVENT" and doc["event"] == "modules_missing"
@@ -97,7 +98,7 @@ def test_tick_0_comes_once_every_module_is_alive(world):
     sub = session.declare_subscriber(K.sense_range("r1", 0), lambda s: readings.put(s.payload.to_bytes()))
     tokens = []
     try:
-        for m in K.module_names():
+        for m in default_nodes():
             tokens.append(session.liveliness().declare_token(K.alive("r1", m)))
         kind, doc = w.next_kind()
         assert kind == "START" and doc["robots"] == ["r1"]
@@ -131,8 +132,8 @@ def test_the_world_counts_only_the_tokens_of_its_own_run(world):
     assert w.next_kind()[0] == "READY"
     mine, other = K.with_run("run-a"), K.with_run("run-b")
     session = open_client(w.endpoint)
-    tokens = [session.liveliness().declare_token(other.alive("r1", m)) for m in K.module_names()]
-    tokens += [session.liveliness().declare_token(mine.alive("r1", m)) for m in K.module_names() if m != "motor"]
+    tokens = [session.liveliness().declare_token(other.alive("r1", m)) for m in default_nodes()]
+    tokens += [session.liveliness().declare_token(mine.alive("r1", m)) for m in default_nodes() if m != "motor"]
     try:
         kind, doc = w.next_kind()
         assert kind == "EVENT" and doc["event"] == "modules_missing"

@@ -1,0 +1,304 @@
+"""One node as its own process: the one shell every module runs in.
+
+``python -m cekm_swarm.node RUN-SPEC.json --robot r1 --node obstacle-3``
+
+It reads the run spec, builds the node (a node that cannot start, say for a bad model or
+parameter, exits with :data:`EXIT_CANNOT_START` and its one-line reason, and the
+launcher ends the launch with that line instead of restarting it), opens a Zenoh client
+session, subscribes to the node's inputs, holds its liveliness token
+``<root>/<robot>/alive/<node>/<run>``, and hands every message to the node's timing gate
+(:mod:`.timing`, lockstep or real time), publishing what the node computes. Every
+received message is validated; a malformed one, one whose stamp the node does not believe
+(:class:`~cekm_swarm.protocol.stamps.StampWindow`) or one on a key the node does not read
+is dropped and counted per source, never a crash. It serves until SIGTERM/SIGINT, then
+logs ``DROPS {json}`` with what it handled and dropped.
+
+Decode, the step and publish run on Zenoh's receiving thread (a direct callback): one
+thread wake-up per message instead of three, which is most of a module's cost on a loaded
+machine. A lock serializes the node's subscriptions, so the node needs none.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import json
+import logging
+import os
+import signal
+import sys
+import threading
+import time
+from typing import Any
+
+from cekm_swarm.errors import CekmError
+from cekm_swarm.graph.check import node_class
+from cekm_swarm.graph.plan import NodePlan, RunPlan
+from cekm_swarm.graph.runspec import RunSpec
+from cekm_swarm.protocol import DropCounter, KeyKind, encode
+from cekm_swarm.protocol.stamps import StampWindow
+
+from .api import Context, make_params
+from .timing import LockstepGate, RealtimeGate, Runner
+
+EXIT_CANNOT_START = 78
+"""A node that cannot start (bad model, bad parameter): a permanent failure, not restarted."""
+CANNOT_START = "CANNOT-START"
+"""The prefix of the one line a node that cannot start writes to its log."""
+
+log = logging.getLogger("cekm_swarm.node")
+
+
+def build_node(spec: RunSpec, plan: RunPlan, robot: str, name: str, backend: str = "numpy",
+               model_source: Any = None) -> tuple[NodePlan, Runner]:
+    """The node instance ``name`` of ``robot``, built and set up (raises CekmError/ValueError
+    for a node that cannot start)."""
+    try:
+        node_plan = plan.node(robot, name)
+    except KeyError:
+        names = ", ".join(n.name for n in plan.nodes.get(robot, [])) or "none"
+        raise CekmError(f"graph {spec.graph.name!r} has no node {name!r} for robot {robot!r} (nodes: {names})") from None
+    decl = node_plan.decl
+    cls = node_class(decl.program, spec.graph.source, decl.where)
+    params = make_params(cls, spec.params.get(decl.name, {}), f"{decl.where}.params")
+    ctx = Context(robot, decl.name, node_plan.instance, spec.team, spec.body, spec.mode,
+                  model_source if model_source is not None else spec.model, backend,
+                  logging.getLogger(f"cekm_swarm.node.{decl.name}"))
+    return node_plan, Runner(node_plan, cls(ctx, params))
+
+
+class NodeShell:
+    """The Zenoh side of one node: subscriptions, gate, publishing, liveliness."""
+
+    def __init__(self, spec: RunSpec, plan: RunPlan, node_plan: NodePlan, runner: Runner) -> None:
+        self.spec, self.plan, self.node_plan, self.runner = spec, plan, node_plan, runner
+        self.keys = spec.keys
+        self.drops = DropCounter(node_plan.label, keys=self.keys)
+        self.window = StampWindow()
+        self.lock = threading.RLock()
+        self.closed = threading.Event()
+        self.handled = 0
+        lockstep = spec.mode == "lockstep"
+        gate_cls = LockstepGate if lockstep else RealtimeGate
+        self.gate = gate_cls(runner, drop=self.drops.drop)
+        self.kinds: dict[str, KeyKind] = {s.key: KeyKind(b.kind) for b in node_plan.bindings for s in b.sources}
+        self.ports: dict[str, str] = {s.key: b.port for b in node_plan.bindings for s in b.sources}
+        if node_plan.clock_key is not None:
+            self.kinds[node_plan.clock_key] = KeyKind.WORLD_CLOCK
+        self.mates = {s.owner for b in node_plan.bindings if b.team for s in b.sources}
+        self.mate_tokens: dict[str, set[str]] = {m: set() for m in self.mates}
+        # readers of this node's outputs that read them with a delay (teammates): their
+        # (re)appearing token asks for the recent outputs they would otherwise miss
+        mine = set(node_plan.outputs.values())
+        self.late_readers = {self.keys.alive(n.robot, n.name) for r in plan.team for n in plan.nodes[r]
+                             for b in n.bindings if b.delay == 1 for s in b.sources if s.key in mine}
+        self.pubs: Any = None
+
+    # ------------------------------------------------------------------ subscriptions
+
+    def listen_exprs(self) -> list[str]:
+        """What to subscribe to (:meth:`~cekm_swarm.graph.plan.NodePlan.subscriptions`)."""
+        return self.node_plan.subscriptions(self.keys.root)
+
+    def on_sample(self, key: str, payload: bytes) -> list[tuple[str, Any]]:
+        """One received sample: validate, admit its stamp, hand it to the gate."""
+        kind = self.kinds.get(key)
+        if kind is None:
+            if not key.endswith("/share") or key.split("/")[-2] != self.node_plan.robot:  # own share: not an input
+                self.drops.drop(key, "not a key this node reads")
+            return []
+        msg = self.drops.decode(key, payload, expect=kind)
+        if msg is None:
+            return []
+        port = self.ports.get(key)
+        why = None if port is None else self.runner.node.check_input(port, msg)
+        if why is None:
+            why = self.window.check(msg.stamp)
+        if why is not None:
+            self.drops.drop(key, why)
+            return []
+        try:
+            return self.gate.put(key, msg)
+        except CekmError:
+            raise
+        except Exception as exc:  # noqa: BLE001 - a node must survive any single message
+            self.drops.drop(key, f"the node's step failed: {type(exc).__name__}: {exc}")
+            return []
+
+    def on_token(self, key: str, alive: bool) -> list[tuple[str, Any]]:
+        """A liveliness token appeared or vanished: a teammate gone or back; a late reader back."""
+        out: list[tuple[str, Any]] = []
+        try:
+            owner = self.keys.parse(key).robot
+        except CekmError:
+            return out
+        if owner in self.mate_tokens:
+            held = self.mate_tokens[owner]
+            was = bool(held)
+            (held.add if alive else held.discard)(key)
+            if was and not held:
+                log.warning("%s: teammate %s dropped (its liveliness tokens vanished)", self.node_plan.label, owner)
+                sys.stdout.write("DROP " + json.dumps({"robot": self.node_plan.robot, "dropped": owner,
+                                                        "wall": time.time()}) + "\n")
+                sys.stdout.flush()
+                self.runner.node.teammate_left(owner)
+                out += self.gate.teammate(owner, False)
+            elif held and not was:
+                out += self.gate.teammate(owner, True)
+        if alive and key in self.late_readers:
+            out += self.gate.resend()
+        return out
+
+    def publish(self, out: list[tuple[str, Any]]) -> None:
+        for key, msg in out:
+            try:
+                self.pubs.put(key, encode(msg))
+            except Exception as exc:  # noqa: BLE001 - a closing session must not kill the thread
+                log.warning("%s: publishing on %s failed: %s", self.node_plan.label, key, exc)
+
+    # ------------------------------------------------------------------ serving
+
+    async def serve(self, session: Any, ready: Any = None) -> int:
+        import zenoh
+
+        from cekm_swarm.runtime.bridge import InlineSubscription, Publishers, declare_alive
+
+        loop = asyncio.get_running_loop()
+        stop = asyncio.Event()
+        for sig in (signal.SIGTERM, signal.SIGINT):
+            try:
+                loop.add_signal_handler(sig, stop.set)
+            except (NotImplementedError, RuntimeError):  # pragma: no cover - non-main thread
+                pass
+        put = zenoh.SampleKind.PUT
+        self.pubs = Publishers(session, block=self.spec.mode == "lockstep", express=False)
+        for key in self.node_plan.outputs.values():  # before listening: no declaration on Zenoh's thread later
+            self.pubs.publisher(key)
+
+        def serve_sample(sample: zenoh.Sample) -> None:
+            if self.closed.is_set() or sample.kind != put:
+                return
+            with self.lock:
+                self.publish(self.on_sample(str(sample.key_expr), sample.payload.to_bytes()))
+                self.handled += 1
+
+        def serve_token(sample: zenoh.Sample) -> None:
+            if self.closed.is_set():
+                return
+            with self.lock:
+                try:
+                    self.publish(self.on_token(str(sample.key_expr), sample.kind == put))
+                except Exception as exc:  # noqa: BLE001 - a node must survive any token event
+                    log.warning("%s: liveliness handler failed: %s: %s", self.node_plan.label, type(exc).__name__, exc)
+
+        subs = [InlineSubscription(session, k, serve_sample, raw=True) for k in self.listen_exprs()]
+        tokens = None
+        if self.mates or self.late_readers:
+            tokens = session.liveliness().declare_subscriber(self.keys.alive_all(), serve_token, history=True)
+        # the token comes last: once it is up, the subscriptions are in place
+        token = declare_alive(session, self.keys.alive(self.node_plan.robot, self.node_plan.name))
+        log.info("%s: up (%s), listening on %s", self.node_plan.label, self.spec.mode, ", ".join(self.listen_exprs()))
+        if ready is not None:
+            ready()
+        try:
+            await stop.wait()
+        finally:
+            self.closed.set()
+            for s in subs:
+                s.close()
+            if tokens is not None:
+                tokens.undeclare()
+            token.undeclare()
+            self.pubs.close()
+        return self.handled
+
+    def report(self) -> dict[str, Any]:
+        g = self.gate
+        return {"handled": self.handled, "runs": self.runner.runs, "dropped": self.drops.by_source(),
+                "repeats": getattr(g, "repeats", 0), "stale": getattr(g, "stale_drops", {})}
+
+
+def parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="python -m cekm_swarm.node", description="run one node of a controller's graph")
+    p.add_argument("spec", help="the run spec (OUT/run-spec.json, written by cekm launch)")
+    p.add_argument("--robot", required=True, help="robot id, e.g. r1")
+    p.add_argument("--node", required=True, help="the node instance, e.g. obstacle-3")
+    p.add_argument("--run-id", help="the run's id (default: the run spec's); named here so `ps` tells runs apart")
+    return p
+
+
+def node_argv(spec_path: str, robot: str, name: str, run_id: str | None = None) -> list[str]:
+    """The command line that starts node ``name`` of ``robot`` (what :func:`parser` parses)."""
+    argv = [sys.executable, "-m", "cekm_swarm.node", str(spec_path), "--robot", robot, "--node", name]
+    return argv + (["--run-id", run_id] if run_id else [])
+
+
+def main(argv: list[str] | None = None) -> int:
+    from cekm_swarm.runtime.config import LOCKSTEP_MODULE_RUNTIME, ONE_THREAD_RUNTIME, open_client, use_zenoh_runtime
+    from cekm_swarm.runtime.gc_tuning import freeze_startup_heap
+    from cekm_swarm.runtime.lifetime import die_with_parent
+
+    die_with_parent()  # started by a launcher: stop when it dies, whatever kills it
+    args = parser().parse_args(argv)
+    label = f"{args.robot}/{args.node}"
+    try:
+        spec = RunSpec.read(args.spec)
+    except CekmError as exc:
+        return _cannot_start(label, str(exc))
+    if args.run_id:
+        spec = spec.with_(run_id=args.run_id)
+    # a node receives a message and sends one per period: one thread does it (sending apart
+    # in lockstep, where a put may wait for the send queue: runtime.config)
+    use_zenoh_runtime(LOCKSTEP_MODULE_RUNTIME if spec.mode == "lockstep" else ONE_THREAD_RUNTIME)
+    logging.basicConfig(level=spec.log_level.upper(), stream=sys.stderr,
+                        format="%(asctime)s.%(msecs)03d %(name)s %(levelname)s %(message)s", datefmt="%H:%M:%S")
+    t0 = time.perf_counter()
+    try:
+        plan = spec.plan()
+        source = spec.model
+        if source == "zenoh":
+            source = _fetch_model(spec)
+        node_plan, runner = build_node(spec, plan, args.robot, args.node, "numpy", source)
+    except (CekmError, ValueError) as exc:
+        return _cannot_start(label, str(exc))
+    except Exception as exc:  # noqa: BLE001 - a user's node may fail in any way while starting
+        return _cannot_start(label, f"{type(exc).__name__}: {exc}")
+    log.info("%s: built in %.2f s (pid %d)", label, time.perf_counter() - t0, os.getpid())
+    freeze_startup_heap()  # the model and tables stay; per message only short-lived objects
+    shell = NodeShell(spec, plan, node_plan, runner)
+    session = open_client(spec.connect, config_file=spec.zenoh_config)
+    try:
+        asyncio.run(shell.serve(session))
+    finally:
+        session.close()
+        runner.node.close()
+    report = shell.report()
+    if shell.drops.total:
+        log.warning("%s: %d malformed messages dropped: %s", label, shell.drops.total,
+                    "; ".join(f"{r.source} x{r.count}" for r in shell.drops.records()))
+    log.info("%s: DROPS %s", label, json.dumps(report))
+    log.info("%s: stopped after %d messages, %d runs", label, shell.handled, runner.runs)
+    # the session is closed and everything logged: skip the interpreter's teardown
+    logging.shutdown()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(0)
+
+
+def _cannot_start(label: str, why: str) -> int:
+    sys.stderr.write(f"{CANNOT_START} {label}: {why}\n")
+    sys.stderr.flush()
+    return EXIT_CANNOT_START
+
+
+def _fetch_model(spec: RunSpec) -> tuple[str, bytes]:
+    """``(where, bytes)`` of the model the world host's launcher serves (``--model-from-zenoh``)."""
+    from cekm_swarm.runtime.config import open_client
+    from cekm_swarm.runtime.model_service import fetch_model_bytes
+
+    key = spec.keys.world_model()
+    session = open_client(spec.connect, config_file=spec.zenoh_config)
+    try:
+        return f"zenoh:{key}", fetch_model_bytes(session, key, spec.model_timeout)
+    finally:
+        session.close()
