@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import importlib
 import inspect
+import sys
+from pathlib import Path
 from dataclasses import asdict, dataclass
 from typing import Any, Mapping
 
@@ -25,6 +27,7 @@ def node_class(program: str, source: str = "", where: str = "") -> type[Node]:
     """The node class of ``program``: ``module:Class``, or a module holding exactly one
     :class:`Node` subclass of its own (or naming it ``NODE``)."""
     mod_name, _, cls_name = program.partition(":")
+    _beside(source)
     try:
         mod = importlib.import_module(mod_name)
     except ImportError as exc:
@@ -48,6 +51,16 @@ def node_class(program: str, source: str = "", where: str = "") -> type[Node]:
                                                     f"({', '.join(c.__name__ for c in own) or 'none'}): name one as "
                                                     f"'{mod_name}:Class'")
     return own[0]
+
+
+def _beside(source: str) -> None:
+    """A graph's own programs may sit beside its file: that folder is searched too (after
+    the installed packages, so a file there never hides one of the package's modules)."""
+    if not source:
+        return
+    folder = str(Path(source).resolve().parent)
+    if Path(source).is_file() and folder not in sys.path:
+        sys.path.append(folder)
 
 
 def port_types(cls: type[Node]) -> PortTypes:

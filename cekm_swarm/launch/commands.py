@@ -108,7 +108,8 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwr
     from .prepare import PreflightError, resolve
 
     try:  # the graph, checked before anything is written or started
-        resolve(sc, controller, graph_file)
+        checked, task = resolve(sc, controller, graph_file)
+        checked.plan([r.id for r in sc.robots], task)
     except GraphError as exc:
         raise click.UsageError(str(exc)) from None
     prepare_out_dir(out_dir, overwrite)

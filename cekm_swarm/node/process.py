@@ -286,7 +286,8 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _cannot_start(label: str, why: str) -> int:
-    sys.stderr.write(f"{CANNOT_START} {label}: {why}\n")
+    line = " ".join(why.split()) if why.startswith(label) else f"{label}: {' '.join(why.split())}"
+    sys.stderr.write(f"{CANNOT_START} {line}\n")
     sys.stderr.flush()
     return EXIT_CANNOT_START
 

@@ -18,14 +18,14 @@ from cekm_swarm.runtime.config import free_port
 
 
 class LaunchProcess:
-    def __init__(self, scenario: str, out: Path, *args: str, port: int | None = None) -> None:
+    def __init__(self, scenario: str, out: Path, *args: str, port: int | None = None, cwd: Path | None = None) -> None:
         self.out = out
         self.port = port or free_port()
         env = dict(os.environ, PYTHONUNBUFFERED="1")
         self.proc = subprocess.Popen([sys.executable, "-m", "cekm_swarm", "launch", scenario, "--out", str(out),
                                       "--port", str(self.port), *args],
                                      stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env,
-                                     start_new_session=True)
+                                     start_new_session=True, cwd=cwd)
         self.lines: list[str] = []
         self._q: queue.Queue[str | None] = queue.Queue()
         threading.Thread(target=self._read, daemon=True).start()
