@@ -52,8 +52,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from cekm_swarm.experiments.default_model import default_model, default_model_path  # noqa: E402
 from cekm_swarm.launch.cpu import cpu_seconds, host_shares, host_times  # noqa: E402
-from cekm_swarm.launch.processes import module_argv  # noqa: E402
-from cekm_swarm.protocol import module_names  # noqa: E402
+from cekm_swarm.graph.check import check_graph  # noqa: E402
+from cekm_swarm.launch.prepare import body_of, run_spec  # noqa: E402
+from cekm_swarm.launch.processes import node_argv  # noqa: E402
 from cekm_swarm.protocol import DEFAULT_KEYS as K  # noqa: E402
 from cekm_swarm.protocol import WheelCommand, decode  # noqa: E402
 from cekm_swarm.runtime.bridge import InlineSubscription, LivelinessWatcher, Publishers  # noqa: E402
@@ -86,10 +87,16 @@ def memory(pid: int) -> dict[str, float]:
 
 
 async def start_modules(session, endpoint: str, model: Path) -> tuple[list[subprocess.Popen], float]:
-    procs = [subprocess.Popen(module_argv(n, robot="r1", model=model, connect=endpoint, mode="lockstep", root="cekm"), stdout=subprocess.DEVNULL,
-                              stderr=subprocess.DEVNULL) for n in module_names(12)]
+    """The cekm navigation graph's 14 node processes of robot r1, from a run spec as the launcher writes it."""
+    checked = check_graph("cekm-navigation")
+    spec = run_spec(checked, ("r1",), "navigation", body_of(load_scenario("lone_obstacle")), mode="lockstep",
+                    connect=endpoint, model=str(model))
+    path = spec.write(Path(tempfile.mkdtemp(prefix="bench-runtime-")) / "run-spec.json")
+    names = checked.graph.node_names(12)
+    procs = [subprocess.Popen(node_argv(str(path), "r1", n), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+             for n in names]
     t0 = time.monotonic()
-    expected = {K.alive("r1", n) for n in module_names(12)}
+    expected = {K.alive("r1", n) for n in names}
     with LivelinessWatcher(session, K.alive_all()) as w:
         while not expected <= w.alive:
             await w.next_event(timeout=120)

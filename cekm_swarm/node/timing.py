@@ -152,6 +152,7 @@ class LockstepGate:
         self.node = self.runner.plan
         self.trigger = _triggers(self.node)
         self.watched = {s.key for b in self.node.bindings for s in b.sources}
+        self.sources = {s.key: (s, b.delay) for b in self.node.bindings for s in b.sources}
 
     def _lookup(self, key: str, tick: int) -> Any:
         return self.store.get(key, {}).get(tick)
@@ -163,6 +164,12 @@ class LockstepGate:
         if k <= self.done and key in self.used and self.used[key] == k:
             self.repeats += 1
             return list(self.last_out)  # a value again for what the last run used: send that run again
+        if key in self.watched and self.done >= 0:
+            source, delay = self.sources[key]
+            first = needed_tick(self.done + 1, source.period, delay)
+            if first is not None and k < first:
+                self.drop(key, f"a value of t={tick_time(k)}, which no run after t={tick_time(self.done)} reads")
+                return []
         if key in self.watched:
             held = self.store.setdefault(key, {})
             held[k] = msg

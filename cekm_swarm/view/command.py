@@ -105,13 +105,62 @@ def view_cmd(scenario: str | None, log: Path | None, seed: int | None, robot: st
                 raise click.ClickException(f"--foxglove {foxglove_port}: cannot serve on {host}: {exc}") from None
             click.echo(f"foxglove WebSocket server on ws://{host}:{fox.port}", err=True)
         click.echo(f"live view on {server.url} (Ctrl-C to stop)", err=True)
+        runs = RunWatch(session, keys)
         view.w = _lattice(session, model_path, root, timeout=5.0)
         try:
-            threading.Event().wait()
+            while True:
+                run = runs.changed(timeout=0.5)
+                if run is not None:  # a new run: start afresh, with the graph it runs
+                    from cekm_swarm.runtime.rungraph import fetch_run_graph
+
+                    g = fetch_run_graph(session, keys.world_graph())
+                    view.new_run(run, None if g is None else f"{g.name} ({g.controller})")
         except KeyboardInterrupt:
             pass
         finally:
+            runs.close()
             if fox is not None:
                 fox.close()
             server.close()
             sub.undeclare()
+
+
+class RunWatch:
+    """The run id of the world server alive on the router, from its liveliness token
+    (``<root>/world/alive/server/<run>``); :meth:`changed` returns a new one once."""
+
+    def __init__(self, session, keys) -> None:
+        import zenoh
+
+        self._lock = threading.Lock()
+        self._event = threading.Event()
+        self._current: str | None = None
+        self._seen: str | None = None
+        any_run = keys.with_run(None)
+
+        def on_token(sample) -> None:  # Zenoh's thread: note it and return
+            if sample.kind != zenoh.SampleKind.PUT:
+                return
+            try:
+                run = any_run.parse(str(sample.key_expr)).run
+            except CekmError:
+                return
+            if run:
+                with self._lock:
+                    self._current = run
+                self._event.set()
+
+        self._sub = session.liveliness().declare_subscriber(any_run.world_alive_any_run(), on_token, history=True)
+
+    def changed(self, timeout: float) -> str | None:
+        self._event.wait(timeout)
+        self._event.clear()
+        with self._lock:
+            run = self._current
+        if run is not None and run != self._seen:
+            self._seen = run
+            return run
+        return None
+
+    def close(self) -> None:
+        self._sub.undeclare()

@@ -1,7 +1,13 @@
 """What the live view shows, from (key, payload): the world's ground truth (poses,
-targets, moving obstacles), each robot's path, and for the chosen robot its target
-field a, obstacle fields b_j and the motor-EKM activity e = a - sum_j b_j (Eq. 9) with
-the winners s (target) and k = argmax e (Eq. 10).
+targets, moving obstacles), each robot's path, and for the chosen robot the fields of
+whatever graph runs: its target field a (a target module's ``TargetField``, or a tracking
+module's ``TrackingField`` with its teammate fields), its obstacle fields b_j (every
+``ObstacleField`` it sends, on whatever keys its graph gives them) and the motor-EKM
+activity e = a - sum b (Eq. 9) with the winners s (target) and k = argmax e (Eq. 10). A
+controller that sends no fields (command fusion, A-CMOMMT) shows none, and says so.
+
+A new run (the world's token carries a new run id, or sim time jumps back: a replay
+started again) starts the view afresh: no path of one run is joined to the next.
 
 Messages are decoded with the protocol's validating decoders; a malformed one is
 dropped and counted (``drops``), never a crash. Everything handed out is plain JSON data.
@@ -16,7 +22,8 @@ from typing import Any
 
 import numpy as np
 
-from cekm_swarm.protocol import DEFAULT_KEYS, DropCounter, KeySpace, ObstacleField, TargetField, WorldState
+from cekm_swarm.protocol import (DEFAULT_KEYS, DropCounter, KeySpace, ObstacleField, TargetField, TrackingField,
+                                 WorldState)
 
 PATH_STEP = 0.004
 """A path point is kept when the robot has moved this far (m) since the last one."""
@@ -49,10 +56,28 @@ class LiveView:
         self.targets: dict[str, Any] = {}
         self.obstacles: dict[str, Any] = {}
         self.paths: dict[str, list[list[float]]] = {}
-        self.target_field: TargetField | None = None
-        self.obstacle_fields: dict[int, ObstacleField] = {}
+        self.target_field: TargetField | TrackingField | None = None
+        self.obstacle_fields: dict[str, ObstacleField] = {}  # by key
+        self.run: str | None = None  # the run id of the world server, when known
+        self.graph: str | None = None  # the run's graph (controller), when the world serves it
         self.version = 0
         self.changed = threading.Condition()
+
+    def new_run(self, run: str | None, graph: str | None = None) -> None:
+        """Start afresh: a new run (or a replay from its start) shares no path or field with the last."""
+        with self.changed:
+            self.run, self.graph = run, graph
+            self.time = math.nan
+            self.poses, self.targets, self.obstacles, self.paths = {}, {}, {}, {}
+            self.target_field, self.obstacle_fields = None, {}
+            self.version += 1
+            self.changed.notify_all()
+
+    def set_graph(self, graph: str | None) -> None:
+        with self.changed:
+            self.graph = graph
+            self.version += 1
+            self.changed.notify_all()
 
     # ------------------------------------------------------------------ input
     def observe(self, key: str, payload: bytes) -> None:
@@ -60,17 +85,18 @@ class LiveView:
         msg = self.drops.decode(key, payload)
         if msg is None:
             return
+        if isinstance(msg, WorldState) and msg.stamp < self.time - 1.0:  # sim time went back: a run from its start
+            self.new_run(self.run, self.graph)
         with self.changed:
             if isinstance(msg, WorldState):
                 self._world(msg)
-            elif isinstance(msg, TargetField) or isinstance(msg, ObstacleField):
-                parsed = self.keys.parse(key)
-                if parsed.robot != self.robot:
+            elif isinstance(msg, (TargetField, TrackingField, ObstacleField)):
+                if self.keys.parse(key).robot != self.robot:
                     return
-                if isinstance(msg, TargetField):
-                    self.target_field = msg
+                if isinstance(msg, ObstacleField):
+                    self.obstacle_fields[key] = msg
                 else:
-                    self.obstacle_fields[msg.index] = msg
+                    self.target_field = msg
             else:
                 return
             self.version += 1
@@ -109,18 +135,27 @@ class LiveView:
         newest_b = max(obstacle_stamps, default=newest)
         b = [f for f in self.obstacle_fields.values() if f.stamp == newest_b and f.b is not None]
         a = tf.a if tf is not None else None
+        at_goal = bool(isinstance(tf, TargetField) and tf.at_goal)
         n = a.shape[0] if a is not None else (b[0].b.shape[0] if b else 0)
         if n == 0:
-            return {"stamp": newest, "n": 0, "seeing": [], "at_goal": bool(tf is not None and tf.at_goal)}
+            return {"stamp": newest, "n": 0, "seeing": [], "at_goal": at_goal}
         bsum = np.zeros(n)
         for f in b:
             if f.b.shape[0] == n:
                 bsum += f.b
-        out: dict[str, Any] = {"stamp": newest, "n": n, "seeing": sorted(f.index for f in b),
-                               "b": [_r(v) for v in bsum], "at_goal": bool(tf is not None and tf.at_goal)}
+        team = isinstance(tf, TrackingField) and tf.b.shape[0] == n
+        if team:
+            bsum += tf.b  # the teammate fields (docs/design.md section 5)
+        out: dict[str, Any] = {"stamp": newest, "n": n, "seeing": sorted(f.index for f in b), "teammates": team,
+                               "b": [_r(v) for v in bsum], "at_goal": at_goal}
         if a is not None:
             e = a - bsum  # Eq. 9
-            out.update(a=[_r(v) for v in a], e=[_r(v) for v in e], s=int(tf.winner), k=int(np.argmax(e)))  # Eq. 10
+            if isinstance(tf, TargetField):
+                s = tf.winner
+            else:  # the localized point of most weight (a sensed target, or the search goal)
+                s = max(tf.inputs, key=lambda row: row[3])[0] if tf.inputs else None
+            out.update(a=[_r(v) for v in a], e=[_r(v) for v in e], s=None if s is None else int(s),
+                       k=int(np.argmax(e)))  # Eq. 10
         return out
 
     def lattice(self) -> list[list[float]] | None:
@@ -139,7 +174,8 @@ class LiveView:
             return self._tick()
 
     def _tick(self) -> dict[str, Any]:
-        return {"version": self.version, "time": None if math.isnan(self.time) else _r(self.time, 3),
+        return {"version": self.version, "run": self.run, "graph": self.graph,
+                "time": None if math.isnan(self.time) else _r(self.time, 3),
                 "robots": dict(self.poses), "targets": self.targets, "obstacles": self.obstacles,
                 "fields": self.fields(), "dropped": self.drops.total}
 

@@ -110,6 +110,9 @@ def test_lockstep_answers_a_repeat_again_and_drops_what_no_run_can_use():
     assert again == first and gate.repeats == 1 and len(calls) == 2
     # the target field tick 1 used, sent again: answered again, not a drop
     assert gate.put(*target(0)) == first and drops == []
+    # a field of tick 0, which no run after tick 1 reads: dropped and counted
+    assert gate.put(*obstacle(0, 3)) == [] and drops == [(K.field_obstacle("r1", 3), drops[0][1])]
+    assert "which no run after t=0.128 reads" in drops[0][1]
 
 
 def test_lockstep_a_value_ahead_waits_for_its_own_tick():

@@ -106,3 +106,38 @@ def test_cli_errors_name_the_option():
     assert r.exit_code == 2 and "--robot" in r.output and "'r9' is not a robot of this arena (r1, r2, r3)" in r.output
     r = CliRunner().invoke(main, ["view", "no_such_scenario"])
     assert r.exit_code == 2 and "SCENARIO" in r.output and "no_such_scenario" in r.output
+
+
+def test_the_fields_of_any_graph_are_drawn_tracking_and_a_users_own_keys():
+    """A tracking module's fields (with its teammate fields) and obstacle fields on keys a
+    graph of one's own gives them are the chosen robot's fields too (Eq. 9 as its motor sums them)."""
+    from cekm_swarm.protocol import TrackingField
+
+    v = LiveView(GEOMETRY)
+    a = np.linspace(1.0, 0.0, 9)
+    team = np.zeros(9)
+    team[1] = 0.3
+    b = np.zeros(9)
+    b[0] = 0.5
+    v.observe(K.field_tracking("r1"), encode(TrackingField(0.25, "r1/target", a, team, ((0, 0.1, 0.2, 1.0),),
+                                                           {"t1": 1.0}, False)))
+    v.observe("cekm/r1/avoid/nearest", encode(ObstacleField(0.25, "r1/nearest", 4, 0, b)))
+    f = v.fields()
+    assert f["teammates"] and f["seeing"] == [4] and f["s"] == 0
+    assert f["e"] == pytest.approx(list(a - b - team), abs=1e-4)
+
+
+def test_a_new_run_starts_the_view_afresh():
+    """A new run id, or sim time going back (a replay from its start): no path of the last
+    run is joined to the next."""
+    v = LiveView(GEOMETRY)
+    for i in range(5):
+        v.observe(K.world_state(), _state(1.0 + i, 0.2 + 0.01 * i))
+    assert len(v.init()["paths"]["r1"]) == 5
+    v.new_run("run-2", "cekm-navigation (cekm)")
+    tick = v.tick()
+    assert tick["run"] == "run-2" and tick["graph"] == "cekm-navigation (cekm)" and tick["time"] is None
+    assert v.init()["paths"] == {} and v.fields() is None
+    v.observe(K.world_state(), _state(5.0, 1.0))
+    v.observe(K.world_state(), _state(0.0, 0.2))  # back to the start
+    assert v.init()["paths"]["r1"] == [[0.0, 0.2, 0.5]] and v.tick()["run"] == "run-2"
