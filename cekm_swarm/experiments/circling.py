@@ -27,6 +27,7 @@ from .arena import Arena
 from .stopping import StopRule
 from .streams import Schedule, TrialStreams
 from .target_reaching import TargetReachingConfig, run_network
+from .training import convergence_mask
 from .trial import TRACE_FIELDS, trace_test
 
 COL = {name: i for i, name in enumerate(TRACE_FIELDS)}
@@ -61,8 +62,9 @@ def episode(traces: np.ndarray, target: np.ndarray, index: int) -> dict[str, np.
 
 
 def summarize_episode(ep: dict, net, budget: int) -> dict:
-    """What drove the robot: each winner's share of the steps, its input weights and (indirect
-    EKM) M, and how far the network's command was from the kinematically exact one."""
+    """What drove the robot: each winner's share of the steps, its input weights, (indirect EKM)
+    its M, its own command M_s w_s and whether it has converged (training.convergence_mask),
+    and how far the network's command was from the kinematically exact one."""
     winners, counts = np.unique(ep["winner"], return_counts=True)
     order = np.argsort(-counts)
     kin = []
@@ -71,6 +73,7 @@ def summarize_episode(ep: dict, net, budget: int) -> dict:
         kin.append(kinematic_command(a, d, back))
     kin = np.array(kin)
     c = np.stack([ep["c_l"], ep["c_r"]], axis=1)
+    converged = convergence_mask(net) if hasattr(net, "M") else None
     rows = []
     for k in order[:8]:
         s = int(winners[k])
@@ -80,11 +83,17 @@ def summarize_episode(ep: dict, net, budget: int) -> dict:
                "command_mm_s_mean": (c[sel].mean(axis=0) * 1000).round(2).tolist(),
                "kinematic_mm_s_mean": (kin[sel].mean(axis=0) * 1000).round(2).tolist(),
                "executed_mm_s_mean": (np.stack([ep["executed_l"][sel], ep["executed_r"][sel]], 1).mean(0) * 1000).round(2).tolist()}
-        if hasattr(net, "M"):
+        if converged is not None:  # M_s w_s moves the robot by w_s (section 3.5's converged state)
             row["M"] = np.asarray(net.M[s]).round(5).tolist()
+            row["own_command_mm_s"] = (net.M[s] @ [net.w[s, 0], net.learn_p.d_scale * net.w[s, 1]] * 1000).round(2).tolist()
+            row["converged"] = bool(converged[s])
         rows.append(row)
     late = slice(len(ep["d"]) // 2, None)
+    near = (ep["true_d"] < 0.005) & (ep["d"] > 0.0)
+    alpha_err = np.abs(np.angle(np.exp(1j * (ep["alpha"][near] - ep["true_alpha"][near]))))
     return {"steps": int(len(ep["d"])), "ended_by_budget": bool(len(ep["d"]) >= budget),
+            "sensed_alpha_error_rad_within_5_mm": ({"median": float(np.median(alpha_err)), "max": float(alpha_err.max()),
+                                                    "steps": int(near.sum())} if near.any() else None),
             "final_distance_mm": float(ep["true_d"][-1] * 1000),
             "closest_mm": float(ep["true_d"].min() * 1000),
             "second_half_distance_mm": [float(ep["true_d"][late].min() * 1000), float(ep["true_d"][late].max() * 1000)],
@@ -183,12 +192,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--network", default="R15")
     ap.add_argument("--seed", type=int, default=2005, help="master seed")
     ap.add_argument("--trial", type=int, default=1, help="trial, from 1")
-    ap.add_argument("--target", type=int, default=None, help="test target, from 1 (default: the first ended by the budget)")
-    ap.add_argument("--stop", choices=("command", "goal"), default="command")
+    ap.add_argument("--target", type=int, default=None, help="test target, from 1 (default: chosen by --pick)")
+    ap.add_argument("--pick", choices=("budget", "farthest-stop"), default="budget",
+                    help="without --target: the first target ended by the budget, or the target that stopped farthest away")
+    ap.add_argument("--stop", choices=("command", "goal"), default="command", help="the test's stop rule")
+    ap.add_argument("--train-stop", choices=("goal", "command"), default="goal", help="training's stop rule")
     ap.add_argument("--motor-resolution", type=float, default=KHEPERA.speed_unit)
     ap.add_argument("--speed-unit", type=float, default=0.0)
     ap.add_argument("--target-resolution", type=float, default=KHEPERA.target_resolution)
     ap.add_argument("--bfn", choices=("paper", "trained-units"), default="paper")
+    ap.add_argument("--steps", type=int, default=Schedule().steps, help="training steps (a multiple of 10,000)")
     ap.add_argument("--out", type=Path, required=True)
     a = ap.parse_args(argv)
     if a.trial < 1:
@@ -196,7 +209,8 @@ def main(argv: list[str] | None = None) -> int:
     stop = StopRule(a.stop, a.motor_resolution)
     arena = Arena(speed_unit=a.speed_unit, target_resolution=a.target_resolution)
     config = TargetReachingConfig(networks=(a.network,), trials=a.trial, seed=a.seed, arena=arena, stop=stop,
-                                  bfn_rule=a.bfn, schedule=Schedule())
+                                  train_stop=StopRule(a.train_stop, a.motor_resolution), bfn_rule=a.bfn,
+                                  schedule=Schedule(steps=a.steps))
     run = run_network(a.network, config)
     t = a.trial - 1
     streams = TrialStreams(a.seed, t, arena, config.schedule)
@@ -205,8 +219,14 @@ def main(argv: list[str] | None = None) -> int:
     lengths = np.sum(~np.isnan(traces[:, :, 0]), axis=1)
     budget = config.schedule.test_budget
     ended = [int(i) for i in np.flatnonzero(lengths >= budget)]
+    last = traces[np.arange(len(targets)), np.maximum(lengths - 1, 0)]
+    stop_dist = np.where(lengths < budget, np.hypot(targets[:, 0] - last[:, 0], targets[:, 1] - last[:, 1]), -1.0)
     if a.target is not None:
+        if not 1 <= a.target <= len(targets):
+            ap.error(f"--target must be 1-{len(targets)}")
         index = a.target - 1
+    elif a.pick == "farthest-stop":
+        index = int(np.argmax(stop_dist))
     elif ended:
         index = ended[0]
     else:
@@ -219,7 +239,7 @@ def main(argv: list[str] | None = None) -> int:
                "final_E_mm": run.scores[t][-1].E_mm, "episode": summarize_episode(ep, net, budget)}
     stem = f"circling-{a.network}-seed{a.seed}-trial{a.trial}-target{index + 1}"
     plant = (f"wheels quantized to {a.speed_unit * 1000:g} mm/s" if a.speed_unit > 0 else "continuous wheels")
-    title = (f"{a.network}, master seed {a.seed}, trial {a.trial}, test target {index + 1} after 100,000 steps: "
+    title = (f"{a.network}, master seed {a.seed}, trial {a.trial}, test target {index + 1} after {a.steps:,} steps: "
              f"stop rule '{a.stop}', {plant}")
     png = draw_episode(ep, net, targets[index], title, stop, a.out / f"{stem}.png")
     (a.out / f"{stem}.json").write_text(json.dumps(summary, indent=1))
@@ -229,6 +249,8 @@ def main(argv: list[str] | None = None) -> int:
     for w in e["winners"][:4]:
         print(f"  neuron {w['neuron']} (alpha {w['w_alpha_rad']:+.2f} rad, d {w['w_d_mm']:.1f} mm): {w['steps']} steps, "
               f"command {w['command_mm_s_mean']} mm/s, exact {w['kinematic_mm_s_mean']}, executed {w['executed_mm_s_mean']}")
+    if e["sensed_alpha_error_rad_within_5_mm"]:
+        print(f"  sensed alpha within 5 mm of the target: median error {e['sensed_alpha_error_rad_within_5_mm']['median']:.3f} rad")
     print(f"  wrote {png}, {a.out / f'{stem}.json'}")
     return 0
 

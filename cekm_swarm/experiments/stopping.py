@@ -52,14 +52,6 @@ class StopRule:
         """The number the kernels read: 0 for ``goal``, the motor's resolution for ``command``."""
         return self.motor_resolution if self.rule == "command" else 0.0
 
-    def describe(self) -> str:
-        if self.rule == "command":
-            return (f"a target ends when the network's own command is 0 at the motor's resolution "
-                    f"(both wheels under {self.motor_resolution * 500:g} mm/s, half the "
-                    f"{self.motor_resolution * 1000:g} mm/s speed unit), or at the step budget")
-        return ("a target ends at the goal state (the sensed distance rounds to 0 at the target sensor's "
-                "resolution, where every network commands 0) or when the executed command is 0, or at the step budget")
-
 
 GOAL_STOP = StopRule("goal")
 PAPER_STOP = StopRule("command")

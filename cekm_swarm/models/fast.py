@@ -198,12 +198,16 @@ def nearest_lattice_neighbour(w, i, size, p):
 
 @njit(cache=True)
 def nearest_centre(w, i, p):
-    """Eq. 3's distance from centre i to the nearest other centre (Moody & Darken's rule)."""
+    """Eq. 3's distance from centre i to the nearest other centre (Moody & Darken's rule).
+    The square root is taken once, of the smallest square (the same number: sqrt is
+    correctly rounded and monotonic)."""
     best = np.inf
     for q in range(w.shape[0]):
         if q != i:
-            best = min(best, _rho(w, i, q, p))
-    return best
+            da = wrap(w[i, 0] - w[q, 0])
+            dd = w[i, 1] - w[q, 1]
+            best = min(best, p[P_BETA_A] * da * da + p[P_BETA_D] * dd * dd)
+    return math.sqrt(best)
 
 
 @njit(cache=True)

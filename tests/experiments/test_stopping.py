@@ -194,3 +194,30 @@ def test_wheels_quantized_to_8_mm_s_make_the_exact_controller_circle():
             assert abs(a) > math.pi - 0.15 and q == pytest.approx((0.0, -0.008))
     pivot = KHEPERA.speed_unit / 2 * 1.024
     assert pivot == pytest.approx(0.0041, abs=1e-4) and pivot > 2 * 0.002  # the smallest move overshoots
+
+
+def test_kinematic_command_lands_on_the_input():
+    """Executed on noise-free wheels, the exact command moves the robot by u = (alpha, d): forward
+    for a target ahead, backward (turning 2 (alpha - pi)) for one behind."""
+    av = Arena(size=10.0).vector()
+    empty = np.empty(0)
+    for alpha, d, back in ((0.3, 0.05, False), (-1.2, 0.02, False), (2.8, 0.03, True), (-2.5, 0.004, True)):
+        pose = np.array([5.0, 5.0, 0.4])
+        tx, ty = 5.0 + d * math.cos(0.4 + alpha), 5.0 + d * math.sin(0.4 + alpha)
+        drive(pose, *kinematic_command(alpha, d, back), np.ones((32, 2)), av, 0, 0, empty, empty, empty, 0, 0)
+        assert math.hypot(tx - pose[0], ty - pose[1]) < 1e-9, (alpha, d)
+
+
+def test_circling_command_writes_the_picture_and_the_summary(tmp_path):
+    from cekm_swarm.experiments.circling import main
+
+    assert main(["--network", "R9", "--seed", "3", "--trial", "1", "--steps", "10000", "--target", "2",
+                 "--speed-unit", "0.008", "--out", str(tmp_path)]) == 0
+    png = tmp_path / "circling-R9-seed3-trial1-target2.png"
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    import json
+
+    doc = json.loads((tmp_path / "circling-R9-seed3-trial1-target2.json").read_text())
+    ep = doc["episode"]
+    assert doc["target"] == 2 and ep["steps"] >= 1 and ep["winners"]
+    assert {"neuron", "w_d_mm", "command_mm_s_mean", "kinematic_mm_s_mean", "converged"} <= set(ep["winners"][0])
