@@ -6,8 +6,10 @@ Measures, in one run:
 * the fast path (numba), one thread and all threads, robot-steps per second of training
   only, for every network of the paper, batch of 5 trials;
 * the full default run (`cekm experiment target-reaching`: 6 networks x 5 trials x
-  100,000 steps plus all test phases) as a separate process: wall time and peak
-  resident memory, once with numba's cache cold (first run after install) and once warm.
+  100,000 steps plus all test phases under the paper's stop rule, where a network that does
+  not stop uses each test target's whole 500-step budget) as a separate process: wall time
+  and peak resident memory, once with numba's cache cold (first run after install) and once
+  warm.
 
 Goals (issue 2): full default run under 60 s, training at >= 500,000 robot-steps/s,
 peak memory under 2 GB; with --master-seeds 5 (issue 12), the five-seed run under 5 minutes.
@@ -41,16 +43,17 @@ def _batch(name: str, trials: int, steps: int, seed: int = 1):
 
     arena = Arena()
     streams = [TrialStreams(seed, t, arena, Schedule(steps=steps, test_interval=steps)) for t in range(trials)]
-    nets = [make_network(name, s.init_rng()) for s in streams]
+    nets = [make_network(name, s.init_rng(), bfn_rule="paper") for s in streams]  # the default run's B15
     arrays = [fast.network_arrays(n) for n in nets]
     batch = trial.NetworkBatch(nets[0].kind, nets[0].lattice.size, *(np.stack([a[q] for a in arrays]) for q in range(3)),
-                               fast.pack_params(nets[0].comp, nets[0].learn_p, arena.v_max, BFN_WIDTH_FLOOR))
+                               fast.pack_params(nets[0].comp, nets[0].learn_p, arena.v_max, BFN_WIDTH_FLOOR, "paper"))
     return batch, streams, nets
 
 
 def train_rate_fast(name: str, trials: int = 5, steps: int = 20_000) -> float:
     """Robot-steps of training per second (noise generation included, tests excluded)."""
     from cekm_swarm.experiments import trial
+    from cekm_swarm.experiments.stopping import GOAL_STOP
     from cekm_swarm.experiments.streams import batch_train_chunk
 
     batch, streams, _ = _batch(name, trials, steps)
@@ -61,7 +64,7 @@ def train_rate_fast(name: str, trials: int = 5, steps: int = 20_000) -> float:
     t0 = time.perf_counter()
     wheel, sense, explore = batch_train_chunk(streams, 0, steps)
     trial._train_batch(batch.code, batch.size, batch.W, batch.P, batch.R, batch.params, arena.vector(), poses, cursors,
-                       targets, 0, wheel, sense, explore, streams[0].schedule.train_budget)
+                       targets, 0, wheel, sense, explore, streams[0].schedule.train_budget, GOAL_STOP.code)
     return trials * steps / (time.perf_counter() - t0)
 
 

@@ -52,21 +52,40 @@ def experiment() -> None:
 @click.option("--master-seeds", default=1, show_default=True, type=click.IntRange(1, 100),
               help="Run K independent master seeds (seed, seed+1, ...): each into OUT/seed-S, and OUT/summary.md "
                    "with 95 % intervals and how often each headline ordering holds.")
+@click.option("--stop", "stop_rule", type=click.Choice(["command", "goal"]), default="command", show_default=True,
+              help="When a test target ends: 'command', the paper's (the network's own command is 0 at the motor's "
+                   "resolution); 'goal', the project's earlier rule (every network stops at the goal state, the "
+                   "sensed distance rounding to 0).")
+@click.option("--train-stop", type=click.Choice(["goal", "command"]), default="goal", show_default=True,
+              help="When a training target ends (the same two rules).")
+@click.option("--motor-resolution", type=click.FloatRange(min=0.0, min_open=True, max=0.15), default=0.008,
+              show_default=True, help="The motor's resolution for the 'command' rule (m/s): a command under half of it "
+                                      "on both wheels is a stop. The Khepera's speed unit is 0.008 (one encoder pulse "
+                                      "per 10 ms).")
+@click.option("--bfn", "bfn_rule", type=click.Choice(["paper", "trained-units"]), default="paper", show_default=True,
+              help="B15's rule: 'paper', every unit drives the output and widths approach the nearest centre's "
+                   "distance; 'trained-units', only units whose centre has won drive it (the project's earlier B15).")
 @click.option("--speed-unit", type=click.FloatRange(min=0.0), default=0.0, show_default=True,
-              help="Wheel speeds execute as whole multiples of this (m/s), so a command under half a unit "
-                   "stops the robot; 0: continuous. The Khepera's is 0.008 (one encoder pulse per 10 ms).")
+              help="Wheel speeds execute as whole multiples of this (m/s); 0: continuous. The Khepera's is 0.008.")
+@click.option("--target-resolution", type=click.FloatRange(min=0.0, max=0.1, max_open=True), default=0.001,
+              show_default=True, help="The target sensor rounds distances to this (m); 0: not rounded.")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 def target_reaching(out_dir: Path, overwrite: bool, networks: str, trials: int, steps: int, test_interval: int,
-                    test_targets: int, seed: int, master_seeds: int, speed_unit: float, quiet: bool) -> None:
+                    test_targets: int, seed: int, master_seeds: int, stop_rule: str, train_stop: str,
+                    motor_resolution: float,
+                    bfn_rule: str, speed_unit: float, target_resolution: float, quiet: bool) -> None:
     """Reproduce section 4.1: Tables 1-4 and Figures 5-7 (obstacle-free target reaching)."""
     from .experiments.arena import Arena
+    from .experiments.stopping import StopRule
     from .experiments.streams import Schedule
     from .experiments.target_reaching import TargetReachingConfig
     from .experiments.master_seeds import run_and_report
 
     try:
-        arena = Arena(speed_unit=speed_unit)
+        arena = Arena(speed_unit=speed_unit, target_resolution=target_resolution)
         config = TargetReachingConfig(networks=_networks(networks), trials=trials, seed=seed, arena=arena,
+                                      stop=StopRule(stop_rule, motor_resolution),
+                                      train_stop=StopRule(train_stop, motor_resolution), bfn_rule=bfn_rule,
                                       schedule=Schedule(steps=steps, test_interval=test_interval, test_targets=test_targets))
     except CekmError as exc:
         raise click.UsageError(str(exc)) from None

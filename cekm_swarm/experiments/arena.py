@@ -25,12 +25,16 @@ from ..robot import KHEPERA, STEP_S, SUBSTEP_S, SUBSTEPS_PER_STEP, quantize_spee
 class Arena:
     """A square arena [0, size]^2 and the robot that moves in it.
 
-    speed_unit: 0 (the default) gives continuous wheel speeds, where a robot stops only at
-    the goal state d = 0 (every network commands c = 0 there). A positive unit, e.g. the
+    speed_unit: 0 (the default) gives continuous wheel speeds. A positive unit, e.g. the
     Khepera's 8 mm/s (:class:`cekm_swarm.robot.Khepera`), executes wheel speeds as whole
-    multiples of it, so a command under half a unit is a stop for every network (the
-    paper's "come to a stop (motor control c = 0)"); it reproduces the paper's orderings
-    worse (docs/reproduction-4.1.md), so it is an option.
+    multiples of it, so a command under half a unit executes as no motion. In a 1.024 s
+    step the smallest move is then a 4.1 mm pivot or a 0.31 rad spin, larger than the
+    region where a command is under half a unit, and robots circle their targets
+    (docs/reproduction-4.1.md section 1), so it is an option. When a robot has stopped is
+    the stop rule's (:mod:`.stopping`).
+
+    target_resolution: the target sensor rounds d to it (the Khepera-like robot's 1 mm); 0
+    leaves d unrounded, so that the goal state d = 0 is never sensed.
     """
 
     size: float = 5.0
@@ -41,9 +45,12 @@ class Arena:
     step_s: float = STEP_S
     substeps: int = SUBSTEPS_PER_STEP
     target_resolution: float = KHEPERA.target_resolution
-    speed_unit: float = 0.0
+    speed_unit: float = 0.0  # see the class docstring
 
     def __post_init__(self) -> None:
+        if not (math.isfinite(self.target_resolution) and 0.0 <= self.target_resolution < 0.1):
+            raise ParameterError(f"Arena.target_resolution must be 0 (distances not rounded) or a positive distance "
+                                 f"below 0.1 m, got {self.target_resolution!r}")
         if not (math.isfinite(self.speed_unit) and 0.0 <= self.speed_unit < self.v_max):
             raise ParameterError(f"Arena.speed_unit must be 0 (continuous) or a positive speed below v_max "
                                  f"({self.v_max:.4f} m/s), got {self.speed_unit!r}")
@@ -88,14 +95,17 @@ def executed_command(c0, c1, arena):
 @njit(cache=True)
 def sense_target(x, y, th, tx, ty, n0, n1, res):
     """Target sensor: the target in the robot frame, each coordinate times its noise
-    factor, as (alpha, d) with d rounded to the resolution; alpha = 0 when d rounds to 0."""
+    factor, as (alpha, d) with d rounded to the resolution (res 0: not rounded); alpha = 0
+    when d is 0."""
     dx = tx - x
     dy = ty - y
     c = math.cos(th)
     s = math.sin(th)
     lx = (c * dx + s * dy) * n0
     ly = (-s * dx + c * dy) * n1
-    d = math.floor(math.sqrt(lx * lx + ly * ly) / res + 0.5) * res
+    d = math.sqrt(lx * lx + ly * ly)
+    if res > 0.0:
+        d = math.floor(d / res + 0.5) * res
     if d == 0.0:
         return 0.0, 0.0
     return math.atan2(ly, lx), d

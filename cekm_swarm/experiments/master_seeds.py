@@ -20,7 +20,7 @@ import numpy as np
 from .report import headline_orderings, write_seeds_report
 from .target_reaching import INDICES, NetworkRun, TargetReachingConfig, run_experiment
 
-SUMMARY_INDICES = INDICES + ("ended_by_budget",)
+SUMMARY_INDICES = INDICES + ("ended_by_budget", "goal_stops")
 
 
 def seeds_from(first: int, count: int) -> list[int]:
@@ -63,7 +63,7 @@ def summarize_seeds(per_seed: dict[int, dict]) -> dict:
     for name in names:
         entry = {}
         for key in SUMMARY_INDICES:
-            vals = [per_seed[s]["networks"][name][key]["mean"] for s in seeds]
+            vals = [per_seed[s]["networks"][name].get(key, {}).get("mean") for s in seeds]
             entry[key] = interval95(vals) | {"per_seed": vals}
         networks[name] = entry
     orderings: dict[str, dict] = {}

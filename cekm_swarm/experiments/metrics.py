@@ -1,7 +1,8 @@
 """Performance indices of section 4.1 (Eqs. 18-20) and their epsilon versions.
 
 E (Eq. 18): mean distance from the robot's centre to the target after the robot stops
-(c = 0) or its step budget runs out. T (Eq. 19): time to target over straight-line
+(:mod:`.stopping`) or its step budget runs out; how many targets ended by the budget, and how
+many by a stop at the goal state (the sensed distance 0), are counted. T (Eq. 19): time to target over straight-line
 distance, s/m. D (Eq. 20): |path length - straight distance| / straight distance.
 P(eps), T(eps), D(eps): "reached" means first coming within eps, with or without stopping;
 T(eps) and D(eps) average over the targets reached.
@@ -28,6 +29,7 @@ class TestScore:
     P: np.ndarray  # per eps
     T_eps: np.ndarray  # s/m per eps (NaN where none reached)
     D_eps: np.ndarray
+    goal_stops: int = 0  # targets ended by a stop with the sensed distance 0 (the goal state)
 
 
 def _mean_or_nan(x: np.ndarray) -> float:
@@ -50,6 +52,7 @@ def score(o: TestOutcome, step_s: float) -> TestScore:
         P=reached.mean(axis=0),
         T_eps=T_eps,
         D_eps=D_eps,
+        goal_stops=int(np.sum(o.at_goal)) if o.at_goal is not None else 0,
     )
 
 

@@ -95,20 +95,39 @@ def _p_table(results: dict, key: str) -> list[str]:
     return lines
 
 
+def protocol_sentence(settings: dict) -> str:
+    """One sentence on the stop rule, the plant and B15's rule of a run (from its settings)."""
+    stop = settings.get("stop", {"rule": "goal"})
+    unit = settings["arena"].get("speed_unit", 0.0)
+    res = settings["arena"].get("target_resolution", 0.001)
+    if stop["rule"] == "command":
+        rule = (f"Stop rule 'command' (the paper's): a test target ends when the network's own command is 0 at the "
+                f"motor's resolution, both wheels under {stop['motor_resolution'] * 500:g} mm/s (half the "
+                f"{stop['motor_resolution'] * 1000:g} mm/s speed unit), or at the step budget")
+    else:
+        rule = ("Stop rule 'goal' (the project's earlier one): a test target ends at the goal state, where every "
+                "network commands 0 (the sensed distance rounds to 0), or when the executed command is 0, or at the "
+                "step budget")
+    train = settings.get("train_stop", {"rule": "goal"})["rule"]
+    plant = f"wheel speeds quantized to {unit * 1000:g} mm/s" if unit > 0 else "continuous wheel speeds"
+    sensor = f"target sensor resolution {res * 1000:g} mm" if res > 0 else "target distances not rounded"
+    return (f"{rule}; training targets end by the '{train}' rule; {plant}; {sensor}; "
+            f"B15 rule '{settings.get('bfn_rule', 'trained-units')}' (docs/reproduction-4.1.md).")
+
+
 def tables_markdown(results: dict) -> str:
     """Tables 1-4 as Markdown, ours beside the paper's."""
     s = results["settings"]
     sch = s["schedule"]
     out = ["# Target reaching (paper section 4.1): Tables 1-4", "",
            f"{s['trials']} trials x {sch['steps']:,} steps, tested every {sch['test_interval']:,} steps on "
-           f"{sch['test_targets']} targets; seed {s['seed']}. Mean ± std over trials (ours) beside the paper's. " + (
-               f"Wheel speeds quantized to {s['arena']['speed_unit'] * 1000:g} mm/s: a stop is a command under half "
-               "a unit on both wheels (docs/reproduction-4.1.md)." if s["arena"].get("speed_unit", 0.0) > 0 else
-               "Continuous wheel speeds: absolute E is not comparable with the paper's, ours is set mostly by the "
-               "target sensor's 1 mm resolution (a stop needs the rounded d to be 0; docs/reproduction-4.1.md)."), ""]
+           f"{sch['test_targets']} targets; seed {s['seed']}. Mean ± std over trials (ours) beside the paper's. "
+           + protocol_sentence(s), ""]
     out += _perf_table(results, ("E_mm", "T_s_per_m", "D"), PAPER_TABLE1, "Table 1: performance after training")
     out += ["", "Targets that ended by the step budget rather than a stop (per trial, mean ± std): " + ", ".join(
-        f"{n} {_ms(e.get('ended_by_budget'), 1)}" for n, e in results["networks"].items()), ""]
+        f"{n} {_ms(e.get('ended_by_budget'), 1)}" for n, e in results["networks"].items()) + ". Targets that ended "
+        "by a stop at the goal state, the sensed distance rounding to 0: " + ", ".join(
+        f"{n} {_ms(e.get('goal_stops'), 1)}" for n, e in results["networks"].items()), ""]
     out += ["### Table 2: Welch t-test p-values after training", ""]
     for key in ("E_mm", "D", "T_s_per_m"):
         out += _p_table(results, key) + [""]
@@ -136,6 +155,8 @@ def headline_orderings(results: dict) -> dict[str, bool | None]:
         for key in ("E_mm", "T_s_per_m"):
             if base in n and indirect:
                 out[f"every indirect EKM below {base} in {key}"] = all(m(k, key) < m(base, key) for k in indirect)
+    if "D15" in n and indirect:
+        out["D15's P5 below every indirect EKM's"] = all(m("D15", "P5") < m(k, "P5") for k in indirect)
     return out
 
 
@@ -246,16 +267,16 @@ def seeds_markdown(summary: dict) -> str:
     s = summary["settings"]
     sch = s["schedule"]
     seeds = s["master_seeds"]
-    unit = s["arena"].get("speed_unit", 0.0)
-    plant = (f"wheel speeds quantized to {unit * 1000:g} mm/s" if unit > 0 else "continuous wheel speeds")
     out = ["# Target reaching (paper section 4.1) over master seeds", "",
            f"Master seeds {', '.join(map(str, seeds))}; each: {s['trials']} trials x {sch['steps']:,} steps, "
-           f"tested on {sch['test_targets']} targets; {plant}. Ours: the mean over seeds of each seed's trial "
+           f"tested on {sch['test_targets']} targets. Ours: the mean over seeds of each seed's trial "
            "mean, with its 95 % interval (Student t, "
-           f"{len(seeds) - 1} degrees of freedom); the paper's: mean ± std over its 5 trials.", ""]
+           f"{len(seeds) - 1} degrees of freedom); the paper's: mean ± std over its 5 trials. " + protocol_sentence(s), ""]
     out += _seeds_table(summary, ("E_mm", "T_s_per_m", "D"), PAPER_TABLE1, "Table 1: performance after training")
     out += ["", "Targets ended by the step budget (of the test's targets, per trial, mean over seeds): " + ", ".join(
-        f"{n} {_ci(e.get('ended_by_budget'), 1)}" for n, e in summary["networks"].items()), ""]
+        f"{n} {_ci(e.get('ended_by_budget'), 1)}" for n, e in summary["networks"].items()) + ". Ended by a stop at "
+        "the goal state (the sensed distance rounding to 0): " + ", ".join(
+        f"{n} {_ci(e.get('goal_stops'), 1)}" for n, e in summary["networks"].items()), ""]
     out += _seeds_table(summary, ("P5", "T5_s_per_m", "D5"), PAPER_TABLE3, "Table 3: performance at eps = 5 mm")
     out += ["", "### The paper's headline orderings", "", "| claim | holds in | fails with seeds |", "|---|---:|---|"]
     for claim, o in summary["orderings"].items():

@@ -2,13 +2,16 @@
 
 Each network is trained for ``steps`` steps in each of ``trials`` trials and tested every
 ``test_interval`` steps on the trial's fixed 50 targets. Trials run as one numba batch
-per network. Every network of a trial sees the same targets and noise.
+per network. Every network of a trial sees the same targets and noise. Stop rules
+(:mod:`.stopping`) end test targets (the paper's, by default) and training targets (the
+goal state, by default, as before).
 """
 
 from __future__ import annotations
 
 import itertools
 import time
+import warnings
 from dataclasses import asdict, dataclass, field
 from typing import Callable, Sequence
 
@@ -16,10 +19,11 @@ import numpy as np
 
 from ..errors import ParameterError
 from ..models import fast
-from ..models.networks import BFN_WIDTH_FLOOR, make_network, parameter_count, parse_network_name
+from ..models.networks import BFN_RULES, BFN_WIDTH_FLOOR, make_network, parameter_count, parse_network_name
 from ..models.params import CompetitionParams, LearningParams, params_to_dict
 from .arena import Arena
 from .metrics import TestScore, mean_std, score, welch_p
+from .stopping import GOAL_STOP, PAPER_STOP, StopRule
 from .streams import Schedule, TrialStreams
 from .trial import NetworkBatch, run_batch
 
@@ -30,7 +34,13 @@ INDICES = ("E_mm", "T_s_per_m", "D", "P5", "T5_s_per_m", "D5")
 
 @dataclass(frozen=True)
 class TargetReachingConfig:
-    """Everything that defines a run; the same config and seed give the same numbers."""
+    """Everything that defines a run; the same config and seed give the same numbers.
+
+    ``stop``: the test's stop rule (the paper's, ``command``, by default). ``train_stop``:
+    training's (the goal state by default, so that every network is trained as before and
+    only the test differs between the rules). ``bfn_rule``: the basis-function network's
+    rule (:data:`BFN_RULES`).
+    """
 
     networks: tuple[str, ...] = PAPER_NETWORKS
     trials: int = 5
@@ -40,8 +50,13 @@ class TargetReachingConfig:
     comp: CompetitionParams = field(default_factory=CompetitionParams)
     learn_p: LearningParams = field(default_factory=LearningParams)
     arena: Arena = field(default_factory=Arena)
+    stop: StopRule = PAPER_STOP
+    train_stop: StopRule = GOAL_STOP
+    bfn_rule: str = "paper"
 
     def __post_init__(self) -> None:
+        if self.bfn_rule not in BFN_RULES:
+            raise ParameterError(f"bfn_rule must be one of {', '.join(BFN_RULES)}, got {self.bfn_rule!r}")
         for name in self.networks:
             parse_network_name(name)
         if len(set(self.networks)) != len(self.networks):
@@ -56,8 +71,9 @@ class TargetReachingConfig:
     def settings(self) -> dict:
         return {
             "networks": list(self.networks), "trials": self.trials, "seed": self.seed, "eps_mm": list(self.eps_mm),
-            "schedule": asdict(self.schedule), "arena": asdict(self.arena),
-            "params": params_to_dict(self.comp, self.learn_p),
+            "schedule": asdict(self.schedule), "arena": asdict(self.arena), "stop": asdict(self.stop),
+            "train_stop": asdict(self.train_stop),
+            "bfn_rule": self.bfn_rule, "params": params_to_dict(self.comp, self.learn_p),
         }
 
 
@@ -72,7 +88,7 @@ class NetworkRun:
 
     def trained(self, trial: int, config: TargetReachingConfig):
         """The trained network of one trial as a reference object (for saving and plotting)."""
-        net = make_network(self.name, np.random.default_rng(0), config.comp, config.learn_p)
+        net = make_network(self.name, np.random.default_rng(0), config.comp, config.learn_p, config.bfn_rule)
         fast.load_arrays(net, self.batch.W[trial], self.batch.P[trial], self.batch.R[trial])
         return net
 
@@ -80,14 +96,14 @@ class NetworkRun:
 def run_network(name: str, config: TargetReachingConfig, on_progress: Callable[[int], None] | None = None) -> NetworkRun:
     """Train and test one network over all trials."""
     streams = [TrialStreams(config.seed, t, config.arena, config.schedule) for t in range(config.trials)]
-    nets = [make_network(name, s.init_rng(), config.comp, config.learn_p) for s in streams]
+    nets = [make_network(name, s.init_rng(), config.comp, config.learn_p, config.bfn_rule) for s in streams]
     arrays = [fast.network_arrays(n) for n in nets]
     kind, size = parse_network_name(name)
-    params = fast.pack_params(config.comp, config.learn_p, config.arena.v_max, BFN_WIDTH_FLOOR)
+    params = fast.pack_params(config.comp, config.learn_p, config.arena.v_max, BFN_WIDTH_FLOOR, config.bfn_rule)
     batch = NetworkBatch(kind, size, *(np.ascontiguousarray(np.stack([a[q] for a in arrays])) for q in range(3)), params)
     eps = np.array(config.eps_mm) / 1000.0
     t0 = time.perf_counter()
-    outcomes = run_batch(batch, streams, eps, on_progress)
+    outcomes = run_batch(batch, streams, eps, on_progress, config.stop, config.train_stop)
     seconds = time.perf_counter() - t0
     scores = [[score(o, config.arena.step_s) for o in per_trial] for per_trial in outcomes]
     return NetworkRun(name, batch, scores, seconds)
@@ -104,6 +120,7 @@ def _after_training(run: NetworkRun, i5: int) -> dict[str, list[float]]:
         "T5_s_per_m": [float(s.T_eps[i5]) for s in last],
         "D5": [float(s.D_eps[i5]) for s in last],
         "ended_by_budget": [float(s.ended_by_budget) for s in last],
+        "goal_stops": [float(s.goal_stops) for s in last],
     }
 
 
@@ -118,10 +135,15 @@ def summarize(runs: Sequence[NetworkRun], config: TargetReachingConfig) -> dict:
         entry.update({k: mean_std(v) for k, v in per_trial[r.name].items()})
         entry["per_trial"] = per_trial[r.name]
         curves = {"steps": config.schedule.test_points}
-        for key in ("E_mm", "T_s_per_m", "D"):
-            m = np.array([[getattr(s, key) for s in trial] for trial in r.scores])
-            curves[key] = {"mean": m.mean(axis=0).tolist(), "std": m.std(axis=0, ddof=1).tolist() if len(m) > 1 else [0.0] * m.shape[1],
-                           "per_trial": m.tolist()}
+        pick = {"E_mm": lambda s: s.E_mm, "T_s_per_m": lambda s: s.T_s_per_m, "D": lambda s: s.D,
+                "P5": lambda s: float(s.P[i5]), "T5_s_per_m": lambda s: float(s.T_eps[i5])}
+        for key, get in pick.items():
+            m = np.array([[get(s) for s in trial] for trial in r.scores])
+            with warnings.catch_warnings():  # T5 is NaN at a test point where no target was reached
+                warnings.simplefilter("ignore", RuntimeWarning)
+                curves[key] = {"mean": np.nanmean(m, axis=0).tolist(),
+                               "std": np.nanstd(m, axis=0, ddof=1).tolist() if len(m) > 1 else [0.0] * m.shape[1],
+                               "per_trial": m.tolist()}
         curves["ended_by_budget"] = [[s.ended_by_budget for s in trial] for trial in r.scores]
         entry["learning_curves"] = curves
         last = [s[-1] for s in r.scores]

@@ -7,6 +7,7 @@ import math
 import numpy as np
 
 from .arena import Arena, displacement, drive
+from .stopping import GOAL_STOP
 from .streams import Schedule
 from .target_reaching import TargetReachingConfig, run_network
 
@@ -37,14 +38,17 @@ def convergence_mask(net, arena: Arena | None = None, tol_abs: float = CONVERGEN
 
 
 def train_network(name: str, steps: int, seed: int, progress: bool = True):
-    """Self-organized learning of one network in the obstacle-free arena from untrained maps.
+    """Self-organized learning of one network in the obstacle-free arena from untrained maps,
+    with the controllers' stop (the goal state, :data:`GOAL_STOP`), so that the default model
+    stays what it was.
 
     Returns (trained network, its scores on the fixed test after training).
     """
     from tqdm import tqdm
 
     interval = 10_000 if steps % 10_000 == 0 else steps
-    config = TargetReachingConfig(networks=(name,), trials=1, seed=seed,
+    config = TargetReachingConfig(networks=(name,), trials=1, seed=seed, stop=GOAL_STOP, train_stop=GOAL_STOP,
+                                  bfn_rule="trained-units",
                                   schedule=Schedule(steps=steps, test_interval=interval))
     with tqdm(total=steps, unit="step", unit_scale=True, disable=not progress, desc=f"training {name}") as bar:
         run = run_network(name, config, bar.update)

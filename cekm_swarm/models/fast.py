@@ -8,6 +8,9 @@ A network's state is three arrays so that every kind shares one calling conventi
   ``P[i, 0]`` is c_i; for the BFN ``P[i, 0]`` is W_i and ``P[i, 1]`` its widths;
 * ``R`` (n, 2, 2): R_i^-1 for RLS; for the BFN ``R[i, 0, 0]`` = 1 marks a centre that has won.
 
+:func:`output` is a network's own output for an input; :func:`command` is the target-reaching
+rule the controllers use, the same output except c = 0 at the goal state d = 0.
+
 Parameters travel as one float64 vector (:func:`pack_params`); its layout is below.
 The tests hold this module equal to the reference classes.
 """
@@ -28,21 +31,25 @@ KIND_CODE = {"indirect-gd": KIND_GD, "indirect-rls": KIND_RLS, "direct": KIND_DI
 
 # layout of the parameter vector
 (P_BETA_A, P_BETA_D, P_TOL, P_ETA_W, P_ETA_M, P_ETA_C, P_ETA_BFN, P_ETA_WIDTH, P_SIG0, P_SIGF, P_TAU, P_GMIN,
- P_LAMBDA, P_TRCAP, P_DSCALE, P_EXP_REL, P_EXP_ABS, P_VMAX, P_WIDTH_FLOOR) = range(19)
-N_PARAMS = 19
+ P_LAMBDA, P_TRCAP, P_DSCALE, P_EXP_REL, P_EXP_ABS, P_VMAX, P_WIDTH_FLOOR, P_BFN_RULE) = range(20)
+N_PARAMS = 20
+BFN_RULE_CODE = {"trained-units": 0.0, "paper": 1.0}  # P_BFN_RULE (see networks.BFN_RULES)
 
 PI = math.pi
 TWO_PI = 2.0 * math.pi
 
 
-def pack_params(comp: CompetitionParams, lp: LearningParams, v_max: float, width_floor: float) -> np.ndarray:
-    """The float64 parameter vector the kernels read."""
+def pack_params(comp: CompetitionParams, lp: LearningParams, v_max: float, width_floor: float,
+                bfn_rule: str = "trained-units") -> np.ndarray:
+    """The float64 parameter vector the kernels read (``bfn_rule``: the basis-function
+    network's rule, :data:`cekm_swarm.models.networks.BFN_RULES`)."""
     p = np.empty(N_PARAMS)
     p[P_BETA_A], p[P_BETA_D], p[P_TOL] = comp.beta_alpha, comp.beta_d, comp.direction_tolerance
     p[P_ETA_W], p[P_ETA_M], p[P_ETA_C], p[P_ETA_BFN], p[P_ETA_WIDTH] = lp.eta_w, lp.eta_m, lp.eta_c, lp.eta_bfn, lp.eta_width
     p[P_SIG0], p[P_SIGF], p[P_TAU], p[P_GMIN] = lp.sigma_initial, lp.sigma_final, lp.sigma_tau, lp.g_min
     p[P_LAMBDA], p[P_TRCAP], p[P_DSCALE] = lp.forgetting, lp.rinv_trace_cap, lp.d_scale
     p[P_EXP_REL], p[P_EXP_ABS], p[P_VMAX], p[P_WIDTH_FLOOR] = lp.explore_rel, lp.explore_abs, v_max, width_floor
+    p[P_BFN_RULE] = BFN_RULE_CODE[bfn_rule]
     return p
 
 
@@ -77,15 +84,17 @@ def winner(alpha, d, w, p):
 def bfn_activations(alpha, d, w, P, R, p, out):
     """Normalized Gaussian activations of the basis-function network (widths in P[:, 1]).
 
-    R[i, 0, 0] > 0 marks a centre that has won for some training input; only those units
-    take part (all, before the first), and d is limited to the farthest of them in the
-    direction set A(alpha) (the network's local workspace in that direction).
+    R[i, 0, 0] > 0 marks a centre that has won for some training input; under the
+    "trained-units" rule only those units take part (all, before the first), under the
+    paper's rule every unit does. d is limited to the farthest taking part in the direction
+    set A(alpha) (the network's local workspace in that direction).
     """
     n = w.shape[0]
     any_won = False
-    for i in range(n):
-        if R[i, 0, 0] > 0.0:
-            any_won = True
+    if p[P_BFN_RULE] == 0.0:
+        for i in range(n):
+            if R[i, 0, 0] > 0.0:
+                any_won = True
     da_min = np.inf
     for i in range(n):
         if R[i, 0, 0] > 0.0 or not any_won:
@@ -115,15 +124,9 @@ def bfn_activations(alpha, d, w, P, R, p, out):
 
 
 @njit(cache=True)
-def command(kind, alpha, d, w, P, R, p, out):
-    """The target-reaching rule of each network kind, written into out[0:2].
-
-    The goal state (d = 0) gives c = 0 for every kind.
-    """
-    if d == 0.0:
-        out[0] = 0.0
-        out[1] = 0.0
-        return
+def output(kind, alpha, d, w, P, R, p, out):
+    """A network's own output for the input (alpha, d), written into out[0:2]: Eq. 11 with
+    k = s (indirect EKM), the winner's c_s (direct EKM), the weighted sum (BFN)."""
     if kind == KIND_BFN:
         phis = np.empty(w.shape[0])
         bfn_activations(alpha, d, w, P, R, p, phis)
@@ -154,10 +157,57 @@ def command(kind, alpha, d, w, P, R, p, out):
 
 
 @njit(cache=True)
+def command(kind, alpha, d, w, P, R, p, out):
+    """The target-reaching rule of each network kind, written into out[0:2]: its
+    :func:`output`, except that the goal state (d = 0) gives c = 0 for every kind."""
+    if d == 0.0:
+        out[0] = 0.0
+        out[1] = 0.0
+        return
+    output(kind, alpha, d, w, P, R, p, out)
+
+
+@njit(cache=True)
 def _update_input_weight(w, i, va, vd, step):
     """Eq. 12 for one neuron."""
     w[i, 0] = wrap(w[i, 0] + step * wrap(va - w[i, 0]))
     w[i, 1] = w[i, 1] + step * (vd - w[i, 1])
+
+
+@njit(cache=True)
+def _rho(w, i, q, p):
+    """Eq. 3's distance between centres i and q: sqrt(beta_alpha dalpha^2 + beta_d dd^2)."""
+    da = wrap(w[i, 0] - w[q, 0])
+    dd = w[i, 1] - w[q, 1]
+    return math.sqrt(p[P_BETA_A] * da * da + p[P_BETA_D] * dd * dd)
+
+
+@njit(cache=True)
+def nearest_lattice_neighbour(w, i, size, p):
+    """Eq. 3's distance from centre i to the nearest of its up to 4 lattice neighbours."""
+    r = i // size
+    c = i - r * size
+    best = np.inf
+    for side in range(4):
+        rr = r + (side == 2) - (side == 3)
+        cc = c + (side == 0) - (side == 1)
+        if 0 <= rr < size and 0 <= cc < size:
+            best = min(best, _rho(w, i, rr * size + cc, p))
+    return best
+
+
+@njit(cache=True)
+def nearest_centre(w, i, p):
+    """Eq. 3's distance from centre i to the nearest other centre (Moody & Darken's rule).
+    The square root is taken once, of the smallest square (the same number: sqrt is
+    correctly rounded and monotonic)."""
+    best = np.inf
+    for q in range(w.shape[0]):
+        if q != i:
+            da = wrap(w[i, 0] - w[q, 0])
+            dd = w[i, 1] - w[q, 1]
+            best = min(best, p[P_BETA_A] * da * da + p[P_BETA_D] * dd * dd)
+    return math.sqrt(best)
 
 
 @njit(cache=True)
@@ -243,19 +293,10 @@ def learn(kind, va, vd, c0, c1, t, w, P, R, size, p, idx_buf, g_buf):
         for i in range(n):
             P[i, 0, 0] += eta * phis[i] * e0
             P[i, 0, 1] += eta * phis[i] * e1
+        paper_rule = p[P_BFN_RULE] != 0.0
         for j in range(m):  # widths, from the centres before this step's Eq. 12
             i = idx_buf[j]
-            r = i // size
-            c = i - r * size
-            best = np.inf
-            for side in range(4):
-                rr = r + (side == 2) - (side == 3)
-                cc = c + (side == 0) - (side == 1)
-                if 0 <= rr < size and 0 <= cc < size:
-                    q = rr * size + cc
-                    da = wrap(w[i, 0] - w[q, 0])
-                    dd = w[i, 1] - w[q, 1]
-                    best = min(best, math.sqrt(p[P_BETA_A] * da * da + p[P_BETA_D] * dd * dd))
+            best = nearest_centre(w, i, p) if paper_rule else nearest_lattice_neighbour(w, i, size, p)
             rho_a = max(best / math.sqrt(p[P_BETA_A]), p[P_WIDTH_FLOOR])
             rho_d = max(best / math.sqrt(p[P_BETA_D]), p[P_WIDTH_FLOOR])
             P[i, 1, 0] += p[P_ETA_WIDTH] * g_buf[j] * (rho_a - P[i, 1, 0])

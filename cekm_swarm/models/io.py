@@ -12,6 +12,7 @@ Fields (format version 1):
 ``Rinv``            (N*N, 2, 2) RLS state (indirect)
 ``C``               (N*N, 2) commands (direct)
 ``W``, ``widths``   (N*N, 2) each (bfn); ``won`` (N*N,) 1 where a centre has won (bfn)
+``bfn_rule``        optional (bfn): ``paper`` | ``trained-units`` (absent: ``trained-units``)
 ``converged``       optional (N*N,) 1 where M_i w_i moves the robot by w_i (indirect)
 ``params``          JSON: CompetitionParams and LearningParams used
 ``provenance``      JSON: how it was made (network name, steps, seed, initial M, ...)
@@ -32,7 +33,7 @@ import numpy as np
 
 from ..errors import ModelFormatError
 from .lattice import Lattice
-from .networks import BasisFunctionNetwork, DirectEKM, IndirectEKM
+from .networks import BFN_RULES, BasisFunctionNetwork, DirectEKM, IndirectEKM
 from .params import CompetitionParams, LearningParams, params_to_dict
 
 FORMAT = "cekm-model"
@@ -49,7 +50,8 @@ def save_model(path: str | os.PathLike, net, provenance: dict | None = None) -> 
         arrays[name] = np.asarray(getattr(net, name), dtype=np.float64)
     if getattr(net, "converged", None) is not None:
         arrays["converged"] = np.asarray(net.converged, dtype=np.float64)
-    meta = {
+    meta = {"bfn_rule": np.array(net.rule)} if net.kind == "bfn" else {}
+    meta |= {
         "format": np.array(FORMAT),
         "format_version": np.array(FORMAT_VERSION),
         "kind": np.array(net.kind),
@@ -143,7 +145,10 @@ def _parse(file, path):
                            converged=converged)
     if kind == "direct":
         return DirectEKM(lat, arrays["w"], arrays["C"], comp, learn_p)
-    return BasisFunctionNetwork(lat, arrays["w"], arrays["widths"], arrays["W"], arrays["won"] > 0.0, comp, learn_p)
+    rule = _scalar(data, path, "bfn_rule", str) if "bfn_rule" in data else "trained-units"
+    if rule not in BFN_RULES:
+        raise ModelFormatError(path, "bfn_rule", f"unknown rule {rule!r}; expected one of {', '.join(BFN_RULES)}")
+    return BasisFunctionNetwork(lat, arrays["w"], arrays["widths"], arrays["W"], arrays["won"] > 0.0, comp, learn_p, rule)
 
 
 def model_provenance(path: str | os.PathLike) -> dict:

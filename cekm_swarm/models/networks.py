@@ -7,7 +7,8 @@
 
 These are the readable reference; :mod:`cekm_swarm.models.fast` runs the same rules in
 numba for the experiments, and the tests hold the two equal. All share one contract:
-``command(u) -> c`` (the target-reaching rule) and ``learn(v, c, t)`` (one step of
+``output(u) -> c`` (the network's own output), ``command(u) -> c`` (the target-reaching
+rule: the output, except c = 0 at the goal state d = 0) and ``learn(v, c, t)`` (one step of
 self-organized learning from the displacement v that the executed command c produced).
 """
 
@@ -29,6 +30,11 @@ from .lattice import Lattice, neighbourhood
 from .params import CompetitionParams, LearningParams
 
 KINDS = ("indirect-gd", "indirect-rls", "direct", "bfn")
+BFN_RULES = ("paper", "trained-units")
+"""The basis-function network's rules (:class:`BasisFunctionNetwork`): "paper", as section 4.1
+describes it (every unit drives the output; widths approach the distance to the nearest
+centre); "trained-units", the project's earlier B15 (only units whose centre has won drive
+the output; widths approach the distance to the nearest lattice neighbour)."""
 _NAME = re.compile(r"^([BDGR])(\d{1,2})$")
 _KIND_OF_LETTER = {"B": "bfn", "D": "direct", "G": "indirect-gd", "R": "indirect-rls"}
 LETTER_OF_KIND = {v: k for k, v in _KIND_OF_LETTER.items()}
@@ -115,12 +121,17 @@ class IndirectEKM:
         """Eq. 11: c = M_k u if k = s and |M_k u| <= c*, else M_k w_k."""
         return motor_control(self.M, self.w, u, k, s, self.v_max, self.learn_p.d_scale)
 
-    def command(self, u: np.ndarray) -> np.ndarray:
-        """Obstacle-free target reaching: k = s (no other field competes)."""
-        if at_goal(u):
-            return np.zeros(2)
+    def output(self, u: np.ndarray) -> np.ndarray:
+        """Eq. 11 with k = s, the winner for u (no other field competes). At the goal state
+        u = (0, 0) this is M_s 0 = 0 by Eq. 1 itself."""
         s = winner(u, self.w, self.comp)
         return self.control(u, s, s)
+
+    def command(self, u: np.ndarray) -> np.ndarray:
+        """Obstacle-free target reaching: :meth:`output`, exactly 0 at the goal state."""
+        if at_goal(u):
+            return np.zeros(2)
+        return self.output(u)
 
     def learn(self, v: np.ndarray, c: np.ndarray, t: float) -> None:
         """One step of self-organized learning: winner k for v, then Eqs. 15 or 16-17, then Eq. 12."""
@@ -154,10 +165,15 @@ class DirectEKM:
         C = rng.uniform(-lp.m_init_scale * v_max, lp.m_init_scale * v_max, size=(lat.n, 2))
         return cls(lat, lat.initial_weights(), C, comp or CompetitionParams(), lp)
 
+    def output(self, u: np.ndarray) -> np.ndarray:
+        """The winner's stored command c_s (also at the goal state)."""
+        return self.C[winner(u, self.w, self.comp)].copy()
+
     def command(self, u: np.ndarray) -> np.ndarray:
+        """Target reaching: :meth:`output`, except c = 0 at the goal state."""
         if at_goal(u):
             return np.zeros(2)
-        return self.C[winner(u, self.w, self.comp)].copy()
+        return self.output(u)
 
     def learn(self, v: np.ndarray, c: np.ndarray, t: float) -> None:
         """c_i += eta G(k, i) (c - c_i), then Eq. 12, k the winner for v."""
@@ -187,18 +203,32 @@ def neighbour_widths(w: np.ndarray, size: int, i: int, comp: CompetitionParams) 
     return np.maximum([best / math.sqrt(comp.beta_alpha), best / math.sqrt(comp.beta_d)], BFN_WIDTH_FLOOR)
 
 
+def nearest_centre_widths(w: np.ndarray, i: int, comp: CompetitionParams) -> np.ndarray:
+    """(sigma_alpha, sigma_d) that unit i's widths move toward under the paper's rule: rho, the
+    distance from centre i to the nearest other centre (Moody & Darken's nearest-neighbour
+    width), measured as the competition measures it (Eq. 3), expressed per axis and floored
+    as in :func:`neighbour_widths`."""
+    da = wrap(w[i, 0] - w[:, 0])
+    dd = w[i, 1] - w[:, 1]
+    rho = np.sqrt(comp.beta_alpha * da * da + comp.beta_d * dd * dd)
+    rho[i] = np.inf
+    best = float(rho.min())
+    return np.maximum([best / math.sqrt(comp.beta_alpha), best / math.sqrt(comp.beta_d)], BFN_WIDTH_FLOOR)
+
+
 @dataclass
 class BasisFunctionNetwork:
     """Basis-function network (B15): c = sum_i phi_i(u) W_i, phi_i a normalized Gaussian with per-axis widths.
 
-    Centres self-organize like Eq. 12 (winner and lattice neighbourhood); each width moves
-    toward the Euclidean distance to its nearest neighbouring centre in the raw input
-    space (alpha in rad, d in m: Moody & Darken's rule), sigma_alpha among its lattice
-    neighbours along the direction axis and sigma_d along the distance axis, so the
-    widths keep the lattice's two scales; the output weights learn by
-    gradient descent on every unit at every step. 6 parameters per unit: centre 2,
-    widths 2, output weights 2. The network has no direction priority of its own: in
-    raw units the angle dominates the distance, which plays that part.
+    Section 4.1: centres trained like the EKM's input weights (Eq. 12: winner and lattice
+    neighbourhood), each width moving toward the distance to its nearest neighbour, output
+    weights by gradient descent on every unit at every step. 6 parameters per unit: centre
+    2, widths 2 (the nearest-neighbour distance, measured in Eq. 3's metric, expressed per
+    axis), output weights 2. ``rule`` (:data:`BFN_RULES`): "paper", every unit drives the
+    output and the nearest neighbour is the nearest centre; "trained-units", only units
+    whose centre has won for a training input drive it and the nearest neighbour is the
+    nearest of the unit's lattice neighbours. Under both, an input beyond the local
+    workspace in its direction is presented at that edge (:meth:`activations`).
     """
 
     lattice: Lattice
@@ -208,32 +238,39 @@ class BasisFunctionNetwork:
     won: np.ndarray  # bool: the centre has won for some training input (not a parameter, like R^-1)
     comp: CompetitionParams = field(default_factory=CompetitionParams)
     learn_p: LearningParams = field(default_factory=LearningParams)
+    rule: str = "trained-units"
 
     kind = "bfn"
 
+    def __post_init__(self) -> None:
+        if self.rule not in BFN_RULES:
+            raise ParameterError(f"BasisFunctionNetwork.rule must be one of {', '.join(BFN_RULES)}, got {self.rule!r}")
+
     @classmethod
     def untrained(cls, size: int, rng: np.random.Generator, comp: CompetitionParams | None = None,
-                  learn_p: LearningParams | None = None, v_max: float = KHEPERA.v_max) -> "BasisFunctionNetwork":
+                  learn_p: LearningParams | None = None, v_max: float = KHEPERA.v_max,
+                  rule: str = "trained-units") -> "BasisFunctionNetwork":
         lat = Lattice(size)
         lp = learn_p or LearningParams()
         w0 = lat.initial_weights()
         widths = np.tile([2.0 * np.pi / size, 0.16 / (size - 1)], (lat.n, 1))
         # full wheel range: the normalized output averages a few units, which would shrink half-range commands
         W = rng.uniform(-2.0 * lp.m_init_scale * v_max, 2.0 * lp.m_init_scale * v_max, size=(lat.n, 2))
-        return cls(lat, w0, widths, W, np.zeros(lat.n, dtype=bool), comp or CompetitionParams(), lp)
+        return cls(lat, w0, widths, W, np.zeros(lat.n, dtype=bool), comp or CompetitionParams(), lp, rule)
 
     def activations(self, u: np.ndarray) -> np.ndarray:
         """Normalized Gaussian activations phi_i(u) / sum_j phi_j(u), computed stably.
 
-        Only units whose centre has won for a training input take part (all, before the
-        first): a unit no data reached keeps its random initial output, which would steer
-        the robot away from ever producing such data. Normalized, so that every input
+        Under the "trained-units" rule only units whose centre has won for a training input
+        take part (all, before the first): a unit no data reached keeps its random initial
+        output, which would steer the robot away from ever producing such data. Under the
+        paper's rule every unit takes part. Normalized, so that every input
         activates its nearest units however far it is; and an input beyond the network's
         local workspace in its direction (the farthest active centre in the direction set
         A(alpha) of Eq. 4) is presented at that edge, as the EKM's winner stands in for a
         target outside U' (section 3.2).
         """
-        active = self.won if np.any(self.won) else np.ones(len(self.w), dtype=bool)
+        active = self.won if self.rule == "trained-units" and np.any(self.won) else np.ones(len(self.w), dtype=bool)
         da = np.abs(wrap(u[0] - self.w[:, 0]))
         da_min = da[active].min()
         edge = active & (da <= da_min + self.comp.direction_tolerance)  # A(alpha) of Eq. 4 among active units
@@ -244,17 +281,25 @@ class BasisFunctionNetwork:
         phi = np.exp(-(q - q.min()))
         return phi / phi.sum()
 
+    def output(self, u: np.ndarray) -> np.ndarray:
+        """The weighted sum of the output weights (also at the goal state)."""
+        return self.activations(u) @ self.W
+
     def command(self, u: np.ndarray) -> np.ndarray:
+        """Target reaching: :meth:`output`, except c = 0 at the goal state."""
         if at_goal(u):
             return np.zeros(2)
-        return self.activations(u) @ self.W
+        return self.output(u)
 
     def learn(self, v: np.ndarray, c: np.ndarray, t: float) -> None:
         """Output weights by gradient descent, widths toward the nearest-centre distance, centres by Eq. 12."""
         phi = self.activations(v)
         err = c - phi @ self.W
         k, idx, g = updated_neighbourhood(v, self.w, self.lattice, self.comp, self.learn_p, t)
-        rho = np.array([neighbour_widths(self.w, self.lattice.size, i, self.comp) for i in idx])
+        if self.rule == "paper":
+            rho = np.array([nearest_centre_widths(self.w, i, self.comp) for i in idx])
+        else:
+            rho = np.array([neighbour_widths(self.w, self.lattice.size, i, self.comp) for i in idx])
         self.W += self.learn_p.eta_bfn * phi[:, None] * err[None, :]
         self.widths[idx] += (self.learn_p.eta_width * g)[:, None] * (rho - self.widths[idx])
         learning.update_input_weights(self.w, v, idx, g, self.learn_p.eta_w)
@@ -262,11 +307,12 @@ class BasisFunctionNetwork:
 
 
 def make_network(name: str, rng: np.random.Generator, comp: CompetitionParams | None = None,
-                 learn_p: LearningParams | None = None):
-    """An untrained network by the paper's name (B15, D15, G9, G12, G15, R15, ...)."""
+                 learn_p: LearningParams | None = None, bfn_rule: str = "trained-units"):
+    """An untrained network by the paper's name (B15, D15, G9, G12, G15, R15, ...);
+    ``bfn_rule`` applies to a basis-function network (:data:`BFN_RULES`)."""
     kind, size = parse_network_name(name)
     if kind == "bfn":
-        return BasisFunctionNetwork.untrained(size, rng, comp, learn_p)
+        return BasisFunctionNetwork.untrained(size, rng, comp, learn_p, rule=bfn_rule)
     if kind == "direct":
         return DirectEKM.untrained(size, rng, comp, learn_p)
     return IndirectEKM.untrained(size, kind.split("-")[1], rng, comp, learn_p)

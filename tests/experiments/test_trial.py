@@ -68,13 +68,15 @@ def test_streams_are_common_across_networks_and_seeded():
     assert t.min() >= arena.target_margin and t.max() <= arena.size - arena.target_margin
 
 
-@pytest.mark.parametrize("name", ["R15", "G12", "D15", "B15"])
-def test_fast_rules_equal_reference_rules_step_by_step(name):
-    """Each learning step and each command of the fast path equals the reference's, from the
-    same state, over many random inputs (no closed loop, so no chaos to amplify differences)."""
+@pytest.mark.parametrize("name,bfn_rule", [("R15", "paper"), ("G12", "paper"), ("D15", "paper"), ("B15", "paper"),
+                                           ("B15", "trained-units")])
+def test_fast_rules_equal_reference_rules_step_by_step(name, bfn_rule):
+    """Each learning step, each command and each output of the fast path equals the reference's,
+    from the same state, over many random inputs (no closed loop, so no chaos to amplify
+    differences)."""
     rng = np.random.default_rng(42)
-    net = make_network(name, rng)
-    params = fast.pack_params(net.comp, net.learn_p, 0.15625, BFN_WIDTH_FLOOR)
+    net = make_network(name, rng, bfn_rule=bfn_rule)
+    params = fast.pack_params(net.comp, net.learn_p, 0.15625, BFN_WIDTH_FLOOR, bfn_rule)
     w, P, R = fast.network_arrays(net)
     n = w.shape[0]
     idx, g, c = np.empty(n, dtype=np.int64), np.empty(n), np.empty(2)
@@ -91,3 +93,6 @@ def test_fast_rules_equal_reference_rules_step_by_step(name):
         u = np.array([rng.uniform(-4, 4), rng.uniform(0.0005, 3.0)])
         fast.command(fast.KIND_CODE[net.kind], u[0], u[1], w, P, R, params, c)
         np.testing.assert_allclose(c, net.command(u), rtol=1e-10, atol=1e-14)
+        u0 = np.array([rng.uniform(-4, 4), 0.0]) if t % 3 == 0 else u  # the goal state too
+        fast.output(fast.KIND_CODE[net.kind], u0[0], u0[1], w, P, R, params, c)
+        np.testing.assert_allclose(c, net.output(u0), rtol=1e-10, atol=1e-14)

@@ -21,6 +21,23 @@ def test_round_trip(tmp_path, name):
     assert not list(tmp_path.glob("*.tmp"))  # written atomically
 
 
+def test_bfn_rule_round_trips(tmp_path):
+    net = make_network("B9", np.random.default_rng(0), bfn_rule="paper")
+    net.won[:3] = True
+    back = load_model(save_model(tmp_path / "b.npz", net))
+    assert back.rule == "paper"
+    u = np.array([0.4, 0.07])
+    np.testing.assert_array_equal(back.command(u), net.command(u))
+    data = dict(np.load(tmp_path / "b.npz"))
+    del data["bfn_rule"]  # a file from before the rule existed: the rule it was trained with
+    np.savez(tmp_path / "old.npz", **data)
+    assert load_model(tmp_path / "old.npz").rule == "trained-units"
+    data["bfn_rule"] = np.array("other")
+    np.savez(tmp_path / "bad.npz", **data)
+    with pytest.raises(ModelFormatError, match="bfn_rule"):
+        load_model(tmp_path / "bad.npz")
+
+
 def _write(path, **fields):
     np.savez(path, **{k: np.asarray(v) for k, v in fields.items()})
     return path

@@ -125,3 +125,47 @@ def test_bfn_fast_path_equals_the_hand_computed_case():
     np.testing.assert_allclose(w, w2, rtol=1e-12)
     np.testing.assert_allclose(P, P2, rtol=1e-12)
     np.testing.assert_array_equal(R, R2)
+
+
+def test_bfn_paper_rule_every_unit_drives_the_output_and_widths_approach_the_nearest_centre():
+    """The paper's B15 on the same 2 x 2 network: all four units take part (the direction set
+    A(0.5) is then units 1 and 3, whose farthest centre is d = 0.1, so d = 0.04 is presented
+    as it is), and one learning step moves each updated width toward the distance to its
+    nearest centre in Eq. 3's metric. Unit i's nearest centre is, here as with the lattice
+    rule, its direction-axis neighbour 2 rad away, so the width targets match the lattice
+    rule's; the output differs (units 2 and 3 now count)."""
+    from cekm_swarm.models import fast
+    from cekm_swarm.models.networks import BFN_WIDTH_FLOOR, nearest_centre_widths
+
+    net = _small_bfn()
+    net.rule = "paper"
+    u = np.array([0.5, 0.04])
+    q = np.array([1.5 ** 2 / 2 + 0.8 ** 2 / 2, 0.5 ** 2 / 2 + 0.8 ** 2 / 2, 1.5 ** 2 / 2 + 1.2 ** 2 / 2,
+                  0.5 ** 2 / 2 + 1.2 ** 2 / 2])
+    phi = np.exp(-q) / np.exp(-q).sum()
+    np.testing.assert_allclose(net.activations(u), phi, rtol=1e-12)
+    np.testing.assert_allclose(net.output(u), phi @ net.W, rtol=1e-12)
+    np.testing.assert_allclose(nearest_centre_widths(net.w, 0, net.comp), [2.0, 2.0 * 0.16 / (2 * np.pi)], rtol=1e-12)
+    w, P, R = fast.network_arrays(net)
+    p = fast.pack_params(net.comp, net.learn_p, 0.15625, BFN_WIDTH_FLOOR, "paper")
+    c = np.empty(2)
+    fast.output(fast.KIND_BFN, 0.5, 0.04, w, P, R, p, c)
+    np.testing.assert_allclose(c, net.output(u), rtol=1e-12)
+    # a centre moved next to unit 0: its nearest centre is no longer a lattice neighbour
+    net.w[3] = [-0.9, 0.01]
+    rho = np.sqrt(0.1 ** 2 + net.comp.beta_d * 0.01 ** 2)
+    np.testing.assert_allclose(nearest_centre_widths(net.w, 0, net.comp),
+                               [rho, rho / np.sqrt(net.comp.beta_d)], rtol=1e-12)
+    w, P, R = fast.network_arrays(net)
+    fast.learn(fast.KIND_BFN, 0.5, 0.04, 0.1, 0.0, 0.0, w, P, R, 2, p, np.empty(4, dtype=np.int64), np.empty(4))
+    net.learn(u, np.array([0.1, 0.0]), 0.0)
+    w2, P2, R2 = fast.network_arrays(net)
+    np.testing.assert_allclose(w, w2, rtol=1e-12)
+    np.testing.assert_allclose(P, P2, rtol=1e-12)
+
+
+def test_bfn_rule_is_checked():
+    from cekm_swarm.models.networks import BasisFunctionNetwork
+
+    with pytest.raises(ParameterError, match="rule"):
+        BasisFunctionNetwork.untrained(3, np.random.default_rng(0), rule="other")
