@@ -142,6 +142,10 @@ class CooperativeEKM:
         self._B = np.stack([obstacle_field(self.w, s, self.fields) for s in range(self.n)])
         self._A.flags.writeable = False
         self._B.flags.writeable = False
+        # one read-only row object per winner: the same array each time, so a sender may
+        # cache its encoding by identity (cekm_swarm.node.wire.Encoder)
+        self._A_rows = tuple(self._A[s] for s in range(self.n))
+        self._B_rows = tuple(self._B[s] for s in range(self.n))
         if self.backend == "numba":
             from ..models import fast
 
@@ -167,11 +171,11 @@ class CooperativeEKM:
 
     def target_activity(self, s: int) -> np.ndarray:
         """The target field a_i of winner s (Eqs. 5-6), tabulated; read-only."""
-        return self._A[s]
+        return self._A_rows[s]
 
     def obstacle_activity(self, s: int) -> np.ndarray:
         """The obstacle field b_i of winner s (Eqs. 7-8), tabulated; read-only."""
-        return self._B[s]
+        return self._B_rows[s]
 
     def localize_target(self, reading: TargetReading, stamp: float) -> TargetActivity:
         """Target localization (section 3.2): s = winner(u) (Eqs. 2-4), a_i = G_a(w_s, w_i) (Eqs. 5-6)."""
@@ -180,14 +184,14 @@ class CooperativeEKM:
         if reading.at_goal:
             return TargetActivity(stamp, reading.alpha, reading.d, None, None, at_goal=True)
         s = self.winner(reading.alpha, reading.d)
-        return TargetActivity(stamp, reading.alpha, reading.d, s, self._A[s])
+        return TargetActivity(stamp, reading.alpha, reading.d, s, self._A_rows[s])
 
     def localize_obstacle(self, reading: RangeReading, stamp: float) -> ObstacleActivity:
         """Obstacle localization j (section 3.3): winner for u_j = (alpha_j, d_j), b_i = G_b (Eqs. 7-8)."""
         if reading.d is None:
             return ObstacleActivity(stamp, reading.index, None, None)
         s = self.winner(reading.alpha, reading.d)
-        return ObstacleActivity(stamp, reading.index, s, self._B[s])
+        return ObstacleActivity(stamp, reading.index, s, self._B_rows[s])
 
     def localize_obstacles(self, readings: list[RangeReading], stamp: float) -> list[ObstacleActivity]:
         """Every obstacle localization module at once (the in-process path): the same as

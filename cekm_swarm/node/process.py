@@ -35,11 +35,12 @@ from cekm_swarm.errors import CekmError
 from cekm_swarm.graph.check import node_class
 from cekm_swarm.graph.plan import NodePlan, RunPlan
 from cekm_swarm.graph.runspec import RunSpec
-from cekm_swarm.protocol import DropCounter, KeyKind, encode
+from cekm_swarm.protocol import DropCounter, KeyKind
 from cekm_swarm.protocol.stamps import StampWindow
 
 from .api import Context, make_params
-from .timing import LockstepGate, RealtimeGate, Runner
+from .timing import DirectGate, LockstepGate, RealtimeGate, Runner
+from .wire import Decoder, Encoder
 
 EXIT_CANNOT_START = 78
 """A node that cannot start (bad model, bad parameter): a permanent failure, not restarted."""
@@ -74,12 +75,13 @@ class NodeShell:
         self.spec, self.plan, self.node_plan, self.runner = spec, plan, node_plan, runner
         self.keys = spec.keys
         self.drops = DropCounter(node_plan.label, keys=self.keys)
+        self.decoder, self.encoder = Decoder(self.keys, self.drops), Encoder()
         self.window = StampWindow()
         self.lock = threading.RLock()
         self.closed = threading.Event()
         self.handled = 0
         lockstep = spec.mode == "lockstep"
-        gate_cls = LockstepGate if lockstep else RealtimeGate
+        gate_cls = DirectGate if DirectGate.fits(node_plan) else LockstepGate if lockstep else RealtimeGate
         self.gate = gate_cls(runner, drop=self.drops.drop)
         self.kinds: dict[str, KeyKind] = {s.key: KeyKind(b.kind) for b in node_plan.bindings for s in b.sources}
         self.ports: dict[str, str] = {s.key: b.port for b in node_plan.bindings for s in b.sources}
@@ -107,7 +109,7 @@ class NodeShell:
             if not key.endswith("/share") or key.split("/")[-2] != self.node_plan.robot:  # own share: not an input
                 self.drops.drop(key, "not a key this node reads")
             return []
-        msg = self.drops.decode(key, payload, expect=kind)
+        msg = self.decoder.decode(key, kind, payload)
         if msg is None:
             return []
         port = self.ports.get(key)
@@ -152,7 +154,7 @@ class NodeShell:
     def publish(self, out: list[tuple[str, Any]]) -> None:
         for key, msg in out:
             try:
-                self.pubs.put(key, encode(msg))
+                self.pubs.put(key, self.encoder(msg))
             except Exception as exc:  # noqa: BLE001 - a closing session must not kill the thread
                 log.warning("%s: publishing on %s failed: %s", self.node_plan.label, key, exc)
 

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import logging
 import math
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -141,7 +142,7 @@ class LockstepGate:
     drop: Drop = lambda key, why: None
     done: int = -1
     last_out: list[tuple[str, Any]] = field(default_factory=list)
-    recent_out: list[list[tuple[str, Any]]] = field(default_factory=list)
+    recent_out: deque = field(default_factory=lambda: deque(maxlen=4))
     used: dict[str, int] = field(default_factory=dict)
     gone: set[str] = field(default_factory=set)
     store: dict[str, dict[int, Any]] = field(default_factory=dict)
@@ -206,15 +207,12 @@ class LockstepGate:
             sent = self.runner.run(c, inputs)
             self.done = c
             self.last_out = sent
-            self.recent_out = (self.recent_out + [sent])[-4:]
-            self.used = {}
-            for b in self.node.bindings:
-                for s in b.sources:
-                    n = needed_tick(c, s.period, b.delay)
-                    if n is not None:
-                        self.used[s.key] = n
+            self.recent_out.append(sent)
+            self.used = {key: n for key, (src, delay) in self.sources.items()
+                         if delay == 0 and (n := needed_tick(c, src.period, 0)) is not None}
             self.candidates = {x for x in self.candidates if x > c}
-            self._forget(c)
+            if c % 8 == 0:  # what no later run reads: dropped now and then (KEEP_TICKS bounds it anyway)
+                self._forget(c)
             out += sent
         return out
 
@@ -232,6 +230,42 @@ class LockstepGate:
         """The recent runs' outputs, oldest first: what a (re)started reader of them asks
         for (a teammate reads the previous run's share, which it missed while down)."""
         return [m for run in self.recent_out for m in run]
+
+
+class DirectGate:
+    """The gate of a node that keeps no state and reads one key of its own period at the
+    same tick (an obstacle localization module: ``sense/range/j`` every tick): the rule
+    then is to run on every value as it comes, in lockstep and in real time alike. A value
+    that comes again (the world re-publishing a stalled tick) runs again and gives the
+    same outputs, which is the catch-up the other gates do by sending again."""
+
+    def __init__(self, runner: Runner, drop: Drop = lambda key, why: None) -> None:
+        self.runner, self.drop = runner, drop
+        node = runner.plan
+        (b,) = node.bindings
+        (self.source,) = b.sources
+        self.key, self.port = self.source.key, b.port
+        self.repeats = 0
+
+    @staticmethod
+    def fits(node: NodePlan) -> bool:
+        """Whether ``node`` may take this gate."""
+        if node.stateful or node.clock_key is not None or len(node.bindings) != 1:
+            return False
+        b = node.bindings[0]
+        return (len(b.sources) == 1 and b.delay == 0 and not b.team and not b.many
+                and b.sources[0].period == node.period)
+
+    def put(self, key: str, msg: Any) -> list[tuple[str, Any]]:
+        if key != self.key:
+            return []
+        return self.runner.run(tick_of(msg.stamp), Inputs({self.port: msg}))
+
+    def teammate(self, robot: str, alive: bool) -> list[tuple[str, Any]]:
+        return []
+
+    def resend(self) -> list[tuple[str, Any]]:
+        return []
 
 
 @dataclass
@@ -341,4 +375,4 @@ def realtime_inputs_stale(node: NodePlan) -> dict[str, float]:
     return {s.key: b.stale_s for b in node.bindings for s in b.sources}
 
 
-__all__ = ["gather", "Runner", "LockstepGate", "RealtimeGate", "KEEP_TICKS", "tick_of", "math"]
+__all__ = ["gather", "Runner", "DirectGate", "LockstepGate", "RealtimeGate", "KEEP_TICKS", "tick_of"]
