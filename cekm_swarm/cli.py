@@ -337,5 +337,16 @@ def _register_view_command() -> None:
 _register_view_command()
 
 
+def _register_ros2_commands() -> None:
+    from .ros2.commands import COMMANDS, export_cmd
+
+    main.commands["log"].add_command(export_cmd)
+    for command in COMMANDS:
+        main.add_command(command)
+
+
+_register_ros2_commands()
+
+
 def run() -> None:  # pragma: no cover - the console entry (cekm_swarm.cli_support.run_cli is tested)
     sys.exit(run_cli(main))
