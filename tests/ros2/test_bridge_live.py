@@ -124,8 +124,10 @@ def test_teleop_in_a_real_time_run_and_hostile_twists(processes, msg_dir, tmp_pa
 
     event = json.loads(world.expect("EVENT", 10, where=stopped_after_drive).split(" ", 1)[1])
     assert event["limit_s"] == 0.5
-    after = payload(peer.expect("MSG /r1/odom", 10, where=lambda l: stamp(payload(l)) > event["t"]))
-    assert after["twist"]["twist"]["linear"]["x"] == 0.0
+    after = payload(peer.expect("MSG /r1/odom", 10, where=lambda l: stamp(payload(l)) > event["t"]
+                                and payload(l)["twist"]["twist"]["linear"]["x"] == 0.0))
+    later = payload(peer.expect("MSG /r1/odom", 10, where=lambda l: stamp(payload(l)) > stamp(after) + 0.25))
+    assert later["pose"]["pose"] == after["pose"]["pose"] and later["twist"]["twist"]["linear"]["x"] == 0.0
 
     report = json.loads(stop(bridge))
     assert report["twists"] == sum(map(len, hostile.values())) + sent[0]
@@ -137,6 +139,8 @@ def test_teleop_in_a_real_time_run_and_hostile_twists(processes, msg_dir, tmp_pa
     r1 = traj["r1"]
     assert set(zip(r1["v_l"], r1["v_r"])) == {(0.0, 0.0), (0.1, 0.1)}  # nothing hostile ever reached the wheels
     assert max(r1["x"]) >= x0 + 0.05
+    still = [i for i, t in enumerate(r1["t"][:len(r1["v_l"])]) if stamp(after) - 1e-6 <= t < stamp(later)]
+    assert len(still) >= 2 and all(r1["v_l"][i] == r1["v_r"][i] == 0.0 for i in still)  # stopped for good
     assert all(set(traj[r]["v_l"] + traj[r]["v_r"]) == {0.0} for r in ("r2", "r3"))
     assert done_line["sim_seconds"] > event["t"]  # the run went on past the hostile Twists and the stop
 
