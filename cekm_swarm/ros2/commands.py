@@ -51,7 +51,7 @@ def _robots(value: str | None, option: str) -> tuple[str, ...] | None:
 @click.option("--overwrite", is_flag=True, help="Clear a non-empty --out directory first (without it, one is refused).")
 @click.option("--distro", type=click.Choice(DISTROS), default=DEFAULT_DISTRO, show_default=True,
               help="ROS 2 distribution whose message definitions and type hashes the bag carries.")
-@click.option("--quiet", is_flag=True, help="No progress bar.")
+@click.option("--quiet", is_flag=True, help="No progress bar (there is none when stderr is not a terminal).")
 def export_cmd(log_file: Path, fmt: str, out_dir: Path, overwrite: bool, distro: str, quiet: bool) -> None:
     """Export RUN.mcap for ROS 2 tools: `ros2 bag play`, `ros2 bag info`, Foxglove, rosbags."""
     from cekm_swarm.runtime.mcap_log import is_complete
@@ -72,7 +72,7 @@ def export_cmd(log_file: Path, fmt: str, out_dir: Path, overwrite: bool, distro:
         if bar is None:
             from tqdm import tqdm
 
-            bar = tqdm(total=total, unit="msg", desc="export", file=sys.stderr, leave=False)
+            bar = tqdm(total=total, unit="msg", desc="export", file=sys.stderr, leave=False, disable=None)
         bar.update(done - bar.n)
 
     try:

@@ -214,15 +214,19 @@ def acl_router(tmp_path: Path, port: int) -> zenoh.Session:
         ("clock-publish", "ingress", ["put"], ["cekm/world/clock"]),
         ("bridge-listen", "ingress", ["declare_subscriber"], ["cekm/**", "0/*/cmd_vel/**"]),
         ("bridge-command", "ingress", ["put"], ["cekm/r1/cmd/wheels"]),
-        ("bridge-ros-publish", "ingress", ["put", "liveliness_token", "declare_queryable"], ros),
+        ("bridge-ros-publish", "ingress", ["put", "liveliness_token", "declare_queryable"], ros + ["0/**/@adv/**"]),
+        ("bridge-cache-queries", "egress", ["query"], ["0/**/@adv/**"]),
+        ("bridge-cache-replies", "ingress", ["reply"], ["0/**/@adv/**"]),
         ("bridge-geometry", "ingress", ["query"], ["cekm/world/geometry"]),
+        ("bridge-geometry-reply", "egress", ["reply"], ["cekm/world/geometry"]),
         ("bridge-twists-in", "egress", ["put"], ["0/*/cmd_vel/**"]),
         ("teleop-publish", "ingress", ["put"], ["0/r1/cmd_vel/**"]),
         ("observer-listen", "ingress", ["declare_subscriber"], ["cekm/**"]),
     ]
     policies = {"world": ["declarations-out", "clock-publish"],
                 "bridge": ["declarations-out", "run-receive", "bridge-listen", "bridge-command", "bridge-ros-publish",
-                           "bridge-geometry", "bridge-twists-in"],
+                           "bridge-cache-queries", "bridge-cache-replies", "bridge-geometry", "bridge-geometry-reply",
+                           "bridge-twists-in"],
                 "teleop": ["declarations-out", "teleop-publish"],
                 "intruder": ["declarations-out"],
                 "observer": ["declarations-out", "run-receive", "observer-listen"]}
@@ -303,3 +307,43 @@ def test_access_control_keeps_a_refused_publishers_twists_out(processes, tmp_pat
     # and one publisher's puts arrive in order), none of the intruder's 30
     assert report["twists"] == sent and report["wheel_commands"] == len(commands)
     assert set(report["twists_refused"]) <= {"no world clock yet"}
+
+
+def test_a_scene_bigger_than_the_routers_limit_goes_out_in_parts():
+    """Every router of the runtime drops a message over 32 KB: the bridge splits a big
+    marker array so that every marker arrives."""
+    from cekm_swarm.protocol import WorldState
+    from cekm_swarm.ros2.bridge import Bridge
+    from cekm_swarm.runtime.config import MAX_MESSAGE_BYTES
+
+    port = free_port()
+    router = open_embedded_router(port)
+    s = open_client(f"tcp/127.0.0.1:{port}")
+    try:
+        parts: list[bytes] = []
+        markers = [0]
+        enough = threading.Event()
+        walls = [{"vertices": [[0.01 * i, 0.0], [0.01 * i + 0.005, 0.0], [0.01 * i + 0.005, 1.0], [0.01 * i, 1.0]]}
+                 for i in range(400)]
+
+        def on_markers(sample: zenoh.Sample) -> None:
+            data = sample.payload.to_bytes()
+            parts.append(data)
+            markers[0] += len(IFC.from_cdr(data, "visualization_msgs/msg/MarkerArray").markers)
+            if markers[0] >= len(walls):
+                enough.set()
+
+        sub = s.declare_subscriber("0/world/markers/**", on_markers)
+        bridge = Bridge(s)
+        bridge.mapper.set_geometry({"walls": walls})
+        state = WorldState(0.0, "world", {}, {}, {})
+        bridge.handle_run_sample("cekm/world/state", encode(state), 0.0)
+        assert enough.wait(10), f"{markers[0]} of {len(walls)} wall markers arrived"
+        assert len(parts) > 1 and all(len(p) <= MAX_MESSAGE_BYTES - 33 for p in parts)
+        assert sum(len(p) for p in parts) > MAX_MESSAGE_BYTES  # one message would have been dropped
+        assert bridge.stats.too_large == 0
+        sub.undeclare()
+        bridge.close()
+    finally:
+        s.close()
+        router.close()

@@ -135,3 +135,12 @@ def test_clock_only_when_asked_and_every_topic_is_in_the_table():
     for row in TOPICS:
         check_topic(row.name.format(robot="r1", j=3))
         IFC.hash(row.ros_type)
+
+
+def test_docs_have_the_mapping_table():
+    from pathlib import Path
+
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "ros2.md").read_text()
+    for row in TOPICS:
+        name = row.name.replace("{robot}", "<robot>").replace("{j}", "<j>")
+        assert f"| `{name}` | `{row.ros_type}` |" in doc, name
