@@ -15,6 +15,7 @@ to its cut. Scenario, seed and mode go into the bag's ``custom_data``.
 
 from __future__ import annotations
 
+import itertools
 import json
 from collections import Counter
 from collections.abc import Callable
@@ -113,12 +114,18 @@ def export_ros2(log: str | Path, bag: str | Path, *, distro: str = DEFAULT_DISTR
 
     ``progress(done, total)`` is called every :data:`PROGRESS_EVERY` log messages and at
     the end (total None when the log is incomplete). Raises :class:`McapLogError` for a
-    missing or non-MCAP ``log`` and :class:`ExportError` for an unusable ``bag``."""
+    missing or non-MCAP ``log``, :class:`ExportError` for a log without a message and for an
+    unusable ``bag``, both before anything is written."""
     from rosbags.rosbag2 import Writer
     from rosbags.rosbag2.enums import CompressionFormat, CompressionMode, StoragePlugin
 
     log, bag = Path(log), Path(bag)
     complete = is_complete(log)  # McapLogError: no such file, not an MCAP file
+    messages = read_messages(log, encodings=[MSGPACK])
+    first = next(messages, None)
+    if first is None:
+        raise ExportError(f"{log}: no message of the key space to export"
+                          + ("" if complete else " (the log ends before its first message)"))
     if bag.exists():
         if not bag.is_dir() or any(bag.iterdir()):
             raise ExportError(f"{bag}: exists and is not an empty directory")
@@ -141,7 +148,7 @@ def export_ros2(log: str | Path, bag: str | Path, *, distro: str = DEFAULT_DISTR
         raise ExportError(f"{bag}: cannot write: {exc.strerror or exc}") from None
     connections: dict[str, Any] = {}
     try:
-        for m in read_messages(log, encodings=[MSGPACK]):
+        for m in itertools.chain([first], messages):
             report.read += 1
             msg = drops.decode(m.topic, m.data)
             if msg is not None:

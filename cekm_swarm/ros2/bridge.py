@@ -147,6 +147,7 @@ class Bridge:
         self._twist_subs: dict[str, Any] = {}
         self._threads: list[threading.Thread] = []
         self._geometry_at = -GEOMETRY_RETRY_S
+        self._geometry: dict[str, Any] | None = None  # a fetched scene the run thread has yet to take
         self._fetching = False
         self.run_sub: Any = None
         self._closing = False
@@ -256,7 +257,11 @@ class Bridge:
                     if cmd is not None:
                         self._send_command(robot, cmd)
         if isinstance(msg, WorldState) and self.mapper.geometry is None:
-            self._fetch_geometry()
+            geometry, self._geometry = self._geometry, None
+            if geometry is not None:  # fetched on another thread; the mapper is this thread's
+                self.mapper.set_geometry(geometry)
+            else:
+                self._fetch_geometry()
         for out in self.mapper.feed(key, msg):
             self._publish(out)
 
@@ -292,10 +297,7 @@ class Bridge:
 
         def fetch() -> None:
             try:
-                geometry = fetch_geometry(self.session, self.keys.world_geometry())
-                if geometry is not None:
-                    with self._lock:
-                        self.mapper.set_geometry(geometry)
+                self._geometry = fetch_geometry(self.session, self.keys.world_geometry())
             finally:
                 self._fetching = False
 

@@ -44,7 +44,7 @@ def _robots(value: str | None, option: str) -> tuple[str, ...] | None:
 
 @click.command("export")
 @click.argument("log_file", metavar="RUN.mcap", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--to", "fmt", type=click.Choice(["ros2"]), required=True,
+@click.option("--to", "to", type=click.Choice(["ros2"]), required=True,
               help="ros2: a rosbag2 directory (metadata.yaml + MCAP storage, CDR, ros2msg schemas).")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), required=True,
               help="The bag directory to write (absent or empty).")
@@ -52,14 +52,18 @@ def _robots(value: str | None, option: str) -> tuple[str, ...] | None:
 @click.option("--distro", type=click.Choice(DISTROS), default=DEFAULT_DISTRO, show_default=True,
               help="ROS 2 distribution whose message definitions and type hashes the bag carries.")
 @click.option("--quiet", is_flag=True, help="No progress bar (there is none when stderr is not a terminal).")
-def export_cmd(log_file: Path, fmt: str, out_dir: Path, overwrite: bool, distro: str, quiet: bool) -> None:
+def export_cmd(log_file: Path, to: str, out_dir: Path, overwrite: bool, distro: str, quiet: bool) -> None:
     """Export RUN.mcap for ROS 2 tools: `ros2 bag play`, `ros2 bag info`, Foxglove, rosbags."""
     from cekm_swarm.runtime.mcap_log import is_complete
 
     from .bag import export_ros2, format_report
 
+    from cekm_swarm.runtime.mcap_log import MSGPACK, read_messages
+
     try:
         is_complete(log_file)  # a missing or non-MCAP file: one line, before anything is written
+        if next(read_messages(log_file, encodings=[MSGPACK]), None) is None:
+            raise click.UsageError(f"{log_file}: no message of the key space to export")
     except CekmError as exc:
         raise click.UsageError(str(exc)) from None
     prepare_out_dir(out_dir, overwrite)
@@ -116,10 +120,8 @@ def bridge_cmd(endpoint: str | None, config_file: Path | None, wait_s: float, do
     config = BridgeConfig(domain=domain, robots=_robots(robots, "--robots"), teleop=_robots(teleop, "--teleop") or (),
                           distro=distro, root=root)
     stop = threading.Event()
-    interrupted = [False]
 
-    def on_signal(signum: int, frame: Any) -> None:
-        interrupted[0] = signum == signal.SIGINT
+    def on_signal(signum: int, frame: Any) -> None:  # Ctrl-C or SIGTERM: the bridge's normal end
         stop.set()
 
     old = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
@@ -131,6 +133,8 @@ def bridge_cmd(endpoint: str | None, config_file: Path | None, wait_s: float, do
         try:
             session = bridge_session(endpoint, config_file, timeout=wait_s, say=_say, stop=stop)
         except CekmError as exc:
+            if stop.is_set():  # stopped while waiting for the router
+                raise Interrupted() from None
             raise click.ClickException(str(exc)) from None
         if stop.is_set():
             session.close()

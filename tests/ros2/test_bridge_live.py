@@ -81,6 +81,11 @@ def test_teleop_in_a_real_time_run_and_hostile_twists(processes, msg_dir, tmp_pa
     static = payload(peer.expect("MSG /tf_static", 30))
     assert len(static["transforms"]) == 36 and static["transforms"][0]["header"]["frame_id"] == "r1/base_link"
 
+    # the scene: the bridge fetched the run's geometry from the world (the walls), and the robots
+    peer.send("sub /world/markers visualization_msgs/msg/MarkerArray")
+    peer.expect("MSG /world/markers", 30, where=lambda l: {m["ns"] for m in payload(l)["markers"]} == {"walls", "discs"})
+    peer.expect("MSG /world/markers", 30, where=lambda l: "robots" in {m["ns"] for m in payload(l)["markers"]})
+
     # hostile Twists, from the same publisher as the good ones below (so they arrive first)
     peer.send("pub /r1/cmd_vel geometry_msgs/msg/Twist")
     peer.expect("PUB")
