@@ -60,18 +60,23 @@ class ExportReport:
         return sum(self.topics.values())
 
 
-def log_metadata(path: Path) -> dict[str, dict[str, str]]:
-    """The log's metadata records {name: {key: value}} (scenario, seed, mode; the geometry),
-    read from the file's start: they come before its first message."""
+def log_metadata(path: Path, complete: bool = True) -> dict[str, dict[str, str]]:
+    """The log's metadata records {name: {key: value}} (scenario, seed, mode; the geometry):
+    from the summary's index of a complete log (a recording may add the geometry late), from
+    the start of an incomplete one (the world server writes them before its first message)."""
     out: dict[str, dict[str, str]] = {}
     with open(path, "rb") as f:
         try:
+            if complete:
+                for m in SeekingReader(f).iter_metadata():
+                    out[m.name] = dict(m.metadata)
+                return out
             for record in StreamReader(f, skip_magic=False).records:
                 if isinstance(record, Metadata):
                     out[record.name] = dict(record.metadata)
                 elif type(record).__name__ in ("Chunk", "Message"):
                     break
-        except Exception:  # a file cut before its first chunk: what was read is what there is
+        except Exception:  # an unreadable summary or a cut before the first chunk: what was read is what there is
             pass
     return out
 
@@ -131,7 +136,7 @@ def export_ros2(log: str | Path, bag: str | Path, *, distro: str = DEFAULT_DISTR
             raise ExportError(f"{bag}: exists and is not an empty directory")
         bag.rmdir()  # the rosbag2 writer makes the directory itself
     ifc = interfaces(distro)
-    metadata = log_metadata(log)
+    metadata = log_metadata(log, complete)
     drops = DropCounter("ros2 export", keys=keys)
     mapper = RosMapper(ifc, geometry=geometry_of(metadata), keys=keys, drops=drops)
     total = msgpack_message_count(log) if complete else None

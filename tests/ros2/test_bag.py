@@ -17,7 +17,7 @@ from ruamel.yaml import YAML
 
 from cekm_swarm.protocol import SenseRange, WheelCommand, decode
 from cekm_swarm.robot import KHEPERA
-from cekm_swarm.ros2.bag import export_ros2
+from cekm_swarm.ros2.bag import export_ros2, msgpack_message_count
 from cekm_swarm.ros2.interfaces import JAZZY_TYPE_HASHES, interfaces
 from cekm_swarm.ros2.mapping import TOPICS
 from cekm_swarm.runtime.mcap_log import read_messages
@@ -154,3 +154,17 @@ def test_export_reports_progress_and_refuses_bad_input_in_one_line(crossing_run,
         lines = r.stderr.strip().splitlines()
         assert len(lines) == 1 and lines[0].startswith("cekm: error:") and expected in lines[0], r.stderr
     assert not (tmp_path / "never").exists() and (busy / "keep.txt").exists()
+
+
+def test_the_scene_comes_from_the_logs_geometry_also_when_the_log_was_cut(crossing_run, bag_messages, tmp_path):
+    (_, first), *_ = bag_messages["/world/markers"]
+    assert {m.ns for m in first.markers} == {"walls", "discs"}  # crossing: walls and two unforeseen discs
+    data = (crossing_run / "run.mcap").read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[: len(data) * 3 // 5])  # a world server killed mid-run
+    report = export_ros2(cut, tmp_path / "b")
+    assert not report.complete and 0 < report.read < msgpack_message_count(crossing_run / "run.mcap")
+    with Reader(tmp_path / "b") as r:
+        assert r.message_count == report.written
+        first = next(raw for c, _, raw in r.messages() if c.topic == "/world/markers")
+    assert {m.ns for m in interfaces().from_cdr(first, "visualization_msgs/msg/MarkerArray").markers} == {"walls", "discs"}
