@@ -340,7 +340,8 @@ _register_view_command()
 def _register_ros2_commands() -> None:
     from .ros2.commands import COMMANDS, export_cmd
 
-    main.commands["log"].add_command(export_cmd)
+    log = main.commands["log"]  # `cekm log` with `export` beside the runtime's own commands (its group untouched)
+    main.add_command(click.Group(log.name, commands={**log.commands, "export": export_cmd}, help=log.help))
     for command in COMMANDS:
         main.add_command(command)
 
