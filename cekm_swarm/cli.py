@@ -366,5 +366,17 @@ def _register_view_command() -> None:
 _register_view_command()
 
 
+def _register_ros2_commands() -> None:
+    from .ros2.commands import COMMANDS, export_cmd
+
+    log = main.commands["log"]  # `cekm log` with `export` beside the runtime's own commands (its group untouched)
+    main.add_command(click.Group(log.name, commands={**log.commands, "export": export_cmd}, help=log.help))
+    for command in COMMANDS:
+        main.add_command(command)
+
+
+_register_ros2_commands()
+
+
 def run() -> None:  # pragma: no cover - the console entry (cekm_swarm.cli_support.run_cli is tested)
     sys.exit(run_cli(main))

@@ -689,6 +689,7 @@ class World:
             "bounds": list(sc.bounds),
             "body_radius": ROBOT_RADIUS,
             "target_range": sc.target_range,
+            "sensor_range": self._sensor_range,
             "walls": walls,
             "polygons": polygons,
             "discs": discs,

@@ -1,0 +1,102 @@
+"""Helpers of the ROS 2 tests: ``cekm`` in a subprocess, the ``.msg`` files the independent
+``zenoh-ros2-sdk`` peer reads, and processes whose stdout lines are read on a thread so
+that every wait has a timeout."""
+
+from __future__ import annotations
+
+import os
+import queue
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+from cekm_swarm.ros2.interfaces import MESSAGE_TYPES, interfaces
+
+REPO = Path(__file__).resolve().parents[2]
+PEER = Path(__file__).with_name("ros2_peer.py")
+SEPARATOR = "=" * 80
+
+
+def write_msg_files(directory: Path, types: tuple[str, ...] = MESSAGE_TYPES) -> Path:
+    """``<pkg>/msg/<Name>.msg`` for ``types`` and everything they use, from rosbags' Jazzy
+    definitions (what the SDK would otherwise clone from the ROS 2 repositories)."""
+    ifc = interfaces("jazzy")
+    for ros_type in types:
+        sections = ifc.definition(ros_type).split(SEPARATOR + "\n")
+        pkg, _, name = ros_type.split("/")
+        named = [(f"{pkg}/{name}", sections[0])]
+        for sec in sections[1:]:
+            head, _, body = sec.partition("\n")
+            named.append((head.removeprefix("MSG: ").strip(), body))
+        for full, body in named:
+            p, n = full.split("/")
+            path = directory / p / "msg" / f"{n}.msg"
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text(body.strip() + "\n")
+    return directory
+
+
+def cekm(*args: str, timeout: float = 600) -> subprocess.CompletedProcess:
+    """Run ``cekm ARGS`` in a subprocess (this worktree's package first on the path)."""
+    env = dict(os.environ, PYTHONPATH=f"{REPO}{os.pathsep}{os.environ.get('PYTHONPATH', '')}")
+    return subprocess.run([sys.executable, "-m", "cekm_swarm", *args], capture_output=True, text=True,
+                          timeout=timeout, env=env, cwd=REPO)
+
+
+class Lines:
+    """A process whose stdout lines are read by a thread into a queue; :meth:`expect`
+    waits for a line with a timeout, :meth:`send` writes a line to its stdin."""
+
+    def __init__(self, argv: list[str], env: dict[str, str] | None = None) -> None:
+        self.proc = subprocess.Popen(argv, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                     text=True, env=env, cwd=REPO)
+        self._lines: queue.Queue[str | None] = queue.Queue()
+        self.seen: list[str] = []
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
+
+    def _read(self) -> None:
+        assert self.proc.stdout is not None
+        for line in self.proc.stdout:
+            self._lines.put(line.rstrip("\n"))
+        self._lines.put(None)
+
+    def expect(self, prefix: str, timeout: float = 30.0, where: Callable[[str], bool] | None = None) -> str:
+        """The next stdout line starting with ``prefix`` (and passing ``where``)."""
+        deadline = time.monotonic() + timeout
+        while True:
+            try:
+                line = self._lines.get(timeout=max(0.0, deadline - time.monotonic()))
+            except queue.Empty:
+                raise AssertionError(f"{self.proc.args[:4]}: no line {prefix!r} within {timeout} s") from None
+            if line is None:
+                err = self.proc.stderr.read() if self.proc.stderr else ""
+                raise AssertionError(f"{self.proc.args[:4]} ended without {prefix!r}; stderr: {err[-3000:]}")
+            self.seen.append(line)
+            if line.startswith(prefix) and (where is None or where(line)):
+                return line
+
+    def send(self, line: str) -> None:
+        assert self.proc.stdin is not None
+        self.proc.stdin.write(line + "\n")
+        self.proc.stdin.flush()
+
+    def stop(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.kill()
+        self.proc.wait(timeout=10)
+        for f in (self.proc.stdin, self.proc.stdout, self.proc.stderr):
+            if f is not None:
+                f.close()
+
+
+def peer_argv(endpoint: str, msg_dir: Path, domain: int = 0) -> list[str]:
+    """The command line of the SDK peer (tests/ros2/ros2_peer.py) joining ``endpoint``."""
+    return [sys.executable, str(PEER), endpoint.removeprefix("tcp/"), str(msg_dir), str(domain)]
+
+
+def bridge_argv(endpoint: str, *args: str) -> list[str]:
+    return [sys.executable, "-m", "cekm_swarm", "ros2", "bridge", "--connect", endpoint, "--json", *args]
