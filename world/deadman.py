@@ -19,6 +19,11 @@ class Deadman:
         self.last = {r: now for r in robots}
         self.stopped = {r: False for r in robots}
 
+    def restart(self, now: float) -> None:
+        """Every robot heard ``now`` and none stopped (the run's clock starts)."""
+        self.last = {r: now for r in self.last}
+        self.stopped = {r: False for r in self.stopped}
+
     def heard(self, robot: str, at: float) -> None:
         self.last[robot] = at
 

@@ -149,7 +149,7 @@ def outcome_summary(outcome: dict) -> list[str]:
     """The lines a finished launch prints: each robot, tracking's A, latency, in real time
     the deadline misses and the ticks they fell on, where a tick's CPU went and how much of
     the machine's time the host stole meanwhile, restarts."""
-    from world.server import MISSED_TICKS_KEPT
+    from world.outcome import MISSED_TICKS_KEPT
 
     lines = []
     tracking = "tracking" in outcome  # docs/tracking.md

@@ -1,0 +1,88 @@
+"""A world server run's statistics and its outputs: events, deadline misses, progress lines
+for the launcher, and at the end ``outcome.json`` (the fields of ``cekm run`` and the
+run's own) and ``trajectory.json`` (pose and command per tick)."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from cekm_swarm.runtime.percentiles import percentile
+
+MISSED_TICKS_KEPT = 200
+"""Real time: how many ticks with a deadline miss ``outcome.json`` lists (tick -> robots
+that missed it), to tell a start-up hiccup from misses spread over a run."""
+
+
+def emit(kind: str, doc: dict[str, Any]) -> None:
+    """One progress line on stdout for the launcher. When the launcher is gone (the pipe
+    is broken: it was killed, and the server is stopping on its parent-death signal),
+    the lines go nowhere and the run still ends cleanly: outcome written, log closed."""
+    try:
+        sys.stdout.write(f"{kind} {json.dumps(doc)}\n")
+        sys.stdout.flush()
+    except BrokenPipeError:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())  # also for the interpreter's last flush
+        os.close(devnull)
+
+
+@dataclass
+class RunStats:
+    """What happened in a run besides the world's own state."""
+
+    events: list[dict[str, Any]] = field(default_factory=list)
+    deadline_misses: int = 0
+    missed_ticks: dict[int, int] = field(default_factory=dict)  # tick -> robots that missed it (the first ones)
+    first_tick_s: float | None = None  # real time: tick 0's readings to its last command
+    tick_loop_seconds: float = 0.0  # wall s from the first tick's readings to the last tick
+
+    def event(self, kind: str, t: float, doc: dict[str, Any]) -> None:
+        doc = {"event": kind, "t": t, **doc}
+        self.events.append(doc)
+        emit("EVENT", doc)
+
+    def missed(self, tick: int) -> None:
+        self.deadline_misses += 1
+        if tick in self.missed_ticks or len(self.missed_ticks) < MISSED_TICKS_KEPT:
+            self.missed_ticks[tick] = self.missed_ticks.get(tick, 0) + 1
+
+
+def progress_doc(world: Any, episode: Any, robots: list[str], tracking: bool, stopped: dict[str, bool],
+                 republished: int, misses: int) -> dict[str, Any]:
+    """A ``PROGRESS`` line's content: every robot's position (and distance to its goal)."""
+    out = {}
+    for r in robots:
+        x, y, _ = world.pose(r)
+        to_goal = None
+        if not tracking:
+            gx, gy = world.goal_of(r)
+            to_goal = round(math.hypot(gx - x, gy - y), 3)
+        out[r] = {"x": round(x, 3), "y": round(y, 3), "to_goal": to_goal, "reached": episode.progress[r].reached,
+                  "stopped": stopped.get(r, False)}
+    return {"t": episode.t, "tick": episode.tick, "robots": out, "republished": republished, "deadline_misses": misses}
+
+
+def latency_ms(latencies: list[float]) -> dict[str, Any]:
+    """Sense-to-command latency: p50 and p99 in ms (:func:`percentile`), and how many."""
+    if not latencies:
+        return {"p50": None, "p99": None, "n": 0}
+    return {"p50": round(1000 * percentile(latencies, 0.5), 3), "p99": round(1000 * percentile(latencies, 0.99), 3),
+            "n": len(latencies)}
+
+
+def write_outputs(out: Path, doc: dict[str, Any], episode: Any) -> None:
+    """``outcome.json`` (``doc``) and ``trajectory.json`` (pose and command per tick)."""
+    (out / "outcome.json").write_text(json.dumps(doc, indent=1))
+    traj = {}
+    for r, p in episode.progress.items():
+        t, x, y, th = (list(c) for c in zip(*p.path)) if p.path else ([], [], [], [])
+        traj[r] = {"t": t, "x": x, "y": y, "theta": th, "v_l": [c[0] for c in p.commands],
+                   "v_r": [c[1] for c in p.commands], "checkpoints": [list(c) for c in p.checkpoints],
+                   "checkpoint_times": list(p.checkpoint_times)}
+    (out / "trajectory.json").write_text(json.dumps(traj))
