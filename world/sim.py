@@ -35,12 +35,14 @@ import numpy as np
 import pymunk
 import pymunk.batch as pbatch
 from cekm_swarm.ticks import SUBSTEP_S
-from pymunk._chipmunk_cffi import ffi, lib
 
 from . import _physics as ph
+from . import chipmunk as cp
 from . import geometry as geo
 from .motion import CircleMotion, Fixed, LineMotion, RandomWalk
 from .scenario import BODY_RADIUS, WHEEL_SPEED_UNIT, Scenario
+from .sensors import NOISE, RANGE_RESOLUTION, TARGET_RESOLUTION, RangeSensors, target_reading
+from .snapshot import static_geometry, world_state
 
 #: Robot body radius (m).
 ROBOT_RADIUS = BODY_RADIUS
@@ -52,12 +54,6 @@ V_MAX = 0.16 / 1.024
 SUBSTEP = SUBSTEP_S
 #: pymunk steps per world sub-step.
 PHYSICS_STEPS = 4
-#: Relative half-width of the uniform wheel and sensor noise.
-NOISE = 0.1
-#: Distance-sensor resolution (m).
-RANGE_RESOLUTION = 0.005
-#: Target-sensor distance resolution (m).
-TARGET_RESOLUTION = 0.001
 #: Number of distance sensors.
 N_SENSORS = 12
 #: Robot mass (kg), about a Khepera's.
@@ -125,7 +121,7 @@ class World:
         # correct 20 % of an overlap per pymunk step
         space.collision_bias = 0.8 ** (1.0 / dt)
         self._space = space
-        self._cpspace = space._space
+        self._cpspace = cp.cp_space(space)
         self._item_of: dict[pymunk.Shape, str] = ph.add_static(space, scenario)
 
         # robots first, then control bodies, then moving obstacles (batch row order)
@@ -206,21 +202,11 @@ class World:
         )
         self._path = [0.0] * n
         self._contact_steps = [0] * n
-        self._clear = [math.inf] * n
-        self._near = [True] * n
-        self._noise_block = 12 * 64
-        self._noise = [[] for _ in range(n)]
-        self._noise_at = [0] * n
-        self._info = ffi.new("cpSegmentQueryInfo *")
-        self._pinfo = ffi.new("cpPointQueryInfo *")
-        self._filters = [
-            ffi.new("cpShapeFilter *", (i + 1, ph.CAT_RAY, ph.MASK_SEEN))[0] for i in range(n)
-        ]
         self._sensor_range = scenario.sensor_range
-        self._ray_len = ROBOT_RADIUS + scenario.sensor_range + 1e-9
-        self._dirs = [(math.cos(a), math.sin(a)) for a in _SENSOR_ANGLES]
+        self._ranges = RangeSensors(space, n, _SENSOR_ANGLES, ROBOT_RADIUS, scenario.sensor_range, self._rng_range,
+                                    ph.CAT_RAY, ph.MASK_SEEN)
         self._pose_cache()
-        self._update_clearance()
+        self._ranges.update_clearance(self._px, self._py)
 
     # ------------------------------------------------------------------ properties
     @property
@@ -381,7 +367,7 @@ class World:
             rest = PHYSICS_STEPS - 1
         else:
             rest = PHYSICS_STEPS
-        cp_step = lib.cpSpaceStep  # bodies are never added or removed after __init__
+        cp_step = cp.space_step  # bodies are never added or removed after __init__
         sp = self._cpspace
         for _ in range(rest):
             cp_step(sp, h)
@@ -397,7 +383,7 @@ class World:
             path[i] += math.hypot(px[i] - ox[i], py[i] - oy[i])
             if touching[i]:
                 cs[i] += 1
-        self._update_clearance()
+        self._ranges.update_clearance(self._px, self._py)
         self._step_targets(t1)
 
     def advance(self, duration: float) -> None:
@@ -407,26 +393,6 @@ class World:
             raise ValueError(f"duration must be >= 0, got {duration}")
         for _ in range(k):
             self.step()
-
-    def _update_clearance(self) -> None:
-        """Nearest surface to each robot at its current pose: updates the minimum
-        clearance and caches whether anything is within sensor range (if nothing is,
-        a range read needs no ray casts)."""
-        q = lib.cpSpacePointQueryNearest
-        sp = self._cpspace
-        info = self._pinfo
-        r = ROBOT_RADIUS
-        see = self._sensor_range + 1e-9
-        clear = self._clear
-        near = self._near
-        px, py, filters = self._px, self._py, self._filters
-        for i in range(self._n):
-            ci = clear[i]
-            q(sp, (px[i], py[i]), r + (ci if ci > see else see), filters[i], info)
-            c = info.distance - r
-            near[i] = c <= see
-            if c < ci:
-                clear[i] = c
 
     def _step_targets(self, t: float) -> None:
         for k, tg in enumerate(self.scenario.targets):
@@ -481,58 +447,14 @@ class World:
     def true_ranges(self, robot_id: str) -> np.ndarray:
         """Noise-free surface ranges of the 12 sensors (m), NaN beyond range."""
         i = self._i(robot_id)
-        lim = self._sensor_range
-        return np.array([d if d <= lim else math.nan for d in self._cast(i)])
-
-    def _cast(self, i: int) -> list[float]:
-        """True surface range along each sensor ray (m, >= 0; beyond range when the
-        ray hits nothing). Rays start at the robot centre (so a surface touching or
-        overlapping the body reads 0) and skip the robot's own shape (its group)."""
-        L = self._ray_len
-        if not self._near[i]:
-            return [L] * N_SENSORS
-        x = self._px[i]
-        y = self._py[i]
-        th = self._pth[i]
-        c = math.cos(th) * L
-        s = math.sin(th) * L
-        q = lib.cpSpaceSegmentQueryFirst
-        sp = self._cpspace
-        f = self._filters[i]
-        info = self._info
-        start = ffi.new("cpVect *", (x, y))[0]
-        r = ROBOT_RADIUS
-        out = []
-        app = out.append
-        for cj, sj in self._dirs:
-            q(sp, start, (x + c * cj - s * sj, y + s * cj + c * sj), 0.0, f, info)
-            d = info.alpha * L - r
-            app(d if d > 0.0 else 0.0)
-        return out
-
-    def _range_noise(self, i: int) -> list[float]:
-        """The next 12 uniform(-0.1, 0.1) draws of robot i's range stream (drawn in
-        blocks; the values are the same as drawing 12 at a time)."""
-        k = self._noise_at[i]
-        buf = self._noise[i]
-        if k + N_SENSORS > len(buf):
-            buf = self._noise[i] = self._rng_range[i].uniform(-NOISE, NOISE, self._noise_block).tolist()
-            k = 0
-        self._noise_at[i] = k + N_SENSORS
-        return buf[k : k + N_SENSORS]
+        return self._ranges.true_ranges(i, self._px[i], self._py[i], self._pth[i])
 
     def range_readings(self, robot_id: str) -> np.ndarray:
         """The 12 noisy distance readings (m), shape (12,): true surface range x
-        (1 + U(-0.1, 0.1)), quantized to 0.005 m; NaN when nothing is within range.
-        A reading may exceed the range by up to the 10 % noise."""
+        (1 + U(-0.1, 0.1)), quantized to 0.005 m; NaN when nothing is within range
+        (:class:`world.sensors.RangeSensors`)."""
         i = self._i(robot_id)
-        lim = self._sensor_range
-        res = RANGE_RESOLUTION
-        nan = math.nan
-        u = self._range_noise(i)
-        return np.array(
-            [round(d * (1.0 + e) / res) * res if d <= lim else nan for d, e in zip(self._cast(i), u)]
-        )
+        return self._ranges.readings(i, self._px[i], self._py[i], self._pth[i])
 
     def _goal_xy(self, i: int) -> tuple[float, float]:
         g = self._goal[i]
@@ -563,24 +485,8 @@ class World:
                 raise KeyError(f"unknown target id {target_id!r} (targets: {self.target_ids})")
             k = self._tindex[target_id]
             gx, gy = float(self._tpos[k, 0]), float(self._tpos[k, 1])
-        x, y, th = self._px[i], self._py[i], self._pth[i]
-        dx, dy = gx - x, gy - y
-        c, s = math.cos(th), math.sin(th)
-        lx = c * dx + s * dy
-        ly = -s * dx + c * dy
-        u = self._rng_target[i].uniform(-NOISE, NOISE, 2)
-        nx = lx * (1.0 + float(u[0]))
-        ny = ly * (1.0 + float(u[1]))
-        visible = math.hypot(dx, dy) <= self.scenario.target_range
-        if not visible:
-            return (math.nan, math.nan, False)
-        d = round(math.hypot(nx, ny) / TARGET_RESOLUTION) * TARGET_RESOLUTION
-        if d == 0.0:
-            return (0.0, 0.0, True)
-        a = math.atan2(ny, nx)
-        if a <= -math.pi:
-            a = math.pi
-        return (a, d, True)
+        return target_reading(self._rng_target[i], (self._px[i], self._py[i], self._pth[i]), (gx, gy),
+                              self.scenario.target_range)
 
     # ------------------------------------------------------------------ records
     def stats(self, robot_id: str) -> dict[str, float | int]:
@@ -596,7 +502,7 @@ class World:
             "path_length_m": self._path[i],
             "collisions": self._collisions[i],
             "collisions_with": dict(self._collided_with[i]),
-            "min_clearance_m": self._clear[i],
+            "min_clearance_m": self._ranges.clear[i],
             "contact_s": self._contact_steps[i] * SUBSTEP,
         }
 
@@ -605,95 +511,9 @@ class World:
         return self._touching[self._i(robot_id)] > 0
 
     def state(self) -> dict[str, Any]:
-        """Plain-data snapshot (floats, bools, strings, lists, dicts, None): time;
-        robots {id: x, y, theta, v_l, v_r (commanded, clipped), v_l_exec, v_r_exec
-        (executed with noise in the last sub-step), in_contact, goal}; targets
-        {id: x, y}; moving obstacles {id: x, y, theta}."""
-        n = self._n
-        st = self._state
-        robots = {}
-        for i, rid in enumerate(self._ids):
-            g = self._goal[i]
-            robots[rid] = {
-                "x": self._px[i],
-                "y": self._py[i],
-                "theta": geo.wrap_angle(self._pth[i]),
-                "v_l": float(self._cmd[i, 0]),
-                "v_r": float(self._cmd[i, 1]),
-                "v_l_exec": float(self._exec[i, 0]),
-                "v_r_exec": float(self._exec[i, 1]),
-                "in_contact": self._touching[i] > 0,
-                "goal": list(self._goal_xy(i)) if g is not None else None,
-            }
-        targets = {
-            t.id: {"x": float(self._tpos[k, 0]), "y": float(self._tpos[k, 1])}
-            for k, t in enumerate(self.scenario.targets)
-        }
-        obstacles = {
-            o.id: {
-                "x": float(st[2 * n + k, 0]),
-                "y": float(st[2 * n + k, 1]),
-                "theta": float(st[2 * n + k, 2]),
-            }
-            for k, o in enumerate(self._movers)
-        }
-        return {"time": self.time, "robots": robots, "targets": targets, "obstacles": obstacles}
+        """Plain-data snapshot (:func:`world.snapshot.world_state`)."""
+        return world_state(self)
 
     def static_geometry(self) -> dict[str, Any]:
-        """Plain-data geometry for drawing and planning (see world/scenarios/README.md)."""
-        sc = self.scenario
-        walls = [
-            {
-                "a": list(w.a),
-                "b": list(w.b),
-                "thickness": w.thickness,
-                "known": w.known,
-                "vertices": [list(p) for p in w.outline],
-                "source": w.source,
-            }
-            for w in sc.walls
-        ]
-        polygons = []
-        discs = []
-        moving = []
-        for o in sc.obstacles:
-            if o.motion is not None:
-                moving.append(
-                    {
-                        "id": o.id,
-                        "shape": o.shape,
-                        "radius": o.radius,
-                        "vertices": [list(p) for p in o.outline] if o.outline else None,
-                        "motion": o.motion.to_dict(),
-                    }
-                )
-            elif o.shape == "disc":
-                assert o.center is not None
-                discs.append({"id": o.id, "center": list(o.center), "radius": o.radius, "known": o.known, "source": o.source})
-            else:
-                assert o.outline is not None
-                polygons.append(
-                    {
-                        "id": o.id,
-                        "shape": o.shape,
-                        "vertices": [list(p) for p in o.outline],
-                        "parts": [[list(p) for p in part] for part in o.parts],
-                        "known": o.known,
-                        "source": o.source,
-                    }
-                )
-        targets = [{"id": t.id, "position": list(t.position), "motion": t.motion.to_dict()} for t in sc.targets]
-        robots = [{"id": r.id, "start": list(r.start), "goal": r.goal} for r in sc.robots]
-        return {
-            "name": sc.name,
-            "bounds": list(sc.bounds),
-            "body_radius": ROBOT_RADIUS,
-            "target_range": sc.target_range,
-            "sensor_range": self._sensor_range,
-            "walls": walls,
-            "polygons": polygons,
-            "discs": discs,
-            "moving_obstacles": moving,
-            "targets": targets,
-            "robots": robots,
-        }
+        """Plain-data geometry for drawing and planning (:func:`world.snapshot.static_geometry`)."""
+        return static_geometry(self.scenario, ROBOT_RADIUS, self._sensor_range)

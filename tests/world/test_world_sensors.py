@@ -205,7 +205,7 @@ def test_skipping_rays_when_nothing_is_near_is_exact():
                 continue  # start inside something
             w = World(sc)
             fast = w.true_ranges("r1")
-            w._near[0] = True
+            w._ranges.near[0] = True
             slow = w.true_ranges("r1")
             assert np.array_equal(fast, slow, equal_nan=True)
             checked += 1
