@@ -15,6 +15,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
 
+from cekm_swarm.robot import KHEPERA
+
 from . import geometry as geo
 from .motion import CircleMotion, Fixed, LineMotion, Motion, RandomWalk, ScriptedMotion
 
@@ -23,15 +25,15 @@ Point = tuple[float, float]
 SCENARIO_DIR = Path(__file__).resolve().parent / "scenarios"
 
 #: Robot body radius (m); used by the loader's overlap checks and by the world.
-BODY_RADIUS = 0.03
+BODY_RADIUS = KHEPERA.body_radius
 #: Default wall thickness (m).
 DEFAULT_WALL_THICKNESS = 0.02
 #: Default distance-sensor range from the body surface (m).
-DEFAULT_SENSOR_RANGE = 0.17
+DEFAULT_SENSOR_RANGE = KHEPERA.sensor_range
 #: Wheel speed unit of the Khepera's motor controller (m/s): speeds are set in whole
 #: encoder pulses per 10 ms, and one pulse is 0.08 mm of wheel travel, so one unit is
 #: 8 mm/s (K-Team's Khepera user manual). ``[plant] speed_unit`` defaults to it.
-WHEEL_SPEED_UNIT = 0.008
+WHEEL_SPEED_UNIT = KHEPERA.speed_unit
 #: Default of ``[plant] speed_unit`` (0: continuous wheel speeds).
 DEFAULT_SPEED_UNIT = 0.0
 #: Default inset of a random-walk target's bounds from the arena bounds (m).

@@ -10,13 +10,15 @@ import math
 
 import numpy as np
 
+from cekm_swarm.robot import KHEPERA
+
 from . import chipmunk as cp
 
-NOISE = 0.1
+NOISE = KHEPERA.sensor_noise
 """Relative half-width of the uniform sensor noise."""
-RANGE_RESOLUTION = 0.005
+RANGE_RESOLUTION = KHEPERA.range_resolution
 """Distance-sensor resolution (m)."""
-TARGET_RESOLUTION = 0.001
+TARGET_RESOLUTION = KHEPERA.target_resolution
 """Target-sensor distance resolution (m)."""
 NOISE_BLOCK = 12 * 64
 """Range-noise draws made at a time (the values equal drawing 12 at a time)."""

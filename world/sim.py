@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 import pymunk
 import pymunk.batch as pbatch
+from cekm_swarm.robot import KHEPERA
 from cekm_swarm.ticks import SUBSTEP_S
 
 from . import _physics as ph
@@ -44,18 +45,19 @@ from .scenario import BODY_RADIUS, WHEEL_SPEED_UNIT, Scenario
 from .sensors import NOISE, RANGE_RESOLUTION, TARGET_RESOLUTION, RangeSensors, target_reading
 from .snapshot import static_geometry, world_state
 
-#: Robot body radius (m).
+#: Robot body radius (m), axle length (m), wheel speed limit v* (m/s): the Khepera's
+#: (cekm_swarm.robot, the one home of the robot's constants).
 ROBOT_RADIUS = BODY_RADIUS
-#: Axle length (m).
-AXLE = 0.053
-#: Wheel speed limit v* (m/s): 0.16 m per 1.024 s.
-V_MAX = 0.16 / 1.024
+AXLE = KHEPERA.axle
+V_MAX = KHEPERA.v_max
 #: World sub-step (s), from the protocol's clock.
 SUBSTEP = SUBSTEP_S
 #: pymunk steps per world sub-step.
 PHYSICS_STEPS = 4
 #: Number of distance sensors.
-N_SENSORS = 12
+N_SENSORS = KHEPERA.n_range_sensors
+#: Relative half-width of the uniform wheel noise.
+WHEEL_NOISE = KHEPERA.wheel_noise
 #: Robot mass (kg), about a Khepera's.
 ROBOT_MASS = 0.08
 #: Wheel traction: the pivot joint's max force (N), about 0.5 m g. With it the robot
@@ -326,7 +328,7 @@ class World:
         t1 = (self._k + 1) * dt
         st = self._state
         # executed wheel speeds: commanded x (1 + U(-0.1, 0.1)), per wheel per sub-step
-        u = self._rng_wheels.uniform(-NOISE, NOISE, size=(n, 2))
+        u = self._rng_wheels.uniform(-WHEEL_NOISE, WHEEL_NOISE, size=(n, 2))
         ex = self._cmd * (1.0 + u)
         self._exec = ex
         exl = ex.tolist()

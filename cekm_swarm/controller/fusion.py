@@ -22,6 +22,7 @@ from typing import Sequence
 import numpy as np
 
 from ..models.networks import IndirectEKM
+from ..robot import KHEPERA
 from .readings import RangeReading, TargetReading
 
 
@@ -30,8 +31,8 @@ class CommandFusion:
     """c = w_t c_target + w_o c_avoid, clipped to c*."""
 
     model: IndirectEKM
-    body_radius: float = 0.03
-    sensor_range: float = 0.17
+    body_radius: float = KHEPERA.body_radius
+    sensor_range: float = KHEPERA.sensor_range
     weight_target: float = 1.0
     weight_avoid: float = 1.0
     gain_turn: float = 1.5  # x v_max per unit activation x sin(alpha_j)

@@ -21,6 +21,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from ..errors import CekmError
+from ..robot import KHEPERA
 
 
 class PlanningError(CekmError):
@@ -56,7 +57,7 @@ def occupancy(geometry: Mapping[str, Any], resolution: float) -> tuple[np.ndarra
 
 
 def plan_checkpoints(geometry: Mapping[str, Any], start: tuple[float, float], goal: tuple[float, float],
-                     body_radius: float = 0.03, resolution: float = 0.01, doorway_clearance: float = 0.12) -> Plan:
+                     body_radius: float = KHEPERA.body_radius, resolution: float = 0.01, doorway_clearance: float = 0.12) -> Plan:
     """Checkpoints at the doorways on the way from start to goal, then the goal."""
     from scipy.ndimage import distance_transform_edt
 

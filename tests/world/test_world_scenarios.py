@@ -177,7 +177,7 @@ def test_world_never_imports_the_controller():
     experiment code)."""
     code = "import sys, world, world.draw, world.episode; print([m for m in sys.modules if m.startswith('cekm_swarm')])"
     out = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, check=True)
-    assert set(eval(out.stdout)) <= {"cekm_swarm", "cekm_swarm.angles", "cekm_swarm.ticks"}, out.stdout
+    assert set(eval(out.stdout)) <= {"cekm_swarm", "cekm_swarm.angles", "cekm_swarm.ticks", "cekm_swarm.robot"}, out.stdout
     code = ("import sys, world.server; print(sorted({'.'.join(m.split('.')[1:3]) if m.startswith('cekm_swarm.graph') "
             "else m.split('.')[1] for m in sys.modules if m.startswith('cekm_swarm.')}))")
     out = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, check=True)
