@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -28,7 +29,7 @@ from .sim import World
 
 from cekm_swarm.ticks import TARGET_EVERY, TICK_S, tick_time
 
-__all__ = ["TICK_S", "TARGET_EVERY", "Episode", "TickReadings"]
+__all__ = ["TICK_S", "TARGET_EVERY", "Episode", "RunEpisode", "TickReadings", "make_episode"]
 CHECKPOINT_RADIUS = 0.03  # m (section 4.2: on to the next checkpoint once this close)
 
 
@@ -58,8 +59,60 @@ class RobotProgress:
         return self.next_index == len(self.checkpoints) - 1
 
 
+class RunEpisode(Protocol):
+    """What the world server and ``cekm run`` drive, tick by tick, whatever the task
+    (navigation: :class:`Episode`; tracking: :class:`world.tracking.TrackingEpisode`)."""
+
+    task: str
+    tick: int
+    progress: dict[str, RobotProgress]
+
+    @property
+    def t(self) -> float:
+        """Sim time of the current tick."""
+
+    def readings(self) -> list[TickReadings]:
+        """Step 1 of the tick: every robot's distance readings (and its target reading)."""
+
+    def messages(self, robot: str) -> list[tuple[str, Any]]:
+        """The tick's other readings of ``robot`` as (key below the robot, message)."""
+
+    def apply(self, commands: dict[str, tuple[float, float]]) -> None:
+        """Step 3: every robot's wheel command."""
+
+    def advance(self) -> None:
+        """On to the next tick."""
+
+    @property
+    def done(self) -> bool:
+        """The run is over before its max time."""
+
+    def outcome(self) -> dict[str, dict]:
+        """Per robot, what ``outcome.json`` says of it."""
+
+    def summary(self) -> dict[str, Any]:
+        """The task's own part of ``outcome.json`` (``tracking``: Parker's A ...)."""
+
+    def to_goal(self, robot: str) -> float | None:
+        """How far the robot is from its goal now (None: it has none)."""
+
+    def draw(self, views: Any, t: float, state: dict[str, Any]) -> None:
+        """The task's own marks in the log's views (tracking: sensing circles)."""
+
+
+def make_episode(world: World, task: str, checkpoints: dict | None = None, max_ticks: int = 0) -> RunEpisode:
+    """The episode of a run of ``task`` (``world.tracking.run_kind``)."""
+    if task == "tracking":
+        from .tracking import TrackingEpisode
+
+        return TrackingEpisode(world, max_ticks)
+    return Episode(world, checkpoints)
+
+
 class Episode:
     """Drive a :class:`World` tick by tick; the caller supplies the wheel commands."""
+
+    task = "navigation"
 
     def __init__(self, world: World, checkpoints: dict[str, list[tuple[float, float]]] | None = None,
                  checkpoint_radius: float = CHECKPOINT_RADIUS) -> None:
@@ -120,6 +173,20 @@ class Episode:
     def advance(self) -> None:
         self.world.advance(TICK_S)
         self.tick += 1
+
+    def messages(self, robot: str) -> list[tuple[str, Any]]:
+        return []  # navigation: the target reading is part of the readings
+
+    def summary(self) -> dict[str, Any]:
+        return {}
+
+    def to_goal(self, robot: str) -> float | None:
+        x, y, _ = self.world.pose(robot)
+        gx, gy = self.world.goal_of(robot)
+        return math.hypot(gx - x, gy - y)
+
+    def draw(self, views: Any, t: float, state: dict[str, Any]) -> None:
+        return None
 
     @property
     def done(self) -> bool:

@@ -5,7 +5,6 @@ run's own) and ``trajectory.json`` (pose and command per tick)."""
 from __future__ import annotations
 
 import json
-import math
 import os
 import sys
 from dataclasses import dataclass, field
@@ -53,16 +52,14 @@ class RunStats:
             self.missed_ticks[tick] = self.missed_ticks.get(tick, 0) + 1
 
 
-def progress_doc(world: Any, episode: Any, robots: list[str], tracking: bool, stopped: dict[str, bool],
+def progress_doc(world: Any, episode: Any, robots: list[str], stopped: dict[str, bool],
                  republished: int, misses: int) -> dict[str, Any]:
     """A ``PROGRESS`` line's content: every robot's position (and distance to its goal)."""
     out = {}
     for r in robots:
         x, y, _ = world.pose(r)
-        to_goal = None
-        if not tracking:
-            gx, gy = world.goal_of(r)
-            to_goal = round(math.hypot(gx - x, gy - y), 3)
+        d = episode.to_goal(r)
+        to_goal = None if d is None else round(d, 3)
         out[r] = {"x": round(x, 3), "y": round(y, 3), "to_goal": to_goal, "reached": episode.progress[r].reached,
                   "stopped": stopped.get(r, False)}
     return {"t": episode.t, "tick": episode.tick, "robots": out, "republished": republished, "deadline_misses": misses}

@@ -1,5 +1,5 @@
 """What the world sends each tick and what it logs: per robot the readings its graph reads
-(the world's :mod:`world.sense` encoders), the clock and the ground-truth state; a stalled
+(the world's :mod:`world.sense` encoders, and the episode's other readings), the clock and the ground-truth state; a stalled
 lockstep tick published again for the robots still waiting; and the tick's log (what the
 world sent, its Foxglove views, and what other sessions sent, drained once per tick
 through :class:`world.recorder.RecordFilter`)."""
@@ -12,7 +12,7 @@ import zenoh
 
 from cekm_swarm.protocol import Clock, KeySpace, WorldState, encode
 
-from .episode import TickReadings
+from .episode import RunEpisode, TickReadings
 from .recorder import RecordFilter
 from .sense import SENDER, SenseEncoder
 
@@ -20,11 +20,10 @@ from .sense import SENDER, SenseEncoder
 class TickPublisher:
     """Publish and log one run's ticks (set up by the world server once its session is open)."""
 
-    def __init__(self, keys: KeySpace, world: Any, episode: Any, sends: dict[str, set[str]] | None, tracking: bool,
+    def __init__(self, keys: KeySpace, world: Any, episode: RunEpisode, sends: dict[str, set[str]] | None,
                  record_filter: RecordFilter) -> None:
         self.keys, self.world, self.episode = keys, world, episode
         self.sends = sends  # robot -> the sense keys its graph reads (None: every one of the task)
-        self.tracking = tracking
         self.record_filter = record_filter
         self.pubs: Any = None  # runtime.bridge.Publishers
         self.recorder: Any = None  # runtime.mcap_log.McapRecorder
@@ -33,7 +32,7 @@ class TickPublisher:
         self.recorded = 0
         self.republished = 0
         self.last_target: dict[str, bytes] = {}  # the latest target reading's payload, per robot
-        self.last_tracking: dict[str, tuple[Any, Any]] = {}  # tracking: the latest (SensePose, SenseTargets)
+        self.last_messages: dict[str, list[tuple[str, Any]]] = {}  # the episode's latest other readings, per robot
         self._encoders: dict[str, SenseEncoder] = {}
         self._unrecorded: list[tuple[str, bytes, float]] = []
         self._unviewed: tuple[float, dict[str, Any]] | None = None  # the tick's (t, state) for the views
@@ -69,16 +68,21 @@ class TickPublisher:
                     self._put(key, payload, rd.t)
             if rd.target is not None:
                 self.last_target[rd.robot] = payload  # the last one: the target's
-            if self.tracking and rd.robot in ep.sense:
-                pose, targets = self.last_tracking[rd.robot] = ep.sense[rd.robot]
-                for key, msg in ((self.keys.sense_targets(rd.robot), targets), (self.keys.sense_pose(rd.robot), pose)):
-                    if want is None or key in want:
-                        self._send(key, msg)
+            more = ep.messages(rd.robot)
+            if more:
+                self.last_messages[rd.robot] = more
+            self._send_more(rd.robot, more, want)
         self._send(self.keys.world_clock(), Clock(ep.t, SENDER, ep.tick))
         st = self.world.state()
         self._send(self.keys.world_state(), WorldState(ep.t, SENDER, st["robots"], st["targets"], st["obstacles"]))
         self._unviewed = (ep.t, st)
         return st
+
+    def _send_more(self, robot: str, more: list[tuple[str, Any]], want: set[str] | None) -> None:
+        for rel, msg in more:
+            key = self.keys.node_key(robot, rel)
+            if want is None or key in want:
+                self._send(key, msg)
 
     def republish(self, readings: list[TickReadings], waiting: list[str]) -> None:
         """The stalled tick's readings again (and each robot's latest target or tracking
@@ -94,12 +98,7 @@ class TickPublisher:
             last = self.last_target.get(rd.robot)
             if last is not None and (want is None or self.keys.sense_target(rd.robot) in want):
                 self._put(self.keys.sense_target(rd.robot), last, rd.t)
-            sensed = self.last_tracking.get(rd.robot)
-            if sensed is not None:  # tracking: the latest target tick's pose and targets
-                for key, msg in ((self.keys.sense_targets(rd.robot), sensed[1]),
-                                 (self.keys.sense_pose(rd.robot), sensed[0])):
-                    if want is None or key in want:
-                        self._send(key, msg)
+            self._send_more(rd.robot, self.last_messages.get(rd.robot, []), want)  # tracking: the latest pose, targets
         self.record_sent()
         self.republished += 1
 
@@ -120,8 +119,7 @@ class TickPublisher:
             self._unviewed = None
             if self.views is not None:
                 self.views.write_state(t, st)
-                if self.tracking:
-                    self.views.write_tracking(t, st, self.world.target_range, self.episode.observed_by)
+                self.episode.draw(self.views, t, st)
         self.drain(now)
 
     def drain(self, now: float) -> None:

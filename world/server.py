@@ -49,6 +49,7 @@ import click
 import zenoh
 
 from cekm_swarm.errors import CekmError
+from cekm_swarm.graph.plan import WORLD_KEYS
 from cekm_swarm.graph.spec import GraphError
 from cekm_swarm.protocol import DropCounter, KeySpace
 from cekm_swarm.runtime.bridge import InlineSubscription, LivelinessWatcher, Publishers, declare_alive, wait_matching_async
@@ -64,14 +65,14 @@ from .clocks import LockstepClock, RealtimeClock, Stopped
 from .config import (DEFAULT_MAX_TIME, REPUBLISH_S, CheckpointsError, WorldConfig, load_run_graph, parse_checkpoints,
                      server_argv, world_options)
 from .deadman import Deadman
-from .episode import Episode
+from .episode import make_episode
 from .inbox import CommandInbox
 from .outcome import RunStats, emit, latency_ms, progress_doc, write_outputs
 from .publisher import TickPublisher
 from .recorder import RECORD_QUEUE, RecordFilter, open_run_log
 from .scenario import ScenarioError, load_scenario
 from .sim import World
-from .tracking import TrackingEpisode, run_kind
+from .tracking import run_kind
 
 __all__ = ["WorldServer", "WorldConfig", "CheckpointsError", "parse_checkpoints", "server_argv", "main",
            "DEFAULT_MAX_TIME", "REPUBLISH_S"]
@@ -97,14 +98,14 @@ class WorldServer:
         robots = [r.id for r in self.scenario.robots]
         checkpoints = parse_checkpoints(cfg.checkpoints, robots) if cfg.checkpoints else None
         task = run_kind(self.scenario, checkpoints or {})
-        self.tracking = task == "tracking"  # docs/tracking.md
+        self.task = task  # navigation or tracking (docs/tracking.md)
         self.world = World(self.scenario, seed=cfg.seed)
         self.robots = list(self.world.robot_ids)
         self.spec, self.plan = load_run_graph(cfg.spec, self.scenario, self.robots, task, cfg.root, cfg.run_id)
         self.out = Path(cfg.out)
         self.out.mkdir(parents=True, exist_ok=True)
         self.max_ticks = int(math.ceil(cfg.max_time / TICK_S))
-        self.episode = TrackingEpisode(self.world, self.max_ticks) if self.tracking else Episode(self.world, checkpoints)
+        self.episode = make_episode(self.world, task, checkpoints, self.max_ticks)
         self.drops = DropCounter("world commands", keys=self.keys)
         self.record_drops = DropCounter("world recorder", keys=self.keys)
         plan = self.plan
@@ -114,7 +115,7 @@ class WorldServer:
         sends = None if plan is None else {r: set(plan.world_keys(r)) for r in self.robots}
         self.deadman = Deadman(self.robots, cfg.deadman, time.monotonic())  # restarted when the run starts
         self.inbox = CommandInbox(self.robots, answers, self.drops, self.deadman)
-        self.publisher = TickPublisher(self.keys, self.world, self.episode, sends, self.tracking,
+        self.publisher = TickPublisher(self.keys, self.world, self.episode, sends,
                                        RecordFilter(self.keys, self.robots, self.record_drops, declared))
         self.stats = RunStats()
         self.stop = asyncio.Event()
@@ -127,16 +128,19 @@ class WorldServer:
         self.arrived.set()
 
     def _progress(self) -> None:
-        emit("PROGRESS", progress_doc(self.world, self.episode, self.robots, self.tracking, self.deadman.stopped,
+        emit("PROGRESS", progress_doc(self.world, self.episode, self.robots, self.deadman.stopped,
                                       self.publisher.republished, self.stats.deadline_misses))
 
     def _world_keys(self, robot: str) -> list[str]:
         """The sense keys whose subscribers the world waits for before tick 0."""
         if self.plan is not None:
             return self.plan.world_keys(robot)
-        first = [self.keys.sense_targets(robot), self.keys.sense_pose(robot)] if self.tracking else \
-            [self.keys.sense_target(robot)]
-        return first + [self.keys.sense_range(robot, j) for j in range(self.keys.range_sensors)]
+        out = []  # no run spec: every reading the world publishes for the task
+        for rel, wk in WORLD_KEYS.items():
+            if wk.per_robot and self.task in wk.tasks:
+                out += [f"{self.keys.root}/{robot}/{rel.replace('{j}', str(j))}" for j in range(self.keys.range_sensors)] \
+                    if "{j}" in rel else [f"{self.keys.root}/{robot}/{rel}"]
+        return out
 
     def _clock(self) -> LockstepClock | RealtimeClock:
         cfg = self.config
@@ -242,7 +246,7 @@ class WorldServer:
         if self.plan is not None:
             expected = self.plan.tokens(self.robots)
         else:  # no run spec: the nodes of the default controller's graph (cekm)
-            names = default_nodes("tracking" if self.tracking else "navigation", self.keys.range_sensors)
+            names = default_nodes(self.task, self.keys.range_sensors)
             expected = {self.keys.alive(r, n) for r in self.robots for n in names}
         with LivelinessWatcher(session, self.keys.alive_all()) as watcher:
             waiter = asyncio.ensure_future(watcher.wait_all(expected, timeout))
@@ -275,8 +279,7 @@ class WorldServer:
                "dropped_messages": self.drops.total + self.record_drops.total, "recorded_messages": pub.recorded,
                "drops": {"commands": self.drops.by_source(), "recorder": self.record_drops.by_source()},
                "late_commands": inbox.late_commands, "events": st.events}
-        if self.tracking:
-            doc["tracking"] = ep.meter.summary()
+        doc.update(ep.summary())
         write_outputs(self.out, doc, ep)
         emit("DONE", {k: doc[k] for k in ("sim_seconds", "wall_seconds", "aborted", "robots")})
         return doc

@@ -157,6 +157,8 @@ class TrackingEpisode:
     ``outcome``, ``progress``), plus ``sense`` (this tick's tracking messages per robot)
     and ``meter``."""
 
+    task = "tracking"
+
     def __init__(self, world: World, max_ticks: int) -> None:
         from .episode import RobotProgress
 
@@ -211,6 +213,20 @@ class TrackingEpisode:
     @property
     def done(self) -> bool:
         return False  # a tracking run ends at its max time
+
+    def messages(self, robot: str) -> list[tuple[str, Any]]:
+        """On target ticks the robot's targets and pose (``sense/targets``, ``sense/pose``)."""
+        sensed = self.sense.get(robot)
+        return [] if sensed is None else [("sense/targets", sensed[1]), ("sense/pose", sensed[0])]
+
+    def summary(self) -> dict[str, Any]:
+        return {"tracking": self.meter.summary()}
+
+    def to_goal(self, robot: str) -> float | None:
+        return None
+
+    def draw(self, views: Any, t: float, state: dict[str, Any]) -> None:
+        views.write_tracking(t, state, self.world.target_range, self.observed_by)
 
     def outcome(self) -> dict[str, dict]:
         """Per robot, as ``cekm run`` on a tracking scenario writes it: path length, collisions, final pose."""

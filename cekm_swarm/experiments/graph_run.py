@@ -100,9 +100,9 @@ def run_graph(scenario, controller: str | None = "cekm", *, graph: str | Graph |
     its goal, or ``max_time``; tracking: ``max_time``). ``stop_at``: stop after computing
     that tick (for a look at the fields, Fig. 4). ``progress(t)`` every simulated second."""
     from world import World
-    from world.episode import Episode
+    from world.episode import make_episode
     from world.sense import SENDER, sense_messages
-    from world.tracking import TrackingEpisode, run_kind
+    from world.tracking import run_kind
 
     task = run_kind(scenario, checkpoints or {})
     checked = with_params(resolve_graph(controller, graph, task), params)
@@ -126,7 +126,7 @@ def run_graph(scenario, controller: str | None = "cekm", *, graph: str | Graph |
 
     executor = GraphExecutor(plan, checked, context, codec=codec)
     max_ticks = int(math.ceil(max_time / TICK_S))
-    episode = TrackingEpisode(world, max_ticks) if task == "tracking" else Episode(world, checkpoints)
+    episode = make_episode(world, task, checkpoints, max_ticks)
     reads = {r: set(plan.world_keys(r)) for r in team}
     read_clock = any(n.clock_key is not None or any(s.key == keys.world_clock() for b in n.bindings for s in b.sources)
                      for r in team for n in plan.nodes[r])
@@ -147,11 +147,8 @@ def run_graph(scenario, controller: str | None = "cekm", *, graph: str | Graph |
             for key, msg in sense_messages(keys, rd, angles, world.body_radius):
                 if key in want:
                     executor.put(key, k, msg)
-            sensed = getattr(episode, "sense", {}).get(rd.robot) if task == "tracking" else None
-            if sensed is not None:
-                pose, targets = sensed
-                executor.put(keys.sense_pose(rd.robot), k, pose)
-                executor.put(keys.sense_targets(rd.robot), k, targets)
+            for rel, msg in episode.messages(rd.robot):  # tracking: the robot's pose and targets
+                executor.put(keys.node_key(rd.robot, rel), k, msg)
         if read_clock:
             executor.put(keys.world_clock(), k, Clock(t, SENDER, k))
         if read_state:
