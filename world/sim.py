@@ -41,8 +41,8 @@ from . import _physics as ph
 from . import chipmunk as cp
 from . import geometry as geo
 from .motion import CircleMotion, Fixed, LineMotion, RandomWalk
-from .scenario import BODY_RADIUS, WHEEL_SPEED_UNIT, Scenario
-from .sensors import NOISE, RANGE_RESOLUTION, TARGET_RESOLUTION, RangeSensors, target_reading
+from .scenario import BODY_RADIUS, Scenario
+from .sensors import RangeSensors, target_reading
 from .snapshot import static_geometry, world_state
 
 #: Robot body radius (m), axle length (m), wheel speed limit v* (m/s): the Khepera's

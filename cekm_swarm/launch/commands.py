@@ -104,7 +104,7 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwr
             raise click.UsageError(str(exc)) from None
     from cekm_swarm.graph.spec import GraphError
 
-    from .launcher import NodeCannotStart
+    from .errors import NodeCannotStart
     from .prepare import PreflightError, resolve
 
     try:  # the graph, checked before anything is written or started

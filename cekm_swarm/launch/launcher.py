@@ -30,12 +30,11 @@ import json
 import signal
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from cekm_swarm.errors import CekmError, RunError
-from cekm_swarm.node.process import CANNOT_START, EXIT_CANNOT_START
+
 from cekm_swarm.protocol import DEFAULT_ROOT, KeySpace
 from cekm_swarm.runtime.bridge import LivelinessWatcher
 from cekm_swarm.runtime.config import DEFAULT_HOST, DEFAULT_PORT, open_embedded_router
@@ -45,45 +44,13 @@ from cekm_swarm.runtime.model_service import ZENOH_MODEL, ModelServer
 
 from cekm_swarm.ticks import tick_of
 
-from .cpu import CpuSnapshot, cpu_per_tick, snapshot
-from .processes import child_env, new_run_id, node_argv, server_argv
+from .cpu import CpuSnapshot, cpu_per_tick
+from .processes import new_run_id, node_argv
+from .errors import LaunchError, NodeCannotStart
+from .robot_host import RobotHost
+from .supervision import Child, Supervision
+from .world_host import ALIVE_TIMEOUT, WorldHost, port_hint
 
-BACKOFF_MIN = 0.25
-
-
-class LaunchError(RunError):
-    """A launch cannot go on: the world server or the modules did not come up."""
-
-
-class NodeCannotStart(CekmError):
-    """A node of the graph cannot start (a bad model, a bad parameter): its own line."""
-
-BACKOFF_MAX = 5.0
-HEALTHY_AFTER = 5.0  # s: a module up this long gets its back-off reset
-ALIVE_TIMEOUT = 180.0
-STOP_GRACE = 5.0
-ROUTER_SETTLE = 1.0  # s a token's DELETE may come before the session notices its router is gone
-ROUTER_GRACE = 10.0  # s a robots-only host with --connect waits for a lost router and the world to come back
-
-
-@dataclass
-class Child:
-    """One supervised module process."""
-
-    robot: str
-    name: str
-    argv: list[str]
-    log_path: Path
-    proc: asyncio.subprocess.Process | None = None
-    started: float = 0.0
-    restarts: int = 0
-    backoff: float = BACKOFF_MIN
-    exits: list[int] = field(default_factory=list)
-    stateful: bool = False
-
-    @property
-    def label(self) -> str:
-        return f"{self.robot}/{self.name}"
 
 
 @dataclass
@@ -112,13 +79,6 @@ class LaunchConfig:
     run_id: str | None = None  # the run's id (None: made by a world host, learned from the world by a robots-only host)
 
 
-def port_hint(error_text: str, port: int) -> str:
-    """A hint to add to an error that says the router's port is taken."""
-    if "Address already in use" in error_text or "address in use" in error_text.lower():
-        return f"; port {port} is taken (another run or program listens there): choose another with --port"
-    return ""
-
-
 def plan_checkpoint_data(scenario) -> dict[str, list[list[float]]]:
     """Checkpoints for every robot on the known walls (Fig. 12), as plain data."""
     from cekm_swarm.controller.planner import plan_checkpoints
@@ -134,25 +94,10 @@ def plan_checkpoint_data(scenario) -> dict[str, list[list[float]]]:
     return out
 
 
-def format_progress(doc: dict[str, Any]) -> str:
-    parts = [f"t={doc['t']:7.2f} s"]
-    for r, s in doc["robots"].items():
-        where = f"{r} ({s['x']:.2f}, {s['y']:.2f})"
-        if s["reached"]:
-            where += " reached"
-        elif s.get("stopped"):
-            where += " STOPPED"
-        elif s.get("to_goal") is not None:  # a tracking robot has no goal: its position says it all
-            where += f" {s['to_goal']:.2f} m to goal"
-        parts.append(where)
-    if doc.get("republished"):
-        parts.append(f"republished {doc['republished']}")
-    if doc.get("deadline_misses"):
-        parts.append(f"deadline misses {doc['deadline_misses']}")
-    return "  ".join(parts)
+class Launcher(Supervision, WorldHost, RobotHost):
+    """A launch: its steps here, the supervision of its nodes (:mod:`.supervision`), its
+    world server (:mod:`.world_host`) and a robots-only host's side (:mod:`.robot_host`)."""
 
-
-class Launcher:
     def __init__(self, config: LaunchConfig, echo: Callable[[str], None] = print) -> None:
         self.c = config
         self.echo = echo
@@ -187,123 +132,7 @@ class Launcher:
             self._log.write(line + "\n")
             self._log.flush()
 
-    def _pids(self) -> dict[str, int]:
-        """Every live process this launcher started, by label."""
-        pids = {c.label: c.proc.pid for c in self.children.values() if c.proc is not None and c.proc.returncode is None}
-        if self.world_proc is not None and self.world_proc.returncode is None:
-            pids["world/server"] = self.world_proc.pid
-        return pids
-
-    def _write_pids(self) -> None:
-        pids = self._pids()
-        tmp = self.c.out / "pids.json.tmp"
-        tmp.write_text(json.dumps(pids, indent=1))
-        tmp.replace(self.c.out / "pids.json")
-
-    # ------------------------------------------------------------------ children
-
-    async def _spawn(self, child: Child) -> None:
-        with open(child.log_path, "ab") as f:
-            child.proc = await asyncio.create_subprocess_exec(*child.argv, stdout=f, stderr=asyncio.subprocess.STDOUT,
-                                                              stdin=asyncio.subprocess.DEVNULL,
-                                                              start_new_session=True, env=child_env())
-        child.started = time.monotonic()
-        self._write_pids()
-
-    async def _supervise(self, child: Child) -> None:
-        while True:
-            assert child.proc is not None
-            code = await child.proc.wait()
-            if self.stopping:
-                return
-            child.exits.append(code)
-            if code == EXIT_CANNOT_START:  # a bad model or parameter: restarting cannot help
-                self.failure = self._cannot_start_line(child)
-                self.say(f"node {child.label} cannot start: {self.failure}; the launch ends")
-                self._interrupt_for_failure()
-                return
-            up = time.monotonic() - child.started
-            if up >= HEALTHY_AFTER:
-                child.backoff = BACKOFF_MIN
-            delay = child.backoff
-            child.backoff = min(BACKOFF_MAX, child.backoff * 2)
-            why = f"signal {-code}" if code < 0 else f"exit code {code}"
-            self.say(f"module {child.label} died ({why}) after {up:.1f} s; restarting in {delay:.2f} s "
-                     f"(restart #{child.restarts + 1})")
-            self._write_pids()
-            await asyncio.sleep(delay)
-            if self.stopping:
-                return
-            child.restarts += 1
-            await self._spawn(child)
-            self.say(f"module {child.label} restarted (pid {child.proc.pid})")
-
-    @staticmethod
-    def _cannot_start_line(child: Child) -> str:
-        """The node's own one-line reason (its log's CANNOT-START line)."""
-        try:
-            lines = child.log_path.read_text(errors="replace").splitlines()
-        except OSError:
-            lines = []
-        for line in reversed(lines):
-            if line.startswith(CANNOT_START):
-                return line[len(CANNOT_START):].strip()
-        return f"exit code {EXIT_CANNOT_START} (see {child.log_path})"
-
-    def _interrupt_for_failure(self) -> None:
-        """End the run: the world first (it writes what it has), then everything else."""
-        self.stopping = True
-        if self.world_proc is not None and self.world_proc.returncode is None:
-            self.world_proc.send_signal(signal.SIGTERM)
-        for ch in self.children.values():
-            if ch.proc is not None and ch.proc.returncode is None:
-                ch.proc.send_signal(signal.SIGTERM)
-
-    async def _stop_children(self) -> None:
-        procs = [c.proc for c in self.children.values() if c.proc is not None and c.proc.returncode is None]
-        for p in procs:
-            try:
-                p.send_signal(signal.SIGTERM)
-            except ProcessLookupError:
-                pass
-        if procs:
-            _, pending = await asyncio.wait([asyncio.ensure_future(p.wait()) for p in procs], timeout=STOP_GRACE)
-            for p in procs:
-                if p.returncode is None:
-                    try:
-                        p.kill()
-                    except ProcessLookupError:
-                        pass
-            if pending:
-                await asyncio.wait(pending, timeout=STOP_GRACE)
-
     # ------------------------------------------------------------------ world
-
-    async def _read_world(self, stream: asyncio.StreamReader) -> None:
-        while True:
-            line = await stream.readline()
-            if not line:
-                return
-            text = line.decode(errors="replace").rstrip()
-            kind, _, body = text.partition(" ")
-            try:
-                doc = json.loads(body) if body else {}
-            except json.JSONDecodeError:
-                doc = None
-            if kind == "PROGRESS" and doc is not None:
-                self.say(format_progress(doc))
-            elif kind == "EVENT" and doc is not None:
-                extra = {k: v for k, v in doc.items() if k not in ("event", "t")}
-                self.say(f"world event at t={doc['t']:.2f} s: {doc['event']} {extra}")
-            elif kind == "START" and doc is not None:
-                self._cpu_start, self._cpu_end = snapshot(self._pids()), None
-                self.say(f"world started ticking ({doc['mode']}, seed {doc['seed']})")
-            elif kind == "DONE" and doc is not None:
-                if self._cpu_start is not None and self._cpu_end is None:
-                    self._cpu_end = snapshot(self._pids())
-                self.say(f"world done at t={doc['sim_seconds']:.2f} s of sim time, {doc['wall_seconds']:.1f} s of wall time")
-            elif text:
-                self.say(f"world: {text}")
 
     # ------------------------------------------------------------------ main
 
@@ -494,32 +323,6 @@ class Launcher:
         self.keys = self.keys.with_run(self.run_id)
         self.say(f"run id {self.run_id}")
 
-    async def _join_run_id(self) -> None:
-        """A robots-only host: the run id given, or the one the world server's token carries."""
-        if self.c.run_id is None:
-            self.say("waiting for the world server to learn the run id (or give --run-id)")
-            self.c.run_id = await self._world_run_id()
-            if self.c.run_id is None:
-                return
-        self._choose_run_id()
-
-    async def _world_run_id(self) -> str | None:
-        """The run id in the world server's token, once one is alive (None if interrupted)."""
-        any_run = self.keys.with_run(None)
-        with LivelinessWatcher(self.session, any_run.world_alive_any_run()) as watcher:
-            while not self.stopping:
-                runs = sorted({any_run.parse(k).run for k in watcher.alive} - {None})
-                if len(runs) > 1:
-                    raise LaunchError(f"several runs' world servers on this router ({', '.join(runs)}): "
-                                      f"give --run-id")
-                if runs:
-                    return runs[0]
-                try:
-                    await watcher.next_event(timeout=1.0)
-                except asyncio.TimeoutError:
-                    pass
-        return None
-
     async def _spawn_modules(self, scenario, robots: list[str], model: Path | str, endpoint: str) -> None:
         """Start every node process of ``robots`` (the graph's node instances), each under a supervisor."""
         c = self.c
@@ -616,120 +419,6 @@ class Launcher:
             fig.savefig(c.out / "trajectory.png", dpi=130)
         except Exception as exc:  # noqa: BLE001 - the run's results stand without the picture
             self.say(f"could not draw trajectory.png: {type(exc).__name__}: {exc}")
-
-    async def _start_world(self, where: str, *, hosts_router: bool, checkpoints: Path | None) -> None:
-        """Start the world server (hosting the router at ``where``, or joining it) and wait
-        for its READY line: its session is open, so modules can join."""
-        c = self.c
-        world_argv = server_argv(
-            scenario=c.scenario, spec=self.spec_path, listen=where if hosts_router else None,
-            connect=None if hosts_router else where,
-            root=c.root, run_id=self.run_id, out=c.out, mode=c.mode, max_time=c.max_time, deadman=c.deadman,
-            republish=c.republish, progress_every=c.progress_every, wait_modules=ALIVE_TIMEOUT + 5, seed=c.seed,
-            zenoh_config=None if hosts_router else c.zenoh_config, checkpoints=checkpoints)
-        log_path = c.out / "logs" / "world.log"
-        with open(log_path, "ab") as werr:
-            self.world_proc = await asyncio.create_subprocess_exec(
-                *world_argv, stdout=asyncio.subprocess.PIPE, stderr=werr, stdin=asyncio.subprocess.DEVNULL,
-                start_new_session=True, env=child_env())
-        self._write_pids()
-        assert self.world_proc.stdout is not None
-        while True:
-            line = await self.world_proc.stdout.readline()
-            if not line:
-                code = await self.world_proc.wait()
-                last = [x for x in log_path.read_text(errors="replace").splitlines() if x.strip()][-1:]
-                hint = port_hint(last[0] if last else "", c.port) if hosts_router else ""
-                raise LaunchError(f"the world server ended (code {code}) before its Zenoh session opened"
-                                   f"{': ' + last[0] if last else ''} (see {log_path}){hint}")
-            if line.startswith(b"READY "):
-                return
-            self.say(f"world: {line.decode(errors='replace').rstrip()}")
-
-    def _world_died(self, code: int) -> None:
-        """The world server ended abnormally (killed, crashed): say so, and make ``run.mcap``
-        a complete, indexed log again if the world could not close it (the cut file is kept
-        as ``run.truncated.mcap``). The run ends: nothing else can tick the world."""
-        from cekm_swarm.runtime.mcap_log import is_complete, recover_log
-
-        c = self.c
-        why = f"was killed by signal {-code}" if code < 0 else f"ended with exit code {code}"
-        self.say(f"the world server {why}; the run ends (see {c.out / 'logs' / 'world.log'})")
-        log_path = c.out / "run.mcap"
-        try:
-            if not log_path.is_file() or is_complete(log_path):
-                return
-            cut = log_path.with_name("run.truncated.mcap")
-            log_path.replace(cut)
-            rep = recover_log(cut, log_path)
-            self.say(f"recovered the world's log: {rep.messages} messages on {rep.channels} channels into "
-                     f"{log_path} ({cut.name} is the file as the world left it)")
-        except (CekmError, OSError) as exc:
-            self.say(f"could not recover the world's log: {exc}")
-
-    def _world_ended(self) -> bool:
-        return self.world_proc is not None and self.world_proc.returncode is not None
-
-    async def _serve_until_world_ends(self, watcher: LivelinessWatcher, n: int, session: Any) -> None:
-        """Robots-only host: keep the modules supervised until the world server (on another
-        host) has come and gone, or until interrupted. Read from the token's events, in
-        order, so a short run that came and went between two looks is still seen to end;
-        and a lost router (the world host hosted it and has gone) ends the wait too."""
-        world_key = self.keys.alive("world", "server")
-        self.say(f"all {n} local modules alive after {self.startup_s:.1f} s; waiting for the world server")
-        seen = world_key in watcher.alive
-        if seen:
-            self.say("the world server is up")
-        while not self.stopping:
-            try:
-                event = await watcher.next_event(timeout=1.0)
-            except asyncio.TimeoutError:
-                if seen and not session.info.routers_zid():
-                    if await self._router_back(watcher, world_key, session):
-                        continue
-                    self.say("the world server has ended (its host's Zenoh router is gone)")
-                    return
-                continue
-            if event.key != world_key:
-                continue
-            if event.alive and not seen:
-                self.say("the world server is up")
-                seen = True
-            elif not event.alive:
-                if await self._router_back(watcher, world_key, session):
-                    continue
-                self.say("the world server has ended")
-                return
-
-    async def _router_back(self, watcher: LivelinessWatcher, world_key: str, session: Any) -> bool:
-        """The world's token went with the router: with ``--connect`` (an outside router,
-        which may be restarted) wait up to :data:`ROUTER_GRACE` s for the world's token to
-        come back (Zenoh clients reconnect and re-declare their tokens by themselves). True
-        if it did; False at once if the router is still there (the world really ended) or
-        when this host serves its own router."""
-        if not self.c.connect or not await self._router_lost(session):
-            return False
-        self.say(f"lost the Zenoh router; waiting up to {ROUTER_GRACE:.0f} s for it and the world server to come back")
-        t0 = time.monotonic()
-        try:
-            await watcher.wait_for(world_key, True, ROUTER_GRACE)
-        except asyncio.TimeoutError:
-            return False
-        self.say(f"reconnected: the world server is up again after {time.monotonic() - t0:.1f} s")
-        return True
-
-    @staticmethod
-    async def _router_lost(session: Any) -> bool:
-        """True once the session has no router. A router's death reaches us as the DELETE
-        of every token it carried, which can come a moment before the session drops the
-        router from its list: so a token gone with a router still listed is looked at
-        again for up to :data:`ROUTER_SETTLE` s before it counts as really gone."""
-        deadline = time.monotonic() + ROUTER_SETTLE
-        while session.info.routers_zid():
-            if time.monotonic() >= deadline:
-                return False
-            await asyncio.sleep(0.05)
-        return True
 
     def launch(self) -> dict[str, Any]:
         """Run the launch to the end in a new event loop (from the main thread: children

@@ -19,7 +19,6 @@ from subscriptions, :mod:`cekm_swarm.node.inprocess` from a whole graph's output
 from __future__ import annotations
 
 import logging
-import math
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field

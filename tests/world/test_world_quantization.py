@@ -10,7 +10,8 @@ import pytest
 
 from world import World, parse_scenario
 from world.scenario import ScenarioError
-from world.sim import V_MAX, WHEEL_SPEED_UNIT, quantize_speed
+from world.scenario import WHEEL_SPEED_UNIT
+from world.sim import V_MAX, quantize_speed
 
 UNIT = WHEEL_SPEED_UNIT
 

@@ -1,0 +1,13 @@
+"""Why a launch cannot go on."""
+
+from __future__ import annotations
+
+from cekm_swarm.errors import CekmError, RunError
+
+
+class LaunchError(RunError):
+    """A launch cannot go on: the world server or the modules did not come up."""
+
+
+class NodeCannotStart(CekmError):
+    """A node of the graph cannot start (a bad model, a bad parameter): its own line."""

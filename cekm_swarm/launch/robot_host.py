@@ -1,0 +1,115 @@
+"""A robots-only host's side of a launch (``cekm launch --no-world``, several hosts): learn
+the run id from the world server's token, then keep the nodes supervised until the world
+server (on another host) has come and gone; with an outside router that restarts, wait
+for it and the world to come back."""
+
+from __future__ import annotations
+
+import asyncio
+import time
+from typing import Any
+
+from cekm_swarm.runtime.bridge import LivelinessWatcher
+
+from .errors import LaunchError
+
+ROUTER_SETTLE = 1.0  # s a token's DELETE may come before the session notices its router is gone
+ROUTER_GRACE = 10.0  # s a robots-only host with --connect waits for a lost router and the world to come back
+
+
+class RobotHost:
+    """The robots-only-host part of :class:`~cekm_swarm.launch.launcher.Launcher`."""
+
+    c: Any
+    keys: Any
+    session: Any
+    stopping: bool
+
+    async def _join_run_id(self) -> None:
+        """A robots-only host: the run id given, or the one the world server's token carries."""
+        if self.c.run_id is None:
+            self.say("waiting for the world server to learn the run id (or give --run-id)")
+            self.c.run_id = await self._world_run_id()
+            if self.c.run_id is None:
+                return
+        self._choose_run_id()
+
+    async def _world_run_id(self) -> str | None:
+        """The run id in the world server's token, once one is alive (None if interrupted)."""
+        any_run = self.keys.with_run(None)
+        with LivelinessWatcher(self.session, any_run.world_alive_any_run()) as watcher:
+            while not self.stopping:
+                runs = sorted({any_run.parse(k).run for k in watcher.alive} - {None})
+                if len(runs) > 1:
+                    raise LaunchError(f"several runs' world servers on this router ({', '.join(runs)}): "
+                                      f"give --run-id")
+                if runs:
+                    return runs[0]
+                try:
+                    await watcher.next_event(timeout=1.0)
+                except asyncio.TimeoutError:
+                    pass
+        return None
+
+
+    async def _serve_until_world_ends(self, watcher: LivelinessWatcher, n: int, session: Any) -> None:
+        """Robots-only host: keep the modules supervised until the world server (on another
+        host) has come and gone, or until interrupted. Read from the token's events, in
+        order, so a short run that came and went between two looks is still seen to end;
+        and a lost router (the world host hosted it and has gone) ends the wait too."""
+        world_key = self.keys.alive("world", "server")
+        self.say(f"all {n} local modules alive after {self.startup_s:.1f} s; waiting for the world server")
+        seen = world_key in watcher.alive
+        if seen:
+            self.say("the world server is up")
+        while not self.stopping:
+            try:
+                event = await watcher.next_event(timeout=1.0)
+            except asyncio.TimeoutError:
+                if seen and not session.info.routers_zid():
+                    if await self._router_back(watcher, world_key, session):
+                        continue
+                    self.say("the world server has ended (its host's Zenoh router is gone)")
+                    return
+                continue
+            if event.key != world_key:
+                continue
+            if event.alive and not seen:
+                self.say("the world server is up")
+                seen = True
+            elif not event.alive:
+                if await self._router_back(watcher, world_key, session):
+                    continue
+                self.say("the world server has ended")
+                return
+
+    async def _router_back(self, watcher: LivelinessWatcher, world_key: str, session: Any) -> bool:
+        """The world's token went with the router: with ``--connect`` (an outside router,
+        which may be restarted) wait up to :data:`ROUTER_GRACE` s for the world's token to
+        come back (Zenoh clients reconnect and re-declare their tokens by themselves). True
+        if it did; False at once if the router is still there (the world really ended) or
+        when this host serves its own router."""
+        if not self.c.connect or not await self._router_lost(session):
+            return False
+        self.say(f"lost the Zenoh router; waiting up to {ROUTER_GRACE:.0f} s for it and the world server to come back")
+        t0 = time.monotonic()
+        try:
+            await watcher.wait_for(world_key, True, ROUTER_GRACE)
+        except asyncio.TimeoutError:
+            return False
+        self.say(f"reconnected: the world server is up again after {time.monotonic() - t0:.1f} s")
+        return True
+
+    @staticmethod
+    async def _router_lost(session: Any) -> bool:
+        """True once the session has no router. A router's death reaches us as the DELETE
+        of every token it carried, which can come a moment before the session drops the
+        router from its list: so a token gone with a router still listed is looked at
+        again for up to :data:`ROUTER_SETTLE` s before it counts as really gone."""
+        deadline = time.monotonic() + ROUTER_SETTLE
+        while session.info.routers_zid():
+            if time.monotonic() >= deadline:
+                return False
+            await asyncio.sleep(0.05)
+        return True
+

@@ -1,0 +1,147 @@
+"""The launcher's supervision of its node processes: start each with its log, restart one
+that dies with back-off (0.25 s, doubling while it keeps dying within 5 s of starting, at
+most 5 s; logged), end the launch at once when one cannot start (its own line), stop them
+all (SIGTERM, SIGKILL after 5 s), and keep ``OUT/pids.json`` current."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import signal
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from cekm_swarm.node.process import CANNOT_START, EXIT_CANNOT_START
+from cekm_swarm.runtime.lifetime import child_env
+
+BACKOFF_MIN = 0.25
+BACKOFF_MAX = 5.0
+HEALTHY_AFTER = 5.0  # s: a node up this long gets its back-off reset
+STOP_GRACE = 5.0
+
+
+@dataclass
+class Child:
+    """One supervised module process."""
+
+    robot: str
+    name: str
+    argv: list[str]
+    log_path: Path
+    proc: asyncio.subprocess.Process | None = None
+    started: float = 0.0
+    restarts: int = 0
+    backoff: float = BACKOFF_MIN
+    exits: list[int] = field(default_factory=list)
+    stateful: bool = False
+
+    @property
+    def label(self) -> str:
+        return f"{self.robot}/{self.name}"
+
+
+class Supervision:
+    """The supervision part of :class:`~cekm_swarm.launch.launcher.Launcher` (it owns
+    ``children``, ``world_proc``, ``stopping``, ``failure``, ``say`` and the config ``c``)."""
+
+    children: dict[str, Child]
+    world_proc: Any
+    stopping: bool
+    failure: str | None
+    c: Any
+
+    def say(self, text: str) -> None:  # pragma: no cover - the launcher's
+        raise NotImplementedError
+
+    def _pids(self) -> dict[str, int]:
+        """Every live process this launcher started, by label."""
+        pids = {c.label: c.proc.pid for c in self.children.values() if c.proc is not None and c.proc.returncode is None}
+        if self.world_proc is not None and self.world_proc.returncode is None:
+            pids["world/server"] = self.world_proc.pid
+        return pids
+
+    def _write_pids(self) -> None:
+        pids = self._pids()
+        tmp = self.c.out / "pids.json.tmp"
+        tmp.write_text(json.dumps(pids, indent=1))
+        tmp.replace(self.c.out / "pids.json")
+
+    # ------------------------------------------------------------------ children
+
+    async def _spawn(self, child: Child) -> None:
+        with open(child.log_path, "ab") as f:
+            child.proc = await asyncio.create_subprocess_exec(*child.argv, stdout=f, stderr=asyncio.subprocess.STDOUT,
+                                                              stdin=asyncio.subprocess.DEVNULL,
+                                                              start_new_session=True, env=child_env())
+        child.started = time.monotonic()
+        self._write_pids()
+
+    async def _supervise(self, child: Child) -> None:
+        while True:
+            assert child.proc is not None
+            code = await child.proc.wait()
+            if self.stopping:
+                return
+            child.exits.append(code)
+            if code == EXIT_CANNOT_START:  # a bad model or parameter: restarting cannot help
+                self.failure = self._cannot_start_line(child)
+                self.say(f"node {child.label} cannot start: {self.failure}; the launch ends")
+                self._interrupt_for_failure()
+                return
+            up = time.monotonic() - child.started
+            if up >= HEALTHY_AFTER:
+                child.backoff = BACKOFF_MIN
+            delay = child.backoff
+            child.backoff = min(BACKOFF_MAX, child.backoff * 2)
+            why = f"signal {-code}" if code < 0 else f"exit code {code}"
+            self.say(f"module {child.label} died ({why}) after {up:.1f} s; restarting in {delay:.2f} s "
+                     f"(restart #{child.restarts + 1})")
+            self._write_pids()
+            await asyncio.sleep(delay)
+            if self.stopping:
+                return
+            child.restarts += 1
+            await self._spawn(child)
+            self.say(f"module {child.label} restarted (pid {child.proc.pid})")
+
+    @staticmethod
+    def _cannot_start_line(child: Child) -> str:
+        """The node's own one-line reason (its log's CANNOT-START line)."""
+        try:
+            lines = child.log_path.read_text(errors="replace").splitlines()
+        except OSError:
+            lines = []
+        for line in reversed(lines):
+            if line.startswith(CANNOT_START):
+                return line[len(CANNOT_START):].strip()
+        return f"exit code {EXIT_CANNOT_START} (see {child.log_path})"
+
+    def _interrupt_for_failure(self) -> None:
+        """End the run: the world first (it writes what it has), then everything else."""
+        self.stopping = True
+        if self.world_proc is not None and self.world_proc.returncode is None:
+            self.world_proc.send_signal(signal.SIGTERM)
+        for ch in self.children.values():
+            if ch.proc is not None and ch.proc.returncode is None:
+                ch.proc.send_signal(signal.SIGTERM)
+
+    async def _stop_children(self) -> None:
+        procs = [c.proc for c in self.children.values() if c.proc is not None and c.proc.returncode is None]
+        for p in procs:
+            try:
+                p.send_signal(signal.SIGTERM)
+            except ProcessLookupError:
+                pass
+        if procs:
+            _, pending = await asyncio.wait([asyncio.ensure_future(p.wait()) for p in procs], timeout=STOP_GRACE)
+            for p in procs:
+                if p.returncode is None:
+                    try:
+                        p.kill()
+                    except ProcessLookupError:
+                        pass
+            if pending:
+                await asyncio.wait(pending, timeout=STOP_GRACE)
+

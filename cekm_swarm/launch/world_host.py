@@ -1,0 +1,133 @@
+"""The launcher's world server: start it (hosting the embedded router, or joining one) and
+wait for its READY line, follow its progress lines, stop it, and when it dies make its log
+a complete, indexed MCAP file again (the cut one is kept as ``run.truncated.mcap``)."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+from pathlib import Path
+from typing import Any
+
+from cekm_swarm.errors import CekmError
+
+from .cpu import snapshot
+from .errors import LaunchError
+from .processes import child_env, server_argv
+
+
+ALIVE_TIMEOUT = 180.0
+"""s the launcher (and the world) wait for every node to be alive before giving up."""
+
+
+def port_hint(error_text: str, port: int) -> str:
+    """A hint to add to an error that says the router's port is taken."""
+    if "Address already in use" in error_text or "address in use" in error_text.lower():
+        return f"; port {port} is taken (another run or program listens there): choose another with --port"
+    return ""
+
+
+def format_progress(doc: dict[str, Any]) -> str:
+    parts = [f"t={doc['t']:7.2f} s"]
+    for r, s in doc["robots"].items():
+        where = f"{r} ({s['x']:.2f}, {s['y']:.2f})"
+        if s["reached"]:
+            where += " reached"
+        elif s.get("stopped"):
+            where += " STOPPED"
+        elif s.get("to_goal") is not None:  # a tracking robot has no goal: its position says it all
+            where += f" {s['to_goal']:.2f} m to goal"
+        parts.append(where)
+    if doc.get("republished"):
+        parts.append(f"republished {doc['republished']}")
+    if doc.get("deadline_misses"):
+        parts.append(f"deadline misses {doc['deadline_misses']}")
+    return "  ".join(parts)
+
+
+class WorldHost:
+    """The world-server part of :class:`~cekm_swarm.launch.launcher.Launcher`."""
+
+    world_proc: Any
+    c: Any
+
+    async def _read_world(self, stream: asyncio.StreamReader) -> None:
+        while True:
+            line = await stream.readline()
+            if not line:
+                return
+            text = line.decode(errors="replace").rstrip()
+            kind, _, body = text.partition(" ")
+            try:
+                doc = json.loads(body) if body else {}
+            except json.JSONDecodeError:
+                doc = None
+            if kind == "PROGRESS" and doc is not None:
+                self.say(format_progress(doc))
+            elif kind == "EVENT" and doc is not None:
+                extra = {k: v for k, v in doc.items() if k not in ("event", "t")}
+                self.say(f"world event at t={doc['t']:.2f} s: {doc['event']} {extra}")
+            elif kind == "START" and doc is not None:
+                self._cpu_start, self._cpu_end = snapshot(self._pids()), None
+                self.say(f"world started ticking ({doc['mode']}, seed {doc['seed']})")
+            elif kind == "DONE" and doc is not None:
+                if self._cpu_start is not None and self._cpu_end is None:
+                    self._cpu_end = snapshot(self._pids())
+                self.say(f"world done at t={doc['sim_seconds']:.2f} s of sim time, {doc['wall_seconds']:.1f} s of wall time")
+            elif text:
+                self.say(f"world: {text}")
+
+
+    async def _start_world(self, where: str, *, hosts_router: bool, checkpoints: Path | None) -> None:
+        """Start the world server (hosting the router at ``where``, or joining it) and wait
+        for its READY line: its session is open, so modules can join."""
+        c = self.c
+        world_argv = server_argv(
+            scenario=c.scenario, spec=self.spec_path, listen=where if hosts_router else None,
+            connect=None if hosts_router else where,
+            root=c.root, run_id=self.run_id, out=c.out, mode=c.mode, max_time=c.max_time, deadman=c.deadman,
+            republish=c.republish, progress_every=c.progress_every, wait_modules=ALIVE_TIMEOUT + 5, seed=c.seed,
+            zenoh_config=None if hosts_router else c.zenoh_config, checkpoints=checkpoints)
+        log_path = c.out / "logs" / "world.log"
+        with open(log_path, "ab") as werr:
+            self.world_proc = await asyncio.create_subprocess_exec(
+                *world_argv, stdout=asyncio.subprocess.PIPE, stderr=werr, stdin=asyncio.subprocess.DEVNULL,
+                start_new_session=True, env=child_env())
+        self._write_pids()
+        assert self.world_proc.stdout is not None
+        while True:
+            line = await self.world_proc.stdout.readline()
+            if not line:
+                code = await self.world_proc.wait()
+                last = [x for x in log_path.read_text(errors="replace").splitlines() if x.strip()][-1:]
+                hint = port_hint(last[0] if last else "", c.port) if hosts_router else ""
+                raise LaunchError(f"the world server ended (code {code}) before its Zenoh session opened"
+                                   f"{': ' + last[0] if last else ''} (see {log_path}){hint}")
+            if line.startswith(b"READY "):
+                return
+            self.say(f"world: {line.decode(errors='replace').rstrip()}")
+
+    def _world_died(self, code: int) -> None:
+        """The world server ended abnormally (killed, crashed): say so, and make ``run.mcap``
+        a complete, indexed log again if the world could not close it (the cut file is kept
+        as ``run.truncated.mcap``). The run ends: nothing else can tick the world."""
+        from cekm_swarm.runtime.mcap_log import is_complete, recover_log
+
+        c = self.c
+        why = f"was killed by signal {-code}" if code < 0 else f"ended with exit code {code}"
+        self.say(f"the world server {why}; the run ends (see {c.out / 'logs' / 'world.log'})")
+        log_path = c.out / "run.mcap"
+        try:
+            if not log_path.is_file() or is_complete(log_path):
+                return
+            cut = log_path.with_name("run.truncated.mcap")
+            log_path.replace(cut)
+            rep = recover_log(cut, log_path)
+            self.say(f"recovered the world's log: {rep.messages} messages on {rep.channels} channels into "
+                     f"{log_path} ({cut.name} is the file as the world left it)")
+        except (CekmError, OSError) as exc:
+            self.say(f"could not recover the world's log: {exc}")
+
+    def _world_ended(self) -> bool:
+        return self.world_proc is not None and self.world_proc.returncode is not None
+
