@@ -9,7 +9,7 @@ from pathlib import Path
 import click
 
 from cekm_swarm.errors import CekmError
-from cekm_swarm.runtime.commands import _connect_options, _session
+from cekm_swarm.runtime.tool_session import _connect_options, _session
 
 
 def _geometry(scenario: str | None, log: Path | None, seed: int | None):

@@ -1,0 +1,298 @@
+"""``cekm log info|cat|recover`` (summarise, print, or repair an MCAP log), ``cekm replay``
+(republish a log, hosting the router itself unless told where to join) and ``cekm
+record`` (record live keys like the world server's log)."""
+
+from __future__ import annotations
+
+import contextlib
+import sys
+import threading
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import click
+
+from cekm_swarm.cli_support import ROOT, Interrupted
+from cekm_swarm.errors import CekmError
+
+from .tool_session import _ROOT_HELP, _check_key_expr, _connect_options, _keys, _open, _say, _session, _sigint_sets
+from .wait import ENV_CONNECT
+
+@click.group("log")
+def log_group() -> None:
+    """MCAP run logs."""
+
+
+@log_group.command("info")
+@click.argument("log_file", metavar="LOG.mcap", type=click.Path(dir_okay=False, exists=True, path_type=Path))
+@click.option("--recover", "recover_to", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="If the log is truncated (its writer was killed), write an indexed copy here.")
+@click.option("--json", "as_json", is_flag=True, help="One JSON object: file, completeness, channels.")
+def log_info_cmd(log_file: Path, recover_to: Path | None, as_json: bool) -> None:
+    """Channels, message counts, rates and duration of a log (a truncated log is read up to the cut)."""
+    from dataclasses import asdict
+
+    from .jsonout import json_line
+    from .mcap_log import format_log_info, log_info, recover_log
+
+    try:
+        info = log_info(log_file)
+        if as_json:
+            doc = asdict(info)
+            doc["path"] = str(info.path)
+            click.echo(json_line(doc))
+        else:
+            click.echo(format_log_info(info))
+        if recover_to is not None:
+            if info.complete:
+                _say("log is complete; nothing to recover")
+            else:
+                rep = recover_log(log_file, recover_to)
+                _say(f"recovered {rep.messages} messages on {rep.channels} channels into {rep.output}")
+    except CekmError as exc:
+        raise click.ClickException(str(exc)) from None
+
+
+@log_group.command("cat")
+@click.argument("log_file", metavar="LOG.mcap", type=click.Path(dir_okay=False, exists=True, path_type=Path))
+@click.option("--topics", "topics", multiple=True, metavar="KEYEXPR",
+              help="Only these topics (key expressions; repeat or separate with commas).")
+@click.option("--json", "as_json", is_flag=True, help="One JSON object per message (topic, times, message).")
+@click.option("--views", is_flag=True, help="Also list the Foxglove view messages (size only).")
+@click.option("--start", type=float, default=None, help="Only messages at or after this sim time (s).")
+@click.option("--end", type=float, default=None, help="Only messages at or before this sim time (s).")
+@click.option("--root", default="cekm", show_default=True, type=ROOT, help=_ROOT_HELP)
+def log_cat_cmd(log_file: Path, topics: tuple[str, ...], as_json: bool, views: bool, start: float | None,
+                end: float | None, root: str) -> None:
+    """Print a log's messages, decoded, in time order (like mcap cat, ros2 bag echo)."""
+    from .logcat import CatCounts, cat_lines
+
+    patterns = tuple(p.strip() for t in topics for p in t.split(",") if p.strip())
+    for p in patterns:
+        if not p.startswith("/"):
+            _check_key_expr(p, "--topics")
+    counts = CatCounts()
+    try:
+        for line in cat_lines(log_file, topics=patterns or None, as_json=as_json, views=views, start=start, end=end,
+                              keys=_keys(root), counts=counts):
+            click.echo(line)
+    except CekmError as exc:
+        raise click.ClickException(str(exc)) from None
+    except BrokenPipeError:  # `| head`
+        sys.stderr.close()
+        return
+    if counts.malformed:
+        _say(f"{counts.malformed} malformed message(s) in the log (printed as errors)")
+
+
+@log_group.command("recover")
+@click.argument("log_file", metavar="IN.mcap", type=click.Path(dir_okay=False, exists=True, path_type=Path))
+@click.argument("out_file", metavar="OUT.mcap", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--force", is_flag=True, help="Overwrite OUT.mcap if it exists.")
+def log_recover_cmd(log_file: Path, out_file: Path, force: bool) -> None:
+    """Copy every complete message (and metadata) of IN.mcap, e.g. a log whose writer was
+    killed, into OUT.mcap, a complete, indexed file."""
+    from .mcap_log import recover_log
+
+    if out_file.exists() and not force:
+        raise click.ClickException(f"{out_file}: exists; use --force to overwrite it")
+    try:
+        rep = recover_log(log_file, out_file)
+    except CekmError as exc:
+        raise click.ClickException(str(exc)) from None
+    how = "the input was complete" if rep.input_complete else f"the input ends early ({rep.cut_reason})"
+    click.echo(f"recovered {rep.messages} messages on {rep.channels} channels and {rep.metadata} metadata "
+               f"records into {rep.output}; {how}")
+
+
+# --------------------------------------------------------------------------- replay
+
+
+@contextlib.contextmanager
+def _keyboard(control: Any, stop: threading.Event) -> Iterator[bool]:
+    """On a terminal: space pauses and resumes the replay, q stops it. Yields whether active."""
+    if not sys.stdin.isatty():
+        yield False
+        return
+    import select
+    import termios
+    import tty
+
+    fd = sys.stdin.fileno()
+    try:
+        saved = termios.tcgetattr(fd)
+    except termios.error:
+        yield False
+        return
+    done = threading.Event()
+
+    def read() -> None:
+        while not done.is_set() and not stop.is_set():
+            ready, _, _ = select.select([fd], [], [], 0.1)
+            if not ready:
+                continue
+            ch = sys.stdin.read(1)
+            if ch == " ":
+                control.toggle()
+            elif ch in ("q", "Q"):
+                stop.set()
+                control.resume()
+
+    tty.setcbreak(fd)
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    try:
+        yield True
+    finally:
+        done.set()
+        reader.join(1.0)
+        termios.tcsetattr(fd, termios.TCSADRAIN, saved)
+
+
+@click.command("replay")
+@click.argument("log_file", metavar="LOG.mcap", type=click.Path(dir_okay=False, exists=True, path_type=Path))
+@_connect_options
+@click.option("--port", default=None, type=click.IntRange(1, 65535),
+              help="Port of the router the replay hosts on 127.0.0.1 [default: 7447] (when it joins none).")
+@click.option("--rate", default=1.0, show_default=True, type=float,
+              help="Speed factor on the recorded timing (2 = twice as fast).")
+@click.option("--fast", is_flag=True, help="Publish as fast as possible (ignore the recorded timing).")
+@click.option("--loop", is_flag=True, help="Start over at the end, until Ctrl-C.")
+@click.option("--start", default=0.0, show_default=True, type=click.FloatRange(0.0),
+              help="Skip this many seconds from the log's start.")
+@click.option("--keys", "key_expr", default=None, metavar="KEYEXPR", help="Replay only keys matching this.")
+@click.option("--start-paused", is_flag=True, help="Wait for a key press (space) before the first message.")
+@click.option("--quiet", is_flag=True, help="No progress line.")
+def replay_cmd(log_file: Path, endpoint: str | None, config_file: Path | None, wait_s: float, port: int | None,
+               rate: float, fast: bool, loop: bool, start: float, key_expr: str | None, start_paused: bool,
+               quiet: bool) -> None:
+    """Republish the recorded messages of LOG.mcap onto Zenoh at the recorded timing.
+
+    With no --connect (and no CEKM_CONNECT, no --config) the replay hosts the router itself
+    on tcp/127.0.0.1:7447 (--port), where `cekm monitor` and `cekm topic` find it. On a
+    terminal, space pauses and resumes, q stops."""
+    from .config import DEFAULT_HOST, DEFAULT_PORT, open_embedded_router
+    from .replay import ReplayControl, replay_log, log_span
+    from .wait import resolve_endpoint
+
+    if not fast and rate <= 0:
+        raise click.BadParameter("must be > 0 (or use --fast)", param_hint="--rate")
+    if key_expr is not None:
+        _check_key_expr(key_expr, "--keys")
+    try:
+        ep = resolve_endpoint(endpoint)
+        span = log_span(log_file)
+    except CekmError as exc:
+        raise click.BadParameter(str(exc), param_hint="--connect" if endpoint else ENV_CONNECT) from None
+    if span is not None and start > span[1] - span[0]:
+        raise click.BadParameter(f"{start:g} s is past the log's end ({span[1] - span[0]:.3f} s long)",
+                                 param_hint="--start")
+    if start_paused and not sys.stdin.isatty():
+        raise click.UsageError("--start-paused needs a terminal (space resumes the replay)")
+    host_router = not ep.explicit and config_file is None
+    if port is not None and not host_router:
+        raise click.UsageError(f"--port is for the router the replay hosts; it joins {ep.endpoint} ({ep.source})")
+    stop = threading.Event()
+    control = ReplayControl()
+    if start_paused:
+        control.pause()
+    if host_router:
+        p = DEFAULT_PORT if port is None else port
+        try:
+            session = open_embedded_router(p)
+        except CekmError as exc:
+            raise click.ClickException(f"{exc} (a run or another replay holds port {p}? --port P hosts elsewhere, "
+                                       f"--connect ENDPOINT joins that router)") from None
+        _say(f"replay: hosting the router on tcp/{DEFAULT_HOST}:{p} (attach: cekm monitor"
+             f"{'' if p == DEFAULT_PORT else f' --connect tcp/{DEFAULT_HOST}:{p}'})")
+    else:
+        try:
+            session = _open(endpoint, config_file, wait_s)
+        except KeyboardInterrupt:
+            raise Interrupted() from None
+    tty = sys.stderr.isatty() and not quiet
+    width = [0]
+
+    def progress(p: Any) -> None:
+        line = p.line()
+        sys.stderr.write("\r" + line + " " * max(0, width[0] - len(line)))
+        sys.stderr.flush()
+        width[0] = len(line)
+
+    try:
+        with _sigint_sets(stop) as hit, _keyboard(control, stop) as keyboard:
+            if keyboard and tty:
+                _say("space: pause/resume, q: stop")
+            result = replay_log(session, log_file, rate=None if fast else rate, loop=loop, key_expr=key_expr,
+                                stop=stop, start=start, control=control, on_progress=progress if tty else None)
+    except CekmError as exc:
+        raise click.ClickException(str(exc)) from None
+    finally:
+        session.close()
+        if tty and width[0]:
+            sys.stderr.write("\n")
+    click.echo(f"published {result.published} messages on {len(result.per_key)} keys in {result.loops} loop(s), "
+               f"{result.sim_seconds:.3f} s of sim time in {result.wall_seconds:.3f} s")
+    if hit[0]:
+        raise Interrupted() from None
+
+
+# --------------------------------------------------------------------------- record
+
+
+@click.command("record")
+@click.argument("key_expr", metavar="[KEYEXPR]", default=None, required=False)
+@click.option("--out", "out_path", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help="The MCAP file to write.")
+@_connect_options
+@click.option("--duration", default=None, type=click.FloatRange(0.0, min_open=True),
+              help="Stop after this many seconds (default: Ctrl-C).")
+@click.option("--count", "-n", default=None, type=click.IntRange(1), help="Stop after N messages.")
+@click.option("--no-views", is_flag=True, help="Record the key-space channels only (no Foxglove views).")
+@click.option("--root", default="cekm", show_default=True, type=ROOT, help=_ROOT_HELP)
+def record_cmd(key_expr: str | None, out_path: Path, endpoint: str | None, config_file: Path | None, wait_s: float,
+               duration: float | None, count: int | None, no_views: bool, root: str) -> None:
+    """Record the live keys matching KEYEXPR (default: the whole key space) into an MCAP log
+    with the channels and Foxglove views of the world server's own log (not the static
+    scene, which the world does not publish). Ctrl-C stops and closes the file."""
+    from .record import record
+    from .wait import resolve_endpoint
+
+    keys = _keys(root)
+    key_expr = _check_key_expr(key_expr or keys.everything())
+    stop = threading.Event()
+    tty = sys.stderr.isatty()
+
+    def first() -> None:
+        if tty:
+            sys.stderr.write("\r" + " " * 60 + "\r")
+        _say(f"recording {key_expr} into {out_path}")
+
+    def progress(r: Any) -> None:
+        if tty:
+            sim = "" if r.last_stamp is None else f", sim {r.last_stamp:.2f} s"
+            sys.stderr.write(f"\r{r.messages} messages on {len(r.per_key)} keys{sim}   ")
+            sys.stderr.flush()
+
+    with _session(endpoint, config_file, wait_s) as session, _sigint_sets(stop) as hit:
+        _say(f"waiting for messages on {key_expr} ...")
+        try:
+            res = record(session, out_path, key_expr, keys=keys, stop=stop, duration=duration, count=count,
+                         views=not no_views, on_first=first, on_progress=progress,
+                         metadata={"endpoint": resolve_endpoint(endpoint).endpoint})
+        except CekmError as exc:
+            raise click.ClickException(str(exc)) from None
+    if tty:
+        sys.stderr.write("\n")
+    span = "" if res.first_stamp is None else f", sim time {res.first_stamp:.3f} .. {res.last_stamp:.3f} s"
+    bad = f", {res.malformed} malformed" if res.malformed else ""
+    click.echo(f"recorded {res.messages} messages on {len(res.per_key)} keys{span}{bad} into {out_path}")
+    if res.first_stamp is not None and keys.world_state() in res.per_key and not res.geometry:
+        _say(f"no static scene in the recording: nothing answered on {keys.world_geometry()}")
+    if hit[0]:
+        raise Interrupted() from None
+
+
+# --------------------------------------------------------------------------- monitor
+
