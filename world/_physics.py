@@ -94,3 +94,38 @@ class StaticIndex:
         if q is None or q.shape is None:
             return None
         return q.distance, self.keys[q.shape]
+
+
+def add_robots(space: pymunk.Space, scenario: Scenario, item_of: dict, mass: float, radius: float, traction_force: float,
+               traction_torque: float) -> tuple[list[pymunk.Body], list[pymunk.Circle], list[pymunk.Body]]:
+    """Each robot a dynamic circle driven through a kinematic control body joined by a
+    ``PivotJoint`` (max_bias 0, finite max_force) and a ``GearJoint`` (pymunk's tank
+    pattern): (robot bodies, their shapes, their control bodies), in scenario order."""
+    bodies, shapes, controls = [], [], []
+    moment = pymunk.moment_for_circle(mass, 0.0, radius)
+    for i, r in enumerate(scenario.robots):
+        b = pymunk.Body(mass, moment)
+        b.position = (r.start[0], r.start[1])
+        b.angle = r.start[2]
+        s = pymunk.Circle(b, radius)
+        s.filter = pymunk.ShapeFilter(group=i + 1, categories=CAT_ROBOT, mask=MASK_ALL)
+        s.collision_type = CT_ROBOT
+        s.friction = FRICTION_ROBOT
+        s.elasticity = 0.0
+        space.add(b, s)
+        bodies.append(b)
+        shapes.append(s)
+        item_of[s] = f"robot {r.id}"
+    for b in bodies:
+        c = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
+        c.position = b.position
+        c.angle = b.angle
+        pivot = pymunk.PivotJoint(c, b, (0.0, 0.0), (0.0, 0.0))
+        pivot.max_bias = 0.0
+        pivot.max_force = traction_force
+        gear = pymunk.GearJoint(c, b, 0.0, 1.0)
+        gear.max_bias = 0.0
+        gear.max_force = traction_torque
+        space.add(c, pivot, gear)
+        controls.append(c)
+    return bodies, shapes, controls

@@ -127,37 +127,9 @@ class World:
         self._item_of: dict[pymunk.Shape, str] = ph.add_static(space, scenario)
 
         # robots first, then control bodies, then moving obstacles (batch row order)
-        self._bodies: list[pymunk.Body] = []
-        self._shapes: list[pymunk.Circle] = []
-        self._robot_of: dict[pymunk.Shape, int] = {}
-        moment = pymunk.moment_for_circle(ROBOT_MASS, 0.0, ROBOT_RADIUS)
-        for i, r in enumerate(scenario.robots):
-            b = pymunk.Body(ROBOT_MASS, moment)
-            b.position = (r.start[0], r.start[1])
-            b.angle = r.start[2]
-            s = pymunk.Circle(b, ROBOT_RADIUS)
-            s.filter = pymunk.ShapeFilter(group=i + 1, categories=ph.CAT_ROBOT, mask=ph.MASK_ALL)
-            s.collision_type = ph.CT_ROBOT
-            s.friction = ph.FRICTION_ROBOT
-            s.elasticity = 0.0
-            space.add(b, s)
-            self._bodies.append(b)
-            self._shapes.append(s)
-            self._robot_of[s] = i
-            self._item_of[s] = f"robot {r.id}"
-        self._controls: list[pymunk.Body] = []
-        for i, b in enumerate(self._bodies):
-            c = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
-            c.position = b.position
-            c.angle = b.angle
-            pivot = pymunk.PivotJoint(c, b, (0.0, 0.0), (0.0, 0.0))
-            pivot.max_bias = 0.0
-            pivot.max_force = TRACTION_FORCE
-            gear = pymunk.GearJoint(c, b, 0.0, 1.0)
-            gear.max_bias = 0.0
-            gear.max_force = TRACTION_TORQUE
-            space.add(c, pivot, gear)
-            self._controls.append(c)
+        self._bodies, self._shapes, self._controls = ph.add_robots(space, scenario, self._item_of, ROBOT_MASS,
+                                                                   ROBOT_RADIUS, TRACTION_FORCE, TRACTION_TORQUE)
+        self._robot_of: dict[pymunk.Shape, int] = {shape: i for i, shape in enumerate(self._shapes)}
         self._movers = [o for o in scenario.obstacles if o.motion is not None]
         mover_bodies = []
         for o in self._movers:
