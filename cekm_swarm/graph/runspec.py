@@ -11,6 +11,7 @@ it publishes and what it records from the graph).
 from __future__ import annotations
 
 import json
+import os
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Mapping
@@ -48,7 +49,13 @@ class RunSpec:
         return KeySpace(self.root, self.body.sensors, self.run_id)
 
     def plan(self) -> RunPlan:
-        return build_plan(self.graph, self.team, self.task, self.ports, self.body.sensors, self.keys)
+        """The graph resolved for the team (built once per spec object: a node process
+        forked warm inherits the fork server's)."""
+        held = self.__dict__.get("_plan")
+        if held is None:
+            held = build_plan(self.graph, self.team, self.task, self.ports, self.body.sensors, self.keys)
+            object.__setattr__(self, "_plan", held)
+        return held
 
     def with_(self, **changes: Any) -> "RunSpec":
         return replace(self, **changes)
@@ -82,8 +89,21 @@ class RunSpec:
 
     @classmethod
     def read(cls, path: str | Path) -> "RunSpec":
+        """The run spec in ``path``; the same object again while the file is unchanged (a
+        fork server reads it once for all the nodes it forks)."""
         try:
+            st = os.stat(path)
+            stamp = (os.path.realpath(path), st.st_mtime_ns, st.st_size, st.st_ino)
+            held = _READ.get(stamp)
+            if held is not None:
+                return held
             doc = json.loads(Path(path).read_text())
         except (OSError, json.JSONDecodeError) as exc:
             raise GraphError(str(path), None, f"cannot read the run spec ({exc})") from None
-        return cls.from_dict(doc, str(path))
+        spec = cls.from_dict(doc, str(path))
+        _READ.clear()
+        _READ[stamp] = spec
+        return spec
+
+
+_READ: dict[tuple, RunSpec] = {}

@@ -68,9 +68,11 @@ def own_cpu_seconds() -> float:
 
 def kind_of(label: str) -> str:
     """The kind of a process from its launcher label (``r1/obstacle-3`` -> ``obstacle``,
-    ``world/server`` -> ``world``)."""
+    ``world/server`` -> ``world``, ``launch/fork-server`` -> ``fork-server``)."""
     if label == "world/server":
         return "world"
+    if label.startswith("launch/"):
+        return label.partition("/")[2]
     name = label.rpartition("/")[2]
     return name.partition("-")[0]
 

@@ -1,5 +1,5 @@
-"""The launcher: the world server, then per robot 1 + 12 + 1 module processes, all
-separate OS processes, supervised.
+"""The launcher: the world server, then per robot every node of the controller's graph
+(cekm: 1 + 12 + 1), all separate OS processes, supervised.
 
 Order: the world server starts first. With the embedded default (no ``--connect``) it
 hosts the Zenoh router on loopback, so the world's readings and the robots' commands
@@ -18,8 +18,11 @@ taken from the world server's token by a robots-only host unless given with
 modules. Every child dies with the launcher, whatever kills it (``PR_SET_PDEATHSIG``,
 :mod:`cekm_swarm.runtime.lifetime`).
 
+Warm start: the nodes are forked from a fork server that has imported them
+(:mod:`.forkserver`), each still its own process; ``--cold-start`` execs each afresh.
+
 Each child's output goes to ``OUT/logs/<robot>-<module>.log`` (``world.log`` for the
-world server); ``OUT/pids.json`` holds the live process ids; ``OUT/launch.log`` the
+world server, ``forkserver.log`` for the fork server); ``OUT/pids.json`` holds the live process ids; ``OUT/launch.log`` the
 launcher's own record; ``outcome.json`` gets the run id and the launcher's record.
 """
 
@@ -77,6 +80,7 @@ class LaunchConfig:
     zenoh_config: Path | None = None  # client config file (credentials, TLS) for every process started here
     model_from_zenoh: bool = False  # modules fetch the model from the world host's launcher (no file here)
     run_id: str | None = None  # the run's id (None: made by a world host, learned from the world by a robots-only host)
+    warm_start: bool = True  # fork the nodes from a fork server (launch.forkserver); False: exec each afresh
 
 
 def plan_checkpoint_data(scenario) -> dict[str, list[list[float]]]:
@@ -277,7 +281,7 @@ class Launcher(Supervision, WorldHost, RobotHost):
         t0 = time.monotonic()
         if c.world:
             self._choose_run_id()
-            self._write_spec(model, endpoint)
+            self._begin_fork_server(self._write_spec(model, endpoint))
             # The world first: with the embedded default it hosts the router, and it holds
             # tick 0 until every module of every robot, here or on other hosts, is alive.
             await self._start_world(f"tcp/{c.listen_host}:{c.port}" if self._world_hosts_router else endpoint,
@@ -291,7 +295,7 @@ class Launcher(Supervision, WorldHost, RobotHost):
             await self._join_run_id()
             if self.stopping:
                 return
-            self._write_spec(ZENOH_MODEL if c.model_from_zenoh else model, endpoint)
+            self._begin_fork_server(self._write_spec(ZENOH_MODEL if c.model_from_zenoh else model, endpoint))
         if c.world and model is not None:  # (a world host always has the model file)
             self.model_server = ModelServer(self.session, self.keys.world_model(), model)
             self.say(f"serving the model {Path(model).name} on {self.keys.world_model()}")

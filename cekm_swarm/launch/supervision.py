@@ -1,5 +1,5 @@
-"""The launcher's supervision of its node processes: start each with its log, restart one
-that dies with back-off (0.25 s, doubling while it keeps dying within 5 s of starting, at
+"""The launcher's supervision of its node processes: start each with its log (forked warm
+from the fork server, :mod:`.spawn`), restart one that dies with back-off (0.25 s, doubling while it keeps dying within 5 s of starting, at
 most 5 s; logged), end the launch at once when one cannot start (its own line), stop them
 all (SIGTERM, SIGKILL after 5 s), and keep ``OUT/pids.json`` current."""
 
@@ -16,6 +16,8 @@ from typing import Any
 from cekm_swarm.node.process import CANNOT_START, EXIT_CANNOT_START
 from cekm_swarm.runtime.lifetime import child_env
 
+from .spawn import ForkServer, exec_process
+
 BACKOFF_MIN = 0.25
 BACKOFF_MAX = 5.0
 HEALTHY_AFTER = 5.0  # s: a node up this long gets its back-off reset
@@ -30,7 +32,7 @@ class Child:
     name: str
     argv: list[str]
     log_path: Path
-    proc: asyncio.subprocess.Process | None = None
+    proc: Any = None  # asyncio.subprocess.Process, or spawn.ForkedProcess
     started: float = 0.0
     restarts: int = 0
     backoff: float = BACKOFF_MIN
@@ -51,6 +53,8 @@ class Supervision:
     stopping: bool
     failure: str | None
     c: Any
+    fork_server: ForkServer | None = None
+    fork_server_start: asyncio.Future | None = None
 
     def say(self, text: str) -> None:  # pragma: no cover - the launcher's
         raise NotImplementedError
@@ -60,6 +64,8 @@ class Supervision:
         pids = {c.label: c.proc.pid for c in self.children.values() if c.proc is not None and c.proc.returncode is None}
         if self.world_proc is not None and self.world_proc.returncode is None:
             pids["world/server"] = self.world_proc.pid
+        if self.fork_server is not None and self.fork_server.alive:
+            pids["launch/fork-server"] = self.fork_server.pid
         return pids
 
     def _write_pids(self) -> None:
@@ -70,11 +76,34 @@ class Supervision:
 
     # ------------------------------------------------------------------ children
 
+    def _begin_fork_server(self, spec_path: Path) -> None:
+        """Start the fork server (it imports while the world server starts); ``--cold-start`` does not."""
+        if self.c.warm_start:
+            self.fork_server_start = asyncio.ensure_future(
+                ForkServer.start([spec_path], self.c.out / "logs" / "forkserver.log", self.run_id))
+
+    async def _await_fork_server(self) -> None:
+        """The fork server ready, or (it could not start) every node started afresh, said once."""
+        if self.fork_server_start is None or self.fork_server is not None:
+            return
+        try:
+            self.fork_server = await self.fork_server_start
+            self.say(f"warm start: nodes fork from the fork server (pid {self.fork_server.pid})")
+        except OSError as exc:
+            self.say(f"warm start unavailable ({exc}); every node starts afresh")
+        self.fork_server_start = None
+
     async def _spawn(self, child: Child) -> None:
-        with open(child.log_path, "ab") as f:
-            child.proc = await asyncio.create_subprocess_exec(*child.argv, stdout=f, stderr=asyncio.subprocess.STDOUT,
-                                                              stdin=asyncio.subprocess.DEVNULL,
-                                                              start_new_session=True, env=child_env())
+        await self._await_fork_server()
+        env = child_env()
+        if self.fork_server is not None and self.fork_server.alive:
+            try:
+                child.proc = await self.fork_server.spawn(child.argv, child.log_path, env)
+            except OSError as exc:
+                self.say(f"fork server: {exc}; {child.label} starts afresh")
+                child.proc = await exec_process(child.argv, child.log_path, env)
+        else:
+            child.proc = await exec_process(child.argv, child.log_path, env)
         child.started = time.monotonic()
         self._write_pids()
 
@@ -144,4 +173,15 @@ class Supervision:
                         pass
             if pending:
                 await asyncio.wait(pending, timeout=STOP_GRACE)
+        await self._close_fork_server()
+
+    async def _close_fork_server(self) -> None:
+        if self.fork_server_start is not None:  # still starting: let it finish, then close it
+            try:
+                self.fork_server = await self.fork_server_start
+            except OSError:
+                pass
+            self.fork_server_start = None
+        if self.fork_server is not None:
+            await self.fork_server.close()
 

@@ -52,6 +52,7 @@ class MotorIntegration(Node):
               "obstacles": In(ObstacleField, many=True, doc="every obstacle field of the tick")}
     outputs = {"command": Out(WheelCommand, doc="c = (v_l, v_r), clipped to c*")}
     uses_model = True
+    warm_setup = True  # setup builds the shared EKM tables only
 
     @dataclass(frozen=True)
     class Params:

@@ -48,6 +48,7 @@ class TrackingLocalization(Node):
     Params = TrackingParams
     stateful = True
     uses_model = True
+    warm_setup = True  # setup builds the shared EKM tables only
 
     def setup(self) -> None:
         p = self.params

@@ -20,6 +20,7 @@ class TrackingMotor(Node):
               "obstacles": In(ObstacleField, many=True, doc="every obstacle field of the tick")}
     outputs = {"command": Out(WheelCommand)}
     uses_model = True
+    warm_setup = True  # setup builds the shared EKM tables only
 
     def setup(self) -> None:
         self.tekm = tracking_ekm(self.ctx, TrackingParams())

@@ -10,7 +10,11 @@ motor integration, or a user's own). It declares, as class attributes:
   them; a parameter the node does not declare is refused before anything starts);
 * ``stateful``: True when its outputs depend on more than the inputs of the tick (a
   memory across ticks), so a restart changes what it computes;
-* ``uses_model``: True when it reads the run's trained model (:meth:`Context.model`).
+* ``uses_model``: True when it reads the run's trained model (:meth:`Context.model`);
+* ``warm_setup``: True when :meth:`Node.setup` only computes data (the model, tables
+  through :meth:`Context.shared`) and starts no thread, socket or open file: a warm start
+  (:mod:`cekm_swarm.launch.forkserver`) then runs one setup in the fork server, and every
+  node forked from it finds those shared values made.
 
 and computes in :meth:`Node.step`: ``step(t, inputs) -> {port: message}``, one message per
 output port every time it runs. The framework does the rest (the session, the liveliness
@@ -157,6 +161,7 @@ class Node:
     Params: ClassVar[type] = NoParams
     stateful: ClassVar[bool] = False
     uses_model: ClassVar[bool] = False
+    warm_setup: ClassVar[bool] = False
 
     def __init__(self, ctx: Context, params: Any = None) -> None:
         self.ctx = ctx

@@ -247,7 +247,7 @@ def main(argv: list[str] | None = None) -> int:
         spec = RunSpec.read(args.spec)
     except CekmError as exc:
         return _cannot_start(label, str(exc))
-    if args.run_id:
+    if args.run_id and args.run_id != spec.run_id:
         spec = spec.with_(run_id=args.run_id)
     # a node receives a message and sends one per period: one thread does it (sending apart
     # in lockstep, where a put may wait for the send queue: runtime.config)

@@ -32,8 +32,13 @@ def die_with_parent(sig: int = signal.SIGTERM) -> bool:
     text = os.environ.pop(PARENT_ENV, None)
     if not text or not text.isdigit():
         return False
+    signal_on_parent_death(int(text), sig)
+    return True
+
+
+def signal_on_parent_death(parent: int, sig: int = signal.SIGTERM) -> None:
+    """Receive ``sig`` when ``parent`` (our parent now) dies; at once if it already has."""
     if sys.platform.startswith("linux"):
         ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, int(sig), 0, 0, 0)
-    if os.getppid() != int(text):  # the launcher is already gone
+    if os.getppid() != parent:  # the parent is already gone
         os.kill(os.getpid(), sig)
-    return True

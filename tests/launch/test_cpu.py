@@ -23,6 +23,7 @@ def test_cpu_seconds_of_a_process_grows_with_work():
 
 def test_kinds_of_processes():
     assert kind_of("r1/obstacle-3") == "obstacle" and kind_of("r12/motor") == "motor"
+    assert kind_of("launch/fork-server") == "fork-server" and kind_of("world/server") == "world"
     assert kind_of("r1/target") == "target" and kind_of("launcher") == "launcher"
 
 

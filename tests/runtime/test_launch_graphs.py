@@ -28,9 +28,10 @@ SHIPPED = ([(s, c) for s in NAVIGATION for c in ("cekm", "fusion", "stay")]
 MAX_TIME = {"crossing": 15.0, "tracking-crowd": 12.0}  # s of sim time; the others 10
 
 
-def launch(out, scenario: str, controller: str, max_time: float, *, seed: int | None = None, kill=None) -> LaunchProcess:
+def launch(out, scenario: str, controller: str, max_time: float, *, seed: int | None = None, kill=None,
+           extra: tuple[str, ...] = ()) -> LaunchProcess:
     args = ["--mode", "lockstep", "--controller", controller, "--max-time", str(max_time), "--no-plot",
-            "--model", str(default_model_path())]
+            "--model", str(default_model_path()), *extra]
     if seed is not None:
         args += ["--seed", str(seed)]
     run = LaunchProcess(scenario, out, *args)
@@ -73,6 +74,14 @@ def test_every_shipped_controller_on_every_shipped_scenario_equals_cekm_run(tmp_
     max_time = MAX_TIME.get(scenario, 10.0)
     run = launch(tmp_path / "out", scenario, controller, max_time)
     assert_equals_cekm_run(run, scenario, controller, max_time)
+
+
+@pytest.mark.slow
+def test_a_cold_start_equals_cekm_run_as_the_warm_start_does(tmp_path):
+    """Every node exec'd afresh (--cold-start) instead of forked from the fork server."""
+    run = launch(tmp_path / "out", "crossing", "cekm", 10.0, extra=("--cold-start",))
+    assert "launch/fork-server" not in run.pids() and "warm start" not in "\n".join(run.lines)
+    assert_equals_cekm_run(run, "crossing", "cekm", 10.0)
 
 
 STATELESS = {"cekm": ["motor", "obstacle-3", "obstacle-0"], "fusion": ["avoid", "motor", "target"],
