@@ -9,6 +9,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
+import numpy as np
+
 from cekm_swarm.protocol import KeySpace, SenseRange, SenseTarget, encode
 
 from .episode import TickReadings
@@ -56,11 +58,10 @@ class SenseEncoder:
         self.target_key = keys.sense_target(robot)
 
     def __call__(self, rd: TickReadings) -> list[tuple[str, bytes]]:
-        t, radius, angles, keys = rd.t, self.radius, self.angles, self.range_keys
-        out = []
-        for j, r in enumerate(rd.ranges):
-            r = float(r)
-            out.append((keys[j], encode(SenseRange(t, SENDER, j, angles[j], r + radius if math.isfinite(r) else None))))
+        t, radius, angles, keys, isfinite = rd.t, self.radius, self.angles, self.range_keys, math.isfinite
+        ranges = rd.ranges.tolist() if type(rd.ranges) is np.ndarray else [float(r) for r in rd.ranges]
+        out = [(keys[j], encode(SenseRange(t, SENDER, j, angles[j], r + radius if isfinite(r) else None)))
+               for j, r in enumerate(ranges)]
         if rd.target is not None:
             out.append((self.target_key, encode(target_message(t, rd.target))))
         return out

@@ -117,15 +117,21 @@ class Record(msgspec.Struct, forbid_unknown_fields=True, gc=False):
     Records are mutable for speed; treat them as immutable once built."""
 
     def __post_init__(self) -> None:
-        cls = type(self)
-        check = cls.__dict__.get("_checked")
-        if check is None:  # the class's first record: compile its check once
-            check = _compile(cls)
-            setattr(cls, "_checked", check)
-        check(self)
+        _CHECKS[type(self)](self)
 
     def check(self) -> None:
         """The record's own rules between fields (after every field passed its type)."""
+
+
+class _Checks(dict):
+    """Each record class's compiled check, compiled when the class's first record is built."""
+
+    def __missing__(self, cls: type[Record]) -> Callable[[Record], None]:
+        check = self[cls] = _compile(cls)
+        return check
+
+
+_CHECKS = _Checks()
 
 
 class Entry(Record):
