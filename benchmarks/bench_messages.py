@@ -13,7 +13,8 @@ reading, an obstacle field and a target field (225 neurons); a node's encode
 (``Encoder``) of an obstacle field and a target field built from a model's read-only row,
 and the building of the field; the world's sense encoding (``world.sense.SenseEncoder``,
 per message of a tick's 13); the world recorder's check of a field
-(``world.recorder.RecordFilter``); a monitor's decode of a 3-robot world state.
+(``world.recorder.RecordFilter``); the world's building of a 3-robot world state from
+``World.state()`` and a monitor's decode of it.
 
 Run: python benchmarks/bench_messages.py [--before f3c6712] [--rounds 7] [--n 20000]
 """
@@ -73,6 +74,8 @@ def measure(n: int) -> dict[str, float]:
     cases["world: sense encoding, per message"] = lambda: sense(readings)
     obstacle_key, obstacle_payload = payloads["decode obstacle field"][0], payloads["decode obstacle field"][2]
     cases["world: record check of a field"] = lambda: filt.check(obstacle_key, obstacle_payload, t)
+    cases["world: build world state (3 robots)"] = lambda: WorldState(t, "world", st["robots"], st["targets"],
+                                                                    st["obstacles"])
     cases["decode world state (3 robots)"] = lambda: decode(K.world_state(), state)
     out = {}
     for name, f in cases.items():

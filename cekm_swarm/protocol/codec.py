@@ -26,7 +26,8 @@ import numpy as np
 from .errors import (KeySpaceError, MessageError, MessageFieldError, MessageFormatError, MessageKindError,
                      MessageVersionError)
 from .keys import DEFAULT_KEYS, KeyKind, KeySpace
-from .schema import MESSAGE_TYPES, SCHEMA_VERSION, Message, WireVector, wire_vector
+from .checks import wire_vector
+from .schema import MESSAGE_TYPES, SCHEMA_VERSION, Message, WireVector
 
 _F8 = np.dtype("<f8")
 
