@@ -23,10 +23,10 @@ import msgpack
 import msgspec
 import numpy as np
 
+from .checks import wire_vector
 from .errors import (KeySpaceError, MessageError, MessageFieldError, MessageFormatError, MessageKindError,
                      MessageVersionError)
 from .keys import DEFAULT_KEYS, KeyKind, KeySpace
-from .checks import wire_vector
 from .schema import MESSAGE_TYPES, SCHEMA_VERSION, Message, WireVector
 
 _F8 = np.dtype("<f8")
