@@ -9,7 +9,6 @@ from pathlib import Path
 from typing import Any
 
 from cekm_swarm.protocol import DropCounter, KeyKind, KeySpace, KeySpaceError
-from cekm_swarm.protocol.hotpath import VectorCache, obstacle_field_values, target_field_values, unpack
 from cekm_swarm.protocol.stamps import PAST_S, stamp_problem
 from cekm_swarm.runtime.mcap_log import McapRecorder
 
@@ -31,7 +30,6 @@ class RecordFilter:
         self.keys, self.robots, self.drops = keys, frozenset(robots), drops
         self.declared = None if declared is None else {k: KeyKind(v) for k, v in declared.items()}
         self._known: dict[str, tuple[KeyKind, int | None] | None] = {}
-        self.vectors = VectorCache()  # the fields' rows, checked once (protocol.hotpath)
         self._expect: dict[str, KeyKind] = {}
 
     def _key(self, key: str) -> tuple[KeyKind, int | None] | None:
@@ -58,30 +56,19 @@ class RecordFilter:
 
     def check(self, key: str, payload: bytes, now: float) -> float | None:
         """The message's stamp when it is to be recorded at sim time ``now``, else None
-        (dropped and counted). A field takes the modules' fast check first (a few us
-        instead of a full decode: the world does this for every field of every tick)."""
-        kind = self._key(key)
-        if kind is None:
+        (dropped and counted)."""
+        if self._key(key) is None:
             self.drops.drop(key, "key outside this run's key space" if self.declared is None
                             else "not a key of this run's world or of its graph's nodes")
             return None
-        u = None
-        if kind[0] is KeyKind.FIELD_OBSTACLE:
-            u = obstacle_field_values(unpack(payload), kind[1], self.vectors)
-        elif kind[0] is KeyKind.FIELD_TARGET:
-            u = target_field_values(unpack(payload), self.vectors)
-        if u is not None:  # exactly what decode accepts (tests/protocol/test_hotpath.py)
-            stamp = u[0]
-        else:
-            msg = self.drops.decode(key, payload, expect=self._expect.get(key))
-            if msg is None:
-                return None
-            stamp = msg.stamp
-        why = stamp_problem(stamp, now, PAST_S, 0.0)
+        msg = self.drops.decode(key, payload, expect=self._expect.get(key))
+        if msg is None:
+            return None
+        why = stamp_problem(msg.stamp, now, PAST_S, 0.0)
         if why is not None:
             self.drops.drop(key, why)
             return None
-        return stamp
+        return msg.stamp
 
 
 def open_run_log(path: Path, scenario: str, seed: int, mode: str, geometry: dict[str, Any],

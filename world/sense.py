@@ -2,15 +2,16 @@
 publishes): a range reading's ``d`` is the obstacle input u_j, the distance from the
 robot's centre (surface range + body radius), None when nothing is in range; an
 out-of-range target is sent as alpha = d = 0, visible False. :func:`sense_messages`
-builds them as messages; :class:`SenseEncoder` gives the same wire bytes, fast."""
+builds them as messages; :class:`SenseEncoder` gives their wire bytes."""
 
 from __future__ import annotations
 
 import math
 from typing import Any
 
+import numpy as np
+
 from cekm_swarm.protocol import KeySpace, SenseRange, SenseTarget, encode
-from cekm_swarm.protocol.hotpath import Splice
 
 from .episode import TickReadings
 
@@ -47,46 +48,22 @@ def sense_messages(keys: KeySpace, rd: TickReadings, sensor_angles, body_radius:
 
 class SenseEncoder:
     """The wire bytes of one robot's sense messages: ``encoder(rd)`` equals ``[(key,
-    encode(msg)) for key, msg in sense_messages(...)]`` (tested), with each message packed
-    once and only its stamp and reading spliced in per tick. The readings open the
-    critical path of every tick (sense to command), so the world spends a few us per
-    message on them instead of a dataclass, its checks and a whole pack. A value the
-    message would refuse (a negative range, an angle outside [-pi, pi]) takes the general
-    path, which raises as it would have."""
+    encode(msg)) for key, msg in sense_messages(...)]`` (tested), with the robot's keys
+    and sensor directions taken once."""
 
     def __init__(self, keys: KeySpace, robot: str, sensor_angles, body_radius: float) -> None:
         self.keys, self.radius = keys, body_radius
         self.angles = [float(a) for a in sensor_angles]
         self.range_keys = [keys.sense_range(robot, j) for j in range(len(self.angles))]
         self.target_key = keys.sense_target(robot)
-        self.seen = [Splice(SenseRange(0.0, SENDER, j, a, 0.0), ("stamp", "d")) for j, a in enumerate(self.angles)]
-        self.blind = [Splice(SenseRange(0.0, SENDER, j, a, None)) for j, a in enumerate(self.angles)]
-        self.visible = Splice(SenseTarget(0.0, SENDER, 0.0, 0.0, True), ("stamp", "alpha", "d"))
-        self.hidden = Splice(SenseTarget(0.0, SENDER, 0.0, 0.0, False))
 
     def __call__(self, rd: TickReadings) -> list[tuple[str, bytes]]:
-        t = float(rd.t)
-        if not 0.0 <= t < math.inf:
-            return [(k, encode(m)) for k, m in sense_messages(self.keys, rd, self.angles, self.radius)]
-        out = []
-        for j, r in enumerate(rd.ranges):
-            r = float(r)
-            if not math.isfinite(r):
-                out.append((self.range_keys[j], self.blind[j](t)))
-                continue
-            d = r + self.radius
-            if 0.0 <= d < math.inf:
-                out.append((self.range_keys[j], self.seen[j](t, d)))
-            else:  # the general path refuses it, naming the field
-                out.append((self.range_keys[j], encode(SenseRange(t, SENDER, j, self.angles[j], d))))
+        t, radius, angles, keys, isfinite = rd.t, self.radius, self.angles, self.range_keys, math.isfinite
+        ranges = rd.ranges.tolist() if type(rd.ranges) is np.ndarray else [float(r) for r in rd.ranges]
+        out = [(keys[j], encode(SenseRange(t, SENDER, j, angles[j], r + radius if isfinite(r) else None)))
+               for j, r in enumerate(ranges)]
         if rd.target is not None:
-            alpha, d, visible = rd.target
-            if not (visible and math.isfinite(alpha) and math.isfinite(d)):
-                out.append((self.target_key, self.hidden(t)))
-            elif -math.pi <= alpha <= math.pi and 0.0 <= d:
-                out.append((self.target_key, self.visible(t, float(alpha), float(d))))
-            else:
-                out.append((self.target_key, encode(target_message(t, rd.target))))
+            out.append((self.target_key, encode(target_message(t, rd.target))))
         return out
 
 

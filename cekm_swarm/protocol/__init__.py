@@ -1,17 +1,20 @@
 """The runtime's message protocol: the key space, the messages and their validation.
 
-Imports nothing from the rest of ``cekm_swarm`` but ``cekm_swarm.errors``, so the world
-server (which must not import controller code) can use it.
+Each message is declared once, in :mod:`.messages` (its fields, their types and
+constraints: :mod:`.schema`); :mod:`.codec` encodes and decodes them from that
+declaration. Imports nothing from the rest of ``cekm_swarm`` but ``cekm_swarm.errors``,
+so the world server (which must not import controller code) can use it.
 """
 
+from .codec import decode, encode, peek, summary, to_plain, to_wire
 from .drops import DropCounter, DropRecord
 from .errors import (KeySpaceError, MessageArrayError, MessageError, MessageFieldError, MessageFormatError,
                      MessageKindError, MessageVersionError, ProtocolError)
 from .keys import (DEFAULT_KEYS, DEFAULT_RANGE_SENSORS, DEFAULT_ROOT, WORLD, KeyKind, KeySpace, ParsedKey,
                    validate_module_name, validate_robot_id, validate_root, validate_run_id)
-from .messages import (MESSAGE_TYPES, MSGPACK_ENCODING, SCHEMA_VERSION, Clock, Message, ObstacleField, SenseRange,
-                       SensePose, SenseTarget, SenseTargets, Share, TargetField, TrackingField, WheelCommand, WorldState, Data, decode, encode, peek, summary,
-                       to_plain)
+from .messages import (MESSAGE_TYPES, MSGPACK_ENCODING, SCHEMA_VERSION, Clock, Data, Message, ObstacleField,
+                       ObstacleState, RobotState, SensePose, SenseRange, SenseTarget, SenseTargets, Share, TargetField,
+                       TargetState, TrackingField, WheelCommand, WorldState)
 
 __all__ = [
     "DropCounter", "DropRecord",
@@ -19,7 +22,8 @@ __all__ = [
     "MessageKindError", "MessageVersionError", "ProtocolError",
     "DEFAULT_KEYS", "DEFAULT_RANGE_SENSORS", "DEFAULT_ROOT", "WORLD", "KeyKind", "KeySpace", "ParsedKey",
     "validate_module_name", "validate_robot_id", "validate_root", "validate_run_id",
-    "MESSAGE_TYPES", "MSGPACK_ENCODING", "SCHEMA_VERSION", "Clock", "Message", "ObstacleField", "SenseRange",
-    "SensePose", "SenseTarget", "SenseTargets", "Share", "TargetField", "TrackingField", "WheelCommand", "WorldState", "Data", "decode", "encode", "peek", "summary",
-    "to_plain",
+    "MESSAGE_TYPES", "MSGPACK_ENCODING", "SCHEMA_VERSION", "Clock", "Data", "Message", "ObstacleField",
+    "ObstacleState", "RobotState", "SensePose", "SenseRange", "SenseTarget", "SenseTargets", "Share", "TargetField",
+    "TargetState", "TrackingField", "WheelCommand", "WorldState",
+    "decode", "encode", "peek", "summary", "to_plain", "to_wire",
 ]

@@ -110,10 +110,6 @@ class RosOut:
     qos: Qos = DEFAULT_QOS
 
 
-class MappingError(ValueError):
-    """A message whose content cannot be mapped (a field missing or not a finite number)."""
-
-
 def ros_name(robot: str) -> str:
     """A robot id as a ROS name token (robot ids may hold ``-``, ROS names may not)."""
     return robot.replace("-", "_")
@@ -130,13 +126,6 @@ def range_frame(robot: str, j: int) -> str:
 def stamp_ns(t: float) -> int:
     """Sim time in s -> integer ns (stamps are finite and >= 0: the protocol checked them)."""
     return int(round(t * 1e9))
-
-
-def _number(doc: Mapping[str, Any], name: str, where: str) -> float:
-    v = doc.get(name) if isinstance(doc, Mapping) else None
-    if type(v) not in (int, float) or not math.isfinite(v):
-        raise MappingError(f"{where}.{name}: expected a finite number, got {v!r}")
-    return float(v)
 
 
 class RosMapper:
@@ -192,24 +181,21 @@ class RosMapper:
         robot = parsed.robot
         if robot is not None and self.robots is not None and robot not in self.robots:
             return []
-        try:
-            if isinstance(msg, WorldState):
-                return self._world_state(msg)
-            if isinstance(msg, SenseRange) and robot is not None:
-                return self._range(robot, msg)
-            if isinstance(msg, WheelCommand) and robot is not None:
-                return self._wheels(robot, msg)
-            if isinstance(msg, (TargetField, TrackingField)) and robot is not None:
-                self._target[robot] = msg
-                return [self._target_field(robot, msg)]
-            if isinstance(msg, ObstacleField) and robot is not None and parsed.kind is KeyKind.FIELD_OBSTACLE:
-                self._obstacles.setdefault(robot, {})[msg.index] = msg
-                t = f"/{ros_name(robot)}/ekm/obstacle_field_{msg.index}"
-                return [RosOut(t, FLOAT_ARRAY, self._lattice_array(msg.b), stamp_ns(msg.stamp))]
-            if isinstance(msg, Clock) and self.clock:
-                return [RosOut("/clock", CLOCK, self.ifc.make(CLOCK, clock=self._time(msg.stamp)), stamp_ns(msg.stamp))]
-        except MappingError as exc:
-            self.drops.drop(key, exc)
+        if isinstance(msg, WorldState):
+            return self._world_state(msg)
+        if isinstance(msg, SenseRange) and robot is not None:
+            return self._range(robot, msg)
+        if isinstance(msg, WheelCommand) and robot is not None:
+            return self._wheels(robot, msg)
+        if isinstance(msg, (TargetField, TrackingField)) and robot is not None:
+            self._target[robot] = msg
+            return [self._target_field(robot, msg)]
+        if isinstance(msg, ObstacleField) and robot is not None and parsed.kind is KeyKind.FIELD_OBSTACLE:
+            self._obstacles.setdefault(robot, {})[msg.index] = msg
+            t = f"/{ros_name(robot)}/ekm/obstacle_field_{msg.index}"
+            return [RosOut(t, FLOAT_ARRAY, self._lattice_array(msg.b), stamp_ns(msg.stamp))]
+        if isinstance(msg, Clock) and self.clock:
+            return [RosOut("/clock", CLOCK, self.ifc.make(CLOCK, clock=self._time(msg.stamp)), stamp_ns(msg.stamp))]
         return []
 
     # ------------------------------------------------------------------ builders
@@ -265,13 +251,7 @@ class RosMapper:
         for rid, r in msg.robots.items():
             if self.robots is not None and rid not in self.robots:
                 continue
-            where = f"robots.{rid}"
-            try:
-                x, y, th = _number(r, "x", where), _number(r, "y", where), _number(r, "theta", where)
-                v_l, v_r = _number(r, "v_l_exec", where), _number(r, "v_r_exec", where)
-            except MappingError as exc:  # this robot is left out of this state's messages
-                self.drops.drop(self.keys.world_state(), exc)
-                continue
+            x, y, th, v_l, v_r = r.x, r.y, r.theta, r.v_l_exec, r.v_r_exec  # typed and finite (protocol.messages)
             poses[rid] = (x, y, th)
             cov = np.zeros(36)
             odom = self.ifc.make(
@@ -293,7 +273,7 @@ class RosMapper:
                 self.drops.drop(self.keys.world_geometry(), f"the run's geometry cannot be drawn ({exc!r}); no scene markers")
         try:
             markers = self._dynamic_markers(t, poses, msg)
-        except (MappingError, KeyError, TypeError, ValueError, IndexError) as exc:
+        except (KeyError, TypeError, ValueError, IndexError) as exc:  # a moving obstacle's shape it cannot draw
             self.drops.drop(self.keys.world_state(), exc)
             markers = []
         if markers:
@@ -416,11 +396,10 @@ class RosMapper:
             if math.isfinite(self.target_range):
                 out.append(self._circle(t, "sensing", i, x, y, self.target_range, (0.1, 0.55, 0.95, 0.5)))
         for i, (tid, tg) in enumerate(sorted(msg.targets.items())):
-            x, y = _number(tg, "x", f"targets.{tid}"), _number(tg, "y", f"targets.{tid}")
+            x, y = tg.x, tg.y
             out.append(self._marker(t, "targets", i, 2, self._pose(x, y, 0.015), (0.03, 0.03, 0.03), (0.95, 0.6, 0.1, 1.0)))
         for i, (oid, ob) in enumerate(sorted(msg.obstacles.items())):
-            where = f"obstacles.{oid}"
-            x, y, th = _number(ob, "x", where), _number(ob, "y", where), _number(ob, "theta", where)
+            x, y, th = ob.x, ob.y, ob.theta
             shape = self._moving.get(oid, {})
             color = (0.75, 0.35, 0.35, 0.9)
             if shape.get("vertices"):

@@ -12,8 +12,9 @@ many targets at least one robot observes (the instantaneous A), and per robot ho
 targets it sees.
 
 :class:`MonitorState` is the pure part (fed with key, payload and arrival time, tested
-without Zenoh); it validates what it draws: a ``world/state`` whose robots lack a finite
-x, y or theta is dropped and counted like any malformed message. :func:`render` draws
+without Zenoh); what it draws comes typed from the protocol's decoder (a ``world/state``
+whose robots lack a finite x, y or theta does not decode: it is dropped and counted like
+any malformed message). :func:`render` draws
 it with rich; :func:`run_monitor` is the thin shell that subscribes and redraws.
 """
 
@@ -91,21 +92,6 @@ class RobotView:
         return 1e3 * xs[min(len(xs) - 1, int(q * len(xs)))]
 
 
-def _finite(x: Any) -> bool:
-    return type(x) in (int, float) and math.isfinite(x)
-
-
-def target_entry(tid: str, t: Any) -> tuple[float, float]:
-    """(x, y) of one target of a world state; ValueError naming the field when it is not a
-    map with finite x and y."""
-    if not isinstance(t, dict):
-        raise ValueError(f"targets.{tid}: expected a map")
-    for name in ("x", "y"):
-        if not _finite(t.get(name)):
-            raise ValueError(f"targets.{tid}.{name}: expected a finite number, got {t.get(name)!r}")
-    return float(t["x"]), float(t["y"])
-
-
 @dataclass
 class Observation:
     """The targets one robot observes, from its latest message of one ``source``."""
@@ -113,25 +99,6 @@ class Observation:
     stamp: float
     targets: frozenset[str]
     source: str  # "share" (what the robot reports) or "sense" (what the world says it senses)
-
-
-def robot_entry(rid: str, r: Any) -> tuple[tuple[float, float, float], tuple[float, float] | None, bool]:
-    """(pose, goal, in_contact) of one robot of a world state; ValueError naming the field
-    when it is not drawable (x, y, theta finite numbers; goal None or two finite numbers)."""
-    if not isinstance(r, dict):
-        raise ValueError(f"robots.{rid}: expected a map")
-    for name in ("x", "y", "theta"):
-        if not _finite(r.get(name)):
-            raise ValueError(f"robots.{rid}.{name}: expected a finite number, got {r.get(name)!r}")
-    goal = r.get("goal")
-    if goal is not None:
-        if not (isinstance(goal, list) and len(goal) == 2 and all(_finite(g) for g in goal)):
-            raise ValueError(f"robots.{rid}.goal: expected null or [x, y], got {goal!r}")
-        goal = (float(goal[0]), float(goal[1]))
-    contact = r.get("in_contact", False)
-    if not isinstance(contact, bool):
-        raise ValueError(f"robots.{rid}.in_contact: expected a bool, got {contact!r}")
-    return (float(r["x"]), float(r["y"]), float(r["theta"])), goal, contact
 
 
 class MonitorState:
@@ -187,27 +154,21 @@ class MonitorState:
                 robot = parsed.robot if parsed.robot != WORLD else None
             except Exception:  # decode accepted the key, so this does not happen; never crash on it
                 return
-            if isinstance(msg, WorldState):
-                try:
-                    entries = {rid: robot_entry(rid, r) for rid, r in msg.robots.items()}
-                    targets = {tid: target_entry(tid, t) for tid, t in msg.targets.items()}
-                except ValueError as exc:
-                    self.drops.drop(key, f"world state not drawable: {exc}")
-                    return
+            if isinstance(msg, WorldState):  # typed: every robot has a finite pose (protocol.messages)
                 if math.isfinite(self.sim_time) and msg.stamp < self.sim_time:  # a new run or replay
                     self.shares.clear()
                     self.sensed.clear()
-                self.targets = targets
+                self.targets = {tid: (t.x, t.y) for tid, t in msg.targets.items()}
                 self.last_stamp[key] = msg.stamp
                 self.sim_time = msg.stamp
                 self.world_at = at
-                for rid, (pose, goal, contact) in entries.items():
+                for rid, r in msg.robots.items():
                     v = self.robot(rid)
                     if v is None:
                         continue
-                    v.pose, v.in_contact = pose, contact
-                    if goal is not None:
-                        v.goal = goal
+                    v.pose, v.in_contact = (r.x, r.y, r.theta), r.in_contact
+                    if r.goal is not None:
+                        v.goal = r.goal
                 return
             self.last_stamp[key] = msg.stamp
             if robot and isinstance(msg, (Share, SenseTargets)):

@@ -11,7 +11,8 @@ metadata record and the first ``/view/scene``). A router that refuses the query 
 control) leaves the recording without it, and says so.
 
 A message whose stamp cannot be read is still recorded, at the latest sim time seen; a
-``world/state`` that does not decode is recorded but drawn in no view, and counted.
+``world/state`` that does not decode (its entries are typed: a robot without a finite
+pose does not decode) is recorded but drawn in no view, and counted.
 """
 
 from __future__ import annotations
@@ -127,12 +128,9 @@ class Recording:
             msg = self.drops.decode(key, payload)
             if isinstance(msg, WorldState) and self._geometry is not None:
                 self._add_geometry(msg.stamp)
-            if isinstance(msg, WorldState) and self._views is not None:
-                try:
-                    self._views.write_state(msg.stamp, {"robots": msg.robots, "targets": msg.targets,
-                                                        "obstacles": msg.obstacles})
-                except (KeyError, TypeError, ValueError) as exc:  # well-formed plain data, wrong shape
-                    self.drops.drop(key, f"world state not drawable: {exc!r}")
+            if isinstance(msg, WorldState) and self._views is not None:  # typed: every entry drawable
+                self._views.write_state(msg.stamp, {"robots": msg.robots, "targets": msg.targets,
+                                                    "obstacles": msg.obstacles})
         r.malformed = self.drops.total
 
     def _add_geometry(self, t: float) -> None:

@@ -7,7 +7,6 @@ Zenoh's threads.
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import math
 import queue
@@ -18,6 +17,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+import msgspec
 import zenoh
 
 from cekm_swarm.protocol import DEFAULT_KEYS, KeyKind, KeySpace, MessageError, decode, summary, to_plain
@@ -357,7 +357,7 @@ def build_message(key: str, fields_json: str, keys: KeySpace = DEFAULT_KEYS, *, 
     doc.setdefault("sender", sender)
     if parsed.index is not None:
         doc.setdefault("index", parsed.index)
-    names = [f.name for f in dataclasses.fields(cls)]
+    names = list(cls.__struct_fields__)
     unknown = sorted(set(doc) - set(names))
     if unknown:
         raise MessageError(f"{key}: unknown field(s) {', '.join(unknown)}; a {kind.value} message has "
@@ -365,8 +365,7 @@ def build_message(key: str, fields_json: str, keys: KeySpace = DEFAULT_KEYS, *, 
     try:
         msg = cls(**doc)
     except TypeError:
-        missing = [n for n, f in zip(names, dataclasses.fields(cls))
-                   if n not in doc and f.default is dataclasses.MISSING]
+        missing = [f.name for f in msgspec.structs.fields(cls) if f.name not in doc and f.required]
         raise MessageError(f"{key}: missing field(s) {', '.join(missing)}") from None
     data = encode(msg)
     decode(key, data, keys=keys, expect=kind)  # the checks a receiver makes (index matches the key, ...)

@@ -103,18 +103,14 @@ class LiveView:
             self.changed.notify_all()
 
     def _world(self, msg: WorldState) -> None:
+        """The typed ground truth (every pose finite: protocol.messages.WorldState), as JSON data."""
         self.time = msg.stamp
-        self.targets = msg.targets
-        self.obstacles = msg.obstacles
+        self.targets = {tid: {"x": t.x, "y": t.y} for tid, t in msg.targets.items()}
+        self.obstacles = {oid: {"x": o.x, "y": o.y, "theta": o.theta} for oid, o in msg.obstacles.items()}
         for rid, r in msg.robots.items():
-            try:
-                x, y, th = float(r["x"]), float(r["y"]), float(r["theta"])
-            except (KeyError, TypeError, ValueError):
-                self.drops.drop(self.keys.world_state(), f"robots.{rid}: no numeric x, y, theta")
-                continue
-            g = r.get("goal")
-            self.poses[rid] = {"x": _r(x), "y": _r(y), "theta": _r(th), "in_contact": bool(r.get("in_contact", False)),
-                               "goal": [_r(g[0]), _r(g[1])] if isinstance(g, (list, tuple)) and len(g) == 2 else None}
+            x, y, g = r.x, r.y, r.goal
+            self.poses[rid] = {"x": _r(x), "y": _r(y), "theta": _r(r.theta), "in_contact": r.in_contact,
+                               "goal": None if g is None else [_r(g[0]), _r(g[1])]}
             path = self.paths.setdefault(rid, [])
             if not path or math.hypot(x - path[-1][1], y - path[-1][2]) >= PATH_STEP:
                 path.append([_r(msg.stamp, 3), _r(x), _r(y)])

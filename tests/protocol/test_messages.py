@@ -12,8 +12,9 @@ import pytest
 
 from cekm_swarm.protocol import (DEFAULT_KEYS, SCHEMA_VERSION, Clock, Data, DropCounter, KeyKind, KeySpace,
                                  MessageArrayError, MessageError, MessageFieldError, MessageFormatError,
-                                 MessageKindError, MessageVersionError, ObstacleField, SenseRange, SenseTarget, Share,
-                                 TargetField, WheelCommand, WorldState, decode, encode, peek, summary, to_plain)
+                                 MessageKindError, MessageVersionError, ObstacleField, RobotState, SenseRange, SenseTarget,
+                                 Share, TargetField, TargetState, WheelCommand, WorldState, decode, encode, peek,
+                                 summary, to_plain, to_wire)
 
 K = DEFAULT_KEYS
 RNG = np.random.default_rng(5)
@@ -92,7 +93,7 @@ def test_equality_compares_arrays():
     (lambda: SenseTarget(math.nan, "world", 0, 0, True), "stamp", "not finite"),
     (lambda: SenseTarget(1.0, "", 0, 0, True), "sender", "1..128 characters"),
     (lambda: SenseTarget(1.0, 5, 0, 0, True), "sender", "expected a string"),
-    (lambda: SenseTarget(1.0, "w", 4.0, 0, True), "alpha", r"outside \[-pi, pi\]"),
+    (lambda: SenseTarget(1.0, "w", 4.0, 0, True), "alpha", r"4.0 is not an angle in \[-pi, pi\]"),
     (lambda: SenseTarget(1.0, "w", 0, -0.1, True), "d", "below 0"),
     (lambda: SenseTarget(1.0, "w", 0, math.inf, True), "d", "not finite"),
     (lambda: SenseTarget(1.0, "w", 0, 0, 1), "visible", "expected a bool"),
@@ -112,16 +113,26 @@ def test_equality_compares_arrays():
     (lambda: WheelCommand(1.0, "s", math.nan, 0, 0), "v_l", "not finite"),
     (lambda: WheelCommand(1.0, "s", 0, None, 0), "v_r", "expected a number"),
     (lambda: WheelCommand(1.0, "s", 0, 0, -1), "seq", "out of range"),
-    (lambda: Share(1.0, "s", (0, 0), {}), "pose", "expected 3 numbers"),
-    (lambda: Share(1.0, "s", (0, 0, 9.0), {}), "pose[2]", "outside"),
+    (lambda: Share(1.0, "s", (0, 0), {}), "pose", "expected 3 values"),
+    (lambda: Share(1.0, "s", (0, 0, 9.0), {}), "pose[2]", "not an angle"),
     (lambda: Share(1.0, "s", (0, 0, 0), {"t1": (0, math.nan)}), "targets.t1[1]", "not finite"),
     (lambda: Share(1.0, "s", (0, 0, 0), [("t1", 0, 0)]), "targets", "expected a map"),
-    (lambda: WorldState(1.0, "w", {"r1": {"x": math.nan}}, {}, {}), "robots.r1.x", "not finite"),
-    (lambda: WorldState(1.0, "w", {"world": {}}, {}, {}), "robots.world", "reserved"),
+    (lambda: WorldState(1.0, "w", {"r1": {"x": math.nan, "y": 0, "theta": 0}}, {}, {}), "robots.r1.x", "not finite"),
+    (lambda: WorldState(1.0, "w", {"r1": {"y": 0.5, "theta": 0}}, {}, {}), "robots.r1.x", "missing"),
+    (lambda: WorldState(1.0, "w", {"r1": {"x": 0, "y": 0, "theta": 0, "z": 1}}, {}, {}), "robots.r1.z",
+     "unexpected field"),
+    (lambda: WorldState(1.0, "w", {"r1": {"x": 0, "y": 0, "theta": 0, "goal": [1.0]}}, {}, {}), "robots.r1.goal",
+     "expected 2 values"),
+    (lambda: WorldState(1.0, "w", {"r1": {"x": 0, "y": 0, "theta": 0, "in_contact": "yes"}}, {}, {}),
+     "robots.r1.in_contact", "expected a bool"),
+    (lambda: WorldState(1.0, "w", {"world": {"x": 0, "y": 0, "theta": 0}}, {}, {}), "robots.world", "reserved"),
     (lambda: WorldState(1.0, "w", {"r1": 3}, {}, {}), "robots.r1", "expected a map"),
     (lambda: WorldState(1.0, "w", {}, [], {}), "targets", "expected a map"),
-    (lambda: WorldState(1.0, "w", {}, {"t": object()}, {}), "targets.t", "not plain data"),
+    (lambda: WorldState(1.0, "w", {}, {"t": object()}, {}), "targets.t", "expected a map"),
+    (lambda: WorldState(1.0, "w", {}, {"t": {"x": "left", "y": 0}}, {}), "targets.t.x", "expected a number"),
     (lambda: WorldState(1.0, "w", {}, {}, {1: 2}), "obstacles", "map key 1"),
+    (lambda: Data(1.0, "w", {"a": [[[[[[[[[[[[[[[[[[1]]]]]]]]]]]]]]]]]]}), "values.a" + "[0]" * 17, "deeper"),
+    (lambda: Data(1.0, "w", {"a": b"x"}), "values.a", "not plain data"),
     (lambda: Clock(1.0, "w", -3), "tick", "out of range"),
 ])
 def test_construction_errors_name_the_field(build, field, match):
@@ -131,9 +142,33 @@ def test_construction_errors_name_the_field(build, field, match):
     assert f"field '{field}'" in str(info.value)
 
 
-def test_world_state_normalizes_plain_data():
-    m = WorldState(1.0, "world", {"r1": {"goal": (1, np.float64(2.5)), "c": np.bool_(True)}}, {}, {})
-    assert m.robots["r1"] == {"goal": [1, 2.5], "c": True}
+def test_world_state_entries_are_typed_and_normalized():
+    m = WorldState(1.0, "world", {"r1": {"x": 1, "y": np.float64(0.5), "theta": 0.0, "goal": (1, np.float64(2.5)),
+                                         "in_contact": np.bool_(True)}}, {"t1": {"x": 1, "y": 2}}, {})
+    r = m.robots["r1"]
+    assert isinstance(r, RobotState) and isinstance(m.targets["t1"], TargetState)
+    assert (r.x, r.y, r.goal, r.in_contact, r.v_l_exec) == (1.0, 0.5, (1.0, 2.5), True, 0.0)
+    assert type(r.x) is float and type(r.goal[0]) is float and type(r.in_contact) is bool
+    assert r["x"] == 1.0 and r.get("goal") == (1.0, 2.5) and r.get("nothing", 7) == 7 and "theta" in r
+    back = decode(K.world_state(), encode(m))
+    assert back == m and back.robots["r1"] == r
+    # typed entries are taken as they are, and give the map World.state() gives
+    again = WorldState(1.0, "world", {"r1": r}, m.targets, {})
+    assert again.robots["r1"] is r
+    assert to_plain(m)["robots"]["r1"] == {"x": 1.0, "y": 0.5, "theta": 0.0, "v_l": 0.0, "v_r": 0.0, "v_l_exec": 0.0,
+                                            "v_r_exec": 0.0, "in_contact": True, "goal": [1.0, 2.5]}
+
+
+def test_world_state_entries_on_the_wire_are_checked_like_the_fields():
+    good = to_wire(WorldState(1.0, "world", {"r1": {"x": 0.0, "y": 0.0, "theta": 0.0}}, {}, {}))
+    for robot, field, match in [({"x": "left", "y": 0.0, "theta": 0.0}, "robots.r1.x", "expected a number"),
+                                ({"y": 0.0, "theta": 0.0}, "robots.r1.x", "missing"),
+                                ({"x": 0.0, "y": 0.0, "theta": 0.0, "extra": 1}, "robots.r1.extra", "unexpected"),
+                                ({"x": 0.0, "y": 0.0, "theta": 4.0}, "robots.r1.theta", "angle"),
+                                (3, "robots.r1", "expected a map")]:
+        raises(MessageFieldError, K.world_state(), pack({**good, "robots": {"r1": robot}}), field, match)
+    raises(MessageFieldError, K.world_state(), pack({**good, "robots": {"world": good["robots"]["r1"]}}),
+           "robots.world", "reserved")
 
 
 # --------------------------------------------------------------------------- decoding errors

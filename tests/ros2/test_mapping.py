@@ -2,11 +2,12 @@
 
 import math
 
+import msgpack
 import numpy as np
 import pytest
 
-from cekm_swarm.protocol import (Clock, ObstacleField, SenseRange, TargetField, TrackingField, WheelCommand,
-                                 WorldState)
+from cekm_swarm.protocol import (Clock, DropCounter, ObstacleField, SenseRange, TargetField, TrackingField,
+                                 WheelCommand, WorldState, to_wire)
 from cekm_swarm.robot import KHEPERA
 from cekm_swarm.ros2.interfaces import interfaces
 from cekm_swarm.ros2.mapping import TOPICS, RosMapper
@@ -59,14 +60,18 @@ def test_world_state_gives_odometry_tf_and_markers():
         IFC.cdr(o.msg, o.ros_type)  # every message encodes
 
 
-def test_a_malformed_robot_entry_is_dropped_and_counted_the_others_are_mapped():
+def test_a_world_state_that_does_not_decode_never_reaches_the_mapper_the_rest_is_mapped():
+    """The world state is typed: a robot entry without a finite pose (or a target without
+    numbers) fails the protocol's decoder, which the bag export and the bridge count as a
+    drop; the mapper maps what decodes (the robots asked for)."""
+    drops = DropCounter("ros2 mapping")
+    wire = to_wire(state(r1=(0, 0, 0, 0, 0), r2=(0, 0, 0, 0, 0)))
+    for change in ({"robots": {**wire["robots"], "r2": {"x": "left", "y": 0.0}}},
+                   {"targets": {"g": {"x": None, "y": 0.0}}}):
+        assert drops.decode("cekm/world/state", msgpack.packb({**wire, **change})) is None
+    assert drops.count("cekm/world/state") == 2
     m = RosMapper(IFC)
-    bad = WorldState(0.0, "world", {"r1": {"x": 0.0, "y": 0.0, "theta": 0.0, "v_l_exec": 0.0, "v_r_exec": 0.0},
-                                    "r2": {"x": "left", "y": 0.0}}, {"g": {"x": None}}, {})
-    t = by_topic(m.feed("cekm/world/state", bad))
-    assert "/r1/odom" in t and "/r2/odom" not in t and "/world/markers" not in t
-    assert m.drops.count("cekm/world/state") == 2
-    assert m.feed("not/a/cekm/key", bad) == []
+    assert m.feed("not/a/cekm/key", state(r1=(0, 0, 0, 0, 0))) == []
     only_r2 = by_topic(RosMapper(IFC, robots=["r2"]).feed("cekm/world/state", state(r1=(0, 0, 0, 0, 0))))
     assert set(only_r2) == {"/world/markers"}  # the targets and obstacles, no r1
     assert {mk.ns for mk in only_r2["/world/markers"].msg.markers} == {"targets", "moving_obstacles"}

@@ -115,21 +115,22 @@ def test_robot_filter_and_key_filter():
 
 
 def test_a_world_state_it_cannot_draw_is_dropped_and_counted_not_a_crash():
+    """The world state is typed: one whose robots lack a drawable pose does not decode, so
+    the monitor drops and counts it like any malformed message and keeps the last good one."""
     st = MonitorState()
     st.observe(K.world_state(), encode(world_state(1.0, 0.3)), at=1.0)
-    bad_states = [
-        WorldState(2.0, "world", {"r1": {"y": 0.5, "theta": 0.0}}, {}, {}),  # no x
-        WorldState(2.0, "world", {"r1": {"x": "left", "y": 0.5, "theta": 0.0}}, {}, {}),
-        WorldState(2.0, "world", {"r1": {"x": 0.1, "y": 0.5, "theta": 0.0, "goal": [1.0]}}, {}, {}),
-        WorldState(2.0, "world", {"r1": {"x": 0.1, "y": 0.5, "theta": 0.0, "in_contact": "yes"}}, {}, {}),
-        WorldState(2.0, "world", {"r1": {"x": True, "y": 0.5, "theta": 0.0}}, {}, {}),
+    good = msgpack.unpackb(encode(world_state(2.0, 0.3)))
+    bad_robots = [
+        {"y": 0.5, "theta": 0.0},  # no x
+        {"x": "left", "y": 0.5, "theta": 0.0},
+        {"x": 0.1, "y": 0.5, "theta": 0.0, "goal": [1.0]},
+        {"x": 0.1, "y": 0.5, "theta": 0.0, "in_contact": "yes"},
+        {"x": True, "y": 0.5, "theta": 0.0},
+        {"x": float("nan"), "y": 0.5, "theta": 0.0},
     ]
-    for i, s in enumerate(bad_states):
-        st.observe(K.world_state(), encode(s), at=2.0 + i)
-    wire = msgpack.unpackb(encode(world_state(3.0, 0.3)))
-    wire["robots"]["r1"]["x"] = float("nan")
-    st.observe(K.world_state(), msgpack.packb(wire), at=9.0)
-    assert st.drops.total == len(bad_states) + 1
+    for i, r in enumerate(bad_robots):
+        st.observe(K.world_state(), msgpack.packb({**good, "robots": {"r1": r}}), at=2.0 + i)
+    assert st.drops.total == len(bad_robots)
     assert st.robots["r1"].pose == (0.3, 0.5, 0.1) and st.sim_time == 1.0  # the last good state stays
     assert "dropped 6" in render_text(st, now=9.0)
 
@@ -178,7 +179,9 @@ def test_tracking_block_who_observes_which_target_and_the_instantaneous_a():
     assert tr["targets"]["t1"]["observed_by"] == [] and tr["targets"]["t3"]["observed_by"] == ["r1"]
     assert tr["observed"] == 1 and list(tr["per_robot"]) == ["r1"]
     # a world state with a target it cannot draw is dropped whole; the last good one stays
-    st.observe(K.world_state(), encode(tracking_state(3.6, {"t1": ("left", 0.0)})), at=3.6)
+    wire = msgpack.unpackb(encode(tracking_state(3.6, TARGETS)))
+    wire["targets"]["t1"]["x"] = "left"
+    st.observe(K.world_state(), msgpack.packb(wire), at=3.6)
     assert st.drops.total == 2 and st.targets == TARGETS and st.sim_time == 3.5
     # a new run (sim time back to 0) forgets the old run's observations
     st.observe(K.world_state(), encode(tracking_state(0.0, TARGETS)), at=5.0)

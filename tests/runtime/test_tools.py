@@ -8,6 +8,7 @@ import threading
 from pathlib import Path
 
 import click
+import msgpack
 import pytest
 import zenoh
 from click.testing import CliRunner
@@ -269,8 +270,8 @@ def test_record_writes_the_channels_and_views_of_the_worlds_log(router, clients,
 
 
 def test_recording_draws_what_it_can_and_counts_what_it_cannot(tmp_path):
-    """A world state that decodes but has no drawable pose is recorded, drawn in no view,
-    and counted; a malformed one is recorded as it came and counted."""
+    """A world state without a drawable pose (it does not decode: its entries are typed) is
+    recorded as it came, drawn in no view, and counted; so is one that is not a message."""
     from cekm_swarm.runtime.mcap_log import McapRecorder
     from cekm_swarm.runtime.record import Recording
 
@@ -278,7 +279,9 @@ def test_recording_draws_what_it_can_and_counts_what_it_cannot(tmp_path):
     with McapRecorder(out) as recorder:
         rec = Recording(recorder)
         rec.add(K.world_state(), encode(world_state(1.0, 0.1)))
-        rec.add(K.world_state(), encode(WorldState(2.0, "world", {"r1": {"y": 0.5}}, {}, {})))  # no x
+        no_x = msgpack.unpackb(encode(world_state(2.0, 0.1)))
+        del no_x["robots"]["r1"]["x"]
+        rec.add(K.world_state(), msgpack.packb(no_x))  # no x: the typed world state does not decode
         rec.add(K.world_state(), b"\x93\x01")  # not a message
     assert rec.result.messages == 3 and rec.result.malformed == 2
     topics = [m.topic for m in read_messages(out)]

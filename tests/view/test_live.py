@@ -7,6 +7,7 @@ import json
 import threading
 import urllib.request
 
+import msgpack
 import numpy as np
 import pytest
 
@@ -52,10 +53,12 @@ def test_paths_accumulate_and_malformed_messages_are_dropped_and_counted():
         v.observe(K.world_state(), _state(0.1 * i, 0.2 + 0.001 * i))  # 1 mm steps: kept every PATH_STEP
     v.observe(K.world_state(), b"\x93garbage")
     v.observe(K.field_target("r2"), encode(ObstacleField(0.5, "r2/obstacle-3", 3, 0, np.ones(4))))  # wrong kind
-    v.observe(K.world_state(), encode(WorldState(1.0, "world", {"r1": {"x": "far"}}, {}, {})))  # no numeric pose
+    wire = msgpack.unpackb(_state(1.0, 0.3))
+    wire["robots"]["r1"]["x"] = "far"
+    v.observe(K.world_state(), msgpack.packb(wire))  # no numeric pose: the typed world state does not decode
     tick = v.tick()
     assert tick["dropped"] == 3
-    assert tick["time"] == 1.0 and tick["robots"]["r1"]["x"] == pytest.approx(0.209)
+    assert tick["time"] == 0.9 and tick["robots"]["r1"]["x"] == pytest.approx(0.209)  # dropped whole
     p = v.init()["paths"]["r1"]
     assert len(p) == 1 + int(0.009 / PATH_STEP + 1e-9) and p[0] == [0.0, 0.2, 0.5]
 

@@ -1,0 +1,317 @@
+"""Encoding and decoding the declared messages (:mod:`.messages`), both from the one
+declaration of each message.
+
+* :func:`encode`: msgspec packs the message's fields in declaration order after the
+  envelope's ``v`` and ``kind``: the bytes are those of ``msgpack.packb`` of the wire map
+  (tested against it), so logs written before read the same.
+* :func:`decode`: msgspec decodes the bytes against a wire type generated from the
+  message's declaration (the envelope's ``v`` and ``kind`` as literals, then every field
+  with its declared type and constraints, all required, nothing else allowed; vectors as
+  :class:`~.schema.WireVector`), and the message is built from it (its construction
+  check: vectors to read-only float64 arrays, the message's rules). Bytes it refuses are
+  read again with msgpack to say precisely why (:func:`_explain`): the key, the field and
+  the problem. Only refusals pay for that.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from typing import Any, Literal, Union, get_args, get_origin, get_type_hints
+
+import msgpack
+import msgspec
+import numpy as np
+
+from .checks import wire_vector
+from .errors import (KeySpaceError, MessageError, MessageFieldError, MessageFormatError, MessageKindError,
+                     MessageVersionError)
+from .keys import DEFAULT_KEYS, KeyKind, KeySpace
+from .schema import MESSAGE_TYPES, SCHEMA_VERSION, Message, WireVector
+
+_F8 = np.dtype("<f8")
+
+
+# --------------------------------------------------------------------------- encode
+
+
+def _enc_hook(x: Any) -> Any:
+    if type(x) is np.ndarray:
+        if x.dtype is not _F8 or not x.flags.c_contiguous:
+            x = np.ascontiguousarray(x, dtype=_F8)
+        return {"dtype": "<f8", "shape": [x.shape[0]], "data": x.tobytes()}
+    raise TypeError(f"{type(x).__name__} is not a field type of the protocol")
+
+
+_encoder = msgspec.msgpack.Encoder(enc_hook=_enc_hook)
+_HEADS: dict[type, bytes] = {}
+
+
+def _head(cls: type) -> bytes:
+    """The wire map's header and its envelope entries ``v`` and ``kind``: what comes before
+    the message's own fields (msgspec packs those as a map of their own, whose one-byte
+    header this replaces)."""
+    n = len(cls.__struct_fields__) + 2
+    if n > 15:  # pragma: no cover - a declaration would have to grow past 13 fields
+        raise TypeError(f"{cls.__name__}: more fields than one msgpack fixmap holds")
+    head = _HEADS[cls] = bytes([0x80 | n]) + msgpack.packb("v") + msgpack.packb(SCHEMA_VERSION) + \
+        msgpack.packb("kind") + msgpack.packb(cls.KIND.value)
+    return head
+
+
+def encode(msg: Message) -> bytes:
+    """The msgpack bytes of ``msg`` (already checked when it was built)."""
+    head = _HEADS.get(type(msg))
+    if head is None:
+        if type(msg) not in MESSAGE_TYPES.values():
+            raise MessageKindError(f"{type(msg).__name__} is not a protocol message")
+        head = _head(type(msg))
+    return head + _encoder.encode(msg)[1:]
+
+
+def to_wire(msg: Message) -> dict[str, Any]:
+    """The map that :func:`encode` packs: the envelope, then the kind's fields in order."""
+    return msgpack.unpackb(encode(msg), raw=False)
+
+
+# --------------------------------------------------------------------------- decode
+
+
+def _wire_type(t: Any) -> Any:
+    """The declared annotation ``t`` as the wire carries it: a vector as its WireVector."""
+    if t is np.ndarray:
+        return WireVector
+    if get_origin(t) in (Union, type(int | None)) and np.ndarray in get_args(t):
+        return Union[tuple(_wire_type(a) for a in get_args(t))]  # type: ignore[return-value]
+    return t
+
+
+class _Codec:
+    """Decoding one message class: its generated wire type and decoder."""
+
+    __slots__ = ("cls", "fields", "vectors", "indexed", "decoder")
+
+    def __init__(self, cls: type[Message]) -> None:
+        hints = get_type_hints(cls, include_extras=True)
+        self.cls = cls
+        self.fields = frozenset(cls.__struct_fields__)
+        self.vectors = frozenset(n for n in cls.__struct_fields__ if _wire_type(hints[n]) is not hints[n])
+        self.indexed = "index" in self.fields  # a sensor's index: held to the key's and the key space's
+        wire = msgspec.defstruct(
+            f"{cls.__name__}Wire",
+            [("v", Literal[SCHEMA_VERSION]), ("kind", Literal[cls.KIND.value])]
+            + [(name, _wire_type(hints[name])) for name in cls.__struct_fields__],
+            forbid_unknown_fields=True, gc=False)
+        self.decoder = msgspec.msgpack.Decoder(wire)
+
+
+_CODECS: dict[KeyKind, _Codec] = {}
+
+
+def _codec(kind: KeyKind) -> _Codec | None:
+    c = _CODECS.get(kind)
+    if c is None:
+        cls = MESSAGE_TYPES.get(kind)
+        if cls is None:
+            return None
+        c = _CODECS[kind] = _Codec(cls)
+    return c
+
+
+_PARSED: dict[int, tuple[KeySpace, dict[str, tuple[KeyKind, int | None]]]] = {}
+_PARSED_MAX = 4096
+_astuple = msgspec.structs.astuple
+
+
+def _parse_cached(keys: KeySpace, key: str) -> tuple[KeyKind, int | None]:
+    """keys.parse(key) memoized per KeySpace object (receivers see the same few keys)."""
+    entry = _PARSED.get(id(keys))
+    if entry is None or entry[0] is not keys:
+        entry = _PARSED[id(keys)] = (keys, {})
+    cache = entry[1]
+    hit = cache.get(key)
+    if hit is None:
+        p = keys.parse(key)
+        if len(cache) >= _PARSED_MAX:
+            cache.clear()
+        hit = cache[key] = (p.kind, p.index)
+    return hit
+
+
+def decode(key: str | KeyKind, data: bytes | bytearray | memoryview, *, keys: KeySpace = DEFAULT_KEYS,
+           expect: KeyKind | None = None) -> Message:
+    """Decode and validate the payload received on ``key`` (a key string, or a KeyKind).
+
+    A key a graph declares for a node (``KeyKind.NODE``) carries the kind its node
+    declares: ``expect`` (from the graph), or, when not given, whatever kind of the
+    protocol the payload says.
+
+    Raises a MessageError subclass naming the key and field for anything wrong: bytes
+    that are not one msgpack map, a wrong or missing version, a kind that does not match
+    the key, missing or unexpected fields, wrong types, non-finite numbers, arrays of the
+    wrong dtype/shape/length, indices out of range or different from the key's.
+    """
+    if type(key) is not str and isinstance(key, KeyKind):
+        kind, key_index, where = key, None, key.value
+    else:
+        where = key if type(key) is str else str(key)
+        try:
+            kind, key_index = _parse_cached(keys, where)
+        except KeySpaceError as exc:
+            raise MessageKindError(exc.problem, key=where) from None
+        if kind is KeyKind.NODE:
+            kind = expect if expect is not None else _payload_kind(data, where)
+    codec = _CODECS.get(kind) or _codec(kind)
+    if codec is None:
+        raise MessageKindError(f"keys of kind '{kind.value}' carry no message", key=where)
+    try:
+        wire = codec.decoder.decode(data)
+    except Exception as exc:  # noqa: BLE001 - msgspec's ValidationError, DecodeError, RecursionError ...
+        raise _explain(codec, kind, where, data, exc) from None
+    try:
+        msg = codec.cls(*_astuple(wire)[2:])
+    except MessageError as exc:
+        raise exc.at_key(where) from None
+    if codec.indexed:
+        index = msg.index  # type: ignore[attr-defined]
+        if key_index is not None and index != key_index:
+            raise MessageFieldError(f"index {index} differs from the key's sensor index {key_index}",
+                                    key=where, field="index")
+        if not key_index_ok(keys, index):
+            raise MessageFieldError(f"{index} out of range 0..{keys.range_sensors - 1}", key=where, field="index")
+    return msg
+
+
+def _explain(codec: _Codec, kind: KeyKind, where: str, data: Any, refusal: BaseException) -> MessageError:
+    """Why the decoder refused ``data``: the bytes read again with msgpack, the envelope and
+    the fields checked in turn (the message's construction check names the field and the
+    problem); msgspec's own words when none of that finds it."""
+    try:
+        m = msgpack.unpackb(data, raw=False, strict_map_key=True)
+    except msgpack.ExtraData:
+        return MessageFormatError("trailing bytes after the msgpack map", key=where)
+    except Exception as exc:  # noqa: BLE001 - msgpack raises ValueError, FormatError, StackError, TypeError ...
+        return MessageFormatError(f"not valid msgpack ({type(exc).__name__}: {exc})", key=where)
+    if type(m) is not dict:
+        return MessageFormatError(f"expected a msgpack map, got {type(m).__name__}", key=where)
+    if "v" not in m:
+        return MessageVersionError("missing schema version field 'v'", key=where, field="v")
+    v = m.pop("v")
+    if type(v) is not int or v != SCHEMA_VERSION:
+        return MessageVersionError(f"schema version {v!r}, this code speaks {SCHEMA_VERSION}", key=where, field="v")
+    mkind = m.pop("kind", None)
+    if mkind != kind.value:
+        return MessageKindError(f"message kind {mkind!r} does not match the key's kind '{kind.value}'",
+                                key=where, field="kind")
+    if m.keys() != codec.fields:
+        missing = sorted(codec.fields - m.keys())
+        if missing:
+            return MessageFieldError("missing", key=where, field=missing[0])
+        return MessageFieldError("unexpected field", key=where, field=sorted(map(str, m.keys() - codec.fields))[0])
+    try:
+        for name in codec.vectors:
+            if m[name] is not None:
+                m[name] = wire_vector(m[name], name)  # a vector must come as its wire map
+        codec.cls(**m)
+    except MessageError as exc:
+        return exc.at_key(where)
+    except Exception as exc:  # noqa: BLE001 - whatever it is, the bytes are refused with msgspec's reason
+        refusal = exc
+    return _from_msgspec(refusal, where)
+
+
+_AT = re.compile(r" - at `\$\.?([A-Za-z_][A-Za-z0-9_]*)?[^`]*`$")
+
+
+def _from_msgspec(exc: BaseException, where: str) -> MessageError:
+    """msgspec's refusal as a MessageError naming the top-level field its path starts with."""
+    text = str(exc) or type(exc).__name__
+    m = _AT.search(text)
+    field = m.group(1) if m else None
+    problem = text[:m.start()] if m else text
+    problem = problem[:1].lower() + problem[1:]
+    if field == "v":
+        return MessageVersionError(problem, key=where, field=field)
+    if field == "kind":
+        return MessageKindError(problem, key=where, field=field)
+    if field is None and not isinstance(exc, msgspec.ValidationError):
+        return MessageFormatError(f"not valid msgpack ({problem})", key=where)
+    return MessageFieldError(problem, key=where, field=field)
+
+
+def _payload_kind(data: bytes | bytearray | memoryview, where: str) -> KeyKind:
+    """The kind a payload on a graph's own key says it is (checked again by the decode)."""
+    got, _ = peek(data)
+    try:
+        kind = KeyKind(got)
+    except ValueError:
+        raise MessageKindError(f"message kind {got!r} is not a kind of the protocol", key=where, field="kind") from None
+    if kind not in MESSAGE_TYPES:
+        raise MessageKindError(f"message kind {got!r} is not a kind of the protocol", key=where, field="kind")
+    return kind
+
+
+def key_index_ok(keys: KeySpace, index: int) -> bool:
+    """True when ``index`` is a sensor index of ``keys``."""
+    return 0 <= index < keys.range_sensors
+
+
+class _Peek(msgspec.Struct, gc=False):
+    kind: Any = None
+    stamp: Any = None
+
+
+_peek = msgspec.msgpack.Decoder(_Peek)
+
+
+def peek(data: bytes | bytearray | memoryview) -> tuple[str | None, float | None]:
+    """(kind, stamp) of a payload without validating it, (None, None) when unreadable.
+
+    For recorders that must file even malformed messages at a sim time."""
+    try:
+        m = _peek.decode(data)
+    except Exception:  # noqa: BLE001 - unreadable, whatever the reason
+        return None, None
+    kind, stamp = m.kind, m.stamp
+    kind = kind if type(kind) is str else None
+    stamp = float(stamp) if type(stamp) in (int, float) and math.isfinite(stamp) else None
+    return kind, stamp
+
+
+# --------------------------------------------------------------------------- for people
+
+
+def _plain_hook(x: Any) -> Any:
+    if type(x) is np.ndarray:
+        return x.tolist()
+    raise TypeError(f"{type(x).__name__} is not a field type of the protocol")
+
+
+def _lists(x: Any) -> Any:
+    if type(x) is tuple or type(x) is list:
+        return [_lists(v) for v in x]
+    if type(x) is dict:
+        return {k: _lists(v) for k, v in x.items()}
+    return x
+
+
+def to_plain(msg: Message) -> dict[str, Any]:
+    """``msg`` as plain data (arrays and tuples as lists, entries as maps), for printing and JSON."""
+    return {"kind": msg.KIND.value, **_lists(msgspec.to_builtins(msg, enc_hook=_plain_hook))}
+
+
+def summary(msg: Message, max_items: int = 6) -> str:
+    """A one-line description of ``msg`` (long arrays shortened), for ``topic echo``."""
+    parts = [f"{msg.KIND.value} t={msg.stamp:.3f} from={msg.sender}"]
+    for name in msg.__struct_fields__[2:]:
+        v = getattr(msg, name)
+        if isinstance(v, np.ndarray):
+            head = ", ".join(f"{x:.3g}" for x in v[:max_items])
+            more = f", ... ({v.shape[0]} values, max {v.max():.3g} at {int(v.argmax())})" if v.shape[0] > max_items else ""
+            v = f"[{head}{more}]"
+        elif isinstance(v, float):
+            v = f"{v:.4g}"
+        elif isinstance(v, dict) or isinstance(v, msgspec.Struct):
+            v = msgspec.to_builtins(v, enc_hook=_plain_hook)
+        parts.append(f"{name}={v}")
+    return " ".join(parts)
