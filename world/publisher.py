@@ -1,8 +1,16 @@
 """What the world sends each tick and what it logs: per robot the readings its graph reads
-(the world's :mod:`world.sense` encoders, and the episode's other readings), the clock and the ground-truth state; a stalled
-lockstep tick published again for the robots still waiting; and the tick's log (what the
-world sent, its Foxglove views, and what other sessions sent, drained once per tick
-through :class:`world.recorder.RecordFilter`)."""
+(the world's :mod:`world.sense` encoders, and the episode's other readings), the clock and
+the ground-truth state; a stalled lockstep tick published again for the robots still
+waiting; and the tick's log (what the world sent, its Foxglove views, and what other
+sessions sent, drained once per tick through :class:`world.recorder.RecordFilter`).
+
+Held readings: a reading the run's plan lets it hold (``RunPlan.held_readings``: every
+reader a pure node of that reading alone) is left out in a tick where it equals the last
+one sent, and the robot's ``sense/unchanged`` names it instead, with the time it was last
+sent (published before the readings). It is sent anyway once it has been left out for
+:data:`HOLD_TICKS` ticks, so its readers hear from the world within their stamp window
+(``cekm_swarm.protocol.stamps.FUTURE_S``). A stalled tick published again sends every
+reading."""
 
 from __future__ import annotations
 
@@ -10,20 +18,29 @@ from typing import Any
 
 import zenoh
 
-from cekm_swarm.protocol import Clock, KeySpace, WorldState, encode
+from cekm_swarm.protocol import Clock, KeySpace, Unchanged, WorldState, encode, with_stamp
+from cekm_swarm.protocol.stamps import FUTURE_S
+from cekm_swarm.ticks import TICK_S
 
 from .episode import RunEpisode, TickReadings
 from .recorder import RecordFilter
 from .sense import SENDER, SenseEncoder
+
+HOLD_TICKS = int(round(FUTURE_S / TICK_S)) - 1
+"""Ticks a held reading may be left out in a row (7): a reader's next stamp is then at most
+8 ticks after its last, inside the window it believes."""
 
 
 class TickPublisher:
     """Publish and log one run's ticks (set up by the world server once its session is open)."""
 
     def __init__(self, keys: KeySpace, world: Any, episode: RunEpisode, sends: dict[str, set[str]] | None,
-                 record_filter: RecordFilter) -> None:
+                 record_filter: RecordFilter, held: dict[str, set[str]] | None = None) -> None:
         self.keys, self.world, self.episode = keys, world, episode
         self.sends = sends  # robot -> the sense keys its graph reads (None: every one of the task)
+        self.held = {r: h for r, h in (held or {}).items() if h}  # robot -> the readings it may leave out
+        self.last_sent: dict[str, tuple[Any, float]] = {}  # held reading key -> (what it said, when it was sent)
+        self.left_out = 0  # readings left out, unchanged
         self.record_filter = record_filter
         self.pubs: Any = None  # runtime.bridge.Publishers
         self.recorder: Any = None  # runtime.mcap_log.McapRecorder
@@ -48,12 +65,44 @@ class TickPublisher:
         self.pubs.put(key, payload)
         self._unrecorded.append((key, payload, stamp))
 
-    def _sense(self, rd: TickReadings) -> list[tuple[str, bytes]]:
-        enc = self._encoders.get(rd.robot)
+    def _encoder(self, robot: str) -> SenseEncoder:
+        enc = self._encoders.get(robot)
         if enc is None:
             w = self.world
-            enc = self._encoders[rd.robot] = SenseEncoder(self.keys, rd.robot, w.sensor_angles, w.body_radius)
-        return enc(rd)
+            enc = self._encoders[robot] = SenseEncoder(self.keys, robot, w.sensor_angles, w.body_radius)
+        return enc
+
+    def _sense(self, rd: TickReadings, leave_out: set[str] | frozenset[str] = frozenset()) -> list[tuple[str, bytes]]:
+        return self._encoder(rd.robot)(rd, leave_out)
+
+    def _unchanged(self, rd: TickReadings, more: list[tuple[str, Any]], held: set[str]) -> set[str]:
+        """The robot's held readings equal to the last ones sent: left out of this tick, and
+        named in its ``sense/unchanged`` (sent now); the others become the last ones sent."""
+        t, last = rd.t, self.last_sent
+        oldest = t - (HOLD_TICKS + 0.5) * TICK_S  # sent before this: due again
+        same: list[tuple[str, float]] = []
+        for key, content in self._encoder(rd.robot).contents(rd):
+            if key in held:
+                was = last.get(key)
+                if was is not None and was[0] == content and was[1] > oldest:
+                    same.append((key, was[1]))
+                else:
+                    last[key] = (content, t)
+        for rel, msg in more:
+            key = self.keys.node_key(rd.robot, rel)
+            if key in held:
+                was = last.get(key)
+                if was is not None and was[1] > oldest and with_stamp(was[0], t) == msg:
+                    same.append((key, was[1]))
+                else:
+                    last[key] = (msg, t)
+        if not same:
+            return set()
+        cut = len(self.keys.root) + len(rd.robot) + 2
+        self._send(self.keys.sense_unchanged(rd.robot),
+                   Unchanged(t, SENDER, tuple(k[cut:] for k, _ in same), tuple(s for _, s in same)))
+        self.left_out += len(same)
+        return {k for k, _ in same}
 
     def _wanted(self, robot: str) -> set[str] | None:
         return None if self.sends is None else self.sends[robot]
@@ -63,25 +112,30 @@ class TickPublisher:
         ep = self.episode
         for rd in readings:
             want = self._wanted(rd.robot)
-            for key, payload in self._sense(rd):
+            more = ep.messages(rd.robot)
+            held = self.held.get(rd.robot)
+            leave_out: set[str] = set()
+            if held is not None:
+                leave_out = self._unchanged(rd, more, held)
+            for key, payload in self._sense(rd, leave_out):
                 if want is None or key in want:
                     self._put(key, payload, rd.t)
-            if rd.target is not None:
-                self.last_target[rd.robot] = payload  # the last one: the target's
-            more = ep.messages(rd.robot)
+                if key == self._encoders[rd.robot].target_key:
+                    self.last_target[rd.robot] = payload
             if more:
                 self.last_messages[rd.robot] = more
-            self._send_more(rd.robot, more, want)
+            self._send_more(rd.robot, more, want, leave_out)
         self._send(self.keys.world_clock(), Clock(ep.t, SENDER, ep.tick))
         st = self.world.state()
         self._send(self.keys.world_state(), WorldState(ep.t, SENDER, st["robots"], st["targets"], st["obstacles"]))
         self._unviewed = (ep.t, st)
         return st
 
-    def _send_more(self, robot: str, more: list[tuple[str, Any]], want: set[str] | None) -> None:
+    def _send_more(self, robot: str, more: list[tuple[str, Any]], want: set[str] | None,
+                   leave_out: set[str] | frozenset[str] = frozenset()) -> None:
         for rel, msg in more:
             key = self.keys.node_key(robot, rel)
-            if want is None or key in want:
+            if (want is None or key in want) and key not in leave_out:
                 self._send(key, msg)
 
     def republish(self, readings: list[TickReadings], waiting: list[str]) -> None:
@@ -95,6 +149,8 @@ class TickPublisher:
             for key, payload in self._sense(rd)[:n]:
                 if want is None or key in want:
                     self._put(key, payload, rd.t)
+                if key in self.last_sent:  # sent again now: a reading left out later refers to this one
+                    self.last_sent[key] = (self.last_sent[key][0], rd.t)
             last = self.last_target.get(rd.robot)
             if last is not None and (want is None or self.keys.sense_target(rd.robot) in want):
                 self._put(self.keys.sense_target(rd.robot), last, rd.t)

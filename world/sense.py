@@ -57,13 +57,27 @@ class SenseEncoder:
         self.range_keys = [keys.sense_range(robot, j) for j in range(len(self.angles))]
         self.target_key = keys.sense_target(robot)
 
-    def __call__(self, rd: TickReadings) -> list[tuple[str, bytes]]:
+    def __call__(self, rd: TickReadings, leave_out: frozenset[str] | set[str] = frozenset()
+                 ) -> list[tuple[str, bytes]]:
+        """The readings' (key, bytes), but for the keys in ``leave_out``."""
         t, radius, angles, keys, isfinite = rd.t, self.radius, self.angles, self.range_keys, math.isfinite
         ranges = rd.ranges.tolist() if type(rd.ranges) is np.ndarray else [float(r) for r in rd.ranges]
         out = [(keys[j], encode(SenseRange(t, SENDER, j, angles[j], r + radius if isfinite(r) else None)))
-               for j, r in enumerate(ranges)]
-        if rd.target is not None:
+               for j, r in enumerate(ranges) if keys[j] not in leave_out]
+        if rd.target is not None and self.target_key not in leave_out:
             out.append((self.target_key, encode(target_message(t, rd.target))))
+        return out
+
+    def contents(self, rd: TickReadings) -> list[tuple[str, Any]]:
+        """Each reading's key and what it says but its stamp (a range's ``d``, the target's
+        ``(alpha, d, visible)``): what "unchanged" compares."""
+        radius, isfinite = self.radius, math.isfinite
+        ranges = rd.ranges.tolist() if type(rd.ranges) is np.ndarray else [float(r) for r in rd.ranges]
+        out: list[tuple[str, Any]] = [(self.range_keys[j], r + radius if isfinite(r) else None)
+                                      for j, r in enumerate(ranges)]
+        if rd.target is not None:
+            m = target_message(0.0, rd.target)
+            out.append((self.target_key, (m.alpha, m.d, m.visible)))
         return out
 
 

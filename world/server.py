@@ -113,10 +113,11 @@ class WorldServer:
         answers = ({plan.answer_key(r): r for r in self.robots} if plan is not None
                    else {self.keys.cmd_wheels(r): r for r in self.robots})
         sends = None if plan is None else {r: set(plan.world_keys(r)) for r in self.robots}
+        held = None if plan is None else {r: set(plan.held_readings(r)) for r in self.robots}
         self.deadman = Deadman(self.robots, cfg.deadman, time.monotonic())  # restarted when the run starts
         self.inbox = CommandInbox(self.robots, answers, self.drops, self.deadman)
         self.publisher = TickPublisher(self.keys, self.world, self.episode, sends,
-                                       RecordFilter(self.keys, self.robots, self.record_drops, declared))
+                                       RecordFilter(self.keys, self.robots, self.record_drops, declared), held)
         self.stats = RunStats()
         self.stop = asyncio.Event()
         self.arrived = asyncio.Event()
@@ -132,9 +133,11 @@ class WorldServer:
                                       self.publisher.republished, self.stats.deadline_misses))
 
     def _world_keys(self, robot: str) -> list[str]:
-        """The sense keys whose subscribers the world waits for before tick 0."""
+        """The sense keys whose subscribers the world waits for before tick 0 (with the
+        robot's ``sense/unchanged`` when it has held readings)."""
         if self.plan is not None:
-            return self.plan.world_keys(robot)
+            held = [self.keys.sense_unchanged(robot)] if self.plan.held_readings(robot) else []
+            return self.plan.world_keys(robot) + held
         out = []  # no run spec: every reading the world publishes for the task
         for rel, wk in WORLD_KEYS.items():
             if wk.per_robot and self.task in wk.tasks:
@@ -272,6 +275,7 @@ class WorldServer:
                "robots": ep.outcome(), "wall_seconds": round(wall, 3),
                "tick_loop_seconds": round(st.tick_loop_seconds, 3), "mode": self.config.mode, "sim_seconds": ep.t,
                "ticks": ep.tick, "aborted": aborted, "republished": pub.republished,
+               "readings_left_out": pub.left_out,
                "deadline_misses": st.deadline_misses,
                "deadline_miss_ticks": {str(k): v for k, v in st.missed_ticks.items()},
                "first_tick_ms": None if st.first_tick_s is None else round(1000 * st.first_tick_s, 3),

@@ -39,6 +39,8 @@ def robot_keys(graphs: Iterable[CheckedGraph], robot: str, root: str = ROOT) -> 
                 triggered = triggered or i.delay == 0
             if not triggered:
                 listen.append(f"{root}/world/clock")
+        if any(g.ports[n.name].pure for n in g.graph.nodes):  # its readers learn which readings are held
+            listen.append(f"{root}/{robot}/sense/unchanged")
     return sorted(dict.fromkeys(publish)), sorted(dict.fromkeys(listen))
 
 

@@ -66,7 +66,8 @@ def _beside(source: str) -> None:
 def port_types(cls: type[Node]) -> PortTypes:
     """A node class's ports as plain data."""
     return PortTypes({p: (i.type.KIND.value, i.many) for p, i in cls.inputs.items()},
-                     {p: o.type.KIND.value for p, o in cls.outputs.items()}, bool(cls.stateful), bool(cls.uses_model))
+                     {p: o.type.KIND.value for p, o in cls.outputs.items()}, bool(cls.stateful), bool(cls.uses_model),
+                     bool(getattr(cls, "pure", False)))
 
 
 @dataclass

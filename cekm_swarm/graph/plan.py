@@ -66,15 +66,16 @@ class PortTypes:
     outputs: Mapping[str, str]
     stateful: bool = False
     uses_model: bool = False
+    pure: bool = False
 
     def to_dict(self) -> dict[str, Any]:
         return {"inputs": {p: list(v) for p, v in self.inputs.items()}, "outputs": dict(self.outputs),
-                "stateful": self.stateful, "uses_model": self.uses_model}
+                "stateful": self.stateful, "uses_model": self.uses_model, "pure": self.pure}
 
     @classmethod
     def from_dict(cls, doc: Mapping[str, Any]) -> "PortTypes":
         return cls({p: (v[0], bool(v[1])) for p, v in doc["inputs"].items()}, dict(doc["outputs"]),
-                   bool(doc["stateful"]), bool(doc["uses_model"]))
+                   bool(doc["stateful"]), bool(doc["uses_model"]), bool(doc.get("pure", False)))
 
 
 @dataclass(frozen=True)
@@ -132,6 +133,7 @@ class NodePlan:
     clock_key: str | None  # the world's clock, when no input of the tick triggers the node
     stateful: bool
     uses_model: bool
+    pure: bool = False  # its outputs are a function of its inputs' values alone (t only stamps them)
 
     @property
     def name(self) -> str:
@@ -173,6 +175,8 @@ class RunPlan:
     ports: Mapping[str, PortTypes]
     nodes: dict[str, list[NodePlan]] = field(default_factory=dict)  # robot -> nodes in topological order
     warnings: list[str] = field(default_factory=list)
+    hold: bool = True  # the world may leave unchanged readings out (held_readings); False: it sends every one
+    _held: dict[str, list[str]] = field(default_factory=dict, repr=False, compare=False)
 
     # ------------------------------------------------------------------ derived
 
@@ -216,6 +220,61 @@ class RunPlan:
         """The node instances (of any robot) that read ``key``."""
         return [n for r in self.team for n in self.nodes[r] if any(s.key == key for b in n.bindings for s in b.sources)]
 
+    # ------------------------------------------------------------------ held readings
+
+    def holding_reader(self, node: NodePlan) -> str | None:
+        """The one world reading ``node`` is a pure function of, when a tick in which that
+        reading is unchanged may leave the node's run out (its previous outputs, restamped,
+        stand for the tick's): a pure node reading that one key of its own period at the
+        same tick, not the graph's answer. None otherwise."""
+        if not node.pure or node.clock_key is not None or len(node.bindings) != 1:
+            return None
+        b = node.bindings[0]
+        if len(b.sources) != 1 or b.delay != 0 or b.team:
+            return None
+        s = b.sources[0]
+        if s.owner != WORLD_OWNER or s.period != node.period or s.key.startswith(f"{self.keys.root}/world/"):
+            return None
+        if self.answer_key(node.robot) in node.outputs.values():
+            return None
+        return s.key
+
+    def held_readings(self, robot: str) -> list[str]:
+        """The readings of ``robot`` the world may leave out in a tick where they equal the
+        last ones it sent (the paper: the localization EKMs "remain activated until they
+        are updated at the next sensing cycle"): those whose every reader has them as its
+        :meth:`holding_reader`. The world then sends the robot's ``sense/unchanged`` instead."""
+        cached = self._held.get(robot)
+        if cached is None:
+            cached = [k for k in self.world_keys(robot)
+                      if (rs := self.readers(robot, k)) and all(self.holding_reader(n) == k for n in rs)
+                      ] if self.hold else []
+            self._held[robot] = cached
+        return cached
+
+    def listens(self, node: NodePlan) -> list[str]:
+        """The key expressions ``node``'s process subscribes to: its inputs'
+        (:meth:`NodePlan.subscriptions`) and the ``sense/unchanged`` keys of :meth:`holds`."""
+        return node.subscriptions(self.keys.root) + sorted(self.holds(node))
+
+    def holds(self, node: NodePlan) -> dict[str, dict[str, tuple[str, ...]]]:
+        """What ``node`` learns from the world's ``sense/unchanged`` messages: per such key
+        (one per robot whose held readings it reads through), each held reading -> the keys
+        of ``node``'s sources that reading's reader sends (their values stand for the tick)."""
+        out: dict[str, dict[str, list[str]]] = {}
+        by_output = {key: n for r in self.team for n in self.nodes[r] for key in n.outputs.values()}
+        for b in node.bindings:
+            for s in b.sources:
+                producer = by_output.get(s.key)
+                if producer is None:
+                    continue
+                reading = self.holding_reader(producer)
+                if reading is None or reading not in self.held_readings(producer.robot):
+                    continue
+                mk = self.keys.sense_unchanged(producer.robot)
+                out.setdefault(mk, {}).setdefault(reading, []).append(s.key)
+        return {mk: {r: tuple(v) for r, v in m.items()} for mk, m in out.items()}
+
     def to_dict(self) -> dict[str, Any]:
         return {"graph": self.graph.to_dict(), "team": list(self.team), "task": self.task, "sensors": self.sensors,
                 "root": self.keys.root, "ports": {k: v.to_dict() for k, v in self.ports.items()}}
@@ -242,7 +301,7 @@ def _gcd(values: list[int]) -> int:
 
 
 def build_plan(graph: Graph, team: tuple[str, ...] | list[str], task: str, ports: Mapping[str, PortTypes],
-               sensors: int = 12, keys: KeySpace | None = None) -> RunPlan:
+               sensors: int = 12, keys: KeySpace | None = None, hold: bool = True) -> RunPlan:
     """Resolve ``graph`` for ``team`` on a scenario of ``task`` with robots of ``sensors``
     distance sensors. Raises :class:`GraphError` naming the node and the field for
     anything that cannot run: an unknown key, a port bound wrong, a cycle with no delay, a
@@ -415,7 +474,7 @@ def build_plan(graph: Graph, team: tuple[str, ...] | list[str], task: str, ports
                 for rel, (pn, port, _, _) in outputs.items()
                 if rel != graph.answer and rel not in read_rel and rel not in team_reads]
 
-    plan = RunPlan(graph, team, task, sensors, keys, dict(ports), warnings=warnings)
+    plan = RunPlan(graph, team, task, sensors, keys, dict(ports), warnings=warnings, hold=hold)
     for robot in team:
         nodes = []
         for name in order:
@@ -447,7 +506,8 @@ def build_plan(graph: Graph, team: tuple[str, ...] | list[str], task: str, ports
                         for o in n.outputs}
                 nodes.append(NodePlan(robot, n, inst, periods[name], tuple(bindings), outs,
                                       {o.port: pt.outputs[o.port] for o in n.outputs},
-                                      None if trigger else keys.world_clock(), pt.stateful, pt.uses_model))
+                                      None if trigger else keys.world_clock(), pt.stateful, pt.uses_model,
+                                      pt.pure and not pt.stateful))
         plan.nodes[robot] = nodes
     return plan
 

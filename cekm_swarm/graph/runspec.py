@@ -43,6 +43,7 @@ class RunSpec:
     model: str | None = None  # a file, or "zenoh" (fetched from the world host's launcher)
     model_timeout: float = 30.0
     log_level: str = "INFO"
+    hold_readings: bool = True  # the world leaves unchanged readings out (RunPlan.held_readings)
 
     @property
     def keys(self) -> KeySpace:
@@ -53,7 +54,8 @@ class RunSpec:
         forked warm inherits the fork server's)."""
         held = self.__dict__.get("_plan")
         if held is None:
-            held = build_plan(self.graph, self.team, self.task, self.ports, self.body.sensors, self.keys)
+            held = build_plan(self.graph, self.team, self.task, self.ports, self.body.sensors, self.keys,
+                              self.hold_readings)
             object.__setattr__(self, "_plan", held)
         return held
 
@@ -66,7 +68,8 @@ class RunSpec:
                 "params": {k: dict(v) for k, v in self.params.items()}, "team": list(self.team), "task": self.task,
                 "body": self.body.to_dict(), "root": self.root, "run_id": self.run_id, "mode": self.mode,
                 "connect": self.connect, "zenoh_config": self.zenoh_config, "model": self.model,
-                "model_timeout": self.model_timeout, "log_level": self.log_level}
+                "model_timeout": self.model_timeout, "log_level": self.log_level,
+                "hold_readings": self.hold_readings}
 
     @classmethod
     def from_dict(cls, doc: Mapping[str, Any], source: str = "run spec") -> "RunSpec":
@@ -76,7 +79,8 @@ class RunSpec:
             return cls(Graph.from_dict(doc["graph"]), {k: PortTypes.from_dict(v) for k, v in doc["ports"].items()},
                        {k: dict(v) for k, v in doc["params"].items()}, tuple(doc["team"]), doc["task"],
                        RobotBody.from_dict(doc["body"]), doc["root"], doc["run_id"], doc["mode"], doc["connect"],
-                       doc["zenoh_config"], doc["model"], float(doc["model_timeout"]), doc["log_level"])
+                       doc["zenoh_config"], doc["model"], float(doc["model_timeout"]), doc["log_level"],
+                       bool(doc.get("hold_readings", True)))
         except (KeyError, TypeError, ValueError) as exc:
             raise GraphError(source, None, f"not a run spec ({type(exc).__name__}: {exc})") from None
 

@@ -61,10 +61,14 @@ def _env_endpoint() -> str | None:
               help="The run's id (default: made by the world host; a robots-only host takes the world's).")
 @click.option("--cold-start", is_flag=True,
               help="Start every node process afresh (exec) instead of forking it from a warm fork server.")
+@click.option("--send-every-reading", is_flag=True,
+              help="The world sends every reading every tick, unchanged ones too (default: it holds them: "
+                   "docs/runtime.md).")
 def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwrite: bool, connect: str | None,
                port: int, model_path: Path | None, max_time: float | None, controller: str, graph_file: Path | None,
                root: str, no_plot: bool, robots: str | None, no_world: bool, listen_host: str,
-               zenoh_config: Path | None, model_from_zenoh: bool, run_id: str | None, cold_start: bool) -> None:
+               zenoh_config: Path | None, model_from_zenoh: bool, run_id: str | None, cold_start: bool,
+               send_every_reading: bool) -> None:
     """Run SCENARIO through the distributed runtime: the world server and, per robot, every
     node of the controller's graph as its own process on Zenoh (cekm: 1 + 12 + 1),
     supervised (restarted when they die)."""
@@ -118,7 +122,8 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwr
     config = LaunchConfig(scenario, out_dir, mode=mode, seed=seed, connect=connect, port=port, model=model_path,
                           max_time=max_time, controller=controller, graph=graph_file, root=root, plot=not no_plot,
                           robots=only, world=not no_world, listen_host=listen_host, zenoh_config=zenoh_config,
-                          model_from_zenoh=model_from_zenoh, run_id=run_id, warm_start=not cold_start)
+                          model_from_zenoh=model_from_zenoh, run_id=run_id, warm_start=not cold_start,
+                          hold_readings=not send_every_reading)
     launcher = Launcher(config, echo=lambda s: click.echo(s))
     try:
         outcome = launcher.launch()

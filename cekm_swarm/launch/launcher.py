@@ -81,6 +81,7 @@ class LaunchConfig:
     model_from_zenoh: bool = False  # modules fetch the model from the world host's launcher (no file here)
     run_id: str | None = None  # the run's id (None: made by a world host, learned from the world by a robots-only host)
     warm_start: bool = True  # fork the nodes from a fork server (launch.forkserver); False: exec each afresh
+    hold_readings: bool = True  # the world leaves unchanged readings out (graph.plan.RunPlan.held_readings)
 
 
 def plan_checkpoint_data(scenario) -> dict[str, list[list[float]]]:
@@ -224,7 +225,7 @@ class Launcher(Supervision, WorldHost, RobotHost):
         c = self.c
         spec = run_spec(self.checked, tuple(self.all_robots), self.task, self.body, root=c.root, run_id=self.run_id,
                         mode=c.mode, connect=endpoint, zenoh_config=None if c.zenoh_config is None else str(c.zenoh_config),
-                        model=None if model is None else str(model))
+                        model=None if model is None else str(model), hold_readings=c.hold_readings)
         self.spec_path = spec.write(c.out / "run-spec.json")
         return self.spec_path
 

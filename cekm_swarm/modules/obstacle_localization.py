@@ -24,6 +24,7 @@ class ObstacleLocalization(Node):
     inputs = {"reading": In(SenseRange, doc="distance sensor j's (alpha_j, d_j)")}
     outputs = {"field": Out(ObstacleField, doc="the winner and the obstacle field b_j")}
     uses_model = True
+    pure = True  # its field is a function of the reading alone (Eqs. 2-8)
     warm_setup = True  # setup builds the shared EKM tables only
 
     @dataclass(frozen=True)

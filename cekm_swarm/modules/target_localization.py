@@ -35,6 +35,7 @@ class TargetLocalization(Node):
     inputs = {"reading": In(SenseTarget, doc="the target sensor's (alpha, d)")}
     outputs = {"field": Out(TargetField, doc="the winner s and the target field a")}
     uses_model = True
+    pure = True  # its field is a function of the reading alone (Eqs. 2-6)
     warm_setup = True  # setup builds the shared EKM tables only
 
     @dataclass(frozen=True)

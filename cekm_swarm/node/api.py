@@ -11,6 +11,10 @@ motor integration, or a user's own). It declares, as class attributes:
 * ``stateful``: True when its outputs depend on more than the inputs of the tick (a
   memory across ticks), so a restart changes what it computes;
 * ``uses_model``: True when it reads the run's trained model (:meth:`Context.model`);
+* ``pure``: True when its outputs at tick t are a function of its inputs' values alone (t
+  only stamps them): a tick in which its one reading is unchanged may then leave its run
+  out, its previous outputs restamped standing for the tick's (the paper's localization
+  EKMs "remain activated until they are updated at the next sensing cycle");
 * ``warm_setup``: True when :meth:`Node.setup` only computes data (the model, tables
   through :meth:`Context.shared`) and starts no thread, socket or open file: a warm start
   (:mod:`cekm_swarm.launch.forkserver`) then runs one setup in the fork server, and every
@@ -161,6 +165,7 @@ class Node:
     Params: ClassVar[type] = NoParams
     stateful: ClassVar[bool] = False
     uses_model: ClassVar[bool] = False
+    pure: ClassVar[bool] = False
     warm_setup: ClassVar[bool] = False
 
     def __init__(self, ctx: Context, params: Any = None) -> None:

@@ -39,7 +39,7 @@ from cekm_swarm.protocol import DropCounter, KeyKind
 from cekm_swarm.protocol.stamps import StampWindow
 
 from .api import Context, make_params
-from .timing import DirectGate, LockstepGate, RealtimeGate, Runner
+from .timing import DirectGate, LockstepGate, RealtimeGate, Runner, tick_of
 from .wire import Decoder, Encoder
 
 EXIT_CANNOT_START = 78
@@ -87,6 +87,10 @@ class NodeShell:
         self.ports: dict[str, str] = {s.key: b.port for b in node_plan.bindings for s in b.sources}
         if node_plan.clock_key is not None:
             self.kinds[node_plan.clock_key] = KeyKind.WORLD_CLOCK
+        # readings the world leaves out when unchanged: sense/unchanged key -> reading -> our source keys
+        self.holds = plan.holds(node_plan)
+        for mk in self.holds:
+            self.kinds[mk] = KeyKind.SENSE_UNCHANGED
         self.mates = {s.owner for b in node_plan.bindings if b.team for s in b.sources}
         self.mate_tokens: dict[str, set[str]] = {m: set() for m in self.mates}
         # readers of this node's outputs that read them with a delay (teammates): their
@@ -99,8 +103,8 @@ class NodeShell:
     # ------------------------------------------------------------------ subscriptions
 
     def listen_exprs(self) -> list[str]:
-        """What to subscribe to (:meth:`~cekm_swarm.graph.plan.NodePlan.subscriptions`)."""
-        return self.node_plan.subscriptions(self.keys.root)
+        """What to subscribe to (:meth:`~cekm_swarm.graph.plan.RunPlan.listens`)."""
+        return self.plan.listens(self.node_plan)
 
     def on_sample(self, key: str, payload: bytes) -> list[tuple[str, Any]]:
         """One received sample: validate, admit its stamp, hand it to the gate."""
@@ -112,6 +116,8 @@ class NodeShell:
         msg = self.decoder.decode(key, kind, payload)
         if msg is None:
             return []
+        if kind is KeyKind.SENSE_UNCHANGED:
+            return self.on_unchanged(key, msg)
         port = self.ports.get(key)
         why = None if port is None else self.runner.node.check_input(port, msg)
         if why is None:
@@ -126,6 +132,22 @@ class NodeShell:
         except Exception as exc:  # noqa: BLE001 - a node must survive any single message
             self.drops.drop(key, f"the node's step failed: {type(exc).__name__}: {exc}")
             return []
+
+    def on_unchanged(self, key: str, msg: Any) -> list[tuple[str, Any]]:
+        """The world left readings out as unchanged: the values their pure readers sent at
+        ``since`` stand for this tick (:meth:`~cekm_swarm.node.timing.LockstepGate.hold`)."""
+        why = self.window.check(msg.stamp)
+        if why is not None:
+            self.drops.drop(key, why)
+            return []
+        held = self.holds[key]
+        head = key[: -len("sense/unchanged")]
+        k = tick_of(msg.stamp)
+        out: list[tuple[str, Any]] = []
+        for rel, since in zip(msg.keys, msg.since):
+            for source in held.get(head + rel, ()):
+                out += self.gate.hold(source, k, tick_of(since))
+        return out
 
     def on_token(self, key: str, alive: bool) -> list[tuple[str, Any]]:
         """A liveliness token appeared or vanished: a teammate gone or back; a late reader back."""

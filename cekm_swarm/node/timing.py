@@ -11,6 +11,10 @@ node in its own process (lockstep and real time) and for a whole graph in one pr
   same-tick producer has delivered (or at once, with what came, when a later tick
   begins), with the latest value of each source; a value older than its staleness limit
   counts as missing.
+* ``hold(key, k, since)`` (both gates): the source's value of tick ``since`` stands for
+  tick ``k`` as well, restamped: its producer is a pure node whose one reading was
+  unchanged at k, so the world left that reading out and the producer did not run
+  (:meth:`cekm_swarm.graph.plan.RunPlan.held_readings`).
 
 Everything here is plain Python, free of Zenoh: :mod:`cekm_swarm.node.process` feeds it
 from subscriptions, :mod:`cekm_swarm.node.inprocess` from a whole graph's outputs.
@@ -40,6 +44,13 @@ Drop = Callable[[str, str], None]
 
 def tick_of(stamp: float) -> int:
     return int(round(stamp / TICK_S))
+
+
+def restamp(msg: Any, t: float) -> Any:
+    """``msg`` as its pure producer would have sent it at sim time ``t``."""
+    from cekm_swarm.protocol import with_stamp
+
+    return with_stamp(msg, t)
 
 
 def _never(owner: str) -> bool:
@@ -147,12 +158,39 @@ class LockstepGate:
     store: dict[str, dict[int, Any]] = field(default_factory=dict)
     candidates: set[int] = field(default_factory=set)
     repeats: int = 0
+    holds: int = 0
+    pending_holds: dict[str, dict[int, list[int]]] = field(default_factory=dict)  # key -> since -> [ticks]
 
     def __post_init__(self) -> None:
         self.node = self.runner.plan
         self.trigger = _triggers(self.node)
         self.watched = {s.key for b in self.node.bindings for s in b.sources}
         self.sources = {s.key: (s, b.delay) for b in self.node.bindings for s in b.sources}
+
+    def hold(self, key: str, k: int, since: int) -> list[tuple[str, Any]]:
+        """``key``'s value of tick ``since`` stands for tick ``k`` (module docstring)."""
+        if key not in self.watched or k <= self.done or k <= since:
+            return []
+        held = self.store.setdefault(key, {})
+        if k not in held:
+            msg = held.get(since)
+            if msg is None:  # the value of since, or one standing for a tick after it, restamped
+                later = [t for t in held if since < t < k]
+                msg = held[max(later)] if later else None
+            if msg is None:  # not here yet (or lost with a restart: the world's re-publishing brings it)
+                self.pending_holds.setdefault(key, {}).setdefault(since, []).append(k)
+                return []
+            held[k] = restamp(msg, tick_time(k))
+            self.holds += 1
+        return self._opened(key, k)
+
+    def _opened(self, key: str, k: int) -> list[tuple[str, Any]]:
+        trig = self.trigger.get(key)
+        if trig is not None:
+            for c in range(k, k + trig[0]):
+                if c > self.done and self.node.due(c):
+                    self.candidates.add(c)
+        return self._advance()
 
     def _lookup(self, key: str, tick: int) -> Any:
         return self.store.get(key, {}).get(tick)
@@ -173,16 +211,21 @@ class LockstepGate:
         if key in self.watched:
             held = self.store.setdefault(key, {})
             held[k] = msg
+            waiting = self.pending_holds.get(key)
+            if waiting and k in waiting:  # ticks that were waiting for this value to stand for them
+                later = waiting.pop(k)
+                for c in later:
+                    if c > self.done and c not in held:
+                        held[c] = restamp(msg, tick_time(c))
+                        self.holds += 1
+                out = self._opened(key, k)
+                for c in later:
+                    out += self._opened(key, c)
+                return out
             if len(held) > KEEP_TICKS:
                 for old in sorted(held)[:len(held) - KEEP_TICKS]:
                     del held[old]
-        trig = self.trigger.get(key)
-        if trig is not None:
-            period = trig[0]
-            for c in range(k, k + period):
-                if c > self.done and self.node.due(c):
-                    self.candidates.add(c)
-        return self._advance()
+        return self._opened(key, k)
 
     def teammate(self, robot: str, alive: bool) -> list[tuple[str, Any]]:
         if alive:
@@ -216,14 +259,21 @@ class LockstepGate:
         return out
 
     def _forget(self, c: int) -> None:
-        """Values no run after tick ``c`` can read (older than every source's need at c)."""
+        """Values no run after tick ``c`` can read (older than every source's need at c)
+        but each source's latest (a held reading's next tick stands on it), and holds
+        waiting for a value older than that (the value never came)."""
         for b in self.node.bindings:
             for s in b.sources:
                 n = needed_tick(c, s.period, b.delay)
                 held = self.store.get(s.key)
                 if held and n is not None:
-                    for old in [t for t in held if t < n]:
+                    newest = max(held)
+                    for old in [t for t in held if t < n and t != newest]:
                         del held[old]
+                waiting = self.pending_holds.get(s.key)
+                if waiting:
+                    for since in [x for x, ticks in waiting.items() if max(ticks) <= c]:
+                        del waiting[since]
 
     def resend(self) -> list[tuple[str, Any]]:
         """The recent runs' outputs, oldest first: what a (re)started reader of them asks
@@ -260,6 +310,9 @@ class DirectGate:
             return []
         return self.runner.run(tick_of(msg.stamp), Inputs({self.port: msg}))
 
+    def hold(self, key: str, k: int, since: int) -> list[tuple[str, Any]]:
+        return []  # its one input is a reading: a held reading is a run left out, nothing to do
+
     def teammate(self, robot: str, alive: bool) -> list[tuple[str, Any]]:
         return []
 
@@ -279,6 +332,8 @@ class RealtimeGate:
     gone: set[str] = field(default_factory=set)
     stale_drops: dict[str, int] = field(default_factory=dict)
     _stale_now: set[str] = field(default_factory=set)
+    holds: int = 0
+    pending_holds: dict[str, tuple[int, int]] = field(default_factory=dict)  # key -> (since, tick)
 
     def __post_init__(self) -> None:
         self.node = self.runner.plan
@@ -291,20 +346,44 @@ class RealtimeGate:
 
     def put(self, key: str, msg: Any) -> list[tuple[str, Any]]:
         k = tick_of(msg.stamp)
-        out: list[tuple[str, Any]] = []
-        trig = self.trigger.get(key)
-        if trig is not None:
-            c = self._due_at_or_before(k)
-            if c > self.open_tick:
-                if self.open_tick > self.done:
-                    out += self._run(self.open_tick)  # a later tick began: the open one runs with what came
-                self.open_tick = c
+        out = self._open(key, k)
         if key in self.watched:
             held = self.latest.get(key)
             if held is not None and k < held[0]:
                 self.drop(key, f"stamp {msg.stamp} older than the latest from this source ({tick_time(held[0])})")
                 return out
-            self.latest[key] = (k, msg)
+            waiting = self.pending_holds.pop(key, None)
+            if waiting is not None and waiting[0] == k and waiting[1] > k:  # it stands for a later tick too
+                self.latest[key] = (waiting[1], restamp(msg, tick_time(waiting[1])))
+                self.holds += 1
+            else:
+                self.latest[key] = (k, msg)
+        if self.open_tick > self.done and self._complete(self.open_tick):
+            out += self._run(self.open_tick)
+        return out
+
+    def _open(self, key: str, k: int) -> list[tuple[str, Any]]:
+        """A trigger's value of tick ``k``: a later tick begins (the open one runs with what came)."""
+        out: list[tuple[str, Any]] = []
+        if key in self.trigger:
+            c = self._due_at_or_before(k)
+            if c > self.open_tick:
+                if self.open_tick > self.done:
+                    out += self._run(self.open_tick)
+                self.open_tick = c
+        return out
+
+    def hold(self, key: str, k: int, since: int) -> list[tuple[str, Any]]:
+        """``key``'s value of tick ``since`` stands for tick ``k`` (module docstring)."""
+        if key not in self.watched or k <= since:
+            return []
+        out = self._open(key, k)
+        held = self.latest.get(key)
+        if held is not None and held[0] == since:
+            self.latest[key] = (k, restamp(held[1], tick_time(k)))
+            self.holds += 1
+        elif held is None or held[0] < since:  # the value it stands for is still on its way
+            self.pending_holds[key] = (since, k)
         if self.open_tick > self.done and self._complete(self.open_tick):
             out += self._run(self.open_tick)
         return out

@@ -14,7 +14,7 @@ from .keys import (DEFAULT_KEYS, DEFAULT_RANGE_SENSORS, DEFAULT_ROOT, WORLD, Key
                    validate_module_name, validate_robot_id, validate_root, validate_run_id)
 from .messages import (MESSAGE_TYPES, MSGPACK_ENCODING, SCHEMA_VERSION, Clock, Data, Message, ObstacleField,
                        ObstacleState, RobotState, SensePose, SenseRange, SenseTarget, SenseTargets, Share, TargetField,
-                       TargetState, TrackingField, WheelCommand, WorldState)
+                       TargetState, TrackingField, Unchanged, WheelCommand, WorldState, with_stamp)
 
 __all__ = [
     "DropCounter", "DropRecord",
@@ -24,6 +24,6 @@ __all__ = [
     "validate_module_name", "validate_robot_id", "validate_root", "validate_run_id",
     "MESSAGE_TYPES", "MSGPACK_ENCODING", "SCHEMA_VERSION", "Clock", "Data", "Message", "ObstacleField",
     "ObstacleState", "RobotState", "SensePose", "SenseRange", "SenseTarget", "SenseTargets", "Share", "TargetField",
-    "TargetState", "TrackingField", "WheelCommand", "WorldState",
+    "TargetState", "TrackingField", "Unchanged", "WheelCommand", "WorldState", "with_stamp",
     "decode", "encode", "peek", "summary", "to_plain", "to_wire",
 ]

@@ -59,6 +59,7 @@ class KeyKind(str, enum.Enum):
     SENSE_RANGE = "sense/range"
     SENSE_POSE = "sense/pose"
     SENSE_TARGETS = "sense/targets"
+    SENSE_UNCHANGED = "sense/unchanged"
     FIELD_TARGET = "field/target"
     FIELD_OBSTACLE = "field/obstacle"
     FIELD_TRACKING = "field/tracking"
@@ -184,6 +185,11 @@ class KeySpace:
     def sense_targets(self, robot: str) -> str:
         """World -> tracking module: every target within sensing range (tracking scenarios)."""
         return f"{self._robot(robot)}/sense/targets"
+
+    def sense_unchanged(self, robot: str) -> str:
+        """World -> the readers of a robot's held readings: which of its readings this tick
+        left out because they equal the last ones sent (:class:`~.messages.Unchanged`)."""
+        return f"{self._robot(robot)}/sense/unchanged"
 
     def share_all(self) -> str:
         """Key expression matching every robot's share (what teammates subscribe to)."""
@@ -323,7 +329,7 @@ class KeySpace:
         if n == 2:
             suffix = f"{rest[0]}/{rest[1]}"
             for kind in (KeyKind.SENSE_TARGET, KeyKind.FIELD_TARGET, KeyKind.CMD_WHEELS, KeyKind.SENSE_POSE,
-                         KeyKind.SENSE_TARGETS, KeyKind.FIELD_TRACKING):
+                         KeyKind.SENSE_TARGETS, KeyKind.SENSE_UNCHANGED, KeyKind.FIELD_TRACKING):
                 if suffix == kind.value:
                     return ParsedKey(kind, owner)
             if rest[0] == "alive":

@@ -29,12 +29,12 @@ from .errors import MessageFieldError
 from .keys import KeyKind
 from .schema import (MAX_ARRAY_LEN, MAX_INDEX, MAX_SENDER_LEN, MAX_TARGETS, MESSAGE_TYPES, MSGPACK_ENCODING,
                      SCHEMA_VERSION, Angle, Count, Distance, Entry, EntryId, Finite, Message, Neuron, Plain, Point,
-                     Pose, RobotId, SensorIndex, TargetId, Vector, Weight)
+                     Pose, RobotId, SensorIndex, Stamp, TargetId, Vector, Weight)
 
 __all__ = ["MAX_ARRAY_LEN", "MAX_INDEX", "MAX_SENDER_LEN", "MAX_TARGETS", "MESSAGE_TYPES", "MSGPACK_ENCODING",
            "SCHEMA_VERSION", "Message", "SenseTarget", "SenseRange", "TargetField", "ObstacleField", "WheelCommand",
-           "Share", "SensePose", "SenseTargets", "TrackingField", "RobotState", "TargetState", "ObstacleState",
-           "WorldState", "Clock", "Data", "decode", "encode", "peek", "summary", "to_plain", "to_wire"]
+           "Share", "SensePose", "SenseTargets", "Unchanged", "TrackingField", "RobotState", "TargetState", "ObstacleState",
+           "WorldState", "Clock", "Data", "with_stamp", "decode", "encode", "peek", "summary", "to_plain", "to_wire"]
 
 
 def _fail(field: str, problem: str) -> MessageFieldError:
@@ -146,6 +146,31 @@ class SenseTargets(Message):
     KIND: ClassVar[KeyKind] = KeyKind.SENSE_TARGETS
 
 
+ReadingKey = Annotated[str, Meta(pattern=r"^sense/[a-z]+(/(0|[1-9][0-9]*))?$", max_length=32)]
+
+
+class Unchanged(Message):
+    """World -> the readers of a robot's held readings: the readings ``keys`` (relative to
+    the robot, ``sense/range/3``) this tick are equal to the last ones the world sent, at
+    sim times ``since``, so the world left them out (the paper, section 3: the localization
+    EKMs "remain activated until they are updated"). A reader's pure producer of such a
+    reading did not run: its outputs of ``since`` stand for this tick
+    (:meth:`cekm_swarm.graph.plan.RunPlan.held_readings`)."""
+
+    keys: Annotated[tuple[ReadingKey, ...], Meta(min_length=1, max_length=MAX_INDEX + 8)]
+    since: Annotated[tuple[Stamp, ...], Meta(min_length=1, max_length=MAX_INDEX + 8)]
+    KIND: ClassVar[KeyKind] = KeyKind.SENSE_UNCHANGED
+
+    def check(self) -> None:
+        if len(self.since) != len(self.keys):
+            raise _fail("since", f"{len(self.since)} values for {len(self.keys)} keys")
+        if len(set(self.keys)) != len(self.keys):
+            raise _fail("keys", "a key is named twice")
+        for i, t in enumerate(self.since):
+            if t >= self.stamp:
+                raise _fail(f"since[{i}]", f"{t} is not before the message's stamp {self.stamp}")
+
+
 class TrackingField(Message):
     """Tracking target module -> motor module (tracking scenarios): ``a``, the sum of the
     weighted target fields (and the search goal's), ``b``, the sum of the weighted
@@ -229,6 +254,14 @@ class Data(Message):
 
     values: dict[str, Plain]
     KIND: ClassVar[KeyKind] = KeyKind.DATA
+
+
+def with_stamp(msg: Message, t: float) -> Message:
+    """``msg`` as sent at sim time ``t`` (checked as any record): what a pure node would
+    have sent at ``t`` for the same inputs."""
+    import msgspec
+
+    return msgspec.structs.replace(msg, stamp=t)
 
 
 from .codec import decode, encode, peek, summary, to_plain, to_wire  # noqa: E402 - the messages' old home re-exports them

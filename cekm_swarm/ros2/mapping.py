@@ -30,7 +30,8 @@ from typing import Any
 import numpy as np
 
 from cekm_swarm.protocol import (DEFAULT_KEYS, Clock, DropCounter, KeyKind, KeySpace, KeySpaceError, Message,
-                                 ObstacleField, SenseRange, TargetField, TrackingField, WheelCommand, WorldState)
+                                 ObstacleField, SenseRange, TargetField, TrackingField, Unchanged, WheelCommand, WorldState,
+                                 with_stamp)
 from cekm_swarm.robot import KHEPERA, Khepera
 
 from .interfaces import Interfaces
@@ -152,6 +153,7 @@ class RosMapper:
         self._target: dict[str, TargetField | TrackingField] = {}
         self._obstacles: dict[str, dict[int, ObstacleField]] = {}
         self._lattice: dict[str, int] = {}  # robot -> neurons of its motor map, once a field showed it
+        self._ranges: dict[str, dict[int, SenseRange]] = {}  # robot -> sensor -> its latest reading
 
     def set_geometry(self, geometry: Mapping[str, Any] | None) -> None:
         """Take the run's static scene (when it comes later than the first messages)."""
@@ -184,7 +186,10 @@ class RosMapper:
         if isinstance(msg, WorldState):
             return self._world_state(msg)
         if isinstance(msg, SenseRange) and robot is not None:
+            self._ranges.setdefault(robot, {})[msg.index] = msg
             return self._range(robot, msg)
+        if isinstance(msg, Unchanged) and robot is not None:
+            return self._unchanged(robot, msg)
         if isinstance(msg, WheelCommand) and robot is not None:
             return self._wheels(robot, msg)
         if isinstance(msg, (TargetField, TrackingField)) and robot is not None:
@@ -278,6 +283,29 @@ class RosMapper:
             markers = []
         if markers:
             out.append(RosOut("/world/markers", MARKER_ARRAY, self.ifc.make(MARKER_ARRAY, markers=markers), ns))
+        return out
+
+    def _unchanged(self, robot: str, msg: Unchanged) -> list[RosOut]:
+        """Readings the world held this tick (docs/runtime.md, held readings): each range
+        sensor's reading again at this tick, as the sensor measured it, and its obstacle
+        field again, and for a held target reading the target field again (each the pure
+        function of its reading in the cekm graphs), so a ROS 2 reader sees one Range per
+        sensor per tick either way."""
+        out: list[RosOut] = []
+        head = "sense/range/"
+        for key in msg.keys:
+            if key == "sense/target" and robot in self._target:  # the target field again
+                out.append(self._target_field(robot, with_stamp(self._target[robot], msg.stamp)))
+            if not key.startswith(head):
+                continue
+            j = int(key[len(head):])
+            last = self._ranges.get(robot, {}).get(j)
+            if last is not None:
+                out += self._range(robot, with_stamp(last, msg.stamp))
+            held = self._obstacles.get(robot, {}).get(j)
+            if held is not None:
+                t = f"/{ros_name(robot)}/ekm/obstacle_field_{j}"
+                out.append(RosOut(t, FLOAT_ARRAY, self._lattice_array(held.b), stamp_ns(msg.stamp)))
         return out
 
     def _range(self, robot: str, msg: SenseRange) -> list[RosOut]:

@@ -15,7 +15,7 @@ from mcap_ros2.decoder import DecoderFactory
 from rosbags.rosbag2 import Reader
 from ruamel.yaml import YAML
 
-from cekm_swarm.protocol import SenseRange, WheelCommand, decode
+from cekm_swarm.protocol import SenseRange, Unchanged, WheelCommand, decode, with_stamp
 from cekm_swarm.robot import KHEPERA
 from cekm_swarm.ros2.bag import export_ros2, msgpack_message_count
 from cekm_swarm.ros2.interfaces import JAZZY_TYPE_HASHES, interfaces
@@ -95,16 +95,30 @@ def test_every_robots_last_pose_is_the_runs_final_pose(bag_messages, crossing_ru
         assert [(m.pose.pose.position.x, m.pose.pose.position.y) for _, m in odom] == list(zip(tr["x"], tr["y"]))
 
 
+def held_readings(log, rid: str, j: int) -> list[SenseRange]:
+    """Sensor j's reading at every tick: the logged one, or, in a tick where the world held
+    it (named on sense/unchanged), the last one logged, restamped."""
+    out: list[SenseRange] = []
+    key, unchanged = f"cekm/{rid}/sense/range/{j}", f"cekm/{rid}/sense/unchanged"
+    for k, m in log:
+        if k == key and isinstance(m, SenseRange) and (not out or m.stamp > out[-1].stamp):
+            out.append(m)
+        elif k == unchanged and isinstance(m, Unchanged) and f"sense/range/{j}" in m.keys:
+            out.append(with_stamp(out[-1], m.stamp))
+    return out
+
+
 def test_every_range_sensor_has_one_message_per_obstacle_tick_with_the_logged_reading(bag_messages, log, crossing_run):
     outcome = json.loads((crossing_run / "outcome.json").read_text())
+    assert outcome["readings_left_out"] > 0  # the world held readings: the bag has them all the same
     radius = KHEPERA.body_radius  # the crossing robots'
     sensors = 0
     for rid in ("r1", "r2", "r3"):
         for j in range(12):
-            logged = [m for k, m in log if k == f"cekm/{rid}/sense/range/{j}" and isinstance(m, SenseRange)]
+            readings = held_readings(log, rid, j)
             ranges = bag_messages[f"/{rid}/range_{j}"]
-            assert len(ranges) == len(logged) == outcome["ticks"] + 1
-            for (t, r), m in zip(ranges, logged):
+            assert len(ranges) == len(readings) == outcome["ticks"] + 1
+            for (t, r), m in zip(ranges, readings):
                 assert t == round(m.stamp * 1e9) and r.header.frame_id == f"{rid}/range_{j}"
                 expected = math.inf if m.d is None else np.float32(m.d - radius)
                 assert r.range == expected and r.max_range == np.float32(0.17)
@@ -126,7 +140,12 @@ def test_wheel_commands_and_fields_are_the_logs(bag_messages, log):
             assert t == round(c.stamp * 1e9) and list(s.data) == [c.v_l, c.v_r]  # raw wheel speeds, exactly
             assert tw.linear.x == (c.v_l + c.v_r) / 2 and tw.angular.z == (c.v_r - c.v_l) / KHEPERA.axle
         assert len(bag_messages[f"/{rid}/ekm/motor_activity"]) == len(cmds)
-        fields = [m for k, m in log if k == f"cekm/{rid}/field/target"]
+        fields = []  # the logged target fields, and the last one again where the target reading was held
+        for k, m in log:
+            if k == f"cekm/{rid}/field/target":
+                fields.append(m)
+            elif k == f"cekm/{rid}/sense/unchanged" and "sense/target" in m.keys and fields:
+                fields.append(fields[-1])
         arrays = bag_messages[f"/{rid}/ekm/target_field"]
         assert len(arrays) == len(fields)
         for (_, arr), f in zip(arrays, fields):

@@ -191,7 +191,9 @@ def test_a_lockstep_run_with_the_bridge_attached_equals_the_run_without_it(proce
     with_bridge = json.loads((tmp_path / "run" / "outcome.json").read_text())
     without = json.loads((crossing_run / "outcome.json").read_text())
     assert with_bridge["robots"] == without["robots"] and with_bridge["ticks"] == without["ticks"]
-    assert report["received"] > 10_000 and report["dropped"] == 0 and report["errors"] == 0
+    # the bridge took in the whole run: what the world recorded of it (its own and the nodes' messages)
+    assert report["received"] >= with_bridge["recorded_messages"] > 2000
+    assert report["dropped"] == 0 and report["errors"] == 0
     # every odometry message: CDR of the right type, the 33-byte attachment numbered from 1, the
     # GID that rmw_zenoh derives from the publisher's own liveliness token
     (token,) = {t for t in tokens if "/MP/" in t and "%r1%odom" in t}  # declared, then undeclared at the end

@@ -90,9 +90,12 @@ def test_lockstep_log_holds_the_sense_field_and_command_channels(lockstep_run):
                     K.world_clock()] + [K.sense_range("r1", j) for j in range(12)] + \
                    [K.field_obstacle("r1", j) for j in range(12)]:
             assert key in topics and encodings[key] == "msgpack", key
-        # lockstep: one command per tick (and repeats for the re-published tick)
+        # lockstep: one command per tick (and repeats for the re-published tick); a range
+        # reading at least every 8 ticks (held while unchanged), and the ticks it was left out
+        # named on sense/unchanged
         assert counts[K.cmd_wheels("r1")] >= ticks
-        assert counts[K.sense_range("r1", 0)] >= ticks
+        assert counts[K.sense_range("r1", 0)] >= ticks / 8
+        assert counts[K.sense_unchanged("r1")] > 0 and encodings[K.sense_unchanged("r1")] == "msgpack"
         from cekm_swarm.runtime.foxglove_view import SCENE_TOPIC, TF_TOPIC
 
         assert {SCENE_TOPIC, TF_TOPIC} <= topics  # the Foxglove view channels

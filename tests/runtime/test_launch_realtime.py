@@ -64,8 +64,11 @@ def faulty_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("realtime")
     scenario = out / "pair.toml"
     scenario.write_text(SCENARIO)
+    # every reading every tick: each tick then has each module's field, which the checks of
+    # staleness and of what is logged per tick count on (held readings: test_launch_graphs,
+    # tests/node/test_held_readings.py, and the realtime runs of the other launch tests)
     run = LaunchProcess(str(scenario), out / "run", "--mode", "realtime", "--max-time", "40",
-                        "--model", str(default_model_path()))
+                        "--model", str(default_model_path()), "--send-every-reading")
     kills = {}
     try:
         run.wait_line("world started ticking", timeout=90)
