@@ -49,8 +49,8 @@ sys.path.insert(0, str(ROOT))
 from cekm_swarm.experiments.default_model import default_model_path  # noqa: E402
 from cekm_swarm.protocol import DEFAULT_KEYS as K  # noqa: E402
 from cekm_swarm.protocol import Clock, MessageError, SenseRange, decode, encode  # noqa: E402
-from cekm_swarm.ticks import tick_time  # noqa: E402
 from cekm_swarm.runtime.config import open_client  # noqa: E402
+from cekm_swarm.ticks import tick_time  # noqa: E402
 
 START_TICK = 20
 EVERY = 4  # ticks between two messages (or bursts)

@@ -40,8 +40,17 @@ def measure(n: int) -> dict[str, float]:
 
     from cekm_swarm.node.wire import Decoder, Encoder
     from cekm_swarm.protocol import DEFAULT_KEYS as K
-    from cekm_swarm.protocol import (DropCounter, KeyKind, ObstacleField, SenseRange, SenseTarget, TargetField,
-                                     WorldState, decode, encode)
+    from cekm_swarm.protocol import (
+        DropCounter,
+        KeyKind,
+        ObstacleField,
+        SenseRange,
+        SenseTarget,
+        TargetField,
+        WorldState,
+        decode,
+        encode,
+    )
     from world import World, load_scenario
     from world.episode import Episode
     from world.recorder import RecordFilter

@@ -23,11 +23,10 @@ import subprocess
 import tempfile
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import zenoh
-
-from collections.abc import Callable
 
 from cekm_swarm.runtime.config import client_config, embedded_router_config, free_port, load_config, open_session
 

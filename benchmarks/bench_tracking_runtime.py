@@ -33,7 +33,6 @@ import tempfile
 import time
 from pathlib import Path
 
-
 VARIANTS = {"held": (), "every reading": ("--send-every-reading",)}
 
 

@@ -5,8 +5,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from .ticks import SUBSTEP_S, TARGET_PERIOD_S
-from .ticks import TICK_S as OBSTACLE_PERIOD_S
+# The robot's clocks, re-exported from their one home (cekm_swarm.ticks).
+from .ticks import SUBSTEP_S as SUBSTEP_S
+from .ticks import TARGET_PERIOD_S as TARGET_PERIOD_S
 
 STEP_S = 1.024  # one target-reaching time step (section 4.1)
 SUBSTEPS_PER_STEP = 32

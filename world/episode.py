@@ -25,9 +25,9 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from .sim import World
-
 from cekm_swarm.ticks import TARGET_EVERY, TICK_S, tick_time
+
+from .sim import World
 
 __all__ = ["TICK_S", "TARGET_EVERY", "Episode", "RunEpisode", "TickReadings", "make_episode"]
 CHECKPOINT_RADIUS = 0.03  # m (section 4.2: on to the next checkpoint once this close)

@@ -9,8 +9,21 @@ from typing import Any, Mapping
 
 from . import geometry as geo
 from .motion import CircleMotion, Fixed, LineMotion, Motion, RandomWalk, ScriptedMotion
-from .scenario import (_ID_RE, BODY_RADIUS, Point, DEFAULT_SENSOR_RANGE, DEFAULT_SPEED_UNIT, DEFAULT_WALL_THICKNESS,
-                       RANDOM_WALK_INSET, ObstacleSpec, RobotSpec, Scenario, ScenarioError, TargetSpec, WallSpec)
+from .scenario import (
+    _ID_RE,
+    BODY_RADIUS,
+    DEFAULT_SENSOR_RANGE,
+    DEFAULT_SPEED_UNIT,
+    DEFAULT_WALL_THICKNESS,
+    RANDOM_WALK_INSET,
+    ObstacleSpec,
+    Point,
+    RobotSpec,
+    Scenario,
+    ScenarioError,
+    TargetSpec,
+    WallSpec,
+)
 
 # ------------------------------------------------------------------ validation
 

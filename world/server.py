@@ -52,9 +52,21 @@ from cekm_swarm.errors import CekmError
 from cekm_swarm.graph.plan import WORLD_KEYS
 from cekm_swarm.graph.spec import GraphError
 from cekm_swarm.protocol import DropCounter, KeySpace
-from cekm_swarm.runtime.bridge import InlineSubscription, LivelinessWatcher, Publishers, declare_alive, wait_matching_async
-from cekm_swarm.runtime.config import (ROUTER_RUNTIME, is_loopback, open_client, open_embedded_router, tcp_host_port,
-                                       use_zenoh_runtime)
+from cekm_swarm.runtime.bridge import (
+    InlineSubscription,
+    LivelinessWatcher,
+    Publishers,
+    declare_alive,
+    wait_matching_async,
+)
+from cekm_swarm.runtime.config import (
+    ROUTER_RUNTIME,
+    is_loopback,
+    open_client,
+    open_embedded_router,
+    tcp_host_port,
+    use_zenoh_runtime,
+)
 from cekm_swarm.runtime.gc_tuning import freeze_startup_heap
 from cekm_swarm.runtime.lifetime import die_with_parent
 from cekm_swarm.runtime.record import serve_geometry, serve_json
@@ -62,8 +74,16 @@ from cekm_swarm.runtime.rungraph import default_nodes
 from cekm_swarm.ticks import TICK_S
 
 from .clocks import LockstepClock, RealtimeClock, Stopped
-from .config import (DEFAULT_MAX_TIME, REPUBLISH_S, CheckpointsError, WorldConfig, load_run_graph, parse_checkpoints,
-                     server_argv, world_options)
+from .config import (
+    DEFAULT_MAX_TIME,
+    REPUBLISH_S,
+    CheckpointsError,
+    WorldConfig,
+    load_run_graph,
+    parse_checkpoints,
+    server_argv,
+    world_options,
+)
 from .deadman import Deadman
 from .episode import make_episode
 from .inbox import CommandInbox

@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 import pymunk
 import pymunk.batch as pbatch
+
 from cekm_swarm.robot import KHEPERA
 from cekm_swarm.ticks import SUBSTEP_S
 

@@ -24,7 +24,6 @@ from ..models.competition import winner
 from ..models.fields import obstacle_field, target_field
 from ..models.networks import IndirectEKM
 from ..models.params import FieldParams
-
 from .readings import RangeReading, TargetReading
 
 WINNER_MEMO = 4096

@@ -12,8 +12,8 @@ from __future__ import annotations
 import importlib
 import inspect
 import sys
-from pathlib import Path
 from dataclasses import asdict, dataclass
+from pathlib import Path
 from typing import Any, Mapping
 
 from cekm_swarm.node.api import Node, make_params, param_fields

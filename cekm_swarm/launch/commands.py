@@ -9,7 +9,16 @@ from pathlib import Path
 import click
 from click.core import ParameterSource
 
-from cekm_swarm.cli_support import ENDPOINT, ROOT, RUN_ID, SEED, Interrupted, RunFailed, out_dir_options, prepare_out_dir
+from cekm_swarm.cli_support import (
+    ENDPOINT,
+    ROOT,
+    RUN_ID,
+    SEED,
+    Interrupted,
+    RunFailed,
+    out_dir_options,
+    prepare_out_dir,
+)
 from cekm_swarm.errors import CekmError
 from cekm_swarm.runtime.config import DEFAULT_ENDPOINT, DEFAULT_PORT
 

@@ -54,12 +54,12 @@ def preload(spec_paths: Sequence[str]) -> list[str]:
     declares ``warm_setup`` (so a child finds all of it made); the names of what it
     loaded. What fails here is skipped: the nodes meet the error themselves and say it in
     their logs (a node that cannot start exits with its one line, as when exec'd)."""
+    import zenoh  # noqa: F401 - imported, never opened here
+
     import cekm_swarm.node.process  # noqa: F401 - the node shell and what it imports
     import cekm_swarm.runtime.bridge  # noqa: F401
     import cekm_swarm.runtime.config  # noqa: F401
     import cekm_swarm.runtime.gc_tuning  # noqa: F401
-    import zenoh  # noqa: F401 - imported, never opened here
-
     from cekm_swarm.errors import CekmError
     from cekm_swarm.graph.check import node_class
     from cekm_swarm.graph.runspec import RunSpec

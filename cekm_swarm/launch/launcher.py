@@ -37,23 +37,20 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-
 from cekm_swarm.protocol import DEFAULT_ROOT, KeySpace
 from cekm_swarm.runtime.bridge import LivelinessWatcher
 from cekm_swarm.runtime.config import DEFAULT_HOST, DEFAULT_PORT, open_embedded_router
 from cekm_swarm.runtime.errors import RuntimeTransportError
-from cekm_swarm.runtime.wait import open_client_when_ready
 from cekm_swarm.runtime.model_service import ZENOH_MODEL, ModelServer
-
+from cekm_swarm.runtime.wait import open_client_when_ready
 from cekm_swarm.ticks import tick_of
 
 from .cpu import CpuSnapshot, cpu_per_tick
-from .processes import new_run_id, node_argv
 from .errors import LaunchError, NodeCannotStart
+from .processes import new_run_id, node_argv
 from .robot_host import RobotHost
 from .supervision import Child, Supervision
 from .world_host import ALIVE_TIMEOUT, WorldHost, port_hint
-
 
 
 @dataclass

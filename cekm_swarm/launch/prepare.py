@@ -27,9 +27,8 @@ class PreflightError(CekmError):
 def resolve(scenario: Any, controller: str | None, graph: str | Path | None,
             params: dict[str, Any] | None = None) -> tuple[CheckedGraph, str]:
     """The checked graph of ``--controller``/``--graph`` for the scenario, and the task."""
-    from world.tracking import run_kind
-
     from cekm_swarm.experiments.graph_run import resolve_graph, with_params
+    from world.tracking import run_kind
 
     task = run_kind(scenario)
     return with_params(resolve_graph(controller, None if graph is None else str(graph), task), params), task
@@ -37,9 +36,8 @@ def resolve(scenario: Any, controller: str | None, graph: str | Path | None,
 
 def body_of(scenario: Any) -> RobotBody:
     """What a robot's nodes know of their body and sensors, from the scenario's world."""
-    from world import World
-
     from cekm_swarm.experiments.graph_run import robot_body
+    from world import World
 
     return robot_body(World(scenario))
 

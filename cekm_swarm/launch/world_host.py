@@ -15,7 +15,6 @@ from .cpu import snapshot
 from .errors import LaunchError
 from .processes import child_env, server_argv
 
-
 ALIVE_TIMEOUT = 180.0
 """s the launcher (and the world) wait for every node to be alive before giving up."""
 

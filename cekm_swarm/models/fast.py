@@ -25,7 +25,6 @@ from numba import njit
 from ..angles import wrap_scalar
 from .params import CompetitionParams, LearningParams
 
-
 KIND_GD, KIND_RLS, KIND_DIRECT, KIND_BFN = 0, 1, 2, 3
 KIND_CODE = {"indirect-gd": KIND_GD, "indirect-rls": KIND_RLS, "direct": KIND_DIRECT, "bfn": KIND_BFN}
 

@@ -8,13 +8,52 @@ so the world server (which must not import controller code) can use it.
 
 from .codec import decode, encode, peek, summary, to_plain, to_wire
 from .drops import DropCounter, DropRecord
-from .errors import (KeySpaceError, MessageArrayError, MessageError, MessageFieldError, MessageFormatError,
-                     MessageKindError, MessageVersionError, ProtocolError)
-from .keys import (DEFAULT_KEYS, DEFAULT_RANGE_SENSORS, DEFAULT_ROOT, WORLD, KeyKind, KeySpace, ParsedKey,
-                   validate_module_name, validate_robot_id, validate_root, validate_run_id)
-from .messages import (MESSAGE_TYPES, MSGPACK_ENCODING, SCHEMA_VERSION, Clock, Data, Message, ObstacleField,
-                       ObstacleState, RobotState, SensePose, SenseRange, SenseTarget, SenseTargets, Share, TargetField,
-                       TargetState, TrackingField, Unchanged, WheelCommand, WorldState, with_stamp)
+from .errors import (
+                     KeySpaceError,
+                     MessageArrayError,
+                     MessageError,
+                     MessageFieldError,
+                     MessageFormatError,
+                     MessageKindError,
+                     MessageVersionError,
+                     ProtocolError,
+)
+from .keys import (
+                     DEFAULT_KEYS,
+                     DEFAULT_RANGE_SENSORS,
+                     DEFAULT_ROOT,
+                     WORLD,
+                     KeyKind,
+                     KeySpace,
+                     ParsedKey,
+                     validate_module_name,
+                     validate_robot_id,
+                     validate_root,
+                     validate_run_id,
+)
+from .messages import (
+                     MESSAGE_TYPES,
+                     MSGPACK_ENCODING,
+                     SCHEMA_VERSION,
+                     Clock,
+                     Data,
+                     Message,
+                     ObstacleField,
+                     ObstacleState,
+                     RobotState,
+                     SensePose,
+                     SenseRange,
+                     SenseTarget,
+                     SenseTargets,
+                     Share,
+                     TargetField,
+                     TargetState,
+                     TrackingField,
+                     Unchanged,
+                     WheelCommand,
+                     WorldState,
+                     with_stamp,
+)
 
 __all__ = [
     "DropCounter", "DropRecord",

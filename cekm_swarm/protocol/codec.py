@@ -24,8 +24,14 @@ import msgspec
 import numpy as np
 
 from .checks import wire_vector
-from .errors import (KeySpaceError, MessageError, MessageFieldError, MessageFormatError, MessageKindError,
-                     MessageVersionError)
+from .errors import (
+    KeySpaceError,
+    MessageError,
+    MessageFieldError,
+    MessageFormatError,
+    MessageKindError,
+    MessageVersionError,
+)
 from .keys import DEFAULT_KEYS, KeyKind, KeySpace
 from .schema import MESSAGE_TYPES, SCHEMA_VERSION, Message, WireVector
 

@@ -27,9 +27,32 @@ from msgspec import Meta
 
 from .errors import MessageFieldError
 from .keys import KeyKind
-from .schema import (MAX_ARRAY_LEN, MAX_INDEX, MAX_SENDER_LEN, MAX_TARGETS, MESSAGE_TYPES, MSGPACK_ENCODING,
-                     SCHEMA_VERSION, Angle, Count, Distance, Entry, EntryId, Finite, Message, Neuron, Plain, Point,
-                     Pose, RobotId, SensorIndex, Stamp, TargetId, Vector, Weight)
+from .schema import (
+    MAX_ARRAY_LEN,
+    MAX_INDEX,
+    MAX_SENDER_LEN,
+    MAX_TARGETS,
+    MESSAGE_TYPES,
+    MSGPACK_ENCODING,
+    SCHEMA_VERSION,
+    Angle,
+    Count,
+    Distance,
+    Entry,
+    EntryId,
+    Finite,
+    Message,
+    Neuron,
+    Plain,
+    Point,
+    Pose,
+    RobotId,
+    SensorIndex,
+    Stamp,
+    TargetId,
+    Vector,
+    Weight,
+)
 
 __all__ = ["MAX_ARRAY_LEN", "MAX_INDEX", "MAX_SENDER_LEN", "MAX_TARGETS", "MESSAGE_TYPES", "MSGPACK_ENCODING",
            "SCHEMA_VERSION", "Message", "SenseTarget", "SenseRange", "TargetField", "ObstacleField", "WheelCommand",

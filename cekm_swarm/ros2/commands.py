@@ -54,11 +54,9 @@ def _robots(value: str | None, option: str) -> tuple[str, ...] | None:
 @click.option("--quiet", is_flag=True, help="No progress bar (there is none when stderr is not a terminal).")
 def export_cmd(log_file: Path, to: str, out_dir: Path, overwrite: bool, distro: str, quiet: bool) -> None:
     """Export RUN.mcap for ROS 2 tools: `ros2 bag play`, `ros2 bag info`, Foxglove, rosbags."""
-    from cekm_swarm.runtime.mcap_log import is_complete
+    from cekm_swarm.runtime.mcap_log import MSGPACK, is_complete, read_messages
 
     from .bag import export_ros2, format_report
-
-    from cekm_swarm.runtime.mcap_log import MSGPACK, read_messages
 
     try:
         is_complete(log_file)  # a missing or non-MCAP file: one line, before anything is written

@@ -29,9 +29,23 @@ from typing import Any
 
 import numpy as np
 
-from cekm_swarm.protocol import (DEFAULT_KEYS, Clock, DropCounter, KeyKind, KeySpace, KeySpaceError, Message,
-                                 ObstacleField, SenseRange, TargetField, TrackingField, Unchanged, WheelCommand, WorldState,
-                                 with_stamp)
+from cekm_swarm.protocol import (
+    DEFAULT_KEYS,
+    Clock,
+    DropCounter,
+    KeyKind,
+    KeySpace,
+    KeySpaceError,
+    Message,
+    ObstacleField,
+    SenseRange,
+    TargetField,
+    TrackingField,
+    Unchanged,
+    WheelCommand,
+    WorldState,
+    with_stamp,
+)
 from cekm_swarm.robot import KHEPERA, Khepera
 
 from .interfaces import Interfaces

@@ -20,6 +20,7 @@ from .log_commands import log_group, record_cmd, replay_cmd
 from .tool_session import _ROOT_HELP, _check_key_expr, _connect_options, _keys, _session
 from .topic_commands import node, topic
 
+
 @click.command("monitor")
 @_connect_options
 @click.option("--root", default="cekm", show_default=True, type=ROOT, help=_ROOT_HELP)

@@ -19,6 +19,7 @@ from cekm_swarm.errors import CekmError
 from .tool_session import _ROOT_HELP, _check_key_expr, _connect_options, _keys, _open, _say, _session, _sigint_sets
 from .wait import ENV_CONNECT
 
+
 @click.group("log")
 def log_group() -> None:
     """MCAP run logs."""
@@ -173,7 +174,7 @@ def replay_cmd(log_file: Path, endpoint: str | None, config_file: Path | None, w
     on tcp/127.0.0.1:7447 (--port), where `cekm monitor` and `cekm topic` find it. On a
     terminal, space pauses and resumes, q stops."""
     from .config import DEFAULT_HOST, DEFAULT_PORT, open_embedded_router
-    from .replay import ReplayControl, replay_log, log_span
+    from .replay import ReplayControl, log_span, replay_log
     from .wait import resolve_endpoint
 
     if not fast and rate <= 0:

@@ -18,7 +18,6 @@
 from __future__ import annotations
 
 import asyncio
-import math
 import time
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field

@@ -33,8 +33,19 @@ import zenoh
 from rich.console import Console, Group
 from rich.text import Text
 
-from cekm_swarm.protocol import (DEFAULT_KEYS, WORLD, DropCounter, KeyKind, KeySpace, SenseRange, SenseTarget,
-                                 SenseTargets, Share, WheelCommand, WorldState)
+from cekm_swarm.protocol import (
+    DEFAULT_KEYS,
+    WORLD,
+    DropCounter,
+    KeyKind,
+    KeySpace,
+    SenseRange,
+    SenseTarget,
+    SenseTargets,
+    Share,
+    WheelCommand,
+    WorldState,
+)
 
 from .topics import HzStats, hz_stats
 

@@ -32,7 +32,6 @@ from cekm_swarm.protocol import DEFAULT_KEYS, DropCounter, KeyKind, KeySpace, Ke
 
 from .mcap_log import McapRecorder
 
-
 GEOMETRY_ENCODING = "application/json"
 
 

@@ -14,6 +14,7 @@ from cekm_swarm.cli_support import ROOT, Interrupted
 
 from .tool_session import _ROOT_HELP, _check_key_expr, _connect_options, _keys, _open, _say, _session, _sigint_sets
 
+
 @click.group("topic")
 def topic() -> None:
     """Inspect and drive the keys of a live or replayed run (like ros2 topic)."""
@@ -230,7 +231,6 @@ def node_list_cmd(endpoint: str | None, config_file: Path | None, wait_s: float,
     the nodes of the graph the run runs (which the world serves)."""
     from .jsonout import json_line
     from .nodes import format_nodes, group_tokens, wait_for_tokens
-
     from .rungraph import fetch_run_graph
 
     keys = _keys(root)

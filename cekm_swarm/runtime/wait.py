@@ -21,8 +21,7 @@ from pathlib import Path
 
 import zenoh
 
-from .config import (DEFAULT_ENDPOINT, check_endpoint, client_config, client_config_from_file, load_config,
-                     open_session)
+from .config import DEFAULT_ENDPOINT, check_endpoint, client_config, client_config_from_file, load_config, open_session
 from .errors import RuntimeTransportError
 
 ENV_CONNECT = "CEKM_CONNECT"

@@ -22,8 +22,15 @@ from typing import Any
 
 import numpy as np
 
-from cekm_swarm.protocol import (DEFAULT_KEYS, DropCounter, KeySpace, ObstacleField, TargetField, TrackingField,
-                                 WorldState)
+from cekm_swarm.protocol import (
+    DEFAULT_KEYS,
+    DropCounter,
+    KeySpace,
+    ObstacleField,
+    TargetField,
+    TrackingField,
+    WorldState,
+)
 
 PATH_STEP = 0.004
 """A path point is kept when the robot has moved this far (m) since the last one."""

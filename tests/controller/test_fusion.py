@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from cekm_swarm.controller.fusion import CommandFusion
-from cekm_swarm.controller.readings import RangeReading, TargetReading, range_readings
+from cekm_swarm.controller.readings import TargetReading, range_readings
 from cekm_swarm.models.networks import IndirectEKM
 
 ANGLES = np.array([j * math.pi / 6 for j in range(12)])
@@ -73,10 +73,9 @@ def test_fused_command_is_clipped(fusion):
                                                    ("doorway", 2, False)])
 def test_fusion_outcomes_in_real_worlds(scenario, seed, reached):
     pytest.importorskip("pymunk")
-    from world import load_scenario
-
     from cekm_swarm.experiments.default_model import default_model
     from cekm_swarm.experiments.navigation import run_scenario
+    from world import load_scenario
 
     run = run_scenario(load_scenario(scenario), "fusion", default_model(progress=False), seed, max_time=60.0)
     assert run.outcome["r1"]["reached"] is reached

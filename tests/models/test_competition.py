@@ -2,9 +2,9 @@ import numpy as np
 import pytest
 
 from cekm_swarm.angles import wrap
+from cekm_swarm.models import fast
 from cekm_swarm.models.competition import direction_set, weighted_difference, winner
 from cekm_swarm.models.params import CompetitionParams
-from cekm_swarm.models import fast
 
 
 def test_wrap_range_and_identity():

@@ -1,4 +1,3 @@
-import zipfile
 
 import numpy as np
 import pytest
@@ -46,6 +45,7 @@ def _write(path, **fields):
 def _valid_fields():
     net = make_network("R9", np.random.default_rng(0))
     import json
+
     from cekm_swarm.models.params import params_to_dict
     return {"format": "cekm-model", "format_version": 1, "kind": "indirect-rls", "lattice_size": 9, "w": net.w,
             "M": net.M, "Rinv": net.Rinv, "params": json.dumps(params_to_dict(net.comp, net.learn_p)), "provenance": "{}"}

@@ -13,8 +13,17 @@ from cekm_swarm.graph.check import check_graph
 from cekm_swarm.node import Node
 from cekm_swarm.node.timing import LockstepGate, RealtimeGate, Runner
 from cekm_swarm.protocol import DEFAULT_KEYS as K
-from cekm_swarm.protocol import (KeyKind, MessageError, ObstacleField, TargetField, Unchanged, WheelCommand, decode,
-                                 encode, with_stamp)
+from cekm_swarm.protocol import (
+    KeyKind,
+    MessageError,
+    ObstacleField,
+    TargetField,
+    Unchanged,
+    WheelCommand,
+    decode,
+    encode,
+    with_stamp,
+)
 from cekm_swarm.ticks import tick_time
 
 N = 12

@@ -8,8 +8,16 @@ import numpy as np
 
 from cekm_swarm.node.wire import Decoder, Encoder
 from cekm_swarm.protocol import DEFAULT_KEYS as K
-from cekm_swarm.protocol import (DropCounter, KeyKind, ObstacleField, SenseRange, SenseTarget, TargetField, decode,
-                                 encode)
+from cekm_swarm.protocol import (
+    DropCounter,
+    KeyKind,
+    ObstacleField,
+    SenseRange,
+    SenseTarget,
+    TargetField,
+    decode,
+    encode,
+)
 from cekm_swarm.ticks import tick_time
 
 RNG = np.random.default_rng(7)

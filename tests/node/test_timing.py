@@ -9,7 +9,6 @@ import itertools
 import random
 
 import numpy as np
-import pytest
 
 from cekm_swarm.graph.check import check_graph
 from cekm_swarm.graph.plan import needed_tick

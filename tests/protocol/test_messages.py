@@ -10,11 +10,36 @@ import msgpack
 import numpy as np
 import pytest
 
-from cekm_swarm.protocol import (DEFAULT_KEYS, SCHEMA_VERSION, Clock, Data, DropCounter, KeyKind, KeySpace,
-                                 MessageArrayError, MessageError, MessageFieldError, MessageFormatError,
-                                 MessageKindError, MessageVersionError, ObstacleField, RobotState, SenseRange, SenseTarget,
-                                 Share, TargetField, TargetState, WheelCommand, WorldState, decode, encode, peek,
-                                 summary, to_plain, to_wire)
+from cekm_swarm.protocol import (
+    DEFAULT_KEYS,
+    SCHEMA_VERSION,
+    Clock,
+    Data,
+    DropCounter,
+    KeyKind,
+    KeySpace,
+    MessageArrayError,
+    MessageError,
+    MessageFieldError,
+    MessageFormatError,
+    MessageKindError,
+    MessageVersionError,
+    ObstacleField,
+    RobotState,
+    SenseRange,
+    SenseTarget,
+    Share,
+    TargetField,
+    TargetState,
+    WheelCommand,
+    WorldState,
+    decode,
+    encode,
+    peek,
+    summary,
+    to_plain,
+    to_wire,
+)
 
 K = DEFAULT_KEYS
 RNG = np.random.default_rng(5)

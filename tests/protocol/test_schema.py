@@ -11,13 +11,23 @@ import warnings
 import msgpack
 import numpy as np
 import pytest
+from test_wire_format import samples  # tests/protocol is on the path (pytest prepends it)
 
 from cekm_swarm.protocol import DEFAULT_KEYS as K
-from cekm_swarm.protocol import (MESSAGE_TYPES, KeyKind, MessageError, ObstacleField, RobotState, SenseRange,
-                                 TargetField, WorldState, decode, encode, to_wire)
+from cekm_swarm.protocol import (
+    MESSAGE_TYPES,
+    KeyKind,
+    MessageError,
+    ObstacleField,
+    RobotState,
+    SenseRange,
+    TargetField,
+    WorldState,
+    decode,
+    encode,
+    to_wire,
+)
 from cekm_swarm.protocol.checks import wire_vector
-
-from test_wire_format import samples  # tests/protocol is on the path (pytest prepends it)
 
 ODD = [0, 1, 3, -1, True, False, None, 0.0, -0.0, 1.5, -4.0, 4.0, math.pi, -math.pi, 3.1415927, math.nan, math.inf,
        -math.inf, 1e308, "", "x", "w" * 129, b"\x00", [1.0], [1.0, 2.0], [1.0, 2.0, 3.0], [[1, 0.1, 0.2, 0.3]],

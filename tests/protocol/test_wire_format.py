@@ -18,8 +18,22 @@ import msgpack
 import numpy as np
 
 from cekm_swarm.protocol import DEFAULT_KEYS as K
-from cekm_swarm.protocol import (Clock, Data, ObstacleField, SensePose, SenseRange, SenseTarget, SenseTargets, Share,
-                                 TargetField, TrackingField, WheelCommand, WorldState, decode, encode)
+from cekm_swarm.protocol import (
+    Clock,
+    Data,
+    ObstacleField,
+    SensePose,
+    SenseRange,
+    SenseTarget,
+    SenseTargets,
+    Share,
+    TargetField,
+    TrackingField,
+    WheelCommand,
+    WorldState,
+    decode,
+    encode,
+)
 
 FIXTURE = Path(__file__).with_name("wire_v1.msgpack")
 

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
+from ros2_helpers import cekm
 from rosbags.rosbag2 import Reader
 from ruamel.yaml import YAML
 
@@ -21,8 +22,6 @@ from cekm_swarm.ros2.bag import export_ros2, msgpack_message_count
 from cekm_swarm.ros2.interfaces import JAZZY_TYPE_HASHES, interfaces
 from cekm_swarm.ros2.mapping import TOPICS
 from cekm_swarm.runtime.mcap_log import read_messages
-
-from ros2_helpers import cekm
 
 pytestmark = pytest.mark.slow
 

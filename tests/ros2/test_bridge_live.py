@@ -24,8 +24,14 @@ from cekm_swarm.protocol import Clock, WheelCommand, decode, encode
 from cekm_swarm.ros2.interfaces import JAZZY_TYPE_HASHES, interfaces
 from cekm_swarm.ros2.wire import Attachment, gid, topic_key
 from cekm_swarm.runtime.bridge import wait_matching
-from cekm_swarm.runtime.config import (client_config, free_port, load_config, open_client, open_embedded_router,
-                                      open_session)
+from cekm_swarm.runtime.config import (
+    client_config,
+    free_port,
+    load_config,
+    open_client,
+    open_embedded_router,
+    open_session,
+)
 from cekm_swarm.ticks import tick_time
 
 pytestmark = pytest.mark.slow

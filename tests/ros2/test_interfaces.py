@@ -6,8 +6,14 @@ import pytest
 from zenoh_ros2_sdk.message_registry import MessageRegistry
 from zenoh_ros2_sdk.utils import get_type_hash, load_dependencies_recursive
 
-from cekm_swarm.ros2.interfaces import (DISTROS, JAZZY_TYPE_HASHES, MESSAGE_TYPES, InterfaceError, dds_type_name,
-                                        interfaces)
+from cekm_swarm.ros2.interfaces import (
+    DISTROS,
+    JAZZY_TYPE_HASHES,
+    MESSAGE_TYPES,
+    InterfaceError,
+    dds_type_name,
+    interfaces,
+)
 
 STRING_HASH_OF_REAL_ROS = "RIHS01_df668c740482bbd48fb39d76a70dfd4bd59db1288021743503259e948f6b1a18"
 """std_msgs/msg/String as a real ROS 2 talker announces it (rmw_zenoh's docs/design.md examples)."""

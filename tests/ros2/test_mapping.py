@@ -6,8 +6,17 @@ import msgpack
 import numpy as np
 import pytest
 
-from cekm_swarm.protocol import (Clock, DropCounter, ObstacleField, SenseRange, TargetField, TrackingField,
-                                 WheelCommand, WorldState, to_wire)
+from cekm_swarm.protocol import (
+    Clock,
+    DropCounter,
+    ObstacleField,
+    SenseRange,
+    TargetField,
+    TrackingField,
+    WheelCommand,
+    WorldState,
+    to_wire,
+)
 from cekm_swarm.robot import KHEPERA
 from cekm_swarm.ros2.interfaces import interfaces
 from cekm_swarm.ros2.mapping import TOPICS, RosMapper

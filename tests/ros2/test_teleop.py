@@ -10,8 +10,17 @@ from cekm_swarm.protocol import WheelCommand, decode, encode
 from cekm_swarm.protocol.stamps import stamp_problem
 from cekm_swarm.robot import KHEPERA
 from cekm_swarm.ros2.interfaces import interfaces
-from cekm_swarm.ros2.teleop import (NO_CLOCK, NOT_FINITE, NOT_TWIST, OUT_OF_RANGE, TWIST_CDR_BYTES, Teleop,
-                                    TwistRefused, twist_command, wheel_speeds)
+from cekm_swarm.ros2.teleop import (
+    NO_CLOCK,
+    NOT_FINITE,
+    NOT_TWIST,
+    OUT_OF_RANGE,
+    TWIST_CDR_BYTES,
+    Teleop,
+    TwistRefused,
+    twist_command,
+    wheel_speeds,
+)
 from cekm_swarm.ticks import tick_time
 
 IFC = interfaces()

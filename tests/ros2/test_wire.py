@@ -5,8 +5,19 @@ import pytest
 import xxhash
 import zenoh.ext as ze
 
-from cekm_swarm.ros2.wire import (ATTACHMENT_SIZE, PUBLISHER, SUBSCRIPTION, Attachment, Node, Qos, WireError,
-                                  check_topic, gid, mangle, topic_key)
+from cekm_swarm.ros2.wire import (
+    ATTACHMENT_SIZE,
+    PUBLISHER,
+    SUBSCRIPTION,
+    Attachment,
+    Node,
+    Qos,
+    WireError,
+    check_topic,
+    gid,
+    mangle,
+    topic_key,
+)
 
 STRING = "std_msgs/msg/String"
 STRING_HASH = "RIHS01_df668c740482bbd48fb39d76a70dfd4bd59db1288021743503259e948f6b1a18"

@@ -24,8 +24,16 @@ from dataclasses import dataclass
 import msgpack
 import numpy as np
 
-from cekm_swarm.protocol import (DEFAULT_KEYS, Clock, ObstacleField, SenseRange, SenseTarget, TargetField,
-                                 WheelCommand, WorldState)
+from cekm_swarm.protocol import (
+    DEFAULT_KEYS,
+    Clock,
+    ObstacleField,
+    SenseRange,
+    SenseTarget,
+    TargetField,
+    WheelCommand,
+    WorldState,
+)
 from cekm_swarm.protocol.messages import to_wire
 from cekm_swarm.runtime.config import MAX_MESSAGE_BYTES
 from cekm_swarm.ticks import TICK_S, tick_time

@@ -8,8 +8,16 @@ import numpy as np
 import pytest
 
 from cekm_swarm.protocol import DEFAULT_KEYS, DropCounter, TargetField, WheelCommand, decode, encode
-from cekm_swarm.runtime.bridge import (AsyncSubscription, InlineSubscription, LatestValues, LivelinessWatcher,
-                                       Publishers, declare_alive, ring_subscriber, wait_matching_async)
+from cekm_swarm.runtime.bridge import (
+    AsyncSubscription,
+    InlineSubscription,
+    LatestValues,
+    LivelinessWatcher,
+    Publishers,
+    declare_alive,
+    ring_subscriber,
+    wait_matching_async,
+)
 
 K = DEFAULT_KEYS
 T = 10.0  # generous timeout for every wait

@@ -25,6 +25,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 import zenoh
+from fuzz_corpus import OVER_LIMIT_SIZES, Fuzz, make_corpus
+from test_launch_support import LaunchProcess
 
 from cekm_swarm.experiments.default_model import default_model, default_model_path
 from cekm_swarm.experiments.navigation import run_scenario
@@ -34,9 +36,6 @@ from cekm_swarm.protocol.drops import MAX_SOURCES
 from cekm_swarm.runtime.config import open_client
 from cekm_swarm.ticks import TICK_S, tick_time
 from world import load_scenario
-
-from fuzz_corpus import OVER_LIMIT_SIZES, Fuzz, make_corpus
-from test_launch_support import LaunchProcess
 
 SEED = 4
 MAX_TIME = "160"  # s of sim time: 1250 ticks for the 200 batches of the lockstep fuzz, one due every

@@ -12,14 +12,13 @@ import random
 import signal
 
 import pytest
+from scenario_gen import generated_scenario
+from test_launch_support import LaunchProcess
 
 from cekm_swarm.experiments.default_model import default_model, default_model_path
 from cekm_swarm.experiments.graph_run import run_graph
 from cekm_swarm.experiments.navigation import plan_all
 from world import World, load_scenario
-
-from scenario_gen import generated_scenario
-from test_launch_support import LaunchProcess
 
 NAVIGATION = ["training", "concave", "doorway", "lone_obstacle", "crossing", "rooms", "checkpoints"]
 TRACKING = ["tracking", "tracking-crowd"]

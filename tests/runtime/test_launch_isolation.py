@@ -5,16 +5,15 @@ same port equals ``cekm run`` bit for bit, as if the killed run had never been."
 from __future__ import annotations
 
 import json
-import os
 import signal
 import time
 from pathlib import Path
 
+from test_launch_support import LaunchProcess
+
 from cekm_swarm.experiments.default_model import default_model, default_model_path
 from cekm_swarm.experiments.navigation import run_scenario
 from world import load_scenario
-
-from test_launch_support import LaunchProcess
 
 SEED = 2
 

@@ -14,14 +14,13 @@ import subprocess
 import sys
 
 import pytest
+from test_launch_support import LaunchProcess
 
 from cekm_swarm.experiments.default_model import default_model, default_model_path
 from cekm_swarm.experiments.navigation import run_scenario
 from cekm_swarm.protocol import DEFAULT_KEYS as K
 from cekm_swarm.protocol import decode
 from world import load_scenario
-
-from test_launch_support import LaunchProcess
 
 SEED = 1  # the cooperative EKM reaches the goal behind the U on this seed (README table)
 

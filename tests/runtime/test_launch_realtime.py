@@ -9,18 +9,16 @@ some 15 s of process start-up on two cores)."""
 
 from __future__ import annotations
 
-import json
 import os
 import signal
 import time
 from pathlib import Path
 
 import pytest
+from test_launch_support import LaunchProcess
 
 from cekm_swarm.experiments.default_model import default_model, default_model_path
 from cekm_swarm.protocol import DEFAULT_KEYS as K
-
-from test_launch_support import LaunchProcess
 
 SCENARIO = """
 name = "pair"

@@ -11,7 +11,7 @@ import time
 from pathlib import Path
 
 from cekm_swarm.experiments.default_model import default_model_path
-from cekm_swarm.launch.launcher import Launcher, LaunchConfig
+from cekm_swarm.launch.launcher import LaunchConfig, Launcher
 from cekm_swarm.runtime.config import free_port
 
 

@@ -11,13 +11,12 @@ import shutil
 from pathlib import Path
 
 import pytest
+from test_launch_support import LaunchProcess
 
 from cekm_swarm.experiments.default_model import default_model, default_model_path
 from cekm_swarm.experiments.navigation import run_scenario
 from cekm_swarm.runtime.config import free_port, load_config, open_session
 from world import load_scenario
-
-from test_launch_support import LaunchProcess
 
 SEED = 2
 

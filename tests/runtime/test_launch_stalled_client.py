@@ -12,9 +12,9 @@ import signal
 import subprocess
 import sys
 
-from cekm_swarm.experiments.default_model import default_model, default_model_path
-
 from test_launch_support import LaunchProcess
+
+from cekm_swarm.experiments.default_model import default_model, default_model_path
 
 SCENARIO = """
 name = "long_run"

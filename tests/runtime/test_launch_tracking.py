@@ -23,13 +23,12 @@ import signal
 import time
 
 import pytest
+from test_launch_support import LaunchProcess
 
 from cekm_swarm.experiments.default_model import default_model, default_model_path
 from cekm_swarm.experiments.tracking import outcome_doc, run_tracking
 from cekm_swarm.protocol import DEFAULT_KEYS as K
 from world import load_scenario
-
-from test_launch_support import LaunchProcess
 
 SEED = 3
 MAX_TIME = 30.0

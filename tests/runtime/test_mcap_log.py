@@ -10,14 +10,22 @@ import signal
 import numpy as np
 import pytest
 from mcap.reader import make_reader
+from runtime_samples import sample_traffic, write_log
 
 from cekm_swarm.protocol import DEFAULT_KEYS, Clock, decode, encode
 from cekm_swarm.runtime.bridge import Publishers, wait_matching_async
 from cekm_swarm.runtime.errors import McapLogError
-from runtime_samples import sample_traffic, write_log
-
-from cekm_swarm.runtime.mcap_log import (McapRecorder, format_log_info, is_complete, log_info, read_messages,
-                                         record_zenoh, recover_log, sim_ns, stream_messages)
+from cekm_swarm.runtime.mcap_log import (
+    McapRecorder,
+    format_log_info,
+    is_complete,
+    log_info,
+    read_messages,
+    record_zenoh,
+    recover_log,
+    sim_ns,
+    stream_messages,
+)
 
 K = DEFAULT_KEYS
 

@@ -16,8 +16,16 @@ from pathlib import Path
 import pytest
 import zenoh
 
-from cekm_swarm.runtime.config import (MAX_MESSAGE_BYTES, check_endpoint, client_config, client_config_from_file,
-                                       free_port, open_client, open_embedded_router, open_session)
+from cekm_swarm.runtime.config import (
+    MAX_MESSAGE_BYTES,
+    check_endpoint,
+    client_config,
+    client_config_from_file,
+    free_port,
+    open_client,
+    open_embedded_router,
+    open_session,
+)
 
 L = MAX_MESSAGE_BYTES
 T = 20.0

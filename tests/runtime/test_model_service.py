@@ -15,8 +15,13 @@ from cekm_swarm.models.io import load_model, load_model_bytes
 from cekm_swarm.modules.ekm import cooperative_ekm
 from cekm_swarm.node import Context
 from cekm_swarm.protocol import DEFAULT_KEYS as K
-from cekm_swarm.runtime.config import (MAX_MESSAGE_BYTES, client_config_from_file, free_port, open_client,
-                                       open_embedded_router)
+from cekm_swarm.runtime.config import (
+    MAX_MESSAGE_BYTES,
+    client_config_from_file,
+    free_port,
+    open_client,
+    open_embedded_router,
+)
 from cekm_swarm.runtime.errors import RuntimeTransportError
 from cekm_swarm.runtime.model_service import ModelServer, fetch_model_bytes, is_zenoh_source
 

@@ -11,10 +11,10 @@ import msgpack
 from cekm_swarm.protocol import DEFAULT_KEYS as K
 from cekm_swarm.protocol import SenseRange, SenseTargets, Share, WheelCommand, WorldState, encode
 from cekm_swarm.runtime.bridge import declare_alive
-from cekm_swarm.runtime.logcat import key_filter
-from cekm_swarm.runtime.rungraph import default_nodes
 from cekm_swarm.runtime.jsonout import json_line
+from cekm_swarm.runtime.logcat import key_filter
 from cekm_swarm.runtime.monitor import MonitorState, render_text, snapshot
+from cekm_swarm.runtime.rungraph import default_nodes
 
 NODES = default_nodes()  # the cekm navigation graph's nodes of one robot
 ALL_MODULES = {K.alive("r1", m) for m in NODES}

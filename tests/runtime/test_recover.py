@@ -8,10 +8,10 @@ import signal
 
 from click.testing import CliRunner
 from mcap.reader import make_reader
+from runtime_samples import sample_traffic
 
 from cekm_swarm.cli import main as cli
 from cekm_swarm.runtime.mcap_log import McapRecorder, is_complete, read_messages, recover_log
-from runtime_samples import sample_traffic
 
 
 def _write(path, traffic, chunk_size=1024):

@@ -6,14 +6,13 @@ import threading
 import time
 
 import pytest
+from runtime_samples import sample_traffic, write_log
 
 from cekm_swarm.protocol import DEFAULT_KEYS
 from cekm_swarm.runtime.bridge import Publishers
-from cekm_swarm.runtime.mcap_log import McapRecorder
 from cekm_swarm.runtime.config import free_port
+from cekm_swarm.runtime.mcap_log import McapRecorder
 from cekm_swarm.runtime.replay import ReplayControl, replay_log
-
-from runtime_samples import sample_traffic, write_log
 
 K = DEFAULT_KEYS
 T = 20.0

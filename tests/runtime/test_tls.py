@@ -18,6 +18,7 @@ from pathlib import Path
 
 import pytest
 import zenoh
+from test_launch_support import LaunchProcess
 
 from cekm_swarm.experiments.default_model import default_model, default_model_path
 from cekm_swarm.experiments.navigation import run_scenario
@@ -27,8 +28,6 @@ from cekm_swarm.runtime.config import free_port, load_config, open_session
 from cekm_swarm.runtime.errors import RuntimeTransportError
 from cekm_swarm.runtime.mcap_log import read_messages
 from world import load_scenario
-
-from test_launch_support import LaunchProcess
 
 DEPLOY = Path(__file__).resolve().parents[2] / "deploy"
 TLS = DEPLOY / "tls"

@@ -14,12 +14,12 @@ import zenoh
 from click.testing import CliRunner
 from runtime_samples import sample_traffic, write_log
 
+from cekm_swarm.launch.plot import read_geometry
 from cekm_swarm.protocol import DEFAULT_KEYS as K
 from cekm_swarm.protocol import WheelCommand, WorldState, decode, encode
 from cekm_swarm.runtime.bridge import Publishers, declare_alive
 from cekm_swarm.runtime.commands import COMMANDS
 from cekm_swarm.runtime.config import load_config, open_session
-from cekm_swarm.launch.plot import read_geometry
 from cekm_swarm.runtime.mcap_log import log_info, read_messages
 from cekm_swarm.runtime.record import serve_geometry
 from cekm_swarm.runtime.rungraph import default_nodes
@@ -107,7 +107,7 @@ def test_topic_pub_is_refused_where_access_control_denies_it(acl_endpoint):
 def test_topic_info_names_publishers_and_subscribers_and_measures_the_rate(router, clients):
     motor, world = clients(), clients()
     tokens = [declare_alive(motor, K.alive("r1", "motor")), declare_alive(world, K.alive("world", "server"))]
-    inbox = Inbox(world, K.cmd_wheels_all())
+    _subscriber = Inbox(world, K.cmd_wheels_all())  # the world's subscriber, which topic info names
     stop = threading.Event()
     pubs = Publishers(motor, block=True)
     assert pubs.wait_matching(K.cmd_wheels("r1"), T)

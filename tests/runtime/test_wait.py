@@ -10,7 +10,7 @@ import threading
 import pytest
 
 from cekm_swarm.protocol import DEFAULT_KEYS as K
-from cekm_swarm.protocol import WheelCommand, encode
+from cekm_swarm.protocol import WheelCommand
 from cekm_swarm.runtime.bridge import Publishers
 from cekm_swarm.runtime.config import DEFAULT_ENDPOINT, client_config, free_port, open_embedded_router
 from cekm_swarm.runtime.errors import RuntimeTransportError

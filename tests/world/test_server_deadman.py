@@ -4,8 +4,8 @@ come late by up to the margin."""
 
 from __future__ import annotations
 
-from world.episode import TICK_S
 from world.deadman import DEADMAN_MARGIN_S, Deadman
+from world.episode import TICK_S
 
 
 def silence_at_stop(last_heard: float, lateness: float) -> float:

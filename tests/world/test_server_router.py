@@ -16,8 +16,8 @@ from pathlib import Path
 import pytest
 
 from cekm_swarm.protocol import DEFAULT_KEYS as K
-from cekm_swarm.runtime.rungraph import default_nodes
 from cekm_swarm.runtime.config import free_port, open_client
+from cekm_swarm.runtime.rungraph import default_nodes
 
 
 class WorldProcess:

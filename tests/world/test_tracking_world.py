@@ -5,7 +5,7 @@ import math
 import pytest
 
 from cekm_swarm.protocol.keys import DEFAULT_KEYS as K
-from cekm_swarm.protocol.messages import SensePose, SenseTargets, decode, encode
+from cekm_swarm.protocol.messages import decode, encode
 from world import ScenarioError, World, load_scenario, parse_scenario
 from world.tracking import ObservationMeter, is_tracking, mean_pairwise, run_kind, tracking_sense
 

@@ -9,8 +9,7 @@ import numpy as np
 import pytest
 
 from world import World, parse_scenario
-from world.scenario import ScenarioError
-from world.scenario import WHEEL_SPEED_UNIT
+from world.scenario import WHEEL_SPEED_UNIT, ScenarioError
 from world.sim import V_MAX, quantize_speed
 
 UNIT = WHEEL_SPEED_UNIT
