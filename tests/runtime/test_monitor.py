@@ -228,10 +228,10 @@ def test_monitor_command_attaches_to_a_live_run(router, clients):
 
 
 def test_invented_keys_and_robots_cannot_grow_the_monitor_without_bound(monkeypatch):
-    from cekm_swarm.runtime import monitor
+    from cekm_swarm.runtime import monitor_state
 
-    monkeypatch.setattr(monitor, "MAX_KEYS", 5)
-    monkeypatch.setattr(monitor, "MAX_ROBOTS", 3)
+    monkeypatch.setattr(monitor_state, "MAX_KEYS", 5)
+    monkeypatch.setattr(monitor_state, "MAX_ROBOTS", 3)
     st = MonitorState()
     for i in range(10):
         st.observe(K.cmd_wheels(f"r{i}"), encode(WheelCommand(1.0, "m", 0.1, 0.1, 1)), at=1.0)
