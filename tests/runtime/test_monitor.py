@@ -7,6 +7,7 @@ import subprocess
 import sys
 
 import msgpack
+import pytest
 
 from cekm_swarm.protocol import DEFAULT_KEYS as K
 from cekm_swarm.protocol import SenseRange, SenseTargets, Share, WheelCommand, WorldState, encode
@@ -203,6 +204,7 @@ def test_tracking_block_fits_80_columns_with_many_targets_and_robots():
     assert " ".join(sees).count(" 30") == 20  # every robot's count, over as many lines as it takes
 
 
+@pytest.mark.slow
 def test_monitor_command_attaches_to_a_live_run(router, clients):
     """`cekm monitor --once` in another process sees the robot, its module and the keys."""
     pub = clients()

@@ -170,6 +170,7 @@ def test_state_and_geometry_are_plain_data():
         json.dumps(w.static_geometry())
 
 
+@pytest.mark.slow
 def test_world_never_imports_the_controller():
     """The simulation imports nothing of cekm_swarm but the project's two conventions (the
     angle wrap and the tick clock); the world server only those, the message protocol,
