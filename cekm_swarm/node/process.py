@@ -143,11 +143,8 @@ class NodeShell:
         held = self.holds[key]
         head = key[: -len("sense/unchanged")]
         k = tick_of(msg.stamp)
-        out: list[tuple[str, Any]] = []
-        for rel, since in zip(msg.keys, msg.since):
-            for source in held.get(head + rel, ()):
-                out += self.gate.hold(source, k, tick_of(since))
-        return out
+        return self.gate.hold_all([(source, k, tick_of(since)) for rel, since in zip(msg.keys, msg.since)
+                                   for source in held.get(head + rel, ())])
 
     def on_token(self, key: str, alive: bool) -> list[tuple[str, Any]]:
         """A liveliness token appeared or vanished: a teammate gone or back; a late reader back."""

@@ -14,7 +14,8 @@ node in its own process (lockstep and real time) and for a whole graph in one pr
 * ``hold(key, k, since)`` (both gates): the source's value of tick ``since`` stands for
   tick ``k`` as well, restamped: its producer is a pure node whose one reading was
   unchanged at k, so the world left that reading out and the producer did not run
-  (:meth:`cekm_swarm.graph.plan.RunPlan.held_readings`).
+  (:meth:`cekm_swarm.graph.plan.RunPlan.held_readings`). ``hold_all`` takes every hold
+  of one ``Unchanged`` message and looks for runs once, after them all.
 
 Everything here is plain Python, free of Zenoh: :mod:`cekm_swarm.node.process` feeds it
 from subscriptions, :mod:`cekm_swarm.node.inprocess` from a whole graph's outputs.
@@ -24,7 +25,7 @@ from __future__ import annotations
 
 import logging
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -169,8 +170,23 @@ class LockstepGate:
 
     def hold(self, key: str, k: int, since: int) -> list[tuple[str, Any]]:
         """``key``'s value of tick ``since`` stands for tick ``k`` (module docstring)."""
+        return self.hold_all(((key, k, since),))
+
+    def hold_all(self, holds: Iterable[tuple[str, int, int]]) -> list[tuple[str, Any]]:
+        """Every ``(key, k, since)`` of one ``Unchanged`` message, then one look for runs
+        (a run at tick c reads only values of c and before, so the order is the same as
+        one hold after another; the looks in between found nothing new)."""
+        opened = False
+        for key, k, since in holds:
+            if self._hold_one(key, k, since):
+                self._open_candidates(key, k)
+                opened = True
+        return self._advance() if opened else []
+
+    def _hold_one(self, key: str, k: int, since: int) -> bool:
+        """Restamp the value standing for ``k``; False when there is none (yet) or it is too old."""
         if key not in self.watched or k <= self.done or k <= since:
-            return []
+            return False
         held = self.store.setdefault(key, {})
         if k not in held:
             msg = held.get(since)
@@ -179,18 +195,21 @@ class LockstepGate:
                 msg = held[max(later)] if later else None
             if msg is None:  # not here yet (or lost with a restart: the world's re-publishing brings it)
                 self.pending_holds.setdefault(key, {}).setdefault(since, []).append(k)
-                return []
+                return False
             held[k] = restamp(msg, tick_time(k))
             self.holds += 1
-        return self._opened(key, k)
+        return True
 
     def _opened(self, key: str, k: int) -> list[tuple[str, Any]]:
+        self._open_candidates(key, k)
+        return self._advance()
+
+    def _open_candidates(self, key: str, k: int) -> None:
         trig = self.trigger.get(key)
         if trig is not None:
             for c in range(k, k + trig[0]):
                 if c > self.done and self.node.due(c):
                     self.candidates.add(c)
-        return self._advance()
 
     def _lookup(self, key: str, tick: int) -> Any:
         return self.store.get(key, {}).get(tick)
@@ -313,6 +332,9 @@ class DirectGate:
     def hold(self, key: str, k: int, since: int) -> list[tuple[str, Any]]:
         return []  # its one input is a reading: a held reading is a run left out, nothing to do
 
+    def hold_all(self, holds: Iterable[tuple[str, int, int]]) -> list[tuple[str, Any]]:
+        return []
+
     def teammate(self, robot: str, alive: bool) -> list[tuple[str, Any]]:
         return []
 
@@ -375,15 +397,21 @@ class RealtimeGate:
 
     def hold(self, key: str, k: int, since: int) -> list[tuple[str, Any]]:
         """``key``'s value of tick ``since`` stands for tick ``k`` (module docstring)."""
-        if key not in self.watched or k <= since:
-            return []
-        out = self._open(key, k)
-        held = self.latest.get(key)
-        if held is not None and since <= held[0] < k:  # the value of since, or one restamped from it since
-            self.latest[key] = (k, restamp(held[1], tick_time(k)))
-            self.holds += 1
-        elif held is None or held[0] < since:  # the value it stands for is still on its way
-            self.pending_holds[key] = (since, k)
+        return self.hold_all(((key, k, since),))
+
+    def hold_all(self, holds: Iterable[tuple[str, int, int]]) -> list[tuple[str, Any]]:
+        """Every ``(key, k, since)`` of one ``Unchanged`` message, then one look whether the open tick is complete."""
+        out: list[tuple[str, Any]] = []
+        for key, k, since in holds:
+            if key not in self.watched or k <= since:
+                continue
+            out += self._open(key, k)
+            held = self.latest.get(key)
+            if held is not None and since <= held[0] < k:  # the value of since, or one restamped from it since
+                self.latest[key] = (k, restamp(held[1], tick_time(k)))
+                self.holds += 1
+            elif held is None or held[0] < since:  # the value it stands for is still on its way
+                self.pending_holds[key] = (since, k)
         if self.open_tick > self.done and self._complete(self.open_tick):
             out += self._run(self.open_tick)
         return out

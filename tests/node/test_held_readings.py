@@ -163,6 +163,39 @@ def test_realtime_a_hold_from_long_ago_uses_what_stood_for_the_ticks_since():
     assert g.holds == 39 * N + 19
 
 
+@pytest.mark.parametrize("cls", [LockstepGate, RealtimeGate])
+def test_holds_taken_at_once_run_as_one_after_another(cls):
+    """``hold_all`` (one look for runs after every hold of a message) runs the same ticks
+    with the same inputs as ``hold`` per key, also with values that come late."""
+    seen = {}
+    for batch in (False, True):
+        rng = np.random.default_rng(7)
+        g, calls = gate(cls)
+        tick_zero(g)
+        late, sent = None, dict.fromkeys(range(N), 0)  # reading j last sent at tick sent[j]
+        for k in range(1, 30):
+            changed = set(rng.choice(N, size=3, replace=False).tolist()) if k % 5 == 0 else set()
+            holds = [(K.field_obstacle("r1", j), k, sent[j]) for j in range(N) if j not in changed]
+            sent.update(dict.fromkeys(changed, k))
+            if k % 2 == 0:
+                holds.append((K.field_target("r1"), k, 0))
+            for j in sorted(changed):
+                if late is None:
+                    late = obstacle(k, j, seen=True)  # comes after the holds that stand on it
+                else:
+                    g.put(*obstacle(k, j, seen=True))
+            if batch:
+                g.hold_all(holds)
+            else:
+                for h in holds:
+                    g.hold(*h)
+            if late is not None:
+                g.put(*late)
+                late = None
+        seen[batch] = [(t, {j: (f.stamp, f.winner) for j, f in inp["obstacles"].items()}) for t, inp in calls]
+    assert seen[True] == seen[False] and len(seen[True]) > 20
+
+
 def test_the_unchanged_message_names_readings_sent_before_it():
     m = Unchanged(1.28, "world", ("sense/range/3", "sense/target"), (0.128, 0.0))
     assert decode(K.sense_unchanged("r1"), encode(m)) == m
