@@ -81,15 +81,32 @@ def latency_ms(latencies: Samples | list[float]) -> dict[str, Any]:
 
 
 def write_outputs(out: Path, doc: dict[str, Any], episode: Any) -> None:
-    """``outcome.json`` (``doc``) and ``trajectory.json`` (pose and command per tick)."""
-    (out / "outcome.json").write_text(json.dumps(doc, indent=1))
-    with open(out / "trajectory.json", "w") as f:  # robot by robot, column by column: no run-long copy at once
-        f.write("{")
-        for n, (r, p) in enumerate(episode.progress.items()):
-            f.write(("" if n == 0 else ", ") + json.dumps(r) + ": {")
-            cols = [(name, p.path.column(j)) for j, name in enumerate(("t", "x", "y", "theta"))]
-            cols += [("v_l", p.commands.column(0)), ("v_r", p.commands.column(1)),
-                     ("checkpoints", [list(c) for c in p.checkpoints]), ("checkpoint_times", list(p.checkpoint_times))]
-            f.write(", ".join(f"{json.dumps(name)}: {json.dumps(col)}" for name, col in cols) + "}")
-            del cols
-        f.write("}")
+    """``outcome.json`` (``doc``) and ``trajectory.json`` (pose and command per tick), each
+    whole or not at all (written beside, then renamed: a full disk leaves no half file)."""
+    _whole(out / "outcome.json", lambda f: f.write(json.dumps(doc, indent=1)))
+    _whole(out / "trajectory.json", lambda f: _write_trajectory(f, episode))
+
+
+def _whole(path: Path, write: Any) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    try:
+        with open(tmp, "w") as f:
+            write(f)
+        tmp.replace(path)
+    except OSError:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
+def _write_trajectory(f: Any, episode: Any) -> None:
+    """Robot by robot, column by column: no run-long copy at once (the bytes of ``json.dumps``
+    of the whole map)."""
+    f.write("{")
+    for n, (r, p) in enumerate(episode.progress.items()):
+        f.write(("" if n == 0 else ", ") + json.dumps(r) + ": {")
+        cols = [(name, p.path.column(j)) for j, name in enumerate(("t", "x", "y", "theta"))]
+        cols += [("v_l", p.commands.column(0)), ("v_r", p.commands.column(1)),
+                 ("checkpoints", [list(c) for c in p.checkpoints]), ("checkpoint_times", list(p.checkpoint_times))]
+        f.write(", ".join(f"{json.dumps(name)}: {json.dumps(col)}" for name, col in cols) + "}")
+        del cols
+    f.write("}")

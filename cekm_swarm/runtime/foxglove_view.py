@@ -100,8 +100,10 @@ def _fill(parts: Sequence[Sequence[Sequence[float]]], z: float, color: Sequence[
 class FoxgloveViews:
     """Writes the view channels of one run into ``recorder``."""
 
-    def __init__(self, recorder: McapRecorder, *, robot_radius: float = 0.03) -> None:
+    def __init__(self, recorder: McapRecorder, *, robot_radius: float = 0.03, path_every: float = 0.0) -> None:
         _need()
+        self.path_every = path_every  # s of sim time between two path messages of a robot (0: whenever it moved)
+        self._path_sent: dict[str, float] = {}
         self.recorder = recorder
         self.robot_radius = robot_radius
         self._scene = _schema(fm.SceneUpdate)
@@ -110,8 +112,9 @@ class FoxgloveViews:
         self._moving: dict[str, Mapping[str, Any]] = {}
         self._paths: dict[str, tuple[list[tuple[float, float, float]], list[Any]]] = {}
 
-    def _put(self, topic: str, schema: SchemaSpec, msg: Any, t: float) -> None:
-        self.recorder.write_encoded(topic, "protobuf", schema, msg.encode(), t)
+    def _put(self, topic: str, schema: SchemaSpec, msg: Any, t: float, sticky: bool = False) -> None:
+        """``sticky``: the static scene, which a log set writes again at the start of every file."""
+        self.recorder.write_encoded(topic, "protobuf", schema, msg.encode(), t, sticky=sticky)
 
     def write_geometry(self, t: float, geometry: Mapping[str, Any]) -> None:
         """The static scene (walls, polygons, discs) once, as entities without lifetime."""
@@ -141,7 +144,7 @@ class FoxgloveViews:
         for m in geometry.get("moving_obstacles", ()):
             self._moving[str(m["id"])] = m
         self.robot_radius = float(geometry.get("body_radius", self.robot_radius))
-        self._put(SCENE_TOPIC, self._scene, fm.SceneUpdate(entities=entities), t)
+        self._put(SCENE_TOPIC, self._scene, fm.SceneUpdate(entities=entities), t, sticky=True)
 
     def _path_step(self, rid: str, x: float, y: float, th: float) -> bool:
         """Extend the robot's path if it moved (>= PATH_STEP m or 0.2 rad); True if extended."""
@@ -156,6 +159,15 @@ class FoxgloveViews:
             half = len(poses) // 2
             raw[:half] = raw[:half:2]
             poses[:half] = poses[:half:2]
+        return True
+
+    def _path_due(self, rid: str, t: float) -> bool:
+        if self.path_every <= 0:
+            return True
+        last = self._path_sent.get(rid)
+        if last is not None and t - last < self.path_every:
+            return False
+        self._path_sent[rid] = t
         return True
 
     def write_state(self, t: float, state: Mapping[str, Any]) -> None:
@@ -178,7 +190,7 @@ class FoxgloveViews:
             transforms.append(fm.FrameTransform(timestamp=ts, parent_frame_id=WORLD_FRAME, child_frame_id=str(rid),
                                                 translation=fm.Vector3(x=x, y=y, z=0.0),
                                                 rotation=_yaw(th)))
-            if self._path_step(str(rid), x, y, th):
+            if self._path_step(str(rid), x, y, th) and self._path_due(str(rid), t):
                 self._put(PATH_TOPIC.format(robot=rid), self._poses,
                           fm.PosesInFrame(timestamp=ts, frame_id=WORLD_FRAME, poses=self._paths[str(rid)][1]), t)
         for tid, tg in state.get("targets", {}).items():
@@ -202,7 +214,7 @@ class FoxgloveViews:
                 prim = {"spheres": [fm.SpherePrimitive(pose=_pose(x, y, 0.01), size=fm.Vector3(x=0.03, y=0.03, z=0.03),
                                                        color=_color(_UNKNOWN_OBSTACLE))]}
             entities.append(fm.SceneEntity(timestamp=ts, frame_id=WORLD_FRAME, id=f"obstacle/{oid}", **prim))
-        self._put(SCENE_TOPIC, self._scene, fm.SceneUpdate(entities=entities), t)
+        self._put(SCENE_TOPIC, self._scene, fm.SceneUpdate(entities=entities), t, sticky=True)
         if transforms:
             self._put(TF_TOPIC, self._tf, fm.FrameTransforms(transforms=transforms), t)
 

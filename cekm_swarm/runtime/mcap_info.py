@@ -39,6 +39,7 @@ class LogInfo:
     end: float
     channels: tuple[ChannelInfo, ...] = field(default=())
     cut_reason: str | None = None
+    files: tuple[str, ...] = ()  # a log set: its files, in order (one file: empty)
 
     @property
     def duration(self) -> float:
@@ -47,23 +48,31 @@ class LogInfo:
 
 
 def log_info(path: str | Path) -> LogInfo:
-    """Summarise a log (complete or truncated) by streaming its messages once."""
-    src = _open(path)
-    result = StreamResult()
+    """Summarise a log (complete or truncated; a file, or a log set as one log: see
+    :mod:`.mcap_sets`) by streaming its messages once."""
+    from .mcap_sets import log_files
+
+    files = [_open(p) for p in log_files(path)]
     stats: dict[str, list[Any]] = {}
-    for m in stream_messages(src, result):
-        s = stats.get(m.topic)
-        if s is None:
-            stats[m.topic] = [m.message_encoding, m.schema_name, 1, m.log_time, m.log_time]
-        else:
-            s[2] += 1
-            s[3] = min(s[3], m.log_time)
-            s[4] = max(s[4], m.log_time)
+    complete, cut = True, None
+    for src in files:
+        result = StreamResult()
+        for m in stream_messages(src, result):
+            s = stats.get(m.topic)
+            if s is None:
+                stats[m.topic] = [m.message_encoding, m.schema_name, 1, m.log_time, m.log_time]
+            else:
+                s[2] += 1
+                s[3] = min(s[3], m.log_time)
+                s[4] = max(s[4], m.log_time)
+        if not result.complete and complete:
+            complete, cut = False, result.error if len(files) == 1 else f"{src.name}: {result.error}"
     channels = tuple(ChannelInfo(t, s[0], s[1], s[2], s[3] / 1e9, s[4] / 1e9) for t, s in sorted(stats.items()))
     start = min((c.first for c in channels), default=0.0)
     end = max((c.last for c in channels), default=0.0)
-    return LogInfo(src, src.stat().st_size, result.complete, sum(c.count for c in channels), start, end, channels,
-                   result.error)
+    shown = Path(path) if len(files) > 1 else files[0]
+    return LogInfo(shown, sum(p.stat().st_size for p in files), complete, sum(c.count for c in channels), start, end,
+                   channels, cut, tuple(str(p) for p in files) if len(files) > 1 else ())
 
 
 def format_log_info(info: LogInfo) -> str:
@@ -72,6 +81,9 @@ def format_log_info(info: LogInfo) -> str:
              f"{'complete' if info.complete else 'INCOMPLETE (writer did not finish: ' + str(info.cut_reason) + ')'}",
              f"messages {info.messages}, channels {len(info.channels)}, sim time {info.start:.3f} .. {info.end:.3f} s "
              f"(duration {info.duration:.3f} s)"]
+    if info.files:
+        lines.insert(1, f"a log set of {len(info.files)} files: {Path(info.files[0]).name} .. "
+                        f"{Path(info.files[-1]).name}")
     if info.channels:
         w = max(len(c.topic) for c in info.channels)
         lines.append(f"  {'topic':<{w}}  {'encoding':<9} {'count':>7} {'rate Hz':>9} {'first s':>9} {'last s':>9}  schema")

@@ -53,8 +53,10 @@ def _open(path: str | Path) -> Path:
 
 
 def is_complete(path: str | Path) -> bool:
-    """True when the log was closed properly (footer and summary present)."""
-    return _has_footer(_open(path))
+    """True when the log was closed properly (footer present), every file of a set."""
+    from .mcap_sets import log_files
+
+    return all(_has_footer(_open(p)) for p in log_files(path))
 
 
 def _convert(schema: Any, channel: Any, message: Any) -> LoggedMessage:
@@ -99,7 +101,17 @@ def stream_messages(path: str | Path, result: StreamResult | None = None) -> Ite
 
 def read_messages(path: str | Path, *, topics: Iterable[str] | None = None,
                   encodings: Iterable[str] | None = None) -> Iterator[LoggedMessage]:
-    """Messages of a log in log-time order (complete file) or file order (a truncated file,
+    """Messages of a log in log-time order, optionally only some topics or message
+    encodings. ``path`` is a file, or a log set (a directory, or a set's first file: see
+    :mod:`.mcap_sets`), whose files are merged in log-time order."""
+    from .mcap_sets import log_files, read_set
+
+    return read_set(log_files(path), topics=topics, encodings=encodings)
+
+
+def read_one(path: str | Path, *, topics: Iterable[str] | None = None,
+             encodings: Iterable[str] | None = None) -> Iterator[LoggedMessage]:
+    """Messages of one file in log-time order (complete file) or file order (a truncated file,
     read up to the cut), optionally only some topics or message encodings."""
     path = _open(path)
     topic_set = set(topics) if topics is not None else None

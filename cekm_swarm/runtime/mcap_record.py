@@ -19,15 +19,20 @@
 from __future__ import annotations
 
 import asyncio
+import io
+import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
 
+from mcap.data_stream import RecordBuilder
+from mcap.records import DataEnd, Footer
+
 from cekm_swarm.protocol import DEFAULT_KEYS, KeySpace, KeySpaceError, peek
 
 from .errors import McapLogError
-from .mcap_writer import COMPRESSIONS, ChunkedWriter
+from .mcap_writer import COMPRESSIONS, MAGIC, ChunkedWriter
 
 MSGPACK = "msgpack"
 """MCAP message encoding of the key-space channels."""
@@ -65,8 +70,55 @@ class SchemaSpec:
     data: bytes = b""
 
 
+class LogFull(McapLogError):
+    """The log's disk is full (or its file may grow no further: a size limit, a quota, an I/O
+    error): the recorder closed the file with what it had written out whole (see
+    :meth:`McapRecorder._lost`) and writes no more. ``closed`` says how the file ends:
+    ``summary`` (complete, indexed), ``footer`` (complete, no index: read in file order) or
+    ``cut`` (at the last whole chunk, no footer)."""
+
+    def __init__(self, path: str, problem: str, *, closed: str, size: int, messages: int) -> None:
+        self.closed, self.size, self.messages = closed, size, messages
+        super().__init__(path, problem)
+
+
+def _size(n: int) -> str:
+    return f"{n / 1e6:.1f} MB" if n >= 1e6 else f"{n / 1e3:.1f} kB"
+
+
+def _write_all(fd: int, data: bytes) -> None:
+    view = memoryview(data)
+    while view:
+        view = view[os.write(fd, view):]
+
+
+class _At(io.BytesIO):
+    """A memory stream that reports offsets from ``base`` (the tail of a file built in memory)."""
+
+    def __init__(self, base: int) -> None:
+        super().__init__()
+        self.base = base
+
+    def tell(self) -> int:
+        return self.base + super().tell()
+
+
+def _footer_only() -> bytes:
+    """A data end and a footer with no summary, and the closing magic (45 bytes): the file is
+    complete, and readers read it in file order."""
+    b = RecordBuilder()
+    DataEnd(0).write(b)
+    Footer(summary_start=0, summary_offset_start=0, summary_crc=0).write(b)
+    return b.end() + MAGIC
+
+
 class McapRecorder:
-    """Writes one MCAP file; a context manager. Not thread-safe: use one thread (or loop)."""
+    """Writes one MCAP file; a context manager. Not thread-safe: use one thread (or loop).
+
+    A write the OS refuses (a full disk, a file-size limit) ends the log cleanly: the file
+    is cut back to the last chunk written out whole and closed with its summary, or, if
+    even that does not fit, a bare footer (:meth:`_lost`); every call then raises
+    :class:`LogFull`, whose message says so in one line."""
 
     def __init__(self, path: str | Path, *, chunk_size: int = DEFAULT_CHUNK_SIZE,
                  flush_interval: float | None = DEFAULT_FLUSH_INTERVAL, compression: str = "zstd",
@@ -82,9 +134,13 @@ class McapRecorder:
         except OSError as exc:
             raise McapLogError(str(path), f"cannot open for writing: {exc.strerror or exc}") from None
         self._writer = ChunkedWriter(self._file, chunk_size=chunk_size, compression=compression)
-        self._writer.start(profile=PROFILE, library=LIBRARY)
-        if metadata:
-            self._writer.add_metadata("cekm", {str(k): str(v) for k, v in metadata.items()})
+        self.full: LogFull | None = None  # set once the disk refused a write
+        try:
+            self._writer.start(profile=PROFILE, library=LIBRARY)
+            if metadata:
+                self._writer.add_metadata("cekm", {str(k): str(v) for k, v in metadata.items()})
+        except OSError as exc:
+            self._lost(exc)
         self._schemas: dict[SchemaSpec, int] = {}
         self._channels: dict[str, tuple[int, str]] = {}  # topic -> (channel id, message encoding)
         self._sequence: dict[int, int] = {}
@@ -108,7 +164,11 @@ class McapRecorder:
                 raise McapLogError(str(self.path), f"topic '{topic}' already has message encoding '{entry[1]}', "
                                                    f"not '{message_encoding}'")
             return entry[0]
-        cid = self._writer.register_channel(topic, message_encoding, self._schema_id(schema))
+        self._check_open()
+        try:
+            cid = self._writer.register_channel(topic, message_encoding, self._schema_id(schema))
+        except OSError as exc:
+            self._lost(exc)
         self._channels[topic] = (cid, message_encoding)
         self._sequence[cid] = 0
         return cid
@@ -135,42 +195,115 @@ class McapRecorder:
         return True
 
     def write_encoded(self, topic: str, message_encoding: str, schema: SchemaSpec, data: bytes,
-                      sim_time: float) -> None:
-        """Record a message of any encoding (e.g. protobuf Foxglove views) on ``topic``."""
+                      sim_time: float, sticky: bool = False) -> None:
+        """Record a message of any encoding (e.g. protobuf Foxglove views) on ``topic``
+        (``sticky``: a log set writes it again at the start of each file; one file: no matter)."""
         self._add(self.channel(topic, message_encoding, schema), data, sim_time, sim_time)
 
-    def _add(self, cid: int, data: bytes, log_time: float, publish_time: float) -> None:
+    def _check_open(self) -> None:
         if self._file is None:
-            raise McapLogError(str(self.path), "recorder is closed")
+            raise self.full if self.full is not None else McapLogError(str(self.path), "recorder is closed")
+
+    def _add(self, cid: int, data: bytes, log_time: float, publish_time: float) -> None:
+        self._check_open()
         seq = self._sequence[cid] = (self._sequence[cid] + 1) & 0xFFFFFFFF
         log_ns = sim_ns(log_time)
-        self._writer.add_message(cid, log_ns, data, log_ns if publish_time == log_time else sim_ns(publish_time), seq)
+        try:
+            self._writer.add_message(cid, log_ns, data, log_ns if publish_time == log_time else sim_ns(publish_time),
+                                     seq)
+        except OSError as exc:
+            self._lost(exc)
         self.messages += 1
         self.maybe_flush()
 
     def add_raw(self, channel_id: int, data: bytes, log_time_ns: int, publish_time_ns: int, sequence: int) -> None:
         """Add a message with times already in nanoseconds (for copying between logs)."""
-        if self._file is None:
-            raise McapLogError(str(self.path), "recorder is closed")
-        self._writer.add_message(channel_id, log_time=log_time_ns, data=data, publish_time=publish_time_ns,
-                                 sequence=sequence)
+        self._check_open()
+        try:
+            self._writer.add_message(channel_id, log_time=log_time_ns, data=data, publish_time=publish_time_ns,
+                                     sequence=sequence)
+        except OSError as exc:
+            self._lost(exc)
         self.messages += 1
 
     def add_metadata(self, name: str, data: dict[str, str]) -> None:
         """A metadata record (e.g. scenario, seed) in the file."""
-        self._writer.add_metadata(name, {str(k): str(v) for k, v in data.items()})
+        self._check_open()
+        try:
+            self._writer.add_metadata(name, {str(k): str(v) for k, v in data.items()})
+        except OSError as exc:
+            self._lost(exc)
 
     def add_attachment(self, name: str, media_type: str, data: bytes, log_time_ns: int = 0,
                        create_time_ns: int = 0) -> None:
         """An attachment record (for copying between logs)."""
-        self._writer.add_attachment(create_time=create_time_ns, log_time=log_time_ns, name=name,
-                                    media_type=media_type, data=data)
+        self._check_open()
+        try:
+            self._writer.add_attachment(create_time=create_time_ns, log_time=log_time_ns, name=name,
+                                        media_type=media_type, data=data)
+        except OSError as exc:
+            self._lost(exc)
 
     def flush(self) -> None:
         """Close the open chunk and push everything to the OS (survives a killed process)."""
         if self._file is not None:
-            self._writer.flush()
+            try:
+                self._writer.flush()
+            except OSError as exc:
+                self._lost(exc)
             self._last_flush = time.monotonic()
+
+    @property
+    def size(self) -> int:
+        """Bytes of the file written out so far (up to the last whole record)."""
+        return self._writer.committed
+
+    def _lost(self, exc: OSError) -> None:
+        """The OS refused a write: close the file with what reached it whole, then raise
+        :class:`LogFull`. The file is cut back to the last chunk written out with its
+        message indexes (the open chunk, at most ``flush_interval`` s of messages, is lost),
+        then ends with the summary of those chunks, or, if that does not fit, a bare footer,
+        or, if not even that fits, at that chunk (no footer: read up to the end all the
+        same). The handle that failed is closed first (its buffer may still hold bytes)."""
+        w, keep = self._writer, self._writer.committed
+        old, self._file = self._file, None
+        try:
+            if old is not None:
+                old.close()
+        except OSError:
+            pass
+        closed = "cut"
+        try:
+            tail = _At(keep)
+            w.lost_stream(tail)
+            try:
+                w.finish()
+                attempts = [("summary", tail.getvalue()), ("footer", _footer_only())]
+            except OSError:  # the chunk indexes' temporary file failed too
+                attempts = [("footer", _footer_only())]
+            fd = os.open(self.path, os.O_WRONLY)
+            try:
+                for how, data in attempts:
+                    try:
+                        os.ftruncate(fd, keep)
+                        os.lseek(fd, keep, os.SEEK_SET)
+                        _write_all(fd, data)
+                        os.fsync(fd)
+                        closed = how
+                        break
+                    except OSError:
+                        os.ftruncate(fd, keep)
+            finally:
+                os.close(fd)
+        except OSError:
+            pass
+        messages = w.committed_messages
+        what = {"summary": "closed with its summary", "footer": "closed with a footer (no index)",
+                "cut": "cut at its last whole chunk (no footer)"}[closed]
+        self.full = LogFull(str(self.path), f"{exc.strerror or exc} after {_size(keep)}: the log stops "
+                            f"here, {what}, with {messages} messages, readable", closed=closed, size=keep,
+                            messages=messages)
+        raise self.full
 
     def maybe_flush(self, now: float | None = None) -> bool:
         """:meth:`flush` if ``flush_interval`` seconds passed since the last one; True if it did."""
@@ -188,14 +321,22 @@ class McapRecorder:
         return list(self._channels)
 
     def close(self) -> None:
-        """Write the summary (indexes, statistics) and close the file (idempotent)."""
+        """Write the summary (indexes, statistics) and close the file (idempotent; after
+        :class:`LogFull` the file is closed already)."""
         if self._file is None:
             return
         try:
             self._writer.finish()
-        finally:
             self._file.close()
-            self._file = None
+        except OSError as exc:
+            self._lost(exc)
+        finally:
+            if self._file is not None:
+                try:
+                    self._file.close()
+                except OSError:
+                    pass
+                self._file = None
 
     def __enter__(self) -> "McapRecorder":
         return self

@@ -186,6 +186,11 @@ class ChunkedWriter:
         after :meth:`lost_stream` keeps."""
         return self._committed
 
+    @property
+    def committed_messages(self) -> int:
+        """Messages in the chunks written out (what the summary counts)."""
+        return self._messages
+
     def lost_stream(self, stream: IO[bytes]) -> None:
         """Continue on ``stream``, a new handle on the same file cut back to
         :attr:`committed` (a write failed: the disk is full): the open chunk and whatever
