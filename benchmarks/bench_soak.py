@@ -125,7 +125,9 @@ def main() -> None:
     sc.write_text(scenario_text(args.robots))
     sim = args.minutes * 60.0
     cmd = [sys.executable, "-m", "cekm_swarm", "launch", str(sc), "--mode", "realtime", "--max-time", str(sim),
-           "--out", str(args.out), "--overwrite", "--no-plot", "--port", str(args.port), "--record", args.record]
+           "--out", str(args.out), "--overwrite", "--no-plot", "--port", str(args.port)]
+    if args.record != "full":
+        cmd += ["--record", args.record]
     if args.max_log_size:
         cmd += ["--max-log-size", args.max_log_size]
     env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
