@@ -168,6 +168,7 @@ def main() -> None:
 
 def report(args, samples: list[dict], outcome: dict) -> None:
     robots = args.robots
+    samples = [s for s in samples if "world" in s["rss_kb"]]  # not the last ones, once the run ended
     kinds = sorted({k for s in samples for k in s["rss_kb"]})
     base = min((s for s in samples if s["minute"] >= 1.0), key=lambda s: s["minute"], default=samples[0])
     minutes = int(samples[-1]["minute"])

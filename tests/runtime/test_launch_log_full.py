@@ -17,6 +17,8 @@ from test_launch_support import LaunchProcess
 
 from cekm_swarm.experiments.default_model import default_model, default_model_path
 
+pytestmark = pytest.mark.slow  # launches and child processes
+
 
 @pytest.fixture
 def small_disk(tmp_path) -> Path:

@@ -23,6 +23,9 @@ def _launch(out, *args):
     return run
 
 
+pytestmark = pytest.mark.slow  # launches and child processes
+
+
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory):
     return {name: _launch(tmp_path_factory.mktemp(name), *args) for name, args in

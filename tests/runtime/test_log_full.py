@@ -58,6 +58,9 @@ def _fill(tmp_path: Path, limit: int, chunk: int = 8 * 1024) -> tuple[dict, Path
     return json.loads(out.stdout.strip().splitlines()[-1]), path
 
 
+pytestmark = pytest.mark.slow  # launches and child processes
+
+
 @pytest.mark.parametrize("limit", [200_000, 1_000_003])
 def test_a_full_disk_closes_the_log_with_its_summary(tmp_path, limit):
     """Chunks of 256 KB (of random bytes: zstd keeps their size): the chunk that did not

@@ -107,6 +107,7 @@ def _cekm(*args):
     return subprocess.run([sys.executable, "-m", "cekm_swarm", *args], capture_output=True, text=True, timeout=120)
 
 
+@pytest.mark.slow  # runs the cekm command
 def test_cekm_log_info_and_cat_take_the_set(tmp_path):
     rec, traffic = _split_log(tmp_path, max_seconds=4.0)
     info = _cekm("log", "info", str(tmp_path), "--json")
