@@ -114,7 +114,8 @@ class WorldHost:
         """The world server ended abnormally (killed, crashed): say so, and make ``run.mcap``
         a complete, indexed log again if the world could not close it (the cut file is kept
         as ``run.truncated.mcap``). The run ends: nothing else can tick the world."""
-        from cekm_swarm.runtime.mcap_log import is_complete, recover_log
+        from cekm_swarm.runtime.mcap_log import recover_log
+        from cekm_swarm.runtime.mcap_read import file_complete
 
         c = self.c
         why = f"was killed by signal {-code}" if code < 0 else f"ended with exit code {code}"
@@ -125,7 +126,7 @@ class WorldHost:
             paths = log_files(c.out / "run.mcap") if (c.out / "run.mcap").is_file() else \
                 log_files(c.out / "run_0.mcap") if (c.out / "run_0.mcap").is_file() else []
             for log_path in paths:
-                if is_complete(log_path):
+                if file_complete(log_path):
                     continue
                 cut = log_path.with_name(log_path.name[:-5] + ".truncated.mcap")
                 log_path.replace(cut)

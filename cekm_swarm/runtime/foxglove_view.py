@@ -110,7 +110,10 @@ class FoxgloveViews:
         self._tf = _schema(fm.FrameTransforms)
         self._poses = _schema(fm.PosesInFrame)
         self._moving: dict[str, Mapping[str, Any]] = {}
-        self._paths: dict[str, tuple[list[tuple[float, float, float]], list[Any]]] = {}
+        # robot -> (its path's (x, y, theta), each pose encoded once: a PosesInFrame is its
+        # header's bytes and its poses' bytes one after another, so a path message is a join,
+        # not 2,000 objects kept and encoded again per message; the same bytes)
+        self._paths: dict[str, tuple[list[tuple[float, float, float]], list[bytes]]] = {}
 
     def _put(self, topic: str, schema: SchemaSpec, msg: Any, t: float, sticky: bool = False) -> None:
         """``sticky``: the static scene, which a log set writes again at the start of every file."""
@@ -154,7 +157,7 @@ class FoxgloveViews:
             if math.hypot(x - lx, y - ly) < PATH_STEP and abs(math.remainder(th - lth, math.tau)) < 0.2:
                 return False
         raw.append((x, y, th))
-        poses.append(_pose(x, y, 0.0, th))
+        poses.append(fm.PosesInFrame(poses=[_pose(x, y, 0.0, th)]).encode())
         if len(poses) > PATH_MAX:  # thin the older half so messages stay bounded on long runs
             half = len(poses) // 2
             raw[:half] = raw[:half:2]
@@ -191,8 +194,9 @@ class FoxgloveViews:
                                                 translation=fm.Vector3(x=x, y=y, z=0.0),
                                                 rotation=_yaw(th)))
             if self._path_step(str(rid), x, y, th) and self._path_due(str(rid), t):
-                self._put(PATH_TOPIC.format(robot=rid), self._poses,
-                          fm.PosesInFrame(timestamp=ts, frame_id=WORLD_FRAME, poses=self._paths[str(rid)][1]), t)
+                head = fm.PosesInFrame(timestamp=ts, frame_id=WORLD_FRAME, poses=[]).encode()
+                self.recorder.write_encoded(PATH_TOPIC.format(robot=rid), "protobuf", self._poses,
+                                            head + b"".join(self._paths[str(rid)][1]), t)
         for tid, tg in state.get("targets", {}).items():
             sphere = fm.SpherePrimitive(pose=_pose(float(tg["x"]), float(tg["y"]), 0.01),
                                         size=fm.Vector3(x=0.02, y=0.02, z=0.02), color=_color(_TARGET))

@@ -52,6 +52,11 @@ def _open(path: str | Path) -> Path:
     return path
 
 
+def file_complete(path: str | Path) -> bool:
+    """True when this one file was closed properly (footer present), whatever set it is in."""
+    return _has_footer(_open(path))
+
+
 def is_complete(path: str | Path) -> bool:
     """True when the log was closed properly (footer present), every file of a set."""
     from .mcap_sets import log_files
