@@ -56,11 +56,28 @@ def _run_id(text: str) -> str:
     return validate_run_id(text)
 
 
+def parse_size(text: str) -> int:
+    """Bytes from ``500M``, ``2G``, ``64k``, ``1.5GB`` or ``1048576`` (k, M, G, T: powers of 1000;
+    with ``i``, as in ``MiB``, of 1024); > 0."""
+    import re
+
+    m = re.fullmatch(r"\s*(\d+(?:\.\d+)?)\s*(?:([kKmMgGtT])(i?)[bB]?|[bB]?)\s*", text)
+    if m is None:
+        raise ValueError(f"{text!r} is not a size (e.g. 500M, 2G, 64k or 1048576 bytes)")
+    unit = 1 if m[2] is None else (1024 if m[3] else 1000) ** ("kmgt".index(m[2].lower()) + 1)
+    n = int(float(m[1]) * unit)
+    if n <= 0:
+        raise ValueError(f"{text!r}: a size must be more than 0 bytes")
+    return n
+
+
 SEED = click.IntRange(0, 2**32 - 1)
 """A seed: 0 .. 2^32 - 1 (what every random generator of the package accepts)."""
 ENDPOINT = _Checked("endpoint", _endpoint)
 ROOT = _Checked("root", _root)
 RUN_ID = _Checked("run id", _run_id)
+SIZE = _Checked("size", parse_size)
+"""A size in bytes, written 500M, 2G, 64k or 1048576 (:func:`parse_size`)."""
 
 
 # ---------------------------------------------------------------------------- output directories

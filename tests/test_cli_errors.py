@@ -87,6 +87,8 @@ def bad_values(param: click.Parameter) -> list[str]:
         return ["/no/such/path"]
     if getattr(t, "name", "") in ("endpoint", "root", "run id"):
         return ["a*b"]
+    if getattr(t, "name", "") == "size":
+        return ["0", "12Q"]
     return []
 
 

@@ -21,6 +21,7 @@ from cekm_swarm.protocol import DEFAULT_ROOT, KeySpaceError, validate_run_id
 from cekm_swarm.runtime.config import DEFAULT_ENDPOINT
 
 from .deadman import DEADMAN_S
+from .recorder import RECORD_MODES
 
 REPUBLISH_S = 1.0
 DEFAULT_MAX_TIME = 600.0
@@ -48,6 +49,9 @@ class WorldConfig:
     match_timeout: float = 20.0
     progress_every: float = 1.0
     log_level: str = "INFO"
+    max_log_size: int | None = None
+    max_log_duration: float | None = None
+    record: str = "full"
 
 
 def _run_id(ctx: Any, param: Any, value: str | None) -> str | None:
@@ -83,6 +87,12 @@ WORLD_OPTIONS: tuple[tuple[str, dict[str, Any]], ...] = (
     ("match_timeout", {"type": float, "default": 20.0, "show_default": True}),
     ("progress_every", {"type": float, "default": 1.0, "show_default": True, "help": "wall s between PROGRESS lines"}),
     ("log_level", {"default": "INFO", "show_default": True}),
+    ("max_log_size", {"type": click.IntRange(1), "metavar": "BYTES",
+                      "help": "split the log into a set: run_0.mcap, run_1.mcap, ... of at most this many bytes each"}),
+    ("max_log_duration", {"type": click.FloatRange(0.0, min_open=True), "metavar": "S",
+                          "help": "split the log into a set: a new file every S s of sim time"}),
+    ("record", {"type": click.Choice(RECORD_MODES), "default": "full", "show_default": True,
+                "help": "what the log holds: full (every key and view) or lean (for long runs: docs/tools.md)"}),
 )
 """The world server's options (besides the SCENARIO argument): its command line, the
 launcher's argv and :class:`WorldConfig` come from here."""

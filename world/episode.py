@@ -27,6 +27,7 @@ import numpy as np
 
 from cekm_swarm.ticks import TARGET_EVERY, TICK_S, tick_time
 
+from .rows import Rows
 from .sim import World
 
 __all__ = ["TICK_S", "TARGET_EVERY", "Episode", "RunEpisode", "TickReadings", "make_episode"]
@@ -50,8 +51,8 @@ class RobotProgress:
     checkpoint_times: list[float] = field(default_factory=list)
     reached: bool = False
     reached_time: float | None = None
-    path: list[tuple[float, float, float, float]] = field(default_factory=list)  # t, x, y, theta per tick
-    commands: list[tuple[float, float]] = field(default_factory=list)
+    path: Rows = field(default_factory=lambda: Rows(4))  # t, x, y, theta per tick (flat memory: world.rows)
+    commands: Rows = field(default_factory=lambda: Rows(2))  # v_l, v_r per tick
     last_d: float = math.inf  # the last sensed distance to the current goal
 
     @property

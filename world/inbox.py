@@ -12,6 +12,7 @@ from collections.abc import Callable
 from cekm_swarm.protocol import DropCounter, WheelCommand
 from cekm_swarm.protocol.stamps import PAST_S, stamp_problem
 from cekm_swarm.runtime.bridge import Received
+from cekm_swarm.runtime.percentiles import Samples
 
 from .deadman import Deadman
 
@@ -31,7 +32,7 @@ class CommandInbox:
         self.late_commands = 0
         self.now = 0.0  # the sim time of the tick whose readings are out (read by Zenoh's thread)
         self.sent_at: dict[float, float] = {}
-        self.latencies: list[float] = []  # s from publishing a tick's readings to its answer
+        self.latencies = Samples()  # s from publishing a tick's readings to its answer (fixed memory)
         self._pending: collections.deque[tuple[str, float, float]] = collections.deque()
         self._seen: dict[tuple[str, float], float] = {}
         self.wake: Callable[[], None] = lambda: None  # set by the run: wakes the tick loop

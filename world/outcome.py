@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from cekm_swarm.runtime.percentiles import percentile
+from cekm_swarm.runtime.percentiles import Samples, percentile
 
 MISSED_TICKS_KEPT = 200
 """Real time: how many ticks with a deadline miss ``outcome.json`` lists (tick -> robots
@@ -65,21 +65,48 @@ def progress_doc(world: Any, episode: Any, robots: list[str], stopped: dict[str,
     return {"t": episode.t, "tick": episode.tick, "robots": out, "republished": republished, "deadline_misses": misses}
 
 
-def latency_ms(latencies: list[float]) -> dict[str, Any]:
-    """Sense-to-command latency: p50 and p99 in ms (:func:`percentile`), and how many."""
-    if not latencies:
+def latency_ms(latencies: Samples | list[float]) -> dict[str, Any]:
+    """Sense-to-command latency: p50 and p99 in ms (:func:`percentile`; beyond
+    ``Samples.exact_max`` samples from its histogram, within half a per cent), and how many."""
+    if not len(latencies):
         return {"p50": None, "p99": None, "n": 0}
-    return {"p50": round(1000 * percentile(latencies, 0.5), 3), "p99": round(1000 * percentile(latencies, 0.99), 3),
-            "n": len(latencies)}
+    if not isinstance(latencies, Samples):
+        return {"p50": round(1000 * percentile(latencies, 0.5), 3),
+                "p99": round(1000 * percentile(latencies, 0.99), 3), "n": len(latencies)}
+    doc = {"p50": round(1000 * latencies.percentile(0.5), 3), "p99": round(1000 * latencies.percentile(0.99), 3),
+           "n": len(latencies)}
+    if not latencies.exact:
+        doc["histogram"] = f"beyond {latencies.exact_max} samples: bins {100 * latencies.resolution:g} % wide"
+    return doc
 
 
 def write_outputs(out: Path, doc: dict[str, Any], episode: Any) -> None:
-    """``outcome.json`` (``doc``) and ``trajectory.json`` (pose and command per tick)."""
-    (out / "outcome.json").write_text(json.dumps(doc, indent=1))
-    traj = {}
-    for r, p in episode.progress.items():
-        t, x, y, th = (list(c) for c in zip(*p.path)) if p.path else ([], [], [], [])
-        traj[r] = {"t": t, "x": x, "y": y, "theta": th, "v_l": [c[0] for c in p.commands],
-                   "v_r": [c[1] for c in p.commands], "checkpoints": [list(c) for c in p.checkpoints],
-                   "checkpoint_times": list(p.checkpoint_times)}
-    (out / "trajectory.json").write_text(json.dumps(traj))
+    """``outcome.json`` (``doc``) and ``trajectory.json`` (pose and command per tick), each
+    whole or not at all (written beside, then renamed: a full disk leaves no half file)."""
+    _whole(out / "outcome.json", lambda f: f.write(json.dumps(doc, indent=1)))
+    _whole(out / "trajectory.json", lambda f: _write_trajectory(f, episode))
+
+
+def _whole(path: Path, write: Any) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    try:
+        with open(tmp, "w") as f:
+            write(f)
+        tmp.replace(path)
+    except OSError:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
+def _write_trajectory(f: Any, episode: Any) -> None:
+    """Robot by robot, column by column: no run-long copy at once (the bytes of ``json.dumps``
+    of the whole map)."""
+    f.write("{")
+    for n, (r, p) in enumerate(episode.progress.items()):
+        f.write(("" if n == 0 else ", ") + json.dumps(r) + ": {")
+        cols = [(name, p.path.column(j)) for j, name in enumerate(("t", "x", "y", "theta"))]
+        cols += [("v_l", p.commands.column(0)), ("v_r", p.commands.column(1)),
+                 ("checkpoints", [list(c) for c in p.checkpoints]), ("checkpoint_times", list(p.checkpoint_times))]
+        f.write(", ".join(f"{json.dumps(name)}: {json.dumps(col)}" for name, col in cols) + "}")
+        del cols
+    f.write("}")

@@ -45,6 +45,7 @@ class TickPublisher:
         self.pubs: Any = None  # runtime.bridge.Publishers
         self.recorder: Any = None  # runtime.mcap_log.McapRecorder
         self.views: Any = None  # Foxglove views, when foxglove-sdk is installed
+        self.view_every = 1  # ticks between two ticks' views (a lean log: recorder.LEAN_VIEW_TICKS)
         self.record_sub: Any = None  # Zenoh subscriber with a ring channel (RECORD_QUEUE)
         self.recorded = 0
         self.republished = 0
@@ -173,7 +174,7 @@ class TickPublisher:
         if self._unviewed is not None:
             t, st = self._unviewed
             self._unviewed = None
-            if self.views is not None:
+            if self.views is not None and self.episode.tick % self.view_every == 0:
                 self.views.write_state(t, st)
                 self.episode.draw(self.views, t, st)
         self.drain(now)

@@ -1,6 +1,13 @@
 """The world server's log: what its recorder takes from other sessions
-(:class:`RecordFilter`) and the opening of ``run.mcap`` with its metadata and Foxglove
-views (:func:`open_run_log`)."""
+(:class:`RecordFilter`) and the opening of ``run.mcap`` (or of a log set, ``run_0.mcap``,
+``run_1.mcap``, ...: :mod:`cekm_swarm.runtime.mcap_sets`) with its metadata and Foxglove
+views (:func:`open_run_log`).
+
+Two recordings (``--record``): ``full`` (the default) logs every message of the run's keys
+and the views at every tick; ``lean``, for long runs, logs what the world sent (readings,
+clock, state) and of the nodes' messages only the answers and what teammates share
+(:data:`LEAN_KINDS`), with the views once every :data:`LEAN_VIEW_TICKS` ticks and each
+robot's path view every :data:`LEAN_PATH_S` s."""
 
 from __future__ import annotations
 
@@ -10,8 +17,15 @@ from typing import Any
 
 from cekm_swarm.protocol import DropCounter, KeyKind, KeySpace, KeySpaceError
 from cekm_swarm.protocol.stamps import PAST_S, stamp_problem
-from cekm_swarm.runtime.mcap_log import McapRecorder
+from cekm_swarm.runtime.mcap_sets import open_recorder
 
+RECORD_MODES = ("full", "lean")
+LEAN_KINDS = frozenset({KeyKind.CMD_WHEELS, KeyKind.SHARE})
+"""The kinds of the nodes' messages a lean log keeps (not the fields, the bulk of a full log)."""
+LEAN_VIEW_TICKS = 8
+"""A lean log's Foxglove views: once every 8 ticks (1.024 s of sim time)."""
+LEAN_PATH_S = 10.0
+"""A lean log's path views: each robot's path at most every 10 s of sim time."""
 RECORD_QUEUE = 1 << 16
 """Samples the recording queue holds between two drains (one per tick); the oldest go first."""
 
@@ -26,8 +40,10 @@ class RecordFilter:
     holds at most a fixed set of channels and no stamp a writer cannot hold."""
 
     def __init__(self, keys: KeySpace, robots: list[str], drops: DropCounter,
-                 declared: dict[str, str] | None = None) -> None:
+                 declared: dict[str, str] | None = None, lean: bool = False) -> None:
         self.keys, self.robots, self.drops = keys, frozenset(robots), drops
+        self.lean = lean
+        self.left_out = 0  # a lean log: messages of the run not logged (fields), not drops
         self.declared = None if declared is None else {k: KeyKind(v) for k, v in declared.items()}
         self._known: dict[str, tuple[KeyKind, int | None] | None] = {}
         self._expect: dict[str, KeyKind] = {}
@@ -56,10 +72,15 @@ class RecordFilter:
 
     def check(self, key: str, payload: bytes, now: float) -> float | None:
         """The message's stamp when it is to be recorded at sim time ``now``, else None
-        (dropped and counted)."""
-        if self._key(key) is None:
+        (dropped and counted; in a lean log a message of a kind it does not keep is left out,
+        counted in :attr:`left_out`, before it is decoded)."""
+        hit = self._key(key)
+        if hit is None:
             self.drops.drop(key, "key outside this run's key space" if self.declared is None
                             else "not a key of this run's world or of its graph's nodes")
+            return None
+        if self.lean and hit[0] not in LEAN_KINDS:
+            self.left_out += 1
             return None
         msg = self.drops.decode(key, payload, expect=self._expect.get(key))
         if msg is None:
@@ -72,18 +93,21 @@ class RecordFilter:
 
 
 def open_run_log(path: Path, scenario: str, seed: int, mode: str, geometry: dict[str, Any],
-                 robot_radius: float) -> tuple[McapRecorder, Any]:
-    """The run's MCAP log with its metadata (scenario, seed, mode, the static geometry)
-    and, when foxglove-sdk is installed, its Foxglove views with the scene written at
-    t = 0 (else None for the views)."""
-    recorder = McapRecorder(path, metadata={"scenario": scenario, "seed": str(seed), "mode": mode})
+                 robot_radius: float, *, max_bytes: int | None = None, max_seconds: float | None = None,
+                 record: str = "full") -> tuple[Any, Any]:
+    """The run's MCAP log (one file, or a set with ``max_bytes``/``max_seconds``) with its
+    metadata (scenario, seed, mode, recording, the static geometry) and, when foxglove-sdk is
+    installed, its Foxglove views with the scene written at t = 0 (else None for the views)."""
+    recorder = open_recorder(path, max_bytes=max_bytes, max_seconds=max_seconds,
+                             metadata={"scenario": scenario, "seed": str(seed), "mode": mode, "record": record})
     recorder.add_metadata("geometry", {"json": json.dumps(geometry)})
     views = None
     try:
         from cekm_swarm.runtime import foxglove_view
 
         if foxglove_view.available():
-            views = foxglove_view.FoxgloveViews(recorder, robot_radius=robot_radius)
+            views = foxglove_view.FoxgloveViews(recorder, robot_radius=robot_radius,
+                                                path_every=LEAN_PATH_S if record == "lean" else 0.0)
             views.write_geometry(0.0, geometry)
     except ImportError:  # pragma: no cover - foxglove-sdk missing
         views = None

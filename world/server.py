@@ -69,6 +69,7 @@ from cekm_swarm.runtime.config import (
 )
 from cekm_swarm.runtime.gc_tuning import freeze_startup_heap
 from cekm_swarm.runtime.lifetime import die_with_parent
+from cekm_swarm.runtime.mcap_record import LogFull
 from cekm_swarm.runtime.record import serve_geometry, serve_json
 from cekm_swarm.runtime.rungraph import default_nodes
 from cekm_swarm.ticks import TICK_S
@@ -89,7 +90,7 @@ from .episode import make_episode
 from .inbox import CommandInbox
 from .outcome import RunStats, emit, latency_ms, progress_doc, write_outputs
 from .publisher import TickPublisher
-from .recorder import RECORD_QUEUE, RecordFilter, open_run_log
+from .recorder import LEAN_VIEW_TICKS, RECORD_QUEUE, RecordFilter, open_run_log
 from .scenario import ScenarioError, load_scenario
 from .sim import World
 from .tracking import run_kind
@@ -137,11 +138,24 @@ class WorldServer:
         self.deadman = Deadman(self.robots, cfg.deadman, time.monotonic())  # restarted when the run starts
         self.inbox = CommandInbox(self.robots, answers, self.drops, self.deadman)
         self.publisher = TickPublisher(self.keys, self.world, self.episode, sends,
-                                       RecordFilter(self.keys, self.robots, self.record_drops, declared), held)
+                                       RecordFilter(self.keys, self.robots, self.record_drops, declared,
+                                                    lean=cfg.record == "lean"), held)
+        if cfg.record == "lean":
+            self.publisher.view_every = LEAN_VIEW_TICKS
         self.stats = RunStats()
         self.stop = asyncio.Event()
         self.arrived = asyncio.Event()
         self.stop_reason = "signal"
+        self.log_full: LogFull | None = None  # the log's disk filled: the run ended there
+
+    def _lost_log(self, exc: LogFull, t: float) -> None:
+        """The log's disk is full: the recorder closed the file; the run ends here, in one line."""
+        if self.log_full is None:
+            self.log_full = exc
+            self.stop_reason = "log disk full"
+            log.error("%s", exc)
+            self.stats.event("log_full", t, {"log": str(exc), "closed": exc.closed, "messages": exc.messages,
+                                             "bytes": exc.size})
 
     def _request_stop(self) -> None:
         """End the run: the tick loop sees ``stop`` at its next wait (waking a lockstep wait)."""
@@ -185,7 +199,8 @@ class WorldServer:
         geometry = self.world.static_geometry()
         pub = self.publisher
         pub.recorder, pub.views = open_run_log(self.out / "run.mcap", self.scenario.name, self.world.seed, cfg.mode,
-                                               geometry, self.world.body_radius)
+                                               geometry, self.world.body_radius, max_bytes=cfg.max_log_size,
+                                               max_seconds=cfg.max_log_duration, record=cfg.record)
         try:
             session = open_world_session(cfg)
         except BaseException:
@@ -223,7 +238,11 @@ class WorldServer:
             await asyncio.sleep(0.05)  # what is still in flight gets recorded
             for sub in cmd_subs:
                 sub.close()
-            pub.record_tick(self.inbox.now)
+            if self.log_full is None:
+                try:
+                    pub.record_tick(self.inbox.now)
+                except LogFull as exc:
+                    self._lost_log(exc, self.episode.t)
             token.undeclare()
             for q in served:
                 q.undeclare()
@@ -231,7 +250,11 @@ class WorldServer:
             pub.pubs.close()
         finally:
             session.close()
-            pub.recorder.close()
+            try:
+                pub.recorder.close()
+            except LogFull as exc:
+                self._lost_log(exc, self.episode.t)
+                aborted = True
         return self._write_outputs(time.perf_counter() - t_wall0, aborted)
 
     async def _ticks(self) -> bool:
@@ -261,6 +284,9 @@ class WorldServer:
                 ep.advance()
         except Stopped:
             self.stats.event("stopped", ep.t, {"reason": self.stop_reason})
+            return False
+        except LogFull as exc:  # from the tick's log: the run cannot be recorded further
+            self._lost_log(exc, ep.t)
             return False
 
     async def _wait_for_nodes(self, session: zenoh.Session, timeout: float) -> bool:
@@ -296,6 +322,7 @@ class WorldServer:
                "tick_loop_seconds": round(st.tick_loop_seconds, 3), "mode": self.config.mode, "sim_seconds": ep.t,
                "ticks": ep.tick, "aborted": aborted, "republished": pub.republished,
                "readings_left_out": pub.left_out,
+               "log": _log_doc(pub, self.config),
                "deadline_misses": st.deadline_misses,
                "deadline_miss_ticks": {str(k): v for k, v in st.missed_ticks.items()},
                "first_tick_ms": None if st.first_tick_s is None else round(1000 * st.first_tick_s, 3),
@@ -303,10 +330,24 @@ class WorldServer:
                "dropped_messages": self.drops.total + self.record_drops.total, "recorded_messages": pub.recorded,
                "drops": {"commands": self.drops.by_source(), "recorder": self.record_drops.by_source()},
                "late_commands": inbox.late_commands, "events": st.events}
+        if self.log_full is not None:
+            doc["log_full"] = str(self.log_full)
         doc.update(ep.summary())
-        write_outputs(self.out, doc, ep)
-        emit("DONE", {k: doc[k] for k in ("sim_seconds", "wall_seconds", "aborted", "robots")})
+        try:
+            write_outputs(self.out, doc, ep)
+        except OSError as exc:  # the same full disk: the outcome goes out on the DONE line only
+            log.error("cannot write %s: %s", self.out / "outcome.json", exc.strerror or exc)
+            doc["outputs_unwritten"] = f"{exc.strerror or exc}"
+        emit("DONE", {k: doc[k] for k in ("sim_seconds", "wall_seconds", "aborted", "robots") + (
+            ("log_full",) if "log_full" in doc else ())})
         return doc
+
+
+def _log_doc(pub: TickPublisher, cfg: WorldConfig) -> dict[str, Any]:
+    """What the run's log is: its files (one, or a set), the recording, what a lean one left out."""
+    files = getattr(pub.recorder, "files", None) or [pub.recorder.path]
+    return {"files": [p.name for p in files], "record": cfg.record, "left_out": pub.record_filter.left_out,
+            "max_bytes": cfg.max_log_size, "max_seconds": cfg.max_log_duration}
 
 
 def open_world_session(cfg: WorldConfig) -> zenoh.Session:
@@ -345,7 +386,7 @@ def world_cmd(**values: Any) -> None:
     except CekmError as exc:  # e.g. the router's port is taken: one clear line for the launcher's log
         log.error("cannot run: %s", exc)
         sys.exit(2)
-    sys.exit(0 if not doc["aborted"] else 3)
+    sys.exit(4 if "log_full" in doc else 0 if not doc["aborted"] else 3)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -25,6 +25,7 @@ from typing import Any
 
 from cekm_swarm.protocol.messages import SensePose, SenseTargets
 
+from .rows import Rows
 from .scenario import ScenarioError
 from .sense import SENDER
 from .sim import World
@@ -68,6 +69,21 @@ def tracking_sense(world: World, robot: str, stamp: float) -> tuple[SensePose, S
     return pose, SenseTargets(stamp, SENDER, seen)
 
 
+def _path_length(path) -> float:
+    """Sum of the steps between consecutive (t, x, y, theta) rows, in order (``sum`` of a
+    generator: the same additions as over a list)."""
+    rows = iter(path)
+    prev = next(rows, None)
+
+    def steps():
+        nonlocal prev
+        for b in rows:
+            yield math.hypot(b[1] - prev[1], b[2] - prev[2])
+            prev = b
+
+    return sum(steps())
+
+
 def mean_pairwise(points: list[tuple[float, float]]) -> float:
     """Mean distance over all pairs of points (0 for fewer than two)."""
     n = len(points)
@@ -86,12 +102,8 @@ class ObservationMeter:
 
     targets: list[str]
     robots: list[str]
-    t: list[float] = field(default_factory=list)
-    fraction: list[float] = field(default_factory=list)
     seen: dict[str, int] = field(default_factory=dict)
-    robot_spread: list[float] = field(default_factory=list)
-    target_spread: list[float] = field(default_factory=list)
-    observed_by: list[dict[str, list[str]]] = field(default_factory=list)
+    series: Rows = field(default_factory=lambda: Rows(4))  # per tick: t, A, robot spread, target spread
 
     def sample(self, world: World, t: float) -> dict[str, list[str]]:
         """Record tick ``t`` of ``world``; returns who observes which target now."""
@@ -109,30 +121,37 @@ class ObservationMeter:
         watched = [tid for tid in self.targets if obs.get(tid)]
         for tid in watched:
             self.seen[tid] = self.seen.get(tid, 0) + 1
-        self.t.append(t)
-        self.fraction.append(len(watched) / m if m else 0.0)
-        self.robot_spread.append(mean_pairwise(list(robots.values())))
-        self.target_spread.append(mean_pairwise(list(targets.values())))
-        self.observed_by.append(obs)
+        self.series.append((t, len(watched) / m if m else 0.0, mean_pairwise(list(robots.values())),
+                            mean_pairwise(list(targets.values()))))
         return obs
+
+    @property
+    def t(self) -> list[float]:
+        return self.series.column(0)
+
+    @property
+    def fraction(self) -> list[float]:
+        return self.series.column(1)
 
     @property
     def A(self) -> float:
         """The fraction of targets observed by at least one robot, averaged over the ticks."""
-        return sum(self.fraction) / len(self.fraction) if self.fraction else 0.0
+        fraction = self.fraction
+        return sum(fraction) / len(fraction) if fraction else 0.0
 
     def summary(self) -> dict[str, Any]:
         """The ``tracking`` object of ``outcome.json``."""
-        n = len(self.t)
+        n = len(self.series)
         k = max(1, n // 10)
+        t, fraction, robot_spread, target_spread = (self.series.column(j) for j in range(4))
 
         def head_tail(xs: list[float]) -> tuple[float, float]:
             return (sum(xs[:k]) / k, sum(xs[-k:]) / k) if xs else (0.0, 0.0)
 
-        rs0, rs1 = head_tail(self.robot_spread)
-        ts0, ts1 = head_tail(self.target_spread)
+        rs0, rs1 = head_tail(robot_spread)
+        ts0, ts1 = head_tail(target_spread)
         return {
-            "A": self.A,
+            "A": sum(fraction) / n if n else 0.0,
             "A_per_target": {tid: (self.seen.get(tid, 0) / n if n else 0.0) for tid in self.targets},
             "robots": len(self.robots),
             "targets": len(self.targets),
@@ -142,8 +161,7 @@ class ObservationMeter:
                 "robots_start": rs0, "robots_end": rs1, "targets_start": ts0, "targets_end": ts1,
                 "robots_moved_apart_m": rs1 - rs0, "targets_moved_apart_m": ts1 - ts0,
             },
-            "series": {"t": self.t, "A": self.fraction, "robot_spread": self.robot_spread,
-                       "target_spread": self.target_spread},
+            "series": {"t": t, "A": fraction, "robot_spread": robot_spread, "target_spread": target_spread},
         }
 
 
@@ -233,7 +251,7 @@ class TrackingEpisode:
         out = {}
         for r, p in self.progress.items():
             path = p.path
-            length = sum(math.hypot(b[1] - a[1], b[2] - a[2]) for a, b in zip(path, path[1:]))
+            length = _path_length(path)
             out[r] = {"path_length_m": length, "collisions": int(self.world.stats(r)["collisions"]),
                       "final_pose": list(path[-1][1:]) if path else None}
         return out

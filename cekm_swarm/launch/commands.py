@@ -14,6 +14,7 @@ from cekm_swarm.cli_support import (
     ROOT,
     RUN_ID,
     SEED,
+    SIZE,
     Interrupted,
     RunFailed,
     out_dir_options,
@@ -73,11 +74,20 @@ def _env_endpoint() -> str | None:
 @click.option("--send-every-reading", is_flag=True,
               help="The world sends every reading every tick, unchanged ones too (default: it holds them: "
                    "docs/runtime.md).")
+@click.option("--max-log-size", type=SIZE, metavar="SIZE",
+              help="Split the log into a set, run_0.mcap, run_1.mcap, ..., a new file once one holds SIZE "
+                   "(500M, 2G, ...); cekm log and cekm replay take the set (docs/tools.md).")
+@click.option("--max-log-duration", type=click.FloatRange(0.0, min_open=True), metavar="S",
+              help="Split the log into a set: a new file every S s of sim time.")
+@click.option("--record", "record", type=click.Choice(["full", "lean"]), default="full", show_default=True,
+              help="What run.mcap holds: full (every message and view), or lean for long runs (the world's "
+                   "messages, commands and shares, views at 1 Hz; docs/tools.md).")
 def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwrite: bool, connect: str | None,
                port: int, model_path: Path | None, max_time: float | None, controller: str, graph_file: Path | None,
                root: str, no_plot: bool, robots: str | None, no_world: bool, listen_host: str,
                zenoh_config: Path | None, model_from_zenoh: bool, run_id: str | None, cold_start: bool,
-               send_every_reading: bool) -> None:
+               send_every_reading: bool, max_log_size: int | None, max_log_duration: float | None,
+               record: str) -> None:
     """Run SCENARIO through the distributed runtime: the world server and, per robot, every
     node of the controller's graph as its own process on Zenoh (cekm: 1 + 12 + 1),
     supervised (restarted when they die)."""
@@ -132,7 +142,8 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwr
                           max_time=max_time, controller=controller, graph=graph_file, root=root, plot=not no_plot,
                           robots=only, world=not no_world, listen_host=listen_host, zenoh_config=zenoh_config,
                           model_from_zenoh=model_from_zenoh, run_id=run_id, warm_start=not cold_start,
-                          hold_readings=not send_every_reading)
+                          hold_readings=not send_every_reading, max_log_size=max_log_size,
+                          max_log_duration=max_log_duration, record=record)
     launcher = Launcher(config, echo=lambda s: click.echo(s))
     try:
         outcome = launcher.launch()
@@ -147,6 +158,10 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwr
         if launcher.interrupted:
             raise Interrupted()
         return
+    if launcher.log_full is not None:  # the log's disk filled: the run ended there, the log is closed
+        for line in outcome_summary(outcome) if outcome.get("robots") else ():
+            click.echo(line)
+        raise RunFailed(f"the log's disk is full: {launcher.log_full}")
     if not outcome:
         if launcher.interrupted:
             raise Interrupted("interrupted before the run started")
@@ -155,8 +170,12 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwr
         click.echo(line)
     if outcome.get("aborted"):
         click.echo("the run was stopped before its end (see the world's events in outcome.json)")
-    written = [out_dir / n for n in ("outcome.json", "run.mcap", "trajectory.png") if (out_dir / n).is_file()]
-    click.echo("wrote " + ", ".join(map(str, written)))
+    logs = outcome.get("log", {}).get("files") or ["run.mcap"]
+    log_name = logs[0] if len(logs) == 1 else f"{logs[0]} .. {logs[-1]} ({len(logs)} files)"
+    written = [str(out_dir / n) for n in ("outcome.json", "run.mcap", "trajectory.png") if (out_dir / n).is_file()]
+    if len(logs) > 1:
+        written.insert(1, str(out_dir / log_name))
+    click.echo("wrote " + ", ".join(written))
     if launcher.interrupted:
         raise Interrupted()
 

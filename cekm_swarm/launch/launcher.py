@@ -79,6 +79,9 @@ class LaunchConfig:
     run_id: str | None = None  # the run's id (None: made by a world host, learned from the world by a robots-only host)
     warm_start: bool = True  # fork the nodes from a fork server (launch.forkserver); False: exec each afresh
     hold_readings: bool = True  # the world leaves unchanged readings out (graph.plan.RunPlan.held_readings)
+    max_log_size: int | None = None  # split the world's log into a set (bytes per file)
+    max_log_duration: float | None = None  # ... or sim s per file
+    record: str = "full"  # full, or lean (world.recorder)
 
 
 def plan_checkpoint_data(scenario) -> dict[str, list[list[float]]]:
@@ -124,6 +127,7 @@ class Launcher(Supervision, WorldHost, RobotHost):
         self.plan: Any = None  # ... resolved for the team
         self.spec_path: Path | None = None
         self.failure: str | None = None  # a node that cannot start: the launch ends with its line
+        self.log_full: str | None = None  # the world's log filled its disk: the launch ends with this line
 
     # ------------------------------------------------------------------ logging
 
@@ -131,8 +135,13 @@ class Launcher(Supervision, WorldHost, RobotHost):
         line = f"[{time.strftime('%H:%M:%S')}] {text}"
         self.echo(line)
         if self._log is not None:
-            self._log.write(line + "\n")
-            self._log.flush()
+            try:
+                self._log.write(line + "\n")
+                self._log.flush()
+            except OSError as exc:  # a full disk: the terminal still has every line
+                self._log = None
+                self.echo(f"[{time.strftime('%H:%M:%S')}] cannot write {self.c.out / 'launch.log'} any more: "
+                          f"{exc.strerror or exc}")
 
     # ------------------------------------------------------------------ world
 
@@ -161,7 +170,10 @@ class Launcher(Supervision, WorldHost, RobotHost):
             return outcome
         finally:
             if self._log is not None:
-                self._log.close()
+                try:
+                    self._log.close()
+                except OSError:
+                    pass
 
     # ------------------------------------------------------------------ steps
 
@@ -312,7 +324,7 @@ class Launcher(Supervision, WorldHost, RobotHost):
             self.say(f"all {len(expected)} modules alive after {self.startup_s:.1f} s; the world starts")
         await self.world_reader
         code = await self.world_proc.wait()
-        if code not in (0, 3):
+        if code not in (0, 3, 4):  # 4: the log's disk filled, the world closed the log and ended the run
             self._world_died(code)
 
     def plan_tokens(self, robots) -> set[str]:
@@ -387,9 +399,10 @@ class Launcher(Supervision, WorldHost, RobotHost):
     def _finish_outcome(self) -> dict[str, Any]:
         """The world's ``outcome.json`` with the launcher's record added ({} without one)."""
         outcome_path = self.c.out / "outcome.json"
-        if not outcome_path.is_file():
+        try:
+            outcome = json.loads(outcome_path.read_text())
+        except (OSError, ValueError):  # none, or a half one (a full disk)
             return {}
-        outcome = json.loads(outcome_path.read_text())
         outcome["run_id"] = self.run_id
         outcome["launcher"] = {
             "modules": len(self.children), "interrupted": self.interrupted,
@@ -406,17 +419,21 @@ class Launcher(Supervision, WorldHost, RobotHost):
             robots = len({ch.robot for ch in self.children.values()})
             ticks = tick_of(float(outcome.get("sim_seconds", 0.0)))
             outcome["launcher"]["cpu"] = cpu_per_tick(self._cpu_start, self._cpu_end, ticks, robots)
-        outcome_path.write_text(json.dumps(outcome, indent=1))
+        try:
+            outcome_path.write_text(json.dumps(outcome, indent=1))
+        except OSError as exc:  # a full disk: the world's outcome.json stays as it wrote it
+            self.say(f"cannot add the launcher's record to {outcome_path}: {exc.strerror or exc}")
         return outcome
 
     def _plot(self, scenario, outcome: dict[str, Any]) -> None:
         c = self.c
-        if not c.plot or not (c.out / "run.mcap").is_file():
+        log_path = c.out / "run.mcap" if (c.out / "run.mcap").is_file() else c.out / "run_0.mcap"  # or a set
+        if not c.plot or not log_path.is_file():
             return
         try:
             from .plot import plot_log
 
-            fig = plot_log(c.out / "run.mcap", title=f"{scenario.name} ({c.mode}, seed {outcome.get('seed')})",
+            fig = plot_log(log_path, title=f"{scenario.name} ({c.mode}, seed {outcome.get('seed')})",
                            outcome=outcome)
             fig.savefig(c.out / "trajectory.png", dpi=130)
         except Exception as exc:  # noqa: BLE001 - the run's results stand without the picture

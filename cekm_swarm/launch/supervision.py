@@ -71,8 +71,11 @@ class Supervision:
     def _write_pids(self) -> None:
         pids = self._pids()
         tmp = self.c.out / "pids.json.tmp"
-        tmp.write_text(json.dumps(pids, indent=1))
-        tmp.replace(self.c.out / "pids.json")
+        try:
+            tmp.write_text(json.dumps(pids, indent=1))
+            tmp.replace(self.c.out / "pids.json")
+        except OSError:  # a full disk: the last pids.json written stays
+            tmp.unlink(missing_ok=True)
 
     # ------------------------------------------------------------------ children
 

@@ -64,6 +64,8 @@ class WorldHost:
             if kind == "PROGRESS" and doc is not None:
                 self.say(format_progress(doc))
             elif kind == "EVENT" and doc is not None:
+                if doc.get("event") == "log_full":
+                    self.log_full = f"{doc.get('log')}; the run stopped at t={doc['t']:.2f} s of sim time"
                 extra = {k: v for k, v in doc.items() if k not in ("event", "t")}
                 self.say(f"world event at t={doc['t']:.2f} s: {doc['event']} {extra}")
             elif kind == "START" and doc is not None:
@@ -86,7 +88,9 @@ class WorldHost:
             connect=None if hosts_router else where,
             root=c.root, run_id=self.run_id, out=c.out, mode=c.mode, max_time=c.max_time, deadman=c.deadman,
             republish=c.republish, progress_every=c.progress_every, wait_modules=ALIVE_TIMEOUT + 5, seed=c.seed,
-            zenoh_config=None if hosts_router else c.zenoh_config, checkpoints=checkpoints)
+            zenoh_config=None if hosts_router else c.zenoh_config, checkpoints=checkpoints,
+            max_log_size=c.max_log_size, max_log_duration=c.max_log_duration,
+            record=None if c.record == "full" else c.record)
         log_path = c.out / "logs" / "world.log"
         with open(log_path, "ab") as werr:
             self.world_proc = await asyncio.create_subprocess_exec(
@@ -110,20 +114,25 @@ class WorldHost:
         """The world server ended abnormally (killed, crashed): say so, and make ``run.mcap``
         a complete, indexed log again if the world could not close it (the cut file is kept
         as ``run.truncated.mcap``). The run ends: nothing else can tick the world."""
-        from cekm_swarm.runtime.mcap_log import is_complete, recover_log
+        from cekm_swarm.runtime.mcap_log import recover_log
+        from cekm_swarm.runtime.mcap_read import file_complete
 
         c = self.c
         why = f"was killed by signal {-code}" if code < 0 else f"ended with exit code {code}"
         self.say(f"the world server {why}; the run ends (see {c.out / 'logs' / 'world.log'})")
-        log_path = c.out / "run.mcap"
-        try:
-            if not log_path.is_file() or is_complete(log_path):
-                return
-            cut = log_path.with_name("run.truncated.mcap")
-            log_path.replace(cut)
-            rep = recover_log(cut, log_path)
-            self.say(f"recovered the world's log: {rep.messages} messages on {rep.channels} channels into "
-                     f"{log_path} ({cut.name} is the file as the world left it)")
+        from cekm_swarm.runtime.mcap_sets import log_files
+
+        try:  # run.mcap, or each file of a log set (run_0.mcap, ...): the world had one open
+            paths = log_files(c.out / "run.mcap") if (c.out / "run.mcap").is_file() else \
+                log_files(c.out / "run_0.mcap") if (c.out / "run_0.mcap").is_file() else []
+            for log_path in paths:
+                if file_complete(log_path):
+                    continue
+                cut = log_path.with_name(log_path.name[:-5] + ".truncated.mcap")
+                log_path.replace(cut)
+                rep = recover_log(cut, log_path)
+                self.say(f"recovered the world's log: {rep.messages} messages on {rep.channels} channels into "
+                         f"{log_path} ({cut.name} is the file as the world left it)")
         except (CekmError, OSError) as exc:
             self.say(f"could not recover the world's log: {exc}")
 

@@ -100,18 +100,24 @@ def _fill(parts: Sequence[Sequence[Sequence[float]]], z: float, color: Sequence[
 class FoxgloveViews:
     """Writes the view channels of one run into ``recorder``."""
 
-    def __init__(self, recorder: McapRecorder, *, robot_radius: float = 0.03) -> None:
+    def __init__(self, recorder: McapRecorder, *, robot_radius: float = 0.03, path_every: float = 0.0) -> None:
         _need()
+        self.path_every = path_every  # s of sim time between two path messages of a robot (0: whenever it moved)
+        self._path_sent: dict[str, float] = {}
         self.recorder = recorder
         self.robot_radius = robot_radius
         self._scene = _schema(fm.SceneUpdate)
         self._tf = _schema(fm.FrameTransforms)
         self._poses = _schema(fm.PosesInFrame)
         self._moving: dict[str, Mapping[str, Any]] = {}
-        self._paths: dict[str, tuple[list[tuple[float, float, float]], list[Any]]] = {}
+        # robot -> (its path's (x, y, theta), each pose encoded once: a PosesInFrame is its
+        # header's bytes and its poses' bytes one after another, so a path message is a join,
+        # not 2,000 objects kept and encoded again per message; the same bytes)
+        self._paths: dict[str, tuple[list[tuple[float, float, float]], list[bytes]]] = {}
 
-    def _put(self, topic: str, schema: SchemaSpec, msg: Any, t: float) -> None:
-        self.recorder.write_encoded(topic, "protobuf", schema, msg.encode(), t)
+    def _put(self, topic: str, schema: SchemaSpec, msg: Any, t: float, sticky: bool = False) -> None:
+        """``sticky``: the static scene, which a log set writes again at the start of every file."""
+        self.recorder.write_encoded(topic, "protobuf", schema, msg.encode(), t, sticky=sticky)
 
     def write_geometry(self, t: float, geometry: Mapping[str, Any]) -> None:
         """The static scene (walls, polygons, discs) once, as entities without lifetime."""
@@ -141,7 +147,7 @@ class FoxgloveViews:
         for m in geometry.get("moving_obstacles", ()):
             self._moving[str(m["id"])] = m
         self.robot_radius = float(geometry.get("body_radius", self.robot_radius))
-        self._put(SCENE_TOPIC, self._scene, fm.SceneUpdate(entities=entities), t)
+        self._put(SCENE_TOPIC, self._scene, fm.SceneUpdate(entities=entities), t, sticky=True)
 
     def _path_step(self, rid: str, x: float, y: float, th: float) -> bool:
         """Extend the robot's path if it moved (>= PATH_STEP m or 0.2 rad); True if extended."""
@@ -151,11 +157,20 @@ class FoxgloveViews:
             if math.hypot(x - lx, y - ly) < PATH_STEP and abs(math.remainder(th - lth, math.tau)) < 0.2:
                 return False
         raw.append((x, y, th))
-        poses.append(_pose(x, y, 0.0, th))
+        poses.append(fm.PosesInFrame(poses=[_pose(x, y, 0.0, th)]).encode())
         if len(poses) > PATH_MAX:  # thin the older half so messages stay bounded on long runs
             half = len(poses) // 2
             raw[:half] = raw[:half:2]
             poses[:half] = poses[:half:2]
+        return True
+
+    def _path_due(self, rid: str, t: float) -> bool:
+        if self.path_every <= 0:
+            return True
+        last = self._path_sent.get(rid)
+        if last is not None and t - last < self.path_every:
+            return False
+        self._path_sent[rid] = t
         return True
 
     def write_state(self, t: float, state: Mapping[str, Any]) -> None:
@@ -178,9 +193,10 @@ class FoxgloveViews:
             transforms.append(fm.FrameTransform(timestamp=ts, parent_frame_id=WORLD_FRAME, child_frame_id=str(rid),
                                                 translation=fm.Vector3(x=x, y=y, z=0.0),
                                                 rotation=_yaw(th)))
-            if self._path_step(str(rid), x, y, th):
-                self._put(PATH_TOPIC.format(robot=rid), self._poses,
-                          fm.PosesInFrame(timestamp=ts, frame_id=WORLD_FRAME, poses=self._paths[str(rid)][1]), t)
+            if self._path_step(str(rid), x, y, th) and self._path_due(str(rid), t):
+                head = fm.PosesInFrame(timestamp=ts, frame_id=WORLD_FRAME, poses=[]).encode()
+                self.recorder.write_encoded(PATH_TOPIC.format(robot=rid), "protobuf", self._poses,
+                                            head + b"".join(self._paths[str(rid)][1]), t)
         for tid, tg in state.get("targets", {}).items():
             sphere = fm.SpherePrimitive(pose=_pose(float(tg["x"]), float(tg["y"]), 0.01),
                                         size=fm.Vector3(x=0.02, y=0.02, z=0.02), color=_color(_TARGET))
@@ -202,7 +218,7 @@ class FoxgloveViews:
                 prim = {"spheres": [fm.SpherePrimitive(pose=_pose(x, y, 0.01), size=fm.Vector3(x=0.03, y=0.03, z=0.03),
                                                        color=_color(_UNKNOWN_OBSTACLE))]}
             entities.append(fm.SceneEntity(timestamp=ts, frame_id=WORLD_FRAME, id=f"obstacle/{oid}", **prim))
-        self._put(SCENE_TOPIC, self._scene, fm.SceneUpdate(entities=entities), t)
+        self._put(SCENE_TOPIC, self._scene, fm.SceneUpdate(entities=entities), t, sticky=True)
         if transforms:
             self._put(TF_TOPIC, self._tf, fm.FrameTransforms(transforms=transforms), t)
 

@@ -13,7 +13,7 @@ from typing import Any
 
 import click
 
-from cekm_swarm.cli_support import ROOT, Interrupted
+from cekm_swarm.cli_support import ROOT, SIZE, Interrupted
 from cekm_swarm.errors import CekmError
 
 from .tool_session import _ROOT_HELP, _check_key_expr, _connect_options, _keys, _open, _say, _session, _sigint_sets
@@ -25,13 +25,20 @@ def log_group() -> None:
     """MCAP run logs."""
 
 
-@log_group.command("info")
-@click.argument("log_file", metavar="LOG.mcap", type=click.Path(dir_okay=False, exists=True, path_type=Path))
+LOG_HELP = ("LOG is an .mcap file, or a log set (split with --max-log-size/--max-log-duration): its directory "
+            "or its first file (run_0.mcap), read as one log in time order.")
+
+
+@log_group.command("info", epilog=LOG_HELP)
+@click.argument("log_file", metavar="LOG", type=click.Path(exists=True, path_type=Path))
 @click.option("--recover", "recover_to", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="If the log is truncated (its writer was killed), write an indexed copy here.")
 @click.option("--json", "as_json", is_flag=True, help="One JSON object: file, completeness, channels.")
 def log_info_cmd(log_file: Path, recover_to: Path | None, as_json: bool) -> None:
     """Channels, message counts, rates and duration of a log (a truncated log is read up to the cut)."""
+    if recover_to is not None and log_file.is_dir():
+        raise click.BadParameter("--recover takes one file (a log set's files are recovered one by one)",
+                                 param_hint="LOG")
     from dataclasses import asdict
 
     from .jsonout import json_line
@@ -55,8 +62,8 @@ def log_info_cmd(log_file: Path, recover_to: Path | None, as_json: bool) -> None
         raise click.ClickException(str(exc)) from None
 
 
-@log_group.command("cat")
-@click.argument("log_file", metavar="LOG.mcap", type=click.Path(dir_okay=False, exists=True, path_type=Path))
+@log_group.command("cat", epilog=LOG_HELP)
+@click.argument("log_file", metavar="LOG", type=click.Path(exists=True, path_type=Path))
 @click.option("--topics", "topics", multiple=True, metavar="KEYEXPR",
               help="Only these topics (key expressions; repeat or separate with commas).")
 @click.option("--json", "as_json", is_flag=True, help="One JSON object per message (topic, times, message).")
@@ -151,8 +158,8 @@ def _keyboard(control: Any, stop: threading.Event) -> Iterator[bool]:
         termios.tcsetattr(fd, termios.TCSADRAIN, saved)
 
 
-@click.command("replay")
-@click.argument("log_file", metavar="LOG.mcap", type=click.Path(dir_okay=False, exists=True, path_type=Path))
+@click.command("replay", epilog=LOG_HELP)
+@click.argument("log_file", metavar="LOG", type=click.Path(exists=True, path_type=Path))
 @_connect_options
 @click.option("--port", default=None, type=click.IntRange(1, 65535),
               help="Port of the router the replay hosts on 127.0.0.1 [default: 7447] (when it joins none).")
@@ -252,8 +259,14 @@ def replay_cmd(log_file: Path, endpoint: str | None, config_file: Path | None, w
 @click.option("--count", "-n", default=None, type=click.IntRange(1), help="Stop after N messages.")
 @click.option("--no-views", is_flag=True, help="Record the key-space channels only (no Foxglove views).")
 @click.option("--root", default="cekm", show_default=True, type=ROOT, help=_ROOT_HELP)
+@click.option("--max-log-size", type=SIZE, metavar="SIZE",
+              help="Split the recording into a set, LOG_0.mcap, LOG_1.mcap, ..., a new file once one holds SIZE "
+                   "(500M, 2G, ...).")
+@click.option("--max-log-duration", type=click.FloatRange(0.0, min_open=True), metavar="S",
+              help="Split the recording into a set: a new file every S s of sim time.")
 def record_cmd(key_expr: str | None, out_path: Path, endpoint: str | None, config_file: Path | None, wait_s: float,
-               duration: float | None, count: int | None, no_views: bool, root: str) -> None:
+               duration: float | None, count: int | None, no_views: bool, root: str, max_log_size: int | None,
+               max_log_duration: float | None) -> None:
     """Record the live keys matching KEYEXPR (default: the whole key space) into an MCAP log
     with the channels and Foxglove views of the world server's own log (not the static
     scene, which the world does not publish). Ctrl-C stops and closes the file."""
@@ -281,14 +294,16 @@ def record_cmd(key_expr: str | None, out_path: Path, endpoint: str | None, confi
         try:
             res = record(session, out_path, key_expr, keys=keys, stop=stop, duration=duration, count=count,
                          views=not no_views, on_first=first, on_progress=progress,
-                         metadata={"endpoint": resolve_endpoint(endpoint).endpoint})
+                         metadata={"endpoint": resolve_endpoint(endpoint).endpoint}, max_bytes=max_log_size,
+                         max_seconds=max_log_duration)
         except CekmError as exc:
             raise click.ClickException(str(exc)) from None
     if tty:
         sys.stderr.write("\n")
     span = "" if res.first_stamp is None else f", sim time {res.first_stamp:.3f} .. {res.last_stamp:.3f} s"
     bad = f", {res.malformed} malformed" if res.malformed else ""
-    click.echo(f"recorded {res.messages} messages on {len(res.per_key)} keys{span}{bad} into {out_path}")
+    into = out_path if len(res.files) <= 1 else f"{res.files[0]} .. {res.files[-1].name} ({len(res.files)} files)"
+    click.echo(f"recorded {res.messages} messages on {len(res.per_key)} keys{span}{bad} into {into}")
     if res.first_stamp is not None and keys.world_state() in res.per_key and not res.geometry:
         _say(f"no static scene in the recording: nothing answered on {keys.world_geometry()}")
     if hit[0]:

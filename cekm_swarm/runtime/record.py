@@ -31,6 +31,7 @@ import zenoh
 from cekm_swarm.protocol import DEFAULT_KEYS, DropCounter, KeyKind, KeySpace, KeySpaceError, WorldState, peek
 
 from .mcap_log import McapRecorder
+from .mcap_sets import open_recorder
 
 GEOMETRY_ENCODING = "application/json"
 
@@ -87,6 +88,7 @@ class RecordResult:
     wall_seconds: float = 0.0
     first_stamp: float | None = None
     last_stamp: float | None = None
+    files: list[Path] = field(default_factory=list)  # the files written (a log set: more than one)
 
 
 class Recording:
@@ -157,11 +159,13 @@ def record(session: zenoh.Session, out: str | Path, key_expr: str, *, keys: KeyS
            stop: threading.Event, duration: float | None = None, count: int | None = None,
            metadata: dict[str, str] | None = None, views: bool = True,
            on_first: Callable[[], None] | None = None,
-           on_progress: Callable[[RecordResult], None] | None = None, progress_every: float = 1.0) -> RecordResult:
+           on_progress: Callable[[RecordResult], None] | None = None, progress_every: float = 1.0,
+           max_bytes: int | None = None, max_seconds: float | None = None) -> RecordResult:
     """Record every sample on ``key_expr`` into ``out`` until ``stop`` is set, ``duration``
     seconds passed, or ``count`` messages were recorded. The file is closed (indexed) at the
     end, and flushed every half second on the way, so a killed recorder leaves a log that
-    ``cekm log info --recover`` restores."""
+    ``cekm log info --recover`` restores. With ``max_bytes`` or ``max_seconds`` the recording
+    is a log set (``out`` ``run.mcap``: ``run_0.mcap``, ``run_1.mcap``, ...; :mod:`.mcap_sets`)."""
     inbox: queue.SimpleQueue[tuple[str, bytes] | None] = queue.SimpleQueue()
 
     def on_sample(sample: zenoh.Sample) -> None:  # Zenoh's thread: hand over and return
@@ -171,7 +175,7 @@ def record(session: zenoh.Session, out: str | Path, key_expr: str, *, keys: KeyS
     meta = {"recorded_by": "cekm record", "key_expr": key_expr}
     meta.update(metadata or {})
     t0 = time.monotonic()
-    with McapRecorder(out, keys=keys, metadata=meta) as recorder:
+    with open_recorder(out, keys=keys, metadata=meta, max_bytes=max_bytes, max_seconds=max_seconds) as recorder:
         rec = Recording(recorder, keys, views, geometry=lambda: fetch_geometry(session, keys.world_geometry()))
         sub = session.declare_subscriber(key_expr, on_sample)
         last_progress = t0
@@ -205,4 +209,5 @@ def record(session: zenoh.Session, out: str | Path, key_expr: str, *, keys: KeyS
                 if item is not None:
                     rec.add(*item)
     rec.result.wall_seconds = time.monotonic() - t0
+    rec.result.files = list(getattr(recorder, "files", None) or [Path(out)])
     return rec.result

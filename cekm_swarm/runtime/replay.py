@@ -84,22 +84,29 @@ class ReplayProgress:
 
 
 def log_span(path: str | Path) -> tuple[float, float] | None:
-    """(first, last) log time in seconds from the log's summary statistics; None when the
-    log has none (a truncated log)."""
+    """(first, last) log time in seconds from the log's summary statistics (every file of a
+    log set); None when a file has none (a truncated log) or the log holds no message."""
     from mcap.reader import make_reader
 
     from .mcap_log import is_complete
+    from .mcap_sets import log_files
 
     if not is_complete(path):
         return None
-    try:
-        with open(path, "rb") as f:
-            summary = make_reader(f).get_summary()
-    except Exception:
+    spans = []
+    for p in log_files(path):
+        try:
+            with open(p, "rb") as f:
+                summary = make_reader(f).get_summary()
+        except Exception:
+            return None
+        if summary is None or summary.statistics is None:
+            return None
+        if summary.statistics.message_count:
+            spans.append((summary.statistics.message_start_time / 1e9, summary.statistics.message_end_time / 1e9))
+    if not spans:
         return None
-    if summary is None or summary.statistics is None or summary.statistics.message_count == 0:
-        return None
-    return summary.statistics.message_start_time / 1e9, summary.statistics.message_end_time / 1e9
+    return min(a for a, _ in spans), max(b for _, b in spans)
 
 
 @dataclass

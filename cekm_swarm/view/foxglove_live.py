@@ -31,7 +31,7 @@ class ChannelSink:
         self.messages = 0
 
     def write_encoded(self, topic: str, message_encoding: str, schema: SchemaSpec, data: bytes,
-                      sim_time: float) -> None:
+                      sim_time: float, sticky: bool = False) -> None:
         import foxglove
 
         ch = self.channels.get(topic)

@@ -34,3 +34,33 @@ def test_tracking_view_draws_sensing_circles_and_who_observes_whom(tmp_path):
     seen_r2 = ents["sensing/r2"].lines[1].points
     assert [(p.x, p.y) for p in seen_r2] == [(2.0, 1.0), (1.8, 1.2)]
     assert msgs[0].entities[0].timestamp.nanos == 256_000_000
+
+
+def test_path_messages_are_the_bytes_of_the_whole_pose_list():
+    """Each pose of a robot's path view is encoded once and a path message is joined from
+    them: the same bytes as encoding the PosesInFrame of every pose, past the thinning too."""
+    import math
+
+    import foxglove.messages as fm
+
+    from cekm_swarm.runtime import foxglove_view as fv
+
+    class Sink:
+        def __init__(self):
+            self.paths = []
+
+        def write_encoded(self, topic, encoding, schema, data, t, sticky=False):
+            if topic.startswith("/view/path/"):
+                self.paths.append((t, data))
+
+    sink = Sink()
+    views = fv.FoxgloveViews(sink)
+    for k in range(fv.PATH_MAX + 300):
+        t = 0.128 * k
+        views.write_state(t, {"robots": {"r1": {"x": 0.01 * k, "y": math.sin(k / 50), "theta": k / 100}}})
+    raw = views._paths["r1"][0]
+    assert len(sink.paths) == fv.PATH_MAX + 300 and len(raw) < fv.PATH_MAX
+    t, data = sink.paths[-1]
+    want = fm.PosesInFrame(timestamp=fv._stamp(t), frame_id=fv.WORLD_FRAME,
+                           poses=[fv._pose(x, y, 0.0, th) for x, y, th in raw]).encode()
+    assert data == want

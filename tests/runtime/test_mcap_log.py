@@ -234,7 +234,7 @@ def test_record_zenoh_files_live_traffic_at_sim_time(clients, tmp_path):
 def test_times_no_writer_can_hold_are_clamped_and_the_channel_table_is_bounded(tmp_path, monkeypatch):
     """A peer's stamp of 1e18 or 1e300 overflowed the mcap writer and killed the world
     server; keys invented without end grew the channel table (16-bit ids)."""
-    import cekm_swarm.runtime.mcap_log as ml
+    import cekm_swarm.runtime.mcap_record as ml
 
     assert sim_ns(1e300) == sim_ns(1e18) == sim_ns(float("inf")) == ml.MAX_NS
     assert sim_ns(float("nan")) == sim_ns(-1.0) == 0 and sim_ns(0.128) == 128_000_000

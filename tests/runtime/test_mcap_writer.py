@@ -101,3 +101,44 @@ def test_the_mcap_reader_reads_every_message_back():
 def test_an_unknown_compression_is_refused():
     with pytest.raises(ValueError, match="compression 'brotli'"):
         ChunkedWriter(io.BytesIO(), compression="brotli")
+
+
+def test_memory_stays_flat_over_many_chunks(tmp_path):
+    """The chunk indexes spill to a temporary file: writing ten times more chunks (each
+    with a hundred channels) keeps the writer's memory within the spool's bound, and the
+    file still reads back whole through its index."""
+    import tracemalloc
+
+    from cekm_swarm.runtime.mcap_writer import INDEX_SPOOL
+
+    path = tmp_path / "long.mcap"
+    with open(path, "wb") as f:
+        w = ChunkedWriter(f, chunk_size=4096, compression="none")
+        w.start()
+        sid = w.register_schema("s", "", b"")
+        channels = [w.register_channel(f"t/{i}", "msgpack", sid) for i in range(100)]
+        payload = bytes(30)
+        t = 0
+
+        def chunks(n: int) -> None:
+            nonlocal t
+            for _ in range(n):
+                for cid in channels:
+                    t += 1000
+                    w.add_message(cid, t, payload, t)
+                w.flush()
+
+        chunks(200)
+        tracemalloc.start()
+        before = tracemalloc.get_traced_memory()[0]
+        chunks(2000)
+        grown = tracemalloc.get_traced_memory()[0] - before
+        tracemalloc.stop()
+        w.finish()
+    assert grown < INDEX_SPOOL + 64 * 1024, grown  # before: ~2 KB per chunk, 4 MB here
+    with open(path, "rb") as f:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        assert summary.statistics.message_count == 2200 * 100
+        assert len(summary.chunk_indexes) == summary.statistics.chunk_count > 2200
+        assert sum(1 for _ in reader.iter_messages()) == 2200 * 100

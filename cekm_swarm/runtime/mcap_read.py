@@ -1,0 +1,140 @@
+"""MCAP logs of the key space, the reading side: every message of a log in time order
+(:func:`read_messages`), or in file order up to the cut of a log whose writer died
+(:func:`stream_messages`), and whether a log was closed (:func:`is_complete`)."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from mcap.exceptions import McapError
+from mcap.reader import NonSeekingReader, SeekingReader, make_reader
+
+from .errors import McapLogError
+
+_MAGIC = b"\x89MCAP0\r\n"
+
+
+@dataclass(frozen=True, slots=True)
+class LoggedMessage:
+    """One message read back from a log (times in integer nanoseconds of sim time)."""
+
+    topic: str
+    log_time: int
+    publish_time: int
+    sequence: int
+    data: bytes
+    message_encoding: str
+    schema_name: str | None
+    schema_encoding: str | None
+
+
+def _has_footer(path: Path) -> bool:
+    """True when the file ends with a footer record (the writer finished), read with the
+    mcap library's seeking reader, which looks for the footer at the end of the file."""
+    with open(path, "rb") as f:
+        try:
+            SeekingReader(f).get_summary()
+        except Exception:  # no footer where it belongs: McapError, EndOfFile, struct/seek errors ...
+            return False
+    return True
+
+
+def _open(path: str | Path) -> Path:
+    path = Path(path)
+    if not path.is_file():
+        raise McapLogError(str(path), "no such file")
+    with open(path, "rb") as f:
+        if f.read(len(_MAGIC)) != _MAGIC:
+            raise McapLogError(str(path), "not an MCAP file (bad magic)")
+    return path
+
+
+def file_complete(path: str | Path) -> bool:
+    """True when this one file was closed properly (footer present), whatever set it is in."""
+    return _has_footer(_open(path))
+
+
+def is_complete(path: str | Path) -> bool:
+    """True when the log was closed properly (footer present), every file of a set."""
+    from .mcap_sets import log_files
+
+    return all(_has_footer(_open(p)) for p in log_files(path))
+
+
+def _convert(schema: Any, channel: Any, message: Any) -> LoggedMessage:
+    return LoggedMessage(channel.topic, message.log_time, message.publish_time, message.sequence, message.data,
+                         channel.message_encoding, schema.name if schema is not None else None,
+                         schema.encoding if schema is not None else None)
+
+
+def _cut_reason(exc: BaseException) -> str:
+    text = str(exc).strip()
+    return f"{type(exc).__name__}: {text}" if text else f"{type(exc).__name__}: the file ends inside a record"
+
+
+@dataclass
+class StreamResult:
+    """Filled by :func:`stream_messages`: whether the file ended cleanly, and the error at the cut."""
+
+    complete: bool = True
+    error: str | None = None
+    messages: int = 0
+
+
+def stream_messages(path: str | Path, result: StreamResult | None = None) -> Iterator[LoggedMessage]:
+    """Every message in file order with the non-seeking reader, up to a cut if the writer died.
+
+    Works on complete and truncated files alike; ``result`` (if given) tells how it ended."""
+    path = _open(path)
+    result = result if result is not None else StreamResult()
+    with open(path, "rb") as f:
+        reader = NonSeekingReader(f, validate_crcs=True)
+        try:
+            for schema, channel, message in reader.iter_messages(log_time_order=False):
+                result.messages += 1
+                yield _convert(schema, channel, message)
+        except Exception as exc:  # the cut: McapError, EndOfFile, struct.error, zstd errors ...
+            result.complete = False
+            result.error = _cut_reason(exc)
+    if result.complete and not _has_footer(path):
+        result.complete = False
+        result.error = result.error or "no footer"
+
+
+def read_messages(path: str | Path, *, topics: Iterable[str] | None = None,
+                  encodings: Iterable[str] | None = None) -> Iterator[LoggedMessage]:
+    """Messages of a log in log-time order, optionally only some topics or message
+    encodings. ``path`` is a file, or a log set (a directory, or a set's first file: see
+    :mod:`.mcap_sets`), whose files are merged in log-time order."""
+    from .mcap_sets import log_files, read_set
+
+    return read_set(log_files(path), topics=topics, encodings=encodings)
+
+
+def read_one(path: str | Path, *, topics: Iterable[str] | None = None,
+             encodings: Iterable[str] | None = None) -> Iterator[LoggedMessage]:
+    """Messages of one file in log-time order (complete file) or file order (a truncated file,
+    read up to the cut), optionally only some topics or message encodings."""
+    path = _open(path)
+    topic_set = set(topics) if topics is not None else None
+    enc_set = set(encodings) if encodings is not None else None
+
+    def wanted(m: LoggedMessage) -> bool:
+        return (topic_set is None or m.topic in topic_set) and (enc_set is None or m.message_encoding in enc_set)
+
+    if not _has_footer(path):
+        yield from (m for m in stream_messages(path) if wanted(m))
+        return
+    with open(path, "rb") as f:
+        try:
+            reader = make_reader(f)
+            it = reader.iter_messages(topics=list(topic_set) if topic_set is not None else None, log_time_order=True)
+            for schema, channel, message in it:
+                m = _convert(schema, channel, message)
+                if wanted(m):
+                    yield m
+        except McapError as exc:
+            raise McapLogError(str(path), f"unreadable: {exc}") from None
