@@ -137,7 +137,8 @@ def obstacles(seeds: str, speed_unit: float | None, max_time: float, model_path:
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 def tracking_experiment(out_dir: Path, overwrite: bool, seeds: int, robots: str, duration: float,
                         model_path: Path | None, workers: int | None, quiet: bool) -> None:
-    """Multi-robot tracking (Fig. 13): cooperative EKMs, A-CMOMMT and static robots on the same seeds."""
+    """Multi-robot tracking (Fig. 13): cooperative EKMs, A-CMOMMT, K-means (local and global) and static robots
+    on the same seeds."""
     from .experiments.tracking import parse_team_sizes, run_tracking_experiment_cmd
 
     sizes = parse_team_sizes(robots)
@@ -207,8 +208,8 @@ def _model(path: Path | None):
 @main.command("run")
 @click.argument("scenario")
 @click.option("--controller", default="cekm", show_default=True, metavar="NAME",
-              help="The controller whose graph runs (cekm graph list): cekm or fusion for navigation; cekm, acmommt "
-                   "or stay for tracking.")
+              help="The controller whose graph runs (cekm graph list): cekm or fusion for navigation; cekm, acmommt, "
+                   "kmeans, kmeans-global or stay for tracking.")
 @click.option("--graph", "graph_file", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               help="Run a graph file of your own instead (docs/modules.md).")
 @click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path),
