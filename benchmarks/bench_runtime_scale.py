@@ -7,11 +7,15 @@ than that tick (its fields and command did not make it within 128 ms). Beside mi
 sense-to-command latency it prints where the tick loop's CPU went (the launcher's
 ``launcher.cpu`` in outcome.json: ms of CPU per tick by kind of process, from /proc):
 2 cores give 256 ms of CPU per 128 ms tick, and the share of the machine's CPU time the
-hypervisor stole meanwhile (a shared virtual machine's capacity moves with it). Baseline,
-the same run with one robot.
-Goal: 16 robots, 224 module processes, with no deadline miss.
+hypervisor stole meanwhile (a shared virtual machine's capacity moves with it). Baselines,
+both measured in the same run: the same run with one robot, and the floor
+(``benchmarks/floor.py``): as many bare Python processes as the run has modules, each woken
+by one Zenoh message per tick and publishing one reply. Per kind of module (target,
+obstacle, motor) it prints the CPU per process per tick and its ratio to the floor's.
+Goals (issue 23): 32 robots, 448 module processes, with no deadline miss at low steal;
+each module's CPU per tick within 1.5x of the floor.
 
-Run: python benchmarks/bench_runtime_scale.py [--robots 1,2,4,8,12,16] [--sim 10]
+Run: python benchmarks/bench_runtime_scale.py [--robots 1,2,4,8,16,24,32] [--sim 10] [--no-floor]
 """
 
 from __future__ import annotations
@@ -25,6 +29,17 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+FLOOR = Path(__file__).resolve().parent / "floor.py"
+
+
+def measure_floor(processes: int, seconds: float) -> dict:
+    """The floor at this many processes, in a fresh process (it forks before any Zenoh session)."""
+    done = subprocess.run([sys.executable, str(FLOOR), "--processes", str(processes), "--seconds", str(seconds)],
+                          capture_output=True, text=True)
+    if done.returncode != 0:
+        return {"error": done.stderr[-500:]}
+    return json.loads(done.stdout.strip().splitlines()[-1])
 
 
 def scenario_text(n: int) -> str:
@@ -58,13 +73,23 @@ def run(n: int, sim: float, port: int) -> dict:
             "cpu": outcome.get("launcher", {}).get("cpu", {})}
 
 
+KINDS = ("target", "obstacle", "motor")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--robots", default="1,2,4,8,12,16")
+    ap.add_argument("--robots", default="1,2,4,8,16,24,32")
     ap.add_argument("--sim", type=float, default=10.0, help="sim (= wall) seconds of each run")
     ap.add_argument("--port", type=int, default=7461)
+    ap.add_argument("--no-floor", action="store_true", help="skip the floor processes' measurement")
     args = ap.parse_args()
-    rows = [run(int(n), args.sim, args.port) for n in args.robots.split(",")]
+    rows = []
+    for n in (int(x) for x in args.robots.split(",")):
+        row = run(n, args.sim, args.port)
+        if not args.no_floor and "error" not in row:
+            row["floor"] = measure_floor(n * 14, args.sim)
+        rows.append(row)
+        print(f"  {n} robots done", file=sys.stderr, flush=True)
     base = rows[0]
     print(f"load average {os.getloadavg()[0]:.1f} (2 cores: 256 ms of CPU per 128 ms tick)")
     print(f"{'robots':>6} {'modules':>8} {'misses':>7} {'robot-ticks':>12} {'miss %':>7} {'lat p50 ms':>11} "
@@ -86,9 +111,22 @@ def main() -> None:
         print(f"{r['robots']:>6} {r['modules']:>8} {r['deadline_misses']:>7} {r['robot_ticks']:>12} {pct:>6.1f}% "
               f"{lat.get('p50', math.nan):>11} {lat.get('p99', math.nan):>11} {r['startup_s']:>10} "
               f"{cpu.get('total_ms_per_tick', math.nan):>12} {per:>10} {ratio:>9.2f} {steal:>7}  {split}")
+    if not args.no_floor:
+        print()
+        print("CPU per process per tick (ms) by kind, against the floor's (a bare process woken by one message per tick)")
+        print(f"{'robots':>6} {'floor':>7} {'stolen':>7} " + " ".join(f"{k:>16}" for k in KINDS))
+        for r in rows:
+            if "error" in r or "ms_per_process_tick" not in r.get("floor", {}):
+                continue
+            f = r["floor"]["ms_per_process_tick"]
+            per = (r.get("cpu") or {}).get("ms_per_process_tick", {})
+            stolen = r["floor"].get("host", {}).get("steal")
+            cells = [f"{per[k]:>7.3f} ({per[k] / f:>4.1f}x)" if k in per and f > 0 else f"{'-':>16}" for k in KINDS]
+            steal = "?" if stolen is None else f"{100 * stolen:.0f}%"
+            print(f"{r['robots']:>6} {f:>7.3f} {steal:>7} " + " ".join(cells))
     ok = [r["robots"] for r in rows if "error" not in r and r["deadline_misses"] == 0]
     print(f"baseline (1 robot): {base.get('deadline_misses')} misses; largest N with no deadline miss: "
-          f"{max(ok) if ok else 'none'} (goal: 16)")
+          f"{max(ok) if ok else 'none'} (goal: 32)")
     print(json.dumps(rows))
 
 

@@ -30,6 +30,15 @@ def test_controller_and_models_never_import_the_world():
             assert not any(n == "world" or n.startswith("world.") for n in names), path
 
 
+def test_the_controller_takes_plain_values_never_messages():
+    """The pure controller is fed plain typed values (readings, poses, teammates' shares);
+    the node modules and the in-process runner turn messages into them."""
+    for path, names in imports_of("cekm_swarm.controller").items():
+        bad = {n for n in names if n.startswith(("cekm_swarm.protocol", "cekm_swarm.node", "cekm_swarm.runtime",
+                                                  "zenoh", "msgspec", "msgpack"))}
+        assert not bad, (path, bad)
+
+
 WORLD_MAY_IMPORT = ("cekm_swarm.protocol", "cekm_swarm.angles", "cekm_swarm.ticks", "cekm_swarm.errors",
                     "cekm_swarm.runtime", "cekm_swarm.robot", "cekm_swarm.graph.spec", "cekm_swarm.graph.plan",
                     "cekm_swarm.graph.runspec")

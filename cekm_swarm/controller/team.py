@@ -1,8 +1,9 @@
 """What a tracking robot knows of its team and the targets, and the one search behaviour
 every tracking controller uses (docs/tracking.md).
 
-Inputs are messages only: the robot's own ``sense/pose`` and ``sense/targets`` and its
-teammates' ``share`` messages. Lockstep semantics: at a tick of sim time t a robot uses
+Inputs are plain values (the modules turn messages into them): the robot's own pose and
+sensed targets, and its teammates' :class:`TeammateShare` (a ``share`` message's content).
+Lockstep semantics: at a tick of sim time t a robot uses
 the teammates' shares stamped before t (they publish on the same target ticks, so that is
 the previous target tick's: one tick of communication delay); a share stamped t or
 later waits for the next tick. That makes a distributed run deterministic: it waits for
@@ -20,7 +21,15 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from ..protocol.messages import Share
+
+@dataclass(frozen=True, slots=True)
+class TeammateShare:
+    """What a robot tells its team each target tick: its ``pose`` (x, y, theta) and the
+    targets it sees, ``targets`` = {target id: (x, y)} in the world frame, at sim time ``stamp``."""
+
+    stamp: float
+    pose: tuple[float, float, float]
+    targets: dict[str, tuple[float, float]]
 
 
 def to_world(pose: tuple[float, float, float], alpha: float, d: float) -> tuple[float, float]:
@@ -50,10 +59,10 @@ class TeamView:
     me: str
     share_timeout_s: float = 1.0
     memory_s: float = 30.0
-    shares: dict[str, Share] = field(default_factory=dict)
+    shares: dict[str, TeammateShare] = field(default_factory=dict)
     memory: dict[str, tuple[float, float, float]] = field(default_factory=dict)  # id: (x, y, stamp)
 
-    def receive(self, robot: str, share: Share) -> None:
+    def receive(self, robot: str, share: TeammateShare) -> None:
         """A teammate's share arrived (own shares and older ones than held are ignored)."""
         if robot == self.me:
             return
@@ -65,12 +74,12 @@ class TeamView:
         """The teammate is gone (its liveliness tokens vanished): out of every field at once."""
         self.shares.pop(robot, None)
 
-    def teammates(self, t: float) -> dict[str, Share]:
+    def teammates(self, t: float) -> dict[str, TeammateShare]:
         """The shares usable at tick t: stamped before t and not older than the timeout."""
         return {r: s for r, s in sorted(self.shares.items())
                 if s.stamp < t and t - s.stamp <= self.share_timeout_s}
 
-    def update_memory(self, t: float, own: dict[str, tuple[float, float]], team: dict[str, Share]) -> None:
+    def update_memory(self, t: float, own: dict[str, tuple[float, float]], team: dict[str, TeammateShare]) -> None:
         """Remember where each target was last reported (own sightings win over teammates')."""
         for s in team.values():
             for tid, xy in s.targets.items():
@@ -83,7 +92,7 @@ class TeamView:
             del self.memory[tid]
 
     def search_goal(self, t: float, pose: tuple[float, float, float], own: dict[str, tuple[float, float]],
-                    team: dict[str, Share], reached: float, ahead: float) -> tuple[float, float]:
+                    team: dict[str, TeammateShare], reached: float, ahead: float) -> tuple[float, float]:
         """The search goal in the world frame (see the module's docstring)."""
         watched = set(own)
         for s in team.values():
@@ -104,7 +113,7 @@ class TeamView:
         return (pose[0] + ahead * math.cos(pose[2]), pose[1] + ahead * math.sin(pose[2]))
 
 
-def observers_nearer(tid: str, my_d: float, team: dict[str, Share]) -> int:
+def observers_nearer(tid: str, my_d: float, team: dict[str, TeammateShare]) -> int:
     """How many teammates observe target ``tid`` and are nearer to it than this robot's
     ``my_d`` (each by its own share: its pose and where it sees the target)."""
     n = 0
@@ -117,6 +126,6 @@ def observers_nearer(tid: str, my_d: float, team: dict[str, Share]) -> int:
     return n
 
 
-def observers_other(tid: str, team: dict[str, Share]) -> int:
+def observers_other(tid: str, team: dict[str, TeammateShare]) -> int:
     """How many teammates observe target ``tid`` (by their shares)."""
     return sum(1 for s in team.values() if tid in s.targets)

@@ -1,5 +1,5 @@
 """Multi-robot tracking with cooperative EKMs (the paper's Fig. 13 extension): pure
-functions of messages, in the style of :mod:`cekm_swarm.controller.cooperative`.
+functions of plain values, in the style of :mod:`cekm_swarm.controller.cooperative`.
 
 Per robot (docs/tracking.md):
 
@@ -31,10 +31,9 @@ import numpy as np
 
 from ..models.networks import IndirectEKM
 from ..models.params import FieldParams, TrackingParams
-from ..protocol.messages import SensePose, SenseTargets, Share
 from .cooperative import CooperativeEKM, MotorOutput, ObstacleActivity, motor_command
 from .readings import RangeReading
-from .team import TeamView, observers_nearer, to_robot, to_world
+from .team import TeammateShare, TeamView, observers_nearer, to_robot, to_world
 
 
 def target_weight(n_watching: int, params: TrackingParams) -> float:
@@ -176,12 +175,13 @@ class TrackingRobot:
     obstacles: dict[int, ObstacleActivity] = field(default_factory=dict)
     ranges: list[RangeReading] = field(default_factory=list)
 
-    def on_sense(self, pose_msg: SensePose, targets_msg: SenseTargets) -> Share:
-        t = pose_msg.stamp
-        pose = pose_msg.pose
-        self.activity = self.controller.localize(t, pose, targets_msg.targets, self.view)
-        own = {tid: to_world(pose, a, d) for tid, (a, d) in sorted(targets_msg.targets.items())}
-        return Share(t, self.robot, pose, own)
+    def on_sense(self, t: float, pose: tuple[float, float, float],
+                 sensed: dict[str, tuple[float, float]]) -> TeammateShare:
+        """A target tick at sim time t: the robot's pose and the targets it senses, {id: (alpha, d)};
+        returns what it shares with the team (the targets in the world frame)."""
+        self.activity = self.controller.localize(t, pose, sensed, self.view)
+        own = {tid: to_world(pose, a, d) for tid, (a, d) in sorted(sensed.items())}
+        return TeammateShare(t, pose, own)
 
     def on_ranges(self, t: float, ranges: list[RangeReading]) -> None:
         self.ranges = ranges
@@ -195,7 +195,7 @@ class TrackingRobot:
             return out.v_l, out.v_r
         return self.controller.integrate(self.activity, self.ranges)
 
-    def receive(self, robot: str, share: Share) -> None:
+    def receive(self, robot: str, share: TeammateShare) -> None:
         self.view.receive(robot, share)
 
     def drop(self, robot: str) -> None:

@@ -26,13 +26,37 @@ _HZ = os.sysconf("SC_CLK_TCK") if hasattr(os, "sysconf") else 100
 
 
 def cpu_seconds(pid: int) -> float | None:
-    """User + system CPU seconds of process ``pid`` (None if it is gone or there is no ``/proc``)."""
+    """CPU seconds of process ``pid``, all its threads (None if it is gone or there is no ``/proc``).
+
+    From each thread's ``/proc/PID/task/TID/schedstat`` (nanoseconds on the CPU) where the
+    kernel has it, else ``/proc/PID/stat``'s utime + stime, whose clock ticks (10 ms) are
+    too coarse for a module's fraction of a millisecond per tick over a short run."""
+    total = _schedstat_seconds(pid)
+    if total is not None:
+        return total
     try:
         with open(f"/proc/{pid}/stat", "rb") as f:
             fields = f.read().rsplit(b")", 1)[1].split()
     except (OSError, IndexError):
         return None
     return (int(fields[11]) + int(fields[12])) / _HZ  # utime, stime (proc(5), fields 14 and 15)
+
+
+def _schedstat_seconds(pid: int) -> float | None:
+    try:
+        tids = os.listdir(f"/proc/{pid}/task")
+    except OSError:
+        return None
+    ns = 0
+    for tid in tids:
+        try:
+            with open(f"/proc/{pid}/task/{tid}/schedstat", "rb") as f:
+                ns += int(f.read().split()[0])  # time spent on the cpu, ns (sched-stats.rst)
+        except FileNotFoundError:
+            continue  # the thread ended meanwhile: its time is in no file any more
+        except (OSError, IndexError, ValueError):
+            return None
+    return ns / 1e9
 
 
 def host_times() -> tuple[int, int, int] | None:
@@ -99,22 +123,27 @@ def snapshot(pids: Mapping[str, int]) -> CpuSnapshot:
 def cpu_per_tick(start: CpuSnapshot, end: CpuSnapshot, ticks: int, robots: int) -> dict:
     """Milliseconds of CPU per tick by kind of process, between two snapshots: the
     processes present in both (same pid), summed over robots; also the total per tick and
-    per robot-tick, and the machine's idle and stolen shares meanwhile (:func:`host_shares`).
+    per robot-tick, the processes of each kind and the CPU per process of each kind per tick,
+    and the machine's idle and stolen shares meanwhile (:func:`host_shares`).
     Empty when nothing could be read or no tick passed."""
     if ticks <= 0:
         return {}
     by_kind: dict[str, float] = {}
+    count: dict[str, int] = {}
     for key, s1 in end.seconds.items():
         s0 = start.seconds.get(key)
         if s0 is None:
             continue
         kind = kind_of(key[0])
         by_kind[kind] = by_kind.get(kind, 0.0) + (s1 - s0)
+        count[kind] = count.get(kind, 0) + 1
     if not by_kind:
         return {}
     total = sum(by_kind.values())
     return {"ticks": ticks,
             "ms_per_tick": {k: round(1000 * v / ticks, 3) for k, v in sorted(by_kind.items(), key=lambda kv: -kv[1])},
+            "processes": {k: count[k] for k in sorted(count)},
+            "ms_per_process_tick": {k: round(1000 * by_kind[k] / ticks / count[k], 4) for k in sorted(count)},
             "total_ms_per_tick": round(1000 * total / ticks, 3),
             "ms_per_robot_tick": round(1000 * total / ticks / max(1, robots), 3),
             "host": host_shares(start.host, end.host)}

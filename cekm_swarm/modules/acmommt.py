@@ -11,7 +11,7 @@ import math
 
 from cekm_swarm.controller.acmommt import ACMOMMT, ForceActivity
 from cekm_swarm.controller.readings import RangeReading
-from cekm_swarm.controller.team import TeamView
+from cekm_swarm.controller.team import TeammateShare, TeamView
 from cekm_swarm.controller.tracking import TrackingRobot
 from cekm_swarm.models.params import ACMOMMTParams, TrackingParams
 from cekm_swarm.node import In, Node, NodeError, Out
@@ -53,8 +53,10 @@ class ACMOMMTForces(Node):
 
     def step(self, t, inputs):
         for robot, share in inputs["team"].items():
-            self.brain.receive(robot, share)
-        share = self.brain.on_sense(inputs["pose"], inputs["targets"])
+            self.brain.receive(robot, TeammateShare(share.stamp, share.pose, share.targets))
+        pose, sensed = inputs["pose"], inputs["targets"]
+        own = self.brain.on_sense(pose.stamp, pose.pose, sensed.targets)
+        share = Share(own.stamp, self.brain.robot, own.pose, own.targets)
         a: ForceActivity = self.brain.activity
         return {"force": Data(t, self.ctx.sender, {"fx": a.fx, "fy": a.fy, "searching": a.searching}), "share": share}
 

@@ -8,7 +8,7 @@ where targets were last reported: the node keeps state across ticks (``stateful`
 
 from __future__ import annotations
 
-from cekm_swarm.controller.team import TeamView
+from cekm_swarm.controller.team import TeammateShare, TeamView
 from cekm_swarm.controller.tracking import TrackingActivity, TrackingEKM, TrackingRobot
 from cekm_swarm.models.params import FieldParams, TrackingParams
 from cekm_swarm.node import In, Node, NodeError, Out
@@ -57,8 +57,10 @@ class TrackingLocalization(Node):
 
     def step(self, t, inputs):
         for robot, share in inputs["team"].items():
-            self.brain.receive(robot, share)
-        share = self.brain.on_sense(inputs["pose"], inputs["targets"])
+            self.brain.receive(robot, TeammateShare(share.stamp, share.pose, share.targets))
+        pose, sensed = inputs["pose"], inputs["targets"]
+        own = self.brain.on_sense(pose.stamp, pose.pose, sensed.targets)
+        share = Share(own.stamp, self.brain.robot, own.pose, own.targets)
         return {"field": tracking_field(self.brain.activity, self.ctx.sender), "share": share}
 
     def teammate_left(self, robot: str) -> None:

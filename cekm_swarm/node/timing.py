@@ -379,7 +379,7 @@ class RealtimeGate:
             return []
         out = self._open(key, k)
         held = self.latest.get(key)
-        if held is not None and held[0] == since:
+        if held is not None and since <= held[0] < k:  # the value of since, or one restamped from it since
             self.latest[key] = (k, restamp(held[1], tick_time(k)))
             self.holds += 1
         elif held is None or held[0] < since:  # the value it stands for is still on its way

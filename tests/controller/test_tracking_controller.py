@@ -7,11 +7,10 @@ import numpy as np
 import pytest
 
 from cekm_swarm.controller.acmommt import ACMOMMT, robot_force, target_force
-from cekm_swarm.controller.team import TeamView, to_robot, to_world
+from cekm_swarm.controller.team import TeammateShare, TeamView, to_robot, to_world
 from cekm_swarm.controller.tracking import TrackingEKM, target_weight, teammate_weight
 from cekm_swarm.experiments.default_model import default_model
 from cekm_swarm.models.params import ACMOMMTParams, TrackingParams
-from cekm_swarm.protocol.messages import Share
 
 R = 0.5
 
@@ -37,12 +36,12 @@ def test_weights_in_the_controller_count_nearer_observers(model):
     for n in range(4):
         view = TeamView("r1")
         for k in range(n):  # teammates at 0.1 m from the target, reporting it
-            view.receive(f"q{k}", Share(0.0, f"q{k}", (1.3, 1.1 + 0.01 * k, 0.0), {"a": (1.3, 1.0)}))
+            view.receive(f"q{k}", TeammateShare(0.0, (1.3, 1.1 + 0.01 * k, 0.0), {"a": (1.3, 1.0)}))
         weights.append(ctl.localize(0.256, pose, sensed, view).weights["a"])
     assert weights[0] == 1.0 and all(a > b for a, b in zip(weights, weights[1:]))
     # a teammate farther from the target than this robot does not lower its weight
     view = TeamView("r1")
-    view.receive("q", Share(0.0, "q", (1.7, 1.0, 0.0), {"a": (1.3, 1.0)}))
+    view.receive("q", TeammateShare(0.0, (1.7, 1.0, 0.0), {"a": (1.3, 1.0)}))
     assert ctl.localize(0.256, pose, sensed, view).weights["a"] == 1.0
 
 
@@ -75,7 +74,7 @@ def test_two_robots_on_one_target_do_not_both_stay_while_another_is_unobserved(m
     ctls = {r: TrackingEKM(r, model, R) for r in poses}
     views = {r: TeamView(r) for r in poses}
     for v in views.values():
-        v.receive("r3", Share(0.0, "r3", (1.9, 1.7, 0.0), {"b": b_pos}))
+        v.receive("r3", TeammateShare(0.0, (1.9, 1.7, 0.0), {"b": b_pos}))
     acts = {}
     first = {}
     for tick in range(1, 400):
@@ -88,7 +87,7 @@ def test_two_robots_on_one_target_do_not_both_stay_while_another_is_unobserved(m
                 acts[r] = ctls[r].localize(t, pose, sensed, views[r])
                 if tick == 4:  # the first tick with the teammate's share (one tick late)
                     first[r] = acts[r]
-                shares[r] = Share(t, r, pose, {k: to_world(pose, *u) for k, u in sensed.items()})
+                shares[r] = TeammateShare(t, pose, {k: to_world(pose, *u) for k, u in sensed.items()})
             for q, s in shares.items():
                 for r in poses:
                     views[r].receive(q, s)
@@ -131,11 +130,11 @@ def test_acmommt_drives_toward_a_far_target_and_backs_off_a_near_one():
 
 def test_shares_are_used_one_tick_late_and_dropped_when_stale_or_gone():
     view = TeamView("r1", share_timeout_s=1.0)
-    view.receive("r2", Share(0.256, "r2", (0.0, 0.0, 0.0), {}))
+    view.receive("r2", TeammateShare(0.256, (0.0, 0.0, 0.0), {}))
     assert "r2" not in view.teammates(0.256)  # same tick: not yet
     assert "r2" in view.teammates(0.512)
     assert "r2" not in view.teammates(1.5)  # stale
-    view.receive("r1", Share(0.256, "r1", (0.0, 0.0, 0.0), {}))
+    view.receive("r1", TeammateShare(0.256, (0.0, 0.0, 0.0), {}))
     assert "r1" not in view.shares  # own share ignored
     view.drop("r2")
     assert view.teammates(0.512) == {}

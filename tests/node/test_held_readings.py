@@ -148,6 +148,21 @@ def test_lockstep_a_hold_from_long_ago_uses_what_stood_for_the_ticks_since():
     assert [t for t, _ in calls] == [tick_time(k) for k in range(40)]  # the store forgot tick 0 long ago
 
 
+def test_realtime_a_hold_from_long_ago_uses_what_stood_for_the_ticks_since():
+    """Tick after tick the world names the same ``since``: the value restamped for the last
+    tick stands for this one too, so the motor answers every tick (a real-time run missed
+    its deadline on the second tick of every held stretch before)."""
+    g, calls = gate(RealtimeGate)
+    tick_zero(g)
+    for k in range(1, 40):
+        for j in range(N):
+            g.hold(K.field_obstacle("r1", j), k, 0)
+        if k % 2 == 0:
+            g.hold(K.field_target("r1"), k, 0)
+    assert [t for t, _ in calls] == [tick_time(k) for k in range(40)]
+    assert g.holds == 39 * N + 19
+
+
 def test_the_unchanged_message_names_readings_sent_before_it():
     m = Unchanged(1.28, "world", ("sense/range/3", "sense/target"), (0.128, 0.0))
     assert decode(K.sense_unchanged("r1"), encode(m)) == m

@@ -1,0 +1,139 @@
+"""The floor of a module process's cost on this machine, measured beside the runtime's own.
+
+A floor process is the least a module can be: a bare Python process with a Zenoh client
+session, woken by one message per tick on its own key, that publishes one reply. The
+driver here forks ``processes`` floor processes from a parent that has imported zenoh
+(before any session exists in it, so starting 448 of them takes seconds, as the launcher's
+warm start does), opens a router (the launcher's embedded router config), ticks every ``tick_s`` of real
+time for ``seconds``, and reads each floor process's CPU from ``/proc``. The result is the
+floor's CPU per process per tick, and how many replies came back (each a tick's round
+trip).
+
+Used by ``bench_runtime_scale.py`` (the floor at each team size's process count, each in a
+fresh process: a process that has had a Zenoh session cannot fork working children) and on
+its own: ``python benchmarks/floor.py --processes 14 --seconds 10``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import signal
+import threading
+import time
+
+import zenoh
+
+from cekm_swarm.launch.cpu import cpu_seconds, host_shares, host_times
+from cekm_swarm.runtime.config import client_config, free_port, open_embedded_router, open_session
+
+PAYLOAD = bytes(120)  # about one sense message's size
+
+
+def floor_process(endpoint: str, index: int) -> None:
+    """One floor process: subscribe to floor/<i>/tick, answer each tick on floor/<i>/reply."""
+    with open_session(client_config(endpoint), "floor process") as session:
+        reply = session.declare_publisher(f"floor/{index}/reply")
+        ticks = session.declare_subscriber(f"floor/{index}/tick")
+        while True:  # announce until the first tick arrives (the driver starts once all are here)
+            reply.put(b"ready")
+            sample = ticks.try_recv()
+            if sample is not None:
+                break
+            time.sleep(0.05)
+        reply.put(PAYLOAD)
+        for sample in ticks:  # a node at its simplest: a loop over events
+            if sample.payload.to_bytes() == b"stop":
+                break
+            reply.put(PAYLOAD)
+
+
+def measure(processes: int, seconds: float = 10.0, tick_s: float = 0.128) -> dict:
+    """Run ``processes`` floor processes for ``seconds`` of real time; CPU ms per process per tick."""
+    port = free_port()
+    endpoint = f"tcp/127.0.0.1:{port}"
+    go_r, go_w = os.pipe()
+    pids = []
+    for i in range(processes):  # fork before any Zenoh session exists in this process
+        pid = os.fork()
+        if pid == 0:
+            try:
+                os.close(go_w)
+                os.read(go_r, 1)  # wait for the router
+                floor_process(endpoint, i)
+            finally:
+                os._exit(0)
+        pids.append(pid)
+    os.close(go_r)
+    with open_embedded_router(port) as router:
+        ready: set[int] = set()
+        replies = [0]
+        lock = threading.Lock()
+        all_ready = threading.Event()
+
+        def on_reply(sample: zenoh.Sample) -> None:
+            i = int(str(sample.key_expr).split("/")[1])
+            with lock:
+                if sample.payload.to_bytes() == b"ready":
+                    ready.add(i)
+                    if len(ready) == processes:
+                        all_ready.set()
+                else:
+                    replies[0] += 1
+
+        sub = router.declare_subscriber("floor/*/reply", on_reply)
+        os.write(go_w, b"g" * processes)
+        os.close(go_w)
+        try:
+            if not all_ready.wait(60 + processes * 0.2):
+                raise RuntimeError(f"only {len(ready)} of {processes} floor processes came up")
+            pubs = [router.declare_publisher(f"floor/{i}/tick") for i in range(processes)]
+            for p in pubs:
+                p.put(PAYLOAD)  # the first tick ends the announcing
+            time.sleep(0.5)
+            with lock:
+                replies[0] = 0
+            cpu0 = {pid: cpu_seconds(pid) for pid in pids}
+            host0 = host_times()
+            n = max(1, round(seconds / tick_s))
+            start = time.perf_counter()
+            for k in range(n):
+                for p in pubs:
+                    p.put(PAYLOAD)
+                delay = start + (k + 1) * tick_s - time.perf_counter()
+                if delay > 0:
+                    time.sleep(delay)
+            time.sleep(min(0.5, tick_s * 2))
+            cpu1 = {pid: cpu_seconds(pid) for pid in pids}
+            host1 = host_times()
+            for p in pubs:
+                p.put(b"stop")
+        finally:
+            deadline = time.monotonic() + 10
+            for pid in pids:
+                while time.monotonic() < deadline:
+                    done, _ = os.waitpid(pid, os.WNOHANG)
+                    if done:
+                        break
+                    time.sleep(0.02)
+                else:
+                    os.kill(pid, signal.SIGKILL)
+                    os.waitpid(pid, 0)
+            sub.undeclare()
+    used = [cpu1[p] - cpu0[p] for p in pids if cpu0.get(p) is not None and cpu1.get(p) is not None]
+    per = 1000.0 * sum(used) / max(1, len(used)) / n
+    return {"processes": processes, "ticks": n, "ms_per_process_tick": round(per, 4),
+            "replies": replies[0], "expected_replies": n * processes, "host": host_shares(host0, host1)}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--processes", type=int, default=14)
+    ap.add_argument("--seconds", type=float, default=10.0)
+    args = ap.parse_args()
+    print(json.dumps(measure(args.processes, args.seconds)))
+
+
+if __name__ == "__main__":
+    main()
