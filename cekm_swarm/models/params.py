@@ -152,6 +152,12 @@ class TrackingParams:
     share_timeout_s: a teammate whose latest share is older than this drops out of the
     fields (the runtime also drops it when its liveliness tokens vanish).
     memory_s: a target's last reported position is forgotten after this long.
+    predict_s: a sensed target is localized where its track (an alpha-beta filter of the
+    robot's own sightings) says it will be predict_s from now (0: where it is seen).
+    group_weight: when two or more full-weight sensed targets all fit within group_radius
+    * R of their centroid, the centroid is localized too (no stand-off), with a target
+    field of weight group_weight: above 1 it wins over each target's, so one robot holds
+    the group between them instead of following one (0: off).
     """
 
     standoff: float = 0.7
@@ -167,8 +173,13 @@ class TrackingParams:
     wander_ahead_m: float = 0.3
     share_timeout_s: float = 1.0
     memory_s: float = 30.0
+    predict_s: float = 0.0
+    group_weight: float = 0.0
+    group_radius: float = 0.6
 
     def __post_init__(self) -> None:
+        if not (self.predict_s >= 0.0 and self.group_weight >= 0.0 and self.group_radius > 0.0):
+            raise ParameterError("TrackingParams: predict_s and group_weight must be >= 0, group_radius > 0")
         _check_positive(self, "teammate_near", "teammate_far", "teammate_sigma_alpha", "teammate_sigma_d_beyond",
                         "teammate_sigma_d_near", "search_weight", "search_reached", "wander_ahead_m",
                         "share_timeout_s", "memory_s")
