@@ -20,20 +20,36 @@ import argparse
 import json
 import os
 import signal
+import sys
 import threading
 import time
 
 import zenoh
 
 from cekm_swarm.launch.cpu import cpu_seconds, host_shares, host_times
-from cekm_swarm.runtime.config import client_config, free_port, open_embedded_router, open_session
+from cekm_swarm.runtime.config import (
+    ONE_THREAD_RUNTIME,
+    ROUTER_RUNTIME,
+    client_config,
+    free_port,
+    open_embedded_router,
+    open_session,
+)
 
 PAYLOAD = bytes(120)  # about one sense message's size
 
 
 def floor_process(endpoint: str, index: int) -> None:
     """One floor process: subscribe to floor/<i>/tick, answer each tick on floor/<i>/reply."""
-    with open_session(client_config(endpoint), "floor process") as session:
+    for attempt in range(40):  # a router takes so many opening sessions at once (accept_pending): retry
+        try:
+            session = open_session(client_config(endpoint), "floor process")
+            break
+        except Exception:
+            if attempt == 39:
+                raise
+            time.sleep(0.05 * (1 + attempt % 8))
+    with session:
         reply = session.declare_publisher(f"floor/{index}/reply")
         ticks = session.declare_subscriber(f"floor/{index}/tick")
         while True:  # announce until the first tick arrives (the driver starts once all are here)
@@ -58,14 +74,20 @@ def measure(processes: int, seconds: float = 10.0, tick_s: float = 0.128) -> dic
     for i in range(processes):  # fork before any Zenoh session exists in this process
         pid = os.fork()
         if pid == 0:
+            code = 0
             try:
                 os.close(go_w)
+                os.environ["ZENOH_RUNTIME"] = ONE_THREAD_RUNTIME  # as a real-time module's Zenoh runs
                 os.read(go_r, 1)  # wait for the router
                 floor_process(endpoint, i)
+            except BaseException as exc:
+                print(f"floor process {i}: {exc!r}", file=sys.stderr, flush=True)
+                code = 1
             finally:
-                os._exit(0)
+                os._exit(code)
         pids.append(pid)
     os.close(go_r)
+    os.environ["ZENOH_RUNTIME"] = ROUTER_RUNTIME  # as the world server's embedded router runs
     with open_embedded_router(port) as router:
         ready: set[int] = set()
         replies = [0]

@@ -41,7 +41,7 @@ def test_the_controller_takes_plain_values_never_messages():
 
 WORLD_MAY_IMPORT = ("cekm_swarm.protocol", "cekm_swarm.angles", "cekm_swarm.ticks", "cekm_swarm.errors",
                     "cekm_swarm.runtime", "cekm_swarm.robot", "cekm_swarm.graph.spec", "cekm_swarm.graph.plan",
-                    "cekm_swarm.graph.runspec")
+                    "cekm_swarm.graph.resolve", "cekm_swarm.graph.runspec")
 """What the world may import: the protocol, the transport, the two conventions, the robot's
 body, and a graph as plain data (the run spec) -- never node, controller or model code."""
 
@@ -56,7 +56,8 @@ def test_a_graph_as_data_imports_no_node_code():
     """The world reads graphs and run specs: their modules import only the protocol, the
     clock, the robot's body and each other; only the checks and the CLI import node programs."""
     allowed = ("cekm_swarm.protocol", "cekm_swarm.ticks", "cekm_swarm.errors", "cekm_swarm.robot",
-               "cekm_swarm.graph.spec", "cekm_swarm.graph.plan", "cekm_swarm.graph.runspec", "cekm_swarm.graph")
+               "cekm_swarm.graph.spec", "cekm_swarm.graph.plan", "cekm_swarm.graph.resolve", "cekm_swarm.graph.runspec",
+               "cekm_swarm.graph")
     for path, names in imports_of("cekm_swarm.graph").items():
         if path.endswith(("check.py", "commands.py", "acl.py")):
             continue

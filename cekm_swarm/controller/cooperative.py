@@ -141,8 +141,8 @@ class CooperativeEKM:
         self._B = np.stack([obstacle_field(self.w, s, self.fields) for s in range(self.n)])
         self._A.flags.writeable = False
         self._B.flags.writeable = False
-        # one read-only row object per winner: the same array each time, so a sender may
-        # cache its encoding by identity (cekm_swarm.node.wire.Encoder)
+        # one read-only row object per winner, made once: each call hands out the same array
+        # (no view made per message; a field message takes a read-only array as it is)
         self._A_rows = tuple(self._A[s] for s in range(self.n))
         self._B_rows = tuple(self._B[s] for s in range(self.n))
         if self.backend == "numba":

@@ -1,7 +1,7 @@
 """The checks of a graph that need its node programs: import each program, read its
 ports and parameters, and refuse what cannot run before anything starts (an unknown
 program, a parameter a node does not declare, a value of the wrong type, a port bound to
-the wrong message type), then resolve the graph for a team (:func:`cekm_swarm.graph.plan.build_plan`).
+the wrong message type), then resolve the graph for a team (:func:`cekm_swarm.graph.resolve.build_plan`).
 
 What the checks produce (:class:`CheckedGraph`) is what a run spec carries to every
 process, so nothing imports a program it does not run.
@@ -19,7 +19,8 @@ from typing import Any, Mapping
 from cekm_swarm.node.api import Node, make_params, param_fields
 from cekm_swarm.protocol import KeySpace
 
-from .plan import PortTypes, RunPlan, build_plan
+from .plan import PortTypes, RunPlan
+from .resolve import build_plan
 from .spec import Graph, GraphError, load_graph
 
 

@@ -19,7 +19,8 @@ from typing import Any, Mapping
 from cekm_swarm.protocol import KeySpace
 from cekm_swarm.robot import RobotBody
 
-from .plan import PortTypes, RunPlan, build_plan
+from .plan import PortTypes, RunPlan
+from .resolve import build_plan
 from .spec import Graph, GraphError
 
 SPEC_VERSION = 1

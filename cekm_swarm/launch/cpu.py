@@ -52,9 +52,9 @@ def _schedstat_seconds(pid: int) -> float | None:
         try:
             with open(f"/proc/{pid}/task/{tid}/schedstat", "rb") as f:
                 ns += int(f.read().split()[0])  # time spent on the cpu, ns (sched-stats.rst)
-        except FileNotFoundError:
-            continue  # the thread ended meanwhile: its time is in no file any more
-        except (OSError, IndexError, ValueError):
+        except OSError:
+            continue  # the thread ended meanwhile (ENOENT, ESRCH): its time is in no file any more
+        except (IndexError, ValueError):
             return None
     return ns / 1e9
 

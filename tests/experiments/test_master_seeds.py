@@ -40,6 +40,7 @@ def test_orderings_are_counted_per_seed_and_budget_trials_listed():
     assert seeds_from(2005, 3) == [2005, 2006, 2007]
 
 
+@pytest.mark.slow
 def test_cli_master_seeds_writes_each_seed_and_the_summary(tmp_path):
     out = tmp_path / "ms"
     r = CliRunner().invoke(main, ["experiment", "target-reaching", "--out", str(out), "--networks", "R9,D9",

@@ -16,6 +16,7 @@ def model(tmp_path_factory):
     return path
 
 
+@pytest.mark.slow
 def test_run_writes_outcome_and_picture(tmp_path, model):
     out = tmp_path / "run"
     r = CliRunner().invoke(main, ["run", "lone_obstacle", "--model", str(model), "--seed", "3", "--max-time", "30",
@@ -29,6 +30,7 @@ def test_run_writes_outcome_and_picture(tmp_path, model):
     assert (out / "trajectory.png").read_bytes()[:4] == b"\x89PNG"
 
 
+@pytest.mark.slow
 def test_same_seed_same_outcome(tmp_path, model):
     docs = []
     for i in range(2):
@@ -40,6 +42,7 @@ def test_same_seed_same_outcome(tmp_path, model):
     assert docs[0] == docs[1]
 
 
+@pytest.mark.slow
 def test_fields_picture(tmp_path, model):
     out = tmp_path / "f.png"
     r = CliRunner().invoke(main, ["fields", "concave", "--at", "5", "--model", str(model), "--out", str(out)])
@@ -47,6 +50,7 @@ def test_fields_picture(tmp_path, model):
     assert out.read_bytes()[:4] == b"\x89PNG" and "motor winner" in r.output
 
 
+@pytest.mark.slow
 def test_sweep_writes_grid(tmp_path, model):
     out = tmp_path / "sweep"
     r = CliRunner().invoke(main, ["sweep", "concave", "--depths", "0.12", "--widths", "0.1,0.34", "--ranges", "0.17",

@@ -16,6 +16,7 @@ def model():
     return default_model(progress=False)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scenario,seed", [("concave", 1), ("concave", 2), ("doorway", 1), ("doorway", 3)])
 def test_cooperative_ekm_negotiates_and_fusion_is_trapped(model, scenario, seed):
     from world import load_scenario
@@ -37,6 +38,7 @@ def test_rooms_success_means_no_contact_with_the_moving_obstacles():
     assert not success("checkpoints", dict(base, checkpoints_reached=1, checkpoints=[[0, 0], [1, 1]]), geometry)
 
 
+@pytest.mark.slow
 def test_obstacles_command_writes_table_and_pictures(tmp_path, model):
     r = CliRunner().invoke(main, ["experiment", "obstacles", "--seeds", "2", "--max-time", "60", "--workers", "1",
                                   "--model", str(default_model_path()), "--out", str(tmp_path)])

@@ -123,6 +123,7 @@ def test_reference_and_fast_paths_agree_under_each_rule(name, rule):
     np.testing.assert_allclose(batch.W[0], fast.network_arrays(net)[0], rtol=1e-7, atol=1e-9)
 
 
+@pytest.mark.slow
 def test_trace_is_the_measured_test_path():
     """trace_test records the very path test_batch measures (same kernel), target by target."""
     arena = Arena()
@@ -208,6 +209,7 @@ def test_kinematic_command_lands_on_the_input():
         assert math.hypot(tx - pose[0], ty - pose[1]) < 1e-9, (alpha, d)
 
 
+@pytest.mark.slow
 def test_circling_command_writes_the_picture_and_the_summary(tmp_path):
     from cekm_swarm.experiments.circling import main
 

@@ -19,6 +19,7 @@ def reduced():
     return run_experiment(config, progress=False)
 
 
+@pytest.mark.slow
 def test_reduced_run_orderings(reduced):
     """At 20,000 steps (a fifth of the paper's), under the paper's stop rule, the orderings that
     have emerged by then: every indirect EKM below the direct EKM in E and T, and RLS (R15)
@@ -39,6 +40,7 @@ def test_reduced_run_orderings(reduced):
         assert curve[-1] > curve[0] + 0.5, (name, curve)
 
 
+@pytest.mark.slow
 def test_results_document_shape(reduced):
     results, _ = reduced
     n = results["networks"]
@@ -64,6 +66,7 @@ def test_same_seed_same_numbers():
     assert a["networks"]["G9"]["per_trial"] == b["networks"]["G9"]["per_trial"]
 
 
+@pytest.mark.slow
 def test_cli_writes_every_output(tmp_path):
     out = tmp_path / "run"
     result = CliRunner().invoke(main, ["experiment", "target-reaching", "--out", str(out), "--networks", "D9,R9",
@@ -98,6 +101,7 @@ def test_cli_train_saves_a_loadable_model(tmp_path):
     assert np.all(np.isfinite(net.M))
 
 
+@pytest.mark.slow
 def test_cli_protocol_options_reach_the_settings(tmp_path):
     out = tmp_path / "run"
     result = CliRunner().invoke(main, ["experiment", "target-reaching", "--out", str(out), "--networks", "B9,R9",

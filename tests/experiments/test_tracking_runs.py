@@ -19,6 +19,7 @@ def model():
     return default_model()
 
 
+@pytest.mark.slow
 def test_fig13_cekm_observes_more_than_static_robots_and_the_robots_part(model):
     """10 seeds of tracking.toml, 40 s each: cekm's A above stay's (Welch p < 0.05), and
     the robots move apart as the targets do."""
@@ -51,6 +52,7 @@ def test_team_scenarios_grow_with_the_team():
     assert area(s8) / 8 == pytest.approx(area(s2) / 2)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("controller", ["cekm", "acmommt", "kmeans", "kmeans-global", "stay"])
 def test_cekm_run_tracking_writes_the_tracking_outcome(tmp_path, controller):
     out = tmp_path / controller
@@ -71,6 +73,7 @@ def test_cekm_run_refuses_a_navigation_controller_on_tracking():
     assert r.exit_code == 2 and "tracking scenario" in r.output
 
 
+@pytest.mark.slow
 def test_cekm_experiment_tracking_writes_results(tmp_path):
     out = tmp_path / "exp"
     r = CliRunner().invoke(main, ["experiment", "tracking", "--out", str(out), "--seeds", "2", "--robots", "2,3",

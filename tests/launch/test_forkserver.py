@@ -17,6 +17,8 @@ import pytest
 
 from cekm_swarm.launch.spawn import ForkServer
 
+pytestmark = pytest.mark.slow  # starts real processes (tests/process_guard.py)
+
 CHILD = textwrap.dedent("""
     import json, os, signal, sys, time
     what = sys.argv[1]

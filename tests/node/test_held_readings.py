@@ -51,7 +51,7 @@ def test_a_reading_with_a_stateful_or_many_keyed_reader_is_not_held():
 
 def test_holding_can_be_turned_off_in_the_run_spec():
     checked = check_graph("cekm-navigation")
-    from cekm_swarm.graph.plan import build_plan
+    from cekm_swarm.graph.resolve import build_plan
 
     plan = build_plan(checked.graph, ("r1",), "navigation", checked.ports, hold=False)
     assert plan.held_readings("r1") == [] and plan.holds(plan.node("r1", "motor")) == {}

@@ -9,6 +9,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 import cekm_swarm.protocol
 
 PKG = Path(cekm_swarm.protocol.__file__).parent
@@ -32,6 +34,7 @@ def test_protocol_imports_only_errors_from_the_package():
                     assert name in ("cekm_swarm.errors", "cekm_swarm.ticks"), f"{path.name} imports {name}"
 
 
+@pytest.mark.slow
 def test_importing_the_protocol_loads_no_other_project_module():
     code = ("import sys, cekm_swarm.protocol; "
             "print(sorted(m for m in sys.modules if m.startswith(('cekm_swarm', 'world'))))")

@@ -7,6 +7,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 
 import click
+import pytest
 from click.testing import CliRunner
 from runtime_samples import sample_traffic, write_log
 
@@ -76,6 +77,7 @@ def test_topic_echo_decodes_and_reports_malformed(router, clients):
     assert any("cekm/r7/cmd/wheels: MALFORMED" in line for line in lines)
 
 
+@pytest.mark.slow
 def test_topic_list_and_hz(router, clients):
     a = clients()
     token = declare_alive(a, K.alive("r1", "motor"))

@@ -9,9 +9,12 @@ import signal
 import time
 
 import numpy as np
+import pytest
 
 from cekm_swarm.protocol import DEFAULT_KEYS, ObstacleField, SenseRange, WheelCommand, decode, encode
 from cekm_swarm.runtime.bridge import AsyncSubscription, LivelinessWatcher, Publishers
+
+pytestmark = pytest.mark.slow  # starts real processes (tests/process_guard.py)
 
 K = DEFAULT_KEYS
 T = 20.0

@@ -37,6 +37,8 @@ from cekm_swarm.runtime.config import open_client
 from cekm_swarm.ticks import TICK_S, tick_time
 from world import load_scenario
 
+pytestmark = pytest.mark.slow  # starts real processes (tests/process_guard.py)
+
 SEED = 4
 MAX_TIME = "160"  # s of sim time: 1250 ticks for the 200 batches of the lockstep fuzz, one due every
 # 6 ticks. A batch of 50 takes about 8 ms to send on 2 cores, a lockstep tick 8-16 ms; with two busy

@@ -20,6 +20,8 @@ from cekm_swarm.experiments.graph_run import run_graph
 from cekm_swarm.experiments.navigation import plan_all
 from world import World, load_scenario
 
+pytestmark = pytest.mark.slow  # starts real processes (tests/process_guard.py)
+
 NAVIGATION = ["training", "concave", "doorway", "lone_obstacle", "crossing", "rooms", "checkpoints"]
 TRACKING = ["tracking", "tracking-crowd"]
 SHIPPED = ([(s, c) for s in NAVIGATION for c in ("cekm", "fusion", "stay")]
@@ -67,7 +69,6 @@ def assert_equals_cekm_run(run: LaunchProcess, scenario: str, controller: str, m
     assert outcome["reproducible"]["equals_cekm_run"] is True
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("scenario, controller", SHIPPED, ids=lambda x: x)
 def test_every_shipped_controller_on_every_shipped_scenario_equals_cekm_run(tmp_path, scenario, controller):
     max_time = MAX_TIME.get(scenario, 10.0)
@@ -75,7 +76,6 @@ def test_every_shipped_controller_on_every_shipped_scenario_equals_cekm_run(tmp_
     assert_equals_cekm_run(run, scenario, controller, max_time)
 
 
-@pytest.mark.slow
 def test_a_cold_start_equals_cekm_run_as_the_warm_start_does(tmp_path):
     """Every node exec'd afresh (--cold-start) instead of forked from the fork server."""
     run = launch(tmp_path / "out", "crossing", "cekm", 10.0, extra=("--cold-start",))
@@ -87,7 +87,6 @@ STATELESS = {"cekm": ["motor", "obstacle-3", "obstacle-0"], "fusion": ["avoid", 
              "acmommt": ["motor"], "kmeans": ["motor"], "kmeans-global": ["motor"]}
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("seed, robots", [(101, 1), (202, 3), (303, 5), (404, 8)])
 def test_generated_scenarios_equal_cekm_run_with_a_node_killed_and_restarted(tmp_path, seed, robots):
     """Seeded: a failure names its seed, and `scenario_gen.generated_scenario(folder, seed,

@@ -22,6 +22,8 @@ from cekm_swarm.protocol import DEFAULT_KEYS as K
 from cekm_swarm.protocol import decode
 from world import load_scenario
 
+pytestmark = pytest.mark.slow  # starts real processes (tests/process_guard.py)
+
 SEED = 1  # the cooperative EKM reaches the goal behind the U on this seed (README table)
 
 

@@ -20,6 +20,8 @@ from test_launch_support import LaunchProcess
 from cekm_swarm.experiments.default_model import default_model, default_model_path
 from cekm_swarm.protocol import DEFAULT_KEYS as K
 
+pytestmark = pytest.mark.slow  # starts real processes (tests/process_guard.py)
+
 SCENARIO = """
 name = "pair"
 description = "two robots, short trips; r1 passes a disc"

@@ -10,6 +10,8 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
+
 from cekm_swarm.experiments.default_model import default_model_path
 from cekm_swarm.launch.launcher import LaunchConfig, Launcher
 from cekm_swarm.runtime.config import free_port
@@ -20,6 +22,7 @@ def cekm(*args: str, cwd: Path | None = None, timeout: float = 120) -> subproces
                           timeout=timeout, cwd=cwd)
 
 
+@pytest.mark.slow
 def test_a_bad_model_is_refused_by_launch_as_by_run(tmp_path):
     wrong = tmp_path / "wrong.npz"
     wrong.write_bytes(b"not a model")
@@ -36,6 +39,7 @@ def test_a_bad_model_is_refused_by_launch_as_by_run(tmp_path):
     assert took < 60, took  # (was: every module restarted every 6 s for 180 s)
 
 
+@pytest.mark.slow
 def test_a_bad_graph_is_refused_before_anything_is_written(tmp_path):
     bad = tmp_path / "bad.toml"
     bad.write_text('[graph]\ncontroller = "x"\ntask = "navigation"\n[[node]]\nname = "motor"\n'
@@ -66,6 +70,7 @@ class NeedsADevice(Node):
 '''
 
 
+@pytest.mark.slow
 def test_a_node_that_cannot_start_ends_the_launch_with_its_own_line(tmp_path):
     (tmp_path / "device_node.py").write_text(FAILING)
     graph = tmp_path / "device.toml"

@@ -18,6 +18,8 @@ from cekm_swarm.experiments.navigation import run_scenario
 from cekm_swarm.runtime.config import free_port, load_config, open_session
 from world import load_scenario
 
+pytestmark = pytest.mark.slow  # starts real processes (tests/process_guard.py)
+
 SEED = 2
 
 

@@ -12,9 +12,12 @@ import signal
 import subprocess
 import sys
 
+import pytest
 from test_launch_support import LaunchProcess
 
 from cekm_swarm.experiments.default_model import default_model, default_model_path
+
+pytestmark = pytest.mark.slow  # starts real processes (tests/process_guard.py)
 
 SCENARIO = """
 name = "long_run"

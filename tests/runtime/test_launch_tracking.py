@@ -30,6 +30,8 @@ from cekm_swarm.experiments.tracking import outcome_doc, run_tracking
 from cekm_swarm.protocol import DEFAULT_KEYS as K
 from world import load_scenario
 
+pytestmark = pytest.mark.slow  # starts real processes (tests/process_guard.py)
+
 SEED = 3
 MAX_TIME = 30.0
 

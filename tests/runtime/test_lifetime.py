@@ -10,6 +10,8 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
+
 from cekm_swarm.runtime.lifetime import PARENT_ENV, child_env, die_with_parent
 
 CHILD = ("from cekm_swarm.runtime.lifetime import die_with_parent; import os, time; "
@@ -26,6 +28,7 @@ def gone(pid: int) -> bool:
         return True
 
 
+@pytest.mark.slow
 def test_the_child_gets_sigterm_when_its_launcher_is_killed():
     parent = subprocess.Popen([sys.executable, "-c", PARENT], stdout=subprocess.PIPE, text=True)
     try:
@@ -41,6 +44,7 @@ def test_the_child_gets_sigterm_when_its_launcher_is_killed():
         parent.kill()
 
 
+@pytest.mark.slow
 def test_a_child_whose_launcher_is_already_gone_stops_at_once():
     env = dict(os.environ, **{PARENT_ENV: "1"})  # not our parent: as if the launcher died while we started
     r = subprocess.run([sys.executable, "-c", CHILD], env=env, timeout=60, capture_output=True)

@@ -101,6 +101,7 @@ def test_truncated_file_streams_to_the_cut_and_recovers(tmp_path):
             [(m.topic, m.data, m.log_time) for m in streamed]
 
 
+@pytest.mark.slow
 def test_killed_writer_loses_only_the_open_chunk(tmp_path, helpers):
     path = tmp_path / "killed.mcap"
     writer = helpers("mcap", str(path), "300")

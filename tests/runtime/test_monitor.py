@@ -7,6 +7,7 @@ import subprocess
 import sys
 
 import msgpack
+import pytest
 
 from cekm_swarm.protocol import DEFAULT_KEYS as K
 from cekm_swarm.protocol import SenseRange, SenseTargets, Share, WheelCommand, WorldState, encode
@@ -203,6 +204,7 @@ def test_tracking_block_fits_80_columns_with_many_targets_and_robots():
     assert " ".join(sees).count(" 30") == 20  # every robot's count, over as many lines as it takes
 
 
+@pytest.mark.slow
 def test_monitor_command_attaches_to_a_live_run(router, clients):
     """`cekm monitor --once` in another process sees the robot, its module and the keys."""
     pub = clients()
@@ -228,10 +230,10 @@ def test_monitor_command_attaches_to_a_live_run(router, clients):
 
 
 def test_invented_keys_and_robots_cannot_grow_the_monitor_without_bound(monkeypatch):
-    from cekm_swarm.runtime import monitor
+    from cekm_swarm.runtime import monitor_state
 
-    monkeypatch.setattr(monitor, "MAX_KEYS", 5)
-    monkeypatch.setattr(monitor, "MAX_ROBOTS", 3)
+    monkeypatch.setattr(monitor_state, "MAX_KEYS", 5)
+    monkeypatch.setattr(monitor_state, "MAX_ROBOTS", 3)
     st = MonitorState()
     for i in range(10):
         st.observe(K.cmd_wheels(f"r{i}"), encode(WheelCommand(1.0, "m", 0.1, 0.1, 1)), at=1.0)

@@ -33,6 +33,8 @@ from cekm_swarm.experiments.default_model import default_model
 from cekm_swarm.experiments.navigation import run_scenario
 from world import load_scenario
 
+pytestmark = pytest.mark.slow  # starts real processes (tests/process_guard.py)
+
 REPO = Path(__file__).resolve().parents[2]
 DEPLOY = REPO / "deploy"
 SEED = 2

@@ -6,6 +6,7 @@ from __future__ import annotations
 import os
 import signal
 
+import pytest
 from click.testing import CliRunner
 from mcap.reader import make_reader
 from runtime_samples import sample_traffic
@@ -59,6 +60,7 @@ def test_a_cut_anywhere_recovers_a_prefix_of_the_messages(tmp_path):
     assert whole.metadata == 2 and _indexed(out) == (full, meta)
 
 
+@pytest.mark.slow
 def test_log_recover_command_on_a_killed_writer(tmp_path, helpers):
     path = tmp_path / "killed.mcap"
     writer = helpers("mcap", str(path), "300")
@@ -80,6 +82,7 @@ def test_log_recover_command_on_a_killed_writer(tmp_path, helpers):
     assert err.exit_code != 0 and "bad.mcap: not an MCAP file" in err.output
 
 
+@pytest.mark.slow
 def test_sigkilled_world_server_loses_at_most_one_second(tmp_path, clients, router):
     """The world server alone in real time (its readings go out whether or not a robot
     answers), joined to a router, a subscriber beside it: SIGKILL the world mid-run, recover

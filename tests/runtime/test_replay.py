@@ -26,6 +26,7 @@ def ready_publishers(session, probe_key: str) -> Publishers:
     return pubs
 
 
+@pytest.mark.slow
 def test_replay_republishes_exactly_the_recorded_messages_in_order(tmp_path, clients, helpers, router):
     path = tmp_path / "run.mcap"
     traffic = sample_traffic(30)
@@ -159,6 +160,7 @@ def test_replay_pauses_and_resumes(tmp_path, clients):
     assert stopped.stopped and stopped.published == 0  # a stop ends a paused replay
 
 
+@pytest.mark.slow
 def test_replay_command_hosts_the_router_when_told_no_endpoint(tmp_path):
     """`cekm replay LOG --port P` with no --connect and no CEKM_CONNECT hosts the router:
     a client joins it (waiting until it is up), receives the replay, and Ctrl-C ends it

@@ -20,11 +20,14 @@ import os
 import re
 import signal
 
+import pytest
 from test_launch_support import LaunchProcess
 
 from cekm_swarm.experiments.default_model import default_model, default_model_path
 from cekm_swarm.runtime.config import free_port
 from cekm_swarm.runtime.mcap_log import is_complete, read_messages
+
+pytestmark = pytest.mark.slow  # starts real processes (tests/process_guard.py)
 
 SEED = 1
 PROGRESS = re.compile(r" t=\s*([0-9.]+) s\s+r1 \(([-0-9.]+), ([-0-9.]+)\) (STOPPED|reached|([0-9.]+) m to goal)")

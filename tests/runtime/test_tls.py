@@ -29,6 +29,8 @@ from cekm_swarm.runtime.errors import RuntimeTransportError
 from cekm_swarm.runtime.mcap_log import read_messages
 from world import load_scenario
 
+pytestmark = pytest.mark.slow  # starts real processes (tests/process_guard.py)
+
 DEPLOY = Path(__file__).resolve().parents[2] / "deploy"
 TLS = DEPLOY / "tls"
 K = DEFAULT_KEYS

@@ -104,6 +104,7 @@ def test_topic_pub_is_refused_where_access_control_denies_it(acl_endpoint):
 # --------------------------------------------------------------------------- topic info, node list
 
 
+@pytest.mark.slow
 def test_topic_info_names_publishers_and_subscribers_and_measures_the_rate(router, clients):
     motor, world = clients(), clients()
     tokens = [declare_alive(motor, K.alive("r1", "motor")), declare_alive(world, K.alive("world", "server"))]

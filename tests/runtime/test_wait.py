@@ -66,6 +66,7 @@ def test_gives_up_after_the_timeout_naming_the_endpoint():
         open_client_when_ready(endpoint, timeout=0)
 
 
+@pytest.mark.slow
 def test_topic_echo_started_before_the_router_waits_for_it_and_for_messages():
     """`cekm topic echo` with CEKM_CONNECT only: it says it waits for the router, then for
     messages, then prints the first one as JSON."""

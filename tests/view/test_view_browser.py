@@ -34,7 +34,8 @@ from cekm_swarm.launch.plot import plot_log, read_run  # noqa: E402
 from cekm_swarm.runtime.config import free_port  # noqa: E402
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser") or shutil.which("google-chrome")
-pytestmark = pytest.mark.skipif(CHROMIUM is None, reason="needs headless Chromium (.ci/run installs Debian's chromium)")
+pytestmark = [pytest.mark.skipif(CHROMIUM is None, reason="needs headless Chromium (.ci/run installs Debian's chromium)"),
+              pytest.mark.slow]  # starts a launch and a browser (tests/process_guard.py)
 R1 = (0x1F, 0x77, 0xB4)  # world.draw.ROBOT_COLOURS[0], r1's colour on the page
 
 

@@ -43,6 +43,7 @@ def test_the_server_is_built_from_a_config_with_every_attribute_set_in_init(tmp_
     assert assigned and not assigned - set(vars(ws))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("text,needle", [
     ('name = "x"\n[[robots]]\nid = "a"\nstart = [1.0, 1.0, 0.0]\n', "arena: missing"),
     ('name = "x"\n[arena]\nbounds = [0.0, 0.0, 2.0, 2.0]\n[[robots]]\nid = "a"\nstart = [1.0, 1.0, 0.0]\n',
@@ -76,6 +77,7 @@ def test_checkpoints_are_parsed_or_refused_naming_what_is_wrong(tmp_path):
             parse_checkpoints(value, ["r1", "r2"])
 
 
+@pytest.mark.slow
 def test_bad_checkpoints_are_refused_in_one_line(tmp_path):
     r = subprocess.run([sys.executable, "-m", "world.server", "concave", "--out", str(tmp_path / "out"),
                         "--checkpoints", '{"r1": [[1, "x"]]}'], capture_output=True, text=True, timeout=60)

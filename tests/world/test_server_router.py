@@ -19,6 +19,8 @@ from cekm_swarm.protocol import DEFAULT_KEYS as K
 from cekm_swarm.runtime.config import free_port, open_client
 from cekm_swarm.runtime.rungraph import default_nodes
 
+pytestmark = pytest.mark.slow  # starts real processes (tests/process_guard.py)
+
 
 class WorldProcess:
     """``python -m world.server lone_obstacle --listen ...`` with its stdout lines read by a thread."""

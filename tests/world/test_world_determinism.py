@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from world import World, load_scenario
 
@@ -67,6 +68,7 @@ def test_reading_sensors_does_not_change_the_physics():
     assert poses(True) == poses(False)
 
 
+@pytest.mark.slow
 def test_bit_identical_across_processes():
     code = (
         "import hashlib, sys; sys.path.insert(0, 'tests/world');"

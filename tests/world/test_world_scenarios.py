@@ -170,6 +170,7 @@ def test_state_and_geometry_are_plain_data():
         json.dumps(w.static_geometry())
 
 
+@pytest.mark.slow
 def test_world_never_imports_the_controller():
     """The simulation imports nothing of cekm_swarm but the project's two conventions (the
     angle wrap and the tick clock); the world server only those, the message protocol,
@@ -182,7 +183,7 @@ def test_world_never_imports_the_controller():
             "else m.split('.')[1] for m in sys.modules if m.startswith('cekm_swarm.')}))")
     out = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, check=True)
     assert set(eval(out.stdout)) <= {"protocol", "runtime", "errors", "angles", "ticks", "robot", "graph",
-                                     "graph.spec", "graph.plan", "graph.runspec"}, out.stdout
+                                     "graph.spec", "graph.plan", "graph.resolve", "graph.runspec"}, out.stdout
 
 
 # --------------------------------------------------------------------------- bad files

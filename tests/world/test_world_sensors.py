@@ -191,6 +191,7 @@ def test_goal_follows_a_moving_target():
     assert w.goal_of("r1") == pytest.approx((1.0 + 0.3 * math.cos(a), 1.0 + 0.3 * math.sin(a)), abs=1e-12)
 
 
+@pytest.mark.slow
 def test_skipping_rays_when_nothing_is_near_is_exact():
     # the world skips the 12 ray casts when its nearest-surface query finds nothing
     # within range; forcing the casts must give the same answer everywhere
