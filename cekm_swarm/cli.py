@@ -129,21 +129,41 @@ def obstacles(seeds: str, speed_unit: float | None, max_time: float, model_path:
 
 @experiment.command("tracking")
 @out_dir_options("Directory for results.json, tables.md and the figures.")
-@click.option("--seeds", default=10, show_default=True, type=click.IntRange(2, 1000), help="Seeds 1..N per team size.")
+@click.option("--seeds", type=click.IntRange(2, 1000), help="Seeds 1..N per team size (default 10; --grid: 5 per cell, "
+              "--quick 2).")
 @click.option("--robots", default="2,4,8", show_default=True, help="Team sizes, comma-separated.")
-@click.option("--duration", default=60.0, show_default=True, type=click.FloatRange(min=1.0), help="Sim seconds per run.")
+@click.option("--duration", type=click.FloatRange(min=1.0), help="Sim seconds per run (default 60; --grid --quick 8).")
 @click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path))
 @click.option("--workers", type=click.IntRange(1), help="Parallel processes (default: one per core).")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
-def tracking_experiment(out_dir: Path, overwrite: bool, seeds: int, robots: str, duration: float,
-                        model_path: Path | None, workers: int | None, quiet: bool) -> None:
-    """Multi-robot tracking (Fig. 13): cooperative EKMs, A-CMOMMT and static robots on the same seeds."""
+@click.option("--grid", is_flag=True, help="The scenario grid instead (team size, targets per robot, target speed, "
+              "sensing range, obstacles; docs/tracking.md): results.json, tables.md, grid.png.")
+@click.option("--quick", is_flag=True, help="With --grid: a small grid (CI).")
+@click.option("--first-seed", default=1, show_default=True, type=click.IntRange(0),
+              help="With --grid: seeds first-seed .. first-seed + N - 1 (the default's held-out 1-5; tuning used 1001-1099).")
+def tracking_experiment(out_dir: Path, overwrite: bool, seeds: int | None, robots: str, duration: float | None,
+                        model_path: Path | None, workers: int | None, quiet: bool, grid: bool, quick: bool,
+                        first_seed: int) -> None:
+    """Multi-robot tracking (Fig. 13): cooperative EKMs, A-CMOMMT, K-means (local and global) and static robots
+    on the same seeds; with --grid, over the scenario grid."""
+    if quick and not grid:
+        raise click.UsageError("--quick goes with --grid")
+    _model(model_path)
+    if grid:
+        from .experiments.grid_report import DEFAULT_DURATION, DEFAULT_SEEDS, run_grid_cmd
+
+        n = seeds if seeds is not None else (2 if quick else DEFAULT_SEEDS[1])
+        prepare_out_dir(out_dir, overwrite)
+        run_grid_cmd(out_dir, quick, list(range(first_seed, first_seed + n)),
+                     duration if duration is not None else (8.0 if quick else DEFAULT_DURATION), model_path, workers,
+                     quiet)
+        return
     from .experiments.tracking import parse_team_sizes, run_tracking_experiment_cmd
 
     sizes = parse_team_sizes(robots)
-    _model(model_path)
     prepare_out_dir(out_dir, overwrite)
-    run_tracking_experiment_cmd(out_dir, seeds, sizes, duration, model_path, workers, quiet)
+    run_tracking_experiment_cmd(out_dir, seeds if seeds is not None else 10, sizes,
+                                duration if duration is not None else 60.0, model_path, workers, quiet)
 
 
 @main.command()
@@ -207,8 +227,8 @@ def _model(path: Path | None):
 @main.command("run")
 @click.argument("scenario")
 @click.option("--controller", default="cekm", show_default=True, metavar="NAME",
-              help="The controller whose graph runs (cekm graph list): cekm or fusion for navigation; cekm, acmommt "
-                   "or stay for tracking.")
+              help="The controller whose graph runs (cekm graph list): cekm or fusion for navigation; cekm, acmommt, "
+                   "kmeans, kmeans-global or stay for tracking.")
 @click.option("--graph", "graph_file", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               help="Run a graph file of your own instead (docs/modules.md).")
 @click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path),

@@ -54,6 +54,7 @@ class TickPublisher:
         self._encoders: dict[str, SenseEncoder] = {}
         self._unrecorded: list[tuple[str, bytes, float]] = []
         self._unviewed: tuple[float, dict[str, Any]] | None = None  # the tick's (t, state) for the views
+        self._world_msgs: list[tuple[str, Any]] = []  # the tick's clock and state, sent again on a stall
 
     # ------------------------------------------------------------------ sending
 
@@ -126,9 +127,12 @@ class TickPublisher:
             if more:
                 self.last_messages[rd.robot] = more
             self._send_more(rd.robot, more, want, leave_out)
-        self._send(self.keys.world_clock(), Clock(ep.t, SENDER, ep.tick))
         st = self.world.state()
-        self._send(self.keys.world_state(), WorldState(ep.t, SENDER, st["robots"], st["targets"], st["obstacles"]))
+        self._world_msgs = [(self.keys.world_clock(), Clock(ep.t, SENDER, ep.tick)),
+                            (self.keys.world_state(), WorldState(ep.t, SENDER, st["robots"], st["targets"],
+                                                                 st["obstacles"]))]
+        for key, msg in self._world_msgs:
+            self._send(key, msg)
         self._unviewed = (ep.t, st)
         return st
 
@@ -141,7 +145,9 @@ class TickPublisher:
 
     def republish(self, readings: list[TickReadings], waiting: list[str]) -> None:
         """The stalled tick's readings again (and each robot's latest target or tracking
-        reading), for the robots still waiting: a restarted node catches up."""
+        reading), for the robots still waiting, and the tick's clock and state (a node that
+        reads only those, K-means' global goal, sends its outputs again on them): a
+        restarted node catches up."""
         n = len(self.world.sensor_angles)
         for rd in readings:
             if rd.robot not in waiting:
@@ -156,6 +162,8 @@ class TickPublisher:
             if last is not None and (want is None or self.keys.sense_target(rd.robot) in want):
                 self._put(self.keys.sense_target(rd.robot), last, rd.t)
             self._send_more(rd.robot, self.last_messages.get(rd.robot, []), want)  # tracking: the latest pose, targets
+        for key, msg in self._world_msgs:
+            self._send(key, msg)
         self.record_sent()
         self.republished += 1
 

@@ -123,21 +123,28 @@ class ACMOMMT:
         """The held force plus the obstacle repulsion of this tick's readings, as wheel speeds."""
         if act is None:
             return 0.0, 0.0
-        fx, fy = act.fx, act.fy
-        g = self.params.obstacle_gain
-        for r in ranges:
-            if r.d is None:
-                continue
-            surface = max(r.d - self.body_radius, 0.0)
-            m = g * max(0.0, 1.0 - surface / self.sensor_range)
-            fx -= m * math.cos(r.alpha)
-            fy -= m * math.sin(r.alpha)
-        mag = math.hypot(fx, fy)
-        if mag < 1e-9:
-            return 0.0, 0.0
-        phi = math.atan2(fy, fx)
-        v = self.v_max * min(mag, 1.0) * max(0.0, math.cos(phi))
-        omega = self.params.turn_gain * phi
-        half = 0.5 * omega * self.axle
-        vm = self.v_max
-        return min(max(v - half, -vm), vm), min(max(v + half, -vm), vm)
+        return force_wheels(act.fx, act.fy, ranges, self.body_radius, self.sensor_range, self.axle, self.v_max,
+                            self.params.obstacle_gain, self.params.turn_gain)
+
+
+def force_wheels(fx: float, fy: float, ranges: list[RangeReading], body_radius: float, sensor_range: float,
+                 axle: float, v_max: float, obstacle_gain: float, turn_gain: float) -> tuple[float, float]:
+    """A force (fx, fy) in the robot's frame plus each distance sensor's obstacle repulsion,
+    gain * (1 - r / range) away from it, as wheel speeds: omega = turn_gain * phi, forward
+    speed v* min(|F|, 1) cos(phi) when |phi| < pi/2, both wheels clipped to c*. A-CMOMMT's
+    motor, which the K-means baselines reuse to reach their goals."""
+    for r in ranges:
+        if r.d is None:
+            continue
+        surface = max(r.d - body_radius, 0.0)
+        m = obstacle_gain * max(0.0, 1.0 - surface / sensor_range)
+        fx -= m * math.cos(r.alpha)
+        fy -= m * math.sin(r.alpha)
+    mag = math.hypot(fx, fy)
+    if mag < 1e-9:
+        return 0.0, 0.0
+    phi = math.atan2(fy, fx)
+    v = v_max * min(mag, 1.0) * max(0.0, math.cos(phi))
+    omega = turn_gain * phi
+    half = 0.5 * omega * axle
+    return min(max(v - half, -v_max), v_max), min(max(v + half, -v_max), v_max)

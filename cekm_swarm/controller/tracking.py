@@ -31,6 +31,7 @@ import numpy as np
 
 from ..models.networks import IndirectEKM
 from ..models.params import FieldParams, TrackingParams
+from .anticipation import TargetTracks, held_group
 from .cooperative import CooperativeEKM, MotorOutput, ObstacleActivity, motor_command
 from .readings import RangeReading
 from .team import TeammateShare, TeamView, observers_nearer, to_robot, to_world
@@ -84,6 +85,7 @@ class TrackingEKM:
     params: TrackingParams = field(default_factory=TrackingParams)
     fields: FieldParams = field(default_factory=FieldParams.paper)  # the values tracking was tuned with
     backend: str = "numba"
+    tracks: TargetTracks = field(default_factory=TargetTracks)
 
     def __post_init__(self) -> None:
         if not math.isfinite(self.target_range):
@@ -113,15 +115,31 @@ class TrackingEKM:
         weights = {}
         standoff = p.standoff * R
         full = False
+        if p.predict_s > 0.0:
+            self.tracks.update(t, own)
+        held: dict[str, tuple[float, float]] = {}
         for tid in sorted(sensed):
             alpha, d = sensed[tid]
             wt = target_weight(observers_nearer(tid, d, team), p)
             weights[tid] = wt
             full = full or wt >= 1.0
-            u_d = d - standoff if d > standoff else 0.0
-            s = ekm.winner(alpha, u_d)
+            if wt >= 1.0:
+                held[tid] = own[tid]
+            la, ld = alpha, d
+            if p.predict_s > 0.0:  # where the target will be
+                ahead = self.tracks.predict(tid, p.predict_s)
+                if ahead is not None:
+                    la, ld = to_robot(pose, ahead)
+            u_d = ld - standoff if ld > standoff else 0.0
+            s = ekm.winner(la, u_d)
             a += (wt * (1.0 - p.urgency + p.urgency * min(d / R, 1.0))) * ekm.target_activity(s)
-            inputs.append((s, alpha, u_d, wt))
+            inputs.append((s, la, u_d, wt))
+        group = held_group(held, p.group_radius * R) if p.group_weight > 0.0 and len(held) >= 2 else None
+        if group is not None:  # the point between the targets this robot can hold together
+            ga, gd = to_robot(pose, group[0])
+            s = ekm.winner(ga, gd)
+            a += p.group_weight * ekm.target_activity(s)
+            inputs.append((s, ga, gd, p.group_weight))
         if not full:
             goal = view.search_goal(t, pose, own, team, p.search_reached * R, p.wander_ahead_m)
             ga, gd = to_robot(pose, goal)

@@ -18,7 +18,7 @@ import numpy as np
 from ..errors import ParameterError
 from ..models.params import ACMOMMTParams, TrackingParams
 
-CONTROLLERS = ("cekm", "acmommt", "stay")
+CONTROLLERS = ("cekm", "acmommt", "kmeans", "kmeans-global", "stay")
 DEFAULT_DURATION = 120.0  # s of sim time of a tracking run
 
 

@@ -152,6 +152,12 @@ class TrackingParams:
     share_timeout_s: a teammate whose latest share is older than this drops out of the
     fields (the runtime also drops it when its liveliness tokens vanish).
     memory_s: a target's last reported position is forgotten after this long.
+    predict_s: a sensed target is localized where its track (an alpha-beta filter of the
+    robot's own sightings) says it will be predict_s from now (0: where it is seen).
+    group_weight: when two or more full-weight sensed targets all fit within group_radius
+    * R of their centroid, the centroid is localized too (no stand-off), with a target
+    field of weight group_weight: above 1 it wins over each target's, so one robot holds
+    the group between them instead of following one (0: off).
     """
 
     standoff: float = 0.7
@@ -167,8 +173,13 @@ class TrackingParams:
     wander_ahead_m: float = 0.3
     share_timeout_s: float = 1.0
     memory_s: float = 30.0
+    predict_s: float = 0.0
+    group_weight: float = 0.0
+    group_radius: float = 0.6
 
     def __post_init__(self) -> None:
+        if not (self.predict_s >= 0.0 and self.group_weight >= 0.0 and self.group_radius > 0.0):
+            raise ParameterError("TrackingParams: predict_s and group_weight must be >= 0, group_radius > 0")
         _check_positive(self, "teammate_near", "teammate_far", "teammate_sigma_alpha", "teammate_sigma_d_beyond",
                         "teammate_sigma_d_near", "search_weight", "search_reached", "wander_ahead_m",
                         "share_timeout_s", "memory_s")
@@ -215,3 +226,36 @@ class ACMOMMTParams:
             raise ParameterError("ACMOMMTParams: need dr1 < dr2")
         if not 0.0 <= self.watched_weight <= 1.0:
             raise ParameterError(f"ACMOMMTParams.watched_weight must be in [0, 1], got {self.watched_weight!r}")
+
+
+@dataclass(frozen=True)
+class KMeansParams:
+    """The K-means tracking baselines (Luke, Sullivan, Panait and Balan, "Tunably
+    decentralized algorithms for cooperative target observation", AAMAS 2005; MASON's CTO
+    application, ``KMeansEngine``; docs/tracking.md).
+
+    Each update (every target tick, 0.256 s) every known target is assigned to its nearest
+    robot, and a robot with targets moves its goal toward their mean:
+    goal <- (1 - alpha) goal + alpha mean (alpha: KMeansEngine's ALFA = 0.25).
+    arrive_s: the goal pulls with magnitude min(d / (v* arrive_s), 1), so the robot drives
+    at top speed until about arrive_s seconds away and then slows onto it.
+    wander_radius: a robot with no target drives to a random waypoint, uniform in the disc
+    of wander_radius * R around where it is when it draws it, and holds it for
+    wander_hold_s seconds or until within wander_reached * R of it (Luke et al.'s agents
+    explore to random points when they have no target).
+    share_timeout_s: a teammate whose latest share is older than this is out of the
+    assignment. The goal is reached by A-CMOMMT's motor (its obstacle repulsion, turn gain
+    and wheel limits, ACMOMMTParams), so only the goal differs between the baselines.
+    """
+
+    alpha: float = 0.25
+    arrive_s: float = 1.0
+    wander_radius: float = 2.0
+    wander_hold_s: float = 8.0
+    wander_reached: float = 0.2
+    share_timeout_s: float = 1.0
+
+    def __post_init__(self) -> None:
+        _check_positive(self, "arrive_s", "wander_radius", "wander_hold_s", "wander_reached", "share_timeout_s")
+        if not 0.0 < self.alpha <= 1.0:
+            raise ParameterError(f"KMeansParams.alpha must be in (0, 1], got {self.alpha!r}")

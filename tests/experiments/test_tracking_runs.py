@@ -53,7 +53,7 @@ def test_team_scenarios_grow_with_the_team():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("controller", ["cekm", "acmommt", "stay"])
+@pytest.mark.parametrize("controller", ["cekm", "acmommt", "kmeans", "kmeans-global", "stay"])
 def test_cekm_run_tracking_writes_the_tracking_outcome(tmp_path, controller):
     out = tmp_path / controller
     r = CliRunner().invoke(main, ["run", "tracking", "--controller", controller, "--seed", "2", "--max-time", "3",
@@ -82,11 +82,12 @@ def test_cekm_experiment_tracking_writes_results(tmp_path):
     doc = json.loads((out / "results.json").read_text())
     assert [c["robots"] for c in doc["configs"]] == [2, 3]
     for c in doc["configs"]:
-        assert set(c["controllers"]) == {"cekm", "acmommt", "stay"}
+        assert set(c["controllers"]) == {"cekm", "acmommt", "kmeans", "kmeans-global", "stay"}
         for v in c["controllers"].values():
             lo, hi = v["A"]["ci95"]
             assert lo <= v["A"]["mean"] <= hi and len(v["per_seed"]) == 2
-    for f in ("tables.md", "tracking.png", "fig13_cekm.png", "fig13_acmommt.png", "fig13_stay.png"):
+    for f in ("tables.md", "tracking.png", "fig13_cekm.png", "fig13_acmommt.png", "fig13_kmeans.png",
+              "fig13_kmeans-global.png", "fig13_stay.png"):
         assert (out / f).exists(), f
     bad = CliRunner().invoke(main, ["experiment", "tracking", "--out", str(out), "--robots", "two"])
     assert bad.exit_code == 2 and "--robots" in bad.output

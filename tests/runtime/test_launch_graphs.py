@@ -25,7 +25,7 @@ pytestmark = pytest.mark.slow  # starts real processes (tests/process_guard.py)
 NAVIGATION = ["training", "concave", "doorway", "lone_obstacle", "crossing", "rooms", "checkpoints"]
 TRACKING = ["tracking", "tracking-crowd"]
 SHIPPED = ([(s, c) for s in NAVIGATION for c in ("cekm", "fusion", "stay")]
-           + [(s, c) for s in TRACKING for c in ("cekm", "acmommt", "stay")])
+           + [(s, c) for s in TRACKING for c in ("cekm", "acmommt", "kmeans", "kmeans-global", "stay")])
 MAX_TIME = {"crossing": 15.0, "tracking-crowd": 12.0}  # s of sim time; the others 10
 
 
@@ -84,7 +84,7 @@ def test_a_cold_start_equals_cekm_run_as_the_warm_start_does(tmp_path):
 
 
 STATELESS = {"cekm": ["motor", "obstacle-3", "obstacle-0"], "fusion": ["avoid", "motor", "target"],
-             "acmommt": ["motor"]}
+             "acmommt": ["motor"], "kmeans": ["motor"], "kmeans-global": ["motor"]}
 
 
 @pytest.mark.parametrize("seed, robots", [(101, 1), (202, 3), (303, 5), (404, 8)])
@@ -103,6 +103,19 @@ def test_generated_scenarios_equal_cekm_run_with_a_node_killed_and_restarted(tmp
     run = launch(tmp_path / "out", str(path), controller, 15.0, seed=rng.randrange(2**31), kill=kill)
     if kill is not None:
         assert run.outcome()["launcher"]["restarts"].get(kill) == 1, run.outcome()["launcher"]
+    assert_equals_cekm_run(run, str(path), controller, 15.0)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed, controller", [(505, "kmeans"), (606, "kmeans-global")])
+def test_the_kmeans_baselines_on_generated_teams_equal_cekm_run_with_the_motor_killed(tmp_path, seed, controller):
+    """Six robots on a generated tracking scenario; one robot's motor SIGKILLed and restarted."""
+    rng = random.Random(seed)
+    path = generated_scenario(tmp_path, seed, 6, "tracking")
+    team = [r.id for r in load_scenario(path).robots]
+    kill = f"{rng.choice(team)}/motor"
+    run = launch(tmp_path / "out", str(path), controller, 15.0, seed=rng.randrange(2**31), kill=kill)
+    assert run.outcome()["launcher"]["restarts"].get(kill) == 1, run.outcome()["launcher"]
     assert_equals_cekm_run(run, str(path), controller, 15.0)
 
 

@@ -1,0 +1,107 @@
+"""The tracking grid's statistics: per cell, per level of an axis and per level pair of
+two axes, each controller's mean A with a 95 % t interval, and cekm's A minus the best
+baseline's (the baseline with the higher mean there) with Welch's p."""
+
+from __future__ import annotations
+
+import itertools
+import math
+from typing import Any
+
+import numpy as np
+
+from .grid_design import AXES, Cell
+from .grid_run import BASELINES
+
+
+def mean_ci95(xs) -> dict[str, Any]:
+    """Mean and a 95 % t interval."""
+    from scipy import stats
+
+    a = np.asarray(xs, dtype=float)
+    m = float(a.mean())
+    if len(a) < 2:
+        return {"mean": m, "ci95": [m, m], "n": len(a)}
+    h = float(stats.t.ppf(0.975, len(a) - 1) * a.std(ddof=1) / math.sqrt(len(a)))
+    return {"mean": m, "ci95": [m - h, m + h], "n": len(a)}
+
+
+def welch_p(a, b) -> float:
+    """Welch's two-sided p; 1.0 when both samples are constant and equal."""
+    import warnings
+
+    from scipy import stats
+
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    if a.std() == 0 and b.std() == 0:
+        return 1.0 if a.mean() == b.mean() else 0.0
+    with warnings.catch_warnings():  # nearly equal samples: scipy warns of precision, p is still near 1
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return float(stats.ttest_ind(a, b, equal_var=False).pvalue)
+
+
+def _versus(cekm: list[float], base: dict[str, list[float]]) -> dict[str, Any]:
+    best = max(base, key=lambda c: np.mean(base[c]))
+    return {"best_baseline": best, "diff": float(np.mean(cekm) - np.mean(base[best])),
+            "p": welch_p(cekm, base[best]), "cekm_above_all": bool(all(np.mean(cekm) > np.mean(v) for v in base.values())),
+            "p_each": {c: welch_p(cekm, v) for c, v in base.items()}}
+
+
+def cell_stats(rows: list[dict[str, Any]], cells: list[Cell], controllers: tuple[str, ...]) -> list[dict[str, Any]]:
+    """Every cell: its levels, per controller the A of every seed and their mean and
+    interval, cekm against the best baseline and against global K-means."""
+    out = []
+    for cell in cells:
+        sub = [r for r in rows if r["cell"] == cell.label]
+        per = {c: [r["A"] for r in sub if r["controller"] == c] for c in controllers}
+        doc = {**cell.as_dict(), "controllers": {c: {"A": mean_ci95(v), "per_seed": v} for c, v in per.items()},
+               "collisions": {c: sum(r["collisions"] for r in sub if r["controller"] == c) for c in controllers}}
+        if "cekm" in per and all(b in per for b in BASELINES):
+            doc["cekm_vs_best"] = _versus(per["cekm"], {b: per[b] for b in BASELINES})
+            if "kmeans-global" in per:
+                g = per["kmeans-global"]
+                doc["cekm_vs_global"] = {"diff": float(np.mean(per["cekm"]) - np.mean(g)), "p": welch_p(per["cekm"], g)}
+        out.append(doc)
+    return out
+
+
+def _pooled(cells: list[dict[str, Any]], controllers) -> dict[str, list[float]]:
+    return {c: [a for d in cells for a in d["controllers"][c]["per_seed"]] for c in controllers}
+
+
+def by_axis(cells: list[dict[str, Any]], controllers: tuple[str, ...]) -> dict[str, list[dict[str, Any]]]:
+    """Per axis, per level: every controller's A pooled over the cells at that level (every
+    seed of every such cell), and cekm against the best baseline there."""
+    out = {}
+    for axis in AXES:
+        levels = sorted({d[axis] for d in cells}, key=lambda v: (str(type(v)), v))
+        if axis == "speed":
+            levels = [s for s in ("slow", "medium", "fast") if s in levels]
+        rows = []
+        for lv in levels:
+            sub = [d for d in cells if d[axis] == lv]
+            pooled = _pooled(sub, controllers)
+            row = {"level": lv, "cells": len(sub), "controllers": {c: mean_ci95(v) for c, v in pooled.items()}}
+            if "cekm" in pooled and all(b in pooled for b in BASELINES):
+                row["cekm_vs_best"] = _versus(pooled["cekm"], {b: pooled[b] for b in BASELINES})
+            rows.append(row)
+        out[axis] = rows
+    return out
+
+
+def by_pair(cells: list[dict[str, Any]], controllers: tuple[str, ...]) -> list[dict[str, Any]]:
+    """Per pair of axes, per level pair that occurs: cekm's A minus the best baseline's,
+    pooled over the cells there, with Welch's p (the heatmaps)."""
+    out = []
+    for a, b in itertools.combinations(AXES, 2):
+        la = [v for v in (("slow", "medium", "fast") if a == "speed" else sorted({d[a] for d in cells})) if any(d[a] == v for d in cells)]
+        lb = [v for v in (("slow", "medium", "fast") if b == "speed" else sorted({d[b] for d in cells})) if any(d[b] == v for d in cells)]
+        grid = []
+        for va, vb in itertools.product(la, lb):
+            sub = [d for d in cells if d[a] == va and d[b] == vb]
+            if not sub:
+                continue
+            pooled = _pooled(sub, controllers)
+            grid.append({a: va, b: vb, "cells": len(sub), **_versus(pooled["cekm"], {k: pooled[k] for k in BASELINES})})
+        out.append({"axes": [a, b], "levels": [la, lb], "cells": grid})
+    return out

@@ -1,0 +1,68 @@
+"""The tracking grid: its design covers every level pair, its scenarios are valid and the
+same for the same seed, and `cekm experiment tracking --grid --quick` writes every output."""
+
+import itertools
+import json
+import math
+
+from click.testing import CliRunner
+
+from cekm_swarm.cli import main
+from cekm_swarm.experiments.grid_design import AXES, LEVELS, QUICK, Cell, arena_side, design, grid_raw, grid_scenario
+from cekm_swarm.robot import KHEPERA
+
+
+def test_the_default_design_has_every_team_size_and_density_and_every_level_pair():
+    cells = design()
+    assert design() == cells  # the same cells every time
+    assert {(c.robots, c.targets_per_robot) for c in cells} == set(itertools.product(LEVELS["robots"],
+                                                                                      LEVELS["targets_per_robot"]))
+    for a, b in itertools.combinations(AXES, 2):
+        seen = {(getattr(c, a), getattr(c, b)) for c in cells}
+        assert seen == set(itertools.product(LEVELS[a], LEVELS[b])), (a, b)
+
+
+def test_a_generated_scenario_is_valid_for_its_seed_and_the_same_every_time():
+    cell = Cell(6, 1.5, "fast", 0.35, True)
+    raw = grid_raw(cell, 7)
+    assert grid_raw(cell, 7) == raw and grid_raw(cell, 8) != raw
+    sc = grid_scenario(cell, 7)  # the scenario parser's checks pass
+    side = arena_side(6)
+    assert sc.bounds == (0.0, 0.0, round(side, 4), round(side, 4)) and sc.target_range == 0.35
+    assert len(sc.robots) == 6 and len(sc.targets) == 9 and len(sc.obstacles) == 3
+    speed = {t["motion"]["speed"] for t in raw["targets"]}
+    assert speed == {round(0.7 * KHEPERA.v_max, 5)}
+    starts = [r["start"][:2] for r in raw["robots"]]
+    for p, q in itertools.combinations(starts, 2):
+        assert math.dist(p, q) >= 2 * KHEPERA.body_radius + 0.12
+    for o in raw["obstacles"]:
+        for p in starts:
+            assert math.dist(p, o["center"]) > KHEPERA.body_radius
+    assert not grid_raw(Cell(6, 1.5, "fast", 0.35, False), 7)["obstacles"]
+
+
+def test_the_arena_grows_so_the_robot_density_is_the_same():
+    area = lambda n: arena_side(n) ** 2
+    assert math.isclose(area(16) / 16, area(2) / 2) and arena_side(2) == 2.0
+
+
+def test_cekm_experiment_tracking_grid_quick_writes_every_cell_and_the_heatmaps(tmp_path):
+    out = tmp_path / "grid"
+    r = CliRunner().invoke(main, ["experiment", "tracking", "--grid", "--quick", "--seeds", "2", "--duration", "3",
+                                  "--workers", "1", "--quiet", "--out", str(out)])
+    assert r.exit_code == 0, r.output
+    doc = json.loads((out / "results.json").read_text())
+    assert len(doc["cells"]) == len(design(QUICK)) and doc["seeds"] == [1, 2]
+    assert doc["commit"] is None or len(doc["commit"]) == 40
+    for c in doc["cells"]:
+        assert set(c["controllers"]) == {"cekm", "acmommt", "kmeans", "kmeans-global"}
+        for v in c["controllers"].values():
+            assert len(v["per_seed"]) == 2 and all(0.0 <= a <= 1.0 for a in v["per_seed"])
+        best = c["cekm_vs_best"]
+        means = {k: c["controllers"][k]["A"]["mean"] for k in ("acmommt", "kmeans")}
+        assert best["best_baseline"] == max(means, key=means.get)
+        assert math.isclose(best["diff"], c["controllers"]["cekm"]["A"]["mean"] - max(means.values()))
+    assert len(doc["by_pair"]) == 10 and set(doc["by_axis"]) == set(AXES)
+    assert (out / "grid.png").read_bytes()[:4] == b"\x89PNG" and "| robots |" in (out / "tables.md").read_text()
+    bad = CliRunner().invoke(main, ["experiment", "tracking", "--quick", "--out", str(tmp_path / "x")])
+    assert bad.exit_code == 2 and "--grid" in bad.output
