@@ -5,6 +5,7 @@ import itertools
 import json
 import math
 
+import pytest
 from click.testing import CliRunner
 
 from cekm_swarm.cli import main
@@ -46,6 +47,7 @@ def test_the_arena_grows_so_the_robot_density_is_the_same():
     assert math.isclose(area(16) / 16, area(2) / 2) and arena_side(2) == 2.0
 
 
+@pytest.mark.slow  # it asks git for the commit (a process) and runs the quick grid
 def test_cekm_experiment_tracking_grid_quick_writes_every_cell_and_the_heatmaps(tmp_path):
     out = tmp_path / "grid"
     r = CliRunner().invoke(main, ["experiment", "tracking", "--grid", "--quick", "--seeds", "2", "--duration", "3",
