@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import threading
+import time
 from pathlib import Path
 
 import click
@@ -150,6 +151,9 @@ def test_node_list_groups_live_modules_and_names_the_missing(router, clients):
     a = clients()
     spec = run_spec(check_graph("cekm-navigation"), ("r1", "r2"), "navigation", RobotBody())
     served = serve_json(a, K.world_graph(), spec.to_dict())
+    asking, deadline = clients(), time.monotonic() + T
+    while not [r for r in asking.get(K.world_graph(), timeout=1.0) if r.ok is not None]:  # the router knows it
+        assert time.monotonic() < deadline, "the graph was never served"
     tokens = [declare_alive(a, K.alive("r1", m)) for m in default_nodes()]
     tokens += [declare_alive(a, K.alive("r2", "motor")), declare_alive(a, K.alive("r2", "target")),
                declare_alive(a, K.alive("world", "server"))]
