@@ -150,7 +150,8 @@ def tracking_experiment(out_dir: Path, overwrite: bool, seeds: int | None, robot
         raise click.UsageError("--quick goes with --grid")
     _model(model_path)
     if grid:
-        from .experiments.grid_report import DEFAULT_DURATION, DEFAULT_SEEDS, run_grid_cmd
+        from .experiments.commands import run_grid_cmd
+        from .experiments.grid_report import DEFAULT_DURATION, DEFAULT_SEEDS
 
         n = seeds if seeds is not None else (2 if quick else DEFAULT_SEEDS[1])
         prepare_out_dir(out_dir, overwrite)
@@ -158,7 +159,7 @@ def tracking_experiment(out_dir: Path, overwrite: bool, seeds: int | None, robot
                      duration if duration is not None else (8.0 if quick else DEFAULT_DURATION), model_path, workers,
                      quiet)
         return
-    from .experiments.tracking import parse_team_sizes, run_tracking_experiment_cmd
+    from .experiments.commands import parse_team_sizes, run_tracking_experiment_cmd
 
     sizes = parse_team_sizes(robots)
     prepare_out_dir(out_dir, overwrite)
@@ -259,7 +260,7 @@ def run_cmd(scenario: str, controller: str, graph_file: Path | None, model_path:
     controller = checked.graph.controller
     model = _model(model_path) if checked.uses_model else None
     if task == "tracking":
-        from .experiments.tracking import run_tracking_cmd
+        from .experiments.commands import run_tracking_cmd
 
         prepare_out_dir(out_dir, overwrite)
         run_tracking_cmd(sc, controller, model_path, seed, max_time, out_dir, graph=checked, model=model)

@@ -1,0 +1,95 @@
+"""The experiments' command-line glue: what ``cekm run``, ``cekm experiment tracking`` (and
+``--grid``) do once click has parsed their options -- load the model, run, write the files
+(through the experiments' own modules) and print the summary with ``click.echo``; and the
+parsing of the commands' list options. The running, statistics, figure and report
+modules import neither click nor (at module level) matplotlib; this module is the one
+that talks to the terminal.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import click
+
+
+def run_tracking_cmd(scenario, controller: str, model_path, seed: int | None, duration: float | None, out_dir,
+                     graph=None, model=None) -> None:
+    """``cekm run`` on a tracking scenario: outcome.json (with ``tracking``) and trajectory.png."""
+    from .tracking_figures import plot_tracking
+    from .tracking_run import DEFAULT_DURATION, outcome_doc, run_tracking
+
+    if model is None and controller == "cekm" and graph is None:
+        from ..models.io import load_model
+        from .default_model import default_model
+
+        model = load_model(model_path) if model_path else default_model()
+    t0 = time.perf_counter()
+    run = run_tracking(scenario, controller, model, seed, DEFAULT_DURATION if duration is None else duration,
+                       graph=graph)
+    out = Path(out_dir)
+    doc = outcome_doc(run)
+    doc["wall_seconds"] = round(time.perf_counter() - t0, 3)
+    (out / "outcome.json").write_text(json.dumps(doc, indent=1))
+    import matplotlib.pyplot as plt
+
+    fig = plot_tracking(run)
+    fig.savefig(out / "trajectory.png", dpi=130)
+    plt.close(fig)
+    tr = run.tracking
+    per = ", ".join(f"{k} {v:.2f}" for k, v in tr["A_per_target"].items())
+    sp = tr["spread"]
+    click.echo(f"A = {tr['A']:.3f} ({tr['robots']} robots, {tr['targets']} targets; per target: {per}); robots "
+               f"apart {sp['robots_start']:.2f} -> {sp['robots_end']:.2f} m while targets {sp['targets_start']:.2f} "
+               f"-> {sp['targets_end']:.2f} m; collisions {sum(run.collisions.values())}")
+    click.echo(f"wrote {out / 'outcome.json'}, {out / 'trajectory.png'}")
+
+
+def parse_team_sizes(text: str) -> tuple[int, ...]:
+    """``--robots 2,4,8`` as team sizes; a clear usage error otherwise."""
+    try:
+        sizes = tuple(int(x) for x in text.split(",") if x.strip())
+    except ValueError:
+        raise click.UsageError(f"--robots {text!r}: expected team sizes like 2,4,8") from None
+    if not sizes or any(n < 1 or n > 64 for n in sizes):
+        raise click.UsageError(f"--robots {text!r}: give team sizes between 1 and 64")
+    return sizes
+
+
+def run_tracking_experiment_cmd(out_dir, seeds: int, sizes: tuple[int, ...], duration: float, model_path, workers,
+                                quiet: bool) -> None:
+    """``cekm experiment tracking`` once its options are checked."""
+    from .tracking_report import table_markdown, write_experiment
+    from .tracking_run import run_experiment
+
+    if model_path is None:
+        from .default_model import default_model, default_model_path
+
+        default_model()
+        model_path = default_model_path()
+    t0 = time.perf_counter()
+    doc, pictures = run_experiment(sizes, seeds, duration, model_path, workers, progress=not quiet)
+    doc["wall_seconds"] = round(time.perf_counter() - t0, 1)
+    paths = write_experiment(doc, pictures, out_dir)
+    click.echo(table_markdown(doc))
+    click.echo(f"{doc['wall_seconds']:.1f} s; wrote " + ", ".join(str(p) for p in paths))
+
+
+def run_grid_cmd(out_dir, quick: bool, seeds: list[int], duration: float, model_path, workers, quiet: bool) -> None:
+    """``cekm experiment tracking --grid`` once its options are checked."""
+    from .grid_report import grid_doc, tables_markdown, write_grid
+
+    if model_path is None:
+        from .default_model import default_model, default_model_path
+
+        default_model()
+        model_path = default_model_path()
+    doc = grid_doc(quick, seeds, duration, model_path, workers, progress=not quiet)
+    paths = write_grid(doc, out_dir)
+    click.echo(tables_markdown(doc).split("\n\n")[0])
+    beat = [d for d in doc["cells"] if d["cekm_vs_best"]["cekm_above_all"]]
+    sig = [d for d in beat if d["cekm_vs_best"]["p"] < 0.05]
+    click.echo(f"cekm above both baselines in {len(beat)} of {len(doc['cells'])} cells ({len(sig)} with p < 0.05); "
+               f"{doc['wall_seconds']:.1f} s; wrote " + ", ".join(str(p) for p in paths))
