@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import sys
 import time
 from pathlib import Path
@@ -246,8 +245,8 @@ def run_cmd(scenario: str, controller: str, graph_file: Path | None, model_path:
     follows (so `cekm launch --mode lockstep` gives the same run).
 
     A scenario with targets whose robots have no goal is a tracking scenario (Fig. 13)."""
+    from .experiments.commands import run_navigation_cmd
     from .experiments.graph_run import default_max_time, resolve_graph
-    from .experiments.navigation import plot_run, run_scenario
     from .graph.spec import GraphError
 
     sc = _load_scenario(scenario)
@@ -267,18 +266,7 @@ def run_cmd(scenario: str, controller: str, graph_file: Path | None, model_path:
         return
     max_time = default_max_time(task) if max_time is None else max_time
     prepare_out_dir(out_dir, overwrite)
-    t0 = time.perf_counter()
-    run = run_scenario(sc, controller, model, seed, max_time, graph=checked)
-    doc = {"scenario": sc.name, "controller": controller, "graph": checked.graph.name, "seed": run.seed,
-           "robots": run.outcome,
-           "wall_seconds": round(time.perf_counter() - t0, 3)}
-    (out_dir / "outcome.json").write_text(json.dumps(doc, indent=1))
-    fig = plot_run(run)
-    fig.savefig(out_dir / "trajectory.png", dpi=130)
-    for r, o in run.outcome.items():
-        click.echo(f"{r}: {'reached' if o['reached'] else 'NOT reached'} in {o['time_s']:.1f} s, path "
-                   f"{o['path_length_m']:.2f} m, {o['collisions']} collisions, min clearance {o['min_clearance_m'] * 1000:.0f} mm")
-    click.echo(f"wrote {out_dir / 'outcome.json'}, {out_dir / 'trajectory.png'}")
+    run_navigation_cmd(sc, controller, model, seed, max_time, out_dir, graph=checked)
 
 
 @main.command()
@@ -297,7 +285,8 @@ def fields(scenario: str, at_time: float, model_path: Path | None, seed: int | N
     The target field, three obstacle fields, the combined obstacle fields and the
     integrated activity of the cooperative EKM, with the robot's situation.
     """
-    from .experiments.navigation import fields_at, plot_fields
+    from .experiments.navigation_figures import plot_fields
+    from .experiments.navigation_run import fields_at
 
     sc = _load_scenario(scenario)
     robots = [r.id for r in sc.robots]

@@ -1,5 +1,5 @@
-"""The experiments' command-line glue: what ``cekm run``, ``cekm experiment tracking`` (and
-``--grid``) do once click has parsed their options -- load the model, run, write the files
+"""The experiments' command-line glue: what ``cekm run`` (navigation and tracking),
+``cekm experiment tracking`` (and ``--grid``) do once click has parsed their options -- load the model, run, write the files
 (through the experiments' own modules) and print the summary with ``click.echo``; and the
 parsing of the commands' list options. The running, statistics, figure and report
 modules import neither click nor (at module level) matplotlib; this module is the one
@@ -13,6 +13,25 @@ import time
 from pathlib import Path
 
 import click
+
+
+def run_navigation_cmd(scenario, controller: str, model, seed: int | None, max_time: float, out_dir, graph) -> None:
+    """``cekm run`` on a navigation scenario: outcome.json and trajectory.png, and each robot's outcome."""
+    from .navigation_figures import plot_run
+    from .navigation_run import run_scenario
+
+    t0 = time.perf_counter()
+    run = run_scenario(scenario, controller, model, seed, max_time, graph=graph)
+    doc = {"scenario": scenario.name, "controller": controller, "graph": graph.graph.name, "seed": run.seed,
+           "robots": run.outcome,
+           "wall_seconds": round(time.perf_counter() - t0, 3)}
+    (out_dir / "outcome.json").write_text(json.dumps(doc, indent=1))
+    fig = plot_run(run)
+    fig.savefig(out_dir / "trajectory.png", dpi=130)
+    for r, o in run.outcome.items():
+        click.echo(f"{r}: {'reached' if o['reached'] else 'NOT reached'} in {o['time_s']:.1f} s, path "
+                   f"{o['path_length_m']:.2f} m, {o['collisions']} collisions, min clearance {o['min_clearance_m'] * 1000:.0f} mm")
+    click.echo(f"wrote {out_dir / 'outcome.json'}, {out_dir / 'trajectory.png'}")
 
 
 def run_tracking_cmd(scenario, controller: str, model_path, seed: int | None, duration: float | None, out_dir,

@@ -46,7 +46,7 @@ def _one(args) -> dict:
     from world import load_scenario
 
     from ..models.io import load_model
-    from .navigation import run_scenario
+    from .navigation_run import run_scenario
 
     sc = load_scenario(scenario, overrides={"obstacles[0].width": width, "obstacles[0].depth": depth,
                                             "sensors.range": rng})

@@ -61,7 +61,7 @@ def _one(args):
     from world import load_scenario
 
     from ..models.io import load_model
-    from .navigation import run_scenario
+    from .navigation_run import run_scenario
 
     overrides = None if speed_unit is None else {"plant.speed_unit": speed_unit}
     run = run_scenario(load_scenario(scenario, overrides=overrides), controller, load_model(model_path), seed,
@@ -160,7 +160,7 @@ def write_suite(doc: dict, pictures: dict, out_dir: Path) -> list[Path]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .navigation import plot_run
+    from .navigation_figures import plot_run
 
     out_dir.mkdir(parents=True, exist_ok=True)
     written = [out_dir / "outcomes.json", out_dir / "table.md"]
