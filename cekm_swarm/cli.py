@@ -106,7 +106,8 @@ def obstacles(seeds: str, speed_unit: float | None, max_time: float, model_path:
     """Reproduce section 4.2 (Figs. 8, 10-12): cooperative EKMs and command fusion over seeds."""
     from .experiments.concave_sweep import seeds_of
     from .experiments.default_model import default_model, default_model_path
-    from .experiments.obstacle_suite import run_suite, summary_markdown, write_suite
+    from .experiments.obstacle_report import summary_markdown, write_suite
+    from .experiments.obstacle_run import run_suite
 
     try:
         seed_list = tuple(seeds_of(seeds))

@@ -5,7 +5,7 @@ import pytest
 
 from cekm_swarm.errors import ParameterError
 from cekm_swarm.experiments.concave_sweep import SweepConfig, cells_of, grid_of, seeds_of
-from cekm_swarm.experiments.obstacle_suite import summarize, wilson_interval
+from cekm_swarm.experiments.obstacle_stats import summarize, wilson_interval
 
 
 def test_wilson_interval():
