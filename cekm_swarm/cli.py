@@ -104,7 +104,7 @@ def target_reaching(out_dir: Path, overwrite: bool, networks: str, trials: int, 
 def obstacles(seeds: str, speed_unit: float | None, max_time: float, model_path: Path | None, workers: int | None,
               out_dir: Path, overwrite: bool) -> None:
     """Reproduce section 4.2 (Figs. 8, 10-12): cooperative EKMs and command fusion over seeds."""
-    from .experiments.concave_sweep import seeds_of
+    from .experiments.commands import seeds_of
     from .experiments.default_model import default_model, default_model_path
     from .experiments.obstacle_report import summary_markdown, write_suite
     from .experiments.obstacle_run import run_suite
@@ -323,7 +323,9 @@ def sweep() -> None:
 def sweep_concave(depths: str, widths: str, ranges: str, seeds: str, need: int, max_time: float,
                   model_path: Path | None, workers: int | None, out_dir: Path, overwrite: bool) -> None:
     """Find the widest concave obstacle negotiated, per depth and sensing range (Fig. 9)."""
-    from .experiments.concave_sweep import SweepConfig, parse_floats, run_sweep, seeds_of, write_sweep
+    from .experiments.commands import parse_floats, seeds_of
+    from .experiments.concave_report import write_sweep
+    from .experiments.concave_run import SweepConfig, run_sweep
     from .experiments.default_model import default_model, default_model_path
 
     try:

@@ -1,7 +1,7 @@
 """The experiments' command-line glue: what ``cekm run`` (navigation and tracking),
 ``cekm experiment tracking`` (and ``--grid``) do once click has parsed their options -- load the model, run, write the files
 (through the experiments' own modules) and print the summary with ``click.echo``; and the
-parsing of the commands' list options. The running, statistics, figure and report
+parsing of the commands' list options (team sizes, seeds, numbers). The running, statistics, figure and report
 modules import neither click nor (at module level) matplotlib; this module is the one
 that talks to the terminal.
 """
@@ -11,8 +11,11 @@ from __future__ import annotations
 import json
 import time
 from pathlib import Path
+from typing import Sequence
 
 import click
+
+from ..errors import ParameterError
 
 
 def run_navigation_cmd(scenario, controller: str, model, seed: int | None, max_time: float, out_dir, graph) -> None:
@@ -112,3 +115,30 @@ def run_grid_cmd(out_dir, quick: bool, seeds: list[int], duration: float, model_
     sig = [d for d in beat if d["cekm_vs_best"]["p"] < 0.05]
     click.echo(f"cekm above both baselines in {len(beat)} of {len(doc['cells'])} cells ({len(sig)} with p < 0.05); "
                f"{doc['wall_seconds']:.1f} s; wrote " + ", ".join(str(p) for p in paths))
+
+
+def parse_floats(text: str, name: str) -> tuple[float, ...]:
+    try:
+        values = tuple(float(v) for v in text.split(",") if v.strip())
+    except ValueError:
+        raise ParameterError(f"--{name}: expected comma-separated numbers in metres, got {text!r}") from None
+    if not values:
+        raise ParameterError(f"--{name}: give at least one value")
+    return values
+
+
+def seeds_of(text: str) -> Sequence[int]:
+    """Seeds from "1,2,5" or ranges "1-20" (inclusive), mixed: "1-5,9"."""
+    out: list[int] = []
+    for part in (v.strip() for v in text.split(",")):
+        if not part:
+            continue
+        a, _, b = part.partition("-")
+        try:
+            lo, hi = int(a), int(b if b else a)
+        except ValueError:
+            raise ParameterError(f"--seeds: expected comma-separated integers or ranges like 1-20, got {text!r}") from None
+        if hi < lo:
+            raise ParameterError(f"--seeds: range {part!r} runs backwards")
+        out.extend(range(lo, hi + 1))
+    return tuple(out)
