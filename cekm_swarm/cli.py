@@ -75,10 +75,10 @@ def target_reaching(out_dir: Path, overwrite: bool, networks: str, trials: int, 
                     bfn_rule: str, speed_unit: float, target_resolution: float, quiet: bool) -> None:
     """Reproduce section 4.1: Tables 1-4 and Figures 5-7 (obstacle-free target reaching)."""
     from .experiments.arena import Arena
-    from .experiments.master_seeds import run_and_report
+    from .experiments.commands import run_and_report
+    from .experiments.reaching_run import TargetReachingConfig
     from .experiments.stopping import StopRule
     from .experiments.streams import Schedule
-    from .experiments.target_reaching import TargetReachingConfig
 
     try:
         arena = Arena(speed_unit=speed_unit, target_resolution=target_resolution)

@@ -1,21 +1,25 @@
 """The experiments' command-line glue: what ``cekm run`` (navigation and tracking),
-``cekm experiment tracking`` (and ``--grid``) do once click has parsed their options -- load the model, run, write the files
-(through the experiments' own modules) and print the summary with ``click.echo``; and the
-parsing of the commands' list options (team sizes, seeds, numbers). The running, statistics, figure and report
-modules import neither click nor (at module level) matplotlib; this module is the one
-that talks to the terminal.
+``cekm experiment target-reaching`` and ``cekm experiment tracking`` (and ``--grid``) do
+once click has parsed their options -- load the model, run, write the files (through the
+experiments' own modules) and print a summary -- and the parsing of the commands' list
+options (team sizes, seeds, numbers). The running, statistics, figure and report modules
+import no click and no matplotlib at module level; this module talks to the terminal.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import time
 from pathlib import Path
-from typing import Sequence
+from typing import TYPE_CHECKING, Callable, Sequence
 
 import click
 
 from ..errors import ParameterError
+
+if TYPE_CHECKING:
+    from .reaching_run import NetworkRun, TargetReachingConfig
 
 
 def run_navigation_cmd(scenario, controller: str, model, seed: int | None, max_time: float, out_dir, graph) -> None:
@@ -142,3 +146,35 @@ def seeds_of(text: str) -> Sequence[int]:
             raise ParameterError(f"--seeds: range {part!r} runs backwards")
         out.extend(range(lo, hi + 1))
     return tuple(out)
+
+
+def run_and_report(config: TargetReachingConfig, out_dir: Path, master_seeds: int = 1, progress: bool = True,
+                   echo: Callable[[str], None] = print) -> None:
+    """``cekm experiment target-reaching``: one master seed into out_dir (with the trained
+    models), or several, each into out_dir/seed-S, and their summary into out_dir."""
+    from .reaching_report import write_seed, write_seeds_report
+    from .reaching_run import run_experiment, run_master_seeds
+    from .reaching_stats import headline_orderings
+
+    out_dir = Path(out_dir)
+    if master_seeds == 1:
+        results, runs = run_experiment(config, progress=progress)
+        written = write_seed(config, results, runs, out_dir, models=True)
+        echo((out_dir / "tables.md").read_text().split("### Table 2")[0].rstrip())
+        echo("")
+        for claim, holds in headline_orderings(results).items():
+            echo(f"  {'holds' if holds else 'DOES NOT HOLD'}: {claim}")
+        echo(f"\n{results['wall_seconds']:.1f} s; wrote " + ", ".join(str(p) for p in written))
+        return
+
+    def on_seed(seed: int, results: dict, runs: list[NetworkRun]) -> None:
+        write_seed(dataclasses.replace(config, seed=seed), results, runs, out_dir / f"seed-{seed}", models=False)
+        holds = sum(bool(v) for v in headline_orderings(results).values())
+        echo(f"master seed {seed}: {results['wall_seconds']:.1f} s, {holds} of {len(headline_orderings(results))} "
+             f"headline orderings hold; wrote {out_dir / f'seed-{seed}'}")
+
+    summary, _ = run_master_seeds(config, master_seeds, progress, on_seed)
+    written = write_seeds_report(summary, out_dir)
+    echo("")
+    echo(written[1].read_text().rstrip())
+    echo(f"\n{summary['wall_seconds']:.1f} s; wrote " + ", ".join(str(p) for p in written))
