@@ -25,7 +25,7 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=10)
     args = ap.parse_args()
     from cekm_swarm.experiments.default_model import default_model
-    from cekm_swarm.experiments.tracking import run_tracking
+    from cekm_swarm.experiments.tracking_run import run_tracking
     from world import load_scenario
 
     model = default_model()

@@ -27,7 +27,7 @@ def main() -> None:
     args = ap.parse_args()
     from cekm_swarm.experiments.default_model import default_model
     from cekm_swarm.experiments.grid_design import Cell, grid_scenario
-    from cekm_swarm.experiments.tracking import run_tracking
+    from cekm_swarm.experiments.tracking_run import run_tracking
 
     default_model()
     sc = grid_scenario(Cell(16, 3.0, "fast", 0.5, False), 1)

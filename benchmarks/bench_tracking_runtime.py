@@ -45,7 +45,7 @@ def launch(scenario: str, sim: float, port: int, out: Path, extra: tuple[str, ..
 
 def in_process(scenario: str, sim: float) -> float:
     from cekm_swarm.experiments.default_model import default_model
-    from cekm_swarm.experiments.tracking import run_tracking
+    from cekm_swarm.experiments.tracking_run import run_tracking
     from world import load_scenario
 
     model = default_model(progress=False)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import sys
 import time
 from pathlib import Path
@@ -76,10 +75,10 @@ def target_reaching(out_dir: Path, overwrite: bool, networks: str, trials: int, 
                     bfn_rule: str, speed_unit: float, target_resolution: float, quiet: bool) -> None:
     """Reproduce section 4.1: Tables 1-4 and Figures 5-7 (obstacle-free target reaching)."""
     from .experiments.arena import Arena
-    from .experiments.master_seeds import run_and_report
+    from .experiments.commands import run_and_report
+    from .experiments.reaching_run import TargetReachingConfig
     from .experiments.stopping import StopRule
     from .experiments.streams import Schedule
-    from .experiments.target_reaching import TargetReachingConfig
 
     try:
         arena = Arena(speed_unit=speed_unit, target_resolution=target_resolution)
@@ -105,9 +104,10 @@ def target_reaching(out_dir: Path, overwrite: bool, networks: str, trials: int, 
 def obstacles(seeds: str, speed_unit: float | None, max_time: float, model_path: Path | None, workers: int | None,
               out_dir: Path, overwrite: bool) -> None:
     """Reproduce section 4.2 (Figs. 8, 10-12): cooperative EKMs and command fusion over seeds."""
-    from .experiments.concave_sweep import seeds_of
+    from .experiments.commands import seeds_of
     from .experiments.default_model import default_model, default_model_path
-    from .experiments.obstacle_suite import run_suite, summary_markdown, write_suite
+    from .experiments.obstacle_report import summary_markdown, write_suite
+    from .experiments.obstacle_run import run_suite
 
     try:
         seed_list = tuple(seeds_of(seeds))
@@ -150,7 +150,8 @@ def tracking_experiment(out_dir: Path, overwrite: bool, seeds: int | None, robot
         raise click.UsageError("--quick goes with --grid")
     _model(model_path)
     if grid:
-        from .experiments.grid_report import DEFAULT_DURATION, DEFAULT_SEEDS, run_grid_cmd
+        from .experiments.commands import run_grid_cmd
+        from .experiments.grid_report import DEFAULT_DURATION, DEFAULT_SEEDS
 
         n = seeds if seeds is not None else (2 if quick else DEFAULT_SEEDS[1])
         prepare_out_dir(out_dir, overwrite)
@@ -158,7 +159,7 @@ def tracking_experiment(out_dir: Path, overwrite: bool, seeds: int | None, robot
                      duration if duration is not None else (8.0 if quick else DEFAULT_DURATION), model_path, workers,
                      quiet)
         return
-    from .experiments.tracking import parse_team_sizes, run_tracking_experiment_cmd
+    from .experiments.commands import parse_team_sizes, run_tracking_experiment_cmd
 
     sizes = parse_team_sizes(robots)
     prepare_out_dir(out_dir, overwrite)
@@ -245,8 +246,8 @@ def run_cmd(scenario: str, controller: str, graph_file: Path | None, model_path:
     follows (so `cekm launch --mode lockstep` gives the same run).
 
     A scenario with targets whose robots have no goal is a tracking scenario (Fig. 13)."""
+    from .experiments.commands import run_navigation_cmd
     from .experiments.graph_run import default_max_time, resolve_graph
-    from .experiments.navigation import plot_run, run_scenario
     from .graph.spec import GraphError
 
     sc = _load_scenario(scenario)
@@ -259,25 +260,14 @@ def run_cmd(scenario: str, controller: str, graph_file: Path | None, model_path:
     controller = checked.graph.controller
     model = _model(model_path) if checked.uses_model else None
     if task == "tracking":
-        from .experiments.tracking import run_tracking_cmd
+        from .experiments.commands import run_tracking_cmd
 
         prepare_out_dir(out_dir, overwrite)
         run_tracking_cmd(sc, controller, model_path, seed, max_time, out_dir, graph=checked, model=model)
         return
     max_time = default_max_time(task) if max_time is None else max_time
     prepare_out_dir(out_dir, overwrite)
-    t0 = time.perf_counter()
-    run = run_scenario(sc, controller, model, seed, max_time, graph=checked)
-    doc = {"scenario": sc.name, "controller": controller, "graph": checked.graph.name, "seed": run.seed,
-           "robots": run.outcome,
-           "wall_seconds": round(time.perf_counter() - t0, 3)}
-    (out_dir / "outcome.json").write_text(json.dumps(doc, indent=1))
-    fig = plot_run(run)
-    fig.savefig(out_dir / "trajectory.png", dpi=130)
-    for r, o in run.outcome.items():
-        click.echo(f"{r}: {'reached' if o['reached'] else 'NOT reached'} in {o['time_s']:.1f} s, path "
-                   f"{o['path_length_m']:.2f} m, {o['collisions']} collisions, min clearance {o['min_clearance_m'] * 1000:.0f} mm")
-    click.echo(f"wrote {out_dir / 'outcome.json'}, {out_dir / 'trajectory.png'}")
+    run_navigation_cmd(sc, controller, model, seed, max_time, out_dir, graph=checked)
 
 
 @main.command()
@@ -296,7 +286,8 @@ def fields(scenario: str, at_time: float, model_path: Path | None, seed: int | N
     The target field, three obstacle fields, the combined obstacle fields and the
     integrated activity of the cooperative EKM, with the robot's situation.
     """
-    from .experiments.navigation import fields_at, plot_fields
+    from .experiments.navigation_figures import plot_fields
+    from .experiments.navigation_run import fields_at
 
     sc = _load_scenario(scenario)
     robots = [r.id for r in sc.robots]
@@ -332,7 +323,9 @@ def sweep() -> None:
 def sweep_concave(depths: str, widths: str, ranges: str, seeds: str, need: int, max_time: float,
                   model_path: Path | None, workers: int | None, out_dir: Path, overwrite: bool) -> None:
     """Find the widest concave obstacle negotiated, per depth and sensing range (Fig. 9)."""
-    from .experiments.concave_sweep import SweepConfig, parse_floats, run_sweep, seeds_of, write_sweep
+    from .experiments.commands import parse_floats, seeds_of
+    from .experiments.concave_report import write_sweep
+    from .experiments.concave_run import SweepConfig, run_sweep
     from .experiments.default_model import default_model, default_model_path
 
     try:

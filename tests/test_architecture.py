@@ -90,3 +90,25 @@ def test_numerical_core_does_no_io():
         if path.endswith("io.py"):  # the saved-model format is the core's one file boundary
             continue
         assert not (names & io_modules), (path, names & io_modules)
+
+
+def _top_level_imports(path: Path) -> set[str]:
+    names = set()
+    for node in ast.parse(path.read_text()).body:
+        if isinstance(node, ast.Import):
+            names |= {a.name for a in node.names}
+        elif isinstance(node, ast.ImportFrom) and node.module and not node.level:
+            names.add(node.module)
+    return names
+
+
+def test_experiments_keep_the_terminal_and_the_pictures_apart():
+    """Only the experiments' command glue (``experiments/commands.py``) talks to the terminal
+    with click; running, statistics, figures and reports import no click at all, and no
+    experiment module imports matplotlib at module level (figures import it when drawing)."""
+    for path, names in imports_of("cekm_swarm.experiments").items():
+        if not path.endswith("commands.py"):
+            assert not any(n == "click" or n.startswith("click.") for n in names), path
+    for path in (ROOT / "cekm_swarm" / "experiments").glob("*.py"):
+        top = _top_level_imports(path)
+        assert not any(n == "matplotlib" or n.startswith("matplotlib.") for n in top), path

@@ -167,8 +167,9 @@ class ObservationMeter:
 
 class TrackingEpisode:
     """The world's side of a tracking run, tick by tick, for the world server: the same
-    order of readings as the in-process runner (:func:`cekm_swarm.experiments.tracking.run_tracking`),
-    so a distributed lockstep run equals it bit for bit. At tick k, for every robot in
+    order of readings as the in-process runner
+    (:func:`cekm_swarm.experiments.tracking_run.run_tracking`), so a distributed lockstep
+    run equals it bit for bit. At tick k, for every robot in
     order: its pose, its 12 distance readings and, on even ticks, :func:`tracking_sense`;
     Parker's A is sampled first, from the true positions. The interface is
     :class:`world.episode.Episode`'s (``readings``, ``apply``, ``advance``, ``done``,

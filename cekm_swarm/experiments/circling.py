@@ -24,9 +24,9 @@ import numpy as np
 
 from ..robot import KHEPERA, STEP_S
 from .arena import Arena
+from .reaching_run import TargetReachingConfig, run_network
 from .stopping import StopRule
 from .streams import Schedule, TrialStreams
-from .target_reaching import TargetReachingConfig, run_network
 from .training import convergence_mask
 from .trial import TRACE_FIELDS, trace_test
 

@@ -1,5 +1,6 @@
-"""The tracking grid's files and command: ``results.json`` (every cell, every seed, the
-summaries, the commit), ``tables.md`` and ``grid.png`` (:mod:`.grid_figures`)."""
+"""The tracking grid's files: ``results.json`` (every cell, every seed, the
+summaries, the commit), ``tables.md`` and ``grid.png`` (:mod:`.grid_figures`). The command that runs and writes
+them is :func:`.commands.run_grid_cmd`."""
 
 from __future__ import annotations
 
@@ -95,21 +96,3 @@ def write_grid(doc: dict[str, Any], out_dir) -> list[Path]:
     fig.savefig(out / "grid.png", dpi=110)
     plt.close(fig)
     return [out / "results.json", out / "tables.md", out / "grid.png"]
-
-
-def run_grid_cmd(out_dir, quick: bool, seeds: list[int], duration: float, model_path, workers, quiet: bool) -> None:
-    """``cekm experiment tracking --grid`` once its options are checked."""
-    import click
-
-    if model_path is None:
-        from .default_model import default_model, default_model_path
-
-        default_model()
-        model_path = default_model_path()
-    doc = grid_doc(quick, seeds, duration, model_path, workers, progress=not quiet)
-    paths = write_grid(doc, out_dir)
-    click.echo(tables_markdown(doc).split("\n\n")[0])
-    beat = [d for d in doc["cells"] if d["cekm_vs_best"]["cekm_above_all"]]
-    sig = [d for d in beat if d["cekm_vs_best"]["p"] < 0.05]
-    click.echo(f"cekm above both baselines in {len(beat)} of {len(doc['cells'])} cells ({len(sig)} with p < 0.05); "
-               f"{doc['wall_seconds']:.1f} s; wrote " + ", ".join(str(p) for p in paths))

@@ -1,7 +1,7 @@
 """Running the tracking grid (``cekm experiment tracking --grid``): every controller on
 every cell of the design for the same seeds, in parallel (one process per worker), with a
 progress bar. The statistics are :mod:`.grid_stats`'s, the pictures :mod:`.grid_figures`',
-the files and the command :mod:`.grid_report`'s."""
+the files :mod:`.grid_report`'s and the command :mod:`.commands`'."""
 
 from __future__ import annotations
 
@@ -22,7 +22,7 @@ def run_one(job: tuple) -> dict[str, Any]:
     """One run of the grid: (cell, seed, controller, duration, model path, params) -> its row."""
     cell, seed, controller, duration, model_path, tparams = job
     from ..models.io import load_model
-    from .tracking import run_tracking
+    from .tracking_run import run_tracking
 
     model = None
     if controller == "cekm":  # one load per process

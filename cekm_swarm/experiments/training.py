@@ -7,9 +7,9 @@ import math
 import numpy as np
 
 from .arena import Arena, displacement, drive
+from .reaching_run import TargetReachingConfig, run_network
 from .stopping import GOAL_STOP
 from .streams import Schedule
-from .target_reaching import TargetReachingConfig, run_network
 
 CONVERGENCE_ABS = 0.01  # m
 CONVERGENCE_REL = 0.2  # of |w_i|

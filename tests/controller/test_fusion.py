@@ -74,7 +74,7 @@ def test_fused_command_is_clipped(fusion):
 def test_fusion_outcomes_in_real_worlds(scenario, seed, reached):
     pytest.importorskip("pymunk")
     from cekm_swarm.experiments.default_model import default_model
-    from cekm_swarm.experiments.navigation import run_scenario
+    from cekm_swarm.experiments.navigation_run import run_scenario
     from world import load_scenario
 
     run = run_scenario(load_scenario(scenario), "fusion", default_model(progress=False), seed, max_time=60.0)

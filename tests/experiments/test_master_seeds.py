@@ -6,7 +6,8 @@ import pytest
 from click.testing import CliRunner
 
 from cekm_swarm.cli import main
-from cekm_swarm.experiments.master_seeds import budget_ended_trials, interval95, seeds_from, summarize_seeds
+from cekm_swarm.experiments.reaching_run import seeds_from
+from cekm_swarm.experiments.reaching_stats import budget_ended_trials, interval95, summarize_seeds
 
 
 def test_interval95_is_the_student_t_interval():

@@ -4,8 +4,10 @@ rates of the Fig. 9 grid, holes below the widest negotiated width, seed lists.""
 import pytest
 
 from cekm_swarm.errors import ParameterError
-from cekm_swarm.experiments.concave_sweep import SweepConfig, cells_of, grid_of, seeds_of
-from cekm_swarm.experiments.obstacle_suite import summarize, wilson_interval
+from cekm_swarm.experiments.commands import seeds_of
+from cekm_swarm.experiments.concave_run import SweepConfig
+from cekm_swarm.experiments.concave_stats import cells_of, grid_of
+from cekm_swarm.experiments.obstacle_stats import summarize, wilson_interval
 
 
 def test_wilson_interval():

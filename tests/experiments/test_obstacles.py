@@ -7,8 +7,8 @@ from click.testing import CliRunner
 
 from cekm_swarm.cli import main
 from cekm_swarm.experiments.default_model import default_model, default_model_path
-from cekm_swarm.experiments.navigation import run_scenario
-from cekm_swarm.experiments.obstacle_suite import success
+from cekm_swarm.experiments.navigation_run import run_scenario
+from cekm_swarm.experiments.obstacle_run import success
 
 
 @pytest.fixture(scope="module")

@@ -7,9 +7,10 @@ import pytest
 from click.testing import CliRunner
 
 from cekm_swarm.cli import main
-from cekm_swarm.experiments.report import headline_orderings, tables_markdown
+from cekm_swarm.experiments.reaching_report import tables_markdown
+from cekm_swarm.experiments.reaching_run import TargetReachingConfig, run_experiment
+from cekm_swarm.experiments.reaching_stats import headline_orderings
 from cekm_swarm.experiments.streams import Schedule
-from cekm_swarm.experiments.target_reaching import TargetReachingConfig, run_experiment
 
 
 @pytest.fixture(scope="module")

@@ -10,7 +10,7 @@ from scipy import stats
 
 from cekm_swarm.cli import main
 from cekm_swarm.experiments.default_model import default_model
-from cekm_swarm.experiments.tracking import run_tracking, team_scenario
+from cekm_swarm.experiments.tracking_run import run_tracking, team_scenario
 from world import load_scenario
 
 

@@ -29,7 +29,7 @@ from fuzz_corpus import OVER_LIMIT_SIZES, Fuzz, make_corpus
 from test_launch_support import LaunchProcess
 
 from cekm_swarm.experiments.default_model import default_model, default_model_path
-from cekm_swarm.experiments.navigation import run_scenario
+from cekm_swarm.experiments.navigation_run import run_scenario
 from cekm_swarm.protocol import DEFAULT_KEYS as K
 from cekm_swarm.protocol import Clock, MessageError, SenseRange, decode, encode
 from cekm_swarm.protocol.drops import MAX_SOURCES

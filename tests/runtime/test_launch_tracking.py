@@ -26,7 +26,7 @@ import pytest
 from test_launch_support import LaunchProcess
 
 from cekm_swarm.experiments.default_model import default_model, default_model_path
-from cekm_swarm.experiments.tracking import outcome_doc, run_tracking
+from cekm_swarm.experiments.tracking_run import outcome_doc, run_tracking
 from cekm_swarm.protocol import DEFAULT_KEYS as K
 from world import load_scenario
 

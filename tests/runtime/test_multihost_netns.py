@@ -30,7 +30,7 @@ from pathlib import Path
 import pytest
 
 from cekm_swarm.experiments.default_model import default_model
-from cekm_swarm.experiments.navigation import run_scenario
+from cekm_swarm.experiments.navigation_run import run_scenario
 from world import load_scenario
 
 pytestmark = pytest.mark.slow  # starts real processes (tests/process_guard.py)

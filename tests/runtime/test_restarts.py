@@ -58,7 +58,7 @@ def test_clients_retry_a_lost_router_unless_their_config_file_says_otherwise(tmp
 
 
 def test_lockstep_resumes_after_a_router_restart_and_equals_the_in_process_run(tmp_path, helpers):
-    from cekm_swarm.experiments.navigation import run_scenario
+    from cekm_swarm.experiments.navigation_run import run_scenario
     from world import load_scenario
 
     model = default_model(progress=False)

@@ -12,7 +12,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import pytest  # noqa: E402
 
 from cekm_swarm.experiments.default_model import default_model  # noqa: E402
-from cekm_swarm.experiments.navigation import plot_run, run_scenario  # noqa: E402
+from cekm_swarm.experiments.navigation_figures import plot_run  # noqa: E402
+from cekm_swarm.experiments.navigation_run import run_scenario  # noqa: E402
 from world import load_scenario  # noqa: E402
 from world.draw import draw_paths, figure_size, fit_bounds, legend_outside, nice_step, robot_colours  # noqa: E402
 

@@ -1,35 +1,40 @@
-"""The target-reaching experiment of section 4.1 (Tables 1-4, Figures 5-7).
+"""The target-reaching experiment of section 4.1 (Tables 1-4, Figures 5-7): its settings
+and running it, once or over several master seeds.
 
 Each network is trained for ``steps`` steps in each of ``trials`` trials and tested every
 ``test_interval`` steps on the trial's fixed 50 targets. Trials run as one numba batch
 per network. Every network of a trial sees the same targets and noise. Stop rules
 (:mod:`.stopping`) end test targets (the paper's, by default) and training targets (the
 goal state, by default, as before).
+
+One master seed is one whole run of :func:`run_experiment` (its trials, targets, noise and
+initial maps all derive from it), so K master seeds (:func:`run_master_seeds`) are K
+independent draws of the experiment. The statistics are :mod:`.reaching_stats`', the
+figures :mod:`.reaching_figures`', the tables and files :mod:`.reaching_report`'s.
 """
 
 from __future__ import annotations
 
-import itertools
+import dataclasses
 import time
-import warnings
 from dataclasses import asdict, dataclass, field
-from typing import Callable, Sequence
+from typing import Callable
 
 import numpy as np
 
 from ..errors import ParameterError
 from ..models import fast
-from ..models.networks import BFN_RULES, BFN_WIDTH_FLOOR, make_network, parameter_count, parse_network_name
+from ..models.networks import BFN_RULES, BFN_WIDTH_FLOOR, make_network, parse_network_name
 from ..models.params import CompetitionParams, LearningParams, params_to_dict
 from .arena import Arena
-from .metrics import TestScore, mean_std, score, welch_p
+from .metrics import TestScore, score
+from .reaching_stats import summarize, summarize_seeds
 from .stopping import GOAL_STOP, PAPER_STOP, StopRule
 from .streams import Schedule, TrialStreams
 from .trial import NetworkBatch, run_batch
 
 PAPER_NETWORKS = ("B15", "D15", "G9", "G12", "G15", "R15")
 DEFAULT_EPS_MM = tuple(float(e) for e in range(1, 31))  # Fig. 7's range, 1 mm steps
-INDICES = ("E_mm", "T_s_per_m", "D", "P5", "T5_s_per_m", "D5")
 
 
 @dataclass(frozen=True)
@@ -109,73 +114,6 @@ def run_network(name: str, config: TargetReachingConfig, on_progress: Callable[[
     return NetworkRun(name, batch, scores, seconds)
 
 
-def _after_training(run: NetworkRun, i5: int) -> dict[str, list[float]]:
-    """Per-trial values of every index at the last test point."""
-    last = [s[-1] for s in run.scores]
-    return {
-        "E_mm": [s.E_mm for s in last],
-        "T_s_per_m": [s.T_s_per_m for s in last],
-        "D": [s.D for s in last],
-        "P5": [float(s.P[i5]) for s in last],
-        "T5_s_per_m": [float(s.T_eps[i5]) for s in last],
-        "D5": [float(s.D_eps[i5]) for s in last],
-        "ended_by_budget": [float(s.ended_by_budget) for s in last],
-        "goal_stops": [float(s.goal_stops) for s in last],
-    }
-
-
-def summarize(runs: Sequence[NetworkRun], config: TargetReachingConfig) -> dict:
-    """The results.json document."""
-    i5 = list(config.eps_mm).index(5.0)
-    per_trial = {r.name: _after_training(r, i5) for r in runs}
-    networks = {}
-    for r in runs:
-        kind, size = parse_network_name(r.name)
-        entry = {"kind": kind, "lattice": size, "parameters": parameter_count(kind, size)}
-        entry.update({k: mean_std(v) for k, v in per_trial[r.name].items()})
-        entry["per_trial"] = per_trial[r.name]
-        curves = {"steps": config.schedule.test_points}
-        pick = {"E_mm": lambda s: s.E_mm, "T_s_per_m": lambda s: s.T_s_per_m, "D": lambda s: s.D,
-                "P5": lambda s: float(s.P[i5]), "T5_s_per_m": lambda s: float(s.T_eps[i5])}
-        for key, get in pick.items():
-            m = np.array([[get(s) for s in trial] for trial in r.scores])
-            with warnings.catch_warnings():  # T5 is NaN at a test point where no target was reached
-                warnings.simplefilter("ignore", RuntimeWarning)
-                curves[key] = {"mean": np.nanmean(m, axis=0).tolist(),
-                               "std": np.nanstd(m, axis=0, ddof=1).tolist() if len(m) > 1 else [0.0] * m.shape[1],
-                               "per_trial": m.tolist()}
-        curves["ended_by_budget"] = [[s.ended_by_budget for s in trial] for trial in r.scores]
-        entry["learning_curves"] = curves
-        last = [s[-1] for s in r.scores]
-        entry["eps_curves"] = {
-            "eps_mm": list(config.eps_mm),
-            "P": _stack_mean_std([s.P for s in last]),
-            "T_s_per_m": _stack_mean_std([s.T_eps for s in last]),
-            "D": _stack_mean_std([s.D_eps for s in last]),
-        }
-        entry["seconds"] = round(r.seconds, 3)
-        networks[r.name] = entry
-    t_tests = {}
-    for key in INDICES:
-        t_tests[key] = {f"{a}|{b}": welch_p(per_trial[a][key], per_trial[b][key])
-                        for a, b in itertools.combinations([r.name for r in runs], 2)}
-    return {"experiment": "target-reaching", "paper_section": "4.1", "settings": config.settings(),
-            "networks": networks, "t_tests": t_tests}
-
-
-def _stack_mean_std(rows: list[np.ndarray]) -> dict:
-    m = np.array(rows, dtype=np.float64)
-    with np.errstate(all="ignore"):
-        import warnings
-
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            mean = np.nanmean(m, axis=0)
-            std = np.nanstd(m, axis=0, ddof=1) if len(m) > 1 else np.zeros(m.shape[1])
-    return {"mean": [None if not np.isfinite(x) else float(x) for x in mean],
-            "std": [None if not np.isfinite(x) else float(x) for x in std]}
-
-
 def run_experiment(config: TargetReachingConfig, progress: bool = True) -> tuple[dict, list[NetworkRun]]:
     """Run every network; returns (results document, runs)."""
     from tqdm import tqdm
@@ -191,3 +129,24 @@ def run_experiment(config: TargetReachingConfig, progress: bool = True) -> tuple
     results = summarize(runs, config)
     results["wall_seconds"] = round(time.perf_counter() - t0, 3)
     return results, runs
+
+
+def seeds_from(first: int, count: int) -> list[int]:
+    """The master seeds of a K-seed run: first, first + 1, ..., first + count - 1."""
+    return [first + i for i in range(count)]
+
+
+def run_master_seeds(config: TargetReachingConfig, count: int, progress: bool = True,
+                     on_seed: Callable[[int, dict, list[NetworkRun]], None] | None = None) -> tuple[dict, dict[int, dict]]:
+    """Run the experiment once per master seed (config.seed, config.seed + 1, ...).
+
+    ``on_seed(seed, results, runs)`` is called after each seed (to write its report).
+    Returns (summary document, results document per seed).
+    """
+    per_seed = {}
+    for s in seeds_from(config.seed, count):
+        results, runs = run_experiment(dataclasses.replace(config, seed=s), progress=progress)
+        per_seed[s] = results
+        if on_seed:
+            on_seed(s, results, runs)
+    return summarize_seeds(per_seed), per_seed

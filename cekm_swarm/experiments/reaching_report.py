@@ -1,11 +1,17 @@
-"""Tables 1-4 and Figures 5-7 of section 4.1 from a results document, beside the paper's values."""
+"""Section 4.1's tables and files: Tables 1-4 from a results document beside the paper's
+values, and the summary over master seeds, as Markdown; results.json, tables.md and the
+figures (:mod:`.reaching_figures`) of a run, summary.json and summary.md of several seeds."""
 
 from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import numpy as np
+from .reaching_figures import plot_all
+
+if TYPE_CHECKING:
+    from .reaching_run import NetworkRun, TargetReachingConfig
 
 # The paper's published numbers (Low, Leow & Ang 2005, Tables 1-4), for side-by-side tables.
 PAPER_TABLE1 = {  # E (mm), T (s/m), D: mean, std
@@ -138,107 +144,6 @@ def tables_markdown(results: dict) -> str:
     return "\n".join(out)
 
 
-def headline_orderings(results: dict) -> dict[str, bool | None]:
-    """The paper's headline claims, checked on these results (None when a network is missing)."""
-    n = results["networks"]
-
-    def m(name, key):
-        return n[name][key]["mean"] if name in n and n[name][key]["mean"] is not None else None
-
-    out: dict[str, bool | None] = {}
-    for key in ("E_mm", "D"):
-        if "R15" in n:
-            others = [m(k, key) for k in n if k != "R15"]
-            out[f"R15 lowest {key}"] = all(m("R15", key) < o for o in others if o is not None)
-    indirect = [k for k in n if k[0] in "GR"]
-    for base in ("D15", "B15"):
-        for key in ("E_mm", "T_s_per_m"):
-            if base in n and indirect:
-                out[f"every indirect EKM below {base} in {key}"] = all(m(k, key) < m(base, key) for k in indirect)
-    if "D15" in n and indirect:
-        out["D15's P5 below every indirect EKM's"] = all(m("D15", "P5") < m(k, "P5") for k in indirect)
-    return out
-
-
-def plot_all(results: dict, trained: dict, out_dir: Path) -> list[Path]:
-    """Fig. 5 (learning curves), Fig. 6 (input weights), Fig. 7 (P, T, D against eps)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    out_dir = Path(out_dir)
-    paths = []
-    colours = {"B15": "tab:brown", "D15": "tab:orange", "G9": "tab:green", "G12": "tab:olive", "G15": "tab:cyan",
-               "R15": "tab:blue"}
-    nets = results["networks"]
-
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
-    for name, e in nets.items():
-        c = e["learning_curves"]
-        steps = np.array(c["steps"]) / 1000.0
-        for ax, key in zip(axes, ("E_mm", "T_s_per_m")):
-            per_trial = np.array(c[key]["per_trial"])
-            ax.plot(steps, per_trial.mean(axis=0), "-o", ms=3, label=name, color=colours.get(name))
-            ax.fill_between(steps, per_trial.min(axis=0), per_trial.max(axis=0), alpha=0.12, color=colours.get(name))
-    axes[0].set_ylabel("mean positioning error E (mm)")
-    axes[1].set_ylabel("normalized time-to-target T (s/m)")
-    for ax, letter in zip(axes, "AB"):
-        ax.set_yscale("log")
-        ax.set_xlabel("training steps (thousands)")
-        ax.set_title(f"({letter})", loc="left")
-        ax.grid(alpha=0.3)
-    axes[1].legend(ncol=2, fontsize=8)
-    fig.suptitle("Fig. 5: learning curves (mean over trials; band: range over trials)")
-    fig.tight_layout()
-    paths.append(out_dir / "fig5_learning_curves.png")
-    fig.savefig(paths[-1], dpi=120)
-    plt.close(fig)
-
-    order = [n for n in ("G9", "G12", "G15", "R15", "D15", "B15") if n in trained] + [n for n in trained if n not in ("G9", "G12", "G15", "R15", "D15", "B15")]
-    cols = 3
-    rows = int(np.ceil(len(order) / cols))
-    fig, axes = plt.subplots(rows, cols, figsize=(4 * cols, 3.3 * rows), squeeze=False)
-    for ax, name, letter in zip(axes.flat, order, "ABCDEFGHIJKL"):
-        w = trained[name].w
-        ax.scatter(w[:, 0], w[:, 1], s=6, color="k")
-        ax.set_xlim(-np.pi, np.pi)
-        ax.set_ylim(-0.005, max(0.17, float(w[:, 1].max()) + 0.005))
-        ax.set_title(f"({letter}) {name}", loc="left")
-        ax.set_xlabel("alpha (rad)")
-        ax.set_ylabel("d (m)")
-        ax.grid(alpha=0.3)
-    for ax in list(axes.flat)[len(order):]:
-        ax.axis("off")
-    fig.suptitle("Fig. 6: self-organized input weights w_i = (alpha_i, d_i), trial 1")
-    fig.tight_layout()
-    paths.append(out_dir / "fig6_input_weights.png")
-    fig.savefig(paths[-1], dpi=120)
-    plt.close(fig)
-
-    fig, axes = plt.subplots(1, 3, figsize=(14, 4))
-    for name, e in nets.items():
-        ec = e["eps_curves"]
-        eps = np.array(ec["eps_mm"])
-        for ax, key in zip(axes, ("P", "T_s_per_m", "D")):
-            mean = np.array([np.nan if v is None else v for v in ec[key]["mean"]], dtype=float)
-            ax.plot(eps, mean, label=name, color=colours.get(name))
-    for ax, label, letter in zip(axes, ("target reaching probability P(eps)", "normalized time-to-target T(eps) (s/m)",
-                                        "mean deviation D(eps)"), "ABC"):
-        ax.set_xlabel("eps (mm)")
-        ax.set_ylabel(label)
-        ax.set_title(f"({letter})", loc="left")
-        ax.grid(alpha=0.3)
-    axes[1].set_yscale("log")
-    axes[0].legend(fontsize=8)
-    fig.suptitle("Fig. 7: after training, against the reaching radius eps")
-    fig.tight_layout()
-    paths.append(out_dir / "fig7_eps_curves.png")
-    fig.savefig(paths[-1], dpi=120)
-    plt.close(fig)
-    return paths
-
-
 def write_report(results: dict, trained: dict, out_dir: Path) -> list[Path]:
     """results.json, tables.md and the figures into out_dir."""
     out_dir = Path(out_dir)
@@ -299,3 +204,23 @@ def write_seeds_report(summary: dict, out_dir: Path) -> list[Path]:
     paths[0].write_text(json.dumps(summary, indent=1))
     paths[1].write_text(seeds_markdown(summary))
     return paths
+
+
+def write_seed(config: TargetReachingConfig, results: dict, runs: list[NetworkRun], out_dir: Path,
+                models: bool) -> list[Path]:
+    """One seed's report: with models, also the trained models and the figures (a single-seed
+    run); without (one seed of several), results.json and tables.md only."""
+    from ..models.io import save_model
+
+    if not models:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        (out_dir / "results.json").write_text(json.dumps(results, indent=1))
+        (out_dir / "tables.md").write_text(tables_markdown(results))
+        return [out_dir / "results.json", out_dir / "tables.md"]
+    if models:
+        for r in runs:
+            for t in range(config.trials):
+                save_model(out_dir / "models" / f"{r.name}-trial{t + 1}.npz", r.trained(t, config),
+                           {"network": r.name, "trial": t + 1, "steps": config.schedule.steps, "seed": config.seed,
+                            "initial_M": "random", "experiment": "target-reaching"})
+    return write_report(results, {r.name: r.trained(0, config) for r in runs}, out_dir)

@@ -1,0 +1,180 @@
+"""The experiments' command-line glue: what ``cekm run`` (navigation and tracking),
+``cekm experiment target-reaching`` and ``cekm experiment tracking`` (and ``--grid``) do
+once click has parsed their options -- load the model, run, write the files (through the
+experiments' own modules) and print a summary -- and the parsing of the commands' list
+options (team sizes, seeds, numbers). The running, statistics, figure and report modules
+import no click and no matplotlib at module level; this module talks to the terminal.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import time
+from pathlib import Path
+from typing import TYPE_CHECKING, Callable, Sequence
+
+import click
+
+from ..errors import ParameterError
+
+if TYPE_CHECKING:
+    from .reaching_run import NetworkRun, TargetReachingConfig
+
+
+def run_navigation_cmd(scenario, controller: str, model, seed: int | None, max_time: float, out_dir, graph) -> None:
+    """``cekm run`` on a navigation scenario: outcome.json and trajectory.png, and each robot's outcome."""
+    from .navigation_figures import plot_run
+    from .navigation_run import run_scenario
+
+    t0 = time.perf_counter()
+    run = run_scenario(scenario, controller, model, seed, max_time, graph=graph)
+    doc = {"scenario": scenario.name, "controller": controller, "graph": graph.graph.name, "seed": run.seed,
+           "robots": run.outcome,
+           "wall_seconds": round(time.perf_counter() - t0, 3)}
+    (out_dir / "outcome.json").write_text(json.dumps(doc, indent=1))
+    fig = plot_run(run)
+    fig.savefig(out_dir / "trajectory.png", dpi=130)
+    for r, o in run.outcome.items():
+        click.echo(f"{r}: {'reached' if o['reached'] else 'NOT reached'} in {o['time_s']:.1f} s, path "
+                   f"{o['path_length_m']:.2f} m, {o['collisions']} collisions, min clearance {o['min_clearance_m'] * 1000:.0f} mm")
+    click.echo(f"wrote {out_dir / 'outcome.json'}, {out_dir / 'trajectory.png'}")
+
+
+def run_tracking_cmd(scenario, controller: str, model_path, seed: int | None, duration: float | None, out_dir,
+                     graph=None, model=None) -> None:
+    """``cekm run`` on a tracking scenario: outcome.json (with ``tracking``) and trajectory.png."""
+    from .tracking_figures import plot_tracking
+    from .tracking_run import DEFAULT_DURATION, outcome_doc, run_tracking
+
+    if model is None and controller == "cekm" and graph is None:
+        from ..models.io import load_model
+        from .default_model import default_model
+
+        model = load_model(model_path) if model_path else default_model()
+    t0 = time.perf_counter()
+    run = run_tracking(scenario, controller, model, seed, DEFAULT_DURATION if duration is None else duration,
+                       graph=graph)
+    out = Path(out_dir)
+    doc = outcome_doc(run)
+    doc["wall_seconds"] = round(time.perf_counter() - t0, 3)
+    (out / "outcome.json").write_text(json.dumps(doc, indent=1))
+    import matplotlib.pyplot as plt
+
+    fig = plot_tracking(run)
+    fig.savefig(out / "trajectory.png", dpi=130)
+    plt.close(fig)
+    tr = run.tracking
+    per = ", ".join(f"{k} {v:.2f}" for k, v in tr["A_per_target"].items())
+    sp = tr["spread"]
+    click.echo(f"A = {tr['A']:.3f} ({tr['robots']} robots, {tr['targets']} targets; per target: {per}); robots "
+               f"apart {sp['robots_start']:.2f} -> {sp['robots_end']:.2f} m while targets {sp['targets_start']:.2f} "
+               f"-> {sp['targets_end']:.2f} m; collisions {sum(run.collisions.values())}")
+    click.echo(f"wrote {out / 'outcome.json'}, {out / 'trajectory.png'}")
+
+
+def parse_team_sizes(text: str) -> tuple[int, ...]:
+    """``--robots 2,4,8`` as team sizes; a clear usage error otherwise."""
+    try:
+        sizes = tuple(int(x) for x in text.split(",") if x.strip())
+    except ValueError:
+        raise click.UsageError(f"--robots {text!r}: expected team sizes like 2,4,8") from None
+    if not sizes or any(n < 1 or n > 64 for n in sizes):
+        raise click.UsageError(f"--robots {text!r}: give team sizes between 1 and 64")
+    return sizes
+
+
+def run_tracking_experiment_cmd(out_dir, seeds: int, sizes: tuple[int, ...], duration: float, model_path, workers,
+                                quiet: bool) -> None:
+    """``cekm experiment tracking`` once its options are checked."""
+    from .tracking_report import table_markdown, write_experiment
+    from .tracking_run import run_experiment
+
+    if model_path is None:
+        from .default_model import default_model, default_model_path
+
+        default_model()
+        model_path = default_model_path()
+    t0 = time.perf_counter()
+    doc, pictures = run_experiment(sizes, seeds, duration, model_path, workers, progress=not quiet)
+    doc["wall_seconds"] = round(time.perf_counter() - t0, 1)
+    paths = write_experiment(doc, pictures, out_dir)
+    click.echo(table_markdown(doc))
+    click.echo(f"{doc['wall_seconds']:.1f} s; wrote " + ", ".join(str(p) for p in paths))
+
+
+def run_grid_cmd(out_dir, quick: bool, seeds: list[int], duration: float, model_path, workers, quiet: bool) -> None:
+    """``cekm experiment tracking --grid`` once its options are checked."""
+    from .grid_report import grid_doc, tables_markdown, write_grid
+
+    if model_path is None:
+        from .default_model import default_model, default_model_path
+
+        default_model()
+        model_path = default_model_path()
+    doc = grid_doc(quick, seeds, duration, model_path, workers, progress=not quiet)
+    paths = write_grid(doc, out_dir)
+    click.echo(tables_markdown(doc).split("\n\n")[0])
+    beat = [d for d in doc["cells"] if d["cekm_vs_best"]["cekm_above_all"]]
+    sig = [d for d in beat if d["cekm_vs_best"]["p"] < 0.05]
+    click.echo(f"cekm above both baselines in {len(beat)} of {len(doc['cells'])} cells ({len(sig)} with p < 0.05); "
+               f"{doc['wall_seconds']:.1f} s; wrote " + ", ".join(str(p) for p in paths))
+
+
+def parse_floats(text: str, name: str) -> tuple[float, ...]:
+    try:
+        values = tuple(float(v) for v in text.split(",") if v.strip())
+    except ValueError:
+        raise ParameterError(f"--{name}: expected comma-separated numbers in metres, got {text!r}") from None
+    if not values:
+        raise ParameterError(f"--{name}: give at least one value")
+    return values
+
+
+def seeds_of(text: str) -> Sequence[int]:
+    """Seeds from "1,2,5" or ranges "1-20" (inclusive), mixed: "1-5,9"."""
+    out: list[int] = []
+    for part in (v.strip() for v in text.split(",")):
+        if not part:
+            continue
+        a, _, b = part.partition("-")
+        try:
+            lo, hi = int(a), int(b if b else a)
+        except ValueError:
+            raise ParameterError(f"--seeds: expected comma-separated integers or ranges like 1-20, got {text!r}") from None
+        if hi < lo:
+            raise ParameterError(f"--seeds: range {part!r} runs backwards")
+        out.extend(range(lo, hi + 1))
+    return tuple(out)
+
+
+def run_and_report(config: TargetReachingConfig, out_dir: Path, master_seeds: int = 1, progress: bool = True,
+                   echo: Callable[[str], None] = print) -> None:
+    """``cekm experiment target-reaching``: one master seed into out_dir (with the trained
+    models), or several, each into out_dir/seed-S, and their summary into out_dir."""
+    from .reaching_report import write_seed, write_seeds_report
+    from .reaching_run import run_experiment, run_master_seeds
+    from .reaching_stats import headline_orderings
+
+    out_dir = Path(out_dir)
+    if master_seeds == 1:
+        results, runs = run_experiment(config, progress=progress)
+        written = write_seed(config, results, runs, out_dir, models=True)
+        echo((out_dir / "tables.md").read_text().split("### Table 2")[0].rstrip())
+        echo("")
+        for claim, holds in headline_orderings(results).items():
+            echo(f"  {'holds' if holds else 'DOES NOT HOLD'}: {claim}")
+        echo(f"\n{results['wall_seconds']:.1f} s; wrote " + ", ".join(str(p) for p in written))
+        return
+
+    def on_seed(seed: int, results: dict, runs: list[NetworkRun]) -> None:
+        write_seed(dataclasses.replace(config, seed=seed), results, runs, out_dir / f"seed-{seed}", models=False)
+        holds = sum(bool(v) for v in headline_orderings(results).values())
+        echo(f"master seed {seed}: {results['wall_seconds']:.1f} s, {holds} of {len(headline_orderings(results))} "
+             f"headline orderings hold; wrote {out_dir / f'seed-{seed}'}")
+
+    summary, _ = run_master_seeds(config, master_seeds, progress, on_seed)
+    written = write_seeds_report(summary, out_dir)
+    echo("")
+    echo(written[1].read_text().rstrip())
+    echo(f"\n{summary['wall_seconds']:.1f} s; wrote " + ", ".join(str(p) for p in written))

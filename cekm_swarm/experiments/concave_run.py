@@ -1,0 +1,69 @@
+"""Fig. 9: the widest concave obstacle the cooperative EKM negotiates, for each depth and
+sensing range -- the sweep's settings and its runs.
+
+For every (sensing range, depth) the sweep tries every width on several seeds; a width
+is negotiated when the robot reaches the goal behind the U on at least ``need`` of the
+seeds. fig9.json holds ``cells`` (every cell's successes out of its runs), ``grid`` (per
+range and depth: the largest negotiated width, the paper's "maximum obstacle width ...
+can overcome", and the largest width with no failing narrower width below it; both
+:mod:`.concave_stats`') and every single run. fig9.png draws the paper's curves,
+fig9_grid.png every cell (:mod:`.concave_figures`); :mod:`.concave_report` writes them.
+"""
+
+from __future__ import annotations
+
+import os
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+from ..errors import ParameterError
+from .concave_stats import cells_of, grid_of
+
+
+@dataclass(frozen=True)
+class SweepConfig:
+    depths: tuple[float, ...] = (0.06, 0.12, 0.18, 0.24, 0.30)
+    widths: tuple[float, ...] = (0.10, 0.20, 0.34, 0.50, 0.70, 1.00, 1.40, 2.00)
+    ranges: tuple[float, ...] = (0.12, 0.17, 0.25)
+    seeds: tuple[int, ...] = (1, 2, 3)
+    need: int = 2  # successes out of len(seeds) for a width to count as negotiated
+    max_time: float = 300.0
+    scenario: str = "concave"
+
+    def __post_init__(self) -> None:
+        for name in ("depths", "widths", "ranges"):
+            values = getattr(self, name)
+            if not values or any(v <= 0 for v in values):
+                raise ParameterError(f"sweep {name} must be positive numbers, got {list(values)}")
+        if not 1 <= self.need <= len(self.seeds):
+            raise ParameterError(f"need must be between 1 and the number of seeds ({len(self.seeds)}), got {self.need}")
+
+
+def _one(args) -> dict:
+    """One run (in a worker process): does the cooperative EKM reach the goal?"""
+    scenario, width, depth, rng, seed, max_time, model_path = args
+    from world import load_scenario
+
+    from ..models.io import load_model
+    from .navigation_run import run_scenario
+
+    sc = load_scenario(scenario, overrides={"obstacles[0].width": width, "obstacles[0].depth": depth,
+                                            "sensors.range": rng})
+    run = run_scenario(sc, "cekm", load_model(model_path), seed, max_time)
+    o = next(iter(run.outcome.values()))
+    return {"width": width, "depth": depth, "range": rng, "seed": seed, "reached": o["reached"],
+            "time_s": o["time_s"], "collisions": o["collisions"]}
+
+
+def run_sweep(config: SweepConfig, model_path: Path, workers: int | None = None, progress: bool = True) -> dict:
+    """All runs of the sweep, in parallel processes; returns the fig9.json document."""
+    from tqdm import tqdm
+
+    jobs = [(config.scenario, w, d, r, s, config.max_time, str(model_path))
+            for r in config.ranges for d in config.depths for w in config.widths for s in config.seeds]
+    workers = workers or min(len(jobs), os.cpu_count() or 1, 2)
+    with ProcessPoolExecutor(max_workers=workers) as ex:
+        runs = list(tqdm(ex.map(_one, jobs), total=len(jobs), disable=not progress, desc="concave sweep", unit="run"))
+    return {"experiment": "concave-sweep", "paper_figure": 9, "settings": asdict(config),
+            "cells": cells_of(config, runs), "grid": grid_of(config, runs), "runs": runs}
