@@ -92,6 +92,42 @@ def target_reaching(out_dir: Path, overwrite: bool, networks: str, trials: int, 
     run_and_report(config, out_dir, master_seeds, progress=not quiet, echo=click.echo)
 
 
+@experiment.command("circling")
+@click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False, path_type=Path),
+              help="Directory for the episode's PNG and JSON (other episodes' files there are kept).")
+@click.option("--network", default="R15", show_default=True, help="The network, e.g. R15, G9, D15, B15.")
+@click.option("--seed", default=2005, show_default=True, type=SEED, help="Master seed.")
+@click.option("--trial", default=1, show_default=True, type=click.IntRange(1), help="Trial, from 1.")
+@click.option("--target", type=click.IntRange(1), default=None,
+              help="Test target, from 1 (default: chosen by --pick).")
+@click.option("--pick", type=click.Choice(["budget", "farthest-stop"]), default="budget", show_default=True,
+              help="Without --target: the first target ended by the budget, or the one that stopped farthest away.")
+@click.option("--stop", "stop_rule", type=click.Choice(["command", "goal"]), default="command", show_default=True,
+              help="The test's stop rule (as in target-reaching).")
+@click.option("--train-stop", type=click.Choice(["goal", "command"]), default="goal", show_default=True,
+              help="Training's stop rule.")
+@click.option("--motor-resolution", type=click.FloatRange(min=0.0, min_open=True, max=0.15), default=0.008,
+              show_default=True, help="The motor's resolution for the 'command' rule (m/s).")
+@click.option("--speed-unit", type=click.FloatRange(min=0.0), default=0.0, show_default=True,
+              help="Wheel speeds execute as whole multiples of this (m/s); 0: continuous.")
+@click.option("--target-resolution", type=click.FloatRange(min=0.0, max=0.1, max_open=True), default=0.001,
+              show_default=True, help="The target sensor rounds distances to this (m); 0: not rounded.")
+@click.option("--bfn", "bfn_rule", type=click.Choice(["paper", "trained-units"]), default="paper", show_default=True,
+              help="B15's rule (as in target-reaching).")
+@click.option("--steps", default=100_000, show_default=True, type=click.IntRange(10_000),
+              help="Training steps (a multiple of 10,000).")
+def circling(out_dir: Path, network: str, seed: int, trial: int, target: int | None, pick: str, stop_rule: str,
+             train_stop: str, motor_resolution: float, speed_unit: float, target_resolution: float, bfn_rule: str,
+             steps: int) -> None:
+    """Why a robot circles a target instead of stopping: one test episode of section 4.1,
+    step by step (its path, the winners and their commands beside the exact ones)."""
+    from .experiments.commands import run_circling_cmd
+
+    run_circling_cmd(out_dir, network=_networks(network)[0], seed=seed, trial=trial, target=target, pick=pick,
+                     stop_rule=stop_rule, train_stop=train_stop, motor_resolution=motor_resolution,
+                     speed_unit=speed_unit, target_resolution=target_resolution, bfn=bfn_rule, steps=steps)
+
+
 @experiment.command("obstacles")
 @click.option("--seeds", default="1-20", show_default=True, help="Seeds: a list and/or ranges, e.g. 1-20 or 1,2,7.")
 @click.option("--speed-unit", type=click.FloatRange(min=0.0, max=0.05),
@@ -389,6 +425,11 @@ def _register_ros2_commands() -> None:
 
 
 _register_ros2_commands()
+
+
+def run_cli_args(argv: list[str]) -> int:
+    """The ``cekm`` command with ``argv``, its outcome as an exit code (one line on error)."""
+    return run_cli(main, argv)
 
 
 def run() -> None:  # pragma: no cover - the console entry (cekm_swarm.cli_support.run_cli is tested)

@@ -7,7 +7,7 @@ asked for), and shows what drove the robot there: its path around the target, th
 neuron and its input weights over time, the network's command beside the kinematically
 exact command for the sensed input, and the lattice near d = 0.
 
-    python -m cekm_swarm.experiments.circling --network R15 --seed 2005 --trial 1 \\
+    cekm experiment circling --network R15 --seed 2005 --trial 1 \\
         --speed-unit 0.008 --out docs/results/target-reaching-circling
 
 docs/reproduction-4.1.md section 1 explains the episodes it finds.
@@ -15,13 +15,14 @@ docs/reproduction-4.1.md section 1 explains the episodes it finds.
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from ..errors import ParameterError
 from ..robot import KHEPERA, STEP_S
 from .arena import Arena
 from .reaching_run import TargetReachingConfig, run_network
@@ -187,33 +188,36 @@ def draw_episode(ep: dict, net, target: np.ndarray, title: str, stop: StopRule, 
     return path
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m cekm_swarm.experiments.circling", description=__doc__.splitlines()[0])
-    ap.add_argument("--network", default="R15")
-    ap.add_argument("--seed", type=int, default=2005, help="master seed")
-    ap.add_argument("--trial", type=int, default=1, help="trial, from 1")
-    ap.add_argument("--target", type=int, default=None, help="test target, from 1 (default: chosen by --pick)")
-    ap.add_argument("--pick", choices=("budget", "farthest-stop"), default="budget",
-                    help="without --target: the first target ended by the budget, or the target that stopped farthest away")
-    ap.add_argument("--stop", choices=("command", "goal"), default="command", help="the test's stop rule")
-    ap.add_argument("--train-stop", choices=("goal", "command"), default="goal", help="training's stop rule")
-    ap.add_argument("--motor-resolution", type=float, default=KHEPERA.speed_unit)
-    ap.add_argument("--speed-unit", type=float, default=0.0)
-    ap.add_argument("--target-resolution", type=float, default=KHEPERA.target_resolution)
-    ap.add_argument("--bfn", choices=("paper", "trained-units"), default="paper")
-    ap.add_argument("--steps", type=int, default=Schedule().steps, help="training steps (a multiple of 10,000)")
-    ap.add_argument("--out", type=Path, required=True)
-    a = ap.parse_args(argv)
-    if a.trial < 1:
-        ap.error("--trial counts from 1")
-    stop = StopRule(a.stop, a.motor_resolution)
-    arena = Arena(speed_unit=a.speed_unit, target_resolution=a.target_resolution)
-    config = TargetReachingConfig(networks=(a.network,), trials=a.trial, seed=a.seed, arena=arena, stop=stop,
-                                  train_stop=StopRule(a.train_stop, a.motor_resolution), bfn_rule=a.bfn,
-                                  schedule=Schedule(steps=a.steps))
-    run = run_network(a.network, config)
-    t = a.trial - 1
-    streams = TrialStreams(a.seed, t, arena, config.schedule)
+@dataclass(frozen=True)
+class CirclingEpisode:
+    """What :func:`run_circling` found: the summary (also written as JSON), the picture
+    and the title that names the run."""
+
+    summary: dict
+    png: Path
+    json: Path
+    title: str
+
+
+def run_circling(out: Path, network: str = "R15", seed: int = 2005, trial: int = 1, target: int | None = None,
+                 pick: str = "budget", stop_rule: str = "command", train_stop: str = "goal",
+                 motor_resolution: float = KHEPERA.speed_unit, speed_unit: float = 0.0,
+                 target_resolution: float = KHEPERA.target_resolution, bfn: str = "paper",
+                 steps: int = Schedule().steps) -> CirclingEpisode | None:
+    """Train ``network`` for trial ``trial`` of master seed ``seed``, replay its final test
+    step by step and draw one episode: test target ``target`` (from 1), else the first
+    target the budget ended (``pick`` 'budget', None if there is none) or the one that
+    stopped farthest away ('farthest-stop'). Writes the PNG and the JSON into ``out``."""
+    if trial < 1:
+        raise ParameterError(f"trial: counts from 1, got {trial}")
+    stop = StopRule(stop_rule, motor_resolution)
+    arena = Arena(speed_unit=speed_unit, target_resolution=target_resolution)
+    config = TargetReachingConfig(networks=(network,), trials=trial, seed=seed, arena=arena, stop=stop,
+                                  train_stop=StopRule(train_stop, motor_resolution), bfn_rule=bfn,
+                                  schedule=Schedule(steps=steps))
+    run = run_network(network, config)
+    t = trial - 1
+    streams = TrialStreams(seed, t, arena, config.schedule)
     traces = trace_test(run.batch, t, streams, stop)
     targets = streams.test_set[0]
     lengths = np.sum(~np.isnan(traces[:, :, 0]), axis=1)
@@ -221,38 +225,38 @@ def main(argv: list[str] | None = None) -> int:
     ended = [int(i) for i in np.flatnonzero(lengths >= budget)]
     last = traces[np.arange(len(targets)), np.maximum(lengths - 1, 0)]
     stop_dist = np.where(lengths < budget, np.hypot(targets[:, 0] - last[:, 0], targets[:, 1] - last[:, 1]), -1.0)
-    if a.target is not None:
-        if not 1 <= a.target <= len(targets):
-            ap.error(f"--target must be 1-{len(targets)}")
-        index = a.target - 1
-    elif a.pick == "farthest-stop":
+    if target is not None:
+        if not 1 <= target <= len(targets):
+            raise ParameterError(f"target: must be 1-{len(targets)}, got {target}")
+        index = target - 1
+    elif pick == "farthest-stop":
         index = int(np.argmax(stop_dist))
     elif ended:
         index = ended[0]
     else:
-        print(f"{a.network} seed {a.seed} trial {a.trial}: no test target ended by the budget")
-        return 1
+        return None
     net = run.trained(t, config)
     ep = episode(traces, targets[index], index)
-    summary = {"network": a.network, "seed": a.seed, "trial": a.trial, "target": index + 1,
+    summary = {"network": network, "seed": seed, "trial": trial, "target": index + 1,
                "settings": config.settings(), "targets_ended_by_budget": [i + 1 for i in ended],
                "final_E_mm": run.scores[t][-1].E_mm, "episode": summarize_episode(ep, net, budget)}
-    stem = f"circling-{a.network}-seed{a.seed}-trial{a.trial}-target{index + 1}"
-    plant = (f"wheels quantized to {a.speed_unit * 1000:g} mm/s" if a.speed_unit > 0 else "continuous wheels")
-    title = (f"{a.network}, master seed {a.seed}, trial {a.trial}, test target {index + 1} after {a.steps:,} steps: "
-             f"stop rule '{a.stop}', {plant}")
-    png = draw_episode(ep, net, targets[index], title, stop, a.out / f"{stem}.png")
-    (a.out / f"{stem}.json").write_text(json.dumps(summary, indent=1))
-    e = summary["episode"]
-    print(f"{title}\n  targets ended by the budget: {summary['targets_ended_by_budget']}; this one: {e['steps']} steps, "
-          f"closest {e['closest_mm']:.2f} mm, final {e['final_distance_mm']:.2f} mm")
-    for w in e["winners"][:4]:
-        print(f"  neuron {w['neuron']} (alpha {w['w_alpha_rad']:+.2f} rad, d {w['w_d_mm']:.1f} mm): {w['steps']} steps, "
-              f"command {w['command_mm_s_mean']} mm/s, exact {w['kinematic_mm_s_mean']}, executed {w['executed_mm_s_mean']}")
-    if e["sensed_alpha_error_rad_within_5_mm"]:
-        print(f"  sensed alpha within 5 mm of the target: median error {e['sensed_alpha_error_rad_within_5_mm']['median']:.3f} rad")
-    print(f"  wrote {png}, {a.out / f'{stem}.json'}")
-    return 0
+    stem = f"circling-{network}-seed{seed}-trial{trial}-target{index + 1}"
+    plant = (f"wheels quantized to {speed_unit * 1000:g} mm/s" if speed_unit > 0 else "continuous wheels")
+    title = (f"{network}, master seed {seed}, trial {trial}, test target {index + 1} after {steps:,} steps: "
+             f"stop rule '{stop_rule}', {plant}")
+    out.mkdir(parents=True, exist_ok=True)
+    png = draw_episode(ep, net, targets[index], title, stop, out / f"{stem}.png")
+    (out / f"{stem}.json").write_text(json.dumps(summary, indent=1))
+    return CirclingEpisode(summary, png, out / f"{stem}.json", title)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m cekm_swarm.experiments.circling ARGS`` is ``cekm experiment circling ARGS``."""
+    import sys
+
+    from ..cli import run_cli_args
+
+    return run_cli_args(["experiment", "circling", *(sys.argv[1:] if argv is None else argv)])
 
 
 if __name__ == "__main__":

@@ -178,3 +178,24 @@ def run_and_report(config: TargetReachingConfig, out_dir: Path, master_seeds: in
     echo("")
     echo(written[1].read_text().rstrip())
     echo(f"\n{summary['wall_seconds']:.1f} s; wrote " + ", ".join(str(p) for p in written))
+
+
+def run_circling_cmd(out_dir: Path, **settings) -> None:
+    """``cekm experiment circling``: one episode drawn, and what drove it printed."""
+    from .circling import run_circling
+
+    found = run_circling(out_dir, **settings)
+    if found is None:
+        raise click.ClickException(f"{settings['network']} seed {settings['seed']} trial {settings['trial']}: "
+                                   f"no test target ended by the budget (give --target or --pick farthest-stop)")
+    e = found.summary["episode"]
+    click.echo(f"{found.title}\n  targets ended by the budget: {found.summary['targets_ended_by_budget']}; this one: "
+               f"{e['steps']} steps, closest {e['closest_mm']:.2f} mm, final {e['final_distance_mm']:.2f} mm")
+    for w in e["winners"][:4]:
+        click.echo(f"  neuron {w['neuron']} (alpha {w['w_alpha_rad']:+.2f} rad, d {w['w_d_mm']:.1f} mm): {w['steps']} "
+                   f"steps, command {w['command_mm_s_mean']} mm/s, exact {w['kinematic_mm_s_mean']}, executed "
+                   f"{w['executed_mm_s_mean']}")
+    if e["sensed_alpha_error_rad_within_5_mm"]:
+        click.echo(f"  sensed alpha within 5 mm of the target: median error "
+                   f"{e['sensed_alpha_error_rad_within_5_mm']['median']:.3f} rad")
+    click.echo(f"  wrote {found.png}, {found.json}")

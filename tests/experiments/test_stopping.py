@@ -211,10 +211,10 @@ def test_kinematic_command_lands_on_the_input():
 
 @pytest.mark.slow
 def test_circling_command_writes_the_picture_and_the_summary(tmp_path):
-    from cekm_swarm.experiments.circling import main
+    from cekm_swarm.cli import run_cli_args
 
-    assert main(["--network", "R9", "--seed", "3", "--trial", "1", "--steps", "10000", "--target", "2",
-                 "--speed-unit", "0.008", "--out", str(tmp_path)]) == 0
+    assert run_cli_args(["experiment", "circling", "--network", "R9", "--seed", "3", "--trial", "1", "--steps", "10000",
+                         "--target", "2", "--speed-unit", "0.008", "--out", str(tmp_path)]) == 0
     png = tmp_path / "circling-R9-seed3-trial1-target2.png"
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     import json
