@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import threading
+from collections.abc import Callable
 from pathlib import Path
 
 import click
@@ -105,16 +106,20 @@ def view_cmd(scenario: str | None, log: Path | None, seed: int | None, robot: st
                 raise click.ClickException(f"--foxglove {foxglove_port}: cannot serve on {host}: {exc}") from None
             click.echo(f"foxglove WebSocket server on ws://{host}:{fox.port}", err=True)
         click.echo(f"live view on {server.url} (Ctrl-C to stop)", err=True)
-        runs = RunWatch(session, keys)
+        # a new run starts the view afresh as soon as its world's token is seen (on Zenoh's
+        # thread, before the run's first state), not after the graph is fetched: by then a
+        # lockstep run can be seconds into its sim time, and its path would be lost; the
+        # first token seen names the run the view joined
+        runs = RunWatch(session, keys, on_new=view.run_seen)
         view.w = _lattice(session, model_path, root, timeout=5.0)
         try:
             while True:
                 run = runs.changed(timeout=0.5)
-                if run is not None:  # a new run: start afresh, with the graph it runs
+                if run is not None:  # the graph the new run runs
                     from cekm_swarm.runtime.rungraph import fetch_run_graph
 
                     g = fetch_run_graph(session, keys.world_graph())
-                    view.new_run(run, None if g is None else f"{g.name} ({g.controller})")
+                    view.set_graph(None if g is None else f"{g.name} ({g.controller})")
         except KeyboardInterrupt:
             pass
         finally:
@@ -127,9 +132,10 @@ def view_cmd(scenario: str | None, log: Path | None, seed: int | None, robot: st
 
 class RunWatch:
     """The run id of the world server alive on the router, from its liveliness token
-    (``<root>/world/alive/server/<run>``); :meth:`changed` returns a new one once."""
+    (``<root>/world/alive/server/<run>``); :meth:`changed` returns a new one once, and
+    ``on_new(run)`` is called on Zenoh's thread when one is first seen."""
 
-    def __init__(self, session, keys) -> None:
+    def __init__(self, session, keys, on_new: Callable[[str], None] | None = None) -> None:
         import zenoh
 
         self._lock = threading.Lock()
@@ -147,7 +153,10 @@ class RunWatch:
                 return
             if run:
                 with self._lock:
+                    new = run != self._current
                     self._current = run
+                if new and on_new is not None:
+                    on_new(run)
                 self._event.set()
 
         self._sub = session.liveliness().declare_subscriber(any_run.world_alive_any_run(), on_token, history=True)

@@ -80,6 +80,17 @@ class LiveView:
             self.version += 1
             self.changed.notify_all()
 
+    def run_seen(self, run: str) -> None:
+        """The run id of the world on the router (its liveliness token): the first one names
+        the run the view has shown since it joined, any other starts it afresh."""
+        with self.changed:
+            if self.run is None:
+                self.run = run
+                self.version += 1
+                self.changed.notify_all()
+            elif run != self.run:
+                self.new_run(run)
+
     def set_graph(self, graph: str | None) -> None:
         with self.changed:
             self.graph = graph

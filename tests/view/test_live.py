@@ -144,3 +144,18 @@ def test_a_new_run_starts_the_view_afresh():
     v.observe(K.world_state(), _state(5.0, 1.0))
     v.observe(K.world_state(), _state(0.0, 0.2))  # back to the start
     assert v.init()["paths"]["r1"] == [[0.0, 0.2, 0.5]] and v.tick()["run"] == "run-2"
+
+
+def test_the_first_run_id_names_the_run_joined_and_another_starts_afresh():
+    """A view that joins a run mid-way learns its id from the world's token after some of
+    its states: those stay; a later run's id starts the view afresh; the same id again
+    changes nothing."""
+    v = LiveView(GEOMETRY)
+    for i in range(3):
+        v.observe(K.world_state(), _state(1.0 + i, 0.2 + 0.01 * i))
+    v.run_seen("run-1")
+    assert v.tick()["run"] == "run-1" and len(v.init()["paths"]["r1"]) == 3
+    v.run_seen("run-1")
+    assert len(v.init()["paths"]["r1"]) == 3
+    v.run_seen("run-2")
+    assert v.tick()["run"] == "run-2" and v.init()["paths"] == {} and v.tick()["time"] is None

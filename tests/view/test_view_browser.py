@@ -1,5 +1,5 @@
 """`cekm view` end to end in a real browser: a lockstep `cekm launch` of the lone_obstacle
-scenario on a free port, `cekm view` attached to it, headless Chromium loading the page
+scenario (its goal moved further away) on a free port, `cekm view` attached to it, headless Chromium loading the page
 at two moments of the run. The screenshots are not blank and differ where the robots
 moved; a protocol-level client decodes the live event stream, whose poses equal the
 run's MCAP log at the same sim time, and whose fields obey Eq. 9. The run's
@@ -79,22 +79,55 @@ def _screenshot(url: str, path: Path):
     return np.asarray(Image.open(path).convert("RGB")).astype(int)
 
 
-def _centroid(img, rgb) -> np.ndarray:
-    ys, xs = np.nonzero(np.all(np.abs(img - np.array(rgb)) <= 2, axis=2))
-    assert len(xs) > 30, "r1's colour is not on the page"
+def _centroid(mask) -> np.ndarray:
+    ys, xs = np.nonzero(mask)
+    assert len(xs) >= 10, "too few of r1's pixels changed"
     return np.array([xs.mean(), ys.mean()])
+
+
+def _moved(img_a, img_b, rgb) -> float:
+    """How far (px, along x) r1's drawing moved from one screenshot to the other: the pixels
+    of its colour that appeared (its disc now, its path since) against those that vanished
+    (its disc then); its start and goal markers, in both, count in neither."""
+    in_a, in_b = (np.all(np.abs(img - np.array(rgb)) <= 2, axis=2) for img in (img_a, img_b))
+    return float(_centroid(in_b & ~in_a)[0] - _centroid(in_a & ~in_b)[0])
+
+
+# lone_obstacle with the goal 3 m away instead of 1: the run lasts long enough for the second
+# moment (3 s of sim time after the first) however late the first is held; the view's stream
+# follows a lockstep world that runs some 40 times faster than real time, a few seconds of
+# sim time behind on a loaded machine
+LONG_LONE_OBSTACLE = """name = "long_lone_obstacle"
+seed = 3
+[arena]
+bounds = [0.0, 0.0, 4.0, 2.0]
+[[robots]]
+id = "r1"
+start = [0.5, 1.0, 0.0]
+goal = "goal"
+[[targets]]
+id = "goal"
+position = [3.5, 1.0]
+[[obstacles]]
+id = "disc"
+shape = "disc"
+center = [1.0, 1.0]
+radius = 0.05
+"""
 
 
 def test_live_view_in_headless_chromium(tmp_path):
     port = free_port()
+    scenario = tmp_path / "long_lone_obstacle.toml"
+    scenario.write_text(LONG_LONE_OBSTACLE)
     # the view first: it waits for the launch's router and subscribes as soon as it is up,
     # seconds before the 14 modules are alive and the lockstep world ticks
-    view = subprocess.Popen([sys.executable, "-m", "cekm_swarm", "view", "lone_obstacle", "--http", "0",
+    view = subprocess.Popen([sys.executable, "-m", "cekm_swarm", "view", str(scenario), "--http", "0",
                              "--foxglove", "0", "--connect", f"tcp/127.0.0.1:{port}",
                              "--model", str(default_model_path())],
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=True,
                             env=dict(os.environ, PYTHONUNBUFFERED="1"))
-    run = LaunchProcess("lone_obstacle", tmp_path / "run", "--mode", "lockstep", "--max-time", "8",
+    run = LaunchProcess(str(scenario), tmp_path / "run", "--mode", "lockstep", "--max-time", "40",
                         "--model", str(default_model_path()), port=port)
     motor = None
     try:
@@ -122,6 +155,10 @@ def test_live_view_in_headless_chromium(tmp_path):
                     return state
 
         a = hold(1.0)
+        # the page keeps r1's path (t, x, y) of this run from the first state the view got,
+        # however late it learned the run's graph (it once started afresh only then)
+        first = min(t["time"] for t in stream.ticks if t["time"] is not None and "r1" in t["robots"])
+        assert a["paths"]["r1"][0][0] <= first, (a["paths"]["r1"][:3], first)
         ws = WsClient(fox_port)  # the Foxglove server of the same view advertises the scene
         while True:
             op, data = ws.frame()
@@ -149,7 +186,7 @@ def test_live_view_in_headless_chromium(tmp_path):
     assert (np.abs(img_a - img_b).sum(axis=2) > 30).sum() > 500
     ra, rb = a["robots"]["r1"], b["robots"]["r1"]
     assert rb["x"] > ra["x"] + 0.05
-    assert _centroid(img_b, R1)[0] > _centroid(img_a, R1)[0] + 5
+    assert _moved(img_a, img_b, R1) > 5
 
     # the stream: every tick's poses equal the log's at that sim time; fields obey Eq. 9
     logged = {round(t, 3): (x, y) for rid, poses in read_run(tmp_path / "run" / "run.mcap")["paths"].items()
