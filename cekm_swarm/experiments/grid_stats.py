@@ -5,25 +5,13 @@ baseline's (the baseline with the higher mean there) with Welch's p."""
 from __future__ import annotations
 
 import itertools
-import math
 from typing import Any
 
 import numpy as np
 
 from .grid_design import AXES, Cell
 from .grid_run import BASELINES
-
-
-def mean_ci95(xs) -> dict[str, Any]:
-    """Mean and a 95 % t interval."""
-    from scipy import stats
-
-    a = np.asarray(xs, dtype=float)
-    m = float(a.mean())
-    if len(a) < 2:
-        return {"mean": m, "ci95": [m, m], "n": len(a)}
-    h = float(stats.t.ppf(0.975, len(a) - 1) * a.std(ddof=1) / math.sqrt(len(a)))
-    return {"mean": m, "ci95": [m - h, m + h], "n": len(a)}
+from .tracking_stats import mean_ci95
 
 
 def welch_p(a, b) -> float:
