@@ -23,9 +23,12 @@ def graph_group() -> None:
 @graph_group.command("list")
 def list_cmd() -> None:
     """The shipped graphs: name, controller, task, description."""
-    for name, path in sorted(shipped_graphs().items()):
-        g = load_graph(path)
-        click.echo(f"{name:<20} --controller {g.controller:<8} {g.task:<10} {g.description}")
+    graphs = [(name, load_graph(path)) for name, path in sorted(shipped_graphs().items())]
+    wn = max(len(name) for name, _ in graphs)
+    wc = max(len(g.controller) for _, g in graphs)
+    wt = max(len(g.task) for _, g in graphs)
+    for name, g in graphs:
+        click.echo(f"{name:<{wn}}  --controller {g.controller:<{wc}}  {g.task:<{wt}}  {g.description}")
 
 
 def _checked(graph: str):

@@ -207,3 +207,15 @@ def test_every_shipped_graph_checks_for_teams_of_one_to_eight(name):
             plan = checked.plan(team, task)
             assert plan.warnings == []
             assert set(plan.nodes) == set(team) and len(plan.tokens()) == n * len(plan.nodes["r1"])
+
+
+def test_graph_list_names_every_shipped_graph_in_aligned_columns():
+    from click.testing import CliRunner
+
+    from cekm_swarm.graph.commands import graph_group
+
+    out = CliRunner().invoke(graph_group, ["list"])
+    assert out.exit_code == 0, out.output
+    lines = out.output.splitlines()
+    assert [line.split()[0] for line in lines] == sorted(shipped_graphs())
+    assert len({line.index("--controller") for line in lines}) == 1  # one column, however long a name
