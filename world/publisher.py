@@ -147,11 +147,8 @@ class TickPublisher:
         """The stalled tick's readings again (and each robot's latest target or tracking
         reading), for the robots still waiting, and the tick's clock and state (a node that
         reads only those, K-means' global goal, sends its outputs again on them): a
-        restarted node catches up. The re-sends are not logged: the log holds each tick's
-        messages once, so a reader of it (``cekm plot``, the ROS 2 export) sees one sample
-        per tick whether or not the tick stalled."""
+        restarted node catches up."""
         n = len(self.world.sensor_angles)
-        logged = len(self._unrecorded)
         for rd in readings:
             if rd.robot not in waiting:
                 continue
@@ -167,7 +164,6 @@ class TickPublisher:
             self._send_more(rd.robot, self.last_messages.get(rd.robot, []), want)  # tracking: the latest pose, targets
         for key, msg in self._world_msgs:
             self._send(key, msg)
-        del self._unrecorded[logged:]
         self.record_sent()
         self.republished += 1
 

@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from cekm_swarm.protocol import KeyKind, KeySpace, MessageError, decode
-from cekm_swarm.runtime.mcap_log import read_messages
+from cekm_swarm.runtime.mcap_log import read_messages, without_resends
 
 
 def read_geometry(path: str | Path) -> dict[str, Any] | None:
@@ -34,7 +34,7 @@ def read_run(path: str | Path, keys: KeySpace = KeySpace()) -> dict[str, Any]:
     target_paths: dict[str, list[tuple[float, float]]] = {}
     last = None
     state_key = keys.world_state()
-    for m in read_messages(path, topics=[state_key]):
+    for m in without_resends(read_messages(path, topics=[state_key])):  # one state a tick
         try:
             msg = decode(KeyKind.WORLD_STATE, m.data, keys=keys)
         except MessageError:

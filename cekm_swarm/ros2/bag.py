@@ -29,7 +29,7 @@ from mcap.stream_reader import StreamReader
 
 from cekm_swarm.errors import CekmError
 from cekm_swarm.protocol import DEFAULT_KEYS, DropCounter, KeySpace
-from cekm_swarm.runtime.mcap_log import MSGPACK, is_complete, read_messages
+from cekm_swarm.runtime.mcap_log import MSGPACK, ResendFilter, is_complete, read_messages
 
 from .interfaces import DEFAULT_DISTRO, interfaces
 from .mapping import RosMapper
@@ -152,10 +152,11 @@ def export_ros2(log: str | Path, bag: str | Path, *, distro: str = DEFAULT_DISTR
     except OSError as exc:
         raise ExportError(f"{bag}: cannot write: {exc.strerror or exc}") from None
     connections: dict[str, Any] = {}
+    resends = ResendFilter()  # one message a tick per key: a stalled tick's re-sends are left out
     try:
         for m in itertools.chain([first], messages):
             report.read += 1
-            msg = drops.decode(m.topic, m.data)
+            msg = None if resends.is_resend(m) else drops.decode(m.topic, m.data)
             if msg is not None:
                 for out in mapper.feed(m.topic, msg):
                     conn = connections.get(out.topic)

@@ -114,6 +114,28 @@ def read_messages(path: str | Path, *, topics: Iterable[str] | None = None,
     return read_set(log_files(path), topics=topics, encodings=encodings)
 
 
+class ResendFilter:
+    """Tells the world's re-sends apart: a message byte for byte equal to the one before it
+    on its topic. The log holds what was sent, and a stalled lockstep tick is sent again
+    for the nodes still waiting (the same bytes, the same stamp); a reader that wants one
+    sample per tick (``cekm plot``, the ROS 2 export) skips them."""
+
+    def __init__(self) -> None:
+        self._last: dict[str, bytes] = {}
+
+    def is_resend(self, m: LoggedMessage) -> bool:
+        if self._last.get(m.topic) == m.data:
+            return True
+        self._last[m.topic] = m.data
+        return False
+
+
+def without_resends(messages: Iterable[LoggedMessage]) -> Iterator[LoggedMessage]:
+    """``messages`` less the world's re-sends (:class:`ResendFilter`)."""
+    resends = ResendFilter()
+    return (m for m in messages if not resends.is_resend(m))
+
+
 def read_one(path: str | Path, *, topics: Iterable[str] | None = None,
              encodings: Iterable[str] | None = None) -> Iterator[LoggedMessage]:
     """Messages of one file in log-time order (complete file) or file order (a truncated file,

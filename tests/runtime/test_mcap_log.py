@@ -249,3 +249,16 @@ def test_times_no_writer_can_hold_are_clamped_and_the_channel_table_is_bounded(t
     with open(path, "rb") as f:
         summary = make_reader(f).get_summary()
     assert len(summary.channels) == 5 and summary.statistics.message_count == 6
+
+
+def test_without_resends_leaves_out_a_message_equal_to_the_one_before_it_on_its_topic():
+    """The log holds what was sent, a stalled tick's re-sends too; readers that want one
+    sample a tick leave out a byte-equal repeat on the same topic, and nothing else."""
+    from cekm_swarm.runtime.mcap_log import LoggedMessage, without_resends
+
+    def m(topic: str, data: bytes, t: int) -> LoggedMessage:
+        return LoggedMessage(topic, t, t, 0, data, "msgpack", None, None)
+
+    log = [m("a", b"1", 0), m("b", b"1", 0), m("a", b"1", 1), m("a", b"2", 2), m("b", b"1", 3), m("a", b"1", 4)]
+    assert [(x.topic, x.data, x.log_time) for x in without_resends(log)] == [
+        ("a", b"1", 0), ("b", b"1", 0), ("a", b"2", 2), ("a", b"1", 4)]
