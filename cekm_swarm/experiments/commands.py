@@ -84,17 +84,24 @@ def parse_team_sizes(text: str) -> tuple[int, ...]:
     return sizes
 
 
+def _trained_model_path(model_path):
+    """``model_path``, else the default model's file (trained and cached on first use):
+    the experiments' worker processes load the model from a file."""
+    if model_path is not None:
+        return model_path
+    from .default_model import default_model, default_model_path
+
+    default_model()
+    return default_model_path()
+
+
 def run_tracking_experiment_cmd(out_dir, seeds: int, sizes: tuple[int, ...], duration: float, model_path, workers,
                                 quiet: bool) -> None:
     """``cekm experiment tracking`` once its options are checked."""
     from .tracking_report import table_markdown, write_experiment
     from .tracking_run import run_experiment
 
-    if model_path is None:
-        from .default_model import default_model, default_model_path
-
-        default_model()
-        model_path = default_model_path()
+    model_path = _trained_model_path(model_path)
     t0 = time.perf_counter()
     doc, pictures = run_experiment(sizes, seeds, duration, model_path, workers, progress=not quiet)
     doc["wall_seconds"] = round(time.perf_counter() - t0, 1)
@@ -107,11 +114,7 @@ def run_grid_cmd(out_dir, quick: bool, seeds: list[int], duration: float, model_
     """``cekm experiment tracking --grid`` once its options are checked."""
     from .grid_report import grid_doc, tables_markdown, write_grid
 
-    if model_path is None:
-        from .default_model import default_model, default_model_path
-
-        default_model()
-        model_path = default_model_path()
+    model_path = _trained_model_path(model_path)
     doc = grid_doc(quick, seeds, duration, model_path, workers, progress=not quiet)
     paths = write_grid(doc, out_dir)
     click.echo(tables_markdown(doc).split("\n\n")[0])

@@ -110,7 +110,7 @@ def view_cmd(scenario: str | None, log: Path | None, seed: int | None, robot: st
         # thread, before the run's first state), not after the graph is fetched: by then a
         # lockstep run can be seconds into its sim time, and its path would be lost; the
         # first token seen names the run the view joined
-        runs = RunWatch(session, keys, on_new=view.run_seen)
+        runs = RunWatch(session, keys, on_run=view.run_seen)
         view.w = _lattice(session, model_path, root, timeout=5.0)
         try:
             while True:
@@ -133,9 +133,9 @@ def view_cmd(scenario: str | None, log: Path | None, seed: int | None, robot: st
 class RunWatch:
     """The run id of the world server alive on the router, from its liveliness token
     (``<root>/world/alive/server/<run>``); :meth:`changed` returns a new one once, and
-    ``on_new(run)`` is called on Zenoh's thread when one is first seen."""
+    ``on_run(run)`` is called on Zenoh's thread for every token seen."""
 
-    def __init__(self, session, keys, on_new: Callable[[str], None] | None = None) -> None:
+    def __init__(self, session, keys, on_run: Callable[[str], None] | None = None) -> None:
         import zenoh
 
         self._lock = threading.Lock()
@@ -153,10 +153,9 @@ class RunWatch:
                 return
             if run:
                 with self._lock:
-                    new = run != self._current
                     self._current = run
-                if new and on_new is not None:
-                    on_new(run)
+                if on_run is not None:
+                    on_run(run)
                 self._event.set()
 
         self._sub = session.liveliness().declare_subscriber(any_run.world_alive_any_run(), on_token, history=True)
