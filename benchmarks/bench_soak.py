@@ -169,6 +169,16 @@ def main() -> None:
 def report(args, samples: list[dict], outcome: dict) -> None:
     robots = args.robots
     samples = [s for s in samples if "world" in s["rss_kb"]]  # not the last ones, once the run ended
+    # nor one taken while the world writes its outputs after its tick loop (trajectory.json and
+    # the log's summary: its RSS jumps a few MB for those seconds); ``minute`` counts from when
+    # the launcher's line was read, up to about a second late, hence the margin
+    loop_end = (outcome.get("tick_loop_seconds") or float("inf")) / 60.0 - 2.0 / 60.0
+    kept = [s for s in samples if s["minute"] <= loop_end]
+    if kept and len(kept) < len(samples):
+        print(f"left out {len(samples) - len(kept)} sample(s) taken after the world's tick loop (minute "
+              f"{loop_end + 2 / 60:.2f}): world " + ", ".join(
+                  f"{statistics.median(s['rss_kb']['world']) / 1024:.1f} MB" for s in samples[len(kept):]))
+        samples = kept
     kinds = sorted({k for s in samples for k in s["rss_kb"]})
     base = min((s for s in samples if s["minute"] >= 1.0), key=lambda s: s["minute"], default=samples[0])
     minutes = int(samples[-1]["minute"])

@@ -14,6 +14,7 @@ reading."""
 
 from __future__ import annotations
 
+import logging
 from typing import Any
 
 import zenoh
@@ -23,8 +24,10 @@ from cekm_swarm.protocol.stamps import FUTURE_S
 from cekm_swarm.ticks import TICK_S
 
 from .episode import RunEpisode, TickReadings
-from .recorder import RecordFilter
+from .recorder import RECORD_QUEUE, RecordFilter
 from .sense import SENDER, SenseEncoder
+
+log = logging.getLogger("world.publisher")
 
 HOLD_TICKS = int(round(FUTURE_S / TICK_S)) - 1
 """Ticks a held reading may be left out in a row (7): a reader's next stamp is then at most
@@ -48,6 +51,7 @@ class TickPublisher:
         self.view_every = 1  # ticks between two ticks' views (a lean log: recorder.LEAN_VIEW_TICKS)
         self.record_sub: Any = None  # Zenoh subscriber with a ring channel (RECORD_QUEUE)
         self.recorded = 0
+        self.record_full = 0  # drains that found the recording queue full (its oldest samples lost)
         self.republished = 0
         self.last_target: dict[str, bytes] = {}  # the latest target reading's payload, per robot
         self.last_messages: dict[str, list[tuple[str, Any]]] = {}  # the episode's latest other readings, per robot
@@ -193,7 +197,9 @@ class TickPublisher:
         a tick: no thread wakes up per message."""
         put = zenoh.SampleKind.PUT
         check = self.record_filter.check
+        taken = 0
         while (sample := self.record_sub.try_recv()) is not None:
+            taken += 1
             if sample.kind != put:
                 continue
             key, payload = str(sample.key_expr), sample.payload.to_bytes()
@@ -201,3 +207,8 @@ class TickPublisher:
             if stamp is not None:
                 self.recorder.write(key, payload, now, stamp)
                 self.recorded += 1
+        if taken >= RECORD_QUEUE:
+            self.record_full += 1
+            if self.record_full == 1:
+                log.warning("the recording queue was full at sim time %.3f s (%d samples since the last drain): "
+                            "its oldest may have been lost, uncounted", now, taken)

@@ -26,8 +26,15 @@ LEAN_VIEW_TICKS = 8
 """A lean log's Foxglove views: once every 8 ticks (1.024 s of sim time)."""
 LEAN_PATH_S = 10.0
 """A lean log's path views: each robot's path at most every 10 s of sim time."""
-RECORD_QUEUE = 1 << 16
-"""Samples the recording queue holds between two drains (one per tick); the oldest go first."""
+RECORD_QUEUE = 1 << 13
+"""Samples the recording queue holds between two drains (one per tick); the oldest go first.
+Zenoh's ring channel allocates its ring at once, about 256 bytes a sample, and the ring's
+pages become resident one by one as its head goes round, whatever the queue's length: a
+queue of 65,536 grew the world server by 16 MB over its first 65,536 messages from other
+sessions (the first 4 minutes of an 8-robot real-time run; docs/performance.md, "Long
+runs"). 8,192 (2 MB) still holds about 350 ticks of a 6-robot ``tracking-crowd`` run's
+traffic (23 messages a tick) or 30 ticks of 16 robots sending every reading; a drain that
+finds it full says so (:meth:`world.publisher.TickPublisher.drain`)."""
 
 
 class RecordFilter:

@@ -110,10 +110,14 @@ class FoxgloveViews:
         self._tf = _schema(fm.FrameTransforms)
         self._poses = _schema(fm.PosesInFrame)
         self._moving: dict[str, Mapping[str, Any]] = {}
-        # robot -> (its path's (x, y, theta), each pose encoded once: a PosesInFrame is its
-        # header's bytes and its poses' bytes one after another, so a path message is a join,
-        # not 2,000 objects kept and encoded again per message; the same bytes)
-        self._paths: dict[str, tuple[list[tuple[float, float, float]], list[bytes]]] = {}
+        # robot -> its path, each pose encoded once: a PosesInFrame is its header's bytes and
+        # its poses' bytes one after another, so a path message is a join, not 2,000 objects
+        # kept and encoded again per message; the same bytes
+        self._paths: dict[str, list[bytes]] = {}
+        # robot -> the last pose of its path (x, y, theta), all a step needs: keeping every
+        # pose as floats too cost 144 bytes a pose, 2.3 MB at PATH_MAX for 8 robots, and
+        # grew the world server for its first 10 minutes (docs/performance.md, "Long runs")
+        self._path_last: dict[str, tuple[float, float, float]] = {}
 
     def _put(self, topic: str, schema: SchemaSpec, msg: Any, t: float, sticky: bool = False) -> None:
         """``sticky``: the static scene, which a log set writes again at the start of every file."""
@@ -151,16 +155,16 @@ class FoxgloveViews:
 
     def _path_step(self, rid: str, x: float, y: float, th: float) -> bool:
         """Extend the robot's path if it moved (>= PATH_STEP m or 0.2 rad); True if extended."""
-        raw, poses = self._paths.setdefault(rid, ([], []))
-        if raw:
-            lx, ly, lth = raw[-1]
+        poses = self._paths.setdefault(rid, [])
+        last = self._path_last.get(rid)
+        if last is not None:
+            lx, ly, lth = last
             if math.hypot(x - lx, y - ly) < PATH_STEP and abs(math.remainder(th - lth, math.tau)) < 0.2:
                 return False
-        raw.append((x, y, th))
+        self._path_last[rid] = (x, y, th)
         poses.append(fm.PosesInFrame(poses=[_pose(x, y, 0.0, th)]).encode())
         if len(poses) > PATH_MAX:  # thin the older half so messages stay bounded on long runs
             half = len(poses) // 2
-            raw[:half] = raw[:half:2]
             poses[:half] = poses[:half:2]
         return True
 
@@ -196,7 +200,7 @@ class FoxgloveViews:
             if self._path_step(str(rid), x, y, th) and self._path_due(str(rid), t):
                 head = fm.PosesInFrame(timestamp=ts, frame_id=WORLD_FRAME, poses=[]).encode()
                 self.recorder.write_encoded(PATH_TOPIC.format(robot=rid), "protobuf", self._poses,
-                                            head + b"".join(self._paths[str(rid)][1]), t)
+                                            head + b"".join(self._paths[str(rid)]), t)
         for tid, tg in state.get("targets", {}).items():
             sphere = fm.SpherePrimitive(pose=_pose(float(tg["x"]), float(tg["y"]), 0.01),
                                         size=fm.Vector3(x=0.02, y=0.02, z=0.02), color=_color(_TARGET))

@@ -55,11 +55,16 @@ def test_path_messages_are_the_bytes_of_the_whole_pose_list():
 
     sink = Sink()
     views = fv.FoxgloveViews(sink)
+    raw = []  # the path by its rule: every pose (each one a step), the older half thinned past PATH_MAX
     for k in range(fv.PATH_MAX + 300):
         t = 0.128 * k
-        views.write_state(t, {"robots": {"r1": {"x": 0.01 * k, "y": math.sin(k / 50), "theta": k / 100}}})
-    raw = views._paths["r1"][0]
+        x, y, th = 0.01 * k, math.sin(k / 50), k / 100
+        views.write_state(t, {"robots": {"r1": {"x": x, "y": y, "theta": th}}})
+        raw.append((x, y, th))
+        if len(raw) > fv.PATH_MAX:
+            raw[:len(raw) // 2] = raw[:len(raw) // 2:2]
     assert len(sink.paths) == fv.PATH_MAX + 300 and len(raw) < fv.PATH_MAX
+    assert len(views._paths["r1"]) == len(raw)
     t, data = sink.paths[-1]
     want = fm.PosesInFrame(timestamp=fv._stamp(t), frame_id=fv.WORLD_FRAME,
                            poses=[fv._pose(x, y, 0.0, th) for x, y, th in raw]).encode()
