@@ -39,6 +39,11 @@ class TargetTracks:
         for tid in [k for k, v in self.tracks.items() if t - v[4] > self.forget_s]:
             del self.tracks[tid]
 
+    def speed(self, tid: str) -> float | None:
+        """The target's estimated speed (m/s; None: no track)."""
+        tr = self.tracks.get(tid)
+        return None if tr is None else math.hypot(tr[2], tr[3])
+
     def predict(self, tid: str, ahead_s: float) -> Point | None:
         """The target's position ``ahead_s`` after its last update (None: no track)."""
         tr = self.tracks.get(tid)

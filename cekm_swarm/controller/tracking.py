@@ -10,7 +10,8 @@ Per robot (docs/tracking.md):
     the edge of the range pulls harder), localized at a stand-off: a target
     at distance d > standoff * R is localized at (alpha, d - standoff * R), a nearer one
     at (alpha, 0), so the robot closes in to 0.7 of its sensing range and then only turns
-    to face the target; it keeps the target in range instead of driving onto it;
+    to face the target; it keeps the target in range instead of driving onto it. The
+    stand-off shrinks with the target's estimated speed (:func:`standoff_distance`);
   - when no sensed target has full weight, the target field of the search goal (the
     one search behaviour, :meth:`.team.TeamView.search_goal`), weighted search_weight;
   - one inhibitory field per teammate (Eq. 8's form with wider widths), weighted 1 within
@@ -40,6 +41,17 @@ from .team import TeammateShare, TeamView, observers_nearer, to_robot, to_world
 def target_weight(n_watching: int, params: TrackingParams) -> float:
     """w_t = watched_factor ** n: 1 when no (nearer) teammate observes the target, falling as more do."""
     return params.watched_factor ** n_watching
+
+
+def standoff_distance(speed: float | None, target_range: float, params: TrackingParams) -> float:
+    """Where a sensed target is held (m): standoff * R, less standoff_speed_s times the
+    target's estimated speed (m/s; None: no track yet), never below 0. A target that moves
+    standoff_speed_s * speed in the time a robot needs to react is held that much nearer,
+    so a fast one cannot leave the range before the robot follows."""
+    held = params.standoff * target_range
+    if params.standoff_speed_s > 0.0 and speed is not None:
+        held = max(0.0, held - params.standoff_speed_s * speed)
+    return held
 
 
 def teammate_weight(d: float, target_range: float, params: TrackingParams) -> float:
@@ -113,9 +125,8 @@ class TrackingEKM:
         a = np.zeros(ekm.n)
         inputs = []
         weights = {}
-        standoff = p.standoff * R
         full = False
-        if p.predict_s > 0.0:
+        if p.predict_s > 0.0 or p.standoff_speed_s > 0.0:
             self.tracks.update(t, own)
         held: dict[str, tuple[float, float]] = {}
         for tid in sorted(sensed):
@@ -130,7 +141,8 @@ class TrackingEKM:
                 ahead = self.tracks.predict(tid, p.predict_s)
                 if ahead is not None:
                     la, ld = to_robot(pose, ahead)
-            u_d = ld - standoff if ld > standoff else 0.0
+            so = standoff_distance(self.tracks.speed(tid), R, p)
+            u_d = ld - so if ld > so else 0.0
             s = ekm.winner(la, u_d)
             a += (wt * (1.0 - p.urgency + p.urgency * min(d / R, 1.0))) * ekm.target_activity(s)
             inputs.append((s, la, u_d, wt))

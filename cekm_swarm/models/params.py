@@ -154,6 +154,10 @@ class TrackingParams:
     memory_s: a target's last reported position is forgotten after this long.
     predict_s: a sensed target is localized where its track (an alpha-beta filter of the
     robot's own sightings) says it will be predict_s from now (0: where it is seen).
+    standoff_speed_s: a sensed target with a track (:class:`~cekm_swarm.controller.anticipation.TargetTracks`)
+    is held standoff * R - standoff_speed_s * its estimated speed away, never below 0: a fast
+    target is followed from nearer, so it cannot leave the range before the robot reacts
+    (0: off; 2 s chosen on the tuning seeds, docs/tracking.md).
     group_weight: when two or more full-weight sensed targets all fit within group_radius
     * R of their centroid, the centroid is localized too (no stand-off), with a target
     field of weight group_weight: above 1 it wins over each target's, so one robot holds
@@ -176,10 +180,13 @@ class TrackingParams:
     predict_s: float = 0.0
     group_weight: float = 0.0
     group_radius: float = 0.6
+    standoff_speed_s: float = 2.0
 
     def __post_init__(self) -> None:
-        if not (self.predict_s >= 0.0 and self.group_weight >= 0.0 and self.group_radius > 0.0):
-            raise ParameterError("TrackingParams: predict_s and group_weight must be >= 0, group_radius > 0")
+        if not (self.predict_s >= 0.0 and self.group_weight >= 0.0 and self.group_radius > 0.0
+                and self.standoff_speed_s >= 0.0):
+            raise ParameterError("TrackingParams: predict_s, group_weight and standoff_speed_s must be >= 0, "
+                                 "group_radius > 0")
         _check_positive(self, "teammate_near", "teammate_far", "teammate_sigma_alpha", "teammate_sigma_d_beyond",
                         "teammate_sigma_d_near", "search_weight", "search_reached", "wander_ahead_m",
                         "share_timeout_s", "memory_s")

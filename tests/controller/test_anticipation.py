@@ -24,3 +24,12 @@ def test_the_held_group_drops_the_outlier_until_the_rest_fit():
     assert ids == ["a", "b"] and c == pytest.approx((0.2, 0.0))
     assert held_group({"a": (0.0, 0.0), "b": (1.0, 0.0)}, 0.3) is None
     assert held_group({"a": (0.0, 0.0)}, 0.3) is None
+
+
+def test_a_tracks_speed_is_the_targets_speed():
+    tr = TargetTracks()
+    assert tr.speed("t1") is None
+    for k in range(60):  # 0.06 m/s along x and 0.08 along y: 0.1 m/s
+        t = 0.256 * k
+        tr.update(t, {"t1": (0.06 * t, 0.08 * t)})
+    assert tr.speed("t1") == pytest.approx(0.1, abs=0.005)

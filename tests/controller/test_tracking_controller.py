@@ -8,7 +8,7 @@ import pytest
 
 from cekm_swarm.controller.acmommt import ACMOMMT, robot_force, target_force
 from cekm_swarm.controller.team import TeammateShare, TeamView, to_robot, to_world
-from cekm_swarm.controller.tracking import TrackingEKM, target_weight, teammate_weight
+from cekm_swarm.controller.tracking import TrackingEKM, standoff_distance, target_weight, teammate_weight
 from cekm_swarm.experiments.default_model import default_model
 from cekm_swarm.models.params import ACMOMMTParams, TrackingParams
 
@@ -154,3 +154,28 @@ def test_stand_off_turns_in_place_near_a_target(model):
     out = ctl.integrate(act, [])
     assert ctl.ekm.w[out.k][1] < 0.03
     assert np.isfinite([out.v_l, out.v_r]).all()
+
+
+def test_the_stand_off_shrinks_with_the_targets_speed():
+    p = TrackingParams(standoff=0.7, standoff_speed_s=2.0)
+    assert standoff_distance(None, 0.5, p) == pytest.approx(0.35)  # no track yet: the stand-off
+    assert standoff_distance(0.05, 0.5, p) == pytest.approx(0.25)
+    assert standoff_distance(0.5, 0.5, p) == 0.0  # never below 0
+    assert standoff_distance(0.05, 0.5, TrackingParams(standoff=0.7, standoff_speed_s=0.0)) == pytest.approx(0.35)  # off
+
+
+def test_a_fast_target_inside_the_stand_off_is_followed_from_nearer(model):
+    """The same sightings of a target circling the robot at 0.6 R and 0.1 m/s: with a fixed
+    stand-off (0.7 R) it is localized at the goal state; with the speed's, beyond it."""
+    pose = (1.0, 1.0, 0.0)
+    u_d = {}
+    for on in (0.0, 2.0):
+        ctl = TrackingEKM("r1", model, R, TrackingParams(standoff_speed_s=on))
+        view = TeamView("r1")
+        for k in range(30):
+            t = 0.256 * k
+            phi = 0.1 * t / (0.6 * R)
+            act = ctl.localize(t, pose, {"a": (phi, 0.6 * R)}, view)
+        u_d[on] = act.inputs[0][2]
+    assert u_d[0.0] == 0.0
+    assert u_d[2.0] > 0.05 * R
