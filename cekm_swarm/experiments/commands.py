@@ -115,7 +115,7 @@ def run_grid_cmd(out_dir, quick: bool, seeds: list[int], duration: float, model_
     from .grid_report import grid_doc, tables_markdown, write_grid
 
     model_path = _trained_model_path(model_path)
-    doc = grid_doc(quick, seeds, duration, model_path, workers, progress=not quiet)
+    doc = grid_doc(quick, seeds, duration, model_path, workers, progress=not quiet, out_dir=out_dir)
     paths = write_grid(doc, out_dir)
     click.echo(tables_markdown(doc).split("\n\n")[0])
     beat = [d for d in doc["cells"] if d["cekm_vs_best"]["cekm_above_all"]]

@@ -16,20 +16,29 @@ DEFAULT_SEEDS = (1, 5)  # held-out seeds 1..5; tuning used 1001-1099
 DEFAULT_DURATION = 60.0
 
 
-def git_commit() -> dict[str, Any]:
-    """The checkout's commit and whether it had changes (None outside a git checkout)."""
-    here = Path(__file__).resolve().parent
+def git_commit(ignore: Path | None = None, where: Path | None = None) -> dict[str, Any]:
+    """The checkout's commit and whether it had changes to tracked files (None outside a
+    git checkout). Changes under ``ignore`` (the run's own output directory, which a rerun
+    over the committed results rewrites) do not count. ``where``: a directory of the
+    checkout (default: this package's)."""
+    here = where if where is not None else Path(__file__).resolve().parent
     try:
-        sha = subprocess.run(["git", "rev-parse", "HEAD"], cwd=here, capture_output=True, text=True, check=True).stdout.strip()
-        dirty = bool(subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=here,
-                                    capture_output=True, text=True, check=True).stdout.strip())
+        def git(*args: str) -> str:
+            return subprocess.run(["git", *args], cwd=here, capture_output=True, text=True, check=True).stdout
+
+        sha = git("rev-parse", "HEAD").strip()
+        top = Path(git("rev-parse", "--show-toplevel").strip())
+        changed = [line[3:].split(" -> ")[-1] for line in git("status", "--porcelain", "--untracked-files=no").splitlines()]
     except (OSError, subprocess.CalledProcessError):
         return {"commit": None, "dirty": None}
-    return {"commit": sha, "dirty": dirty}
+    if ignore is not None:
+        out = Path(ignore).resolve()
+        changed = [c for c in changed if not (top / c).resolve().is_relative_to(out)]
+    return {"commit": sha, "dirty": bool(changed)}
 
 
 def grid_doc(quick: bool, seeds: list[int], duration: float, model_path, workers, progress: bool,
-             tparams=None) -> dict[str, Any]:
+             tparams=None, out_dir: Path | None = None) -> dict[str, Any]:
     """Run the grid and summarize it."""
     import time
 
@@ -44,7 +53,7 @@ def grid_doc(quick: bool, seeds: list[int], duration: float, model_path, workers
             "scenario_rule": "square walled arena of side 2 m * sqrt(n / 2); round(m/n * n) random-walk targets "
                              "(speed a fraction of v* = 0.15625 m/s, turn noise 1 rad/sqrt(s)) and n robots at uniform "
                              "starts; with obstacles round(n / 2) discs and boxes (cekm_swarm/experiments/grid_design.py)",
-            "wall_seconds": round(wall, 1), "workers": workers, **git_commit(),
+            "wall_seconds": round(wall, 1), "workers": workers, **git_commit(ignore=out_dir),
             "cells": per_cell, "by_axis": by_axis(per_cell, GRID_CONTROLLERS),
             "by_pair": by_pair(per_cell, GRID_CONTROLLERS)}
 

@@ -68,3 +68,26 @@ def test_cekm_experiment_tracking_grid_quick_writes_every_cell_and_the_heatmaps(
     assert (out / "grid.png").read_bytes()[:4] == b"\x89PNG" and "| robots |" in (out / "tables.md").read_text()
     bad = CliRunner().invoke(main, ["experiment", "tracking", "--quick", "--out", str(tmp_path / "x")])
     assert bad.exit_code == 2 and "--grid" in bad.output
+
+
+@pytest.mark.slow  # runs git
+def test_the_results_commit_is_dirty_for_changed_code_not_for_their_own_directory(tmp_path):
+    import subprocess
+
+    from cekm_swarm.experiments.grid_report import git_commit
+
+    def git(*args):
+        subprocess.run(["git", *args], cwd=tmp_path, check=True, capture_output=True)
+
+    git("init", "-q")
+    (tmp_path / "out").mkdir()
+    (tmp_path / "out" / "results.json").write_text("{}")
+    (tmp_path / "code.py").write_text("x = 1\n")
+    git("add", ".")
+    git("-c", "user.name=t", "-c", "user.email=t@t", "commit", "-q", "-m", "c")
+    assert git_commit(where=tmp_path)["dirty"] is False
+    (tmp_path / "out" / "results.json").unlink()  # a rerun over the committed results
+    assert git_commit(where=tmp_path)["dirty"] is True
+    assert git_commit(ignore=tmp_path / "out", where=tmp_path)["dirty"] is False
+    (tmp_path / "code.py").write_text("x = 2\n")
+    assert git_commit(ignore=tmp_path / "out", where=tmp_path)["dirty"] is True
