@@ -43,6 +43,7 @@ def grid_doc(quick: bool, seeds: list[int], duration: float, model_path, workers
     import time
 
     cells = design(QUICK) if quick else design()
+    checkout = git_commit(ignore=out_dir)  # the code that runs: taken before, not after
     t0 = time.perf_counter()
     rows = run_grid(cells, seeds, duration, model_path, workers, progress, GRID_CONTROLLERS, tparams)
     wall = time.perf_counter() - t0
@@ -53,7 +54,7 @@ def grid_doc(quick: bool, seeds: list[int], duration: float, model_path, workers
             "scenario_rule": "square walled arena of side 2 m * sqrt(n / 2); round(m/n * n) random-walk targets "
                              "(speed a fraction of v* = 0.15625 m/s, turn noise 1 rad/sqrt(s)) and n robots at uniform "
                              "starts; with obstacles round(n / 2) discs and boxes (cekm_swarm/experiments/grid_design.py)",
-            "wall_seconds": round(wall, 1), "workers": workers, **git_commit(ignore=out_dir),
+            "wall_seconds": round(wall, 1), "workers": workers, **checkout,
             "cells": per_cell, "by_axis": by_axis(per_cell, GRID_CONTROLLERS),
             "by_pair": by_pair(per_cell, GRID_CONTROLLERS)}
 
