@@ -40,6 +40,7 @@ class RunStats:
     missed_ticks: dict[int, int] = field(default_factory=dict)  # tick -> robots that missed it (the first ones)
     first_tick_s: float | None = None  # real time: tick 0's readings to its last command
     tick_loop_seconds: float = 0.0  # wall s from the first tick's readings to the last tick
+    tick_loop_cpu_end: float | None = None  # the server's CPU s (time.process_time) when the tick loop ended
 
     def event(self, kind: str, t: float, doc: dict[str, Any]) -> None:
         doc = {"event": kind, "t": t, **doc}

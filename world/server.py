@@ -234,6 +234,7 @@ class WorldServer:
                 aborted = not await self._ticks()
             finally:
                 self.stats.tick_loop_seconds = loop.time() - start
+                self.stats.tick_loop_cpu_end = time.process_time()  # every thread's, ended ones too
             self._progress()
             await asyncio.sleep(0.05)  # what is still in flight gets recorded
             for sub in cmd_subs:
@@ -266,7 +267,7 @@ class WorldServer:
                 raise Stopped
             freeze_startup_heap()  # no full collection walks the world, its log and its session mid-run
             emit("START", {"mode": cfg.mode, "robots": self.robots, "scenario": self.scenario.name,
-                           "seed": self.world.seed})
+                           "seed": self.world.seed, "cpu_s": time.process_time()})
             while True:
                 readings = ep.readings()
                 inbox.opened(ep.t)
@@ -338,8 +339,8 @@ class WorldServer:
         except OSError as exc:  # the same full disk: the outcome goes out on the DONE line only
             log.error("cannot write %s: %s", self.out / "outcome.json", exc.strerror or exc)
             doc["outputs_unwritten"] = f"{exc.strerror or exc}"
-        emit("DONE", {k: doc[k] for k in ("sim_seconds", "wall_seconds", "aborted", "robots") + (
-            ("log_full",) if "log_full" in doc else ())})
+        emit("DONE", {"cpu_s": self.stats.tick_loop_cpu_end, **{k: doc[k] for k in (
+            "sim_seconds", "wall_seconds", "aborted", "robots") + (("log_full",) if "log_full" in doc else ())}})
         return doc
 
 

@@ -110,13 +110,16 @@ class CpuSnapshot:
     """The machine's :func:`host_times` at the same moment."""
 
 
-def snapshot(pids: Mapping[str, int]) -> CpuSnapshot:
-    """Read every process of ``pids`` (label -> pid) and the launcher's own CPU now."""
+def snapshot(pids: Mapping[str, int], reported: Mapping[tuple[str, int], float] | None = None) -> CpuSnapshot:
+    """Read every process of ``pids`` (label -> pid) and the launcher's own CPU now;
+    a process that ``reported`` its CPU seconds itself ((label, pid) -> s) is taken at its
+    word, even when it is gone by now."""
     out: dict[tuple[str, int], float] = {("launcher", os.getpid()): own_cpu_seconds()}
     for label, pid in pids.items():
         s = cpu_seconds(pid)
         if s is not None:
             out[(label, pid)] = s
+    out.update(reported or {})
     return CpuSnapshot(out, host_times())
 
 

@@ -69,15 +69,25 @@ class WorldHost:
                 extra = {k: v for k, v in doc.items() if k not in ("event", "t")}
                 self.say(f"world event at t={doc['t']:.2f} s: {doc['event']} {extra}")
             elif kind == "START" and doc is not None:
-                self._cpu_start, self._cpu_end = snapshot(self._pids()), None
+                self._cpu_start, self._cpu_end = snapshot(self._pids(), self._world_cpu(doc)), None
                 self.say(f"world started ticking ({doc['mode']}, seed {doc['seed']})")
             elif kind == "DONE" and doc is not None:
                 if self._cpu_start is not None and self._cpu_end is None:
-                    self._cpu_end = snapshot(self._pids())
+                    self._cpu_end = snapshot(self._pids(), self._world_cpu(doc))
                 self.say(f"world done at t={doc['sim_seconds']:.2f} s of sim time, {doc['wall_seconds']:.1f} s of wall time")
             elif text:
                 self.say(f"world: {text}")
 
+
+    def _world_cpu(self, doc: dict) -> dict[tuple[str, int], float]:
+        """The world server's own CPU seconds from its START or DONE line (every thread's,
+        ended ones too, when it wrote the line). Read from /proc when the launcher gets to
+        the line, they would miss the threads that ended meanwhile, or all of a server
+        that already exited."""
+        cpu = doc.get("cpu_s")
+        if self.world_proc is None or not isinstance(cpu, (int, float)) or cpu < 0:
+            return {}
+        return {("world/server", self.world_proc.pid): float(cpu)}
 
     async def _start_world(self, where: str, *, hosts_router: bool, checkpoints: Path | None) -> None:
         """Start the world server (hosting the router at ``where``, or joining it) and wait
@@ -138,4 +148,3 @@ class WorldHost:
 
     def _world_ended(self) -> bool:
         return self.world_proc is not None and self.world_proc.returncode is not None
-

@@ -48,6 +48,14 @@ def test_snapshot_includes_the_launcher_itself():
     assert [k[0] for k in snap.seconds] == ["launcher"]
 
 
+def test_a_process_that_reports_its_own_cpu_is_taken_at_its_word_even_when_gone():
+    gone = 2**22 + 12345
+    start = snapshot({"world/server": gone}, {("world/server", gone): 1.5})
+    end = snapshot({}, {("world/server", gone): 2.0})  # exited before the launcher read its DONE line
+    assert start.seconds[("world/server", gone)] == 1.5
+    assert cpu_per_tick(start, end, ticks=10, robots=1)["ms_per_tick"]["world"] == 50.0
+
+
 def test_host_shares_of_idle_and_stolen_time():
     # all, idle + iowait, steal clock ticks: 1000 ticks passed, 250 idle, 100 stolen
     assert host_shares((5000, 2000, 300), (6000, 2250, 400)) == {"idle": 0.25, "steal": 0.1}
