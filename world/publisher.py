@@ -7,14 +7,19 @@ sessions sent, drained once per tick through :class:`world.recorder.RecordFilter
 Held readings: a reading the run's plan lets it hold (``RunPlan.held_readings``: every
 reader a pure node of that reading alone) is left out in a tick where it equals the last
 one sent, and the robot's ``sense/unchanged`` names it instead, with the time it was last
-sent (published before the readings). It is sent anyway once it has been left out for
-:data:`HOLD_TICKS` ticks, so its readers hear from the world within their stamp window
-(``cekm_swarm.protocol.stamps.FUTURE_S``). A stalled tick published again sends every
-reading."""
+sent (published before the readings). It is sent anyway once every :data:`HOLD_TICKS`
+ticks, so its readers hear from the world within their stamp window
+(``cekm_swarm.protocol.stamps.FUTURE_S``); the keys take the cycle's ticks in turn
+(:attr:`TickPublisher.phase`), so a team's refreshes do not all wake their modules in one tick
+(they did: at 32 robots, 384 obstacle modules every 8th tick, the run's deadline misses).
+A stalled tick published again sends every reading, and so does the next tick for a
+robot one of whose nodes (re)joined the run (:meth:`TickPublisher.rejoined`): a restarted
+node that holds no value yet gets one at once."""
 
 from __future__ import annotations
 
 import logging
+from collections import deque
 from typing import Any
 
 import zenoh
@@ -30,8 +35,8 @@ from .sense import SENDER, SenseEncoder
 log = logging.getLogger("world.publisher")
 
 HOLD_TICKS = int(round(FUTURE_S / TICK_S)) - 1
-"""Ticks a held reading may be left out in a row (7): a reader's next stamp is then at most
-8 ticks after its last, inside the window it believes."""
+"""The cycle of a held reading's refresh (7 ticks): it is sent at least once in it, so a
+reader's next stamp is at most 7 ticks after its last, inside the 8-tick window it believes."""
 
 
 class TickPublisher:
@@ -44,6 +49,8 @@ class TickPublisher:
         self.held = {r: h for r, h in (held or {}).items() if h}  # robot -> the readings it may leave out
         self.last_sent: dict[str, tuple[Any, float]] = {}  # held reading key -> (what it said, when it was sent)
         self.left_out = 0  # readings left out, unchanged
+        self.phase: dict[str, int] = {}  # held reading key -> its tick of the refresh cycle, in turn as first seen
+        self._rejoined: deque[str] = deque()  # robots to send every reading to next tick (any thread appends)
         self.record_filter = record_filter
         self.pubs: Any = None  # runtime.bridge.Publishers
         self.recorder: Any = None  # runtime.mcap_log.McapRecorder
@@ -86,11 +93,14 @@ class TickPublisher:
         named in its ``sense/unchanged`` (sent now); the others become the last ones sent."""
         t, last = rd.t, self.last_sent
         oldest = t - (HOLD_TICKS + 0.5) * TICK_S  # sent before this: due again
+        cycle = self.episode.tick % HOLD_TICKS
+        phase = self.phase
         same: list[tuple[str, float]] = []
         for key, content in self._encoder(rd.robot).contents(rd):
             if key in held:
                 was = last.get(key)
-                if was is not None and was[0] == content and was[1] > oldest:
+                if (was is not None and was[0] == content and was[1] > oldest
+                        and phase.setdefault(key, len(phase) % HOLD_TICKS) != cycle):
                     same.append((key, was[1]))
                 else:
                     last[key] = (content, t)
@@ -98,7 +108,8 @@ class TickPublisher:
             key = self.keys.node_key(rd.robot, rel)
             if key in held:
                 was = last.get(key)
-                if was is not None and was[1] > oldest and with_stamp(was[0], t) == msg:
+                if (was is not None and was[1] > oldest and phase.setdefault(key, len(phase) % HOLD_TICKS) != cycle
+                        and with_stamp(was[0], t) == msg):
                     same.append((key, was[1]))
                 else:
                     last[key] = (msg, t)
@@ -113,9 +124,18 @@ class TickPublisher:
     def _wanted(self, robot: str) -> set[str] | None:
         return None if self.sends is None else self.sends[robot]
 
+    def rejoined(self, robot: str) -> None:
+        """A node of ``robot`` (re)joined the run: the next tick sends all its readings, so
+        the values held downstream of them exist again (safe from any thread)."""
+        self._rejoined.append(robot)
+
     def publish(self, readings: list[TickReadings]) -> dict[str, Any]:
         """The tick's readings, clock and state (in this order); returns the state."""
         ep = self.episode
+        while self._rejoined:
+            head = f"{self.keys.root}/{self._rejoined.popleft()}/"
+            for key in [k for k in self.last_sent if k.startswith(head)]:
+                del self.last_sent[key]
         for rd in readings:
             want = self._wanted(rd.robot)
             more = ep.messages(rd.robot)

@@ -223,6 +223,7 @@ class WorldServer:
             if cfg.wait_modules > 0 and not await self._wait_for_nodes(session, cfg.wait_modules):
                 self._request_stop()
             t_wall0 = time.perf_counter()
+            rejoins = self._watch_rejoins(session) if pub.held else None
             for r in self.robots:  # every node's subscription must be known before tick 0 is published
                 for k in self._world_keys(r):
                     if self.stop.is_set():
@@ -245,6 +246,8 @@ class WorldServer:
                 except LogFull as exc:
                     self._lost_log(exc, self.episode.t)
             token.undeclare()
+            if rejoins is not None:
+                rejoins.undeclare()
             for q in served:
                 q.undeclare()
             pub.record_sub.undeclare()
@@ -289,6 +292,24 @@ class WorldServer:
         except LogFull as exc:  # from the tick's log: the run cannot be recorded further
             self._lost_log(exc, ep.t)
             return False
+
+    def _watch_rejoins(self, session: zenoh.Session) -> Any:
+        """A liveliness subscriber telling the publisher of each robot node that (re)joins
+        from now on (a restart): the robot's next tick sends every reading, so a node that
+        lost the values standing for left-out readings gets them at once."""
+        put, robots = zenoh.SampleKind.PUT, set(self.robots)
+
+        def on_token(sample: zenoh.Sample) -> None:
+            if sample.kind != put:
+                return
+            try:
+                owner = self.keys.parse(str(sample.key_expr)).robot
+            except CekmError:
+                return
+            if owner in robots:
+                self.publisher.rejoined(owner)
+
+        return session.liveliness().declare_subscriber(self.keys.alive_all(), on_token)
 
     async def _wait_for_nodes(self, session: zenoh.Session, timeout: float) -> bool:
         """Hold tick 0 until every node of every robot holds its liveliness token (at most

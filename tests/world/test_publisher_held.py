@@ -5,6 +5,8 @@ again sends every reading."""
 
 from __future__ import annotations
 
+from collections import Counter
+
 from cekm_swarm.graph.check import check_graph
 from cekm_swarm.protocol import DEFAULT_KEYS as K
 from cekm_swarm.protocol import DropCounter, Unchanged, decode
@@ -82,6 +84,35 @@ def test_a_held_reading_is_sent_again_after_hold_ticks_and_on_a_republish():
     pub.republish(ep.readings(), ["r1"])
     again = {k for k, _ in pub.pubs.sent[before:]}
     assert {K.sense_range("r1", j) for j in range(12)} <= again
+
+
+def test_held_readings_are_sent_again_each_in_its_own_tick_of_the_cycle():
+    pub, ep = publisher()
+    tick(pub, ep)  # tick 0 sends everything
+    sent_at: dict[str, list[int]] = {}
+    for k in range(1, 2 * HOLD_TICKS + 1):
+        _, out = tick(pub, ep)
+        for key, _ in out:
+            sent_at.setdefault(key, []).append(k)
+    quiet = [K.sense_range("r1", j) for j in range(12) if len(sent_at.get(K.sense_range("r1", j), [])) <= 2]
+    assert len(quiet) >= 6
+    for key in quiet:  # a standing robot's unchanged reading: once a cycle, in its own phase
+        assert [k % HOLD_TICKS for k in sent_at[key]] == [pub.phase[key]] * 2, (key, sent_at[key])
+    per_tick = Counter(pub.phase.values())  # the cycle's ticks in turn: as even as it gets
+    assert len(per_tick) == HOLD_TICKS and max(per_tick.values()) - min(per_tick.values()) <= 1
+
+
+def test_a_robot_whose_node_rejoined_gets_every_reading_next_tick():
+    pub, ep = publisher()
+    for _ in range(3):
+        _, out = tick(pub, ep)
+    ranges = {K.sense_range("r1", j) for j in range(12)}
+    assert not ranges <= {k for k, _ in out}  # held: some left out
+    pub.rejoined("r1")
+    _, out = tick(pub, ep)
+    assert ranges <= {k for k, _ in out}
+    _, out = tick(pub, ep)
+    assert not ranges <= {k for k, _ in out}  # and held again after
 
 
 def test_without_holding_every_reading_is_sent_every_tick():
