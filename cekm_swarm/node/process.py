@@ -39,7 +39,8 @@ from cekm_swarm.protocol import DropCounter, KeyKind
 from cekm_swarm.protocol.stamps import StampWindow
 
 from .api import Context, make_params
-from .timing import DirectGate, LockstepGate, RealtimeGate, Runner, tick_of
+from .direct_gate import DirectGate
+from .timing import LockstepGate, RealtimeGate, Runner, tick_of
 from .wire import Decoder, Encoder
 
 EXIT_CANNOT_START = 78

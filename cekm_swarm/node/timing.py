@@ -3,6 +3,8 @@ node in its own process (lockstep and real time) and for a whole graph in one pr
 
 * :func:`gather` builds a step's inputs at tick k from any store of received values, by
   the rule (delay 0: the producer's latest run at or before k; delay 1: strictly before).
+* :class:`~cekm_swarm.node.direct_gate.DirectGate`: a stateless node of one key runs on
+  every value as it comes, in both modes.
 * :class:`LockstepGate`: a node runs at a due tick once it holds every value the rule
   names from every live producer, whatever order they arrive in; ticks run in increasing
   order. A value that arrives again for what the last run used (the world re-publishes a
@@ -23,6 +25,7 @@ from subscriptions, :mod:`cekm_swarm.node.inprocess` from a whole graph's output
 
 from __future__ import annotations
 
+import copy
 import logging
 from collections import deque
 from collections.abc import Callable, Iterable
@@ -48,10 +51,11 @@ def tick_of(stamp: float) -> int:
 
 
 def restamp(msg: Any, t: float) -> Any:
-    """``msg`` as its pure producer would have sent it at sim time ``t``."""
-    from cekm_swarm.protocol import with_stamp
-
-    return with_stamp(msg, t)
+    """``msg`` as its pure producer would have sent it at tick time ``t``: a shallow copy,
+    not checked again (``msg`` was checked when received; ``t`` is a tick's time)."""
+    out = copy.copy(msg)
+    out.stamp = t
+    return out
 
 
 def _never(owner: str) -> bool:
@@ -167,6 +171,22 @@ class LockstepGate:
         self.trigger = _triggers(self.node)
         self.watched = {s.key for b in self.node.bindings for s in b.sources}
         self.sources = {s.key: (s, b.delay) for b in self.node.bindings for s in b.sources}
+        self._needs = [(s.key, s.period, b.delay, s.owner) for b in self.node.bindings for s in b.sources]
+        self._waiting: dict[int, tuple[str, int, str]] = {}  # candidate tick -> a value it still lacks
+
+    def _lacks(self, c: int) -> bool:
+        """Whether the run at tick ``c`` still lacks a value, the one it lacked last time
+        looked at first: most arrivals complete no run, and this spares building their inputs."""
+        store, gone, w = self.store, self.gone, self._waiting.get(c)
+        if w is not None and w[2] not in gone and w[1] not in store.get(w[0], ()):
+            return True
+        for key, period, delay, owner in self._needs:
+            n = needed_tick(c, period, delay)
+            if n is not None and owner not in gone and n not in store.get(key, ()):
+                self._waiting[c] = (key, n, owner)
+                return True
+        self._waiting.pop(c, None)
+        return False
 
     def hold(self, key: str, k: int, since: int) -> list[tuple[str, Any]]:
         """``key``'s value of tick ``since`` stands for tick ``k`` (module docstring)."""
@@ -258,6 +278,8 @@ class LockstepGate:
         while self.candidates:
             ready = None
             for c in sorted(self.candidates):
+                if self._lacks(c):
+                    continue
                 inputs, missing = gather(self.node, c, self._lookup, self.gone.__contains__)
                 if not missing:
                     ready = (c, inputs)
@@ -272,6 +294,7 @@ class LockstepGate:
             self.used = {key: n for key, (src, delay) in self.sources.items()
                          if delay == 0 and (n := needed_tick(c, src.period, 0)) is not None}
             self.candidates = {x for x in self.candidates if x > c}
+            self._waiting = {x: w for x, w in self._waiting.items() if x > c}
             if c % 8 == 0:  # what no later run reads: dropped now and then (KEEP_TICKS bounds it anyway)
                 self._forget(c)
             out += sent
@@ -298,48 +321,6 @@ class LockstepGate:
         """The recent runs' outputs, oldest first: what a (re)started reader of them asks
         for (a teammate reads the previous run's share, which it missed while down)."""
         return [m for run in self.recent_out for m in run]
-
-
-class DirectGate:
-    """The gate of a node that keeps no state and reads one key of its own period at the
-    same tick (an obstacle localization module: ``sense/range/j`` every tick): the rule
-    then is to run on every value as it comes, in lockstep and in real time alike. A value
-    that comes again (the world re-publishing a stalled tick) runs again and gives the
-    same outputs, which is the catch-up the other gates do by sending again."""
-
-    def __init__(self, runner: Runner, drop: Drop = lambda key, why: None) -> None:
-        self.runner, self.drop = runner, drop
-        node = runner.plan
-        (b,) = node.bindings
-        (self.source,) = b.sources
-        self.key, self.port = self.source.key, b.port
-        self.repeats = 0
-
-    @staticmethod
-    def fits(node: NodePlan) -> bool:
-        """Whether ``node`` may take this gate."""
-        if node.stateful or node.clock_key is not None or len(node.bindings) != 1:
-            return False
-        b = node.bindings[0]
-        return (len(b.sources) == 1 and b.delay == 0 and not b.team and not b.many
-                and b.sources[0].period == node.period)
-
-    def put(self, key: str, msg: Any) -> list[tuple[str, Any]]:
-        if key != self.key:
-            return []
-        return self.runner.run(tick_of(msg.stamp), Inputs({self.port: msg}))
-
-    def hold(self, key: str, k: int, since: int) -> list[tuple[str, Any]]:
-        return []  # its one input is a reading: a held reading is a run left out, nothing to do
-
-    def hold_all(self, holds: Iterable[tuple[str, int, int]]) -> list[tuple[str, Any]]:
-        return []
-
-    def teammate(self, robot: str, alive: bool) -> list[tuple[str, Any]]:
-        return []
-
-    def resend(self) -> list[tuple[str, Any]]:
-        return []
 
 
 @dataclass
@@ -481,4 +462,4 @@ def realtime_inputs_stale(node: NodePlan) -> dict[str, float]:
     return {s.key: b.stale_s for b in node.bindings for s in b.sources}
 
 
-__all__ = ["gather", "Runner", "DirectGate", "LockstepGate", "RealtimeGate", "KEEP_TICKS", "tick_of"]
+__all__ = ["gather", "Runner", "LockstepGate", "RealtimeGate", "KEEP_TICKS", "tick_of"]

@@ -1,0 +1,54 @@
+"""The gate of a node that runs on every value as it comes (an obstacle localization
+module): the rule of :mod:`cekm_swarm.node.timing` for a stateless node of one key."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from typing import Any
+
+from cekm_swarm.graph.plan import NodePlan
+
+from .api import Inputs
+from .timing import Drop, Runner, tick_of
+
+
+class DirectGate:
+    """The gate of a node that keeps no state and reads one key of its own period at the
+    same tick (an obstacle localization module: ``sense/range/j`` every tick): the rule
+    then is to run on every value as it comes, in lockstep and in real time alike. A value
+    that comes again (the world re-publishing a stalled tick) runs again and gives the
+    same outputs, which is the catch-up the other gates do by sending again."""
+
+    def __init__(self, runner: Runner, drop: Drop = lambda key, why: None) -> None:
+        self.runner, self.drop = runner, drop
+        node = runner.plan
+        (b,) = node.bindings
+        (self.source,) = b.sources
+        self.key, self.port = self.source.key, b.port
+        self.repeats = 0
+
+    @staticmethod
+    def fits(node: NodePlan) -> bool:
+        """Whether ``node`` may take this gate."""
+        if node.stateful or node.clock_key is not None or len(node.bindings) != 1:
+            return False
+        b = node.bindings[0]
+        return (len(b.sources) == 1 and b.delay == 0 and not b.team and not b.many
+                and b.sources[0].period == node.period)
+
+    def put(self, key: str, msg: Any) -> list[tuple[str, Any]]:
+        if key != self.key:
+            return []
+        return self.runner.run(tick_of(msg.stamp), Inputs({self.port: msg}))
+
+    def hold(self, key: str, k: int, since: int) -> list[tuple[str, Any]]:
+        return []  # its one input is a reading: a held reading is a run left out, nothing to do
+
+    def hold_all(self, holds: Iterable[tuple[str, int, int]]) -> list[tuple[str, Any]]:
+        return []
+
+    def teammate(self, robot: str, alive: bool) -> list[tuple[str, Any]]:
+        return []
+
+    def resend(self) -> list[tuple[str, Any]]:
+        return []
