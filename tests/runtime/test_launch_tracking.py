@@ -156,3 +156,17 @@ def test_realtime_crowd_drops_a_killed_robot_within_a_second_and_goes_on(tmp_pat
         delays[r] = drops[0]["wall"] - killed_at
     print(f"teammates dropped r6 after (s from the SIGKILL): {delays}")
     assert max(delays.values()) < 1.0, delays
+    # r6's nodes came back: its next tick carried every range reading, held ones too, so its
+    # restarted motor had at once the values its held fields stand on (world/publisher.py)
+    from mcap.reader import make_reader
+
+    from cekm_swarm.protocol import decode
+
+    ranges = {K.sense_range("r6", j) for j in range(12)}
+    sent: dict[float, set[str]] = {}
+    with open(out / "run.mcap", "rb") as f:
+        for _, channel, m in make_reader(f).iter_messages(topics=sorted(ranges)):
+            msg = decode(channel.topic, m.data)
+            if msg.sender == "world":
+                sent.setdefault(msg.stamp, set()).add(channel.topic)
+    assert [t for t, keys in sent.items() if t > 0 and keys == ranges], sorted(sent)[:20]
