@@ -11,7 +11,9 @@ Per robot (docs/tracking.md):
     at distance d > standoff * R is localized at (alpha, d - standoff * R), a nearer one
     at (alpha, 0), so the robot closes in to 0.7 of its sensing range and then only turns
     to face the target; it keeps the target in range instead of driving onto it. The
-    stand-off shrinks with the target's estimated speed (:func:`standoff_distance`);
+    stand-off shrinks with the target's estimated speed (:func:`standoff_distance`). A
+    target more than face_angle to a side is localized at (+-face_angle, 0), so the robot
+    turns in place toward it first;
   - when no sensed target has full weight, the target field of the search goal (the
     one search behaviour, :meth:`.team.TeamView.search_goal`), weighted search_weight;
   - one inhibitory field per teammate (Eq. 8's form with wider widths), weighted 1 within
@@ -142,7 +144,10 @@ class TrackingEKM:
                 if ahead is not None:
                     la, ld = to_robot(pose, ahead)
             so = standoff_distance(self.tracks.speed(tid), R, p)
-            u_d = ld - so if ld > so else 0.0
+            if abs(la) > p.face_angle:  # beside or behind: turn in place toward it first
+                la, u_d = math.copysign(p.face_angle, la), 0.0
+            else:
+                u_d = ld - so if ld > so else 0.0
             s = ekm.winner(la, u_d)
             a += (wt * (1.0 - p.urgency + p.urgency * min(d / R, 1.0))) * ekm.target_activity(s)
             inputs.append((s, la, u_d, wt))

@@ -162,6 +162,14 @@ class TrackingParams:
     * R of their centroid, the centroid is localized too (no stand-off), with a target
     field of weight group_weight: above 1 it wins over each target's, so one robot holds
     the group between them instead of following one (0: off).
+    face_angle (rad): a sensed target more than face_angle to either side of the robot's
+    heading is localized at (+-face_angle, 0), a goal state on its side, whatever its
+    distance, so the robot turns in place toward it before it drives (pi: off). Without it
+    a target beside or behind the robot has a neuron as winner that may not win the motor
+    competition (a reverse one, or one the map did not converge), and the robot drives a
+    forward arc away from it; the map's turn-in-place neurons beyond about 1.1 rad turn
+    slowly or the wrong way, hence the side's angle rather than the target's (1.0 rad
+    chosen on the tuning seeds, docs/tracking.md).
     """
 
     standoff: float = 0.7
@@ -181,8 +189,11 @@ class TrackingParams:
     group_weight: float = 0.0
     group_radius: float = 0.6
     standoff_speed_s: float = 2.0
+    face_angle: float = 1.0
 
     def __post_init__(self) -> None:
+        if not 0.0 < self.face_angle <= math.pi:
+            raise ParameterError(f"TrackingParams.face_angle must be in (0, pi], got {self.face_angle!r}")
         if not (self.predict_s >= 0.0 and self.group_weight >= 0.0 and self.group_radius > 0.0
                 and self.standoff_speed_s >= 0.0):
             raise ParameterError("TrackingParams: predict_s, group_weight and standoff_speed_s must be >= 0, "

@@ -9,6 +9,7 @@ import pytest
 from cekm_swarm.controller.acmommt import ACMOMMT, robot_force, target_force
 from cekm_swarm.controller.team import TeammateShare, TeamView, to_robot, to_world
 from cekm_swarm.controller.tracking import TrackingEKM, standoff_distance, target_weight, teammate_weight
+from cekm_swarm.errors import ParameterError
 from cekm_swarm.experiments.default_model import default_model
 from cekm_swarm.models.params import ACMOMMTParams, TrackingParams
 
@@ -170,7 +171,8 @@ def test_a_fast_target_inside_the_stand_off_is_followed_from_nearer(model):
     pose = (1.0, 1.0, 0.0)
     u_d = {}
     for on in (0.0, 2.0):
-        ctl = TrackingEKM("r1", model, R, TrackingParams(standoff_speed_s=on))
+        # face_angle off: the target circles to 2.5 rad, beyond the turn-in-place rule's 1 rad
+        ctl = TrackingEKM("r1", model, R, TrackingParams(standoff_speed_s=on, face_angle=math.pi))
         view = TeamView("r1")
         for k in range(30):
             t = 0.256 * k
@@ -179,3 +181,39 @@ def test_a_fast_target_inside_the_stand_off_is_followed_from_nearer(model):
         u_d[on] = act.inputs[0][2]
     assert u_d[0.0] == 0.0
     assert u_d[2.0] > 0.05 * R
+
+
+def test_a_target_behind_is_turned_to_in_place(model):
+    """A target beside or behind the robot (|alpha| > face_angle) is localized at
+    (+-face_angle, 0), a goal state on its side: the robot turns in place toward it. With
+    the rule off (face_angle = pi) the same sighting makes the robot drive a forward arc
+    (its own winner is a reverse neuron, which may not win), away from the target."""
+    pose = (1.0, 1.0, 0.0)
+    for alpha in (2.6, -2.6, 1.6, -1.5):
+        ctl = TrackingEKM("r1", model, R, TrackingParams(face_angle=1.0))
+        act = ctl.localize(0.0, pose, {"a": (alpha, 0.8 * R)}, TeamView("r1"))
+        (s, la, u_d, wt), = act.inputs
+        assert (la, u_d, wt) == (math.copysign(1.0, alpha), 0.0, 1.0)
+        out = ctl.integrate(act, [])
+        assert out.k == s  # Eq. 11 with the localized input
+        assert math.copysign(1.0, out.v_r - out.v_l) == math.copysign(1.0, alpha)  # toward its side
+        assert abs(out.v_l + out.v_r) / 2.0 < 0.01  # in place: it does not drive away
+    off = TrackingEKM("r1", model, R, TrackingParams(face_angle=math.pi))
+    out = off.integrate(off.localize(0.0, pose, {"a": (2.6, 0.9 * R)}, TeamView("r1")), [])
+    assert out.s is None and (out.v_l + out.v_r) / 2.0 > 0.05
+
+
+def test_a_target_ahead_is_localized_as_before(model):
+    """Within face_angle of the heading nothing changes: the same inputs with the rule on and off."""
+    pose = (1.0, 1.0, 0.0)
+    sensed = {"a": (0.5, 0.9 * R), "b": (-0.9, 0.6 * R), "c": (0.2, 0.1 * R)}
+    acts = [TrackingEKM("r1", model, R, TrackingParams(face_angle=fa)).localize(0.0, pose, sensed, TeamView("r1"))
+            for fa in (1.0, math.pi)]
+    assert acts[0].inputs == acts[1].inputs
+    assert np.array_equal(acts[0].a, acts[1].a)
+
+
+def test_face_angle_is_validated():
+    for bad in (0.0, -1.0, 3.2, float("nan")):
+        with pytest.raises(ParameterError):
+            TrackingParams(face_angle=bad)
