@@ -36,7 +36,7 @@ from cekm_swarm.graph.check import node_class
 from cekm_swarm.graph.plan import NodePlan, RunPlan
 from cekm_swarm.graph.runspec import RunSpec
 from cekm_swarm.protocol import DropCounter, KeyKind
-from cekm_swarm.protocol.stamps import StampWindow
+from cekm_swarm.protocol.stamps import ANY_STAMP, StampWindow
 
 from .api import Context, make_params
 from .direct_gate import DirectGate
@@ -69,6 +69,16 @@ def build_node(spec: RunSpec, plan: RunPlan, robot: str, name: str, backend: str
     return node_plan, Runner(node_plan, cls(ctx, params))
 
 
+def stamp_window(plan: RunPlan, node_plan: NodePlan) -> StampWindow:
+    """The stamps a node believes: within 8 ticks of the newest it took; a pure reader of
+    a reading the world holds, any stamp in bounds and on the grid
+    (:data:`~cekm_swarm.protocol.stamps.ANY_STAMP` says why)."""
+    reading = plan.holding_reader(node_plan)
+    if reading is not None and reading in plan.held_readings(node_plan.robot):
+        return StampWindow(ANY_STAMP, ANY_STAMP)
+    return StampWindow()
+
+
 class NodeShell:
     """The Zenoh side of one node: subscriptions, gate, publishing, liveliness."""
 
@@ -77,7 +87,7 @@ class NodeShell:
         self.keys = spec.keys
         self.drops = DropCounter(node_plan.label, keys=self.keys)
         self.decoder, self.encoder = Decoder(self.keys, self.drops), Encoder()
-        self.window = StampWindow()
+        self.window = stamp_window(plan, node_plan)
         self.lock = threading.RLock()
         self.closed = threading.Event()
         self.handled = 0

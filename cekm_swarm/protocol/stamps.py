@@ -31,6 +31,14 @@ re-published target reading is one tick old, real-time staleness limits are 2-4 
 FUTURE_S = 8 * TICK_S
 """How far ahead of a module's newest stamp a stamp may be (the world's next tick is one
 tick ahead; a module restarted or starved for a while sees a jump of a few)."""
+ANY_STAMP = math.inf
+"""The window (behind and ahead) of a module whose one input is a reading the world holds
+(a pure node of that reading alone, ``RunPlan.held_readings``): none, only the bounds and
+the grid. It hears from the world only when its reading changes, so it has no recent now to
+judge by; and it keeps no state, so a stamp it should not believe only makes an output
+stamped the same, which its readers judge by their own window (the motor hears from the
+world every tick). A window of its own made the world send every held reading again every
+8 ticks, to keep it inside."""
 QUIET_S = 1.0
 """Wall seconds without a believable stamp after which a module takes the next stamp in
 bounds as now (the world's messages come every 0.128 s, or every re-publish second)."""

@@ -49,6 +49,24 @@ def test_a_reading_with_a_stateful_or_many_keyed_reader_is_not_held():
     assert K.sense_range("r1", 0) not in fusion.held_readings("r1")  # avoidance reads all 12 at once
 
 
+def test_a_pure_reader_of_a_held_reading_takes_any_stamp_in_bounds_and_its_reader_judges_the_output():
+    from cekm_swarm.node.process import stamp_window
+
+    plan = check_graph("cekm-navigation").plan(("r1",), "navigation")
+    obstacle, motor = stamp_window(plan, plan.node("r1", "obstacle-4")), stamp_window(plan, plan.node("r1", "motor"))
+    for w in (obstacle, motor):
+        assert w.check(tick_time(100)) is None
+    # the reading held for 500 ticks comes next: its reader takes it (no window of its own)
+    assert obstacle.check(tick_time(600)) is None and obstacle.check(tick_time(3)) is None
+    assert obstacle.check(tick_time(600) + 0.01) is not None  # off the grid: still refused
+    assert obstacle.check(1e18) is not None  # out of bounds: still refused
+    # the motor hears from the world every tick: 8 ticks either side of its newest
+    assert motor.check(tick_time(110)) is not None and motor.check(tick_time(90)) is not None
+    plan_off = check_graph("fusion-navigation").plan(("r1",), "navigation")  # its ranges are not held
+    assert all(stamp_window(plan_off, n).future == stamp_window(plan, plan.node("r1", "motor")).future
+               for n in plan_off.nodes["r1"])
+
+
 def test_holding_can_be_turned_off_in_the_run_spec():
     checked = check_graph("cekm-navigation")
     from cekm_swarm.graph.resolve import build_plan
