@@ -88,19 +88,22 @@ class TickPublisher:
     def _sense(self, rd: TickReadings, leave_out: set[str] | frozenset[str] = frozenset()) -> list[tuple[str, bytes]]:
         return self._encoder(rd.robot)(rd, leave_out)
 
+    def _refresh_due(self, key: str, cycle: int) -> bool:
+        """Whether held reading ``key`` is sent anyway at this tick of the refresh cycle: the
+        keys take the cycle's ticks in turn, in the order they were first held."""
+        return self.phase.setdefault(key, len(self.phase) % HOLD_TICKS) == cycle
+
     def _unchanged(self, rd: TickReadings, more: list[tuple[str, Any]], held: set[str]) -> set[str]:
         """The robot's held readings equal to the last ones sent: left out of this tick, and
         named in its ``sense/unchanged`` (sent now); the others become the last ones sent."""
         t, last = rd.t, self.last_sent
         oldest = t - (HOLD_TICKS + 0.5) * TICK_S  # sent before this: due again
         cycle = self.episode.tick % HOLD_TICKS
-        phase = self.phase
         same: list[tuple[str, float]] = []
         for key, content in self._encoder(rd.robot).contents(rd):
             if key in held:
                 was = last.get(key)
-                if (was is not None and was[0] == content and was[1] > oldest
-                        and phase.setdefault(key, len(phase) % HOLD_TICKS) != cycle):
+                if was is not None and was[0] == content and was[1] > oldest and not self._refresh_due(key, cycle):
                     same.append((key, was[1]))
                 else:
                     last[key] = (content, t)
@@ -108,7 +111,7 @@ class TickPublisher:
             key = self.keys.node_key(rd.robot, rel)
             if key in held:
                 was = last.get(key)
-                if (was is not None and was[1] > oldest and phase.setdefault(key, len(phase) % HOLD_TICKS) != cycle
+                if (was is not None and was[1] > oldest and not self._refresh_due(key, cycle)
                         and with_stamp(was[0], t) == msg):
                     same.append((key, was[1]))
                 else:

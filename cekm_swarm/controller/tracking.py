@@ -143,10 +143,10 @@ class TrackingEKM:
                 ahead = self.tracks.predict(tid, p.predict_s)
                 if ahead is not None:
                     la, ld = to_robot(pose, ahead)
-            so = standoff_distance(self.tracks.speed(tid), R, p)
             if abs(la) > p.face_angle:  # beside or behind: turn in place toward it first
                 la, u_d = math.copysign(p.face_angle, la), 0.0
             else:
+                so = standoff_distance(self.tracks.speed(tid), R, p)
                 u_d = ld - so if ld > so else 0.0
             s = ekm.winner(la, u_d)
             a += (wt * (1.0 - p.urgency + p.urgency * min(d / R, 1.0))) * ekm.target_activity(s)

@@ -78,7 +78,6 @@ class WorldHost:
             elif text:
                 self.say(f"world: {text}")
 
-
     def _world_cpu(self, doc: dict) -> dict[tuple[str, int], float]:
         """The world server's own CPU seconds from its START or DONE line (every thread's,
         ended ones too, when it wrote the line). Read from /proc when the launcher gets to
