@@ -114,7 +114,8 @@ def open_run_log(path: Path, scenario: str, seed: int, mode: str, geometry: dict
 
         if foxglove_view.available():
             views = foxglove_view.FoxgloveViews(recorder, robot_radius=robot_radius,
-                                                path_every=LEAN_PATH_S if record == "lean" else 0.0)
+                                                path_every=LEAN_PATH_S if record == "lean"
+                                                else foxglove_view.PATH_EVERY_S)
             views.write_geometry(0.0, geometry)
     except ImportError:  # pragma: no cover - foxglove-sdk missing
         views = None

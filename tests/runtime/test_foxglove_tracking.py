@@ -28,7 +28,10 @@ def test_tracking_view_draws_sensing_circles_and_who_observes_whom(tmp_path):
     assert set(ents) == {"sensing/r1", "sensing/r2"}
     circle = ents["sensing/r1"].lines[0]
     assert len(circle.points) == CIRCLE_POINTS
-    assert all(math.hypot(p.x - 1.0, p.y - 1.0) == pytest.approx(0.5) for p in circle.points)
+    centre = circle.pose.position  # the circle's points are about its centre, the robot
+    assert (centre.x, centre.y) == (1.0, 1.0) and circle.pose.orientation.w == 1.0
+    assert all(math.hypot(p.x + centre.x - 1.0, p.y + centre.y - 1.0) == pytest.approx(0.5) for p in circle.points)
+    assert ents["sensing/r2"].lines[0].pose.position.x == 2.0
     seen_r1 = ents["sensing/r1"].lines[1].points
     assert [(p.x, p.y) for p in seen_r1[1::2]] == [(1.3, 1.0), (1.8, 1.2)]
     seen_r2 = ents["sensing/r2"].lines[1].points
@@ -54,7 +57,7 @@ def test_path_messages_are_the_bytes_of_the_whole_pose_list():
                 self.paths.append((t, data))
 
     sink = Sink()
-    views = fv.FoxgloveViews(sink)
+    views = fv.FoxgloveViews(sink, path_every=0.0)  # a path message whenever the path grew
     raw = []  # the path by its rule: every pose (each one a step), the older half thinned past PATH_MAX
     for k in range(fv.PATH_MAX + 300):
         t = 0.128 * k
@@ -69,3 +72,46 @@ def test_path_messages_are_the_bytes_of_the_whole_pose_list():
     want = fm.PosesInFrame(timestamp=fv._stamp(t), frame_id=fv.WORLD_FRAME,
                            poses=[fv._pose(x, y, 0.0, th) for x, y, th in raw]).encode()
     assert data == want
+
+
+def test_path_message_and_trail_draw_the_whole_path_at_every_tick():
+    """Path messages come at most every PATH_EVERY_S of sim time; at every tick in between,
+    the last path message's poses and the robot entity's trail are the whole path up to
+    the robot, each pose once but for the one they share."""
+    pytest.importorskip("foxglove_schemas_protobuf", reason="foxglove-schemas-protobuf not installed")
+    from foxglove_schemas_protobuf.PosesInFrame_pb2 import PosesInFrame
+    from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
+
+    from cekm_swarm.runtime import foxglove_view as fv
+
+    class Sink:
+        def __init__(self):
+            self.last: dict[str, bytes] = {}
+            self.paths: list[float] = []
+
+        def write_encoded(self, topic, encoding, schema, data, t, sticky=False):
+            self.last[topic] = data
+            if topic.startswith("/view/path/"):
+                self.paths.append(t)
+
+    sink = Sink()
+    views = fv.FoxgloveViews(sink)
+    path = []
+    ticks = 200
+    for k in range(ticks):
+        t = 0.128 * k
+        x, y = 0.5 + 0.3 * math.cos(k / 30), 0.5 + 0.3 * math.sin(k / 30)
+        if k % 7 == 3:  # still: no step, the trail ends at the last pose
+            x, y = path[-1]
+        views.write_state(t, {"robots": {"r1": {"x": x, "y": y, "theta": k / 30 + math.pi / 2}}})
+        if not path or path[-1] != (x, y):
+            path.append((x, y))
+        sent = [(p.position.x, p.position.y) for p in PosesInFrame.FromString(sink.last["/view/path/r1"]).poses]
+        robot = next(e for e in SceneUpdate.FromString(sink.last[fv.SCENE_TOPIC]).entities if e.id == "robot/r1")
+        trail = [(p.x, p.y) for p in robot.lines[0].points]
+        assert trail[0] == sent[-1] and trail[-1] == (x, y)
+        drawn = sent + trail[1:]  # the robot's pose ends the trail: twice if it is the path's last
+        assert [p for i, p in enumerate(drawn) if i == 0 or p != drawn[i - 1]] == path
+    gaps = [b - a for a, b in zip(sink.paths, sink.paths[1:])]  # due after PATH_EVERY_S, sent at the next step
+    assert sink.paths[0] == 0.0 and len(gaps) >= 20
+    assert all(fv.PATH_EVERY_S <= g <= fv.PATH_EVERY_S + 2 * 0.128 for g in gaps)

@@ -197,8 +197,11 @@ def test_foxglove_view_channels_decode_with_foxglove_schemas_protobuf(tmp_path):
     tf = decoded[TF_TOPIC][-1].transforms
     assert {t.child_frame_id for t in tf} == {"r1", "r2"} and tf[0].parent_frame_id == "world"
     assert tf[0].rotation.z == pytest.approx(np.sin(0.15))
-    assert len(decoded[PATH_TOPIC.format(robot="r1")][-1].poses) == 5
-    assert len(decoded[PATH_TOPIC.format(robot="r2")][-1].poses) == 5
+    for rid in ("r1", "r2"):  # one path message (at t = 0: the next is due 1 s later); the trail has the rest
+        assert len(decoded[PATH_TOPIC.format(robot=rid)]) == 1
+        trail = next(e for e in last.entities if e.id == f"robot/{rid}").lines[0].points
+        assert len(trail) == 6 and (trail[-1].x, trail[-1].y) == (trail[-2].x, trail[-2].y)
+    assert [round(p.x, 6) for p in r1.lines[0].points[:5]] == [0.0, 0.1, 0.2, 0.3, 0.4]
 
 
 def test_record_zenoh_files_live_traffic_at_sim_time(clients, tmp_path):
