@@ -64,7 +64,9 @@ def preload(spec_paths: Sequence[str]) -> list[str]:
     from cekm_swarm.graph.check import node_class
     from cekm_swarm.graph.runspec import RunSpec
     from cekm_swarm.node.process import build_node
+    from cekm_swarm.protocol.codec import warm
 
+    warm()  # every message kind's decoder and check, made once for every child
     loaded = ["cekm_swarm.node"]
     for path in spec_paths:
         try:
