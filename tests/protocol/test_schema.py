@@ -124,3 +124,23 @@ def test_hostile_bytes_raise_only_message_errors():
                     decode(key, p)
                 except MessageError:
                     pass
+
+
+def test_a_patterned_string_check_remembers_what_passed_and_stays_bounded():
+    """The strings that passed a patterned check are remembered (a node sees the same keys
+    every tick), at most PASSED_MAX of them; a string that failed never is."""
+    import msgspec.inspect as mi
+
+    from cekm_swarm.protocol import checks
+    from cekm_swarm.protocol.errors import MessageFieldError
+
+    check = checks._str_check(mi.StrType(pattern="^k[0-9]+$"), "a key")
+    passed = next(c.cell_contents for c in check.__closure__ if isinstance(c.cell_contents, set))
+    for i in range(checks.PASSED_MAX + 5):
+        assert check(f"k{i}", "keys[0]") == f"k{i}"
+        assert len(passed) <= checks.PASSED_MAX
+    assert check("k1", "keys[0]") == "k1" and "k1" in passed
+    for _ in range(2):  # refused again: a failure is not remembered
+        with pytest.raises(MessageFieldError, match=r"'x1' is not a key"):
+            check("x1", "keys[3]")
+    assert "x1" not in passed
