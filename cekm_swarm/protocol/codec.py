@@ -140,8 +140,7 @@ def warm() -> int:
     while stack:
         cls = stack.pop()
         stack += cls.__subclasses__()
-        if cls not in _CHECKS:
-            _CHECKS[cls]  # noqa: B018 - compiled on first lookup (_Checks.__missing__)
+        _CHECKS[cls]  # noqa: B018 - compiled on its first lookup (_Checks.__missing__)
         n += 1
     return n
 

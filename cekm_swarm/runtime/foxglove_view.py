@@ -92,11 +92,10 @@ def _schema(cls: Any) -> SchemaSpec:
     return SchemaSpec(s.name, s.encoding, bytes(s.data))
 
 
-def _loop(points: Sequence[Sequence[float]], z: float, color: Sequence[float], thickness: float = 0.004,
-          kind: str = "LineLoop", pose: Any = None) -> Any:
+def _loop(points: Sequence[Sequence[float]], z: float, color: Sequence[float], thickness: float = 0.004) -> Any:
     pts = [fm.Point3(x=float(p[0]), y=float(p[1]), z=z) for p in points]
-    return fm.LinePrimitive(type=getattr(fm.LinePrimitiveLineType, kind), pose=pose or _pose(0, 0),
-                            thickness=thickness, scale_invariant=False, points=pts, color=_color(color))
+    return fm.LinePrimitive(type=fm.LinePrimitiveLineType.LineLoop, pose=_pose(0, 0), thickness=thickness,
+                            scale_invariant=False, points=pts, color=_color(color))
 
 
 def _fill(parts: Sequence[Sequence[Sequence[float]]], z: float, color: Sequence[float]) -> Any:
@@ -214,8 +213,8 @@ class FoxgloveViews:
         label = fm.TextPrimitive(pose=fm.Pose(position=fm.Vector3(x=x, y=y, z=_HEIGHT + 0.03), orientation=c.level),
                                  billboard=True, font_size=14.0, scale_invariant=True, color=c.white, text=rid)
         trail = self._trail.setdefault(rid, [])
+        point = fm.Point3(x=x, y=y, z=0.0)
         if self._path_step(rid, x, y, th):
-            point = fm.Point3(x=x, y=y, z=0.0)
             if self._path_due(rid, t):
                 head = fm.PosesInFrame(timestamp=ts, frame_id=WORLD_FRAME, poses=[]).encode()
                 self.recorder.write_encoded(PATH_TOPIC.format(robot=rid), "protobuf", self._poses,
@@ -226,7 +225,7 @@ class FoxgloveViews:
         lines = []
         if trail:  # the path since its last message, up to the robot
             lines.append(fm.LinePrimitive(type=fm.LinePrimitiveLineType.LineStrip, pose=c.origin, thickness=0.004,
-                                          scale_invariant=False, points=[*trail, fm.Point3(x=x, y=y, z=0.0)],
+                                          scale_invariant=False, points=[*trail, point],
                                           color=c.robot))
         entity = fm.SceneEntity(timestamp=ts, frame_id=WORLD_FRAME, id=f"robot/{rid}", cylinders=[body],
                                 arrows=[arrow], texts=[label], lines=lines)
