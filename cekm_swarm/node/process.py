@@ -102,6 +102,9 @@ class NodeShell:
         self.holds = plan.holds(node_plan)
         for mk in self.holds:
             self.kinds[mk] = KeyKind.SENSE_UNCHANGED
+        # the same, by the reading's key relative to the robot's (as ``Unchanged.keys`` names it)
+        self.holds_rel = {mk: {reading[len(mk) - len("sense/unchanged"):]: sources
+                               for reading, sources in held.items()} for mk, held in self.holds.items()}
         self.mates = {s.owner for b in node_plan.bindings if b.team for s in b.sources}
         self.mate_tokens: dict[str, set[str]] = {m: set() for m in self.mates}
         # readers of this node's outputs that read them with a delay (teammates): their
@@ -151,11 +154,10 @@ class NodeShell:
         if why is not None:
             self.drops.drop(key, why)
             return []
-        held = self.holds[key]
-        head = key[: -len("sense/unchanged")]
+        held = self.holds_rel[key]
         k = tick_of(msg.stamp)
         return self.gate.hold_all([(source, k, tick_of(since)) for rel, since in zip(msg.keys, msg.since)
-                                   for source in held.get(head + rel, ())])
+                                   for source in held.get(rel, ())])
 
     def on_token(self, key: str, alive: bool) -> list[tuple[str, Any]]:
         """A liveliness token appeared or vanished: a teammate gone or back; a late reader back."""

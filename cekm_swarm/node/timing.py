@@ -32,6 +32,8 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
+from msgspec import Struct
+
 from cekm_swarm.graph.plan import Binding, NodePlan, needed_tick
 from cekm_swarm.ticks import TICK_S, tick_time
 
@@ -53,7 +55,7 @@ def tick_of(stamp: float) -> int:
 def restamp(msg: Any, t: float) -> Any:
     """``msg`` as its pure producer would have sent it at tick time ``t``: a shallow copy,
     not checked again (``msg`` was checked when received; ``t`` is a tick's time)."""
-    out = copy.copy(msg)
+    out = msg.__copy__() if isinstance(msg, Struct) else copy.copy(msg)
     out.stamp = t
     return out
 
@@ -325,7 +327,11 @@ class LockstepGate:
 
 @dataclass
 class RealtimeGate:
-    """A node's real-time timing (see the module docstring)."""
+    """A node's real-time timing (see the module docstring).
+
+    ``latest`` holds each source's newest value with the tick it stands for; a held value
+    keeps its message as it came and is restamped only when a run reads it (one copy per
+    run, not one per source and tick)."""
 
     runner: Runner
     drop: Drop = lambda key, why: None
@@ -343,13 +349,18 @@ class RealtimeGate:
         self.trigger = _triggers(self.node)
         self.watched = {s.key for b in self.node.bindings for s in b.sources}
         self.binding_of: dict[str, tuple[Binding, Any]] = {s.key: (b, s) for b in self.node.bindings for s in b.sources}
+        self._age = {s.key: _max_age(b.stale_s) for b in self.node.bindings for s in b.sources}
+        # what a tick waits for: each same-tick source (key, period, max age in ticks)
+        self._same_tick = [(s.key, s.period, self._age[s.key]) for b in self.node.bindings if b.delay == 0
+                           for s in b.sources]
+        self._period = self.node.period
 
     def _due_at_or_before(self, k: int) -> int:
-        return k - k % self.node.period
+        return k - k % self._period
 
     def put(self, key: str, msg: Any) -> list[tuple[str, Any]]:
         k = tick_of(msg.stamp)
-        out = self._open(key, k)
+        out = self._open(key, k) if key in self.trigger else []
         if key in self.watched:
             held = self.latest.get(key)
             if held is not None and k < held[0]:
@@ -357,7 +368,7 @@ class RealtimeGate:
                 return out
             waiting = self.pending_holds.pop(key, None)
             if waiting is not None and waiting[0] == k and waiting[1] > k:  # it stands for a later tick too
-                self.latest[key] = (waiting[1], restamp(msg, tick_time(waiting[1])))
+                self.latest[key] = (waiting[1], msg)
                 self.holds += 1
             else:
                 self.latest[key] = (k, msg)
@@ -367,14 +378,12 @@ class RealtimeGate:
 
     def _open(self, key: str, k: int) -> list[tuple[str, Any]]:
         """A trigger's value of tick ``k``: a later tick begins (the open one runs with what came)."""
-        out: list[tuple[str, Any]] = []
-        if key in self.trigger:
-            c = self._due_at_or_before(k)
-            if c > self.open_tick:
-                if self.open_tick > self.done:
-                    out += self._run(self.open_tick)
-                self.open_tick = c
-        return out
+        c = k - k % self._period
+        if c > self.open_tick:
+            out = self._run(self.open_tick) if self.open_tick > self.done else []
+            self.open_tick = c
+            return out
+        return []
 
     def hold(self, key: str, k: int, since: int) -> list[tuple[str, Any]]:
         """``key``'s value of tick ``since`` stands for tick ``k`` (module docstring)."""
@@ -383,13 +392,15 @@ class RealtimeGate:
     def hold_all(self, holds: Iterable[tuple[str, int, int]]) -> list[tuple[str, Any]]:
         """Every ``(key, k, since)`` of one ``Unchanged`` message, then one look whether the open tick is complete."""
         out: list[tuple[str, Any]] = []
+        latest, trigger, watched = self.latest, self.trigger, self.watched
         for key, k, since in holds:
-            if key not in self.watched or k <= since:
+            if key not in watched or k <= since:
                 continue
-            out += self._open(key, k)
-            held = self.latest.get(key)
-            if held is not None and since <= held[0] < k:  # the value of since, or one restamped from it since
-                self.latest[key] = (k, restamp(held[1], tick_time(k)))
+            if key in trigger and k - k % self._period > self.open_tick:
+                out += self._open(key, k)
+            held = latest.get(key)
+            if held is not None and since <= held[0] < k:  # the value of since, or one standing for a tick since
+                latest[key] = (k, held[1])
                 self.holds += 1
             elif held is None or held[0] < since:  # the value it stands for is still on its way
                 self.pending_holds[key] = (since, k)
@@ -409,35 +420,39 @@ class RealtimeGate:
 
     def _live(self, key: str, c: int) -> bool:
         held = self.latest.get(key)
-        if held is None:
-            return False
-        b, _ = self.binding_of[key]
-        return (c - held[0]) * TICK_S <= b.stale_s + 1e-9
+        return held is not None and c - held[0] <= self._age[key]
 
     def _complete(self, c: int) -> bool:
-        for b in self.node.bindings:
-            if b.delay != 0:
-                continue
-            for s in b.sources:
-                if not self._live(s.key, c):
-                    continue  # not heard from within its limit: not waited for
-                if self.latest[s.key][0] < needed_tick(c, s.period, 0):
-                    return False
+        latest = self.latest
+        for key, period, age in self._same_tick:
+            held = latest.get(key)
+            if held is None or c - held[0] > age:
+                continue  # not heard from within its limit: not waited for
+            if held[0] < c - c % period:
+                return False
         return True
 
     def _lookup_at(self, c: int) -> Callable[[str, int], Any]:
+        latest, age, binding_of = self.latest, self._age, self.binding_of
+
         def lookup(key: str, tick: int) -> Any:
-            held = self.latest.get(key)
+            held = latest.get(key)
             if held is None:
                 return None
-            b, _ = self.binding_of[key]
-            if held[0] > c or (b.delay == 1 and held[0] >= c):
+            t = held[0]
+            if t > c or (t == c and binding_of[key][0].delay == 1):
                 return None
-            if not self._live(key, c):
-                self._stale(key, held[0], c)
+            if c - t > age[key]:
+                self._stale(key, t, c)
                 return None
-            self._stale_now.discard(key)
-            return held[1]
+            if self._stale_now:
+                self._stale_now.discard(key)
+            msg = held[1]
+            stamp = tick_time(t)
+            if msg.stamp != stamp and tick_of(msg.stamp) != t:  # a held value: restamped for the tick it stands for
+                msg = restamp(msg, stamp)
+                latest[key] = (t, msg)
+            return msg
 
         return lookup
 
@@ -455,6 +470,17 @@ class RealtimeGate:
 
     def resend(self) -> list[tuple[str, Any]]:
         return []
+
+
+def _max_age(stale_s: float) -> int | float:
+    """The most ticks a value may lag the tick that reads it and still count: the largest
+    n with n * TICK_S <= stale_s (a float tolerance of 1e-9 s)."""
+    if stale_s == float("inf"):
+        return stale_s
+    n = int((stale_s + 1e-9) / TICK_S) + 1
+    while n * TICK_S > stale_s + 1e-9:
+        n -= 1
+    return n
 
 
 def realtime_inputs_stale(node: NodePlan) -> dict[str, float]:
