@@ -33,10 +33,17 @@ from pathlib import Path
 FLOOR = Path(__file__).resolve().parent / "floor.py"
 
 
+def checkout_env() -> dict[str, str]:
+    """The environment of a child process: this checkout's package first (installed or not;
+    a PYTHONPATH already set, as an A/B of two checkouts sets it, comes first)."""
+    root = str(FLOOR.parent.parent)
+    return {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in (os.environ.get("PYTHONPATH"), root) if p)}
+
+
 def measure_floor(processes: int, seconds: float) -> dict:
     """The floor at this many processes, in a fresh process (it forks before any Zenoh session)."""
     done = subprocess.run([sys.executable, str(FLOOR), "--processes", str(processes), "--seconds", str(seconds)],
-                          capture_output=True, text=True)
+                          capture_output=True, text=True, env=checkout_env())
     if done.returncode != 0:
         return {"error": done.stderr[-500:]}
     return json.loads(done.stdout.strip().splitlines()[-1])
@@ -61,7 +68,7 @@ def run(n: int, sim: float, port: int) -> dict:
         t0 = time.perf_counter()
         proc = subprocess.run([sys.executable, "-m", "cekm_swarm", "launch", str(sc), "--mode", "realtime",
                                "--max-time", str(sim), "--out", str(Path(tmp) / "out"), "--no-plot", "--port",
-                               str(port)], capture_output=True, text=True)
+                               str(port)], capture_output=True, text=True, env=checkout_env())
         wall = time.perf_counter() - t0
         if proc.returncode != 0:
             return {"robots": n, "error": proc.stdout[-2000:] + proc.stderr[-2000:]}

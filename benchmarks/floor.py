@@ -12,6 +12,13 @@ trip).
 Used by ``bench_runtime_scale.py`` (the floor at each team size's process count, each in a
 fresh process: a process that has had a Zenoh session cannot fork working children) and on
 its own: ``python benchmarks/floor.py --processes 14 --seconds 10``.
+
+``--mode`` measures what a module adds to it, step by step: ``callback`` answers from a
+callback on Zenoh's receiving thread, as a module does (:mod:`cekm_swarm.node.process`);
+``numpy`` adds one subtraction and one argmax on a 100-neuron field; ``decode`` instead
+decodes and checks one 100-neuron obstacle field. In a process that sleeps between ticks
+among a hundred others, such a little work costs far more than it does in a loop, because
+the code and data it touches are no longer in the caches (``docs/performance.md``).
 """
 
 from __future__ import annotations
@@ -23,6 +30,8 @@ import signal
 import sys
 import threading
 import time
+from collections.abc import Callable
+from typing import Any
 
 import zenoh
 
@@ -39,8 +48,36 @@ from cekm_swarm.runtime.config import (
 PAYLOAD = bytes(120)  # about one sense message's size
 
 
-def floor_process(endpoint: str, index: int) -> None:
-    """One floor process: subscribe to floor/<i>/tick, answer each tick on floor/<i>/reply."""
+def _nothing() -> Callable[[bytes], Any]:
+    return lambda payload: None
+
+
+def _numpy() -> Callable[[bytes], Any]:
+    import numpy as np
+
+    field = np.full(100, 0.3)
+    return lambda payload: int(np.argmax(field - 0.1))  # one subtraction and one argmax on a 100-neuron field
+
+
+def _decode() -> Callable[[bytes], Any]:
+    import numpy as np
+
+    from cekm_swarm.protocol import KeyKind, ObstacleField
+    from cekm_swarm.protocol.codec import decode, encode
+
+    field = encode(ObstacleField(0.128, "r1/obstacle-1", 1, 1, np.full(100, 0.5)))
+    return lambda payload: decode(KeyKind.FIELD_OBSTACLE, field)  # one 100-neuron field, decoded and checked
+
+
+WORK: dict[str, Callable[[], Callable[[bytes], Any]]] = {"callback": _nothing, "numpy": _numpy, "decode": _decode}
+"""What a floor process does per tick beside answering, by ``--mode`` (``fifo``: the floor)."""
+MODES = ("fifo", *WORK)
+
+
+def floor_process(endpoint: str, index: int, mode: str = "fifo") -> None:
+    """One floor process: subscribe to floor/<i>/tick, answer each tick on floor/<i>/reply
+    (``mode``: the floor's loop over a FIFO channel, or a callback on Zenoh's thread with
+    the work ``WORK[mode]``)."""
     for attempt in range(40):  # a router takes so many opening sessions at once (accept_pending): retry
         try:
             session = open_session(client_config(endpoint), "floor process")
@@ -59,14 +96,40 @@ def floor_process(endpoint: str, index: int) -> None:
                 break
             time.sleep(0.05)
         reply.put(PAYLOAD)
-        for sample in ticks:  # a node at its simplest: a loop over events
-            if sample.payload.to_bytes() == b"stop":
-                break
+        if mode == "fifo":
+            for sample in ticks:  # a node at its simplest: a loop over events
+                if sample.payload.to_bytes() == b"stop":
+                    break
+                reply.put(PAYLOAD)
+            return
+        # the modules' way: the work on Zenoh's receiving thread (node.process), plus a little of it
+        from cekm_swarm.runtime.bridge import keep_thread_state
+
+        work = WORK[mode]()
+        stop = threading.Event()
+
+        def on_tick(sample: zenoh.Sample) -> None:
+            keep_thread_state()
+            payload = sample.payload.to_bytes()
+            if payload == b"stop":
+                stop.set()
+                return
+            work(payload)
             reply.put(PAYLOAD)
 
+        ticks.undeclare()
+        on = session.declare_subscriber(f"floor/{index}/tick", zenoh.handlers.Callback(on_tick, indirect=False))
+        stop.wait()
+        on.undeclare()
 
-def measure(processes: int, seconds: float = 10.0, tick_s: float = 0.128) -> dict:
+
+def measure(processes: int, seconds: float = 10.0, tick_s: float = 0.128, mode: str = "fifo") -> dict:
     """Run ``processes`` floor processes for ``seconds`` of real time; CPU ms per process per tick."""
+    if mode != "fifo":  # imported before forking, as the launcher's fork server has
+        import cekm_swarm.node.process  # noqa: F401
+        from cekm_swarm.protocol import codec
+
+        codec.warm()
     port = free_port()
     endpoint = f"tcp/127.0.0.1:{port}"
     go_r, go_w = os.pipe()
@@ -79,7 +142,7 @@ def measure(processes: int, seconds: float = 10.0, tick_s: float = 0.128) -> dic
                 os.close(go_w)
                 os.environ["ZENOH_RUNTIME"] = ONE_THREAD_RUNTIME  # as a real-time module's Zenoh runs
                 os.read(go_r, 1)  # wait for the router
-                floor_process(endpoint, i)
+                floor_process(endpoint, i, mode)
             except BaseException as exc:
                 print(f"floor process {i}: {exc!r}", file=sys.stderr, flush=True)
                 code = 1
@@ -145,7 +208,7 @@ def measure(processes: int, seconds: float = 10.0, tick_s: float = 0.128) -> dic
             sub.undeclare()
     used = [cpu1[p] - cpu0[p] for p in pids if cpu0.get(p) is not None and cpu1.get(p) is not None]
     per = 1000.0 * sum(used) / max(1, len(used)) / n
-    return {"processes": processes, "ticks": n, "ms_per_process_tick": round(per, 4),
+    return {"processes": processes, "mode": mode, "ticks": n, "ms_per_process_tick": round(per, 4),
             "replies": replies[0], "expected_replies": n * processes, "host": host_shares(host0, host1)}
 
 
@@ -153,8 +216,12 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--processes", type=int, default=14)
     ap.add_argument("--seconds", type=float, default=10.0)
+    ap.add_argument("--mode", choices=MODES, default="fifo",
+                    help="fifo: the floor (a loop over a FIFO channel); callback: the reply from a callback on "
+                         "Zenoh's thread, as a module answers; numpy / decode: that plus one small numpy step / "
+                         "one field decoded (what touching a little more code per wake costs)")
     args = ap.parse_args()
-    print(json.dumps(measure(args.processes, args.seconds)))
+    print(json.dumps(measure(args.processes, args.seconds, mode=args.mode)))
 
 
 if __name__ == "__main__":
