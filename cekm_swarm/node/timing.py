@@ -355,9 +355,6 @@ class RealtimeGate:
                            for s in b.sources]
         self._period = self.node.period
 
-    def _due_at_or_before(self, k: int) -> int:
-        return k - k % self._period
-
     def put(self, key: str, msg: Any) -> list[tuple[str, Any]]:
         k = tick_of(msg.stamp)
         out = self._open(key, k) if key in self.trigger else []
@@ -418,10 +415,6 @@ class RealtimeGate:
                     self.latest.pop(key, None)
         return []
 
-    def _live(self, key: str, c: int) -> bool:
-        held = self.latest.get(key)
-        return held is not None and c - held[0] <= self._age[key]
-
     def _complete(self, c: int) -> bool:
         latest = self.latest
         for key, period, age in self._same_tick:
@@ -481,11 +474,6 @@ def _max_age(stale_s: float) -> int | float:
     while n * TICK_S > stale_s + 1e-9:
         n -= 1
     return n
-
-
-def realtime_inputs_stale(node: NodePlan) -> dict[str, float]:
-    """Each source key's staleness limit (s), for logs."""
-    return {s.key: b.stale_s for b in node.bindings for s in b.sources}
 
 
 __all__ = ["gather", "Runner", "LockstepGate", "RealtimeGate", "KEEP_TICKS", "tick_of"]
