@@ -9,6 +9,7 @@ import itertools
 import random
 
 import numpy as np
+import pytest
 
 from cekm_swarm.graph.check import check_graph
 from cekm_swarm.graph.plan import needed_tick
@@ -210,3 +211,13 @@ def test_realtime_a_stale_value_counts_as_missing():
     # field of tick 2 (two of its periods old: still used)
     assert by_tick[4]["target"].stamp == tick_time(2)
     assert set(gate.stale_drops) == {K.field_obstacle("r1", 4)}  # counted once, however many ticks it stays stale
+
+
+@pytest.mark.parametrize("stale_s", [0.0, 0.1, 0.128, 0.2, 0.256, 0.5, 0.512, 1.0, 1.024, 3.0])
+def test_realtime_max_age_is_the_most_ticks_within_the_staleness_limit(stale_s):
+    from cekm_swarm.node.timing import _max_age
+    from cekm_swarm.ticks import TICK_S
+
+    n = _max_age(stale_s)
+    assert n * TICK_S <= stale_s + 1e-9 < (n + 1) * TICK_S
+    assert _max_age(float("inf")) == float("inf")
