@@ -165,8 +165,8 @@ def obstacles(seeds: str, speed_unit: float | None, max_time: float, model_path:
 
 @experiment.command("tracking")
 @out_dir_options("Directory for results.json, tables.md and the figures.")
-@click.option("--seeds", type=click.IntRange(2, 1000), help="Seeds 1..N per team size (default 10; --grid: 5 per cell, "
-              "--quick 2).")
+@click.option("--seeds", type=click.IntRange(2, 1000), help="N seeds per team size, from --first-seed (default 10; "
+              "--grid: 5 per cell, --quick 2).")
 @click.option("--robots", default="2,4,8", show_default=True, help="Team sizes, comma-separated.")
 @click.option("--duration", type=click.FloatRange(min=1.0), help="Sim seconds per run (default 60; --grid --quick 8).")
 @click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path))
@@ -176,7 +176,7 @@ def obstacles(seeds: str, speed_unit: float | None, max_time: float, model_path:
               "sensing range, obstacles; docs/tracking.md): results.json, tables.md, grid.png.")
 @click.option("--quick", is_flag=True, help="With --grid: a small grid (CI).")
 @click.option("--first-seed", default=1, show_default=True, type=click.IntRange(0),
-              help="With --grid: seeds first-seed .. first-seed + N - 1 (the default's held-out 1-5; tuning used 1001-1099).")
+              help="Seeds first-seed .. first-seed + N - 1 (the grid's default held-out 1-5; its tuning used 1001-1099).")
 def tracking_experiment(out_dir: Path, overwrite: bool, seeds: int | None, robots: str, duration: float | None,
                         model_path: Path | None, workers: int | None, quiet: bool, grid: bool, quick: bool,
                         first_seed: int) -> None:
@@ -200,7 +200,7 @@ def tracking_experiment(out_dir: Path, overwrite: bool, seeds: int | None, robot
     sizes = parse_team_sizes(robots)
     prepare_out_dir(out_dir, overwrite)
     run_tracking_experiment_cmd(out_dir, seeds if seeds is not None else 10, sizes,
-                                duration if duration is not None else 60.0, model_path, workers, quiet)
+                                duration if duration is not None else 60.0, model_path, workers, quiet, first_seed)
 
 
 @main.command()

@@ -96,14 +96,15 @@ def _trained_model_path(model_path):
 
 
 def run_tracking_experiment_cmd(out_dir, seeds: int, sizes: tuple[int, ...], duration: float, model_path, workers,
-                                quiet: bool) -> None:
+                                quiet: bool, first_seed: int = 1) -> None:
     """``cekm experiment tracking`` once its options are checked."""
     from .tracking_report import table_markdown, write_experiment
     from .tracking_run import run_experiment
 
     model_path = _trained_model_path(model_path)
     t0 = time.perf_counter()
-    doc, pictures = run_experiment(sizes, seeds, duration, model_path, workers, progress=not quiet)
+    doc, pictures = run_experiment(sizes, seeds, duration, model_path, workers, progress=not quiet,
+                                   first_seed=first_seed)
     doc["wall_seconds"] = round(time.perf_counter() - t0, 1)
     paths = write_experiment(doc, pictures, out_dir)
     click.echo(table_markdown(doc))

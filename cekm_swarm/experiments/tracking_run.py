@@ -127,7 +127,7 @@ _MODELS: dict[str, Any] = {}
 
 
 def _one(args) -> dict[str, Any]:
-    robots, seed, controller, duration, model_path = args
+    robots, seed, controller, duration, model_path, keep_run = args
     from ..models.io import load_model
 
     model = None
@@ -136,18 +136,21 @@ def _one(args) -> dict[str, Any]:
     sc = team_scenario(robots, seed)
     run = run_tracking(sc, controller, model, seed, duration)
     return {"robots": robots, "seed": seed, "controller": controller, "A": run.tracking["A"],
-            "targets": run.tracking["targets"], "run": run if seed == 1 else None}
+            "targets": run.tracking["targets"], "run": run if keep_run else None}
 
 
 def run_experiment(sizes: tuple[int, ...], seeds: int, duration: float, model_path, workers: int | None = None,
-                   progress: bool = True) -> tuple[dict[str, Any], dict[str, TrackingRun]]:
-    """Every controller on the same seeds (1..seeds) for every team size."""
+                   progress: bool = True, first_seed: int = 1) -> tuple[dict[str, Any], dict[str, TrackingRun]]:
+    """Every controller on the same seeds (first_seed .. first_seed + seeds - 1) for every
+    team size; the pictures are the first seed's runs of the smallest team."""
     import os
     from concurrent.futures import ProcessPoolExecutor
 
     from tqdm import tqdm
 
-    jobs = [(n, s, c, duration, str(model_path)) for n in sizes for s in range(1, seeds + 1) for c in CONTROLLERS]
+    seed_list = list(range(first_seed, first_seed + seeds))
+    jobs = [(n, s, c, duration, str(model_path), n == sizes[0] and s == first_seed)
+            for n in sizes for s in seed_list for c in CONTROLLERS]
     workers = workers or max(1, min(len(jobs), os.cpu_count() or 1))
     rows = []
     if workers == 1:  # in this process (no pool to start)
@@ -158,11 +161,11 @@ def run_experiment(sizes: tuple[int, ...], seeds: int, duration: float, model_pa
             for row in tqdm(ex.map(_one, jobs), total=len(jobs), disable=not progress, desc="tracking runs"):
                 rows.append(row)
     pictures = {}
-    for c in CONTROLLERS:  # the first team size's run of seed 1, per controller
+    for c in CONTROLLERS:  # the first team size's run of the first seed, per controller
         for r in rows:
             if r["robots"] == sizes[0] and r["controller"] == c and r["run"] is not None:
                 pictures[c] = r["run"]
     configs = team_stats(rows, sizes, CONTROLLERS)
-    return {"configs": configs, "seeds": list(range(1, seeds + 1)), "duration_s": duration,
+    return {"configs": configs, "seeds": seed_list, "duration_s": duration,
             "arena_rule": "square arena, side 2 m * sqrt(robots / 2); round(1.5 * robots) random-walk targets "
                           "(0.05 m/s, turn noise 1 rad/sqrt(s)); target sensing range 0.5 m"}, pictures

@@ -91,3 +91,16 @@ def test_cekm_experiment_tracking_writes_results(tmp_path):
         assert (out / f).exists(), f
     bad = CliRunner().invoke(main, ["experiment", "tracking", "--out", str(out), "--robots", "two"])
     assert bad.exit_code == 2 and "--robots" in bad.output
+
+
+def test_cekm_experiment_tracking_honours_first_seed(tmp_path):
+    """--first-seed without --grid: the runs are of seeds 7 and 8, and results.json says so."""
+    out = tmp_path / "exp"
+    r = CliRunner().invoke(main, ["experiment", "tracking", "--out", str(out), "--seeds", "2", "--robots", "2",
+                                  "--duration", "1", "--first-seed", "7", "--workers", "1", "--quiet"])
+    assert r.exit_code == 0, r.output
+    doc = json.loads((out / "results.json").read_text())
+    assert doc["seeds"] == [7, 8]
+    stay = doc["configs"][0]["controllers"]["stay"]["per_seed"]
+    assert stay == [run_tracking(team_scenario(2, s), "stay", None, s, 1.0).tracking["A"] for s in (7, 8)]
+    assert (out / "fig13_cekm.png").exists()
