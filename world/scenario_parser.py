@@ -170,8 +170,11 @@ class Parser:
             claim(rid, f"{p}.id")
             start = self.vector(t["start"], f"{p}.start", 3, "[x, y, theta]")
             goal = self.ident(t["goal"], f"{p}.goal") if "goal" in t else None
-            if not _inside(bounds, start[0], start[1], BODY_RADIUS):
+            if not _inside(bounds, start[0], start[1], 0.0):
                 self.fail(f"{p}.start", f"robot at ({start[0]}, {start[1]}) is not inside arena.bounds {list(bounds)}")
+            if not _inside(bounds, start[0], start[1], BODY_RADIUS):
+                self.fail(f"{p}.start", f"robot at ({start[0]}, {start[1]}) with body radius {BODY_RADIUS} m reaches "
+                          f"outside arena.bounds {list(bounds)} (its centre must be at least {BODY_RADIUS} m inside)")
             robots.append(RobotSpec(rid, (start[0], start[1], start[2]), goal))
 
         # targets

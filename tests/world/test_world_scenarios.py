@@ -219,6 +219,8 @@ BAD = [
     ("start overlapping an obstacle", GOOD + '\n[[obstacles]]\nshape = "box"\ncenter = [0.55, 0.5]\nsize = [0.05, 0.05]\n', ["robots[0].start", "overlaps obstacles[0]"]),
     ("start overlapping a robot", GOOD + '\n[[robots]]\nid = "r2"\nstart = [0.52, 0.5, 0.0]\n', ["robots[1].start", "overlaps robot 'r1'"]),
     ("start outside arena", GOOD.replace("[0.5, 0.5, 0.0]", "[2.5, 0.5, 0.0]"), ["robots[0].start", "not inside arena.bounds"]),
+    ("start's body reaching outside the arena", GOOD.replace("[0.5, 0.5, 0.0]", "[0.029, 1.0, 0.0]"),
+     ["robots[0].start", "robot at (0.029, 1.0) with body radius 0.03 m reaches outside arena.bounds"]),
     ("no robots", "robots = []\n" + GOOD.split("[[robots]]")[0], ["robots", "at least one robot"]),
     ("target inside obstacle", GOOD + '\n[[obstacles]]\nshape = "disc"\ncenter = [1.5, 1.5]\nradius = 0.1\n', ["targets[0].position", "inside obstacles[0]"]),
     ("unknown shape", GOOD + '\n[[obstacles]]\nshape = "star"\n', ["obstacles[0].shape", "unknown value 'star'"]),
