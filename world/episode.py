@@ -194,7 +194,9 @@ class Episode:
         return all(p.reached for p in self.progress.values())
 
     def outcome(self) -> dict[str, dict]:
-        """Per robot: reached, time_s, path_length_m, collisions, min_clearance_m, final distance, checkpoints."""
+        """Per robot: reached, time_s, path_length_m, collisions, min_clearance_m, final distance, checkpoints.
+        ``min_clearance_m`` is None when nothing (wall, obstacle, robot) came within sensor
+        range in the whole run: the world's ``stats`` say infinity, which JSON cannot hold."""
         out = {}
         for r, p in self.progress.items():
             st = self.world.stats(r)
@@ -206,9 +208,14 @@ class Episode:
                 "path_length_m": float(st["path_length_m"]),
                 "collisions": int(st["collisions"]),
                 "collisions_with": st["collisions_with"],
-                "min_clearance_m": float(st["min_clearance_m"]),
+                "min_clearance_m": _finite_or_none(st["min_clearance_m"]),
                 "final_distance_m": float(math.hypot(gx - x, gy - y)),
                 "checkpoints": [list(c) for c in p.checkpoints],
                 "checkpoints_reached": len(p.checkpoint_times),
             }
         return out
+
+
+def _finite_or_none(x: float) -> float | None:
+    x = float(x)
+    return x if math.isfinite(x) else None

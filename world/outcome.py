@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from cekm_swarm.jsonfile import dumps as strict_json
 from cekm_swarm.runtime.percentiles import Samples, percentile
 
 MISSED_TICKS_KEPT = 200
@@ -84,7 +85,7 @@ def latency_ms(latencies: Samples | list[float]) -> dict[str, Any]:
 def write_outputs(out: Path, doc: dict[str, Any], episode: Any) -> None:
     """``outcome.json`` (``doc``) and ``trajectory.json`` (pose and command per tick), each
     whole or not at all (written beside, then renamed: a full disk leaves no half file)."""
-    _whole(out / "outcome.json", lambda f: f.write(json.dumps(doc, indent=1)))
+    _whole(out / "outcome.json", lambda f: f.write(strict_json(doc)))
     _whole(out / "trajectory.json", lambda f: _write_trajectory(f, episode))
 
 

@@ -15,13 +15,13 @@ docs/reproduction-4.1.md section 1 explains the episodes it finds.
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from .. import jsonfile
 from ..errors import ParameterError
 from ..robot import KHEPERA, STEP_S
 from .arena import Arena
@@ -246,7 +246,7 @@ def run_circling(out: Path, network: str = "R15", seed: int = 2005, trial: int =
              f"stop rule '{stop_rule}', {plant}")
     out.mkdir(parents=True, exist_ok=True)
     png = draw_episode(ep, net, targets[index], title, stop, out / f"{stem}.png")
-    (out / f"{stem}.json").write_text(json.dumps(summary, indent=1))
+    (out / f"{stem}.json").write_text(jsonfile.dumps(summary))
     return CirclingEpisode(summary, png, out / f"{stem}.json", title)
 
 

@@ -9,13 +9,13 @@ import no click and no matplotlib at module level; this module talks to the term
 from __future__ import annotations
 
 import dataclasses
-import json
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Sequence
 
 import click
 
+from .. import jsonfile
 from ..errors import ParameterError
 
 if TYPE_CHECKING:
@@ -32,12 +32,14 @@ def run_navigation_cmd(scenario, controller: str, model, seed: int | None, max_t
     doc = {"scenario": scenario.name, "controller": controller, "graph": graph.graph.name, "seed": run.seed,
            "robots": run.outcome,
            "wall_seconds": round(time.perf_counter() - t0, 3)}
-    (out_dir / "outcome.json").write_text(json.dumps(doc, indent=1))
+    (out_dir / "outcome.json").write_text(jsonfile.dumps(doc))
     fig = plot_run(run)
     fig.savefig(out_dir / "trajectory.png", dpi=130)
     for r, o in run.outcome.items():
+        c = o["min_clearance_m"]
+        clearance = "nothing within sensor range" if c is None else f"{c * 1000:.0f} mm"
         click.echo(f"{r}: {'reached' if o['reached'] else 'NOT reached'} in {o['time_s']:.1f} s, path "
-                   f"{o['path_length_m']:.2f} m, {o['collisions']} collisions, min clearance {o['min_clearance_m'] * 1000:.0f} mm")
+                   f"{o['path_length_m']:.2f} m, {o['collisions']} collisions, min clearance {clearance}")
     click.echo(f"wrote {out_dir / 'outcome.json'}, {out_dir / 'trajectory.png'}")
 
 
@@ -58,7 +60,7 @@ def run_tracking_cmd(scenario, controller: str, model_path, seed: int | None, du
     out = Path(out_dir)
     doc = outcome_doc(run)
     doc["wall_seconds"] = round(time.perf_counter() - t0, 3)
-    (out / "outcome.json").write_text(json.dumps(doc, indent=1))
+    (out / "outcome.json").write_text(jsonfile.dumps(doc))
     import matplotlib.pyplot as plt
 
     fig = plot_tracking(run)

@@ -8,6 +8,7 @@ import subprocess
 from pathlib import Path
 from typing import Any
 
+from .. import jsonfile
 from .grid_design import LEVELS, QUICK, design
 from .grid_run import BASELINES, GRID_CONTROLLERS, run_grid
 from .grid_stats import by_axis, by_pair, cell_stats
@@ -90,7 +91,6 @@ def tables_markdown(doc: dict[str, Any]) -> str:
 
 def write_grid(doc: dict[str, Any], out_dir) -> list[Path]:
     """results.json, tables.md, grid.png."""
-    import json
 
     import matplotlib.pyplot as plt
 
@@ -98,7 +98,7 @@ def write_grid(doc: dict[str, Any], out_dir) -> list[Path]:
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    (out / "results.json").write_text(json.dumps(doc, indent=1))
+    (out / "results.json").write_text(jsonfile.dumps(doc))
     (out / "tables.md").write_text(tables_markdown(doc))
     n = len(doc["seeds"])
     fig = heatmaps(doc["by_pair"], f"cekm's A minus the best of A-CMOMMT and local K-means, pooled over the cells at each "

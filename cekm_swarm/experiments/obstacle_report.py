@@ -4,14 +4,18 @@ run, :func:`summary_markdown`, :func:`table_markdown`) and one picture per scena
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
+from .. import jsonfile
 from .obstacle_run import FIGURE
 
 
 def _pct(k: int, n: int, ci: list[float]) -> str:
     return f"{k}/{n} ({100 * ci[0]:.0f}-{100 * ci[1]:.0f} %)"
+
+
+def _mm(metres: float | None) -> str:
+    return "-" if metres is None else f"{1000 * metres:.1f}"
 
 
 def summary_markdown(doc: dict) -> str:
@@ -25,7 +29,7 @@ def summary_markdown(doc: dict) -> str:
         for c, t in per.items():
             lines.append(f"| {name} | {c} | {_pct(t['success'], t['of'], t['success_ci95'])} | "
                          f"{_pct(t['collision_free'], t['of'], t['collision_free_ci95'])} | {t['contacts']} | "
-                         f"{t['runs_with_contact']} | {1000 * t['min_clearance_m']:.1f} |")
+                         f"{t['runs_with_contact']} | {_mm(t['min_clearance_m'])} |")
     return "\n".join(lines)
 
 
@@ -56,7 +60,7 @@ def write_suite(doc: dict, pictures: dict, out_dir: Path) -> list[Path]:
 
     out_dir.mkdir(parents=True, exist_ok=True)
     written = [out_dir / "outcomes.json", out_dir / "table.md"]
-    written[0].write_text(json.dumps(doc, indent=1))
+    written[0].write_text(jsonfile.dumps(doc))
     written[1].write_text(summary_markdown(doc) + "\n\nPer seed:\n\n" + table_markdown(doc) + "\n")
     for s in doc["summary"]:
         runs = [pictures[(s, c)] for c in ("fusion", "cekm") if (s, c) in pictures]

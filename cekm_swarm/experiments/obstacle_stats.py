@@ -23,7 +23,7 @@ def wilson_interval(k: int, n: int, z: float = 1.959963984540054) -> tuple[float
 def summarize(rows: list[dict], scenarios: dict[str, tuple[str, ...]]) -> dict:
     """Per scenario and controller: successes, collision-free successes (each with its 95 %
     Wilson interval), contacts summed over the runs, runs with a contact, the smallest
-    clearance."""
+    clearance (None when no run had anything within sensor range: every run's is None)."""
     summary: dict = {}
     for s, cs in scenarios.items():
         summary[s] = {}
@@ -36,5 +36,6 @@ def summarize(rows: list[dict], scenarios: dict[str, tuple[str, ...]]) -> dict:
                              "collision_free": k_free, "collision_free_ci95": list(wilson_interval(k_free, n)),
                              "contacts": sum(r["collisions"] for r in mine),
                              "runs_with_contact": sum(r["collisions"] > 0 for r in mine),
-                             "min_clearance_m": min((r["min_clearance_m"] for r in mine), default=math.inf)}
+                             "min_clearance_m": min((r["min_clearance_m"] for r in mine
+                                                     if r["min_clearance_m"] is not None), default=None)}
     return summary

@@ -4,10 +4,10 @@ figures (:mod:`.reaching_figures`) of a run, summary.json and summary.md of seve
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from .. import jsonfile
 from .reaching_figures import plot_all
 
 if TYPE_CHECKING:
@@ -149,7 +149,7 @@ def write_report(results: dict, trained: dict, out_dir: Path) -> list[Path]:
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     written = [out_dir / "results.json", out_dir / "tables.md"]
-    written[0].write_text(json.dumps(results, indent=1))
+    written[0].write_text(jsonfile.dumps(results))
     written[1].write_text(tables_markdown(results))
     return written + plot_all(results, trained, out_dir)
 
@@ -201,7 +201,7 @@ def write_seeds_report(summary: dict, out_dir: Path) -> list[Path]:
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     paths = [out_dir / "summary.json", out_dir / "summary.md"]
-    paths[0].write_text(json.dumps(summary, indent=1))
+    paths[0].write_text(jsonfile.dumps(summary))
     paths[1].write_text(seeds_markdown(summary))
     return paths
 
@@ -214,7 +214,7 @@ def write_seed(config: TargetReachingConfig, results: dict, runs: list[NetworkRu
 
     if not models:
         out_dir.mkdir(parents=True, exist_ok=True)
-        (out_dir / "results.json").write_text(json.dumps(results, indent=1))
+        (out_dir / "results.json").write_text(jsonfile.dumps(results))
         (out_dir / "tables.md").write_text(tables_markdown(results))
         return [out_dir / "results.json", out_dir / "tables.md"]
     if models:

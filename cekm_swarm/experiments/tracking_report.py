@@ -5,12 +5,12 @@ from __future__ import annotations
 
 from typing import Any
 
+from .. import jsonfile
 from .tracking_run import CONTROLLERS, TrackingRun
 
 
 def write_experiment(doc: dict[str, Any], pictures: dict[str, TrackingRun], out_dir) -> list:
     """results.json, tables.md, tracking.png, one Fig.-13 picture per controller."""
-    import json
     from pathlib import Path
 
     import matplotlib
@@ -23,7 +23,7 @@ def write_experiment(doc: dict[str, Any], pictures: dict[str, TrackingRun], out_
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     written = []
-    (out / "results.json").write_text(json.dumps(doc, indent=1))
+    (out / "results.json").write_text(jsonfile.dumps(doc))
     written.append(out / "results.json")
     (out / "tables.md").write_text(table_markdown(doc))
     written.append(out / "tables.md")

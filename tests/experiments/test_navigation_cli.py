@@ -85,3 +85,25 @@ def test_bad_scenario_and_model_are_refused(tmp_path, model):
     assert r.exit_code != 0 and "indirect-mapping" in r.output
     r = CliRunner().invoke(main, ["sweep", "concave", "--depths", "x", "--out", str(tmp_path / "s")])
     assert r.exit_code != 0 and "--depths" in r.output
+
+
+def _strict(text: str):
+    """json.loads that refuses NaN and Infinity (not JSON)."""
+    def refuse(name):
+        raise ValueError(f"not JSON: {name}")
+    return json.loads(text, parse_constant=refuse)
+
+
+def test_run_with_nothing_in_range_writes_strict_json(tmp_path):
+    """A lone robot without walls never has anything within sensor range: its clearance is
+    null in outcome.json (it was Infinity, which is not JSON) and said so on the terminal."""
+    sc = tmp_path / "one.toml"
+    sc.write_text('name = "one"\n[arena]\nbounds = [0.0, 0.0, 1.0, 1.0]\nboundary_walls = false\n'
+                  '[[robots]]\nid = "solo"\nstart = [0.5, 0.5, 0.0]\ngoal = "g"\n'
+                  '[[targets]]\nid = "g"\nposition = [0.9, 0.9]\n')
+    out = tmp_path / "run"
+    r = CliRunner().invoke(main, ["run", str(sc), "--max-time", "3", "--out", str(out)])
+    assert r.exit_code == 0, r.output
+    doc = _strict((out / "outcome.json").read_text())
+    assert doc["robots"]["solo"]["min_clearance_m"] is None
+    assert "min clearance nothing within sensor range" in r.output

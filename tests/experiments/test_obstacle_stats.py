@@ -57,3 +57,11 @@ def test_summary_counts_contacts_and_collision_free_successes():
     assert (t["success"], t["collision_free"], t["of"], t["contacts"], t["runs_with_contact"]) == (2, 1, 3, 4, 2)
     assert t["min_clearance_m"] == -0.0004
     assert t["success_ci95"] == list(wilson_interval(2, 3))
+
+
+def test_summary_clearance_skips_runs_with_nothing_in_range():
+    row = {"scenario": "rooms", "controller": "cekm", "success": True, "collision_free": True, "collisions": 0}
+    both = [row | {"min_clearance_m": None}, row | {"min_clearance_m": 0.02}]
+    assert summarize(both, {"rooms": ("cekm",)})["rooms"]["cekm"]["min_clearance_m"] == 0.02
+    none = summarize([row | {"min_clearance_m": None}], {"rooms": ("cekm",)})["rooms"]["cekm"]
+    assert none["min_clearance_m"] is None
