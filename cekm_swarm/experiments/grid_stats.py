@@ -1,6 +1,7 @@
 """The tracking grid's statistics: per cell, per level of an axis and per level pair of
-two axes, each controller's mean A with a 95 % t interval, and cekm's A minus the best
-baseline's (the baseline with the higher mean there) with Welch's p."""
+two axes, each controller's mean A with a 95 % t interval (clipped to [0, 1]:
+:func:`.tracking_stats.mean_ci95`), and cekm's A minus the best baseline's (the
+baseline with the higher mean there) with Welch's p."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """The tracking experiment's statistics over team sizes: per team size and controller,
-Parker's A per seed and its mean with a 95 % t interval. The runs are
+Parker's A per seed and its mean with a 95 % t interval (clipped to [0, 1]). The runs are
 :mod:`.tracking_run`'s."""
 
 from __future__ import annotations
@@ -11,7 +11,9 @@ import numpy as np
 
 
 def mean_ci95(xs: list[float]) -> dict[str, Any]:
-    """Mean and a 95 % t interval."""
+    """Mean of Parker's A and its 95 % t interval, clipped to [0, 1]: A is a fraction, and
+    with few seeds the t interval (mean +- t * s / sqrt(n)) reaches past 0 or 1 (two seeds:
+    t = 12.7). The mean and the per-seed values are unclipped."""
     from scipy import stats
 
     a = np.asarray(xs, dtype=float)
@@ -19,7 +21,7 @@ def mean_ci95(xs: list[float]) -> dict[str, Any]:
     if len(a) < 2:
         return {"mean": m, "ci95": [m, m], "n": len(a)}
     h = float(stats.t.ppf(0.975, len(a) - 1) * a.std(ddof=1) / math.sqrt(len(a)))
-    return {"mean": m, "ci95": [m - h, m + h], "n": len(a)}
+    return {"mean": m, "ci95": [max(0.0, m - h), min(1.0, m + h)], "n": len(a)}
 
 
 def team_stats(rows: list[dict[str, Any]], sizes: tuple[int, ...], controllers: tuple[str, ...]) -> list[dict[str, Any]]:

@@ -104,3 +104,14 @@ def test_cekm_experiment_tracking_honours_first_seed(tmp_path):
     stay = doc["configs"][0]["controllers"]["stay"]["per_seed"]
     assert stay == [run_tracking(team_scenario(2, s), "stay", None, s, 1.0).tracking["A"] for s in (7, 8)]
     assert (out / "fig13_cekm.png").exists()
+
+
+def test_intervals_of_a_stay_within_0_and_1():
+    """Two seeds far apart: the t interval (t = 12.7) would be [-4.13, 4.87]; A is a fraction."""
+    from cekm_swarm.experiments.tracking_stats import mean_ci95
+
+    s = mean_ci95([0.0, 0.75])
+    assert s["ci95"] == [0.0, 1.0] and s["mean"] == 0.375 and s["n"] == 2
+    narrow = mean_ci95([0.5, 0.52, 0.48])  # inside [0, 1]: unchanged
+    assert 0.0 < narrow["ci95"][0] < 0.5 < narrow["ci95"][1] < 1.0
+    assert mean_ci95([0.98, 1.0, 1.0])["ci95"][1] == 1.0 and mean_ci95([0.0, 0.0, 0.02])["ci95"][0] == 0.0
