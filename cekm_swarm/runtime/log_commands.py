@@ -76,6 +76,8 @@ def log_cat_cmd(log_file: Path, topics: tuple[str, ...], as_json: bool, views: b
     """Print a log's messages, decoded, in time order (like mcap cat, ros2 bag echo)."""
     from .logcat import CatCounts, cat_lines
 
+    if start is not None and end is not None and end < start:
+        raise click.UsageError(f"--end {end:g} is before --start {start:g}: no message can be in that window")
     patterns = tuple(p.strip() for t in topics for p in t.split(",") if p.strip())
     for p in patterns:
         if not p.startswith("/"):

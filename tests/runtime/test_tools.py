@@ -226,6 +226,20 @@ def test_log_cat_prints_decoded_messages_text_and_json(tmp_path):
     assert wrong.exit_code == 2 and "--topics" in wrong.output
 
 
+def test_log_cat_refuses_an_end_before_the_start(tmp_path, capsys):
+    """--start 10 --end 5 printed nothing and exited 0: a usage error naming both options."""
+    from cekm_swarm.cli import main
+    from cekm_swarm.cli_support import run_cli
+
+    path = tmp_path / "run.mcap"
+    write_log(path, sample_traffic(5))
+    assert run_cli(main, ["log", "cat", str(path), "--start", "10", "--end", "5"]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and err[0].startswith("cekm: error: --end 5 is before --start 10"), err
+    same = run("log", "cat", str(path), "--json", "--start", "0.256", "--end", "0.256")  # one instant: allowed
+    assert {json.loads(line)["log_time"] for line in same.output.splitlines()} == {0.256}
+
+
 # --------------------------------------------------------------------------- record
 
 
