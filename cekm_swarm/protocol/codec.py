@@ -215,12 +215,17 @@ def _explain(codec: _Codec, kind: KeyKind, where: str, data: Any, refusal: BaseE
     problem); msgspec's own words when none of that finds it."""
     try:
         m = msgpack.unpackb(data, raw=False, strict_map_key=True)
-    except msgpack.ExtraData:
-        return MessageFormatError("trailing bytes after the msgpack map", key=where)
+    except msgpack.ExtraData as exc:  # one msgpack object, then more bytes
+        more = f"{len(exc.extra)} more byte{'s' if len(exc.extra) != 1 else ''}"
+        if type(exc.unpacked) is dict:
+            return MessageFormatError(f"trailing bytes after the msgpack map ({more})", key=where)
+        return MessageFormatError(f"not a msgpack map: a msgpack {_msgpack_type(exc.unpacked)} followed by {more}",
+                                  key=where)
     except Exception as exc:  # noqa: BLE001 - msgpack raises ValueError, FormatError, StackError, TypeError ...
-        return MessageFormatError(f"not valid msgpack ({type(exc).__name__}: {exc})", key=where)
+        why = f"{type(exc).__name__}: {exc}" if str(exc) else type(exc).__name__
+        return MessageFormatError(f"not valid msgpack ({why})", key=where)
     if type(m) is not dict:
-        return MessageFormatError(f"expected a msgpack map, got {type(m).__name__}", key=where)
+        return MessageFormatError(f"not a msgpack map: a msgpack {_msgpack_type(m)}", key=where)
     if "v" not in m:
         return MessageVersionError("missing schema version field 'v'", key=where, field="v")
     v = m.pop("v")
@@ -245,6 +250,15 @@ def _explain(codec: _Codec, kind: KeyKind, where: str, data: Any, refusal: BaseE
     except Exception as exc:  # noqa: BLE001 - whatever it is, the bytes are refused with msgspec's reason
         refusal = exc
     return _from_msgspec(refusal, where)
+
+
+_MSGPACK_TYPES = {bool: "boolean", int: "integer", float: "float", str: "string", bytes: "binary", list: "array",
+                  type(None): "nil"}
+
+
+def _msgpack_type(x: Any) -> str:
+    """The msgpack name of a decoded object's type (``ExtType``: extension)."""
+    return _MSGPACK_TYPES.get(type(x), "extension" if isinstance(x, msgpack.ExtType) else type(x).__name__)
 
 
 _AT = re.compile(r" - at `\$\.?([A-Za-z_][A-Za-z0-9_]*)?[^`]*`$")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import logging
 import math
+import re
 import warnings
 
 import msgpack
@@ -242,8 +243,17 @@ def test_truncated_and_garbage_bytes():
     for cut in (1, 10, len(data) // 2, len(data) - 1):
         raises(MessageFormatError, FKEY, data[:cut], None, "not valid msgpack")
     raises(MessageFormatError, FKEY, b"", None)
-    raises(MessageFormatError, FKEY, data + b"\x00", None, "trailing bytes")
-    raises(MessageFormatError, FKEY, pack([1, 2, 3]), None, "expected a msgpack map, got list")
+    raises(MessageFormatError, FKEY, data + b"\x00", None, re.escape("trailing bytes after the msgpack map (1 more byte)"))
+    raises(MessageFormatError, FKEY, pack([1, 2, 3]), None, "not a msgpack map: a msgpack array")
+    # garbage whose first byte is a whole msgpack object: not a map, whatever follows
+    for junk, what in ((b"\x00\xff\x13\x37", "a msgpack integer followed by 3 more bytes"),
+                       (b"\xff\xff", "a msgpack integer followed by 1 more byte"),
+                       (b"abc", "a msgpack integer followed by 2 more bytes"),
+                       (b"\xa3abcxyz", "a msgpack string followed by 3 more bytes"),
+                       (pack([1, 2]) + b"\x00", "a msgpack array followed by 1 more byte"),
+                       (b"\xc0\x00", "a msgpack nil followed by 1 more byte")):
+        err = raises(MessageFormatError, FKEY, junk, None, "not a msgpack map: " + what)
+        assert "trailing bytes" not in str(err)
     raises(MessageFormatError, FKEY, b"\xc1", None)  # never-used msgpack byte
     raises(MessageFormatError, FKEY, pack({1: 2}), None)  # non-string map key
 
