@@ -22,6 +22,9 @@ from cekm_swarm.runtime.mcap_sets import open_recorder
 RECORD_MODES = ("full", "lean")
 LEAN_KINDS = frozenset({KeyKind.CMD_WHEELS, KeyKind.SHARE})
 """The kinds of the nodes' messages a lean log keeps (not the fields, the bulk of a full log)."""
+WORLD_SENT_KINDS = frozenset(k for k in KeyKind if k.value.startswith("sense/"))
+"""The kinds of a robot's keys only the world publishes: its readings (with a graph, the
+recorder takes none of them from other sessions)."""
 LEAN_VIEW_TICKS = 8
 """A lean log's Foxglove views: once every 8 ticks (1.024 s of sim time)."""
 LEAN_PATH_S = 10.0
@@ -52,39 +55,48 @@ class RecordFilter:
         self.lean = lean
         self.left_out = 0  # a lean log: messages of the run not logged (fields), not drops
         self.declared = None if declared is None else {k: KeyKind(v) for k, v in declared.items()}
-        self._known: dict[str, tuple[KeyKind, int | None] | None] = {}
+        self._known: dict[str, tuple[KeyKind, int | None] | str] = {}  # key -> (kind, index) or why not
         self._expect: dict[str, KeyKind] = {}
 
-    def _key(self, key: str) -> tuple[KeyKind, int | None] | None:
-        """(kind, sensor index) of a key of this run, None for any other key. With the run's
-        graph (``declared``: every key its nodes send, and its kind), a robot's key is one
-        of those; without it, any key of a robot of the run."""
-        hit = self._known.get(key, False)
-        if hit is False:
-            try:
-                p = self.keys.parse(key)
-                hit = (p.kind, p.index) if p.robot is None or p.robot in self.robots else None
-                if hit is not None and p.robot is not None and self.declared is not None:
-                    kind = self.declared.get(key)
-                    hit = None if kind is None else (kind if p.kind is KeyKind.NODE else p.kind, p.index)
-                    if kind is not None:
-                        self._expect[key] = kind
-                elif hit is not None and p.kind is KeyKind.NODE:
-                    hit = None  # no graph: only the key space's own keys
-            except KeySpaceError:
-                hit = None
+    def _key(self, key: str) -> tuple[KeyKind, int | None] | str:
+        """(kind, sensor index) of a key of this run, else why it is not one (the drop's
+        reason). With the run's graph (``declared``: every key its nodes send, and its
+        kind), a robot's key is one of those; without it, any key of a robot of the run."""
+        hit = self._known.get(key)
+        if hit is None:
+            hit = self._classify(key)
             if len(self._known) < 4096:  # only ever a bounded memo: foreign keys are unbounded
                 self._known[key] = hit
         return hit
+
+    def _classify(self, key: str) -> tuple[KeyKind, int | None] | str:
+        try:
+            p = self.keys.parse(key)
+        except KeySpaceError:
+            return "key outside this run's key space"
+        if p.robot is None:
+            return (p.kind, p.index)
+        if p.robot not in self.robots:
+            return f"robot {p.robot!r} is not a robot of this run"
+        if self.declared is None:
+            if p.kind is KeyKind.NODE:
+                return "not a key of the key space's own kinds (a run without a graph records no node keys)"
+            return (p.kind, p.index)
+        kind = self.declared.get(key)
+        if kind is not None:
+            self._expect[key] = kind
+            return (kind if p.kind is KeyKind.NODE else p.kind, p.index)
+        if p.kind in WORLD_SENT_KINDS:
+            return "a key only the world publishes (its log holds the world's own messages on it, no one else's)"
+        return "not a key this run's graph's nodes send on"
 
     def check(self, key: str, payload: bytes, now: float) -> float | None:
         """The message's stamp when it is to be recorded at sim time ``now``, else None
         (dropped and counted; in a lean log a message of a kind it does not keep is left out,
         counted in :attr:`left_out`, before it is decoded)."""
         hit = self._key(key)
-        if hit is None:
-            self.drops.drop(key, "key outside this run's key space" if self.declared is None
-                            else "not a key of this run's world or of its graph's nodes")
+        if type(hit) is str:
+            self.drops.drop(key, hit)
             return None
         if self.lean and hit[0] not in LEAN_KINDS:
             self.left_out += 1
