@@ -198,13 +198,14 @@ class WorldServer:
         self.deadman.restart(time.monotonic())
         geometry = self.world.static_geometry()
         pub = self.publisher
-        pub.recorder, pub.views = open_run_log(self.out / "run.mcap", self.scenario.name, self.world.seed, cfg.mode,
-                                               geometry, self.world.body_radius, max_bytes=cfg.max_log_size,
-                                               max_seconds=cfg.max_log_duration, record=cfg.record)
+        session = open_world_session(cfg)  # first: a router that cannot start (a taken port) leaves no log behind
         try:
-            session = open_world_session(cfg)
+            pub.recorder, pub.views = open_run_log(self.out / "run.mcap", self.scenario.name, self.world.seed,
+                                                   cfg.mode, geometry, self.world.body_radius,
+                                                   max_bytes=cfg.max_log_size, max_seconds=cfg.max_log_duration,
+                                                   record=cfg.record)
         except BaseException:
-            pub.recorder.close()
+            session.close()
             raise
         t_wall0 = time.perf_counter()  # set again once the nodes are alive: wall_seconds is the run's own
         aborted = False

@@ -145,3 +145,19 @@ def test_the_world_counts_only_the_tokens_of_its_own_run(world):
         for t in tokens:
             t.undeclare()
         session.close()
+
+
+def test_a_port_already_taken_leaves_no_log_in_out(tmp_path):
+    """The router cannot listen: the world server ends before opening run.mcap (it left a
+    log holding the scene view alone)."""
+    import socket
+
+    out = tmp_path / "run"
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        proc = subprocess.run([sys.executable, "-m", "world.server", "lone_obstacle", "--listen",
+                               f"tcp/127.0.0.1:{port}", "--out", str(out)], capture_output=True, text=True, timeout=60)
+    assert proc.returncode != 0 and "Address already in use" in proc.stderr, proc.stderr[-2000:]
+    assert not list(out.glob("*.mcap"))
