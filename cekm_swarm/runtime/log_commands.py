@@ -5,6 +5,7 @@ record`` (record live keys like the world server's log)."""
 from __future__ import annotations
 
 import contextlib
+import signal
 import sys
 import threading
 from collections.abc import Iterator
@@ -244,11 +245,41 @@ def replay_cmd(log_file: Path, endpoint: str | None, config_file: Path | None, w
             sys.stderr.write("\n")
     click.echo(f"published {result.published} messages on {len(result.per_key)} keys in {result.loops} loop(s), "
                f"{result.sim_seconds:.3f} s of sim time in {result.wall_seconds:.3f} s")
+    if result.jumped:
+        from .replay import MAX_GAP_S
+
+        _say(f"replay: did not wait across {result.jumped} gap(s) of more than {MAX_GAP_S:g} s of sim time "
+             f"between two messages (log times no run reaches: stamps its recorder should not have kept)")
     if hit[0]:
         raise Interrupted() from None
 
 
 # --------------------------------------------------------------------------- record
+
+
+@contextlib.contextmanager
+def _sigterm_as_sigint() -> Iterator[None]:
+    """Within the block SIGTERM does what Ctrl-C does at that moment (waiting for the
+    router: end; recording: stop, close the file, print the summary), instead of killing
+    the process and leaving an MCAP file without its summary. It is never ignored: a
+    command started in the background by a shell has SIGINT ignored, SIGTERM still ends it."""
+
+    def handler(signum: int, frame: Any) -> None:
+        on_int = signal.getsignal(signal.SIGINT)
+        if callable(on_int) and on_int is not signal.default_int_handler:
+            on_int(signal.SIGINT, frame)  # the recording's own: stop cleanly
+        else:
+            raise KeyboardInterrupt
+
+    try:
+        old = signal.signal(signal.SIGTERM, handler)
+    except ValueError:  # not the main thread (tests): no handler
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, old)
 
 
 @click.command("record")
@@ -271,7 +302,17 @@ def record_cmd(key_expr: str | None, out_path: Path, endpoint: str | None, confi
                max_log_duration: float | None) -> None:
     """Record the live keys matching KEYEXPR (default: the whole key space) into an MCAP log
     with the channels and Foxglove views of the world server's own log (not the static
-    scene, which the world does not publish). Ctrl-C stops and closes the file."""
+    scene, which the world does not publish). Ctrl-C or SIGTERM stops and closes the file.
+    A message whose stamp is not believable (not a tick's sim time in [0, 1e7] s, or more
+    than 8 ticks from the newest taken) is dropped and counted, as in the world's own log."""
+    with _sigterm_as_sigint():
+        _record(key_expr, out_path, endpoint, config_file, wait_s, duration, count, no_views, root, max_log_size,
+                max_log_duration)
+
+
+def _record(key_expr: str | None, out_path: Path, endpoint: str | None, config_file: Path | None, wait_s: float,
+            duration: float | None, count: int | None, no_views: bool, root: str, max_log_size: int | None,
+            max_log_duration: float | None) -> None:
     from .record import record
     from .wait import resolve_endpoint
 
@@ -304,6 +345,7 @@ def record_cmd(key_expr: str | None, out_path: Path, endpoint: str | None, confi
         sys.stderr.write("\n")
     span = "" if res.first_stamp is None else f", sim time {res.first_stamp:.3f} .. {res.last_stamp:.3f} s"
     bad = f", {res.malformed} malformed" if res.malformed else ""
+    bad += f", {res.dropped} dropped (stamp not believable)" if res.dropped else ""
     into = out_path if len(res.files) <= 1 else f"{res.files[0]} .. {res.files[-1].name} ({len(res.files)} files)"
     click.echo(f"recorded {res.messages} messages on {len(res.per_key)} keys{span}{bad} into {into}")
     if res.first_stamp is not None and keys.world_state() in res.per_key and not res.geometry:

@@ -10,7 +10,16 @@ sees the first world state, and writes as the world's log does (the ``geometry``
 metadata record and the first ``/view/scene``). A router that refuses the query (access
 control) leaves the recording without it, and says so.
 
-A message whose stamp cannot be read is still recorded, at the latest sim time seen; a
+A message whose stamp the recorder does not believe is not recorded: it is dropped and
+counted (:attr:`RecordResult.dropped`), as the world's own recorder does
+(``world/recorder.py``), so the log's times stay sane (a stamp of 1e300 was kept at the
+largest time MCAP holds, and a replay of the log then waited 584 years for it). The
+recorder has no clock of its own, so it judges a stamp as a module does
+(:func:`record_problem`, :class:`~cekm_swarm.protocol.stamps.StampWindow`): finite, within
+[0, MAX_STAMP_S], on the tick grid, and within 8 ticks of the newest stamp it took (after
+a second of wall time without one, as at the start, when a run restarts or a replay loops
+back, any stamp in bounds is taken). A message whose stamp cannot be read at all (not a
+message, no finite number) is still recorded, at the latest sim time taken; a
 ``world/state`` that does not decode (its entries are typed: a robot without a finite
 pose does not decode) is recorded but drawn in no view, and counted.
 """
@@ -29,6 +38,7 @@ from typing import Any
 import zenoh
 
 from cekm_swarm.protocol import DEFAULT_KEYS, DropCounter, KeyKind, KeySpace, KeySpaceError, WorldState, peek
+from cekm_swarm.protocol.stamps import StampWindow
 
 from .mcap_log import McapRecorder
 from .mcap_sets import open_recorder
@@ -76,13 +86,26 @@ def fetch_json(session: zenoh.Session, key: str, timeout: float = 2.0) -> dict[s
     return None
 
 
+def record_problem(stamp: float | None, window: StampWindow) -> str | None:
+    """Why a message whose :func:`~cekm_swarm.protocol.peek` stamp is ``stamp`` is not to
+    be recorded (None: record it). A stamp that cannot be read (None) is no reason: the
+    message is recorded at the latest sim time taken. Any other goes through ``window``
+    (bounds, tick grid, within 8 ticks of the newest stamp taken), which takes it when it
+    is believed. No Zenoh: feed it stamps in arrival order."""
+    if stamp is None:
+        return None
+    return window.check(stamp)
+
+
 @dataclass
 class RecordResult:
-    """What a recording holds: messages per key, view messages written, malformed seen."""
+    """What a recording holds: messages per key, view messages written, malformed seen,
+    messages dropped (not recorded: a stamp the recorder does not believe)."""
 
     messages: int = 0
     per_key: dict[str, int] = field(default_factory=dict)
     malformed: int = 0
+    dropped: int = 0
     views: bool = False
     geometry: bool = False
     wall_seconds: float = 0.0
@@ -99,7 +122,9 @@ class Recording:
         self.recorder = recorder
         self._geometry = geometry  # asked once, at the first world state
         self.keys = keys
-        self.drops = DropCounter("record", keys=keys)
+        self.drops = DropCounter("record", keys=keys)  # recorded, but not drawn: malformed
+        self.stamp_drops = DropCounter("record", keys=keys)  # not recorded: a stamp not believed
+        self.window = StampWindow()
         self.result = RecordResult()
         self._last = 0.0
         self._views = None
@@ -114,8 +139,13 @@ class Recording:
                 self._views = None
 
     def add(self, key: str, payload: bytes) -> None:
-        """Record one message received on ``key``."""
+        """Record one message received on ``key`` (or drop and count it: :func:`record_problem`)."""
         _, stamp = peek(payload)
+        why = record_problem(stamp, self.window)
+        if why is not None:
+            self.stamp_drops.drop(key, why)
+            self.result.dropped = self.stamp_drops.total
+            return
         t = self._last if stamp is None else stamp
         self._last = max(self._last, t)
         self.recorder.write(key, payload, t)
@@ -193,8 +223,9 @@ def record(session: zenoh.Session, out: str | Path, key_expr: str, *, keys: KeyS
                     recorder.maybe_flush()
                     item = None
                 if item is not None:
-                    if rec.result.messages == 0 and on_first is not None:
+                    if on_first is not None:  # once, at the first message (recorded or dropped)
                         on_first()
+                        on_first = None
                     rec.add(*item)
                 if on_progress is not None and time.monotonic() - last_progress >= progress_every:
                     last_progress = time.monotonic()

@@ -6,6 +6,14 @@ their sim-time gap divided by ``rate``; ``rate=None`` publishes as fast as possi
 Monitors and tools attach to a replay exactly as to a live run. A replay can be paused
 and resumed (:class:`ReplayControl`; the recorded gaps are kept across a pause), can
 start ``start`` seconds into the log, and reports its progress (:class:`ReplayProgress`).
+
+A gap of more than :data:`MAX_GAP_S` of sim time between two messages it publishes one
+after the other is not waited for: the later message goes out at once and the schedule
+goes on from it (counted in :attr:`ReplayResult.jumped`; ``cekm replay`` says so in one
+line). No run leaves a minute of sim time without a message (the world's clock comes
+every tick), so such a gap comes from a stamp no run reaches that a recorder kept (a log
+of ``cekm record`` from before it judged stamps: a stamp of 1e300 filed at the largest
+time MCAP holds made the replay wait 584 years for it).
 """
 
 from __future__ import annotations
@@ -22,6 +30,10 @@ import zenoh
 from .bridge import Publishers
 from .mcap_log import MSGPACK, LoggedMessage, read_messages
 
+MAX_GAP_S = 60.0
+"""Sim seconds between two consecutive published messages beyond which replay does not
+wait (the gap is jumped): far more than any run's (a tick, 0.128 s, for a full or lean
+log; a few seconds for a log of a few sparse keys), far less than a bogus stamp's."""
 
 class ReplayControl:
     """Pause and resume a running replay from another thread (a key press, a test)."""
@@ -111,7 +123,9 @@ def log_span(path: str | Path) -> tuple[float, float] | None:
 
 @dataclass
 class ReplayResult:
-    """Counts of a replay: messages published (in all loops), loops completed, per key."""
+    """Counts of a replay: messages published (in all loops), loops completed, per key,
+    gaps of more than :data:`MAX_GAP_S` not waited for (``jumped``, their sim time left
+    out of ``sim_seconds``)."""
 
     published: int = 0
     loops: int = 0
@@ -119,6 +133,7 @@ class ReplayResult:
     wall_seconds: float = 0.0
     sim_seconds: float = 0.0
     stopped: bool = False
+    jumped: int = 0
 
 
 def _selector(key_expr: str | None) -> Callable[[str], bool]:
@@ -151,7 +166,8 @@ def replay_log(session: zenoh.Session, path: str | Path, *, rate: float | None =
     slow subscriber slows the replay instead of losing messages. ``start`` skips the first
     ``start`` seconds of the log (in every loop); ``control`` pauses and resumes;
     ``on_progress`` is called at most every ``progress_every`` s and once at the end of
-    each loop. Returns the counts."""
+    each loop. A gap of more than :data:`MAX_GAP_S` of sim time between two messages is
+    not waited for (module docstring). Returns the counts."""
     fast = rate is None or rate <= 0
     wanted = _selector(key_expr)
     own = publishers is None
@@ -175,10 +191,13 @@ def replay_log(session: zenoh.Session, path: str | Path, *, rate: float | None =
 
     first_ns: int | None = None
     last_ns = 0
+    jumped_ns = 0  # sim time of the gaps jumped in this loop: left out of the schedule
+    max_gap_ns = int(MAX_GAP_S * 1e9)
     try:
         while True:
             first_ns = None
             last_ns = 0
+            jumped_ns = 0
             skip_before: int | None = None if log_start_ns is None else log_start_ns + int(round(start * 1e9))
             loop_t0 = time.perf_counter()
             published_before = result.published
@@ -201,9 +220,12 @@ def replay_log(session: zenoh.Session, path: str | Path, *, rate: float | None =
                 if first_ns is None:
                     loop_t0 = time.perf_counter()  # the schedule starts at the first message
                     first_ns = m.log_time
+                elif m.log_time - last_ns > max_gap_ns:  # a time no run reaches: do not wait for it
+                    jumped_ns += m.log_time - last_ns
+                    result.jumped += 1
                 last_ns = m.log_time
                 if not fast:
-                    due = loop_t0 + (m.log_time - first_ns) / 1e9 / rate  # type: ignore[operator]
+                    due = loop_t0 + (m.log_time - first_ns - jumped_ns) / 1e9 / rate  # type: ignore[operator]
                     delay = due - time.perf_counter()
                     while delay > 0:
                         report(last_ns)
@@ -221,7 +243,8 @@ def replay_log(session: zenoh.Session, path: str | Path, *, rate: float | None =
                             if stop is not None and stop.is_set():
                                 result.stopped = True
                                 return result
-                        delay = loop_t0 + (m.log_time - first_ns) / 1e9 / rate - time.perf_counter()  # type: ignore[operator]
+                        delay = (loop_t0 + (m.log_time - first_ns - jumped_ns) / 1e9 / rate  # type: ignore[operator]
+                                 - time.perf_counter())
                 pubs.put(m.topic, m.data)
                 result.published += 1
                 result.per_key[m.topic] = result.per_key.get(m.topic, 0) + 1
@@ -231,14 +254,14 @@ def replay_log(session: zenoh.Session, path: str | Path, *, rate: float | None =
             report(last_ns, force=True)
             result.loops += 1
             if first_ns is not None:
-                result.sim_seconds += (last_ns - first_ns) / 1e9
+                result.sim_seconds += (last_ns - first_ns - jumped_ns) / 1e9
             if not loop or result.published == published_before:
                 return result
             if max_loops is not None and result.loops >= max_loops:
                 return result
     finally:
         if result.stopped and first_ns is not None:  # the part of the interrupted loop
-            result.sim_seconds += (last_ns - first_ns) / 1e9
+            result.sim_seconds += (last_ns - first_ns - jumped_ns) / 1e9
         result.wall_seconds = time.perf_counter() - t_start
         if own:
             pubs.close()

@@ -196,3 +196,69 @@ def test_replay_command_hosts_the_router_when_told_no_endpoint(tmp_path):
     assert proc.returncode == 130, err
     assert f"replay: hosting the router on tcp/127.0.0.1:{port}" in err and out.startswith("published ")
     assert taken.returncode == 1 and f"holds port {port}?" in taken.stderr
+
+
+def gap_log(path) -> int:
+    """A log as `cekm record` wrote it before it judged stamps: a -1 stamp filed at 0, a run
+    joined at 500 s of sim time, and 1e300 stamps filed at the largest time MCAP holds.
+    Returns the number of messages."""
+    traffic = [(K.cmd_wheels("r1"), b"\x80", -1.0)]
+    traffic += [(K.world_clock(), bytes([0x80 + k]), round(500.0 + k * 0.128, 9)) for k in range(5)]
+    traffic += [(K.cmd_wheels("r1"), b"\x81", 1e300)] * 2
+    write_log(path, traffic)
+    return len(traffic)
+
+
+def test_replay_does_not_wait_across_a_gap_no_run_has(tmp_path, clients):
+    """Replaying such a log at the recorded timing published the first message, then waited
+    500 s for the run, then 584 years for the last ones; now a gap of more than MAX_GAP_S
+    between two messages is not waited for, counted, and left out of the sim time."""
+    path = tmp_path / "rec.mcap"
+    n = gap_log(path)
+    a = clients()
+    pubs = Publishers(a, block=True)
+    out: list = []
+    stop = threading.Event()
+    t = threading.Thread(target=lambda: out.append(replay_log(a, path, rate=1.0, publishers=pubs, stop=stop)))
+    t.start()
+    t.join(T)
+    stop.set()  # a replay still waiting ends (and the test fails below)
+    t.join(T)
+    pubs.close()
+    result = out[0]
+    assert not result.stopped, f"still waiting after {T} s: published {result.published} of {n}"
+    from cekm_swarm.runtime.replay import MAX_GAP_S
+
+    assert result.published == n and result.jumped == 2 and MAX_GAP_S < 500
+    assert result.sim_seconds == pytest.approx(4 * 0.128)
+    assert 4 * 0.128 <= result.wall_seconds < 4 * 0.128 + 2.0  # the run's own gaps still kept
+    fast = replay_log(a, path, rate=None)
+    assert fast.published == n and fast.jumped == 2 and fast.sim_seconds == pytest.approx(4 * 0.128)
+
+
+def test_replay_command_says_how_many_gaps_it_did_not_wait_for(tmp_path, router):
+    import click
+    from click.testing import CliRunner
+
+    from cekm_swarm.runtime.commands import COMMANDS
+
+    @click.group()
+    def cli() -> None:
+        """Stand-in for the main CLI."""
+
+    for c in COMMANDS:
+        cli.add_command(c)
+    path = tmp_path / "rec.mcap"
+    n = gap_log(path)
+    out: list = []
+    t = threading.Thread(target=lambda: out.append(CliRunner().invoke(
+        cli, ["replay", str(path), "--connect", router, "--rate", "100"], catch_exceptions=False)), daemon=True)
+    t.start()
+    t.join(T)
+    assert not t.is_alive(), "the replay is still waiting"
+    res = out[0]
+    assert res.exit_code == 0, res.output
+    assert res.stdout.startswith(f"published {n} messages on 2 keys in 1 loop(s), 0.512 s of sim time")
+    warning = [line for line in res.stderr.splitlines() if "did not wait" in line]
+    assert warning == ["replay: did not wait across 2 gap(s) of more than 60 s of sim time between two messages "
+                       "(log times no run reaches: stamps its recorder should not have kept)"]

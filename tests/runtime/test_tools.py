@@ -243,6 +243,11 @@ def test_log_cat_refuses_an_end_before_the_start(tmp_path, capsys):
 # --------------------------------------------------------------------------- record
 
 
+def tick(i: int) -> float:
+    """Sim time of tick 8 + i (1.024 s, 1.152 s, ...): a recorder takes only a tick's stamp."""
+    return round((8 + i) * 0.128, 9)
+
+
 def world_state(t: float, x: float) -> WorldState:
     return WorldState(t, "world", {"r1": {"x": x, "y": 0.5, "theta": 0.1, "in_contact": False, "goal": [2.0, 0.5]}},
                       {"t1": {"x": 1.0, "y": 1.0}}, {})
@@ -264,8 +269,8 @@ def test_record_writes_the_channels_and_views_of_the_worlds_log(router, clients,
     try:
         assert pubs.wait_matching(K.world_state(), T)  # the recorder's subscription is in place
         for i in range(3):
-            pubs.send(K.world_state(), world_state(1.0 + i, 0.1 * i))
-            pubs.send(K.cmd_wheels("r1"), WheelCommand(1.0 + i, "r1/motor", 0.1, 0.1, i))
+            pubs.send(K.world_state(), world_state(tick(i), 0.1 * i))
+            pubs.send(K.cmd_wheels("r1"), WheelCommand(tick(i), "r1/motor", 0.1, 0.1, i))
         pubs.put(K.cmd_wheels("r7"), b"\xc1")  # malformed: recorded at the latest sim time seen
     finally:
         t.join(T)
@@ -275,7 +280,7 @@ def test_record_writes_the_channels_and_views_of_the_worlds_log(router, clients,
     assert res.exit_code == 0, res.output
     assert "no static scene" not in res.output
     assert read_geometry(out) == GEOMETRY  # what `cekm plot` draws the arena from
-    assert f"recorded 7 messages on 3 keys, sim time 1.000 .. 3.000 s into {out}" in res.output
+    assert f"recorded 7 messages on 3 keys, sim time 1.024 .. 1.280 s into {out}" in res.output
     info = log_info(out)
     assert info.complete
     topics = {c.topic: (c.message_encoding, c.count) for c in info.channels}
@@ -283,9 +288,9 @@ def test_record_writes_the_channels_and_views_of_the_worlds_log(router, clients,
     assert topics["/view/scene"] == ("protobuf", 4) and topics["/view/tf"] == ("protobuf", 3)  # + the static scene
     assert topics["/view/path/r1"][0] == "protobuf"
     bad = [m for m in read_messages(out) if m.topic == K.cmd_wheels("r7")]
-    assert len(bad) == 1 and bad[0].log_time == 3_000_000_000 and bad[0].data == b"\xc1"
+    assert len(bad) == 1 and bad[0].log_time == 1_280_000_000 and bad[0].data == b"\xc1"
     assert [m.data for m in read_messages(out, topics=[K.world_state()])] == [
-        encode(world_state(1.0 + i, 0.1 * i)) for i in range(3)]
+        encode(world_state(tick(i), 0.1 * i)) for i in range(3)]
 
 
 def test_recording_draws_what_it_can_and_counts_what_it_cannot(tmp_path):
@@ -297,8 +302,8 @@ def test_recording_draws_what_it_can_and_counts_what_it_cannot(tmp_path):
     out = tmp_path / "r.mcap"
     with McapRecorder(out) as recorder:
         rec = Recording(recorder)
-        rec.add(K.world_state(), encode(world_state(1.0, 0.1)))
-        no_x = msgpack.unpackb(encode(world_state(2.0, 0.1)))
+        rec.add(K.world_state(), encode(world_state(tick(0), 0.1)))
+        no_x = msgpack.unpackb(encode(world_state(tick(1), 0.1)))
         del no_x["robots"]["r1"]["x"]
         rec.add(K.world_state(), msgpack.packb(no_x))  # no x: the typed world state does not decode
         rec.add(K.world_state(), b"\x93\x01")  # not a message
