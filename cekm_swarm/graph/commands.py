@@ -77,7 +77,8 @@ def describe(checked, plan) -> list[str]:
         n = sum(1 for x in plan.nodes[robot] if x.decl.name == d.name)
         inst = f" x{n} ({d.name}-0 .. {d.name}-{n - 1})" if d.instances is not None else ""
         rate = f"every {node.period} tick{'s' if node.period > 1 else ''} ({node.period * TICK_S:.3f} s)"
-        how = "declared" if d.every is not None else ("on the world's clock" if node.clock_key else "once its inputs of a tick are in")
+        how = ("declared" if d.every is not None else "once its inputs of a tick are in") + (
+            ", told of each tick by the world's clock" if node.clock_key else "")
         flags = [f for f, on in (("stateful", node.stateful), ("reads the model", node.uses_model)) if on]
         lines.append(f"    {d.name}{inst}: {d.program}")
         lines.append(f"      runs {rate}, {how}" + (f"; {', '.join(flags)}" if flags else ""))

@@ -18,6 +18,13 @@ from .plan import WORLD_KEYS, WORLD_OWNER, Binding, NodePlan, PortTypes, RunPlan
 from .spec import Graph, GraphError, InputDecl
 
 
+def timed_by(period: int, triggers: set[int]) -> bool:
+    """Whether a node due every ``period`` ticks hears a value of each of its due ticks
+    from a same-tick source (one of period p sends at every multiple of p). If not, it
+    also listens to the world's clock: a node due every tick that reads only a reading
+    sent every other tick would otherwise learn of its odd ticks from no one."""
+    return any(period % p == 0 for p in triggers)
+
 def _source_keys(plan_outputs: dict[str, tuple[str, str, int | None, str]], rel: str) -> list[tuple[str, Any]]:
     """The own keys an input pattern matches, in producer order: (relative key, label)."""
     if rel.endswith("/*"):
@@ -220,7 +227,7 @@ def build_plan(graph: Graph, team: tuple[str, ...] | list[str], task: str, ports
             pt = ports[name]
             for inst in (range(counts[name]) if instanced[name] else [None]):
                 bindings = []
-                trigger = False
+                triggers: set[int] = set()  # periods of the same-tick sources
                 for d, hits in resolved[(name, inst)]:
                     srcs = []
                     if d.scope == "teammates":
@@ -237,14 +244,16 @@ def build_plan(graph: Graph, team: tuple[str, ...] | list[str], task: str, ports
                             srcs.append(Source(full, lab, owner, prod, producer_period(prod, per)))
                     period_of = max((s.period for s in srcs), default=1)
                     stale = d.stale if d.stale is not None else (2 if d.delay == 0 else 4) * period_of * TICK_S
-                    trigger = trigger or d.delay == 0
+                    if d.delay == 0:
+                        triggers.update(s.period for s in srcs)
                     bindings.append(Binding(d.port, pt.inputs[d.port][0], pt.inputs[d.port][1], d.delay,
                                             d.scope == "teammates", stale, tuple(srcs)))
                 outs = {o.port: f"{keys.root}/{robot}/{o.key if inst is None else o.key.replace('{i}', str(inst))}"
                         for o in n.outputs}
                 nodes.append(NodePlan(robot, n, inst, periods[name], tuple(bindings), outs,
                                       {o.port: pt.outputs[o.port] for o in n.outputs},
-                                      None if trigger else keys.world_clock(), pt.stateful, pt.uses_model,
+                                      None if timed_by(periods[name], triggers) else keys.world_clock(),
+                                      pt.stateful, pt.uses_model,
                                       pt.pure and not pt.stateful))
         plan.nodes[robot] = nodes
     return plan

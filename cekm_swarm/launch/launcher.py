@@ -48,6 +48,7 @@ from cekm_swarm.ticks import tick_of
 from .cpu import CpuSnapshot, cpu_per_tick
 from .errors import LaunchError, NodeCannotStart
 from .processes import new_run_id, node_argv
+from .reports import node_summary, notable, read_reports, summary_lines
 from .robot_host import RobotHost
 from .supervision import Child, Supervision
 from .world_host import ALIVE_TIMEOUT, WorldHost, port_hint
@@ -409,6 +410,10 @@ class Launcher(Supervision, WorldHost, RobotHost):
             "restarts": {ch.label: ch.restarts for ch in self.children.values() if ch.restarts},
             "exits": {ch.label: ch.exits for ch in self.children.values() if ch.exits},
             "startup_s": self.startup_s}
+        summaries = {label: node_summary(read_reports(ch.log_path)) for label, ch in self.children.items()}
+        for line in summary_lines(summaries, {label: ch.log_path for label, ch in self.children.items()}):
+            self.say(line)
+        outcome["launcher"]["nodes"] = notable(summaries)  # nodes that failed, skipped runs or dropped messages
         if self.c.mode == "lockstep":
             lost = sorted(ch.label for ch in self.children.values() if ch.restarts and ch.stateful)
             outcome["reproducible"] = {"equals_cekm_run": not lost, "stateful_restarts": lost,

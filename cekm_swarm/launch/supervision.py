@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from cekm_swarm.node.process import CANNOT_START, EXIT_CANNOT_START
+from cekm_swarm.node.process import CANNOT_START, EXIT_CANNOT_START, EXIT_STEP_FAILED, STEP_FAILED
 from cekm_swarm.runtime.lifetime import child_env
 
 from .spawn import ForkServer, exec_process
@@ -118,8 +118,13 @@ class Supervision:
                 return
             child.exits.append(code)
             if code == EXIT_CANNOT_START:  # a bad model or parameter: restarting cannot help
-                self.failure = self._cannot_start_line(child)
+                self.failure = self._own_line(child, CANNOT_START, code)
                 self.say(f"node {child.label} cannot start: {self.failure}; the launch ends")
+                self._interrupt_for_failure()
+                return
+            if code == EXIT_STEP_FAILED:  # lockstep cannot go on without that run's outputs
+                self.failure = self._own_line(child, STEP_FAILED, code)
+                self.say(f"node {child.label} failed: {self.failure}; the launch ends")
                 self._interrupt_for_failure()
                 return
             up = time.monotonic() - child.started
@@ -139,16 +144,16 @@ class Supervision:
             self.say(f"module {child.label} restarted (pid {child.proc.pid})")
 
     @staticmethod
-    def _cannot_start_line(child: Child) -> str:
-        """The node's own one-line reason (its log's CANNOT-START line)."""
+    def _own_line(child: Child, marker: str, code: int) -> str:
+        """The node's own one-line reason (its log's last line starting with ``marker``)."""
         try:
             lines = child.log_path.read_text(errors="replace").splitlines()
         except OSError:
             lines = []
         for line in reversed(lines):
-            if line.startswith(CANNOT_START):
-                return line[len(CANNOT_START):].strip()
-        return f"exit code {EXIT_CANNOT_START} (see {child.log_path})"
+            if line.startswith(marker):
+                return line[len(marker):].strip()
+        return f"exit code {code} (see {child.log_path})"
 
     def _interrupt_for_failure(self) -> None:
         """End the run: the world first (it writes what it has), then everything else."""

@@ -14,7 +14,7 @@ from cekm_swarm.controller.readings import RangeReading
 from cekm_swarm.controller.team import TeammateShare, TeamView
 from cekm_swarm.controller.tracking import TrackingRobot
 from cekm_swarm.models.params import ACMOMMTParams, TrackingParams
-from cekm_swarm.node import In, Node, NodeError, Out
+from cekm_swarm.node import In, Node, NodeError, Out, need
 from cekm_swarm.protocol import Data, SensePose, SenseRange, SenseTargets, Share, WheelCommand
 from cekm_swarm.ticks import tick_of
 
@@ -52,9 +52,9 @@ class ACMOMMTForces(Node):
         self.brain = TrackingRobot(self.ctx.robot, acmommt(self), TeamView(self.ctx.robot, p.share_timeout_s, p.memory_s))
 
     def step(self, t, inputs):
+        pose, sensed = need(inputs, "pose", "targets")  # real time: skipped until both are in
         for robot, share in inputs["team"].items():
             self.brain.receive(robot, TeammateShare(share.stamp, share.pose, share.targets))
-        pose, sensed = inputs["pose"], inputs["targets"]
         own = self.brain.on_sense(pose.stamp, pose.pose, sensed.targets)
         share = Share(own.stamp, self.brain.robot, own.pose, own.targets)
         a: ForceActivity = self.brain.activity

@@ -16,7 +16,7 @@ import math
 from cekm_swarm.controller.kmeans import GoalForce, KMeansTracker, local_view, usable_shares
 from cekm_swarm.controller.team import to_world
 from cekm_swarm.models.params import KMeansParams
-from cekm_swarm.node import In, Node, NodeError, Out
+from cekm_swarm.node import In, Node, NodeError, Out, need
 from cekm_swarm.protocol import Data, SensePose, SenseTargets, Share, WorldState
 
 
@@ -48,11 +48,12 @@ class KMeansLocal(Node):
         self.shares: dict = {}
 
     def step(self, t, inputs):
+        pose_msg, sensed_msg = need(inputs, "pose", "targets")  # real time: skipped until both are in
         for robot, sh in inputs["team"].items():
             held = self.shares.get(robot)
             if robot != self.ctx.robot and (held is None or sh.stamp >= held[0]):
                 self.shares[robot] = (sh.stamp, tuple(sh.pose), dict(sh.targets))
-        pose, sensed = tuple(inputs["pose"].pose), dict(inputs["targets"].targets)
+        pose, sensed = tuple(pose_msg.pose), dict(sensed_msg.targets)
         robots, targets = local_view(pose, sensed, usable_shares(self.shares, t, self.params.share_timeout_s))
         f = self.brain.update(t, pose, {r: p for r, p in robots.items()}, targets)
         own = {tid: to_world(pose, a, d) for tid, (a, d) in sorted(sensed.items())}

@@ -11,7 +11,7 @@ from __future__ import annotations
 from cekm_swarm.controller.team import TeammateShare, TeamView
 from cekm_swarm.controller.tracking import TrackingActivity, TrackingEKM, TrackingRobot
 from cekm_swarm.models.params import FieldParams, TrackingParams
-from cekm_swarm.node import In, Node, NodeError, Out
+from cekm_swarm.node import In, Node, NodeError, Out, need
 from cekm_swarm.protocol import SensePose, SenseTargets, Share, TrackingField
 
 from .ekm import indirect_model
@@ -56,9 +56,9 @@ class TrackingLocalization(Node):
                                    TeamView(self.ctx.robot, p.share_timeout_s, p.memory_s))
 
     def step(self, t, inputs):
+        pose, sensed = need(inputs, "pose", "targets")  # real time: skipped until both are in
         for robot, share in inputs["team"].items():
             self.brain.receive(robot, TeammateShare(share.stamp, share.pose, share.targets))
-        pose, sensed = inputs["pose"], inputs["targets"]
         own = self.brain.on_sense(pose.stamp, pose.pose, sensed.targets)
         share = Share(own.stamp, self.brain.robot, own.pose, own.targets)
         return {"field": tracking_field(self.brain.activity, self.ctx.sender), "share": share}

@@ -15,6 +15,7 @@ through an example.
 ...         return {"nearest": Data(t, self.ctx.sender, {"d": min(seen) if seen else None})}
 """
 
-from .api import Context, In, Inputs, Node, NodeError, NoParams, Out, make_params, param_fields
+from .api import Context, In, Inputs, Node, NodeError, NoParams, NotReady, Out, make_params, need, param_fields
 
-__all__ = ["Context", "In", "Inputs", "Node", "NodeError", "NoParams", "Out", "make_params", "param_fields"]
+__all__ = ["Context", "In", "Inputs", "Node", "NodeError", "NoParams", "NotReady", "Out", "make_params", "need",
+           "param_fields"]

@@ -51,6 +51,15 @@ class NodeError(CekmError):
     a permanent failure: the launch ends with this line, and the node is not restarted."""
 
 
+class NotReady(Exception):
+    """Raised by a node's ``step`` when an input it cannot do without is missing: in real
+    time a one-key input is None until its first value arrives (or while it is stale).
+    The run gives no outputs, and the tick runs again when more of its values arrive; a tick
+    still not ready when the next one begins is given up and counted as ``not_ready`` in the
+    node's report. In lockstep and in one process every input of a run is there, so raising
+    it there is a failure of the node like any other exception."""
+
+
 @dataclass(frozen=True)
 class In:
     """An input port: the message type it takes, and whether it takes many keys (every
@@ -216,6 +225,16 @@ class Inputs(Mapping[str, Any]):
 
     def __len__(self) -> int:
         return len(self._values)
+
+
+def need(inputs: Mapping[str, Any], *ports: str) -> Any:
+    """The messages of one-key ``ports`` of a step's ``inputs``, raising :class:`NotReady`
+    if one is missing (real time: not arrived yet, or stale), so the run waits rather than
+    computing from nothing: ``pose, sensed = need(inputs, "pose", "targets")``."""
+    got = tuple(inputs[p] for p in ports)
+    if any(m is None for m in got):
+        raise NotReady(", ".join(p for p, m in zip(ports, got) if m is None))
+    return got[0] if len(got) == 1 else got
 
 
 # --------------------------------------------------------------------------- parameters

@@ -9,7 +9,8 @@ from typing import Any
 from cekm_swarm.graph.plan import NodePlan
 
 from .api import Inputs
-from .timing import Drop, Runner, tick_of
+from .runner import Runner
+from .timing import Drop, tick_of
 
 
 class DirectGate:

@@ -21,7 +21,8 @@ from cekm_swarm.protocol import KeyKind, decode, encode
 from cekm_swarm.ticks import TICK_S
 
 from .api import Context, NodeError
-from .timing import Runner, gather
+from .runner import Runner
+from .timing import gather
 
 KEEP_TICKS = 16
 """Ticks of values kept per key (more than any shipped node's period and delay need)."""

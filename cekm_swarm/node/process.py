@@ -10,8 +10,10 @@ session, subscribes to the node's inputs, holds its liveliness token
 (:mod:`.timing`, lockstep or real time), publishing what the node computes. Every
 received message is validated; a malformed one, one whose stamp the node does not believe
 (:class:`~cekm_swarm.protocol.stamps.StampWindow`) or one on a key the node does not read
-is dropped and counted per source, never a crash. It serves until SIGTERM/SIGINT, then
-logs ``DROPS {json}`` with what it handled and dropped.
+is dropped and counted per source, never a crash. A step that raises is counted apart
+(:meth:`NodeShell.step_failed`): in real time the node goes on, in lockstep it stops and
+the launch ends with its line. It serves until SIGTERM/SIGINT, then logs ``DROPS {json}``
+with what it handled, dropped and failed.
 
 Decode, the step and publish run on Zenoh's receiving thread (a direct callback): one
 thread wake-up per message instead of three, which is most of a module's cost on a loaded
@@ -38,15 +40,25 @@ from cekm_swarm.graph.runspec import RunSpec
 from cekm_swarm.protocol import DropCounter, KeyKind
 from cekm_swarm.protocol.stamps import ANY_STAMP, StampWindow
 
-from .api import Context, make_params
+from .api import Context, NodeError, make_params
 from .direct_gate import DirectGate
-from .timing import LockstepGate, RealtimeGate, Runner, tick_of
+from .runner import Runner
+from .timing import LockstepGate, RealtimeGate, tick_of
 from .wire import Decoder, Encoder
 
 EXIT_CANNOT_START = 78
 """A node that cannot start (bad model, bad parameter): a permanent failure, not restarted."""
 CANNOT_START = "CANNOT-START"
 """The prefix of the one line a node that cannot start writes to its log."""
+EXIT_STEP_FAILED = 79
+"""A node whose step failed in lockstep, where the run cannot go on without that run's
+outputs: a permanent failure, not restarted; the launch ends with the node's line."""
+STEP_FAILED = "STEP-FAILED"
+"""The prefix of the one line such a node writes to its log."""
+REPORT = "DROPS"
+"""The prefix of the one line (``DROPS {json}``, :meth:`NodeShell.report`) a node writes
+to its log as it stops, whatever the log level: what it handled, dropped and failed, which
+the launcher sums up."""
 
 log = logging.getLogger("cekm_swarm.node")
 
@@ -91,7 +103,11 @@ class NodeShell:
         self.lock = threading.RLock()
         self.closed = threading.Event()
         self.handled = 0
+        self.step_failures: dict[str, int] = {}  # "Type: message" -> count
+        self.failure: str | None = None  # lockstep: the step failure that ends the node
+        self.on_failure: Any = lambda: None  # set by serve(): stops the node
         lockstep = spec.mode == "lockstep"
+        self.lockstep = lockstep
         gate_cls = DirectGate if DirectGate.fits(node_plan) else LockstepGate if lockstep else RealtimeGate
         self.gate = gate_cls(runner, drop=self.drops.drop)
         self.kinds: dict[str, KeyKind] = {s.key: KeyKind(b.kind) for b in node_plan.bindings for s in b.sources}
@@ -141,11 +157,29 @@ class NodeShell:
             return []
         try:
             return self.gate.put(key, msg)
-        except CekmError:
-            raise
         except Exception as exc:  # noqa: BLE001 - a node must survive any single message
-            self.drops.drop(key, f"the node's step failed: {type(exc).__name__}: {exc}")
-            return []
+            return self.step_failed(exc)
+
+    def step_failed(self, exc: Exception) -> list[tuple[str, Any]]:
+        """The node's step (or the check of what it returned) raised: not the input's fault,
+        so counted apart from drops, and logged with its traceback the first time each
+        kind of failure happens. In real time the node goes on with the next run; in
+        lockstep the run cannot go on without this run's outputs, so the node stops and
+        the launch ends with its line (:data:`EXIT_STEP_FAILED`)."""
+        cause = exc.__cause__ if isinstance(exc, NodeError) and exc.__cause__ is not None else exc
+        what = " ".join(f"{type(cause).__name__}: {cause}".split())  # the kind of failure, without the tick
+        first = what not in self.step_failures
+        if first and len(self.step_failures) >= 64:
+            what = "other failures"
+        self.step_failures[what] = self.step_failures.get(what, 0) + 1
+        line = str(exc) if isinstance(exc, NodeError) else f"{self.node_plan.label}: {what}"
+        if first:
+            log.error("%s", line, exc_info=cause)
+        if self.lockstep and self.failure is None:
+            self.failure = f"{line} (in lockstep the run cannot go on without its outputs)"
+            self.closed.set()
+            self.on_failure()
+        return []
 
     def on_unchanged(self, key: str, msg: Any) -> list[tuple[str, Any]]:
         """The world left readings out as unchanged: the values their pure readers sent at
@@ -156,8 +190,11 @@ class NodeShell:
             return []
         held = self.holds_rel[key]
         k = tick_of(msg.stamp)
-        return self.gate.hold_all([(source, k, tick_of(since)) for rel, since in zip(msg.keys, msg.since)
-                                   for source in held.get(rel, ())])
+        try:
+            return self.gate.hold_all([(source, k, tick_of(since)) for rel, since in zip(msg.keys, msg.since)
+                                       for source in held.get(rel, ())])
+        except Exception as exc:  # noqa: BLE001 - a run it completes may fail like any other
+            return self.step_failed(exc)
 
     def on_token(self, key: str, alive: bool) -> list[tuple[str, Any]]:
         """A liveliness token appeared or vanished: a teammate gone or back; a late reader back."""
@@ -175,8 +212,11 @@ class NodeShell:
                 sys.stdout.write("DROP " + json.dumps({"robot": self.node_plan.robot, "dropped": owner,
                                                         "wall": time.time()}) + "\n")
                 sys.stdout.flush()
-                self.runner.node.teammate_left(owner)
-                out += self.gate.teammate(owner, False)
+                try:
+                    self.runner.node.teammate_left(owner)
+                    out += self.gate.teammate(owner, False)
+                except Exception as exc:  # noqa: BLE001 - as for a message
+                    out += self.step_failed(exc)
             elif held and not was:
                 out += self.gate.teammate(owner, True)
         if alive and key in self.late_readers:
@@ -205,6 +245,7 @@ class NodeShell:
             except (NotImplementedError, RuntimeError):  # pragma: no cover - non-main thread
                 pass
         put = zenoh.SampleKind.PUT
+        self.on_failure = lambda: loop.call_soon_threadsafe(stop.set)
         self.pubs = Publishers(session, block=self.spec.mode == "lockstep", express=False)
         for key in self.node_plan.outputs.values():  # before listening: no declaration on Zenoh's thread later
             self.pubs.publisher(key)
@@ -249,7 +290,8 @@ class NodeShell:
     def report(self) -> dict[str, Any]:
         g = self.gate
         return {"handled": self.handled, "runs": self.runner.runs, "dropped": self.drops.by_source(),
-                "repeats": getattr(g, "repeats", 0), "stale": getattr(g, "stale_drops", {})}
+                "repeats": getattr(g, "repeats", 0), "stale": getattr(g, "stale_drops", {}),
+                "step_failures": dict(self.step_failures), "not_ready": getattr(g, "not_ready", 0)}
 
 
 def parser() -> argparse.ArgumentParser:
@@ -310,13 +352,18 @@ def main(argv: list[str] | None = None) -> int:
     if shell.drops.total:
         log.warning("%s: %d malformed messages dropped: %s", label, shell.drops.total,
                     "; ".join(f"{r.source} x{r.count}" for r in shell.drops.records()))
-    log.info("%s: DROPS %s", label, json.dumps(report))
+    if shell.step_failures:
+        log.warning("%s: %d runs failed: %s", label, sum(shell.step_failures.values()),
+                    "; ".join(f"{what} x{n}" for what, n in shell.step_failures.items()))
     log.info("%s: stopped after %d messages, %d runs", label, shell.handled, runner.runs)
+    sys.stderr.write(f"{REPORT} {json.dumps({'node': label, **report})}\n")
+    if shell.failure is not None:
+        sys.stderr.write(f"{STEP_FAILED} {shell.failure}\n")
     # the session is closed and everything logged: skip the interpreter's teardown
     logging.shutdown()
     sys.stdout.flush()
     sys.stderr.flush()
-    os._exit(0)
+    os._exit(EXIT_STEP_FAILED if shell.failure is not None else 0)
 
 
 def _cannot_start(label: str, why: str) -> int:

@@ -37,7 +37,8 @@ from msgspec import Struct
 from cekm_swarm.graph.plan import Binding, NodePlan, needed_tick
 from cekm_swarm.ticks import TICK_S, tick_time
 
-from .api import Inputs, Node, NodeError
+from .api import Inputs, NotReady
+from .runner import Runner
 
 log = logging.getLogger("cekm_swarm.node")
 
@@ -93,49 +94,6 @@ def gather(node: NodePlan, k: int, lookup: Callable[[str, int], Any], skip: Call
                 missing.append(s.key)
             values[b.port] = m
     return Inputs(values), missing
-
-
-class Runner:
-    """A node and the checks of what its step returns: one message per output port, of
-    the port's type, stamped with the tick's time."""
-
-    __slots__ = ("plan", "node", "runs", "_outs")
-
-    def __init__(self, plan: NodePlan, node: Node) -> None:
-        self.plan, self.node, self.runs = plan, node, 0
-        self._outs = [(port, key, node.outputs[port].type) for port, key in plan.outputs.items()]
-
-    def run(self, k: int, inputs: Inputs) -> list[tuple[str, Any]]:
-        t = tick_time(k)
-        out = self.node.step(t, inputs)
-        if type(out) is not dict or len(out) != len(self._outs):
-            self._refuse(out, t)
-        sent = []
-        for port, key, want in self._outs:
-            msg = out.get(port)
-            if type(msg) is not want or msg.stamp != t:
-                self._refuse(out, t)
-            sent.append((key, msg))
-        self.runs += 1
-        return sent
-
-    def _refuse(self, out: Any, t: float) -> None:
-        """Raise the NodeError that says what is wrong with a step's return value."""
-        label = self.plan.label
-        if not isinstance(out, dict):
-            raise NodeError(f"{label}: step() returned {type(out).__name__}, expected a dict of its outputs")
-        extra = set(out) - {p for p, _, _ in self._outs}
-        if extra:
-            raise NodeError(f"{label}: step() returned unknown output {sorted(extra)[0]!r}")
-        for port, _, want in self._outs:
-            msg = out.get(port)
-            if msg is None:
-                raise NodeError(f"{label}: step() at t={t} gave no message for output {port!r}")
-            if type(msg) is not want:
-                raise NodeError(f"{label}: output {port!r} must be {want.__name__}, got {type(msg).__name__}")
-            if msg.stamp != t:
-                raise NodeError(f"{label}: output {port!r} is stamped {msg.stamp}, the tick is {t}")
-        raise NodeError(f"{label}: step() returned {out!r}")
 
 
 def _triggers(node: NodePlan) -> dict[str, tuple[int, int]]:
@@ -227,11 +185,12 @@ class LockstepGate:
         return self._advance()
 
     def _open_candidates(self, key: str, k: int) -> None:
-        trig = self.trigger.get(key)
-        if trig is not None:
-            for c in range(k, k + trig[0]):
-                if c > self.done and self.node.due(c):
-                    self.candidates.add(c)
+        """A trigger's value of tick ``k`` opens tick k, if the node is due then. Only k: a
+        later tick is opened by its own values (every due tick has a same-tick source of a
+        period dividing it, or the world's clock: ``graph.resolve.timed_by``), so the node
+        never answers a tick before the world has begun it."""
+        if key in self.trigger and k > self.done and self.node.due(k):
+            self.candidates.add(k)
 
     def _lookup(self, key: str, tick: int) -> Any:
         return self.store.get(key, {}).get(tick)
@@ -354,6 +313,8 @@ class RealtimeGate:
         self._same_tick = [(s.key, s.period, self._age[s.key]) for b in self.node.bindings if b.delay == 0
                            for s in b.sources]
         self._period = self.node.period
+        self.runner.skip_not_ready = True  # a missing input may make a real-time run impossible
+        self.not_ready = 0  # due ticks given up: the node was not ready when the next one began
 
     def put(self, key: str, msg: Any) -> list[tuple[str, Any]]:
         k = tick_of(msg.stamp)
@@ -378,6 +339,8 @@ class RealtimeGate:
         c = k - k % self._period
         if c > self.open_tick:
             out = self._run(self.open_tick) if self.open_tick > self.done else []
+            if self.open_tick > self.done:  # still not ready: the tick is given up
+                self.not_ready += 1
             self.open_tick = c
             return out
         return []
@@ -458,8 +421,12 @@ class RealtimeGate:
 
     def _run(self, c: int) -> list[tuple[str, Any]]:
         inputs, _ = gather(self.node, c, self._lookup_at(c), self.gone.__contains__)
-        self.done = c
-        return self.runner.run(c, inputs)
+        done, self.done = self.done, c  # a run that fails is not tried again
+        try:
+            return self.runner.run(c, inputs)
+        except NotReady:  # the tick runs when more of it comes, or is given up when the next begins
+            self.done = done
+            return []
 
     def resend(self) -> list[tuple[str, Any]]:
         return []
@@ -476,4 +443,4 @@ def _max_age(stale_s: float) -> int | float:
     return n
 
 
-__all__ = ["gather", "Runner", "LockstepGate", "RealtimeGate", "KEEP_TICKS", "tick_of"]
+__all__ = ["gather", "LockstepGate", "RealtimeGate", "KEEP_TICKS", "tick_of"]

@@ -11,7 +11,8 @@ import pytest
 
 from cekm_swarm.graph.check import check_graph
 from cekm_swarm.node import Node
-from cekm_swarm.node.timing import LockstepGate, RealtimeGate, Runner
+from cekm_swarm.node.runner import Runner
+from cekm_swarm.node.timing import LockstepGate, RealtimeGate
 from cekm_swarm.protocol import DEFAULT_KEYS as K
 from cekm_swarm.protocol import (
     KeyKind,

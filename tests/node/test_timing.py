@@ -14,7 +14,8 @@ import pytest
 from cekm_swarm.graph.check import check_graph
 from cekm_swarm.graph.plan import needed_tick
 from cekm_swarm.node import Node
-from cekm_swarm.node.timing import LockstepGate, RealtimeGate, Runner
+from cekm_swarm.node.runner import Runner
+from cekm_swarm.node.timing import LockstepGate, RealtimeGate
 from cekm_swarm.protocol import DEFAULT_KEYS as K
 from cekm_swarm.protocol import ObstacleField, SensePose, SenseTargets, Share, TargetField, TrackingField, WheelCommand
 from cekm_swarm.ticks import tick_time

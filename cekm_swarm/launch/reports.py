@@ -1,0 +1,69 @@
+"""What the nodes say about themselves as they stop: each node process writes one
+``DROPS {json}`` line to its log (:meth:`cekm_swarm.node.process.NodeShell.report`), and
+the launcher sums them up, so a node whose step raised, that skipped runs or that dropped
+messages is named at the end of the launch and in ``outcome.json``, not only in its log."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+from cekm_swarm.node.process import REPORT
+
+
+def read_reports(log_path: Path) -> list[dict[str, Any]]:
+    """Every report line in one node's log (one per life of the process; a killed one writes none)."""
+    try:
+        text = log_path.read_text(errors="replace")
+    except OSError:
+        return []
+    out = []
+    for line in text.splitlines():
+        if line.startswith(REPORT + " {"):
+            try:
+                doc = json.loads(line[len(REPORT) + 1:])
+            except ValueError:
+                continue
+            if isinstance(doc, dict):
+                out.append(doc)
+    return out
+
+
+def node_summary(reports: Iterable[dict[str, Any]]) -> dict[str, Any]:
+    """One node's lives summed: runs, runs whose step failed (by kind of failure), runs
+    skipped as not ready, messages dropped (malformed, unbelievable stamps, wrong keys)."""
+    runs, not_ready, dropped = 0, 0, 0
+    failures: dict[str, int] = {}
+    for r in reports:
+        runs += int(r.get("runs", 0))
+        not_ready += int(r.get("not_ready", 0))
+        dropped += sum(int(n) for n in (r.get("dropped") or {}).values())
+        for what, n in (r.get("step_failures") or {}).items():
+            failures[what] = failures.get(what, 0) + int(n)
+    return {"runs": runs, "step_failures": failures, "not_ready": not_ready, "dropped": dropped}
+
+
+def notable(summaries: dict[str, dict[str, Any]]) -> dict[str, dict[str, Any]]:
+    """The nodes worth a line: any failed or skipped run, or any dropped message."""
+    return {label: s for label, s in summaries.items() if s["step_failures"] or s["not_ready"] or s["dropped"]}
+
+
+def summary_lines(summaries: dict[str, dict[str, Any]], logs: dict[str, Path]) -> list[str]:
+    """One line per notable node, failures first, naming its log."""
+    lines = []
+    for label, s in sorted(notable(summaries).items(), key=lambda kv: (not kv[1]["step_failures"], kv[0])):
+        parts = []
+        if s["step_failures"]:
+            n = sum(s["step_failures"].values())
+            kinds = "; ".join(f"{what} x{k}" for what, k in sorted(s["step_failures"].items(), key=lambda kv: -kv[1]))
+            parts.append(f"{n} of {n + s['runs']} run{'s' if n + s['runs'] != 1 else ''} failed ({kinds})")
+        if s["not_ready"]:
+            n = s["not_ready"]
+            parts.append(f"{n} tick{'s' if n != 1 else ''} not run (an input it needs had not arrived)")
+        if s["dropped"]:
+            parts.append(f"{s['dropped']} message{'s' if s['dropped'] != 1 else ''} dropped")
+        where = f" (see {logs[label]})" if label in logs else ""
+        lines.append(f"node {label}: " + ", ".join(parts) + where)
+    return lines

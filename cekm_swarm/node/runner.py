@@ -1,0 +1,92 @@
+"""A node and the checks of what its step returns (:class:`Runner`), and the one line that
+names a step that raised (:func:`step_failure`): what every timing gate and the in-process
+executor run a node through."""
+
+from __future__ import annotations
+
+import os
+from typing import Any
+
+from cekm_swarm.graph.plan import NodePlan
+from cekm_swarm.ticks import tick_time
+
+from .api import Inputs, Node, NodeError, NotReady
+
+
+class Runner:
+    """A node and the checks of what its step returns: one message per output port, of
+    the port's type, stamped with the tick's time."""
+
+    __slots__ = ("plan", "node", "runs", "at", "skip_not_ready", "_outs")
+
+    def __init__(self, plan: NodePlan, node: Node) -> None:
+        self.plan, self.node, self.runs = plan, node, 0
+        self.at: float | None = None  # the tick time of the latest run tried
+        self.skip_not_ready = False  # set by the real-time gate, which takes NotReady
+        self._outs = [(port, key, node.outputs[port].type) for port, key in plan.outputs.items()]
+
+    def run(self, k: int, inputs: Inputs) -> list[tuple[str, Any]]:
+        """The node's outputs of its run at tick ``k``, checked; raises NodeError naming the
+        node, the tick and what failed when its step raises or returns something wrong
+        (:class:`~.api.NotReady` passes through to the real-time gate, and is a failure elsewhere)."""
+        t = self.at = tick_time(k)
+        try:
+            out = self.node.step(t, inputs)
+        except NotReady:
+            if self.skip_not_ready:
+                raise
+            raise NodeError(f"{self.plan.label}: its step at t={t:.3f} s raised NotReady, but in lockstep and "
+                            f"in one process every input of a run is there (NotReady is for real time)") from None
+        except NodeError as exc:
+            if str(exc).startswith(self.plan.label):
+                raise
+            raise NodeError(step_failure(self.plan.label, t, exc)) from exc
+        except Exception as exc:  # noqa: BLE001 - a user's node may fail in any way
+            raise NodeError(step_failure(self.plan.label, t, exc)) from exc
+        if type(out) is not dict or len(out) != len(self._outs):
+            self._refuse(out, t)
+        sent = []
+        for port, key, want in self._outs:
+            msg = out.get(port)
+            if type(msg) is not want or msg.stamp != t:
+                self._refuse(out, t)
+            sent.append((key, msg))
+        self.runs += 1
+        return sent
+
+    def _refuse(self, out: Any, t: float) -> None:
+        """Raise the NodeError that says what is wrong with a step's return value."""
+        label = self.plan.label
+        if not isinstance(out, dict):
+            raise NodeError(f"{label}: step() returned {type(out).__name__}, expected a dict of its outputs")
+        extra = set(out) - {p for p, _, _ in self._outs}
+        if extra:
+            raise NodeError(f"{label}: step() returned unknown output {sorted(extra)[0]!r}")
+        for port, _, want in self._outs:
+            msg = out.get(port)
+            if msg is None:
+                raise NodeError(f"{label}: step() at t={t} gave no message for output {port!r}")
+            if type(msg) is not want:
+                raise NodeError(f"{label}: output {port!r} must be {want.__name__}, got {type(msg).__name__}")
+            if msg.stamp != t:
+                raise NodeError(f"{label}: output {port!r} is stamped {msg.stamp}, the tick is {t}")
+        raise NodeError(f"{label}: step() returned {out!r}")
+
+
+_PLUMBING = tuple(os.path.join(os.path.dirname(os.path.dirname(__file__)), d) + os.sep for d in ("node", "protocol"))
+
+
+def step_failure(label: str, t: float, exc: BaseException) -> str:
+    """One line for a node's step that raised: the node, the tick, the exception and where
+    in the node's code it was raised (the innermost frame)."""
+    import traceback
+
+    frames = traceback.extract_tb(exc.__traceback__)
+    own = [f for f in frames if not f.filename.startswith(_PLUMBING + ("<",))]  # the node's line, not the checks'
+    f = (own or frames or [None])[-1]
+    at = f" ({os.path.basename(f.filename)}:{f.lineno})" if f is not None else ""
+    what = " ".join(f"{type(exc).__name__}: {exc}".split())
+    return f"{label}: its step at t={t:.3f} s failed: {what}{at}"
+
+
+__all__ = ["Runner", "step_failure"]
