@@ -75,17 +75,18 @@ def graph(folder: Path, program: str) -> Path:
     return path
 
 
-def launch(tmp_path: Path, graph_file: Path, mode: str, max_time: str, out: str) -> LaunchProcess:
-    return LaunchProcess("lone_obstacle", tmp_path / out, "--graph", str(graph_file), "--mode", mode, "--max-time",
-                         max_time, "--model", str(default_model_path()), "--no-plot", cwd=tmp_path)
+def launch(tmp_path: Path, graph_file: Path, mode: str, max_time: str, out: str) -> tuple[LaunchProcess, int]:
+    """``cekm launch lone_obstacle`` with the graph, run to its end: the process and its exit code."""
+    run = LaunchProcess("lone_obstacle", tmp_path / out, "--graph", str(graph_file), "--mode", mode, "--max-time",
+                        max_time, "--model", str(default_model_path()), "--no-plot", cwd=tmp_path)
+    try:
+        return run, run.finish(timeout=120)
+    finally:
+        run.kill()
 
 
 def test_lockstep_ends_with_the_failing_nodes_line(tmp_path):
-    run = launch(tmp_path, graph(tmp_path, "Failing"), "lockstep", "20", "ls")
-    try:
-        code = run.finish(timeout=120)
-    finally:
-        run.kill()
+    run, code = launch(tmp_path, graph(tmp_path, "Failing"), "lockstep", "20", "ls")
     assert code == 2, "\n".join(run.lines[-20:])
     last = run.lines[-1]
     assert last.startswith("cekm: error: r1/motor: its step at t=0.512 s failed: RuntimeError: boom in the user's step "
@@ -95,11 +96,7 @@ def test_lockstep_ends_with_the_failing_nodes_line(tmp_path):
 
 
 def test_realtime_goes_on_and_names_the_failures(tmp_path):
-    run = launch(tmp_path, graph(tmp_path, "Failing"), "realtime", "3", "rt")
-    try:
-        code = run.finish(timeout=120)
-    finally:
-        run.kill()
+    run, code = launch(tmp_path, graph(tmp_path, "Failing"), "realtime", "3", "rt")
     assert code == 0, "\n".join(run.lines[-20:])
     failures = run.outcome()["launcher"]["nodes"]["r1/motor"]["step_failures"]
     assert list(failures) == ["RuntimeError: boom in the user's step"] and failures[list(failures)[0]] >= 10
@@ -113,17 +110,11 @@ def test_a_node_read_by_an_every_other_tick_reading_runs_every_tick(tmp_path):
                           "10", "--out", str(tmp_path / "run")], cwd=tmp_path, capture_output=True,
                          text=True, timeout=300)
     assert ref.returncode == 0, ref.stderr
-    run = launch(tmp_path, g, "lockstep", "10", "ls")
-    try:
-        assert run.finish(timeout=120) == 0, "\n".join(run.lines[-20:])
-    finally:
-        run.kill()
+    run, code = launch(tmp_path, g, "lockstep", "10", "ls")
+    assert code == 0, "\n".join(run.lines[-20:])
     assert not any("republish" in line for line in run.lines), "the world waited for the node's odd ticks"
     a, b = json.loads((tmp_path / "run" / "outcome.json").read_text()), run.outcome()
     assert a["robots"] == b["robots"]  # time, path length, clearance, final distance: bit for bit
-    rt = launch(tmp_path, g, "realtime", "5", "rt")
-    try:
-        assert rt.finish(timeout=120) == 0, "\n".join(rt.lines[-20:])
-    finally:
-        rt.kill()
+    rt, code = launch(tmp_path, g, "realtime", "5", "rt")
+    assert code == 0, "\n".join(rt.lines[-20:])
     assert rt.outcome()["deadline_misses"] == 0
