@@ -8,7 +8,7 @@ from pathlib import Path
 
 import click
 
-from .cli_support import SEED, out_dir_options, prepare_out_dir, run_cli
+from .cli_support import SEED, Finite, out_dir_options, prepare_out_dir, run_cli
 from .errors import CekmError
 
 
@@ -57,16 +57,16 @@ def experiment() -> None:
                    "sensed distance rounding to 0).")
 @click.option("--train-stop", type=click.Choice(["goal", "command"]), default="goal", show_default=True,
               help="When a training target ends (the same two rules).")
-@click.option("--motor-resolution", type=click.FloatRange(min=0.0, min_open=True, max=0.15), default=0.008,
+@click.option("--motor-resolution", type=Finite(min=0.0, min_open=True, max=0.15), default=0.008,
               show_default=True, help="The motor's resolution for the 'command' rule (m/s): a command under half of it "
                                       "on both wheels is a stop. The Khepera's speed unit is 0.008 (one encoder pulse "
                                       "per 10 ms).")
 @click.option("--bfn", "bfn_rule", type=click.Choice(["paper", "trained-units"]), default="paper", show_default=True,
               help="B15's rule: 'paper', every unit drives the output and widths approach the nearest centre's "
                    "distance; 'trained-units', only units whose centre has won drive it (the project's earlier B15).")
-@click.option("--speed-unit", type=click.FloatRange(min=0.0), default=0.0, show_default=True,
+@click.option("--speed-unit", type=Finite(min=0.0), default=0.0, show_default=True,
               help="Wheel speeds execute as whole multiples of this (m/s); 0: continuous. The Khepera's is 0.008.")
-@click.option("--target-resolution", type=click.FloatRange(min=0.0, max=0.1, max_open=True), default=0.001,
+@click.option("--target-resolution", type=Finite(min=0.0, max=0.1, max_open=True), default=0.001,
               show_default=True, help="The target sensor rounds distances to this (m); 0: not rounded.")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 def target_reaching(out_dir: Path, overwrite: bool, networks: str, trials: int, steps: int, test_interval: int,
@@ -106,11 +106,11 @@ def target_reaching(out_dir: Path, overwrite: bool, networks: str, trials: int, 
               help="The test's stop rule (as in target-reaching).")
 @click.option("--train-stop", type=click.Choice(["goal", "command"]), default="goal", show_default=True,
               help="Training's stop rule.")
-@click.option("--motor-resolution", type=click.FloatRange(min=0.0, min_open=True, max=0.15), default=0.008,
+@click.option("--motor-resolution", type=Finite(min=0.0, min_open=True, max=0.15), default=0.008,
               show_default=True, help="The motor's resolution for the 'command' rule (m/s).")
-@click.option("--speed-unit", type=click.FloatRange(min=0.0), default=0.0, show_default=True,
+@click.option("--speed-unit", type=Finite(min=0.0), default=0.0, show_default=True,
               help="Wheel speeds execute as whole multiples of this (m/s); 0: continuous.")
-@click.option("--target-resolution", type=click.FloatRange(min=0.0, max=0.1, max_open=True), default=0.001,
+@click.option("--target-resolution", type=Finite(min=0.0, max=0.1, max_open=True), default=0.001,
               show_default=True, help="The target sensor rounds distances to this (m); 0: not rounded.")
 @click.option("--bfn", "bfn_rule", type=click.Choice(["paper", "trained-units"]), default="paper", show_default=True,
               help="B15's rule (as in target-reaching).")
@@ -130,9 +130,9 @@ def circling(out_dir: Path, network: str, seed: int, trial: int, target: int | N
 
 @experiment.command("obstacles")
 @click.option("--seeds", default="1-20", show_default=True, help="Seeds: a list and/or ranges, e.g. 1-20 or 1,2,7.")
-@click.option("--speed-unit", type=click.FloatRange(min=0.0, max=0.05),
+@click.option("--speed-unit", type=Finite(min=0.0, max=0.05),
               help="Wheel speed unit of the plant (m/s) for every run, 0 = continuous (default: each scenario's).")
-@click.option("--max-time", default=300.0, show_default=True, type=click.FloatRange(min=1.0),
+@click.option("--max-time", default=300.0, show_default=True, type=Finite(min=1.0),
               help="Sim seconds before a robot counts as trapped.")
 @click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path))
 @click.option("--workers", type=click.IntRange(1), help="Parallel processes (default: one per core).")
@@ -168,7 +168,7 @@ def obstacles(seeds: str, speed_unit: float | None, max_time: float, model_path:
 @click.option("--seeds", type=click.IntRange(2, 1000), help="N seeds per team size, from --first-seed (default 10; "
               "--grid: 5 per cell, --quick 2).")
 @click.option("--robots", default="2,4,8", show_default=True, help="Team sizes, comma-separated.")
-@click.option("--duration", type=click.FloatRange(min=1.0), help="Sim seconds per run (default 60; --grid --quick 8).")
+@click.option("--duration", type=Finite(min=1.0), help="Sim seconds per run (default 60; --grid --quick 8).")
 @click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path))
 @click.option("--workers", type=click.IntRange(1), help="Parallel processes (default: one per core).")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
@@ -271,7 +271,7 @@ def _model(path: Path | None):
 @click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               help="A trained model (.npz from `cekm train`); default: R15 trained and cached on first use.")
 @click.option("--seed", type=SEED, help="World seed (default: the scenario's).")
-@click.option("--max-time", type=click.FloatRange(min=1.0),
+@click.option("--max-time", type=Finite(min=1.0),
               help="Sim seconds before a robot counts as trapped (default 600); for a tracking scenario, the "
                    "run's length (default 120).")
 @out_dir_options("Directory for outcome.json and trajectory.png.")
@@ -308,7 +308,7 @@ def run_cmd(scenario: str, controller: str, graph_file: Path | None, model_path:
 
 @main.command()
 @click.argument("scenario")
-@click.option("--at", "at_time", type=click.FloatRange(0.0, 600.0), required=True,
+@click.option("--at", "at_time", type=Finite(0.0, 600.0), required=True,
               help="Sim time (s) of the snapshot, at most 600 (the longest run).")
 @click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path))
 @click.option("--seed", type=SEED, help="World seed (default: the scenario's).")
@@ -352,7 +352,7 @@ def sweep() -> None:
 @click.option("--ranges", default="0.12,0.17,0.25", show_default=True, help="Sensing ranges (m).")
 @click.option("--seeds", default="1,2,3", show_default=True)
 @click.option("--need", default=2, show_default=True, type=click.IntRange(1), help="Successes a width needs.")
-@click.option("--max-time", default=300.0, show_default=True, type=click.FloatRange(min=1.0))
+@click.option("--max-time", default=300.0, show_default=True, type=Finite(min=1.0))
 @click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path))
 @click.option("--workers", type=click.IntRange(1), help="Parallel processes (default: one per core).")
 @out_dir_options("Directory for fig9.json, fig9.png and fig9_grid.png.")

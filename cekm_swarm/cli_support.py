@@ -8,6 +8,7 @@ Every error is one line on stderr; a traceback means a bug.
 
 from __future__ import annotations
 
+import math
 import os
 import shutil
 import sys
@@ -69,6 +70,19 @@ def parse_size(text: str) -> int:
     if n <= 0:
         raise ValueError(f"{text!r}: a size must be more than 0 bytes")
     return n
+
+
+class Finite(click.FloatRange):
+    """A float option within an optional range that must be finite: ``nan`` and ``inf``
+    (which ``float()`` and click's own ranges take) are refused naming the option."""
+
+    name = "finite float"
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        out = super().convert(value, param, ctx)
+        if not math.isfinite(out):
+            self.fail(f"{value!r} is not a finite number.", param, ctx)
+        return out
 
 
 SEED = click.IntRange(0, 2**32 - 1)

@@ -40,10 +40,10 @@ def test_the_controller_takes_plain_values_never_messages():
 
 
 WORLD_MAY_IMPORT = ("cekm_swarm.protocol", "cekm_swarm.angles", "cekm_swarm.ticks", "cekm_swarm.errors",
-                    "cekm_swarm.jsonfile", "cekm_swarm.runtime", "cekm_swarm.robot", "cekm_swarm.graph.spec",
+                    "cekm_swarm.jsonfile", "cekm_swarm.cli_support", "cekm_swarm.runtime", "cekm_swarm.robot", "cekm_swarm.graph.spec",
                     "cekm_swarm.graph.plan", "cekm_swarm.graph.resolve", "cekm_swarm.graph.runspec")
 """What the world may import: the protocol, the transport, the two conventions, the robot's
-body, strict JSON for its files, and a graph as plain data (the run spec) -- never node,
+body, strict JSON for its files, the command line's option types, and a graph as plain data (the run spec) -- never node,
 controller or model code."""
 
 

@@ -210,3 +210,23 @@ def test_help_and_version_exit_0(capsys):
     assert run_cli(main, ["--help"]) == 0
     assert run_cli(main, ["launch", "--help"]) == 0
     assert "--overwrite" in capsys.readouterr().out
+
+
+def test_every_float_option_refuses_nan_and_infinity():
+    """float() and click's ranges take 'nan' and 'inf'; every float option is Finite."""
+    from cekm_swarm.cli_support import Finite
+
+    floats = [(" ".join(path), p.name) for path, cmd in COMMANDS for p in cmd.params
+              if isinstance(p.type, click.types.FloatParamType)]
+    assert floats and all(isinstance(p.type, Finite) for _, cmd in COMMANDS for p in cmd.params
+                          if isinstance(p.type, click.types.FloatParamType)), floats
+
+
+@pytest.mark.parametrize("argv", [["run", "crossing", "--max-time", "inf"], ["log", "cat", "x.mcap", "--start", "nan"],
+                                  ["launch", "crossing", "--max-time", "nan"]])
+def test_a_non_finite_number_is_a_usage_error_naming_the_option(capsys, tmp_path, argv):
+    if argv[:2] == ["log", "cat"]:
+        (tmp_path / "x.mcap").write_bytes(b"")
+        argv = ["log", "cat", str(tmp_path / "x.mcap"), *argv[3:]]
+    line = one_error_line(capsys, argv)
+    assert f"Invalid value for '{argv[-2]}'" in line and "is not a finite number" in line

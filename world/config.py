@@ -15,6 +15,7 @@ from typing import Any
 
 import click
 
+from cekm_swarm.cli_support import Finite
 from cekm_swarm.graph.runspec import RunSpec
 from cekm_swarm.graph.spec import GraphError
 from cekm_swarm.protocol import DEFAULT_ROOT, KeySpaceError, validate_run_id
@@ -89,7 +90,7 @@ WORLD_OPTIONS: tuple[tuple[str, dict[str, Any]], ...] = (
     ("log_level", {"default": "INFO", "show_default": True}),
     ("max_log_size", {"type": click.IntRange(1), "metavar": "BYTES",
                       "help": "split the log into a set: run_0.mcap, run_1.mcap, ... of at most this many bytes each"}),
-    ("max_log_duration", {"type": click.FloatRange(0.0, min_open=True), "metavar": "S",
+    ("max_log_duration", {"type": Finite(0.0, min_open=True), "metavar": "S",
                           "help": "split the log into a set: a new file every S s of sim time"}),
     ("record", {"type": click.Choice(RECORD_MODES), "default": "full", "show_default": True,
                 "help": "what the log holds: full (every key and view) or lean (for long runs: docs/tools.md)"}),

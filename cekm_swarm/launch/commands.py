@@ -15,6 +15,7 @@ from cekm_swarm.cli_support import (
     RUN_ID,
     SEED,
     SIZE,
+    Finite,
     Interrupted,
     RunFailed,
     out_dir_options,
@@ -48,7 +49,7 @@ def _env_endpoint() -> str | None:
               help="Port of the embedded router on 127.0.0.1 (without --connect).")
 @click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               help="A trained model (.npz); default: R15 trained and cached on first use.")
-@click.option("--max-time", type=click.FloatRange(min=0.2),
+@click.option("--max-time", type=Finite(min=0.2),
               help="Sim seconds before the run ends (default: as cekm run, 600 for navigation, 120 for tracking).")
 @click.option("--controller", default="cekm", show_default=True, metavar="NAME",
               help="The controller whose graph runs (cekm graph list): cekm, fusion, acmommt, stay, ...")
@@ -77,7 +78,7 @@ def _env_endpoint() -> str | None:
 @click.option("--max-log-size", type=SIZE, metavar="SIZE",
               help="Split the log into a set, run_0.mcap, run_1.mcap, ..., a new file once one holds SIZE "
                    "(500M, 2G, ...); cekm log and cekm replay take the set (docs/tools.md).")
-@click.option("--max-log-duration", type=click.FloatRange(0.0, min_open=True), metavar="S",
+@click.option("--max-log-duration", type=Finite(0.0, min_open=True), metavar="S",
               help="Split the log into a set: a new file every S s of sim time.")
 @click.option("--record", "record", type=click.Choice(["full", "lean"]), default="full", show_default=True,
               help="What run.mcap holds: full (every message and view), or lean for long runs (the world's "

@@ -15,7 +15,7 @@ from typing import Any
 
 import click
 
-from cekm_swarm.cli_support import ENDPOINT, ROOT, Interrupted, prepare_out_dir
+from cekm_swarm.cli_support import ENDPOINT, ROOT, Finite, Interrupted, prepare_out_dir
 from cekm_swarm.errors import CekmError
 from cekm_swarm.runtime.wait import DEFAULT_WAIT, ENV_CONNECT
 
@@ -98,7 +98,7 @@ def ros2_group() -> None:
                    f"launcher's embedded router].")
 @click.option("--config", "config_file", type=click.Path(dir_okay=False, exists=True, path_type=Path), default=None,
               help="Zenoh client config file (JSON5: credentials, TLS); --connect overrides its endpoint.")
-@click.option("--wait", "wait_s", default=DEFAULT_WAIT, show_default=True, type=click.FloatRange(0.0),
+@click.option("--wait", "wait_s", default=DEFAULT_WAIT, show_default=True, type=Finite(0.0),
               help="Seconds to wait for the router before giving up (0: do not wait).")
 @click.option("--domain", default=0, show_default=True, type=click.IntRange(0, 232), help="ROS_DOMAIN_ID.")
 @click.option("--robots", default=None, metavar="r1,r2", help="Only these robots' topics (default: every robot).")

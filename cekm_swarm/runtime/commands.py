@@ -13,7 +13,7 @@ from pathlib import Path
 
 import click
 
-from cekm_swarm.cli_support import ROOT, Interrupted
+from cekm_swarm.cli_support import ROOT, Finite, Interrupted
 from cekm_swarm.errors import CekmError
 
 from .log_commands import log_group, record_cmd, replay_cmd
@@ -27,8 +27,8 @@ from .topic_commands import node, topic
 @click.option("--robot", "robots", multiple=True, metavar="ID", help="Show only this robot (repeat, or r1,r2).")
 @click.option("--keys", "key_expr", default=None, metavar="KEYEXPR",
               help="List the rate and age of every key matching this (e.g. 'cekm/r1/**').")
-@click.option("--refresh", default=0.5, show_default=True, type=click.FloatRange(min=0.05), help="Seconds between redraws.")
-@click.option("--once", "once_after", type=click.FloatRange(min=0.1), default=None, metavar="SECONDS",
+@click.option("--refresh", default=0.5, show_default=True, type=Finite(min=0.05), help="Seconds between redraws.")
+@click.option("--once", "once_after", type=Finite(min=0.1), default=None, metavar="SECONDS",
               help="Watch for SECONDS, print one snapshot and exit (for scripts and pipes).")
 @click.option("--json", "as_json", is_flag=True, help="With --once: the snapshot as one JSON object.")
 def monitor(endpoint: str | None, config_file: Path | None, wait_s: float, root: str, robots: tuple[str, ...],

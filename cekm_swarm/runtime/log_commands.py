@@ -14,7 +14,7 @@ from typing import Any
 
 import click
 
-from cekm_swarm.cli_support import ROOT, SIZE, Interrupted
+from cekm_swarm.cli_support import ROOT, SIZE, Finite, Interrupted
 from cekm_swarm.errors import CekmError
 
 from .tool_session import _ROOT_HELP, _check_key_expr, _connect_options, _keys, _open, _say, _session, _sigint_sets
@@ -69,8 +69,8 @@ def log_info_cmd(log_file: Path, recover_to: Path | None, as_json: bool) -> None
               help="Only these topics (key expressions; repeat or separate with commas).")
 @click.option("--json", "as_json", is_flag=True, help="One JSON object per message (topic, times, message).")
 @click.option("--views", is_flag=True, help="Also list the Foxglove view messages (size only).")
-@click.option("--start", type=float, default=None, help="Only messages at or after this sim time (s).")
-@click.option("--end", type=float, default=None, help="Only messages at or before this sim time (s).")
+@click.option("--start", type=Finite(), default=None, help="Only messages at or after this sim time (s).")
+@click.option("--end", type=Finite(), default=None, help="Only messages at or before this sim time (s).")
 @click.option("--root", default="cekm", show_default=True, type=ROOT, help=_ROOT_HELP)
 def log_cat_cmd(log_file: Path, topics: tuple[str, ...], as_json: bool, views: bool, start: float | None,
                 end: float | None, root: str) -> None:
@@ -166,11 +166,11 @@ def _keyboard(control: Any, stop: threading.Event) -> Iterator[bool]:
 @_connect_options
 @click.option("--port", default=None, type=click.IntRange(1, 65535),
               help="Port of the router the replay hosts on 127.0.0.1 [default: 7447] (when it joins none).")
-@click.option("--rate", default=1.0, show_default=True, type=float,
+@click.option("--rate", default=1.0, show_default=True, type=Finite(),
               help="Speed factor on the recorded timing (2 = twice as fast).")
 @click.option("--fast", is_flag=True, help="Publish as fast as possible (ignore the recorded timing).")
 @click.option("--loop", is_flag=True, help="Start over at the end, until Ctrl-C.")
-@click.option("--start", default=0.0, show_default=True, type=click.FloatRange(0.0),
+@click.option("--start", default=0.0, show_default=True, type=Finite(0.0),
               help="Skip this many seconds from the log's start.")
 @click.option("--keys", "key_expr", default=None, metavar="KEYEXPR", help="Replay only keys matching this.")
 @click.option("--start-paused", is_flag=True, help="Wait for a key press (space) before the first message.")
@@ -287,7 +287,7 @@ def _sigterm_as_sigint() -> Iterator[None]:
 @click.option("--out", "out_path", type=click.Path(dir_okay=False, path_type=Path), required=True,
               help="The MCAP file to write.")
 @_connect_options
-@click.option("--duration", default=None, type=click.FloatRange(0.0, min_open=True),
+@click.option("--duration", default=None, type=Finite(0.0, min_open=True),
               help="Stop after this many seconds (default: Ctrl-C).")
 @click.option("--count", "-n", default=None, type=click.IntRange(1), help="Stop after N messages.")
 @click.option("--no-views", is_flag=True, help="Record the key-space channels only (no Foxglove views).")
@@ -295,7 +295,7 @@ def _sigterm_as_sigint() -> Iterator[None]:
 @click.option("--max-log-size", type=SIZE, metavar="SIZE",
               help="Split the recording into a set, LOG_0.mcap, LOG_1.mcap, ..., a new file once one holds SIZE "
                    "(500M, 2G, ...).")
-@click.option("--max-log-duration", type=click.FloatRange(0.0, min_open=True), metavar="S",
+@click.option("--max-log-duration", type=Finite(0.0, min_open=True), metavar="S",
               help="Split the recording into a set: a new file every S s of sim time.")
 def record_cmd(key_expr: str | None, out_path: Path, endpoint: str | None, config_file: Path | None, wait_s: float,
                duration: float | None, count: int | None, no_views: bool, root: str, max_log_size: int | None,

@@ -19,7 +19,7 @@ from typing import Any
 
 import click
 
-from cekm_swarm.cli_support import ENDPOINT, Interrupted
+from cekm_swarm.cli_support import ENDPOINT, Finite, Interrupted
 from cekm_swarm.errors import CekmError
 
 from .wait import DEFAULT_WAIT, ENV_CONNECT
@@ -27,7 +27,7 @@ from .wait import DEFAULT_WAIT, ENV_CONNECT
 _ROOT_HELP = "Key-space root (docs/design.md section 6)."
 
 def _connect_options(f: Callable[..., Any]) -> Callable[..., Any]:
-    f = click.option("--wait", "wait_s", default=DEFAULT_WAIT, show_default=True, type=click.FloatRange(0.0),
+    f = click.option("--wait", "wait_s", default=DEFAULT_WAIT, show_default=True, type=Finite(0.0),
                      help="Seconds to wait for the router before giving up (0: do not wait).")(f)
     f = click.option("--config", "config_file", type=click.Path(dir_okay=False, exists=True, path_type=Path),
                      default=None, help="Zenoh client config file (JSON5); --connect overrides its endpoint.")(f)

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import click
 
-from cekm_swarm.cli_support import ROOT, Interrupted
+from cekm_swarm.cli_support import ROOT, Finite, Interrupted
 
 from .tool_session import _ROOT_HELP, _check_key_expr, _connect_options, _keys, _open, _say, _session, _sigint_sets
 
@@ -22,7 +22,7 @@ def topic() -> None:
 
 @topic.command("list")
 @_connect_options
-@click.option("--window", default=2.0, show_default=True, type=click.FloatRange(0.05), help="Seconds to listen.")
+@click.option("--window", default=2.0, show_default=True, type=Finite(0.05), help="Seconds to listen.")
 @click.option("--root", default="cekm", show_default=True, type=ROOT, help=_ROOT_HELP)
 @click.option("--alive/--no-alive", default=True, show_default=True, help="Also list liveliness tokens.")
 @click.option("--json", "as_json", is_flag=True, help="One JSON object per key.")
@@ -61,7 +61,7 @@ def topic_list_cmd(endpoint: str | None, config_file: Path | None, wait_s: float
 @_connect_options
 @click.argument("key_expr", metavar="KEYEXPR")
 @click.option("--count", "-n", type=click.IntRange(1), default=None, help="Stop after N messages.")
-@click.option("--timeout", type=click.FloatRange(0.0), default=None,
+@click.option("--timeout", type=Finite(0.0), default=None,
               help="Stop after this many seconds of silence (default: wait for messages until Ctrl-C).")
 @click.option("--full", is_flag=True, help="Print every field in full (arrays too), the message as JSON.")
 @click.option("--json", "as_json", is_flag=True, help="One JSON object per message: key and message (or error).")
@@ -86,10 +86,10 @@ def topic_echo_cmd(endpoint: str | None, config_file: Path | None, wait_s: float
 @topic.command("hz")
 @_connect_options
 @click.argument("key_expr", metavar="KEYEXPR")
-@click.option("--window", default=5.0, show_default=True, type=click.FloatRange(0.1),
+@click.option("--window", default=5.0, show_default=True, type=Finite(0.1),
               help="Seconds of arrivals the statistics cover.")
-@click.option("--interval", default=1.0, show_default=True, type=click.FloatRange(0.05), help="Seconds between reports.")
-@click.option("--duration", default=None, type=click.FloatRange(0.0), help="Stop after this many seconds.")
+@click.option("--interval", default=1.0, show_default=True, type=Finite(0.05), help="Seconds between reports.")
+@click.option("--duration", default=None, type=Finite(0.0), help="Stop after this many seconds.")
 @click.option("--json", "as_json", is_flag=True, help="One JSON object per key and report.")
 def topic_hz_cmd(endpoint: str | None, config_file: Path | None, wait_s: float, key_expr: str, window: float,
                  interval: float, duration: float | None, as_json: bool) -> None:
@@ -129,7 +129,7 @@ def topic_hz_cmd(endpoint: str | None, config_file: Path | None, wait_s: float, 
 @topic.command("info")
 @_connect_options
 @click.argument("key_expr", metavar="KEYEXPR")
-@click.option("--window", default=2.0, show_default=True, type=click.FloatRange(0.1), help="Seconds to measure rates.")
+@click.option("--window", default=2.0, show_default=True, type=Finite(0.1), help="Seconds to measure rates.")
 @click.option("--root", default="cekm", show_default=True, type=ROOT, help=_ROOT_HELP)
 @click.option("--json", "as_json", is_flag=True, help="One JSON object: publishers, subscribers, rates.")
 def topic_info_cmd(endpoint: str | None, config_file: Path | None, wait_s: float, key_expr: str, window: float,
@@ -163,11 +163,11 @@ def topic_info_cmd(endpoint: str | None, config_file: Path | None, wait_s: float
 @click.argument("key", metavar="KEY")
 @click.argument("message", metavar="JSON")
 @click.option("--count", "-n", default=1, show_default=True, type=click.IntRange(1), help="Messages to publish.")
-@click.option("--rate", default=None, type=click.FloatRange(min=0.0, min_open=True), help="Messages per second.")
-@click.option("--stamp", default=None, type=float, help="The messages' stamp, over the JSON's (default: the JSON's, else 0).")
-@click.option("--wait-subscriber", default=5.0, show_default=True, type=click.FloatRange(0.0),
+@click.option("--rate", default=None, type=Finite(min=0.0, min_open=True), help="Messages per second.")
+@click.option("--stamp", default=None, type=Finite(), help="The messages' stamp, over the JSON's (default: the JSON's, else 0).")
+@click.option("--wait-subscriber", default=5.0, show_default=True, type=Finite(0.0),
               help="Seconds to wait for a subscriber before publishing anyway.")
-@click.option("--confirm-timeout", default=3.0, show_default=True, type=click.FloatRange(0.1),
+@click.option("--confirm-timeout", default=3.0, show_default=True, type=Finite(0.1),
               help="Seconds to wait for the messages to come back through the router.")
 @click.option("--no-confirm", is_flag=True,
               help="Do not check that the router passed the messages on (needs no subscribe permission).")
@@ -222,7 +222,7 @@ def node() -> None:
 @node.command("list")
 @_connect_options
 @click.option("--root", default="cekm", show_default=True, type=ROOT, help=_ROOT_HELP)
-@click.option("--timeout", default=0.0, show_default=True, type=click.FloatRange(0.0),
+@click.option("--timeout", default=0.0, show_default=True, type=Finite(0.0),
               help="If none is alive yet, wait this many seconds for the first one.")
 @click.option("--json", "as_json", is_flag=True, help="One JSON object per owner: alive and missing modules.")
 def node_list_cmd(endpoint: str | None, config_file: Path | None, wait_s: float, root: str, timeout: float,

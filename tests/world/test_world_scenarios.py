@@ -174,7 +174,8 @@ def test_state_and_geometry_are_plain_data():
 def test_world_never_imports_the_controller():
     """The simulation imports nothing of cekm_swarm but the project's two conventions (the
     angle wrap and the tick clock); the world server only those, the message protocol,
-    the transport, the robot's body, strict JSON for its files and graphs as data (never
+    the transport, the robot's body, strict JSON for its files, the command line's option
+    types and graphs as data (never
     node, controller, model or experiment code)."""
     code = "import sys, world, world.draw, world.episode; print([m for m in sys.modules if m.startswith('cekm_swarm')])"
     out = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, check=True)
@@ -182,7 +183,8 @@ def test_world_never_imports_the_controller():
     code = ("import sys, world.server; print(sorted({'.'.join(m.split('.')[1:3]) if m.startswith('cekm_swarm.graph') "
             "else m.split('.')[1] for m in sys.modules if m.startswith('cekm_swarm.')}))")
     out = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, check=True)
-    assert set(eval(out.stdout)) <= {"protocol", "runtime", "errors", "angles", "ticks", "robot", "jsonfile", "graph",
+    assert set(eval(out.stdout)) <= {"protocol", "runtime", "errors", "angles", "ticks", "robot", "jsonfile",
+                                     "cli_support", "graph",
                                      "graph.spec", "graph.plan", "graph.resolve", "graph.runspec"}, out.stdout
 
 
