@@ -322,10 +322,15 @@ def fields(scenario: str, at_time: float, model_path: Path | None, seed: int | N
     The target field, three obstacle fields, the combined obstacle fields and the
     integrated activity of the cooperative EKM, with the robot's situation.
     """
+    from world.tracking import is_tracking
+
     from .experiments.navigation_figures import plot_fields
     from .experiments.navigation_run import fields_at
 
     sc = _load_scenario(scenario)
+    if is_tracking(sc):
+        raise click.UsageError(f"cekm fields draws a navigation controller's fields; tracking is not supported: "
+                               f"{sc.name} is a tracking scenario (its robots have no goal)")
     robots = [r.id for r in sc.robots]
     if robot is not None and robot not in robots:
         raise click.BadParameter(f"{sc.name} has no robot {robot!r} (robots: {', '.join(robots)})",

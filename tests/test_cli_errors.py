@@ -113,6 +113,7 @@ def test_a_bad_option_value_is_refused_by_name_before_the_command_runs(capsys, t
     (["launch", "lone_obstacle", "--no-world", "--robots", "none", "--out", "{out}"], "--no-world"),
     (["launch", "lone_obstacle", "--listen", "not a host!", "--out", "{out}"], "--listen"),
     (["fields", "lone_obstacle", "--at", "1", "--robot", "r9", "--out", "{out}/f.png"], "no robot 'r9'"),
+    (["fields", "tracking", "--at", "3", "--out", "{out}/f.png"], "tracking is not supported"),
     (["sweep", "concave", "--seeds", "1,-2", "--out", "{out}"], "--seeds"),
     (["sweep", "concave", "--depths", "x", "--out", "{out}"], "--depths"),
     (["experiment", "obstacles", "--seeds", "a", "--out", "{out}"], "--seeds"),
