@@ -25,15 +25,25 @@ def _geometry(scenario: str | None, log: Path | None, seed: int | None):
         if geometry is None:
             raise click.BadParameter(f"{log}: no geometry in the log's metadata (an unfinished log has no index)",
                                      param_hint="--log")
-        return geometry, []
+        return geometry, sensing_radii(geometry, geometry.get("sensor_range"), geometry.get("target_range"))
     try:
         sc = load_scenario(scenario)
     except ScenarioError as exc:
         raise click.BadParameter(str(exc), param_hint="SCENARIO") from None
     geometry = World(sc, seed=seed if seed is not None else sc.seed).static_geometry()
+    return geometry, sensing_radii(geometry, sc.sensor_range, sc.target_range)
+
+
+def sensing_radii(geometry: dict, sensor_range: float | None, target_range: float | None) -> list[float]:
+    """The circles the view draws about each robot: the obstacle sensors' reach from the
+    robot's centre and the target sensing range (each when known and finite)."""
     r = geometry.get("body_radius", 0.03)
-    ranges = [r + sc.sensor_range] + ([sc.target_range] if math.isfinite(sc.target_range) else [])
-    return geometry, ranges
+    out = []
+    if isinstance(sensor_range, (int, float)) and math.isfinite(sensor_range):
+        out.append(r + sensor_range)
+    if isinstance(target_range, (int, float)) and math.isfinite(target_range):
+        out.append(target_range)
+    return out
 
 
 def _lattice(session, model_path: Path | None, root: str, timeout: float):

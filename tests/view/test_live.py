@@ -159,3 +159,24 @@ def test_the_first_run_id_names_the_run_joined_and_another_starts_afresh():
     assert len(v.init()["paths"]["r1"]) == 3
     v.run_seen("run-2")
     assert v.tick()["run"] == "run-2" and v.init()["paths"] == {} and v.tick()["time"] is None
+
+
+def test_a_logs_arena_gives_the_same_sensing_circles_as_its_scenario(tmp_path):
+    """``cekm view --log`` drew no sensing circles: the log's geometry carries the ranges."""
+    import json
+
+    from mcap.writer import Writer
+
+    from cekm_swarm.view.command import _geometry
+    from world import load_scenario
+    from world.sim import World
+
+    sc = load_scenario("tracking")
+    path = tmp_path / "run.mcap"
+    with open(path, "wb") as f:
+        w = Writer(f)
+        w.start()
+        w.add_metadata("geometry", {"json": json.dumps(World(sc, seed=sc.seed).static_geometry())})
+        w.finish()
+    from_log, from_scenario = _geometry(None, path, None)[1], _geometry("tracking", None, None)[1]
+    assert from_log == from_scenario and len(from_log) == 2
