@@ -273,8 +273,8 @@ def _why_not_connected(config: zenoh.Config, endpoints: list[str], detail: str) 
         user = None
     if user:
         return f"authentication failed for user {user!r} at {reachable[0]} (the router refused the credentials)"
-    return (f"the router at {reachable[0]} refused the session (it may require credentials or TLS: "
-            f"give a client config with --config)")
+    return (f"{reachable[0]} accepts connections but refused a Zenoh session: a router that requires "
+            f"credentials or TLS (give a client config with --config), or not a Zenoh router at all")
 
 
 def _tcp_reachable(endpoint: str, timeout: float = 1.0) -> bool:
