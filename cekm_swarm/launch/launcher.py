@@ -31,6 +31,7 @@ from __future__ import annotations
 import asyncio
 import json
 import signal
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -112,6 +113,7 @@ class Launcher(Supervision, WorldHost, RobotHost):
         self.stopping = False
         self.world_proc: asyncio.subprocess.Process | None = None
         self.interrupted = False
+        self._stop_waiting = threading.Event()  # set by Ctrl-C: a wait for the router ends at once
         self._log = None
         self.startup_s: float | None = None
         self.run_id: str | None = None
@@ -171,8 +173,9 @@ class Launcher(Supervision, WorldHost, RobotHost):
             return outcome
         finally:
             if self._log is not None:
+                log, self._log = self._log, None  # a signal handled after this writes to the terminal only
                 try:
-                    self._log.close()
+                    log.close()
                 except OSError:
                     pass
 
@@ -301,7 +304,16 @@ class Launcher(Supervision, WorldHost, RobotHost):
             if self._world_hosts_router:
                 also = "" if self._local_host == c.listen_host else f" (listening on tcp/{c.listen_host}:{c.port})"
                 self.say(f"the world server hosts the embedded Zenoh router on {endpoint}{also}")
-        self.session = open_client_when_ready(endpoint, c.zenoh_config, say=self.say)  # a robot host may start first
+        # a robot host may start first: wait for the router in a thread, so Ctrl-C ends the wait at once
+        try:
+            self.session = await asyncio.to_thread(open_client_when_ready, endpoint, c.zenoh_config, say=self.say,
+                                                   stop=self._stop_waiting)
+        except RuntimeTransportError:
+            if self.interrupted:
+                return
+            raise
+        if self.interrupted:
+            return
         if not c.world:
             await self._join_run_id()
             if self.stopping:
@@ -453,6 +465,7 @@ class Launcher(Supervision, WorldHost, RobotHost):
         if self.interrupted:
             return
         self.interrupted = True
+        self._stop_waiting.set()
         self.say("interrupted: stopping")
         if self.world_proc is not None and self.world_proc.returncode is None:
             self.world_proc.send_signal(signal.SIGTERM)  # writes its outcome; the rest stops after it
