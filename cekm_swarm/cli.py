@@ -11,6 +11,9 @@ import click
 from .cli_support import SEED, Finite, out_dir_options, prepare_out_dir, run_cli
 from .errors import CekmError
 
+MIN_SPEED_UNIT = 1e-6
+"""The smallest positive wheel speed unit (m/s) a command takes for the plant."""
+
 
 def _networks(value: str) -> tuple[str, ...]:
     from .models.networks import parse_network_name
@@ -152,6 +155,10 @@ def obstacles(seeds: str, speed_unit: float | None, max_time: float, model_path:
     if not seed_list:
         raise click.UsageError("--seeds: give at least one seed")
     _check_seeds(seed_list)
+    if speed_unit is not None and 0.0 < speed_unit < MIN_SPEED_UNIT:
+        # the plant divides its top speed by the unit: a denormal unit overflowed in every worker
+        raise click.BadParameter(f"{speed_unit!r}: give 0 (continuous) or at least {MIN_SPEED_UNIT} m/s",
+                                 param_hint="'--speed-unit'")
     _model(model_path)
     prepare_out_dir(out_dir, overwrite)
     if model_path is None:
@@ -373,6 +380,7 @@ def sweep_concave(depths: str, widths: str, ranges: str, seeds: str, need: int, 
         config = SweepConfig(depths=parse_floats(depths, "depths"), widths=tuple(sorted(parse_floats(widths, "widths"))),
                              ranges=parse_floats(ranges, "ranges"), seeds=tuple(seeds_of(seeds)), need=need,
                              max_time=max_time)
+        config.check_scenarios()
     except CekmError as exc:
         raise click.UsageError(str(exc)) from None
     _check_seeds(config.seeds)

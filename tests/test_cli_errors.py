@@ -116,6 +116,13 @@ def test_a_bad_option_value_is_refused_by_name_before_the_command_runs(capsys, t
     (["fields", "tracking", "--at", "3", "--out", "{out}/f.png"], "tracking is not supported"),
     (["sweep", "concave", "--seeds", "1,-2", "--out", "{out}"], "--seeds"),
     (["sweep", "concave", "--depths", "x", "--out", "{out}"], "--depths"),
+    (["sweep", "concave", "--depths", "100", "--out", "{out}"], "--depths"),
+    (["sweep", "concave", "--ranges", "99", "--out", "{out}"], "--ranges"),
+    (["sweep", "concave", "--depths", "-0.1", "--out", "{out}"], "--depths"),
+    (["sweep", "concave", "--depths", "nan", "--out", "{out}"], "--depths"),
+    (["sweep", "concave", "--seeds", "", "--out", "{out}"], "--seeds: give at least one seed"),
+    (["sweep", "concave", "--seeds", "1", "--need", "2", "--out", "{out}"], "--need"),
+    (["experiment", "obstacles", "--seeds", "1", "--speed-unit", "1e-320", "--out", "{out}"], "--speed-unit"),
     (["experiment", "obstacles", "--seeds", "a", "--out", "{out}"], "--seeds"),
     (["experiment", "target-reaching", "--networks", "Q9", "--out", "{out}"], "Q9"),
     (["train", "--network", "Z1", "--out", "{out}/m.npz"], "Z1"),
@@ -231,3 +238,16 @@ def test_a_non_finite_number_is_a_usage_error_naming_the_option(capsys, tmp_path
         argv = ["log", "cat", str(tmp_path / "x.mcap"), *argv[3:]]
     line = one_error_line(capsys, argv)
     assert f"Invalid value for '{argv[-2]}'" in line and "is not a finite number" in line
+
+
+@pytest.mark.parametrize("argv", [
+    ["sweep", "concave", "--depths", "100"],
+    ["experiment", "obstacles", "--seeds", "1", "--speed-unit", "1e-320"],
+])
+def test_overwrite_clears_nothing_when_an_argument_is_bad(capsys, tmp_path, argv):
+    """docs/running.md: a typo never costs you the previous results."""
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "results.json").write_text("the previous results")
+    one_error_line(capsys, [*argv, "--out", str(out), "--overwrite"])
+    assert (out / "results.json").read_text() == "the previous results"
