@@ -39,14 +39,31 @@ def write_experiment(doc: dict[str, Any], pictures: dict[str, TrackingRun], out_
     return written
 
 
+COMPARED = ("acmommt", "kmeans", "kmeans-global")
+"""The controllers cekm is compared with in tables.md (Welch's p over the seeds)."""
+
+
 def table_markdown(doc: dict[str, Any]) -> str:
-    """tables.md: per team size, every controller's A with its 95 % interval."""
-    lines = ["| robots | targets | " + " | ".join(f"A {c}" for c in CONTROLLERS) + " |",
-             "|---:|---:|" + "---:|" * len(CONTROLLERS)]
+    """tables.md: per team size, every controller's A with its 95 % interval, and cekm
+    against each baseline: Welch's two-sided p over the seeds, and on how many seeds
+    (the same scenario for every controller) cekm's A is the higher."""
+    compared = [c for c in COMPARED if c in CONTROLLERS]
+    lines = ["| robots | targets | " + " | ".join(f"A {c}" for c in CONTROLLERS) + " | "
+             + " | ".join(f"cekm vs {c} (Welch p; seeds cekm higher)" for c in compared) + " |",
+             "|---:|---:|" + "---:|" * len(CONTROLLERS) + "---|" * len(compared)]
     for c in doc["configs"]:
         cells = []
         for ctl in CONTROLLERS:
             a = c["controllers"][ctl]["A"]
             cells.append(f"{a['mean']:.3f} [{a['ci95'][0]:.3f}, {a['ci95'][1]:.3f}]")
+        cells += [_versus(c["controllers"]["cekm"]["per_seed"], c["controllers"][b]["per_seed"]) for b in compared]
         lines.append(f"| {c['robots']} | {c['targets']} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
+
+
+def _versus(cekm: list[float], other: list[float]) -> str:
+    from .metrics import welch_p
+
+    p = welch_p(cekm, other)
+    higher = sum(1 for a, b in zip(cekm, other) if a > b)
+    return f"p = {'n/a' if p is None else f'{p:.2g}'}; {higher} of {min(len(cekm), len(other))}"

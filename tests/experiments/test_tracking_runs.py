@@ -115,3 +115,25 @@ def test_intervals_of_a_stay_within_0_and_1():
     narrow = mean_ci95([0.5, 0.52, 0.48])  # inside [0, 1]: unchanged
     assert 0.0 < narrow["ci95"][0] < 0.5 < narrow["ci95"][1] < 1.0
     assert mean_ci95([0.98, 1.0, 1.0])["ci95"][1] == 1.0 and mean_ci95([0.0, 0.0, 0.02])["ci95"][0] == 0.0
+
+
+def test_tables_compare_cekm_with_each_baseline_by_welch_p_and_seeds():
+    """The p-values and seed counts the docs quote come from the command's tables.md."""
+    from cekm_swarm.experiments.tracking_report import table_markdown
+    from cekm_swarm.experiments.tracking_run import CONTROLLERS
+
+    def ctl(per_seed):
+        return {"A": {"mean": sum(per_seed) / len(per_seed), "ci95": [0.0, 1.0], "n": len(per_seed)},
+                "per_seed": per_seed}
+
+    seeds = {c: [0.5, 0.6, 0.7] for c in CONTROLLERS}
+    seeds["cekm"], seeds["acmommt"] = [0.9, 0.8, 0.95], [0.2, 0.3, 0.85]
+    doc = {"configs": [{"robots": 2, "targets": 3, "controllers": {c: ctl(v) for c, v in seeds.items()}}]}
+    header, _, row = table_markdown(doc).splitlines()
+    assert "cekm vs acmommt (Welch p; seeds cekm higher)" in header
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    from scipy import stats
+
+    p = stats.ttest_ind(seeds["cekm"], seeds["acmommt"], equal_var=False).pvalue
+    assert cells[-3] == f"p = {p:.2g}; 3 of 3"  # acmommt
+    assert cells[-2].endswith("; 3 of 3") and cells[-1].endswith("; 3 of 3")  # kmeans, kmeans-global
