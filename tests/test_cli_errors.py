@@ -243,11 +243,16 @@ def test_a_non_finite_number_is_a_usage_error_naming_the_option(capsys, tmp_path
 @pytest.mark.parametrize("argv", [
     ["sweep", "concave", "--depths", "100"],
     ["experiment", "obstacles", "--seeds", "1", "--speed-unit", "1e-320"],
+    ["launch", "crossing", "--model", "{bad}", "--port", "7711"],
+    ["run", "crossing", "--model", "{bad}"],
+    ["experiment", "obstacles", "--seeds", "1", "--model", "{bad}"],
 ])
 def test_overwrite_clears_nothing_when_an_argument_is_bad(capsys, tmp_path, argv):
     """docs/running.md: a typo never costs you the previous results."""
     out = tmp_path / "out"
     out.mkdir()
     (out / "results.json").write_text("the previous results")
-    one_error_line(capsys, [*argv, "--out", str(out), "--overwrite"])
+    (tmp_path / "bad.npz").write_text("not a model")
+    one_error_line(capsys, [*(a.replace("{bad}", str(tmp_path / "bad.npz")) for a in argv), "--out", str(out),
+                            "--overwrite"])
     assert (out / "results.json").read_text() == "the previous results"

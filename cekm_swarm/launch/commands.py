@@ -138,6 +138,11 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwr
         checked.plan([r.id for r in sc.robots], task)
     except GraphError as exc:
         raise click.UsageError(str(exc)) from None
+    if model_path is not None and checked.uses_model:  # a bad model is refused before --overwrite clears --out
+        from .prepare import body_of, plan_of, preflight
+
+        body = body_of(sc)
+        preflight(checked, plan_of(checked, tuple(known), task, body, root), body, str(model_path))
     prepare_out_dir(out_dir, overwrite)
     config = LaunchConfig(scenario, out_dir, mode=mode, seed=seed, connect=connect, port=port, model=model_path,
                           max_time=max_time, controller=controller, graph=graph_file, root=root, plot=not no_plot,
