@@ -20,6 +20,7 @@ from cekm_swarm.graph.runspec import RunSpec
 from cekm_swarm.graph.spec import GraphError
 from cekm_swarm.protocol import DEFAULT_ROOT, KeySpaceError, validate_run_id
 from cekm_swarm.runtime.config import DEFAULT_ENDPOINT
+from cekm_swarm.runtime.wait import DEFAULT_WAIT
 
 from .deadman import DEADMAN_S
 from .recorder import RECORD_MODES
@@ -38,6 +39,7 @@ class WorldConfig:
     connect: str = DEFAULT_ENDPOINT
     listen: str | None = None
     zenoh_config: str | None = None
+    wait_router: float = DEFAULT_WAIT
     wait_modules: float = 0.0
     root: str = DEFAULT_ROOT
     run_id: str | None = None
@@ -71,6 +73,9 @@ WORLD_OPTIONS: tuple[tuple[str, dict[str, Any]], ...] = (
     ("connect", {"default": DEFAULT_ENDPOINT, "show_default": True, "help": "join this router as a client"}),
     ("listen", {"metavar": "tcp/HOST:PORT", "help": "host the router here (the embedded default) instead of joining one"}),
     ("zenoh_config", {"help": "Zenoh client config file (credentials, TLS; see deploy/)"}),
+    ("wait_router", {"type": Finite(0.0), "default": DEFAULT_WAIT, "show_default": True, "metavar": "S",
+                     "help": "with --connect: while nothing accepts connections there, wait up to S s for the "
+                             "router, saying so (0: fail at once); Ctrl-C or SIGTERM ends the wait"}),
     ("wait_modules", {"type": float, "default": 0.0, "metavar": "S",
                       "help": "hold tick 0 until every robot's nodes are alive, at most S s (0: do not wait)"}),
     ("root", {"default": DEFAULT_ROOT, "show_default": True}),

@@ -41,6 +41,7 @@ import logging
 import math
 import signal
 import sys
+import threading
 import time
 from pathlib import Path
 from typing import Any
@@ -67,11 +68,13 @@ from cekm_swarm.runtime.config import (
     tcp_host_port,
     use_zenoh_runtime,
 )
+from cekm_swarm.runtime.errors import RuntimeTransportError
 from cekm_swarm.runtime.gc_tuning import freeze_startup_heap
 from cekm_swarm.runtime.lifetime import die_with_parent
 from cekm_swarm.runtime.mcap_record import LogFull
 from cekm_swarm.runtime.record import serve_geometry, serve_json
 from cekm_swarm.runtime.rungraph import default_nodes
+from cekm_swarm.runtime.wait import open_client_when_ready
 from cekm_swarm.ticks import TICK_S
 
 from .clocks import LockstepClock, RealtimeClock, Stopped
@@ -106,6 +109,10 @@ class Refused(click.ClickException):
     ``Error: ...`` on stderr, exit code 2, before anything starts."""
 
     exit_code = 2
+
+
+class StoppedWaiting(CekmError):
+    """SIGINT or SIGTERM came while the server waited for the router: it ends (exit 130)."""
 
 
 class WorldServer:
@@ -146,6 +153,7 @@ class WorldServer:
         self.stop = asyncio.Event()
         self.arrived = asyncio.Event()
         self.stop_reason = "signal"
+        self.stop_waiting = threading.Event()  # set by a signal: the wait for the router ends at once
         self.log_full: LogFull | None = None  # the log's disk filled: the run ended there
 
     def _lost_log(self, exc: LogFull, t: float) -> None:
@@ -161,6 +169,7 @@ class WorldServer:
         """End the run: the tick loop sees ``stop`` at its next wait (waking a lockstep wait)."""
         self.stop.set()
         self.arrived.set()
+        self.stop_waiting.set()
 
     def _progress(self) -> None:
         emit("PROGRESS", progress_doc(self.world, self.episode, self.robots, self.deadman.stopped,
@@ -198,7 +207,20 @@ class WorldServer:
         self.deadman.restart(time.monotonic())
         geometry = self.world.static_geometry()
         pub = self.publisher
-        session = open_world_session(cfg)  # first: a router that cannot start (a taken port) leaves no log behind
+        # first: a router that cannot start (a taken port), or none to join, leaves no log behind; the
+        # wait for an outside router runs in a thread, so a signal ends it at once
+        try:
+            session = await asyncio.to_thread(open_world_session, cfg, self.stop_waiting)
+        except RuntimeTransportError:
+            if self.stop_waiting.is_set():
+                raise StoppedWaiting(f"stopped while waiting for the router at {cfg.connect}") from None
+            if cfg.listen or cfg.wait_router <= 0:
+                raise
+            raise RuntimeTransportError(f"no Zenoh router at {cfg.connect} after waiting {cfg.wait_router:g} s "
+                                        f"(--wait-router): start the router first, or check --connect") from None
+        if self.stop.is_set():
+            session.close()
+            raise StoppedWaiting(f"stopped while waiting for the router at {cfg.connect}")
         try:
             pub.recorder, pub.views = open_run_log(self.out / "run.mcap", self.scenario.name, self.world.seed,
                                                    cfg.mode, geometry, self.world.body_radius,
@@ -373,12 +395,22 @@ def _log_doc(pub: TickPublisher, cfg: WorldConfig) -> dict[str, Any]:
             "max_bytes": cfg.max_log_size, "max_seconds": cfg.max_log_duration}
 
 
-def open_world_session(cfg: WorldConfig) -> zenoh.Session:
-    """The world's Zenoh session: the router itself with ``--listen``, else a client of ``--connect``."""
+def open_world_session(cfg: WorldConfig, stop: threading.Event | None = None) -> zenoh.Session:
+    """The world's Zenoh session: the router itself with ``--listen``, else a client of
+    ``--connect``, waiting up to ``--wait-router`` s for that router to be up (as every
+    networked command does: "waiting for the router at ENDPOINT ..." on stdout, which the
+    launcher shows, and in the log) until ``stop`` is set."""
     if cfg.listen:
         host, port = tcp_host_port(cfg.listen)
         return open_embedded_router(port, host)
-    return open_client(cfg.connect, config_file=cfg.zenoh_config)
+    if cfg.wait_router <= 0:
+        return open_client(cfg.connect, config_file=cfg.zenoh_config)
+
+    def say(text: str) -> None:
+        log.info("%s", text)
+        print(text, flush=True)
+
+    return open_client_when_ready(cfg.connect, cfg.zenoh_config, timeout=cfg.wait_router, say=say, stop=stop)
 
 
 @click.command("world.server", context_settings={"help_option_names": ["-h", "--help"]})
@@ -406,6 +438,9 @@ def world_cmd(**values: Any) -> None:
         raise Refused(str(exc)) from None
     try:
         doc = asyncio.run(server.run())
+    except StoppedWaiting as exc:
+        log.warning("%s", exc)
+        sys.exit(130)
     except CekmError as exc:  # e.g. the router's port is taken: one clear line for the launcher's log
         log.error("cannot run: %s", exc)
         sys.exit(2)

@@ -300,6 +300,8 @@ class Launcher(Supervision, WorldHost, RobotHost):
             # tick 0 until every module of every robot, here or on other hosts, is alive.
             await self._start_world(f"tcp/{c.listen_host}:{c.port}" if self._world_hosts_router else endpoint,
                                     hosts_router=self._world_hosts_router, checkpoints=checkpoints)
+            if self.interrupted:
+                return
             self.world_reader = asyncio.ensure_future(self._read_world(self.world_proc.stdout))
             if self._world_hosts_router:
                 also = "" if self._local_host == c.listen_host else f" (listening on tcp/{c.listen_host}:{c.port})"

@@ -89,8 +89,9 @@ class WorldHost:
         return {("world/server", self.world_proc.pid): float(cpu)}
 
     async def _start_world(self, where: str, *, hosts_router: bool, checkpoints: Path | None) -> None:
-        """Start the world server (hosting the router at ``where``, or joining it) and wait
-        for its READY line: its session is open, so modules can join."""
+        """Start the world server (hosting the router at ``where``, or joining it, waiting
+        for that router as every networked command does) and wait for its READY line: its
+        session is open, so modules can join. Returns early if interrupted meanwhile."""
         c = self.c
         world_argv = server_argv(
             scenario=c.scenario, spec=self.spec_path, listen=where if hosts_router else None,
@@ -111,6 +112,8 @@ class WorldHost:
             line = await self.world_proc.stdout.readline()
             if not line:
                 code = await self.world_proc.wait()
+                if self.interrupted:  # Ctrl-C while the world waited for the router: it stopped waiting
+                    return
                 last = [x for x in log_path.read_text(errors="replace").splitlines() if x.strip()][-1:]
                 hint = port_hint(last[0] if last else "", c.port) if hosts_router else ""
                 raise LaunchError(f"the world server ended (code {code}) before its Zenoh session opened"
