@@ -8,7 +8,7 @@ from pathlib import Path
 
 import click
 
-from .cli_support import SEED, Finite, out_dir_options, prepare_out_dir, run_cli
+from .cli_support import SEED, Finite, out_dir_options, prepare_out_dir, prepare_out_file, run_cli
 from .errors import CekmError
 
 MIN_SPEED_UNIT = 1e-6
@@ -223,6 +223,7 @@ def train(network: str, steps: int, seed: int, out_path: Path, quiet: bool) -> N
     from .models.io import save_model
 
     (name,) = _networks(network)
+    prepare_out_file(out_path)
     t0 = time.perf_counter()
     net, score = train_network(name, steps, seed, progress=not quiet)
     save_model(out_path, net, {"network": name, "steps": steps, "seed": seed, "initial_M": "random",
@@ -342,8 +343,9 @@ def fields(scenario: str, at_time: float, model_path: Path | None, seed: int | N
     if robot is not None and robot not in robots:
         raise click.BadParameter(f"{sc.name} has no robot {robot!r} (robots: {', '.join(robots)})",
                                  param_hint="'--robot'")
-    f = fields_at(sc, _model(model_path), at_time, seed, robot)
-    out_path.parent.mkdir(parents=True, exist_ok=True)
+    model = _model(model_path)
+    prepare_out_file(out_path)
+    f = fields_at(sc, model, at_time, seed, robot)
     plot_fields(f).savefig(out_path, dpi=110)
     x, y, th = f["pose"]
     k = f["k"]

@@ -128,8 +128,37 @@ def prepare_out_dir(path: Path, overwrite: bool) -> Path:
                     shutil.rmtree(p)
                 else:
                     p.unlink()
-    path.mkdir(parents=True, exist_ok=True)
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:  # a parent that is a file, /proc, a read-only file system
+        raise OutputDirError(f"--out {path}: cannot create the directory: {_os_reason(exc)}") from None
     return path
+
+
+def prepare_out_file(path: Path, option: str = "--out") -> Path:
+    """Make sure the single file ``path`` can be written (its directory made, a new file
+    creatable there), so an ``--out`` that cannot be written is one line naming it, before
+    any work and not a traceback after it. An existing file is left as it is."""
+    if path.is_dir():
+        raise OutputDirError(f"{option} {path}: is a directory, not a file")
+    blocked = next((p for p in path.parents if p.exists() or p.is_symlink()), None)
+    if blocked is not None and not blocked.is_dir():
+        raise OutputDirError(f"{option} {path}: cannot write the file: {blocked} is not a directory")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if not path.exists():
+            with open(path, "x"):
+                pass
+            path.unlink()
+        elif not os.access(path, os.W_OK):
+            raise PermissionError(13, "Permission denied")
+    except OSError as exc:
+        raise OutputDirError(f"{option} {path}: cannot write the file: {_os_reason(exc)}") from None
+    return path
+
+
+def _os_reason(exc: OSError) -> str:
+    return exc.strerror or str(exc)
 
 
 def _refuse_to_clear(path: Path) -> None:

@@ -3,6 +3,8 @@ the documented exit code, and never a traceback; ``--out`` never mixes two runs.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import click
 import pytest
 
@@ -256,3 +258,33 @@ def test_overwrite_clears_nothing_when_an_argument_is_bad(capsys, tmp_path, argv
     one_error_line(capsys, [*(a.replace("{bad}", str(tmp_path / "bad.npz")) for a in argv), "--out", str(out),
                             "--overwrite"])
     assert (out / "results.json").read_text() == "the previous results"
+
+
+@pytest.mark.parametrize("argv", [
+    ["run", "crossing", "--max-time", "2", "--out", "{file}/sub"],
+    ["launch", "crossing", "--port", "7713", "--out", "{file}/sub"],
+    ["experiment", "tracking", "--out", "{file}/sub"],
+    ["experiment", "obstacles", "--seeds", "1", "--out", "{file}/sub"],
+    ["sweep", "concave", "--out", "{file}/sub"],
+    ["fields", "concave", "--at", "1", "--out", "{file}/f.png"],
+    ["train", "--steps", "10", "--out", "{file}/m.npz"],
+    ["graph", "acl", "cekm-navigation", "--out", "{file}/acl.json5"],
+    ["plot", "{file}", "--out", "{file}/p.png"],
+])
+def test_an_out_that_cannot_be_created_is_one_line_naming_it(capsys, tmp_path, argv):
+    """A parent that is a regular file was a NotADirectoryError/FileExistsError traceback."""
+    file = tmp_path / "file.txt"
+    file.write_text("a file, not a directory")
+    line = one_error_line(capsys, [a.replace("{file}", str(file)) for a in argv])
+    assert f"--out {file}/" in line and "is not a directory" in line.replace("Not a directory", "is not a directory")
+
+
+def test_an_out_the_os_refuses_names_the_reason(tmp_path):
+    from cekm_swarm.cli_support import prepare_out_file
+
+    with pytest.raises(OutputDirError, match=r"--out /proc/cekm-no-such/x: cannot create the directory: "):
+        prepare_out_dir(Path("/proc/cekm-no-such/x"), overwrite=False)
+    with pytest.raises(OutputDirError, match=r"--out /proc/cekm-f.png: cannot write the file: "):
+        prepare_out_file(Path("/proc/cekm-f.png"))
+    with pytest.raises(OutputDirError, match="is a directory"):
+        prepare_out_file(tmp_path)

@@ -162,5 +162,7 @@ def acl_cmd(graphs: tuple[str, ...], robots: str, tls: bool, out_path: Path | No
     if out_path is None:
         click.echo(text, nl=False)
     else:
-        out_path.write_text(text)
+        from cekm_swarm.cli_support import prepare_out_file
+
+        prepare_out_file(out_path).write_text(text)
         click.echo(f"wrote {out_path}")

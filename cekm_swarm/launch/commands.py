@@ -20,6 +20,7 @@ from cekm_swarm.cli_support import (
     RunFailed,
     out_dir_options,
     prepare_out_dir,
+    prepare_out_file,
 )
 from cekm_swarm.errors import CekmError
 from cekm_swarm.runtime.config import DEFAULT_ENDPOINT, DEFAULT_PORT
@@ -242,12 +243,12 @@ def plot_cmd(log: Path, out_path: Path, title: str | None) -> None:
     """Draw the run recorded in LOG (an MCAP file of `cekm launch`): arena and robot paths."""
     from .plot import plot_log
 
+    prepare_out_file(out_path)
     outcome = None
     sibling = log.with_name("outcome.json")
     if sibling.is_file():
         outcome = json.loads(sibling.read_text())
     fig = plot_log(log, title=title, outcome=outcome)
-    out_path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out_path, dpi=130)
     click.echo(f"wrote {out_path}")
 
