@@ -85,6 +85,45 @@ class Finite(click.FloatRange):
         return out
 
 
+class RobotIds(click.ParamType):
+    """Robot ids, comma-separated (``r1,r2``): at least one, each a valid robot id
+    (:func:`cekm_swarm.protocol.keys.validate_robot_id`), none twice. ``none_word``: the
+    word alone that means no robot (a tuple of none); ``count``: a plain number N means
+    ``r1..rN`` (N >= 1)."""
+
+    name = "robot ids"
+
+    def __init__(self, none_word: str | None = None, count: bool = False) -> None:
+        self._none = none_word
+        self._count = count
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        if not isinstance(value, str):
+            return value
+        from .protocol import KeySpaceError, validate_robot_id
+
+        text = value.strip()
+        if self._none is not None and text == self._none:
+            return ()
+        if self._count and text.isdigit():
+            if int(text) < 1:
+                self.fail(f"{value!r}: give at least one robot", param, ctx)
+            return tuple(f"r{i + 1}" for i in range(int(text)))
+        robots = tuple(r.strip() for r in text.split(","))
+        if not text or any(not r for r in robots):
+            self.fail(f"{value!r}: give robot ids separated by commas, e.g. r1,r2"
+                      + (f" (or '{self._none}' for none)" if self._none else ""), param, ctx)
+        twice = sorted({r for r in robots if robots.count(r) > 1})
+        if twice:
+            self.fail(f"{value!r}: {', '.join(twice)} given twice", param, ctx)
+        for r in robots:
+            try:
+                validate_robot_id(r)
+            except KeySpaceError as exc:
+                self.fail(str(exc), param, ctx)
+        return robots
+
+
 SEED = click.IntRange(0, 2**32 - 1)
 """A seed: 0 .. 2^32 - 1 (what every random generator of the package accepts)."""
 ENDPOINT = _Checked("endpoint", _endpoint)

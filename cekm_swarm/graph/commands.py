@@ -8,6 +8,7 @@ from pathlib import Path
 
 import click
 
+from cekm_swarm.cli_support import RobotIds
 from cekm_swarm.ticks import TICK_S
 
 from .spec import GraphError, load_graph, shipped_graphs
@@ -47,15 +48,6 @@ def _task(checked, task: str | None) -> str:
     if g.task not in ("any", task):
         raise click.UsageError(f"{g.source}: the graph is for {g.task} scenarios, not {task}")
     return task
-
-
-def _team(robots: str) -> tuple[str, ...]:
-    if robots.isdigit():
-        return tuple(f"r{i + 1}" for i in range(int(robots)))
-    team = tuple(r.strip() for r in robots.split(",") if r.strip())
-    if not team:
-        raise click.BadParameter("give robot ids (r1,r2) or a count", param_hint="'--robots'")
-    return team
 
 
 def describe(checked, plan) -> list[str]:
@@ -102,9 +94,9 @@ def describe(checked, plan) -> list[str]:
 @graph_group.command("show")
 @click.argument("graph")
 @click.option("--task", type=click.Choice(["navigation", "tracking"]), help="For a graph of any task.")
-@click.option("--robots", default="2", show_default=True, help="The team: a count or ids (r1,r2,r3).")
+@click.option("--robots", default="2", show_default=True, type=RobotIds(count=True), help="The team: a count or ids (r1,r2,r3).")
 @click.option("--json", "as_json", is_flag=True, help="The resolved graph as JSON (what a run spec carries).")
-def show_cmd(graph: str, task: str | None, robots: str, as_json: bool) -> None:
+def show_cmd(graph: str, task: str | None, robots: tuple[str, ...], as_json: bool) -> None:
     """GRAPH (a shipped graph's name or a file): its nodes per robot, with program,
     instances, rate, inputs and outputs."""
     import json
@@ -112,7 +104,7 @@ def show_cmd(graph: str, task: str | None, robots: str, as_json: bool) -> None:
     checked = _checked(graph)
     t = _task(checked, task)
     try:
-        plan = checked.plan(_team(robots), t)
+        plan = checked.plan(robots, t)
     except GraphError as exc:
         raise click.UsageError(str(exc)) from None
     if as_json:
@@ -146,17 +138,18 @@ def check_cmd(graph: str, task: str | None) -> None:
 
 @graph_group.command("acl")
 @click.argument("graphs", nargs=-1, required=True)
-@click.option("--robots", default="r1,r2,r3,r4", show_default=True, help="The robot identities: a count or ids.")
+@click.option("--robots", default="r1,r2,r3,r4", show_default=True, type=RobotIds(count=True),
+              help="The robot identities: a count or ids.")
 @click.option("--tls", is_flag=True, help="Identities by certificate common name (deploy/tls) instead of user name.")
 @click.option("--out", "out_path", type=click.Path(dir_okay=False, path_type=Path),
               help="Write the router config here (default: stdout).")
-def acl_cmd(graphs: tuple[str, ...], robots: str, tls: bool, out_path: Path | None) -> None:
+def acl_cmd(graphs: tuple[str, ...], robots: tuple[str, ...], tls: bool, out_path: Path | None) -> None:
     """The Zenoh router config (access control included) that lets each robot identity
     publish only what the GRAPHS' nodes send and read only what they read (deploy/)."""
     from .acl import router_config
 
     try:
-        text = router_config([_checked(g) for g in graphs], _team(robots), tls=tls)
+        text = router_config([_checked(g) for g in graphs], robots, tls=tls)
     except GraphError as exc:
         raise click.UsageError(str(exc)) from None
     if out_path is None:

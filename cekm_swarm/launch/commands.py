@@ -17,6 +17,7 @@ from cekm_swarm.cli_support import (
     SIZE,
     Finite,
     Interrupted,
+    RobotIds,
     RunFailed,
     out_dir_options,
     prepare_out_dir,
@@ -58,7 +59,7 @@ def _env_endpoint() -> str | None:
               help="Run a graph file of your own instead (docs/modules.md).")
 @click.option("--root", default="cekm", show_default=True, type=ROOT, help="Key space root.")
 @click.option("--no-plot", is_flag=True, help="Do not draw trajectory.png.")
-@click.option("--robots", "robots", default=None, metavar="R1,R2",
+@click.option("--robots", "robots", default=None, metavar="R1,R2", type=RobotIds(none_word="none"),
               help="Start only these robots' module processes here; 'none' for a world-only host "
                    "(several hosts: see deploy/README.md).")
 @click.option("--no-world", is_flag=True, help="Do not start the world server here (it runs on another host).")
@@ -86,7 +87,7 @@ def _env_endpoint() -> str | None:
                    "messages, commands and shares, views at 1 Hz; docs/tools.md).")
 def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwrite: bool, connect: str | None,
                port: int, model_path: Path | None, max_time: float | None, controller: str, graph_file: Path | None,
-               root: str, no_plot: bool, robots: str | None, no_world: bool, listen_host: str,
+               root: str, no_plot: bool, robots: tuple[str, ...] | None, no_world: bool, listen_host: str,
                zenoh_config: Path | None, model_from_zenoh: bool, run_id: str | None, cold_start: bool,
                send_every_reading: bool, max_log_size: int | None, max_log_duration: float | None,
                record: str) -> None:
@@ -108,7 +109,7 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwr
         raise click.UsageError(str(exc)) from None
     # a tracking scenario (docs/tracking.md) runs the tracking target module per robot, controller cekm
     known = [r.id for r in sc.robots]
-    only = None if robots is None else tuple(r.strip() for r in robots.split(",") if r.strip() and r.strip() != "none")
+    only = robots  # None: every robot; (): none ('none', a world-only host)
     unknown = [r for r in only or () if r not in known]
     if unknown:
         raise click.BadParameter(f"{scenario} has no robot {', '.join(unknown)} (robots: {', '.join(known)})",
