@@ -84,6 +84,7 @@ class LaunchConfig:
     max_log_size: int | None = None  # split the world's log into a set (bytes per file)
     max_log_duration: float | None = None  # ... or sim s per file
     record: str = "full"  # full, or lean (world.recorder)
+    alive_timeout: float = ALIVE_TIMEOUT  # s to wait for every node of every robot to be alive
 
 
 def plan_checkpoint_data(scenario) -> dict[str, list[list[float]]]:
@@ -366,17 +367,52 @@ class Launcher(Supervision, WorldHost, RobotHost):
             await self._spawn(child)
         self.supervisors = [asyncio.ensure_future(self._supervise(ch)) for ch in self.children.values()]
 
+    wait_report_every = 5.0  # s between two "waiting for ..." lines while nodes are not alive
+
+    def _not_alive(self, missing: set[str]) -> str:
+        """``r3 (14 nodes not alive), r2 (1 node not alive: motor)``: the robots still waited for."""
+        by_robot: dict[str, list[str]] = {}
+        for key in missing:
+            try:
+                parsed = self.keys.parse(key)
+                robot, node = parsed.robot or key, parsed.module or key
+            except Exception:  # noqa: BLE001 - a token of another shape: named as it is
+                robot, node = key, key
+            by_robot.setdefault(robot, []).append(node)
+        parts = []
+        for robot in sorted(by_robot):
+            nodes = sorted(by_robot[robot])
+            n = len(nodes)
+            every = self.plan is not None and robot in self.plan.nodes and n == len(self.plan.nodes[robot])
+            named = "" if every or n > 3 else f": {', '.join(nodes)}"
+            parts.append(f"{robot} ({'all ' if every and n > 1 else ''}{n} node{'s' if n != 1 else ''} not alive{named})")
+        return ", ".join(parts)
+
     async def _wait_alive(self, expected: set[str]) -> bool:
-        """Until every token of ``expected`` is alive; False when stopped or the world ended first."""
+        """Until every token of ``expected`` is alive, saying every :attr:`wait_report_every`
+        s which robots it still waits for; False when stopped. A world host gives the world
+        server the first word on a timeout (it records the missing nodes as the reason the
+        run stopped); either way the launch ends with one line naming the missing robots."""
         loop = asyncio.get_running_loop()
-        deadline = loop.time() + ALIVE_TIMEOUT
+        timeout = self.c.alive_timeout
+        t0 = loop.time()
+        deadline = t0 + timeout + (5.0 if self.c.world else 0.0)
+        next_report = loop.time() + self.wait_report_every
         while not expected <= self.watcher.alive and not self.stopping and not self._world_ended():
             try:
                 await self.watcher.next_event(timeout=max(0.1, min(1.0, deadline - loop.time())))
             except asyncio.TimeoutError:
                 if loop.time() > deadline:
-                    missing = sorted(expected - self.watcher.alive)
-                    raise LaunchError(f"modules not alive after {ALIVE_TIMEOUT:.0f} s: {missing[:5]}...") from None
+                    break
+            if loop.time() >= next_report and not expected <= self.watcher.alive:
+                self.say(f"waiting for {self._not_alive(expected - self.watcher.alive)} ...")
+                next_report = loop.time() + self.wait_report_every
+        missing = expected - self.watcher.alive
+        if missing and not self.stopping and loop.time() - t0 >= timeout - 0.5:  # (not a world that crashed)
+            if self._world_ended():
+                await self.world_reader  # its last lines (the missing nodes, its outcome) come first
+            raise LaunchError(f"not alive after {timeout:.0f} s: {self._not_alive(missing)}; is every robot host "
+                              f"started (cekm launch --no-world --robots ...)?")
         return not self.stopping
 
     async def _teardown(self) -> None:
