@@ -5,7 +5,8 @@
 #   deploy/launch-hosts.sh world                 # on the world host (say 10.0.0.1), router included
 #   deploy/launch-hosts.sh world 10.0.0.9        # or joining a separately run router (access control)
 #   deploy/launch-hosts.sh r1 10.0.0.1           # on robot r1's host
-#   deploy/launch-hosts.sh r2 10.0.0.1           # ... one line per robot of the scenario
+#   deploy/launch-hosts.sh r2 10.0.0.1           # ...
+#   deploy/launch-hosts.sh r3 10.0.0.1           # one line per robot of the scenario (crossing: r1-r3)
 #   deploy/launch-hosts.sh r1 10.0.0.1 --seed 2  # options after these go to cekm launch
 #
 # The world host waits until every module of every robot is alive, then runs the

@@ -31,8 +31,8 @@ def get(config: zenoh.Config, path: str):
 
 def test_every_config_loads_and_says_what_it_should():
     files = sorted(p.name for p in DEPLOY.glob("*.json5"))
-    assert files == ["monitor.json5", "operator.json5", "robot-r1.json5", "robot-r2.json5", "router.json5",
-                     "world.json5"]
+    assert files == ["monitor.json5", "operator.json5", "robot-r1.json5", "robot-r2.json5", "robot-r3.json5",
+                     "router.json5", "world.json5"]
     router = zenoh.Config.from_file(str(DEPLOY / "router.json5"))
     assert get(router, "mode") == "router" and get(router, "scouting/multicast/enabled") is False
     acl = get(router, "access_control")
@@ -43,7 +43,7 @@ def test_every_config_loads_and_says_what_it_should():
     users = {u for s in acl["subjects"] for u in s["usernames"]}
     creds = {line.split(":")[0] for line in (DEPLOY / "credentials.example.txt").read_text().split()}
     assert users == creds == {"world", "r1", "r2", "r3", "r4", "monitor", "operator"}
-    for name, user in [("world", "world"), ("robot-r1", "r1"), ("robot-r2", "r2"), ("monitor", "monitor"),
+    for name, user in [("world", "world"), ("robot-r1", "r1"), ("robot-r2", "r2"), ("robot-r3", "r3"), ("monitor", "monitor"),
                        ("operator", "operator")]:
         c = zenoh.Config.from_file(str(DEPLOY / f"{name}.json5"))
         assert get(c, "mode") == "client" and get(c, "scouting/multicast/enabled") is False
@@ -222,3 +222,20 @@ def test_a_graphs_own_keys_are_its_robots_only(acl_router):
     assert inbox.until("cekm/r1/fusion/avoid") == ["cekm/r1/fusion/avoid"]
     scene.undeclare()
     inbox.sub.undeclare()
+
+
+def test_the_documented_split_launch_starts_every_robot_of_its_scenario():
+    """Following deploy/README.md's example with launch-hosts.sh's default SCENARIO starts
+    a host for every robot, each with its client config (and its TLS one)."""
+    import re
+
+    from world import load_scenario
+
+    script = (DEPLOY / "launch-hosts.sh").read_text()
+    scenario = re.search(r"SCENARIO=\$\{SCENARIO:-([\w-]+)\}", script).group(1)
+    robots = [r.id for r in load_scenario(scenario).robots]
+    readme = (DEPLOY / "README.md").read_text()
+    started = set(re.findall(r"^deploy/launch-hosts\.sh (r\d+) ", readme, re.M))
+    assert started == set(robots), (scenario, robots, started)
+    for r in robots:
+        assert (DEPLOY / f"robot-{r}.json5").is_file() and (DEPLOY / "tls" / f"robot-{r}.json5").is_file(), r
