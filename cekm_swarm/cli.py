@@ -15,17 +15,17 @@ MIN_SPEED_UNIT = 1e-6
 """The smallest positive wheel speed unit (m/s) a command takes for the plant."""
 
 
-def _networks(value: str) -> tuple[str, ...]:
+def _networks(value: str, option: str = "--networks") -> tuple[str, ...]:
     from .models.networks import parse_network_name
 
     names = tuple(n.strip().upper() for n in value.split(",") if n.strip())
     if not names:
-        raise click.BadParameter("give at least one network, e.g. R15")
+        raise click.BadParameter("give at least one network, e.g. R15", param_hint=f"'{option}'")
     for n in names:
         try:
             parse_network_name(n)
         except CekmError as exc:
-            raise click.BadParameter(str(exc)) from None
+            raise click.BadParameter(str(exc), param_hint=f"'{option}'") from None
     return names
 
 
@@ -83,6 +83,8 @@ def target_reaching(out_dir: Path, overwrite: bool, networks: str, trials: int, 
     from .experiments.stopping import StopRule
     from .experiments.streams import Schedule
 
+    if steps % test_interval:
+        raise click.UsageError(f"--steps ({steps}) must be a multiple of --test-interval ({test_interval})")
     try:
         arena = Arena(speed_unit=speed_unit, target_resolution=target_resolution)
         config = TargetReachingConfig(networks=_networks(networks), trials=trials, seed=seed, arena=arena,
@@ -126,7 +128,8 @@ def circling(out_dir: Path, network: str, seed: int, trial: int, target: int | N
     step by step (its path, the winners and their commands beside the exact ones)."""
     from .experiments.commands import run_circling_cmd
 
-    run_circling_cmd(out_dir, network=_networks(network)[0], seed=seed, trial=trial, target=target, pick=pick,
+    run_circling_cmd(out_dir, network=_networks(network, "--network")[0], seed=seed, trial=trial, target=target,
+                     pick=pick,
                      stop_rule=stop_rule, train_stop=train_stop, motor_resolution=motor_resolution,
                      speed_unit=speed_unit, target_resolution=target_resolution, bfn=bfn_rule, steps=steps)
 
@@ -222,7 +225,7 @@ def train(network: str, steps: int, seed: int, out_path: Path, quiet: bool) -> N
     from .experiments.training import train_network
     from .models.io import save_model
 
-    (name,) = _networks(network)
+    (name,) = _networks(network, "--network")
     prepare_out_file(out_path)
     t0 = time.perf_counter()
     net, score = train_network(name, steps, seed, progress=not quiet)

@@ -133,7 +133,13 @@ def test_a_bad_option_value_is_refused_by_name_before_the_command_runs(capsys, t
     (["experiment", "obstacles", "--seeds", "1", "--speed-unit", "1e-320", "--out", "{out}"], "--speed-unit"),
     (["experiment", "obstacles", "--seeds", "a", "--out", "{out}"], "--seeds"),
     (["experiment", "target-reaching", "--networks", "Q9", "--out", "{out}"], "Q9"),
-    (["train", "--network", "Z1", "--out", "{out}/m.npz"], "Z1"),
+    (["train", "--network", "Z1", "--out", "{out}/m.npz"], "Invalid value for '--network': unknown network 'Z1'"),
+    (["experiment", "circling", "--network", "X7", "--out", "{out}"], "'--network': unknown network 'X7'"),
+    (["experiment", "target-reaching", "--networks", "X7", "--out", "{out}"], "'--networks': unknown network"),
+    (["experiment", "target-reaching", "--steps", "100", "--out", "{out}"],
+     "--steps (100) must be a multiple of --test-interval (10000)"),
+    (["experiment", "circling", "--steps", "10001", "--out", "{out}"], "'--steps': 10001"),
+    (["experiment", "circling", "--target", "99", "--out", "{out}"], "'--target': 99"),
 ])
 def test_values_checked_in_the_command_are_named_too(capsys, tmp_path, argv, needle):
     line = one_error_line(capsys, [a.replace("{out}", str(tmp_path / "out")) for a in argv])

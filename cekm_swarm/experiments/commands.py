@@ -189,7 +189,15 @@ def run_and_report(config: TargetReachingConfig, out_dir: Path, master_seeds: in
 def run_circling_cmd(out_dir: Path, **settings) -> None:
     """``cekm experiment circling``: one episode drawn, and what drove it printed."""
     from .circling import run_circling
+    from .streams import Schedule
 
+    schedule = Schedule()  # circling trains and tests by the paper's schedule but for its steps
+    target, steps = settings.get("target"), settings.get("steps", schedule.steps)
+    if target is not None and not 1 <= target <= schedule.test_targets:  # checked before the training, not after
+        raise click.BadParameter(f"{target}: a test target from 1 to {schedule.test_targets}", param_hint="'--target'")
+    if steps % schedule.test_interval:  # circling has no --test-interval: name only --steps
+        raise click.BadParameter(f"{steps}: training steps must be a multiple of {schedule.test_interval:,}",
+                                 param_hint="'--steps'")
     found = run_circling(out_dir, **settings)
     if found is None:
         raise click.ClickException(f"{settings['network']} seed {settings['seed']} trial {settings['trial']}: "
