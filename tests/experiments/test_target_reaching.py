@@ -87,7 +87,7 @@ def test_cli_refuses_bad_input(tmp_path):
     assert r.exit_code != 0 and "unknown network 'Q7'" in r.output
     r = CliRunner().invoke(main, ["experiment", "target-reaching", "--out", str(tmp_path), "--steps", "1500",
                                   "--test-interval", "1000"])
-    assert r.exit_code != 0 and "multiple of test_interval" in r.output
+    assert r.exit_code != 0 and "--steps (1500) must be a multiple of --test-interval (1000)" in r.output
 
 
 def test_cli_train_saves_a_loadable_model(tmp_path):
