@@ -48,8 +48,9 @@ from cekm_swarm.ticks import tick_of
 
 from .cpu import CpuSnapshot, cpu_per_tick
 from .errors import LaunchError, NodeCannotStart
+from .plot import draw_trajectory
 from .processes import new_run_id, node_argv
-from .reports import node_summary, notable, read_reports, summary_lines
+from .reports import missing_by_robot, node_summary, notable, read_reports, summary_lines
 from .robot_host import RobotHost
 from .supervision import Child, Supervision
 from .world_host import ALIVE_TIMEOUT, WorldHost, port_hint
@@ -369,25 +370,6 @@ class Launcher(Supervision, WorldHost, RobotHost):
 
     wait_report_every = 5.0  # s between two "waiting for ..." lines while nodes are not alive
 
-    def _not_alive(self, missing: set[str]) -> str:
-        """``r3 (14 nodes not alive), r2 (1 node not alive: motor)``: the robots still waited for."""
-        by_robot: dict[str, list[str]] = {}
-        for key in missing:
-            try:
-                parsed = self.keys.parse(key)
-                robot, node = parsed.robot or key, parsed.module or key
-            except Exception:  # noqa: BLE001 - a token of another shape: named as it is
-                robot, node = key, key
-            by_robot.setdefault(robot, []).append(node)
-        parts = []
-        for robot in sorted(by_robot):
-            nodes = sorted(by_robot[robot])
-            n = len(nodes)
-            every = self.plan is not None and robot in self.plan.nodes and n == len(self.plan.nodes[robot])
-            named = "" if every or n > 3 else f": {', '.join(nodes)}"
-            parts.append(f"{robot} ({'all ' if every and n > 1 else ''}{n} node{'s' if n != 1 else ''} not alive{named})")
-        return ", ".join(parts)
-
     async def _wait_alive(self, expected: set[str]) -> bool:
         """Until every token of ``expected`` is alive, saying every :attr:`wait_report_every`
         s which robots it still waits for; False when stopped. A world host gives the world
@@ -405,13 +387,13 @@ class Launcher(Supervision, WorldHost, RobotHost):
                 if loop.time() > deadline:
                     break
             if loop.time() >= next_report and not expected <= self.watcher.alive:
-                self.say(f"waiting for {self._not_alive(expected - self.watcher.alive)} ...")
+                self.say(f"waiting for {missing_by_robot(self.keys, self.plan, expected - self.watcher.alive)} ...")
                 next_report = loop.time() + self.wait_report_every
         missing = expected - self.watcher.alive
         if missing and not self.stopping and loop.time() - t0 >= timeout - 0.5:  # (not a world that crashed)
             if self._world_ended():
                 await self.world_reader  # its last lines (the missing nodes, its outcome) come first
-            raise LaunchError(f"not alive after {timeout:.0f} s: {self._not_alive(missing)}; is every robot host "
+            raise LaunchError(f"not alive after {timeout:.0f} s: {missing_by_robot(self.keys, self.plan, missing)}; is every robot host "
                               f"started (cekm launch --no-world --robots ...)?")
         return not self.stopping
 
@@ -481,18 +463,10 @@ class Launcher(Supervision, WorldHost, RobotHost):
         return outcome
 
     def _plot(self, scenario, outcome: dict[str, Any]) -> None:
-        c = self.c
-        log_path = c.out / "run.mcap" if (c.out / "run.mcap").is_file() else c.out / "run_0.mcap"  # or a set
-        if not c.plot or not log_path.is_file():
-            return
-        try:
-            from .plot import plot_log
-
-            fig = plot_log(log_path, title=f"{scenario.name} ({c.mode}, seed {outcome.get('seed')})",
-                           outcome=outcome)
-            fig.savefig(c.out / "trajectory.png", dpi=130)
-        except Exception as exc:  # noqa: BLE001 - the run's results stand without the picture
-            self.say(f"could not draw trajectory.png: {type(exc).__name__}: {exc}")
+        if self.c.plot:
+            why = draw_trajectory(self.c.out, f"{scenario.name} ({self.c.mode}, seed {outcome.get('seed')})", outcome)
+            if why is not None:
+                self.say(f"could not draw trajectory.png: {why}")
 
     def launch(self) -> dict[str, Any]:
         """Run the launch to the end in a new event loop (from the main thread: children

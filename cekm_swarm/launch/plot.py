@@ -92,3 +92,17 @@ def plot_log(path: str | Path, title: str | None = None, outcome: dict[str, Any]
     fig.set_size_inches(figure_size(x0, x1, y0, y1))
     fig.tight_layout()
     return fig
+
+
+def draw_trajectory(out: Path, title: str, outcome: dict[str, Any]) -> str | None:
+    """``out/trajectory.png`` from the run's log (``run.mcap``, or the first of a set);
+    None when drawn or there is no log, else why it could not be (the run's results stand
+    without the picture)."""
+    log_path = out / "run.mcap" if (out / "run.mcap").is_file() else out / "run_0.mcap"
+    if not log_path.is_file():
+        return None
+    try:
+        plot_log(log_path, title=title, outcome=outcome).savefig(out / "trajectory.png", dpi=130)
+    except Exception as exc:  # noqa: BLE001 - the caller says it and goes on
+        return f"{type(exc).__name__}: {exc}"
+    return None

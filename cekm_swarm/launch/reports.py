@@ -1,4 +1,5 @@
-"""What the nodes say about themselves as they stop: each node process writes one
+"""What the launcher says about the nodes: who it still waits for (:func:`missing_by_robot`),
+and what the nodes said about themselves as they stopped: each node process writes one
 ``DROPS {json}`` line to its log (:meth:`cekm_swarm.node.process.NodeShell.report`), and
 the launcher sums them up, so a node whose step raised, that skipped runs or that dropped
 messages is named at the end of the launch and in ``outcome.json``, not only in its log."""
@@ -11,6 +12,28 @@ from pathlib import Path
 from typing import Any
 
 from cekm_swarm.node.process import REPORT
+from cekm_swarm.protocol import KeySpace
+
+
+def missing_by_robot(keys: KeySpace, plan: Any, missing: Iterable[str]) -> str:
+    """``r3 (all 14 nodes not alive), r2 (1 node not alive: motor)``: the robots still
+    waited for, from the liveliness tokens not seen (``plan``: the run's plan, or None)."""
+    by_robot: dict[str, list[str]] = {}
+    for key in missing:
+        try:
+            parsed = keys.parse(key)
+            robot, node = parsed.robot or key, parsed.module or key
+        except Exception:  # noqa: BLE001 - a token of another shape: named as it is
+            robot, node = key, key
+        by_robot.setdefault(robot, []).append(node)
+    parts = []
+    for robot in sorted(by_robot):
+        nodes = sorted(by_robot[robot])
+        n = len(nodes)
+        every = plan is not None and robot in plan.nodes and n == len(plan.nodes[robot])
+        named = "" if every or n > 3 else f": {', '.join(nodes)}"
+        parts.append(f"{robot} ({'all ' if every and n > 1 else ''}{n} node{'s' if n != 1 else ''} not alive{named})")
+    return ", ".join(parts)
 
 
 def read_reports(log_path: Path) -> list[dict[str, Any]]:

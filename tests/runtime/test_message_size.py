@@ -163,7 +163,7 @@ def test_client_configs_take_the_limit_unless_theirs_is_smaller(tmp_path):
 
 def test_every_shipped_config_carries_the_limit():
     files = sorted(DEPLOY.glob("*.json5")) + sorted((DEPLOY / "tls").glob("*.json5"))
-    assert len(files) == 12
+    assert len(files) == 14  # 7 plain (router, world, monitor, operator, robots r1-r3) and 7 with TLS
     for path in files:
         c = zenoh.Config.from_file(str(path))
         assert json.loads(c.get_json("transport/link/rx/max_message_size")) == L, path

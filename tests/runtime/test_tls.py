@@ -36,7 +36,8 @@ TLS = DEPLOY / "tls"
 K = DEFAULT_KEYS
 T = 20.0
 SEED = 2
-CLIENTS = {"world": "world", "robot-r1": "r1", "robot-r2": "r2", "monitor": "monitor", "operator": "operator"}
+CLIENTS = {"world": "world", "robot-r1": "r1", "robot-r2": "r2", "robot-r3": "r3", "monitor": "monitor",
+           "operator": "operator"}
 
 
 def make_certs(where: Path, *routers: str, hosts: str | None = None) -> subprocess.CompletedProcess:
