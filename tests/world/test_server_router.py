@@ -23,12 +23,13 @@ pytestmark = pytest.mark.slow  # starts real processes (tests/process_guard.py)
 
 
 class WorldProcess:
-    """``python -m world.server lone_obstacle --listen ...`` with its stdout lines read by a thread."""
+    """``python -m world.server lone_obstacle --listen ...`` (or ``how="--connect"``) with
+    its stdout lines read by a thread."""
 
-    def __init__(self, out: Path, *args: str) -> None:
+    def __init__(self, out: Path, *args: str, how: str = "--listen") -> None:
         self.port = free_port()
         self.endpoint = f"tcp/127.0.0.1:{self.port}"
-        self.proc = subprocess.Popen([sys.executable, "-m", "world.server", "lone_obstacle", "--listen", self.endpoint,
+        self.proc = subprocess.Popen([sys.executable, "-m", "world.server", "lone_obstacle", how, self.endpoint,
                                       "--out", str(out), *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                      text=True)
         self.lines: queue.Queue[str | None] = queue.Queue()

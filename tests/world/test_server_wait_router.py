@@ -4,37 +4,26 @@ failing"), saying so; a wait that runs out ends in one clear line; a signal ends
 
 from __future__ import annotations
 
-import queue
 import signal
-import subprocess
 import sys
-import threading
 import time
 from pathlib import Path
 
 import pytest
 
-from cekm_swarm.runtime.config import free_port, open_embedded_router
+from cekm_swarm.runtime.config import open_embedded_router
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from test_server_router import WorldProcess  # noqa: E402
 
 pytestmark = pytest.mark.slow  # starts real processes (tests/process_guard.py)
 
 
-class JoiningWorld:
+class JoiningWorld(WorldProcess):
     """``python -m world.server lone_obstacle --connect ...`` (nothing listens there yet)."""
 
     def __init__(self, out: Path, *args: str) -> None:
-        self.port = free_port()
-        self.endpoint = f"tcp/127.0.0.1:{self.port}"
-        self.proc = subprocess.Popen([sys.executable, "-m", "world.server", "lone_obstacle", "--connect",
-                                      self.endpoint, "--out", str(out), *args],
-                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        self.lines: queue.Queue[str | None] = queue.Queue()
-        threading.Thread(target=self._read, daemon=True).start()
-
-    def _read(self) -> None:
-        for line in self.proc.stdout:
-            self.lines.put(line.rstrip("\n"))
-        self.lines.put(None)
+        super().__init__(out, *args, how="--connect")
 
     def wait_line(self, prefix: str, timeout: float = 30) -> str:
         deadline = time.monotonic() + timeout
@@ -43,11 +32,6 @@ class JoiningWorld:
             assert line is not None, f"world server ended: {self.proc.stderr.read()[-2000:]}"
             if line.startswith(prefix):
                 return line
-
-    def close(self) -> None:
-        if self.proc.poll() is None:
-            self.proc.kill()
-        self.proc.wait(10)
 
 
 @pytest.fixture
