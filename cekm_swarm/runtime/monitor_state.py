@@ -12,6 +12,7 @@ tracking run each robot's latest :class:`Observation` of the targets. Drawing it
 from __future__ import annotations
 
 import math
+import re
 import threading
 from collections import deque
 from dataclasses import dataclass, field
@@ -49,6 +50,11 @@ FRESH = 1.0
 OBSERVATION_SPAN = 2.0
 """Sim seconds: a robot's share or sense/targets older than this against the newest world
 state no longer counts as observing (a robot whose modules died stops observing)."""
+
+
+def natural_key(name: str) -> tuple:
+    """Sort key that orders ids as a person does: t1, t2, t10 (not t1, t10, t2)."""
+    return tuple(int(part) if part.isdigit() else part for part in re.split(r"(\d+)", name))
 
 
 @dataclass
@@ -208,7 +214,7 @@ class MonitorState:
         with self._lock:
             targets = dict(self.targets)
         by: dict[str, list[str]] = {tid: [] for tid in targets}
-        for rid in sorted(obs):
+        for rid in sorted(obs, key=natural_key):
             for tid in obs[rid].targets:
                 by.setdefault(tid, []).append(rid)
         observed = sum(1 for tid in targets if by[tid])
@@ -216,10 +222,10 @@ class MonitorState:
         return {
             "targets": {tid: {"x": targets[tid][0] if tid in targets else None,
                               "y": targets[tid][1] if tid in targets else None,
-                              "observed_by": [r for r in by[tid] if shown(r)]} for tid in sorted(by)},
+                              "observed_by": [r for r in by[tid] if shown(r)]} for tid in sorted(by, key=natural_key)},
             "observed": observed, "total": len(targets), "A": observed / len(targets) if targets else None,
-            "per_robot": {rid: {"sees": len(o.targets), "source": o.source} for rid, o in sorted(obs.items())
-                          if shown(rid)},
+            "per_robot": {rid: {"sees": len(o.targets), "source": o.source}
+                          for rid, o in sorted(obs.items(), key=lambda kv: natural_key(kv[0])) if shown(rid)},
         }
 
     def set_alive(self, tokens: set[str]) -> None:

@@ -14,7 +14,7 @@ from typing import Any
 from rich.console import Console, Group
 from rich.text import Text
 
-from .monitor_state import MonitorState
+from .monitor_state import MonitorState, natural_key
 
 WIDTH = 80
 """Columns the view is laid out for."""
@@ -109,9 +109,9 @@ def render(state: MonitorState, now: float, *, robots: set[str] | None = None, k
     if phase == "waiting for the world":
         lines.append(Text("waiting for the world server's first state (start a run or `cekm replay LOG`)",
                           style="dim", no_wrap=True, overflow="ellipsis"))
-    shown = [r for r in sorted(state.robots) if robots is None or r in robots]
+    shown = [r for r in sorted(state.robots, key=natural_key) if robots is None or r in robots]
     if robots is not None:
-        for r in sorted(robots - set(state.robots)):
+        for r in sorted(robots - set(state.robots), key=natural_key):
             lines.append(Text(f"{r}: not seen", style="dim", no_wrap=True, overflow="ellipsis"))
     if shown:
         lines.append(Text(_HEADER, style="bold", no_wrap=True, overflow="ellipsis"))
@@ -160,7 +160,7 @@ def snapshot(state: MonitorState, now: float, *, robots: set[str] | None = None,
     """What the view shows, as plain data (``cekm monitor --once --json``)."""
     out: dict[str, Any] = {"phase": state.phase(now), "sim_time": state.sim_time, "dropped": state.drops.total,
                            "robots": {}}
-    for rid in sorted(state.robots):
+    for rid in sorted(state.robots, key=natural_key):
         if robots is not None and rid not in robots:
             continue
         v = state.robots[rid]

@@ -253,3 +253,16 @@ def test_tokens_with_a_run_id_count_as_the_world_and_modules():
     assert "  run run-7" in lines_of(render_text(st, now=1.2))[0]
     st.set_alive({run.alive("r1", m) for m in NODES})
     assert st.phase(2.5) == "run ended"  # the world's token went away
+
+
+def test_targets_and_robots_are_listed_as_a_person_counts():
+    from cekm_swarm.runtime.monitor_state import natural_key
+
+    assert sorted(["t10", "t2", "t1", "r10", "r9", "a"], key=natural_key) == ["a", "r9", "r10", "t1", "t2", "t10"]
+    st = MonitorState()
+    targets = {f"t{i}": (0.1 * i, 0.5) for i in (1, 2, 10)}
+    st.observe(K.world_state(), encode(tracking_state(1.0, targets, robots=("r1", "r2", "r10"))), at=1.0)
+    st.observe(K.share("r10"), encode(Share(1.0, "r10", (0.0, 0.2, 0.0), {"t10": (1.0, 0.5)})), at=1.0)
+    st.observe(K.share("r2"), encode(Share(1.0, "r2", (0.0, 0.2, 0.0), {"t1": (0.1, 0.5)})), at=1.0)
+    tr = json.loads(json_line(snapshot(st, 1.1)))["tracking"]
+    assert list(tr["targets"]) == ["t1", "t2", "t10"] and list(tr["per_robot"]) == ["r2", "r10"]
