@@ -31,10 +31,12 @@ class OwnerNodes:
 
 
 def group_tokens(tokens: set[str] | list[str], keys: KeySpace,
-                 expected: tuple[str, ...] | list[str] | None = None) -> tuple[list[OwnerNodes], list[str]]:
+                 expected: tuple[str, ...] | list[str] | None = None,
+                 team: tuple[str, ...] | list[str] = ()) -> tuple[list[OwnerNodes], list[str]]:
     """(owners with their live and missing nodes, sorted; tokens that are not node tokens
     of ``keys``). A robot's ``expected`` nodes come from the run's graph (None: unknown,
-    so nothing counts as missing)."""
+    so nothing counts as missing); a robot of the run's ``team`` with no live node at all
+    (its host not started, or gone) is listed with every node missing."""
     owners: dict[str, set[str]] = {}
     runs: dict[str, set[str]] = {}
     other: list[str] = []
@@ -51,6 +53,9 @@ def group_tokens(tokens: set[str] | list[str], keys: KeySpace,
         if parsed.run:
             runs.setdefault(parsed.robot, set()).add(parsed.run)
     known = expected is not None
+    if known:
+        for robot in team:
+            owners.setdefault(robot, set())
     expected = list(expected or ())
     order = {m: i for i, m in enumerate(expected)}
     out = []

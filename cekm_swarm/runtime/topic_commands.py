@@ -242,7 +242,8 @@ def node_list_cmd(endpoint: str | None, config_file: Path | None, wait_s: float,
         except KeyboardInterrupt:
             raise Interrupted() from None
         graph = fetch_run_graph(session, keys.world_graph()) if tokens else None
-    groups, other = group_tokens(tokens, keys, None if graph is None else graph.nodes)
+    groups, other = group_tokens(tokens, keys, None if graph is None else graph.nodes,
+                                 () if graph is None else graph.team)
     if graph is not None and not as_json:
         click.echo(f"graph {graph.name} (controller {graph.controller}): {len(graph.nodes)} nodes per robot")
     if as_json:

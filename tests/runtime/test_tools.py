@@ -199,6 +199,11 @@ def test_node_list_names_the_run():
         ", ".join(["target"] + [f"obstacle-{j}" for j in range(12)]), "other token: cekm/r1/nothing"]
     groups, other = group_tokens({run.alive("r1", "motor")}, K)  # no graph known: what is alive, nothing missing
     assert format_nodes(groups, other) == "r1        1 nodes alive (run abc-1): motor"
+    # a robot of the run's team with no live node (its host not started) is named, all missing
+    groups, _ = group_tokens({run.alive("r1", n) for n in nodes}, K, nodes, ("r1", "r2"))
+    lines = format_nodes(groups, []).splitlines()
+    assert lines[0] == "r1       14/14 nodes alive (run abc-1)"
+    assert lines[1].startswith("r2        0/14 nodes alive; missing: target, obstacle-0")
 
 
 def test_log_cat_prints_decoded_messages_text_and_json(tmp_path):
