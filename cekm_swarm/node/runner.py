@@ -17,11 +17,10 @@ class Runner:
     """A node and the checks of what its step returns: one message per output port, of
     the port's type, stamped with the tick's time."""
 
-    __slots__ = ("plan", "node", "runs", "at", "skip_not_ready", "_outs")
+    __slots__ = ("plan", "node", "runs", "skip_not_ready", "_outs")
 
     def __init__(self, plan: NodePlan, node: Node) -> None:
         self.plan, self.node, self.runs = plan, node, 0
-        self.at: float | None = None  # the tick time of the latest run tried
         self.skip_not_ready = False  # set by the real-time gate, which takes NotReady
         self._outs = [(port, key, node.outputs[port].type) for port, key in plan.outputs.items()]
 
@@ -29,7 +28,7 @@ class Runner:
         """The node's outputs of its run at tick ``k``, checked; raises NodeError naming the
         node, the tick and what failed when its step raises or returns something wrong
         (:class:`~.api.NotReady` passes through to the real-time gate, and is a failure elsewhere)."""
-        t = self.at = tick_time(k)
+        t = tick_time(k)
         try:
             out = self.node.step(t, inputs)
         except NotReady:

@@ -96,16 +96,10 @@ def gather(node: NodePlan, k: int, lookup: Callable[[str, int], Any], skip: Call
     return Inputs(values), missing
 
 
-def _triggers(node: NodePlan) -> dict[str, tuple[int, int]]:
-    """Keys whose arrival opens due ticks: key -> (producer period, 0); the clock -> (1, 0)."""
-    out = {}
-    for b in node.bindings:
-        if b.delay == 0:
-            for s in b.sources:
-                out[s.key] = (s.period, 0)
-    if node.clock_key is not None:
-        out[node.clock_key] = (1, 0)
-    return out
+def _triggers(node: NodePlan) -> frozenset[str]:
+    """Keys whose value of a tick opens that tick: every same-tick source, and the clock."""
+    keys = {s.key for b in node.bindings if b.delay == 0 for s in b.sources}
+    return frozenset(keys | ({node.clock_key} if node.clock_key is not None else set()))
 
 
 @dataclass
