@@ -12,21 +12,8 @@ import numpy as np
 
 from .grid_design import AXES, Cell
 from .grid_run import BASELINES
+from .metrics import welch_p
 from .tracking_stats import mean_ci95
-
-
-def welch_p(a, b) -> float:
-    """Welch's two-sided p; 1.0 when both samples are constant and equal."""
-    import warnings
-
-    from scipy import stats
-
-    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
-    if a.std() == 0 and b.std() == 0:
-        return 1.0 if a.mean() == b.mean() else 0.0
-    with warnings.catch_warnings():  # nearly equal samples: scipy warns of precision, p is still near 1
-        warnings.simplefilter("ignore", RuntimeWarning)
-        return float(stats.ttest_ind(a, b, equal_var=False).pvalue)
 
 
 def _versus(cekm: list[float], base: dict[str, list[float]]) -> dict[str, Any]:
