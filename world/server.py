@@ -268,6 +268,7 @@ class WorldServer:
                     pub.record_tick(self.inbox.now)
                 except LogFull as exc:
                     self._lost_log(exc, self.episode.t)
+            ended = declare_alive(session, self.keys.world_ended())  # before its own token goes: a normal end
             token.undeclare()
             if rejoins is not None:
                 rejoins.undeclare()
@@ -275,6 +276,7 @@ class WorldServer:
                 q.undeclare()
             pub.record_sub.undeclare()
             pub.pubs.close()
+            ended.undeclare()
         finally:
             session.close()
             try:

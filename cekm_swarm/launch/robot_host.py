@@ -57,7 +57,7 @@ class RobotHost:
         host) has come and gone, or until interrupted. Read from the token's events, in
         order, so a short run that came and went between two looks is still seen to end;
         and a lost router (the world host hosted it and has gone) ends the wait too."""
-        world_key = self.keys.alive("world", "server")
+        world_key, ended_key = self.keys.alive("world", "server"), self.keys.world_ended()
         self.say(f"all {n} local modules alive after {self.startup_s:.1f} s; waiting for the world server")
         seen = world_key in watcher.alive
         if seen:
@@ -72,13 +72,16 @@ class RobotHost:
                     self.say("the world server has ended (its host's Zenoh router is gone)")
                     return
                 continue
+            if event.key == ended_key and event.alive:  # the world said so: no router to wait for
+                self.say("the world server has ended")
+                return
             if event.key != world_key:
                 continue
             if event.alive and not seen:
                 self.say("the world server is up")
                 seen = True
             elif not event.alive:
-                if await self._router_back(watcher, world_key, session):
+                if ended_key not in watcher.alive and await self._router_back(watcher, world_key, session):
                     continue
                 self.say("the world server has ended")
                 return

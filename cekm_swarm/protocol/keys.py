@@ -251,6 +251,12 @@ class KeySpace:
         key = f"{head}/alive/{validate_module_name(module)}"
         return key if self.run is None else f"{key}/{self.run}"
 
+    def world_ended(self) -> str:
+        """Liveliness token the world server declares as its run ends, before its own token
+        goes: a robots-only host that sees it knows the run is over, not that the router it
+        shared with the world host was lost (so it does not wait for that router to return)."""
+        return self.alive(WORLD, "ended")
+
     def with_run(self, run: str | None) -> "KeySpace":
         """This key space for the run ``run``."""
         return KeySpace(self.root, self.range_sensors, run)

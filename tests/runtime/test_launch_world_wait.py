@@ -69,3 +69,16 @@ def test_no_router_before_the_world_was_seen_keeps_waiting(tmp_path):
 
     asyncio.run(scenario())
     assert said[-1].endswith("the world server has ended")
+
+
+def test_the_worlds_ended_token_ends_the_wait_without_waiting_for_a_lost_router(tmp_path):
+    """A world host that also hosted the router: its token and the router go together, but
+    the world declared ``world_ended`` first, so a --connect host does not wait for the router."""
+    events = [LivelinessEvent(WORLD, True, 0.0), LivelinessEvent(K.world_ended(), True, 0.3),
+              LivelinessEvent(WORLD, False, 0.4)]
+    said: list[str] = []
+    launcher = Launcher(LaunchConfig("lone_obstacle", tmp_path, connect="tcp/127.0.0.1:1"), echo=said.append)
+    launcher.startup_s = 1.0
+    session = session_with_routers()  # the router is gone too
+    asyncio.run(asyncio.wait_for(launcher._serve_until_world_ends(ScriptedWatcher(events, set()), 14, session), 5))
+    assert [s.split("] ", 1)[1] for s in said[1:]] == ["the world server is up", "the world server has ended"]
