@@ -251,15 +251,16 @@ class MonitorState:
         return sorted(out)
 
     def phase(self, now: float) -> str:
-        """``waiting for the world``, ``running``, ``replay`` (world states with no world
-        server alive), ``no world state for N s`` or ``run ended`` (the world server's token
-        went away, or the states stopped with no module left)."""
+        """``waiting for the world``, ``waiting for the modules`` (the world server is up and
+        holds tick 0 until every module is alive), ``running``, ``replay`` (world states with
+        no world server alive), ``no world state for N s`` or ``run ended`` (the world
+        server's token went away, or the states stopped with no module left)."""
         world_alive = self._world_alive()
         modules_alive = any(owner != WORLD for owner in self._alive_modules())
         if self.world_at is None:
             if self.world_token_seen and not world_alive:
                 return "run ended"
-            return "waiting for the world"
+            return "waiting for the modules" if world_alive else "waiting for the world"
         age = now - self.world_at
         if age <= FRESH:
             return "running" if world_alive or modules_alive else "replay"
@@ -288,6 +289,10 @@ class MonitorState:
             if parsed.kind is KeyKind.ALIVE and parsed.robot and parsed.module:
                 out.setdefault(parsed.robot, set()).add(parsed.module)
         return out
+
+    def module_tokens(self) -> int:
+        """How many robots' module tokens are alive now (the world server's not counted)."""
+        return sum(len(m) for owner, m in self._alive_modules().items() if owner != WORLD)
 
     def modules_alive(self, rid: str) -> tuple[int, list[str]]:
         """(number alive, the names of the missing ones) of a robot's nodes: those of the

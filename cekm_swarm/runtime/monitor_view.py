@@ -35,7 +35,8 @@ def _num(x: float, width: int, digits: int) -> str:
 
 
 _STATUS_STYLE = {"moving": "green", "reached": "bold cyan", "stopped": "yellow", "waiting": "dim"}
-_PHASE_STYLE = {"running": "bold green", "replay": "bold green", "run ended": "bold red", "waiting for the world": "bold yellow"}
+_PHASE_STYLE = {"running": "bold green", "replay": "bold green", "run ended": "bold red", "waiting for the world": "bold yellow",
+                "waiting for the modules": "bold yellow"}
 _HEADER = (f"{_fit('robot', 6, '<')} {_fit('x', 6)} {_fit('y', 6)} {_fit('theta', 5)} {_fit('goal', 13)} "
            f"{_fit('status', 7, '<')} {_fit('v_l', 6)} {_fit('v_r', 6)} {_fit('mods', 5)} {_fit('lat ms', 11)}")
 
@@ -109,6 +110,9 @@ def render(state: MonitorState, now: float, *, robots: set[str] | None = None, k
     if phase == "waiting for the world":
         lines.append(Text("waiting for the world server's first state (start a run or `cekm replay LOG`)",
                           style="dim", no_wrap=True, overflow="ellipsis"))
+    elif phase == "waiting for the modules":
+        lines.append(Text(f"the world server is up: tick 0 once every module is alive "
+                          f"({state.module_tokens()} alive now)", style="dim", no_wrap=True, overflow="ellipsis"))
     shown = [r for r in sorted(state.robots, key=natural_key) if robots is None or r in robots]
     if robots is not None:
         for r in sorted(robots - set(state.robots), key=natural_key):

@@ -63,8 +63,12 @@ def test_phases_waiting_running_stale_ended_and_replay():
     text = render_text(st, now=0.0)
     assert lines_of(text)[0].startswith("cekm monitor waiting for the world  sim -")
     assert "waiting for the world server's first state" in text
+    st.set_alive({WORLD_TOKEN})
+    assert st.phase(1.0) == "waiting for the modules"  # the world is up and holds tick 0
+    assert "(0 alive now)" in render_text(st, now=1.0)
     st.set_alive(ALL_MODULES | {WORLD_TOKEN})
-    assert st.phase(1.0) == "waiting for the world"  # modules up, tick 0 not yet
+    assert st.phase(1.0) == "waiting for the modules"  # modules up, tick 0 not yet
+    assert f"({len(ALL_MODULES)} alive now)" in render_text(st, now=1.0)
     st.observe(K.world_state(), encode(world_state(0.0, 0.3)), at=2.0)
     assert st.phase(2.5) == "running"
     assert st.phase(6.0) == "no world state for 4 s"  # still alive, but silent
