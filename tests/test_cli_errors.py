@@ -120,6 +120,8 @@ def test_a_bad_option_value_is_refused_by_name_before_the_command_runs(capsys, t
     (["graph", "acl", "cekm-navigation", "--robots", "-3", "--out", "{out}/acl.json5"], "robot id '-3'"),
     (["graph", "acl", "cekm-navigation", "--robots", "r 1,r/x", "--out", "{out}/acl.json5"], "robot id 'r 1'"),
     (["graph", "acl", "cekm-navigation", "--robots", "r1,r1", "--out", "{out}/acl.json5"], "r1 given twice"),
+    (["ros2", "bridge", "--robots", "r1,r1", "--wait", "0"], "r1 given twice"),
+    (["ros2", "bridge", "--teleop", "r 1", "--wait", "0"], "robot id 'r 1'"),
     (["fields", "lone_obstacle", "--at", "1", "--robot", "r9", "--out", "{out}/f.png"], "no robot 'r9'"),
     (["fields", "tracking", "--at", "3", "--out", "{out}/f.png"], "tracking is not supported"),
     (["sweep", "concave", "--seeds", "1,-2", "--out", "{out}"], "--seeds"),

@@ -15,7 +15,7 @@ from typing import Any
 
 import click
 
-from cekm_swarm.cli_support import ENDPOINT, ROOT, Finite, Interrupted, prepare_out_dir
+from cekm_swarm.cli_support import ENDPOINT, ROOT, Finite, Interrupted, RobotIds, prepare_out_dir
 from cekm_swarm.errors import CekmError
 from cekm_swarm.runtime.wait import DEFAULT_WAIT, ENV_CONNECT
 
@@ -24,22 +24,6 @@ from .interfaces import DEFAULT_DISTRO, DISTROS
 
 def _say(text: str) -> None:
     click.echo(text, err=True)
-
-
-def _robots(value: str | None, option: str) -> tuple[str, ...] | None:
-    if value is None:
-        return None
-    from cekm_swarm.protocol import KeySpaceError, validate_robot_id
-
-    robots = tuple(r.strip() for r in value.split(",") if r.strip())
-    if not robots:
-        raise click.BadParameter("give robot ids separated by commas, e.g. r1,r2", param_hint=option)
-    for r in robots:
-        try:
-            validate_robot_id(r)
-        except KeySpaceError as exc:
-            raise click.BadParameter(str(exc), param_hint=option) from None
-    return robots
 
 
 @click.command("export")
@@ -101,21 +85,22 @@ def ros2_group() -> None:
 @click.option("--wait", "wait_s", default=DEFAULT_WAIT, show_default=True, type=Finite(0.0),
               help="Seconds to wait for the router before giving up (0: do not wait).")
 @click.option("--domain", default=0, show_default=True, type=click.IntRange(0, 232), help="ROS_DOMAIN_ID.")
-@click.option("--robots", default=None, metavar="r1,r2", help="Only these robots' topics (default: every robot).")
-@click.option("--teleop", default=None, metavar="r1,r2",
+@click.option("--robots", default=None, metavar="r1,r2", type=RobotIds(),
+              help="Only these robots' topics (default: every robot).")
+@click.option("--teleop", default=None, metavar="r1,r2", type=RobotIds(),
               help="Drive these robots from geometry_msgs/msg/Twist on /<robot>/cmd_vel (their modules must not run).")
 @click.option("--distro", type=click.Choice(DISTROS), default=DEFAULT_DISTRO, show_default=True,
               help="ROS 2 distribution whose type hashes the topics carry.")
 @click.option("--root", default="cekm", show_default=True, type=ROOT, help="Key-space root of the run.")
 @click.option("--json", "as_json", is_flag=True, help="Print the final report as one JSON object.")
-def bridge_cmd(endpoint: str | None, config_file: Path | None, wait_s: float, domain: int, robots: str | None,
-               teleop: str | None, distro: str, root: str, as_json: bool) -> None:
+def bridge_cmd(endpoint: str | None, config_file: Path | None, wait_s: float, domain: int,
+               robots: tuple[str, ...] | None, teleop: tuple[str, ...] | None, distro: str, root: str, as_json: bool) -> None:
     """Publish a live run's topics as a ROS 2 node under rmw_zenoh, until Ctrl-C or SIGTERM."""
     from cekm_swarm.runtime.wait import resolve_endpoint
 
     from .bridge import BridgeConfig, bridge_session, run_bridge
 
-    config = BridgeConfig(domain=domain, robots=_robots(robots, "--robots"), teleop=_robots(teleop, "--teleop") or (),
+    config = BridgeConfig(domain=domain, robots=robots, teleop=teleop or (),
                           distro=distro, root=root)
     stop = threading.Event()
 
