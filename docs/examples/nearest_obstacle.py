@@ -36,7 +36,9 @@ class NearestObstacle(Node):
 
 
 class CommandLog(Node):
-    """Appends every wheel command of its robot to a CSV file (t, v_l, v_r); sends nothing."""
+    """Writes every wheel command of its robot to a CSV file (t, v_l, v_r), replacing the
+    file of an earlier run; sends nothing. A relative ``path`` is taken from the directory
+    the command was started from (not ``--out``)."""
 
     inputs = {"command": In(WheelCommand)}
 
