@@ -84,6 +84,10 @@ class Finite(click.FloatRange):
             self.fail(f"{value!r} is not a finite number.", param, ctx)
         return out
 
+    def _describe_range(self) -> str:
+        """The bound shown in help; none for no bounds (click's own said ``x<=None``)."""
+        return "" if self.min is None and self.max is None else super()._describe_range()
+
 
 class RobotIds(click.ParamType):
     """Robot ids, comma-separated (``r1,r2``): at least one, each a valid robot id

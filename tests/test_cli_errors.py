@@ -302,3 +302,13 @@ def test_an_out_the_os_refuses_names_the_reason(tmp_path):
         prepare_out_file(Path("/proc/cekm-f.png"))
     with pytest.raises(OutputDirError, match="is a directory"):
         prepare_out_file(tmp_path)
+
+
+def test_no_help_text_shows_a_bound_of_none():
+    """A Finite option with no bounds showed '[x<=None]' in --help (QA item 3)."""
+    ctx = click.Context(main)
+    for path, cmd in COMMANDS:
+        for p in cmd.params:
+            if isinstance(p, click.Option):
+                record = p.get_help_record(ctx)
+                assert record is None or "None]" not in record[1] and "None;" not in record[1], (path, record)
