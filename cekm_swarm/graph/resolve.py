@@ -8,6 +8,7 @@ Plain data in, plain data out: nothing here imports node code.
 
 from __future__ import annotations
 
+import difflib
 import math
 from typing import Any, Mapping
 
@@ -36,6 +37,16 @@ def _source_keys(plan_outputs: dict[str, tuple[str, str, int | None, str]], rel:
                 out.append((k, int(last) if last.isdigit() else last))
         return out
     return [(rel, None)] if rel in plan_outputs else []
+
+
+def unknown_port(direction: str, port: str, declared) -> str:
+    """What is wrong with a graph binding ``port``, which its program does not declare
+    among its ``direction`` (input or output) ports: the program's ports, and the close
+    one when the name looks misspelled."""
+    names = sorted(declared)
+    close = difflib.get_close_matches(port, names, n=1)
+    hint = f"; did you mean {close[0]!r}?" if close else ""
+    return f"its program has no {direction} port {port!r} (its {direction} ports: {', '.join(names) or 'none'}){hint}"
 
 
 def _gcd(values: list[int]) -> int:
@@ -68,11 +79,10 @@ def build_plan(graph: Graph, team: tuple[str, ...] | list[str], task: str, ports
         pt = ports[n.name]
         declared = set(pt.outputs)
         bound = {o.port for o in n.outputs}
+        for port in sorted(bound - declared):  # first: a misspelled port also leaves the real one unbound
+            raise GraphError(src, f"{n.where}.outputs.{port}", unknown_port("output", port, declared))
         for port in sorted(declared - bound):
             raise GraphError(src, f"{n.where}.outputs", f"output port {port!r} of its program is not given a key")
-        for port in sorted(bound - declared):
-            raise GraphError(src, f"{n.where}.outputs.{port}", f"its program has no output port {port!r} "
-                                                                f"(ports: {', '.join(sorted(declared)) or 'none'})")
         for o in n.outputs:
             for i in (range(counts[n.name]) if instanced[n.name] else [None]):
                 rel = o.key if i is None else o.key.replace("{i}", str(i))
@@ -120,11 +130,10 @@ def build_plan(graph: Graph, team: tuple[str, ...] | list[str], task: str, ports
         pt = ports[n.name]
         declared = dict(pt.inputs)
         bound = {i.port for i in n.inputs}
+        for port in sorted(bound - set(declared)):  # first: a misspelled port also leaves the real one unbound
+            raise GraphError(src, f"{n.where}.inputs.{port}", unknown_port("input", port, declared))
         for port in sorted(set(declared) - bound):
             raise GraphError(src, f"{n.where}.inputs", f"input port {port!r} of its program is not given a key")
-        for port in sorted(bound - set(declared)):
-            raise GraphError(src, f"{n.where}.inputs.{port}", f"its program has no input port {port!r} "
-                                                               f"(ports: {', '.join(sorted(declared)) or 'none'})")
         for inst in (range(counts[n.name]) if instanced[n.name] else [None]):
             per_input = []
             for d in n.inputs:

@@ -158,6 +158,21 @@ def test_ports_bound_wrong_are_refused(write):
             "node 'wheels'.inputs.x", "carries sense/target messages, the port takes data")
 
 
+def test_a_misspelled_port_is_named_with_the_programs_ports(write):
+    """A typo in a port's name is refused as the name typed (with the close one), not
+    as the real port left unbound; the same for an output port."""
+    text = refused(write(HEAD + SOURCE + WHEELS.replace('inputs = { x = "mine/y" }', 'inputs = { xx = "mine/y" }')),
+                   "node 'wheels'.inputs.xx", "no input port 'xx'", "(its input ports: x)", "did you mean 'x'?")
+    assert "not given a key" not in text
+    text = refused(write(HEAD + SOURCE + WHEELS.replace("outputs = { command =", "outputs = { comand =")),
+                   "node 'wheels'.outputs.comand", "no output port 'comand'", "(its output ports: command)",
+                   "did you mean 'command'?")
+    assert "not given a key" not in text
+    text = refused(write(HEAD + SOURCE + WHEELS.replace('inputs = { x = "mine/y" }', 'inputs = { zebra = "mine/y" }')),
+                   "node 'wheels'.inputs.zebra", "no input port 'zebra' (its input ports: x)")
+    assert "did you mean" not in text
+
+
 def test_no_rate_a_bad_answer_and_the_wrong_task_are_refused(write):
     refused(write(HEAD + f'\n[[node]]\nname = "source"\nprogram = "{P}:Source"\noutputs = {{ y = "mine/y" }}\n' + WHEELS),
             "node 'source'.every", "no rate")
