@@ -312,3 +312,22 @@ def test_no_help_text_shows_a_bound_of_none():
             if isinstance(p, click.Option):
                 record = p.get_help_record(ctx)
                 assert record is None or "None]" not in record[1] and "None;" not in record[1], (path, record)
+
+
+@pytest.mark.parametrize("argv", [
+    ["log", "info", "{log}"],
+    ["log", "cat", "{log}"],
+    ["replay", "{log}", "--port", "7809"],
+    ["replay", "{log}", "--connect", "tcp/127.0.0.1:7809"],
+    ["plot", "{log}", "--out", "{tmp}/p.png"],
+    ["view", "--log", "{log}", "--wait", "0"],
+])
+def test_a_log_that_is_not_mcap_is_a_failure_naming_the_log(capsys, tmp_path, monkeypatch, argv):
+    """docs/tools.md: 1 for a log it cannot read, the same line from every command (replay
+    blamed CEKM_CONNECT or --connect, plot and replay said exit 2, view blamed a missing index)."""
+    monkeypatch.delenv("CEKM_CONNECT", raising=False)
+    log = tmp_path / "notmcap.mcap"
+    log.write_text("hello\n")
+    line = one_error_line(capsys, [a.replace("{log}", str(log)).replace("{tmp}", str(tmp_path)) for a in argv],
+                          code=1, kind="failed")
+    assert line == f"cekm: failed: {log}: not an MCAP file (bad magic)"

@@ -25,6 +25,7 @@ from cekm_swarm.cli_support import (
 )
 from cekm_swarm.errors import CekmError
 from cekm_swarm.runtime.config import DEFAULT_ENDPOINT, DEFAULT_PORT
+from cekm_swarm.runtime.log_commands import LOG_HELP
 
 
 def _env_endpoint() -> str | None:
@@ -235,21 +236,27 @@ def outcome_summary(outcome: dict) -> list[str]:
     return lines
 
 
-@click.command("plot")
-@click.argument("log", type=click.Path(dir_okay=False, exists=True, path_type=Path))
+@click.command("plot", epilog=LOG_HELP)
+@click.argument("log", metavar="LOG", type=click.Path(exists=True, path_type=Path))
 @click.option("--out", "out_path", type=click.Path(dir_okay=False, path_type=Path), required=True,
               help="The PNG to write (replaced if it exists).")
 @click.option("--title", help="Figure title.")
 def plot_cmd(log: Path, out_path: Path, title: str | None) -> None:
-    """Draw the run recorded in LOG (an MCAP file of `cekm launch`): arena and robot paths."""
+    """Draw the run recorded in LOG (an MCAP log of `cekm launch`): arena and robot paths."""
+    from cekm_swarm.runtime.mcap_sets import log_files
+
     from .plot import plot_log
 
     prepare_out_file(out_path)
-    outcome = None
-    sibling = log.with_name("outcome.json")
-    if sibling.is_file():
-        outcome = json.loads(sibling.read_text())
-    fig = plot_log(log, title=title, outcome=outcome)
+    try:
+        log_files(log)  # a directory with no log, or with several, is named before any work
+        outcome = None
+        sibling = log / "outcome.json" if log.is_dir() else log.with_name("outcome.json")
+        if sibling.is_file():
+            outcome = json.loads(sibling.read_text())
+        fig = plot_log(log, title=title, outcome=outcome)
+    except CekmError as exc:  # a log it cannot read: a failure (exit 1), as in `cekm log info`
+        raise RunFailed(str(exc)) from None
     fig.savefig(out_path, dpi=130)
     click.echo(f"wrote {out_path}")
 

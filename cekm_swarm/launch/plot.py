@@ -14,11 +14,14 @@ from cekm_swarm.runtime.mcap_log import read_messages, without_resends
 
 
 def read_geometry(path: str | Path) -> dict[str, Any] | None:
-    """The geometry the world server recorded (metadata ``geometry``), None if absent."""
+    """The geometry the world server recorded (metadata ``geometry``), None if absent.
+    ``path``: a file, or a log set (its directory or first file), whose every file holds it."""
     from mcap.reader import make_reader
 
+    from cekm_swarm.runtime.mcap_sets import log_files
+
     try:
-        with open(path, "rb") as f:
+        with open(log_files(path)[0], "rb") as f:
             for md in make_reader(f).iter_metadata():
                 if md.name == "geometry":
                     return json.loads(md.metadata["json"])

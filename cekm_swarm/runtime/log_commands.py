@@ -193,9 +193,12 @@ def replay_cmd(log_file: Path, endpoint: str | None, config_file: Path | None, w
         _check_key_expr(key_expr, "--keys")
     try:
         ep = resolve_endpoint(endpoint)
-        span = log_span(log_file)
     except CekmError as exc:
         raise click.BadParameter(str(exc), param_hint="--connect" if endpoint else ENV_CONNECT) from None
+    try:
+        span = log_span(log_file)
+    except CekmError as exc:  # a log it cannot read: a failure (exit 1), as in `cekm log info`
+        raise click.ClickException(str(exc)) from None
     if span is not None and start > span[1] - span[0]:
         raise click.BadParameter(f"{start:g} s is past the log's end ({span[1] - span[0]:.3f} s long)",
                                  param_hint="--start")

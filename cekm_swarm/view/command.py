@@ -20,11 +20,16 @@ def _geometry(scenario: str | None, log: Path | None, seed: int | None):
 
     if log is not None:
         from cekm_swarm.launch.plot import read_geometry
+        from cekm_swarm.runtime.mcap_log import is_complete
 
+        try:
+            complete = is_complete(log)
+        except CekmError as exc:  # a log it cannot read: a failure (exit 1), as in `cekm log info`
+            raise click.ClickException(str(exc)) from None
         geometry = read_geometry(log)
         if geometry is None:
-            raise click.BadParameter(f"{log}: no geometry in the log's metadata (an unfinished log has no index)",
-                                     param_hint="--log")
+            why = "" if complete else " (an unfinished log has no index: `cekm log recover` it first)"
+            raise click.BadParameter(f"{log}: no geometry in the log's metadata{why}", param_hint="--log")
         return geometry, sensing_radii(geometry, geometry.get("sensor_range"), geometry.get("target_range"))
     try:
         sc = load_scenario(scenario)

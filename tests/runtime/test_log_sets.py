@@ -119,3 +119,26 @@ def test_cekm_log_info_and_cat_take_the_set(tmp_path):
     cat = _cekm("log", "cat", str(rec.files[0]), "--json", "--topics", "cekm/world/clock")
     times = [json.loads(line)["log_time"] for line in cat.stdout.splitlines()]
     assert len(times) == 120 and times == sorted(times)
+
+
+
+def test_cekm_plot_takes_the_set_by_its_directory(tmp_path, capsys):
+    """docs/runtime.md: cekm plot takes the run's directory (it was refused: 'is a directory')."""
+    from cekm_swarm.cli import main
+    from cekm_swarm.cli_support import run_cli
+    from world import World, load_scenario
+
+    run = tmp_path / "run"
+    run.mkdir()
+    geometry = World(load_scenario("crossing")).static_geometry()
+    with SplitRecorder(run / "run.mcap", metadata={"scenario": "crossing"}, max_seconds=3.0) as rec:
+        rec.add_metadata("geometry", {"json": json.dumps(geometry)})
+        for key, data, t in sample_traffic(60):
+            rec.write(key, data, t)
+    assert len(rec.files) > 1
+    from cekm_swarm.launch.plot import read_geometry
+
+    assert read_geometry(run) == read_geometry(rec.files[0]) == json.loads(json.dumps(geometry))  # the arena too
+    (run / "outcome.json").write_text(json.dumps({"robots": {"r1": {"reached": True}}}))
+    assert run_cli(main, ["plot", str(run), "--out", str(tmp_path / "p.png")]) == 0, capsys.readouterr()
+    assert (tmp_path / "p.png").stat().st_size > 0
