@@ -95,10 +95,16 @@ def load_model_bytes(blob: bytes, source: str):
 
 def _parse(file, path):
     try:
-        with np.load(file, allow_pickle=False) as npz:
+        loaded = np.load(file, allow_pickle=False)
+        if not isinstance(loaded, np.lib.npyio.NpzFile):  # a lone .npy array
+            raise ValueError("an .npy array, not an .npz archive")
+        with loaded as npz:
             data = {k: npz[k] for k in npz.files}
     except (zipfile.BadZipFile, ValueError, OSError, EOFError) as exc:
-        raise ModelFormatError(path, None, f"not a readable .npz model file ({exc})") from None
+        # numpy tries a file that is neither .npz nor .npy as a pickle, and its refusal
+        # advises loading it unsafely: say what the file is not instead
+        why = "not an .npz archive" if "pickle" in str(exc) and "Object arrays" not in str(exc) else str(exc)
+        raise ModelFormatError(path, None, f"not a readable .npz model file ({why})") from None
     fmt = _scalar(data, path, "format", str)
     if fmt != FORMAT:
         raise ModelFormatError(path, "format", f"expected {FORMAT!r}, got {fmt!r}")

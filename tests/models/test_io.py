@@ -88,3 +88,18 @@ def test_damaged_and_missing_files(tmp_path):
     text.write_text("hello")
     with pytest.raises(ModelFormatError, match="damaged|not a readable"):
         load_model(text)
+
+
+def test_a_file_that_is_not_npz_is_named_without_numpys_pickle_advice(tmp_path):
+    """numpy reads an unknown file as a pickle and advises loading it unsafely; a lone .npy
+    array was a TypeError traceback."""
+    text = tmp_path / "notmcap.mcap"
+    text.write_text("hello\n")
+    with pytest.raises(ModelFormatError) as err:
+        load_model(text)
+    assert str(err.value) == f"{text}: not a readable .npz model file (not an .npz archive)"
+    npy = tmp_path / "array.npz"
+    with open(npy, "wb") as f:
+        np.save(f, np.zeros(3))
+    with pytest.raises(ModelFormatError, match=r"\(an .npy array, not an .npz archive\)"):
+        load_model(npy)
