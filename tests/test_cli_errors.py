@@ -331,3 +331,20 @@ def test_a_log_that_is_not_mcap_is_a_failure_naming_the_log(capsys, tmp_path, mo
     line = one_error_line(capsys, [a.replace("{log}", str(log)).replace("{tmp}", str(tmp_path)) for a in argv],
                           code=1, kind="failed")
     assert line == f"cekm: failed: {log}: not an MCAP file (bad magic)"
+
+
+def test_no_world_without_robots_starts_every_robot(capsys, tmp_path, monkeypatch):
+    """docs/tools.md: a robots-only host, `cekm launch SCENARIO --no-world --connect ...`:
+    without --robots every robot is meant (it was refused as 'no robot here')."""
+    from cekm_swarm.launch.launcher import Launcher
+
+    seen = []
+
+    def launch(self):
+        seen.append((self.c.robots, self.c.world))
+        return {}
+
+    monkeypatch.setattr(Launcher, "launch", launch)
+    assert run_cli(main, ["launch", "lone_obstacle", "--no-world", "--connect", "tcp/127.0.0.1:7810",
+                          "--out", str(tmp_path / "out")]) == 0, capsys.readouterr().err
+    assert seen == [(None, False)]

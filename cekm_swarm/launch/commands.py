@@ -115,7 +115,7 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwr
     if unknown:
         raise click.BadParameter(f"{scenario} has no robot {', '.join(unknown)} (robots: {', '.join(known)})",
                                  param_hint="'--robots'")
-    if no_world and not only:
+    if no_world and only == ():
         raise click.UsageError("--no-world with no robot here starts nothing: name robots with --robots")
     try:
         ipaddress.ip_address(listen_host.strip("[]"))
