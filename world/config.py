@@ -15,7 +15,7 @@ from typing import Any
 
 import click
 
-from cekm_swarm.cli_support import Finite
+from cekm_swarm.cli_support import SEED, Finite
 from cekm_swarm.graph.runspec import RunSpec
 from cekm_swarm.graph.spec import GraphError
 from cekm_swarm.protocol import DEFAULT_ROOT, KeySpaceError, validate_run_id
@@ -66,6 +66,23 @@ def _run_id(ctx: Any, param: Any, value: str | None) -> str | None:
         raise click.BadParameter(str(exc)) from None
 
 
+RUN_FILES = ("outcome.json", "trajectory.json", "run.mcap", "run_0.mcap", "run.truncated.mcap")
+
+
+def earlier_run_files(out: Path) -> list[str]:
+    """The world's own outputs already in ``out`` (an earlier run's, which a new run would
+    replace while leaving that run's other files beside them)."""
+    return [name for name in RUN_FILES if (out / name).exists()]
+
+
+def _out(ctx: Any, param: Any, value: str | None) -> str | None:
+    held = earlier_run_files(Path(value)) if value is not None else []
+    if held:
+        raise click.BadParameter(f"{value} already holds a run ({', '.join(held)}): choose another directory, "
+                                 f"or remove them (cekm launch --overwrite clears its own)")
+    return value
+
+
 WORLD_OPTIONS: tuple[tuple[str, dict[str, Any]], ...] = (
     ("spec", {"help": "the run spec (cekm launch writes OUT/run-spec.json): the controller's graph, from which the "
                       "world takes the nodes it waits for, the readings it publishes and the keys it records "
@@ -76,23 +93,25 @@ WORLD_OPTIONS: tuple[tuple[str, dict[str, Any]], ...] = (
     ("wait_router", {"type": Finite(0.0), "default": DEFAULT_WAIT, "show_default": True, "metavar": "S",
                      "help": "with --connect: while nothing accepts connections there, wait up to S s for the "
                              "router, saying so (0: fail at once); Ctrl-C or SIGTERM ends the wait"}),
-    ("wait_modules", {"type": float, "default": 0.0, "metavar": "S",
+    ("wait_modules", {"type": Finite(0.0), "default": 0.0, "metavar": "S",
                       "help": "hold tick 0 until every robot's nodes are alive, at most S s (0: do not wait)"}),
     ("root", {"default": DEFAULT_ROOT, "show_default": True}),
     ("run_id", {"callback": _run_id, "help": "the launch's run id: the world's token carries it, and it waits only "
                                              "for nodes of this run"}),
-    ("out", {"required": True, "help": "directory for run.mcap, outcome.json, trajectory.json"}),
+    ("out", {"required": True, "callback": _out, "help": "directory for run.mcap, outcome.json, trajectory.json (refused if it "
+                                       "already holds a run's: the launcher gives it a cleared one)"}),
     ("mode", {"type": click.Choice(["realtime", "lockstep"]), "default": "realtime", "show_default": True}),
-    ("seed", {"type": int}),
-    ("max_time", {"type": float, "default": DEFAULT_MAX_TIME, "show_default": True}),
+    ("seed", {"type": SEED}),
+    ("max_time", {"type": Finite(0.0, min_open=True), "default": DEFAULT_MAX_TIME, "show_default": True}),
     ("checkpoints", {"help": "JSON {robot: [[x, y], ...]} or a file holding it"}),
-    ("deadman", {"type": float, "default": DEADMAN_S, "show_default": True,
+    ("deadman", {"type": Finite(0.0, min_open=True), "default": DEADMAN_S, "show_default": True,
                  "help": "s without commands before a robot is stopped"}),
-    ("republish", {"type": float, "default": REPUBLISH_S, "show_default": True,
+    ("republish", {"type": Finite(0.0, min_open=True), "default": REPUBLISH_S, "show_default": True,
                    "help": "lockstep: s before re-publishing a tick"}),
-    ("match_timeout", {"type": float, "default": 20.0, "show_default": True}),
-    ("progress_every", {"type": float, "default": 1.0, "show_default": True, "help": "wall s between PROGRESS lines"}),
-    ("log_level", {"default": "INFO", "show_default": True}),
+    ("match_timeout", {"type": Finite(0.0), "default": 20.0, "show_default": True}),
+    ("progress_every", {"type": Finite(0.0, min_open=True), "default": 1.0, "show_default": True, "help": "wall s between PROGRESS lines"}),
+    ("log_level", {"type": click.Choice(["DEBUG", "INFO", "WARNING", "ERROR"], case_sensitive=False),
+                   "default": "INFO", "show_default": True}),
     ("max_log_size", {"type": click.IntRange(1), "metavar": "BYTES",
                       "help": "split the log into a set: run_0.mcap, run_1.mcap, ... of at most this many bytes each"}),
     ("max_log_duration", {"type": Finite(0.0, min_open=True), "metavar": "S",

@@ -84,3 +84,32 @@ def test_bad_checkpoints_are_refused_in_one_line(tmp_path):
     assert r.returncode == 2
     assert r.stderr.startswith("Error: --checkpoints: r1[0]: must be [x, y]") and r.stderr.count("\n") == 1, r.stderr
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("argv,needle", [
+    (["--seed", "-1"], "--seed"),
+    (["--seed", "4294967296"], "--seed"),
+    (["--max-time", "nan"], "--max-time"),
+    (["--max-time", "0"], "--max-time"),
+    (["--deadman", "-1"], "--deadman"),
+    (["--republish", "inf"], "--republish"),
+    (["--log-level", "chatty"], "--log-level"),
+])
+def test_a_bad_option_value_is_refused_naming_it(tmp_path, argv, needle):
+    import click
+
+    with pytest.raises(click.BadParameter) as err:
+        parse_argv(["crossing", "--out", str(tmp_path / "o"), *argv])
+    assert err.value.param.name == needle.lstrip("-").replace("-", "_")
+
+
+def test_an_out_holding_an_earlier_run_is_refused_and_left_as_it_was(tmp_path):
+    import click
+
+    (tmp_path / "run.mcap").write_bytes(b"an earlier run's log")
+    with pytest.raises(click.BadParameter, match=r"already holds a run \(run.mcap\)"):
+        parse_argv(["crossing", "--out", str(tmp_path)])
+    assert (tmp_path / "run.mcap").read_bytes() == b"an earlier run's log"
+    (tmp_path / "launch.log").write_text("the launcher's own files are no run's outputs")
+    (tmp_path / "run.mcap").unlink()
+    assert parse_argv(["crossing", "--out", str(tmp_path)]).out == str(tmp_path)
