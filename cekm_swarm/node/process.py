@@ -123,11 +123,10 @@ class NodeShell:
                                for reading, sources in held.items()} for mk, held in self.holds.items()}
         self.mates = {s.owner for b in node_plan.bindings if b.team for s in b.sources}
         self.mate_tokens: dict[str, set[str]] = {m: set() for m in self.mates}
-        # readers of this node's outputs that read them with a delay (teammates): their
-        # (re)appearing token asks for the recent outputs they would otherwise miss
-        mine = set(node_plan.outputs.values())
-        self.late_readers = {self.keys.alive(n.robot, n.name) for r in plan.team for n in plan.nodes[r]
-                             for b in n.bindings if b.delay == 1 for s in b.sources if s.key in mine}
+        # every other node reading this node's outputs (teammates, or of its own robot; with
+        # a delay or not): its token -> the keys it reads. A reader's (re)appearing token
+        # asks for the recent outputs it missed while down (LockstepGate.resend)
+        self.readers = outputs_readers(plan, node_plan, self.keys) if lockstep else {}  # real time: nothing sent again
         self.pubs: Any = None
 
     # ------------------------------------------------------------------ subscriptions
@@ -219,9 +218,22 @@ class NodeShell:
                     out += self.step_failed(exc)
             elif held and not was:
                 out += self.gate.teammate(owner, True)
-        if alive and key in self.late_readers:
-            out += self.gate.resend()
+        if alive and key in self.readers:
+            out += self.gate.resend(self.readers[key])
         return out
+
+    def token_expr(self) -> str | None:
+        """The liveliness tokens this node watches: every robot's when it reads a teammate's
+        key or a teammate reads its outputs, only its own robot's when only nodes of its
+        robot read them (a few tokens, not the whole team's), none in real time or when
+        nobody reads them."""
+        robot = self.node_plan.robot
+        if self.mates or any(self.keys.parse(k).robot != robot for k in self.readers):
+            return self.keys.alive_all()
+        if self.readers:
+            head = self.keys.robot_keys(robot)[:-len("/**")]
+            return f"{head}/alive/**" if self.keys.run is None else f"{head}/alive/*/{self.keys.run}"
+        return None
 
     def publish(self, out: list[tuple[str, Any]]) -> None:
         for key, msg in out:
@@ -268,8 +280,9 @@ class NodeShell:
 
         subs = [InlineSubscription(session, k, serve_sample, raw=True) for k in self.listen_exprs()]
         tokens = None
-        if self.mates or self.late_readers:
-            tokens = session.liveliness().declare_subscriber(self.keys.alive_all(), serve_token, history=True)
+        watch = self.token_expr()
+        if watch is not None:
+            tokens = session.liveliness().declare_subscriber(watch, serve_token, history=True)
         # the token comes last: once it is up, the subscriptions are in place
         token = declare_alive(session, self.keys.alive(self.node_plan.robot, self.node_plan.name))
         log.info("%s: up (%s), listening on %s", self.node_plan.label, self.spec.mode, ", ".join(self.listen_exprs()))
@@ -292,6 +305,21 @@ class NodeShell:
         return {"handled": self.handled, "runs": self.runner.runs, "dropped": self.drops.by_source(),
                 "repeats": getattr(g, "repeats", 0), "stale": getattr(g, "stale_drops", {}),
                 "step_failures": dict(self.step_failures), "not_ready": getattr(g, "not_ready", 0)}
+
+
+def outputs_readers(plan: RunPlan, node_plan: NodePlan, keys: Any) -> dict[str, frozenset[str]]:
+    """The liveliness token of every other node that reads ``node_plan``'s outputs -> the
+    output keys it reads."""
+    mine = set(node_plan.outputs.values())
+    readers: dict[str, set[str]] = {}
+    for r in plan.team:
+        for n in plan.nodes[r]:
+            if (n.robot, n.name) == (node_plan.robot, node_plan.name):
+                continue
+            read = {s.key for b in n.bindings for s in b.sources if s.key in mine}
+            if read:
+                readers.setdefault(keys.alive(n.robot, n.name), set()).update(read)
+    return {k: frozenset(v) for k, v in readers.items()}
 
 
 def parser() -> argparse.ArgumentParser:

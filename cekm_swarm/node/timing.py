@@ -8,7 +8,11 @@ node in its own process (lockstep and real time) and for a whole graph in one pr
 * :class:`LockstepGate`: a node runs at a due tick once it holds every value the rule
   names from every live producer, whatever order they arrive in; ticks run in increasing
   order. A value that arrives again for what the last run used (the world re-publishes a
-  stalled tick so a restarted module catches up) makes it send that run's outputs again.
+  stalled tick so a restarted module catches up) makes it send that run's outputs again;
+  ``resend(keys)`` gives its recent runs' outputs again, for a reader of them that
+  (re)appeared. A delayed value nobody can send again (:func:`lost_on_restart`: its own
+  previous output, a world reading of a tick before) is left out of its first run, as
+  before tick 0.
 * :class:`RealtimeGate`: a node runs at its newest due tick as soon as every live
   same-tick producer has delivered (or at once, with what came, when a later tick
   begins), with the latest value of each source; a value older than its staleness limit
@@ -28,13 +32,13 @@ from __future__ import annotations
 import copy
 import logging
 from collections import deque
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Collection, Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
 from msgspec import Struct
 
-from cekm_swarm.graph.plan import Binding, NodePlan, needed_tick
+from cekm_swarm.graph.plan import WORLD_OWNER, Binding, NodePlan, needed_tick
 from cekm_swarm.ticks import TICK_S, tick_time
 
 from .api import Inputs, NotReady
@@ -44,6 +48,9 @@ log = logging.getLogger("cekm_swarm.node")
 
 KEEP_TICKS = 64
 """Ticks of received values a gate keeps behind its last run (a bound whatever arrives)."""
+
+RESEND_RUNS = 4
+"""Runs whose outputs a gate keeps to send again to a reader of them that (re)appears."""
 
 Drop = Callable[[str, str], None]
 """Called with (source key, reason) for a value a gate refuses (the shell counts it)."""
@@ -65,11 +72,16 @@ def _never(owner: str) -> bool:
     return False
 
 
-def gather(node: NodePlan, k: int, lookup: Callable[[str, int], Any], skip: Callable[[str], bool] = _never
-           ) -> tuple[Inputs, list[str]]:
+def _kept(key: str, tick: int) -> bool:
+    return False
+
+
+def gather(node: NodePlan, k: int, lookup: Callable[[str, int], Any], skip: Callable[[str], bool] = _never,
+           lost: Callable[[str, int], bool] = _kept) -> tuple[Inputs, list[str]]:
     """The inputs of ``node``'s run at tick ``k``, by the rule, from ``lookup(key, tick)``
     (a message or None); and the keys still missing (a source whose owner ``skip`` names,
-    a gone teammate, is not missing). Many-key ports hold what is there, in source order."""
+    a gone teammate, is not missing; nor a value ``lost(key, tick)`` says nobody can send
+    again). Many-key ports hold what is there, in source order."""
     values: dict[str, Any] = {}
     missing: list[str] = []
     for b in node.bindings:
@@ -81,19 +93,32 @@ def gather(node: NodePlan, k: int, lookup: Callable[[str, int], Any], skip: Call
                 if n is None or skip(s.owner):
                     continue
                 m = lookup(s.key, n)
-                if m is None:
-                    missing.append(s.key)
-                else:
+                if m is not None:
                     got[s.label] = m
+                elif not lost(s.key, n):
+                    missing.append(s.key)
             values[b.port] = got
         else:
             s = b.sources[0]
             n = needed_tick(k, s.period, delay)
             m = None if n is None else lookup(s.key, n)
-            if m is None and n is not None and not skip(s.owner):
+            if m is None and n is not None and not skip(s.owner) and not lost(s.key, n):
                 missing.append(s.key)
             values[b.port] = m
     return Inputs(values), missing
+
+
+def lost_on_restart(node: NodePlan) -> frozenset[str]:
+    """The delayed sources of ``node`` whose values of the ticks before a (re)started
+    process's first run nobody sends again: its own outputs read back with ``delay = 1``
+    (it sent them itself, in its life before) and the world's readings read with
+    ``delay = 1`` (the world sends a stalled tick again, not the one before it). Every
+    other producer is a node that sends its recent outputs again when a reader of them
+    (re)appears (:meth:`LockstepGate.resend`). A restarted node with such a source starts
+    without those values, as at tick 0, so the run may no longer equal ``cekm run``."""
+    own = set(node.outputs.values())
+    return frozenset(s.key for b in node.bindings if b.delay == 1 for s in b.sources
+                     if s.key in own or s.owner == WORLD_OWNER)
 
 
 def _triggers(node: NodePlan) -> frozenset[str]:
@@ -111,7 +136,7 @@ class LockstepGate:
     drop: Drop = lambda key, why: None
     done: int = -1
     last_out: list[tuple[str, Any]] = field(default_factory=list)
-    recent_out: deque = field(default_factory=lambda: deque(maxlen=4))
+    recent_out: deque = field(default_factory=lambda: deque(maxlen=RESEND_RUNS))
     used: dict[str, int] = field(default_factory=dict)
     gone: set[str] = field(default_factory=set)
     store: dict[str, dict[int, Any]] = field(default_factory=dict)
@@ -127,6 +152,12 @@ class LockstepGate:
         self.sources = {s.key: (s, b.delay) for b in self.node.bindings for s in b.sources}
         self._needs = [(s.key, s.period, b.delay, s.owner) for b in self.node.bindings for s in b.sources]
         self._waiting: dict[int, tuple[str, int, str]] = {}  # candidate tick -> a value it still lacks
+        self.lost_keys = lost_on_restart(self.node)
+        self.born: int | None = None  # the tick of this process's first run
+
+    def _lost(self, key: str, n: int) -> bool:
+        """Whether ``key``'s value of tick ``n`` predates this process's first run and nobody sends it again."""
+        return key in self.lost_keys and (self.born is None or n < self.born)
 
     def _lacks(self, c: int) -> bool:
         """Whether the run at tick ``c`` still lacks a value, the one it lacked last time
@@ -136,7 +167,7 @@ class LockstepGate:
             return True
         for key, period, delay, owner in self._needs:
             n = needed_tick(c, period, delay)
-            if n is not None and owner not in gone and n not in store.get(key, ()):
+            if n is not None and owner not in gone and n not in store.get(key, ()) and not self._lost(key, n):
                 self._waiting[c] = (key, n, owner)
                 return True
         self._waiting.pop(c, None)
@@ -235,7 +266,7 @@ class LockstepGate:
             for c in sorted(self.candidates):
                 if self._lacks(c):
                     continue
-                inputs, missing = gather(self.node, c, self._lookup, self.gone.__contains__)
+                inputs, missing = gather(self.node, c, self._lookup, self.gone.__contains__, self._lost)
                 if not missing:
                     ready = (c, inputs)
                     break
@@ -244,6 +275,8 @@ class LockstepGate:
             c, inputs = ready
             sent = self.runner.run(c, inputs)
             self.done = c
+            if self.born is None:
+                self.born = c
             self.last_out = sent
             self.recent_out.append(sent)
             self.used = {key: n for key, (src, delay) in self.sources.items()
@@ -272,10 +305,14 @@ class LockstepGate:
                     for since in [x for x, ticks in waiting.items() if max(ticks) <= c]:
                         del waiting[since]
 
-    def resend(self) -> list[tuple[str, Any]]:
-        """The recent runs' outputs, oldest first: what a (re)started reader of them asks
-        for (a teammate reads the previous run's share, which it missed while down)."""
-        return [m for run in self.recent_out for m in run]
+    def resend(self, keys: Collection[str] | None = None) -> list[tuple[str, Any]]:
+        """The recent runs' outputs (on ``keys``, or all), oldest first: what a (re)started
+        reader of them asks for. A delayed reader (a teammate reading the previous run's
+        share, a node of the robot reading it with ``delay = 1``) needs a run before the
+        one it is stalled at, which it missed while down; a same-tick reader may need the
+        last run, sent while it was down, whose inputs nobody sends again (they were the
+        tick before the stalled one)."""
+        return [m for run in self.recent_out for m in run if keys is None or m[0] in keys]
 
 
 @dataclass
@@ -422,8 +459,8 @@ class RealtimeGate:
             self.done = done
             return []
 
-    def resend(self) -> list[tuple[str, Any]]:
-        return []
+    def resend(self, keys: Collection[str] | None = None) -> list[tuple[str, Any]]:
+        return []  # real time waits for nothing: a restarted reader takes the next values
 
 
 def _max_age(stale_s: float) -> int | float:
@@ -437,4 +474,4 @@ def _max_age(stale_s: float) -> int | float:
     return n
 
 
-__all__ = ["gather", "LockstepGate", "RealtimeGate", "KEEP_TICKS", "tick_of"]
+__all__ = ["gather", "lost_on_restart", "LockstepGate", "RealtimeGate", "KEEP_TICKS", "RESEND_RUNS", "tick_of"]
