@@ -38,6 +38,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from cekm_swarm.node.timing import lost_on_restart
 from cekm_swarm.protocol import DEFAULT_ROOT, KeySpace
 from cekm_swarm.runtime.bridge import LivelinessWatcher
 from cekm_swarm.runtime.config import DEFAULT_HOST, DEFAULT_PORT, open_embedded_router
@@ -50,7 +51,7 @@ from .cpu import CpuSnapshot, cpu_per_tick
 from .errors import LaunchError, NodeCannotStart
 from .plot import draw_trajectory
 from .processes import new_run_id, node_argv
-from .reports import missing_by_robot, node_summary, notable, read_reports, summary_lines
+from .reports import missing_by_robot, node_summary, notable, read_reports, reproducible, summary_lines
 from .robot_host import RobotHost
 from .supervision import Child, Supervision
 from .world_host import ALIVE_TIMEOUT, WorldHost, port_hint
@@ -360,7 +361,8 @@ class Launcher(Supervision, WorldHost, RobotHost):
         for r in robots:
             for node in self.plan.nodes[r]:
                 argv = node_argv(str(self.spec_path), r, node.name, self.run_id)
-                child = Child(r, node.name, argv, c.out / "logs" / f"{r}-{node.name}.log", stateful=node.stateful)
+                child = Child(r, node.name, argv, c.out / "logs" / f"{r}-{node.name}.log",
+                              stateful=node.stateful or bool(lost_on_restart(node)))
                 self.children[child.label] = child
         self.say(f"{scenario.name}: {self.checked.graph.name} ({self.checked.graph.controller}), {len(robots)} robot(s), "
                  f"starting {len(self.children)} node processes ({c.mode})")
@@ -447,11 +449,7 @@ class Launcher(Supervision, WorldHost, RobotHost):
             self.say(line)
         outcome["launcher"]["nodes"] = notable(summaries)  # nodes that failed, skipped runs or dropped messages
         if self.c.mode == "lockstep":
-            lost = sorted(ch.label for ch in self.children.values() if ch.restarts and ch.stateful)
-            outcome["reproducible"] = {"equals_cekm_run": not lost, "stateful_restarts": lost,
-                                       "why": ("a node that keeps state across ticks restarted without it, so what "
-                                               "it computed after its restart may differ from cekm run") if lost else
-                                              "every restarted node keeps no state across ticks"}
+            outcome["reproducible"] = reproducible(self.children.values(), bool(outcome.get("aborted")))
         if self._cpu_start is not None and self._cpu_end is not None:  # where the tick loop's CPU went
             robots = len({ch.robot for ch in self.children.values()})
             ticks = tick_of(float(outcome.get("sim_seconds", 0.0)))

@@ -2,7 +2,8 @@
 and what the nodes said about themselves as they stopped: each node process writes one
 ``DROPS {json}`` line to its log (:meth:`cekm_swarm.node.process.NodeShell.report`), and
 the launcher sums them up, so a node whose step raised, that skipped runs or that dropped
-messages is named at the end of the launch and in ``outcome.json``, not only in its log."""
+messages is named at the end of the launch and in ``outcome.json``, not only in its log;
+and whether a lockstep run may claim to equal ``cekm run`` (:func:`reproducible`)."""
 
 from __future__ import annotations
 
@@ -90,3 +91,19 @@ def summary_lines(summaries: dict[str, dict[str, Any]], logs: dict[str, Path]) -
         where = f" (see {logs[label]})" if label in logs else ""
         lines.append(f"node {label}: " + ", ".join(parts) + where)
     return lines
+
+
+def reproducible(children: Iterable[Any], aborted: bool) -> dict[str, Any]:
+    """``outcome.json``'s ``reproducible`` of a lockstep run: whether it may claim to equal
+    ``cekm run``. Not when a node restarted without what it had (its state across ticks, or
+    its own previous outputs, or a world reading of the tick before, which nobody sends
+    again: ``node.timing.lost_on_restart``), nor when the run was stopped before its end."""
+    lost = sorted(ch.label for ch in children if ch.restarts and ch.stateful)
+    whys = []
+    if aborted:
+        whys.append("the run was stopped before its end, so it is not the whole run cekm run makes")
+    if lost:
+        whys.append("a node that keeps state across ticks (or reads its own previous outputs) restarted without "
+                    "it, so what it computed after its restart may differ from cekm run")
+    return {"equals_cekm_run": not whys, "stateful_restarts": lost, "aborted": aborted,
+            "why": "; ".join(whys) or "every restarted node keeps no state across ticks"}
