@@ -1,7 +1,14 @@
 """The launcher's supervision of its node processes: start each with its log (forked warm
 from the fork server, :mod:`.spawn`), restart one that dies with back-off (0.25 s, doubling while it keeps dying within 5 s of starting, at
 most 5 s; logged), end the launch at once when one cannot start (its own line), stop them
-all (SIGTERM, SIGKILL after 5 s), and keep ``OUT/pids.json`` current."""
+all (SIGTERM, SIGKILL after 5 s), and keep ``OUT/pids.json`` current.
+
+In lockstep a node that dies at the same tick every time (a crash in a C extension, an
+``os._exit`` in its step) would be restarted forever, the world waiting at that tick: the
+launcher that runs the world notes the world's tick after each death (its next clock
+message, sent again while it waits), and when :data:`SAME_TICK_RESTARTS` restarts in a row
+died at one tick it ends the launch with one line naming the node, its exit and the tick.
+Real time goes on restarting."""
 
 from __future__ import annotations
 
@@ -13,11 +20,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from cekm_swarm.errors import CekmError
 from cekm_swarm.node.process import CANNOT_START, EXIT_CANNOT_START, EXIT_STEP_FAILED, STEP_FAILED
 from cekm_swarm.runtime.lifetime import child_env
+from cekm_swarm.ticks import tick_time
 
 from .spawn import ForkServer, exec_process
 
+SAME_TICK_RESTARTS = 3
+"""Restarts in a row that died at the same tick of a lockstep run, the world waiting there,
+after which the launch ends (the node cannot get past that tick)."""
 BACKOFF_MIN = 0.25
 BACKOFF_MAX = 5.0
 HEALTHY_AFTER = 5.0  # s: a node up this long gets its back-off reset
@@ -37,7 +49,9 @@ class Child:
     restarts: int = 0
     backoff: float = BACKOFF_MIN
     exits: list[int] = field(default_factory=list)
-    stateful: bool = False
+    stateful: bool = False  # restarts without what it had (node.timing.lost_on_restart, or state): not cekm run's
+    died_at: int | None = None  # lockstep: the world's tick after its latest death
+    same_tick: int = 0  # ... and how many restarts in a row died at that tick
 
     @property
     def label(self) -> str:
@@ -53,6 +67,9 @@ class Supervision:
     stopping: bool
     failure: str | None
     c: Any
+    keys: Any
+    session: Any
+    supervisors: list[asyncio.Future]
     fork_server: ForkServer | None = None
     fork_server_start: asyncio.Future | None = None
 
@@ -127,6 +144,8 @@ class Supervision:
                 self.say(f"node {child.label} failed: {self.failure}; the launch ends")
                 self._interrupt_for_failure()
                 return
+            if self.c.mode == "lockstep" and self.c.world and self.session is not None:
+                self.supervisors.append(asyncio.ensure_future(self._judge_death(child, code)))
             up = time.monotonic() - child.started
             if up >= HEALTHY_AFTER:
                 child.backoff = BACKOFF_MIN
@@ -142,6 +161,42 @@ class Supervision:
             child.restarts += 1
             await self._spawn(child)
             self.say(f"module {child.label} restarted (pid {child.proc.pid})")
+
+    async def _judge_death(self, child: Child, code: int) -> None:
+        """Lockstep: note the world's tick after ``child`` died (the world's next clock
+        message: within a tick while it runs, at its next re-publishing while it waits);
+        end the launch when :data:`SAME_TICK_RESTARTS` restarts in a row died at one tick.
+        Runs beside the restart, which it does not delay."""
+        tick = await self._world_tick()
+        if tick is None or self.stopping:
+            return
+        if tick == child.died_at:
+            child.same_tick += 1
+        else:
+            child.died_at, child.same_tick = tick, 0
+        if child.same_tick < SAME_TICK_RESTARTS or self.failure is not None:
+            return
+        why = f"signal {-code}" if code < 0 else f"exit code {code}"
+        self.failure = (f"{child.label}: died ({why}) at t={tick_time(tick):.3f} s (tick {tick}), and again after each "
+                        f"of {child.same_tick} restarts, the world waiting at that tick; in lockstep the run cannot go "
+                        f"on without its outputs (see {child.log_path})")
+        self.say(f"node {child.label} keeps dying at tick {tick}; the launch ends")
+        self._interrupt_for_failure()
+
+    async def _world_tick(self) -> int | None:
+        """The tick of the world's next clock message (None when none comes in time: the
+        world ended, or its messages do not reach this launcher)."""
+        import zenoh
+
+        from cekm_swarm.protocol import KeyKind, decode
+        from cekm_swarm.runtime.bridge import AsyncSubscription
+
+        try:
+            with AsyncSubscription(self.session, self.keys.world_clock(), maxsize=1) as sub:
+                rec = await sub.get(timeout=2 * self.c.republish + 1.0)
+            return int(decode(KeyKind.WORLD_CLOCK, rec.payload).tick)
+        except (asyncio.TimeoutError, CekmError, ValueError, zenoh.ZError):
+            return None
 
     @staticmethod
     def _own_line(child: Child, marker: str, code: int) -> str:
