@@ -14,6 +14,13 @@ line). No run leaves a minute of sim time without a message (the world's clock c
 every tick), so such a gap comes from a stamp no run reaches that a recorder kept (a log
 of ``cekm record`` from before it judged stamps: a stamp of 1e300 filed at the largest
 time MCAP holds made the replay wait 584 years for it).
+
+A ``--loop`` replay is silent for :data:`LOOP_PAUSE_S` of wall time before it starts
+over. Readers that judge a stamp against the newest one they took (a module's stamp
+window, ``cekm record``) take any stamp after :data:`~cekm_swarm.protocol.stamps.QUIET_S`
+without one, as at the start of a run: so the next loop's first stamps, back at the
+log's start, are taken as a new run's, not dropped as out of their window until the
+loop came near the old stamps again.
 """
 
 from __future__ import annotations
@@ -27,6 +34,7 @@ from pathlib import Path
 
 import zenoh
 
+from ..protocol.stamps import QUIET_S
 from .bridge import Publishers
 from .mcap_log import MSGPACK, LoggedMessage, read_messages
 
@@ -34,6 +42,10 @@ MAX_GAP_S = 60.0
 """Sim seconds between two consecutive published messages beyond which replay does not
 wait (the gap is jumped): far more than any run's (a tick, 0.128 s, for a full or lean
 log; a few seconds for a log of a few sparse keys), far less than a bogus stamp's."""
+
+LOOP_PAUSE_S = QUIET_S + 0.25
+"""Wall seconds of silence between two loops of a replay (module docstring)."""
+
 
 class ReplayControl:
     """Pause and resume a running replay from another thread (a key press, a test)."""
@@ -161,7 +173,8 @@ def replay_log(session: zenoh.Session, path: str | Path, *, rate: float | None =
     """Republish the msgpack channels of the log at ``path`` onto ``session``.
 
     ``rate`` scales time (2.0 = twice as fast; None or <= 0 = as fast as possible);
-    ``loop`` starts over at the end until ``stop`` is set or ``max_loops`` loops are done;
+    ``loop`` starts over at the end, after :data:`LOOP_PAUSE_S` s of silence, until ``stop``
+    is set or ``max_loops`` loops are done;
     ``key_expr`` keeps only matching keys. Publishing uses congestion control BLOCK, so a
     slow subscriber slows the replay instead of losing messages. ``start`` skips the first
     ``start`` seconds of the log (in every loop); ``control`` pauses and resumes;
@@ -255,10 +268,17 @@ def replay_log(session: zenoh.Session, path: str | Path, *, rate: float | None =
             result.loops += 1
             if first_ns is not None:
                 result.sim_seconds += (last_ns - first_ns - jumped_ns) / 1e9
+                first_ns = None  # counted: a stop in the pause below adds nothing more
             if not loop or result.published == published_before:
                 return result
             if max_loops is not None and result.loops >= max_loops:
                 return result
+            if stop is not None:  # quiet long enough that readers take the next loop as a new run
+                if stop.wait(LOOP_PAUSE_S):
+                    result.stopped = True
+                    return result
+            else:
+                time.sleep(LOOP_PAUSE_S)
     finally:
         if result.stopped and first_ns is not None:  # the part of the interrupted loop
             result.sim_seconds += (last_ns - first_ns - jumped_ns) / 1e9

@@ -100,6 +100,31 @@ def test_replay_loops_and_filters_and_stops(tmp_path, clients):
     pubs.close()
 
 
+def test_a_looping_replay_is_quiet_between_loops_so_readers_take_the_next_as_a_new_run(tmp_path, clients):
+    """A module's stamp window and ``cekm record`` take any stamp after QUIET_S without one:
+    the pause lets them take the next loop's early stamps instead of dropping them."""
+    from cekm_swarm.protocol.stamps import QUIET_S, StampWindow
+    from cekm_swarm.runtime.replay import LOOP_PAUSE_S
+
+    path = tmp_path / "run.mcap"
+    stamps = [round(0.128 * k, 3) for k in range(17)]  # 2.048 s: more than a window (8 ticks) behind at the loop
+    write_log(path, [(K.world_clock(), bytes([0x80]), t) for t in stamps])
+    a = clients()
+    sent: list[tuple[float, float]] = []  # (wall time, log time)
+    window = StampWindow()  # a reader judging each stamp as it goes out
+    taken: list[bool] = []
+
+    def on_publish(m) -> None:
+        sent.append((time.monotonic(), m.log_time / 1e9))
+        taken.append(window.check(m.log_time / 1e9) is None)
+
+    result = replay_log(a, path, rate=None, loop=True, max_loops=2, on_publish=on_publish)
+    assert result.loops == 2 and [t for _, t in sent] == stamps + stamps
+    assert sent[17][0] - sent[16][0] >= LOOP_PAUSE_S > QUIET_S
+    assert abs(result.sim_seconds - 2 * 2.048) < 1e-9
+    assert all(taken), taken
+
+
 def test_replay_starts_at_an_offset_and_reports_progress(tmp_path, clients):
     path = tmp_path / "run.mcap"
     write_log(path, [(K.world_clock(), bytes([0x80 + 0]), t) for t in (0.0, 0.5, 1.0, 1.5, 2.0)])
