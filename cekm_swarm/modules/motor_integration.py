@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from cekm_swarm.controller.cooperative import ObstacleActivity, TargetActivity
 from cekm_swarm.node import In, Node, Out
 from cekm_swarm.protocol import ObstacleField, TargetField, WheelCommand
+from cekm_swarm.protocol.checks import lattice_misfit as field_misfit  # the one check, readers' and producers'
 from cekm_swarm.ticks import tick_of
 
 from .ekm import cooperative_ekm
@@ -28,21 +29,6 @@ def obstacle_activities(fields) -> list[ObstacleActivity]:
     """The obstacle fields as the controller's activities (Eq. 9 reads only each one's ``b``,
     so the motor nodes hand it the fields themselves: the same arrays, in the same order)."""
     return [ObstacleActivity(f.stamp, f.index, f.winner, f.b) for f in fields]
-
-
-def field_misfit(msg, n: int) -> str | None:
-    """Why a field does not fit a lattice of ``n`` neurons (None: it does)."""
-    for name in ("a", "b"):
-        v = getattr(msg, name, None)
-        if v is not None and v.shape[0] != n:
-            return f"field {name} has {v.shape[0]} values, the model's lattice {n} neurons"
-    w = getattr(msg, "winner", None)
-    if w is not None and not 0 <= w < n:
-        return f"winner {w} outside the lattice's 0..{n - 1}"
-    for i, row in enumerate(getattr(msg, "inputs", ()) or ()):
-        if not 0 <= row[0] < n:
-            return f"inputs[{i}].winner {row[0]} outside the lattice's 0..{n - 1}"
-    return None
 
 
 class MotorIntegration(Node):

@@ -180,7 +180,10 @@ class Node:
     def __init__(self, ctx: Context, params: Any = None) -> None:
         self.ctx = ctx
         self.params = params if params is not None else self.Params()
-        self.setup()
+        try:
+            self.setup()
+        except Exception as exc:  # noqa: BLE001 - a user's node may fail in any way while starting
+            raise NodeError(cannot_start(ctx.sender, exc)) from exc
 
     def setup(self) -> None:
         """Build what the node needs (load the model, tabulate fields). Raise
@@ -201,6 +204,31 @@ class Node:
 
     def close(self) -> None:
         """Called once when the node stops."""
+
+
+def cannot_start(label: str, exc: BaseException) -> str:
+    """The one line of node ``label`` that cannot start because building or setting it up
+    raised ``exc``: a :class:`NodeError`, another of the package's errors or a ValueError
+    (a bad parameter, a model it cannot use) say what is wrong, after the node's name;
+    any other exception is a fault of the node's code, named by its type. The same line
+    in ``cekm run``, the launcher's check of a graph and a node's process."""
+    what = " ".join(str(exc).split())
+    if not isinstance(exc, (CekmError, ValueError)):
+        return f"{label}: cannot start: {type(exc).__name__}: {what}"
+    return what if what.startswith(f"{label}:") else f"{label}: {what}"
+
+
+def start_node(cls: type["Node"], ctx: Context, params: Any = None) -> "Node":
+    """``cls(ctx, params)``, built and set up; a :class:`NodeError` with the node's one line
+    (:func:`cannot_start`) when that fails."""
+    try:
+        return cls(ctx, params)
+    except NodeError as exc:
+        if str(exc).startswith(f"{ctx.sender}:"):
+            raise
+        raise NodeError(cannot_start(ctx.sender, exc)) from exc
+    except Exception as exc:  # noqa: BLE001 - a user's node (its own __init__) may fail in any way
+        raise NodeError(cannot_start(ctx.sender, exc)) from exc
 
 
 class Inputs(Mapping[str, Any]):

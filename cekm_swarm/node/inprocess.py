@@ -18,9 +18,10 @@ from typing import Any
 from cekm_swarm.graph.check import CheckedGraph
 from cekm_swarm.graph.plan import NodePlan, RunPlan
 from cekm_swarm.protocol import KeyKind, decode, encode
-from cekm_swarm.ticks import TICK_S
+from cekm_swarm.ticks import TICK_S, tick_time
 
-from .api import Context, NodeError
+from .api import Context, Node, NodeError, start_node
+from .checks import output_check
 from .runner import Runner
 from .timing import gather
 
@@ -40,7 +41,17 @@ class GraphExecutor:
         for robot in plan.team:
             for node in plan.nodes[robot]:
                 cls = checked.classes[node.decl.name]
-                self.runners.append(Runner(node, cls(context(node), checked.make_params(node.decl.name))))
+                self.runners.append(Runner(node, start_node(cls, context(node), checked.make_params(node.decl.name))))
+        # what a reader checks of what it receives, its producer's step is refused for
+        # (in a launch the reader would drop it and wait for good): the run's checks of
+        # each node's outputs (.checks), and the readers' own (Node.check_input)
+        self.out_checks = [output_check(r.plan, r.node) for r in self.runners]
+        self.refusers: dict[str, list[tuple[Runner, str]]] = {}  # key -> (reader, port) with a check_input
+        for r in self.runners:
+            if type(r.node).check_input is not Node.check_input:
+                for b in r.plan.bindings:
+                    for s in b.sources:
+                        self.refusers.setdefault(s.key, []).append((r, b.port))
         self.values: dict[str, dict[int, Any]] = {}
         self.answer_keys = {r: plan.answer_key(r) for r in plan.team}
         keep = max([n.period for r in plan.team for n in plan.nodes[r]] + [1])
@@ -62,7 +73,7 @@ class GraphExecutor:
 
     def tick(self, k: int) -> dict[str, Any]:
         """Run every node due at tick ``k``; each robot's answer."""
-        for runner in self.runners:
+        for runner, check in zip(self.runners, self.out_checks):
             node = runner.plan
             if k % node.period:
                 continue
@@ -70,7 +81,14 @@ class GraphExecutor:
             if missing:
                 raise NodeError(f"{node.label}: at t={round(k * TICK_S, 9)} nothing has sent {missing[0]} (in lockstep "
                                 f"this node would wait for it forever)")
-            for key, msg in runner.run(k, inputs):
+            sent = runner.run(k, inputs)
+            if check is not None:
+                check(tick_time(k), sent)
+            for key, msg in sent:
+                for reader, port in self.refusers.get(key, ()):
+                    why = reader.node.check_input(port, msg)
+                    if why is not None:
+                        self._refused(runner, k, key, reader, why)
                 self._store(key, k, msg)
         answers = {r: self._lookup(key, k) for r, key in self.answer_keys.items()}
         if k % self.keep == 0:
@@ -79,6 +97,12 @@ class GraphExecutor:
                 for t in [t for t in held if t < old]:
                     del held[t]
         return answers
+
+    @staticmethod
+    def _refused(runner: Runner, k: int, key: str, reader: Runner, why: str) -> None:
+        port = next(p for p, kk in runner.plan.outputs.items() if kk == key)
+        raise NodeError(f"{runner.plan.label}: its step at t={tick_time(k):.3f} s failed: output {port!r}: "
+                        f"{reader.plan.label} cannot use it: {why}")
 
     def output(self, key: str, tick: int) -> Any:
         """What was sent on ``key`` at ``tick`` (while it is kept), e.g. a robot's fields for Fig. 4."""

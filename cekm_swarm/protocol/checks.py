@@ -418,3 +418,34 @@ def compile_check(cls: type[Record]) -> Callable[[Record], None]:
         lines.append("    pass")
     exec("\n".join(lines), ns)  # noqa: S102 - source built above from the declared field types
     return ns["check"]
+
+
+# ------------------------------------------------------------------- the model's lattice
+
+LATTICE_KINDS = frozenset({"field/target", "field/obstacle", "field/tracking"})
+"""The kinds of message whose vectors hold one value per neuron of the run's motor map
+(and whose winners are neurons of it): the fields. Well-formed alone, such a message is
+usable only when it fits the lattice of the run's model (:func:`lattice_misfit`)."""
+
+
+def on_lattice(cls: type) -> bool:
+    """Whether messages of type ``cls`` are over the run's lattice (:data:`LATTICE_KINDS`)."""
+    kind = getattr(cls, "KIND", None)
+    return getattr(kind, "value", None) in LATTICE_KINDS
+
+
+def lattice_misfit(msg: Any, n: int) -> str | None:
+    """Why a field does not fit a lattice of ``n`` neurons (None: it does): what a field's
+    reader refuses (drops and counts, :meth:`cekm_swarm.node.Node.check_input`) and what
+    its producer's step is refused for (:mod:`cekm_swarm.node.checks`)."""
+    for name in ("a", "b"):
+        v = getattr(msg, name, None)
+        if v is not None and v.shape[0] != n:
+            return f"field {name} has {v.shape[0]} values, the model's lattice {n} neurons"
+    w = getattr(msg, "winner", None)
+    if w is not None and not 0 <= w < n:
+        return f"winner {w} outside the lattice's 0..{n - 1}"
+    for i, row in enumerate(getattr(msg, "inputs", ()) or ()):
+        if not 0 <= row[0] < n:
+            return f"inputs[{i}].winner {row[0]} outside the lattice's 0..{n - 1}"
+    return None
