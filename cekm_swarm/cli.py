@@ -85,6 +85,9 @@ def target_reaching(out_dir: Path, overwrite: bool, networks: str, trials: int, 
 
     if steps % test_interval:
         raise click.UsageError(f"--steps ({steps}) must be a multiple of --test-interval ({test_interval})")
+    if seed + master_seeds - 1 > SEED.max:  # the seeds run are seed .. seed + K - 1, each a seed
+        raise click.BadParameter(f"{seed} with --master-seeds {master_seeds} runs seeds up to {seed + master_seeds - 1}"
+                                 f", past {SEED.max}", param_hint="'--seed'")
     try:
         arena = Arena(speed_unit=speed_unit, target_resolution=target_resolution)
         config = TargetReachingConfig(networks=_networks(networks), trials=trials, seed=seed, arena=arena,

@@ -138,19 +138,29 @@ def parse_floats(text: str, name: str) -> tuple[float, ...]:
 
 
 def seeds_of(text: str) -> Sequence[int]:
-    """Seeds from "1,2,5" or ranges "1-20" (inclusive), mixed: "1-5,9"."""
+    """Seeds from "1,2,5" or ranges "1-20" (inclusive), mixed: "1-5,9"; each seed once (the
+    runs' statistics take the seeds as independent), every range with both ends."""
     out: list[int] = []
     for part in (v.strip() for v in text.split(",")):
         if not part:
             continue
-        a, _, b = part.partition("-")
+        a, dash, b = part.partition("-")
+        if dash and not b.strip():
+            raise ParameterError(f"--seeds: range {part!r} has no end (e.g. 1-20)")
         try:
-            lo, hi = int(a), int(b if b else a)
+            lo, hi = int(a), int(b if dash else a)
         except ValueError:
             raise ParameterError(f"--seeds: expected comma-separated integers or ranges like 1-20, got {text!r}") from None
         if hi < lo:
             raise ParameterError(f"--seeds: range {part!r} runs backwards")
         out.extend(range(lo, hi + 1))
+    if len(set(out)) < len(out):
+        from collections import Counter
+
+        twice = sorted(s for s, n in Counter(out).items() if n > 1)
+        shown = ", ".join(map(str, twice[:5])) + (", ..." if len(twice) > 5 else "")
+        raise ParameterError(f"--seeds: {'seed' if len(twice) == 1 else 'seeds'} {shown} given twice in {text!r} "
+                             f"(each seed is one independent run)")
     return tuple(out)
 
 
