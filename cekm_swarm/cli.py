@@ -8,7 +8,15 @@ from pathlib import Path
 
 import click
 
-from .cli_support import SEED, Finite, out_dir_options, prepare_out_dir, prepare_out_file, run_cli
+from .cli_support import (
+    SEED,
+    Finite,
+    out_dir_options,
+    prepare_figure_file,
+    prepare_out_dir,
+    prepare_out_file,
+    run_cli,
+)
 from .errors import CekmError
 
 MIN_SPEED_UNIT = 1e-6
@@ -349,8 +357,8 @@ def fields(scenario: str, at_time: float, model_path: Path | None, seed: int | N
     if robot is not None and robot not in robots:
         raise click.BadParameter(f"{sc.name} has no robot {robot!r} (robots: {', '.join(robots)})",
                                  param_hint="'--robot'")
+    prepare_figure_file(out_path)  # before the model, which may first be trained
     model = _model(model_path)
-    prepare_out_file(out_path)
     f = fields_at(sc, model, at_time, seed, robot)
     plot_fields(f).savefig(out_path, dpi=110)
     x, y, th = f["pose"]

@@ -200,6 +200,20 @@ def prepare_out_file(path: Path, option: str = "--out") -> Path:
     return path
 
 
+def prepare_figure_file(path: Path, option: str = "--out") -> Path:
+    """:func:`prepare_out_file` for a figure matplotlib writes: its extension must name a
+    format matplotlib can write (``.png``, ``.pdf``, ``.svg``, ...), checked before any work."""
+    suffix = path.suffix[1:].lower()
+    if suffix:
+        from matplotlib.backend_bases import FigureCanvasBase
+
+        formats = FigureCanvasBase.get_supported_filetypes()
+        if suffix not in formats:
+            raise OutputDirError(f"{option} {path}: cannot write a figure as .{suffix} "
+                                 f"(formats: {', '.join(sorted(formats))})")
+    return prepare_out_file(path, option)
+
+
 def _os_reason(exc: OSError) -> str:
     return exc.strerror or str(exc)
 

@@ -354,3 +354,20 @@ def test_no_world_without_robots_starts_every_robot(capsys, tmp_path, monkeypatc
     assert run_cli(main, ["launch", "lone_obstacle", "--no-world", "--connect", "tcp/127.0.0.1:7810",
                           "--out", str(tmp_path / "out")]) == 0, capsys.readouterr().err
     assert seen == [(None, False)]
+
+
+@pytest.mark.parametrize("argv", [
+    ["fields", "concave", "--at", "3", "--out", "{out}/fig4.txt"],
+    ["plot", "{log}", "--out", "{out}/x.txt"],
+])
+def test_a_figure_format_matplotlib_cannot_write_is_refused_before_any_work(capsys, tmp_path, monkeypatch, argv):
+    """It was a ValueError traceback from savefig, after the work (QA item 13)."""
+    import cekm_swarm.experiments.navigation_run as navigation_run
+
+    monkeypatch.setattr(navigation_run, "fields_at", lambda *a, **k: pytest.fail("the run was computed"))
+    log = tmp_path / "run.mcap"
+    log.write_text("not read: the --out is refused first")
+    line = one_error_line(capsys, [a.replace("{out}", str(tmp_path / "out")).replace("{log}", str(log))
+                                   for a in argv])
+    assert f"--out {tmp_path / 'out'}/" in line and "cannot write a figure as .txt (formats: " in line and "png" in line
+    assert not (tmp_path / "out").exists()

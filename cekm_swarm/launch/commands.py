@@ -20,8 +20,8 @@ from cekm_swarm.cli_support import (
     RobotIds,
     RunFailed,
     out_dir_options,
+    prepare_figure_file,
     prepare_out_dir,
-    prepare_out_file,
 )
 from cekm_swarm.errors import CekmError
 from cekm_swarm.runtime.config import DEFAULT_ENDPOINT, DEFAULT_PORT
@@ -247,7 +247,7 @@ def plot_cmd(log: Path, out_path: Path, title: str | None) -> None:
 
     from .plot import plot_log
 
-    prepare_out_file(out_path)
+    prepare_figure_file(out_path)
     try:
         log_files(log)  # a directory with no log, or with several, is named before any work
         outcome = None
