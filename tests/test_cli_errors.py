@@ -371,3 +371,29 @@ def test_a_figure_format_matplotlib_cannot_write_is_refused_before_any_work(caps
                                    for a in argv])
     assert f"--out {tmp_path / 'out'}/" in line and "cannot write a figure as .txt (formats: " in line and "png" in line
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("argv,refused", [
+    (["record", "--out", "{victim}", "--duration", "1", "--wait", "0"], "{victim}: exists"),
+    (["record", "--out", "{dir}/run.mcap", "--max-log-size", "1M", "--wait", "0"],
+     "{dir}/run_0.mcap .. run_1.mcap: a log set exists there"),
+    (["log", "info", "{victim}", "--recover", "{victim}"], "{victim}: exists"),
+    (["log", "recover", "{victim}", "{victim}"], "{victim}: exists"),
+])
+def test_an_existing_output_log_is_kept_unless_force(capsys, tmp_path, argv, refused):
+    """A log cannot be made again: record and log info --recover overwrote one silently
+    (QA item 14); log recover refused it. Refused before waiting for any router."""
+    victim = tmp_path / "victim.mcap"
+    victim.write_bytes(b"a run's only log")
+    for k in range(2):
+        (tmp_path / f"run_{k}.mcap").write_bytes(b"a set's file")
+    fill = {"{victim}": str(victim), "{dir}": str(tmp_path)}
+
+    def sub(a):
+        for k, v in fill.items():
+            a = a.replace(k, v)
+        return a
+
+    line = one_error_line(capsys, [sub(a) for a in argv], code=1, kind="failed")
+    assert line == f"cekm: failed: {sub(refused)}; use --force to overwrite it"
+    assert victim.read_bytes() == b"a run's only log" and (tmp_path / "run_1.mcap").read_bytes() == b"a set's file"

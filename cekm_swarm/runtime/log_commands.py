@@ -26,6 +26,15 @@ def log_group() -> None:
     """MCAP run logs."""
 
 
+def _refuse_existing(out: Path, force: bool, files: list[Path] | None = None) -> None:
+    """An output log that exists is refused unless ``--force``: a log cannot be made again.
+    ``files``: the existing files the output would replace (default: ``out`` if it exists)."""
+    files = ([out] if out.exists() else []) if files is None else files
+    if files and not force:
+        what = f"{out}: exists" if files == [out] else f"{files[0]} .. {files[-1].name}: a log set exists there"
+        raise click.ClickException(f"{what}; use --force to overwrite it")
+
+
 LOG_HELP = ("LOG is an .mcap file, or a log set (split with --max-log-size/--max-log-duration): its directory "
             "or its first file (run_0.mcap), read as one log in time order.")
 
@@ -34,12 +43,15 @@ LOG_HELP = ("LOG is an .mcap file, or a log set (split with --max-log-size/--max
 @click.argument("log_file", metavar="LOG", type=click.Path(exists=True, path_type=Path))
 @click.option("--recover", "recover_to", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="If the log is truncated (its writer was killed), write an indexed copy here.")
+@click.option("--force", is_flag=True, help="Overwrite the --recover file if it exists.")
 @click.option("--json", "as_json", is_flag=True, help="One JSON object: file, completeness, channels.")
-def log_info_cmd(log_file: Path, recover_to: Path | None, as_json: bool) -> None:
+def log_info_cmd(log_file: Path, recover_to: Path | None, force: bool, as_json: bool) -> None:
     """Channels, message counts, rates and duration of a log (a truncated log is read up to the cut)."""
     if recover_to is not None and log_file.is_dir():
         raise click.BadParameter("--recover takes one file (a log set's files are recovered one by one)",
                                  param_hint="LOG")
+    if recover_to is not None:
+        _refuse_existing(recover_to, force)
     from dataclasses import asdict
 
     from .jsonout import json_line
@@ -106,8 +118,7 @@ def log_recover_cmd(log_file: Path, out_file: Path, force: bool) -> None:
     killed, into OUT.mcap, a complete, indexed file."""
     from .mcap_log import recover_log
 
-    if out_file.exists() and not force:
-        raise click.ClickException(f"{out_file}: exists; use --force to overwrite it")
+    _refuse_existing(out_file, force)
     try:
         rep = recover_log(log_file, out_file)
     except CekmError as exc:
@@ -300,22 +311,29 @@ def _sigterm_as_sigint() -> Iterator[None]:
                    "(500M, 2G, ...).")
 @click.option("--max-log-duration", type=Finite(0.0, min_open=True), metavar="S",
               help="Split the recording into a set: a new file every S s of sim time.")
+@click.option("--force", is_flag=True, help="Overwrite the --out log (or set) if it exists.")
 def record_cmd(key_expr: str | None, out_path: Path, endpoint: str | None, config_file: Path | None, wait_s: float,
                duration: float | None, count: int | None, no_views: bool, root: str, max_log_size: int | None,
-               max_log_duration: float | None) -> None:
+               max_log_duration: float | None, force: bool) -> None:
     """Record the live keys matching KEYEXPR (default: the whole key space) into an MCAP log
     with the channels and Foxglove views of the world server's own log (not the static
     scene, which the world does not publish). Ctrl-C or SIGTERM stops and closes the file.
     A message whose stamp is not believable (not a tick's sim time in [0, 1e7] s, or more
     than 8 ticks from the newest taken) is dropped and counted, as in the world's own log."""
+    from .mcap_sets import log_files, set_file
+
+    first = set_file(out_path, 0)
+    split = max_log_size is not None or max_log_duration is not None
+    old = (log_files(first) if first.is_file() else []) if split else ([out_path] if out_path.exists() else [])
+    _refuse_existing(out_path, force, old)  # before waiting for the router
     with _sigterm_as_sigint():
         _record(key_expr, out_path, endpoint, config_file, wait_s, duration, count, no_views, root, max_log_size,
-                max_log_duration)
+                max_log_duration, [p for p in old if p != out_path])
 
 
 def _record(key_expr: str | None, out_path: Path, endpoint: str | None, config_file: Path | None, wait_s: float,
             duration: float | None, count: int | None, no_views: bool, root: str, max_log_size: int | None,
-            max_log_duration: float | None) -> None:
+            max_log_duration: float | None, replaced: list[Path]) -> None:
     from .record import record
     from .wait import resolve_endpoint
 
@@ -337,6 +355,8 @@ def _record(key_expr: str | None, out_path: Path, endpoint: str | None, config_f
 
     with _session(endpoint, config_file, wait_s) as session, _sigint_sets(stop) as hit:
         _say(f"waiting for messages on {key_expr} ...")
+        for p in replaced:  # --force over a set: its old files go, so the new set holds only this recording
+            p.unlink(missing_ok=True)
         try:
             res = record(session, out_path, key_expr, keys=keys, stop=stop, duration=duration, count=count,
                          views=not no_views, on_first=first, on_progress=progress,

@@ -132,6 +132,37 @@ def test_record_summary_names_the_dropped_messages(router, clients, tmp_path):
     assert log_info(out).complete
 
 
+@pytest.mark.slow  # a router
+def test_record_force_over_a_set_leaves_only_the_new_recording(router, clients, tmp_path):
+    """--force replaces an existing log set as a whole: an old file past the new set's end
+    would be read back as part of it."""
+
+    @click.group()
+    def cli() -> None:
+        """Stand-in for the main CLI."""
+
+    for c in COMMANDS:
+        cli.add_command(c)
+    for k in range(4):
+        (tmp_path / f"run_{k}.mcap").write_bytes(b"an older recording")
+    out = tmp_path / "run.mcap"
+    result: list = []
+    t = threading.Thread(target=lambda: result.append(CliRunner().invoke(
+        cli, ["record", "--out", str(out), "--connect", router, "--count", "3", "--no-views", "--max-log-size", "1G",
+              "--force"], catch_exceptions=False)))
+    a = clients()
+    t.start()
+    with Publishers(a, block=True) as pubs:
+        assert pubs.wait_matching(K.cmd_wheels("r1"), T)  # the recorder's subscription is in place
+        for k in range(3):
+            pubs.put(K.cmd_wheels("r1"), wheels(tick(10 + k)))
+        t.join(T)
+    assert not t.is_alive()
+    assert result[0].exit_code == 0, result[0].output
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run_0.mcap"]
+    assert log_info(tmp_path).complete and log_info(tmp_path).messages == 3
+
+
 # --------------------------------------------------------------------------- SIGTERM
 
 
