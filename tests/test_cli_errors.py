@@ -87,7 +87,9 @@ def bad_values(param: click.Parameter) -> list[str]:
         return ["x"]
     if isinstance(t, click.Path) and t.exists:
         return ["/no/such/path"]
-    if getattr(t, "name", "") in ("endpoint", "root", "run id"):
+    if getattr(t, "name", "") == "endpoint":
+        return ["a*b", "tcp/127.0.0.1:99999", "tcp/127.0.0.1:0"]
+    if getattr(t, "name", "") in ("root", "run id"):
         return ["a*b"]
     if getattr(t, "name", "") == "size":
         return ["0", "12Q"]
@@ -268,6 +270,7 @@ def test_a_non_finite_number_is_a_usage_error_naming_the_option(capsys, tmp_path
     ["launch", "crossing", "--model", "{bad}", "--port", "7711"],
     ["run", "crossing", "--model", "{bad}"],
     ["experiment", "obstacles", "--seeds", "1", "--model", "{bad}"],
+    ["launch", "concave", "--connect", "tcp/127.0.0.1:99999"],
 ])
 def test_overwrite_clears_nothing_when_an_argument_is_bad(capsys, tmp_path, argv):
     """docs/running.md: a typo never costs you the previous results."""
@@ -397,3 +400,13 @@ def test_an_existing_output_log_is_kept_unless_force(capsys, tmp_path, argv, ref
     line = one_error_line(capsys, [sub(a) for a in argv], code=1, kind="failed")
     assert line == f"cekm: failed: {sub(refused)}; use --force to overwrite it"
     assert victim.read_bytes() == b"a run's only log" and (tmp_path / "run_1.mcap").read_bytes() == b"a set's file"
+
+
+@pytest.mark.parametrize("text,problem", [("hello\n", "expected array, boolean, null, number, object, or string"),
+                                          ("", "Empty config file")])
+def test_a_bad_config_file_is_one_line_without_zenohs_source_location(capsys, tmp_path, text, problem):
+    """Zenoh's error ended with its Rust source file on the build machine (QA item 11)."""
+    config = tmp_path / "bad.json5"
+    config.write_text(text)
+    line = one_error_line(capsys, ["topic", "list", "--config", str(config), "--wait", "0"], code=1, kind="failed")
+    assert line.startswith(f"cekm: failed: zenoh config {config}: ") and line.endswith(problem), line

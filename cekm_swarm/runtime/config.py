@@ -11,6 +11,7 @@ from __future__ import annotations
 import ipaddress
 import json
 import os
+import re
 import socket
 from pathlib import Path
 
@@ -158,6 +159,8 @@ def check_endpoint(endpoint: str) -> str:
     if not sep or proto not in ("tcp", "udp", "tls", "quic", "ws", "unixsock-stream") or (
             proto != "unixsock-stream" and (not colon or not host or not port.isdigit())):
         raise RuntimeTransportError(f"endpoint {endpoint!r}: expected e.g. 'tcp/127.0.0.1:7447'")
+    if proto != "unixsock-stream" and not 1 <= int(port) <= 65535:
+        raise RuntimeTransportError(f"endpoint {endpoint!r}: port {int(port)} is not in 1..65535")
     return endpoint
 
 
@@ -229,6 +232,12 @@ def check_tls_files(config: zenoh.Config, what: str) -> None:
             raise RuntimeTransportError(f"zenoh config {what}: transport/link/tls/{key}: no such file {value!r}{where}")
 
 
+def _without_source(text: str) -> str:
+    """Zenoh's error text less the Rust source location it ends with (`` at
+    /root/.cargo/.../lib.rs:1486.``): the build machine's file means nothing to a user."""
+    return re.sub(r"\s+at /\S+\.rs:\d+\.?\s*$", "", text.strip())
+
+
 def load_config(path: str | Path, overrides: dict[str, object] | None = None) -> zenoh.Config:
     """A config file (JSON5) with optional overrides {'path/in/config': value}; the TLS
     files it names must exist."""
@@ -238,7 +247,7 @@ def load_config(path: str | Path, overrides: dict[str, object] | None = None) ->
     try:
         config = zenoh.Config.from_file(str(path))
     except Exception as exc:
-        raise RuntimeTransportError(f"zenoh config {path}: {exc}") from None
+        raise RuntimeTransportError(f"zenoh config {path}: {_without_source(str(exc))}") from None
     for k, v in (overrides or {}).items():
         _insert(config, k, v)
     check_tls_files(config, str(path))

@@ -33,6 +33,17 @@ def test_connect_option_beats_the_environment_which_beats_the_default():
         resolve_endpoint("nope", env)
 
 
+@pytest.mark.parametrize("port", ["0", "65536", "99999"])
+def test_a_port_that_cannot_exist_is_refused_at_once(port):
+    """It was accepted and waited for as 'no router' (--wait 60: a minute for a typo)."""
+    endpoint = f"tcp/127.0.0.1:{port}"
+    with pytest.raises(RuntimeTransportError, match=f"^--connect: endpoint '{endpoint}': port {port} is not in 1..65535"):
+        resolve_endpoint(endpoint, {})
+    with pytest.raises(RuntimeTransportError, match=f"^{ENV_CONNECT}: endpoint '{endpoint}': port {port} is not in"):
+        resolve_endpoint(None, {ENV_CONNECT: endpoint})
+    assert resolve_endpoint("tcp/127.0.0.1:65535", {}).endpoint == "tcp/127.0.0.1:65535"
+
+
 def test_waits_for_a_router_that_comes_up_later():
     port = free_port()
     endpoint = f"tcp/127.0.0.1:{port}"
