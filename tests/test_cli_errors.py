@@ -140,6 +140,8 @@ def test_a_bad_option_value_is_refused_by_name_before_the_command_runs(capsys, t
     (["experiment", "obstacles", "--seeds", "1-3,2-4", "--out", "{out}"], "--seeds: seeds 2, 3 given twice"),
     (["experiment", "obstacles", "--seeds", "1-", "--out", "{out}"], "--seeds: range '1-' has no end"),
     (["sweep", "concave", "--seeds", "1,1", "--need", "2", "--out", "{out}"], "--seeds: seed 1 given twice"),
+    (["topic", "pub", "cekm/r1/mine", '{"kind": "data", "values": {"x": "%s"}}' % ("a" * 40000), "--wait", "0",
+      "--connect", "tcp/127.0.0.1:7812"], "the message is 40,058 bytes, over the 32 KB limit"),
     (["experiment", "target-reaching", "--seed", "4294967295", "--master-seeds", "2", "--out", "{out}"],
      "'--seed': 4294967295 with --master-seeds 2 runs seeds up to 4294967296"),
     (["experiment", "target-reaching", "--networks", "Q9", "--out", "{out}"], "Q9"),

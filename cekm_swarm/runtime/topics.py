@@ -369,6 +369,11 @@ def build_message(key: str, fields_json: str, keys: KeySpace = DEFAULT_KEYS, *, 
         raise MessageError(f"{key}: missing field(s) {', '.join(missing)}") from None
     data = encode(msg)
     decode(key, data, keys=keys, expect=kind)  # the checks a receiver makes (index matches the key, ...)
+    from .config import MAX_MESSAGE_BYTES
+
+    if len(data) > MAX_MESSAGE_BYTES:  # every router and client drops it: refused here, not sent for nothing
+        raise MessageError(f"{key}: the message is {len(data):,} bytes, over the {MAX_MESSAGE_BYTES // 1024} KB "
+                           f"limit every router and client enforce ({MAX_MESSAGE_BYTES:,} bytes)")
     return data
 
 
