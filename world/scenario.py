@@ -148,6 +148,8 @@ def resolve_scenario_path(path_or_name: str | Path) -> Path:
         q = SCENARIO_DIR / f"{name}.toml"
         if q.is_file():
             return q
+    if p.is_dir():
+        raise ScenarioError(f"{path_or_name}: is a directory, not a scenario file")
     raise ScenarioError(
         f"{path_or_name}: no such scenario file or shipped scenario name (shipped: {', '.join(scenario_names())})"
     )

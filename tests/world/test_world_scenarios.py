@@ -328,3 +328,13 @@ def test_concave_polygon_obstacle_in_a_world():
     w = World(world.parse_scenario(__import__("tomllib").loads(text.replace("[0.5, 0.5, 0.0]", "[1.2, 0.5, 3.141592653589793]")), source="<poly>"))
     assert w.true_ranges("r1")[0] == pytest.approx(1.2 - 1.05 - 0.03, abs=1e-9)
     assert np.isnan(w.true_ranges("r1")[6])  # the mouth is open
+
+
+def test_a_directory_is_named_as_one_and_a_shipped_name_still_wins(tmp_path, monkeypatch):
+    """A directory given as SCENARIO was 'no such scenario file' (QA item 7)."""
+    (tmp_path / "adir").mkdir()
+    (tmp_path / "concave").mkdir()  # a directory beside the user that has a shipped scenario's name
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(ScenarioError, match="^adir: is a directory, not a scenario file$"):
+        load_scenario("adir")
+    assert load_scenario("concave").name == "concave"
