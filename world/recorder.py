@@ -113,12 +113,19 @@ class RecordFilter:
 
 def open_run_log(path: Path, scenario: str, seed: int, mode: str, geometry: dict[str, Any],
                  robot_radius: float, *, max_bytes: int | None = None, max_seconds: float | None = None,
-                 record: str = "full") -> tuple[Any, Any]:
+                 record: str = "full", keys: KeySpace | None = None) -> tuple[Any, Any]:
     """The run's MCAP log (one file, or a set with ``max_bytes``/``max_seconds``) with its
-    metadata (scenario, seed, mode, recording, the static geometry) and, when foxglove-sdk is
-    installed, its Foxglove views with the scene written at t = 0 (else None for the views)."""
-    recorder = open_recorder(path, max_bytes=max_bytes, max_seconds=max_seconds,
-                             metadata={"scenario": scenario, "seed": str(seed), "mode": mode, "record": record})
+    metadata (scenario, seed, mode, recording, the key root of ``keys``, the static geometry)
+    and, when foxglove-sdk is installed, its Foxglove views with the scene written at t = 0
+    (else None for the views). ``keys``: the run's key space (its root is what the log's
+    readers decode its keys under; without it, no root is written and readers take the root
+    from the log's world keys)."""
+    metadata = {"scenario": scenario, "seed": str(seed), "mode": mode, "record": record}
+    options: dict[str, Any] = {}
+    if keys is not None:
+        metadata["root"] = keys.root
+        options["keys"] = keys
+    recorder = open_recorder(path, max_bytes=max_bytes, max_seconds=max_seconds, metadata=metadata, **options)
     recorder.add_metadata("geometry", {"json": json.dumps(geometry)})
     views = None
     try:

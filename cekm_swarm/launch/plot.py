@@ -9,7 +9,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from cekm_swarm.protocol import KeyKind, KeySpace, MessageError, decode
+from cekm_swarm.protocol import DEFAULT_ROOT, KeyKind, KeySpace, MessageError, decode
 from cekm_swarm.runtime.mcap_log import read_messages, without_resends
 
 
@@ -30,9 +30,13 @@ def read_geometry(path: str | Path) -> dict[str, Any] | None:
     return None
 
 
-def read_run(path: str | Path, keys: KeySpace = KeySpace()) -> dict[str, Any]:
+def read_run(path: str | Path, keys: KeySpace | None = None) -> dict[str, Any]:
     """Per robot the poses (t, x, y, theta) and per target the positions (x, y) from
-    ``world/state``, and the last state."""
+    ``world/state``, and the last state; ``keys``: default, the log's own root."""
+    if keys is None:
+        from cekm_swarm.runtime.mcap_log import log_root
+
+        keys = KeySpace(log_root(path) or DEFAULT_ROOT)
     paths: dict[str, list[tuple[float, float, float, float]]] = {}
     target_paths: dict[str, list[tuple[float, float]]] = {}
     last = None

@@ -83,11 +83,15 @@ def log_info_cmd(log_file: Path, recover_to: Path | None, force: bool, as_json: 
 @click.option("--views", is_flag=True, help="Also list the Foxglove view messages (size only).")
 @click.option("--start", type=Finite(), default=None, help="Only messages at or after this sim time (s).")
 @click.option("--end", type=Finite(), default=None, help="Only messages at or before this sim time (s).")
-@click.option("--root", default="cekm", show_default=True, type=ROOT, help=_ROOT_HELP)
+@click.option("--root", default=None, type=ROOT,
+              help="Key-space root (docs/design.md section 6) [default: the log's own, else cekm].")
 def log_cat_cmd(log_file: Path, topics: tuple[str, ...], as_json: bool, views: bool, start: float | None,
-                end: float | None, root: str) -> None:
+                end: float | None, root: str | None) -> None:
     """Print a log's messages, decoded, in time order (like mcap cat, ros2 bag echo)."""
+    from cekm_swarm.protocol import DEFAULT_ROOT
+
     from .logcat import CatCounts, cat_lines
+    from .mcap_log import log_root
 
     if start is not None and end is not None and end < start:
         raise click.UsageError(f"--end {end:g} is before --start {start:g}: no message can be in that window")
@@ -96,6 +100,8 @@ def log_cat_cmd(log_file: Path, topics: tuple[str, ...], as_json: bool, views: b
         if not p.startswith("/"):
             _check_key_expr(p, "--topics")
     counts = CatCounts()
+    if root is None:  # the root the log was written under (a run launched with --root run2)
+        root = log_root(log_file) or DEFAULT_ROOT
     try:
         for line in cat_lines(log_file, topics=patterns or None, as_json=as_json, views=views, start=start, end=end,
                               keys=_keys(root), counts=counts):

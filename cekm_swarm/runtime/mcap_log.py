@@ -5,7 +5,7 @@ for the parts, each its own module:
   stamps, chunked and indexed by :mod:`.mcap_writer`, flushed every half second, closed
   cleanly when its disk fills) and :func:`record_zenoh`;
 - :mod:`.mcap_read`: :func:`read_messages` (time order), :func:`stream_messages` (file
-  order, up to a cut), :func:`is_complete`, :func:`without_resends` and
+  order, up to a cut), :func:`is_complete`, :func:`log_root`, :func:`without_resends` and
   :class:`ResendFilter` (one sample a tick);
 - :mod:`.mcap_recover`: :func:`recover_log`;
 - :mod:`.mcap_info`: :func:`log_info`, :func:`format_log_info`.
@@ -19,6 +19,7 @@ from .mcap_read import (
     ResendFilter,
     StreamResult,
     is_complete,
+    log_root,
     read_messages,
     stream_messages,
     without_resends,
@@ -39,7 +40,7 @@ from .mcap_record import (
 from .mcap_recover import RecoveryReport, recover_log
 
 __all__ = ["ChannelInfo", "LogInfo", "format_log_info", "log_info", "LoggedMessage", "StreamResult", "is_complete",
-           "read_messages", "stream_messages", "without_resends", "ResendFilter", "DEFAULT_CHUNK_SIZE",
+           "log_root", "read_messages", "stream_messages", "without_resends", "ResendFilter", "DEFAULT_CHUNK_SIZE",
            "DEFAULT_FLUSH_INTERVAL", "LIBRARY",
            "MAX_CHANNELS", "MAX_NS", "MSGPACK", "PROFILE", "McapRecorder", "SchemaSpec", "record_zenoh", "sim_ns",
            "RecoveryReport", "recover_log"]

@@ -64,6 +64,52 @@ def is_complete(path: str | Path) -> bool:
     return all(_has_footer(_open(p)) for p in log_files(path))
 
 
+_WORLD_KEYS = ("/world/clock", "/world/state")
+"""The world's keys under the root, whose topics give an older log's root."""
+_ROOT_SCAN = 1000
+"""Messages of a truncated log (no summary) looked at for a world key."""
+
+
+def log_root(path: str | Path) -> str | None:
+    """The key root of the log ``path`` (a file or a log set): the ``root`` of its ``cekm``
+    metadata (the world server's and ``cekm record``'s logs write it), else, for a log
+    written before they did, the root of its world keys (``<root>/world/clock``); None
+    when neither tells (the log is not readable, or holds no world key)."""
+    from cekm_swarm.protocol import KeySpaceError, validate_root
+
+    from .mcap_sets import log_files
+
+    def valid(root: str | None) -> str | None:
+        try:
+            return validate_root(root) if root else None
+        except KeySpaceError:
+            return None
+
+    try:
+        first = _open(log_files(path)[0])
+        topics: list[str] = []
+        if _has_footer(first):
+            with open(first, "rb") as f:
+                reader = make_reader(f)
+                for md in reader.iter_metadata():
+                    if md.name == "cekm" and valid(md.metadata.get("root")):
+                        return md.metadata["root"]
+                summary = reader.get_summary()
+                topics = [c.topic for c in summary.channels.values()] if summary is not None else []
+        else:
+            for k, m in enumerate(stream_messages(first)):
+                if k >= _ROOT_SCAN:
+                    break
+                topics.append(m.topic)
+    except (McapLogError, McapError, OSError):
+        return None
+    for t in topics:
+        for tail in _WORLD_KEYS:
+            if t.endswith(tail) and valid(t[:-len(tail)]):
+                return t[:-len(tail)]
+    return None
+
+
 def _convert(schema: Any, channel: Any, message: Any) -> LoggedMessage:
     return LoggedMessage(channel.topic, message.log_time, message.publish_time, message.sequence, message.data,
                          channel.message_encoding, schema.name if schema is not None else None,

@@ -202,7 +202,7 @@ def record(session: zenoh.Session, out: str | Path, key_expr: str, *, keys: KeyS
         if sample.kind == zenoh.SampleKind.PUT:
             inbox.put((str(sample.key_expr), sample.payload.to_bytes()))
 
-    meta = {"recorded_by": "cekm record", "key_expr": key_expr}
+    meta = {"recorded_by": "cekm record", "key_expr": key_expr, "root": keys.root}
     meta.update(metadata or {})
     t0 = time.monotonic()
     with open_recorder(out, keys=keys, metadata=meta, max_bytes=max_bytes, max_seconds=max_seconds) as recorder:

@@ -265,3 +265,60 @@ def test_without_resends_leaves_out_a_message_equal_to_the_one_before_it_on_its_
     log = [m("a", b"1", 0), m("b", b"1", 0), m("a", b"1", 1), m("a", b"2", 2), m("b", b"1", 3), m("a", b"1", 4)]
     assert [(x.topic, x.data, x.log_time) for x in without_resends(log)] == [
         ("a", b"1", 0), ("b", b"1", 0), ("a", b"2", 2), ("a", b"1", 4)]
+
+
+def _root_log(path, root: str, metadata: dict | None, close: bool = True):
+    """A log of a run under key root ``root``: its world clock, with ``metadata`` as its ``cekm`` record."""
+    from cekm_swarm.protocol import KeySpace
+
+    keys = KeySpace(root)
+    rec = McapRecorder(path, keys=keys, metadata=metadata)
+    for k in range(3):
+        rec.write(keys.world_clock(), encode(Clock(k * 0.128, "world", k)), k * 0.128)
+    if close:
+        rec.close()
+    else:
+        rec.flush()
+    return rec
+
+
+def test_a_logs_root_is_its_metadata_else_that_of_its_world_keys(tmp_path):
+    from cekm_swarm.runtime.mcap_log import log_root
+
+    _root_log(tmp_path / "meta.mcap", "run2", {"root": "run2"})
+    _root_log(tmp_path / "old.mcap", "run3/a", {"scenario": "concave"})  # a log from before the root was written
+    _root_log(tmp_path / "cut.mcap", "run4", None, close=False)  # truncated: no summary
+    rec = McapRecorder(tmp_path / "nothing.mcap")
+    rec.write(K.cmd_wheels("r1"), b"x", 0.0)
+    rec.close()
+    (tmp_path / "text.mcap").write_text("hello")
+    assert [log_root(tmp_path / f"{n}.mcap") for n in ("meta", "old", "cut", "nothing", "text", "absent")] == [
+        "run2", "run3/a", "run4", None, None, None]
+
+
+@pytest.mark.parametrize("metadata", [{"root": "run2"}, None])
+def test_log_cat_decodes_a_log_under_its_own_root(tmp_path, capsys, metadata):
+    """A log of `cekm launch --root run2` was printed all MALFORMED without --root run2 (QA item 18)."""
+    from cekm_swarm.cli import main
+    from cekm_swarm.cli_support import run_cli
+
+    _root_log(tmp_path / "run.mcap", "run2", metadata)
+    assert run_cli(main, ["log", "cat", str(tmp_path / "run.mcap")]) == 0
+    out, err = capsys.readouterr()
+    assert "MALFORMED" not in out and "malformed" not in err
+    assert out.splitlines()[-1].split() == ["0.256", "run2/world/clock:", "world/clock", "t=0.256", "from=world",
+                                            "tick=2"]
+    assert run_cli(main, ["log", "cat", str(tmp_path / "run.mcap"), "--root", "cekm"]) == 0  # told otherwise
+    assert "3 malformed message(s)" in capsys.readouterr().err
+
+
+def test_the_world_log_writes_its_root(tmp_path):
+    from cekm_swarm.protocol import KeySpace
+    from world.recorder import open_run_log
+
+    recorder, views = open_run_log(tmp_path / "run.mcap", "concave", 8, "lockstep", {"bounds": [0, 0, 1, 1]}, 0.03,
+                                   keys=KeySpace("run2"))
+    recorder.close()
+    with open(tmp_path / "run.mcap", "rb") as f:
+        meta = {m.name: dict(m.metadata) for m in make_reader(f).iter_metadata()}
+    assert meta["cekm"]["root"] == "run2"

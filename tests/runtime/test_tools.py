@@ -285,6 +285,13 @@ def test_record_writes_the_channels_and_views_of_the_worlds_log(router, clients,
     assert res.exit_code == 0, res.output
     assert "no static scene" not in res.output
     assert read_geometry(out) == GEOMETRY  # what `cekm plot` draws the arena from
+    from mcap.reader import make_reader
+
+    from cekm_swarm.runtime.mcap_log import log_root
+
+    with open(out, "rb") as f:  # the root its readers decode the keys under (cekm log cat, cekm plot)
+        assert [dict(m.metadata)["root"] for m in make_reader(f).iter_metadata() if m.name == "cekm"] == ["cekm"]
+    assert log_root(out) == "cekm"
     assert f"recorded 7 messages on 3 keys, sim time 1.024 .. 1.280 s into {out}" in res.output
     info = log_info(out)
     assert info.complete
