@@ -113,6 +113,11 @@ def test_a_bad_option_value_is_refused_by_name_before_the_command_runs(capsys, t
 
 @pytest.mark.parametrize("argv,needle", [
     (["run", "no_such_scenario", "--out", "{out}"], "no such scenario"),
+    (["run", "concave", "--controller", "acmommt", "--out", "{out}"], "(controllers: cekm, fusion, stay;"),
+    (["run", "tracking", "--controller", "fusion", "--out", "{out}"],
+     "(controllers: acmommt, cekm, kmeans, kmeans-global, stay;"),
+    (["graph", "check", "/"], "/: is a directory, not a graph file"),
+    (["view", "crossing", "--seed", "-1", "--wait", "0"], "--seed"),
     (["launch", "lone_obstacle", "--robots", "r9", "--out", "{out}"], "no robot r9"),
     (["launch", "lone_obstacle", "--no-world", "--robots", "none", "--out", "{out}"], "--no-world"),
     (["launch", "lone_obstacle", "--listen", "not a host!", "--out", "{out}"], "--listen"),

@@ -163,6 +163,8 @@ def graph_path(name_or_path: str | Path) -> Path:
     """The file of a shipped graph's name, or the path given; GraphError if neither exists."""
     p = Path(name_or_path)
     if p.suffix == ".toml" or p.exists() or "/" in str(name_or_path):
+        if p.is_dir():
+            raise GraphError(str(p), None, "is a directory, not a graph file")
         if not p.is_file():
             raise GraphError(str(p), None, "no such file")
         return p
@@ -179,7 +181,8 @@ def graph_for(controller: str, task: str) -> Path:
     for name in (f"{controller}-{task}", controller):
         if name in shipped:
             return shipped[name]
-    names = sorted({n.rsplit("-", 1)[0] if n.endswith(("-navigation", "-tracking")) else n for n in shipped})
+    names = sorted({n[:-len(f"-{task}")] for n in shipped if n.endswith(f"-{task}")}  # this task's, and any task's
+                   | {n for n in shipped if not n.endswith(("-navigation", "-tracking"))})
     raise GraphError(f"--controller {controller}", None,
                      f"no shipped graph for a {task} scenario (controllers: {', '.join(names)}; or give --graph FILE)")
 
