@@ -252,8 +252,15 @@ def plot_cmd(log: Path, out_path: Path, title: str | None) -> None:
         log_files(log)  # a directory with no log, or with several, is named before any work
         outcome = None
         sibling = log / "outcome.json" if log.is_dir() else log.with_name("outcome.json")
-        if sibling.is_file():
-            outcome = json.loads(sibling.read_text())
+        if sibling.is_file():  # an extra (which robots reached their goals): a bad one is passed over, said once
+            try:
+                outcome = json.loads(sibling.read_text())
+            except (OSError, UnicodeDecodeError, ValueError) as exc:
+                outcome = f"not readable JSON ({type(exc).__name__})"
+            if not isinstance(outcome, dict):
+                why = outcome if isinstance(outcome, str) else "not a JSON object"
+                click.echo(f"cekm: note: {sibling}: {why}; drawing the log alone", err=True)
+                outcome = None
         fig = plot_log(log, title=title, outcome=outcome)
     except CekmError as exc:  # a log it cannot read: a failure (exit 1), as in `cekm log info`
         raise RunFailed(str(exc)) from None

@@ -86,3 +86,17 @@ def test_cekm_plot_writes_the_png(tmp_path):
     r = CliRunner().invoke(main, ["plot", str(tmp_path / "run.mcap"), "--out", str(tmp_path / "t.png")])
     assert r.exit_code == 0, r.output
     assert (tmp_path / "t.png").stat().st_size > 10_000
+
+
+def test_a_broken_outcome_beside_the_log_is_passed_over_with_a_note(tmp_path):
+    """The user named only the log: an ``outcome.json`` beside it that is empty or not an
+    object is an extra to pass over (said once), not a traceback."""
+    from cekm_swarm.cli import main
+
+    _log(tmp_path / "run.mcap")
+    for bad in ("", "[1, 2]"):
+        (tmp_path / "outcome.json").write_text(bad)
+        res = CliRunner().invoke(main, ["plot", str(tmp_path / "run.mcap"), "--out", str(tmp_path / "p.png")])
+        assert res.exit_code == 0, res.output
+        assert "outcome.json" in res.output and "drawing the log alone" in res.output
+        assert (tmp_path / "p.png").stat().st_size > 0
