@@ -322,8 +322,8 @@ def record_cmd(key_expr: str | None, out_path: Path, endpoint: str | None, confi
                duration: float | None, count: int | None, no_views: bool, root: str, max_log_size: int | None,
                max_log_duration: float | None, force: bool) -> None:
     """Record the live keys matching KEYEXPR (default: the whole key space) into an MCAP log
-    with the channels and Foxglove views of the world server's own log (not the static
-    scene, which the world does not publish). Ctrl-C or SIGTERM stops and closes the file.
+    with the channels and Foxglove views of the world server's own log, and the static
+    scene, which it asks the world server for. Ctrl-C or SIGTERM stops and closes the file.
     A message whose stamp is not believable (not a tick's sim time in [0, 1e7] s, or more
     than 8 ticks from the newest taken) is dropped and counted, as in the world's own log."""
     from .mcap_sets import log_files, set_file
