@@ -38,7 +38,9 @@ def _say(text: str) -> None:
 @click.option("--quiet", is_flag=True, help="No progress bar (there is none when stderr is not a terminal).")
 def export_cmd(log_file: Path, to: str, out_dir: Path, overwrite: bool, distro: str, quiet: bool) -> None:
     """Export RUN.mcap for ROS 2 tools: `ros2 bag play`, `ros2 bag info`, Foxglove, rosbags."""
+    from cekm_swarm.protocol import DEFAULT_ROOT, KeySpace
     from cekm_swarm.runtime.mcap_log import MSGPACK, is_complete, read_messages
+    from cekm_swarm.runtime.mcap_read import log_root
 
     from .bag import export_ros2, format_report
 
@@ -62,7 +64,8 @@ def export_cmd(log_file: Path, to: str, out_dir: Path, overwrite: bool, distro: 
         bar.update(done - bar.n)
 
     try:
-        report = export_ros2(log_file, out_dir, distro=distro, progress=progress)
+        keys = KeySpace(log_root(log_file) or DEFAULT_ROOT)  # the log's own key root (a launch's --root)
+        report = export_ros2(log_file, out_dir, distro=distro, keys=keys, progress=progress)
     except CekmError as exc:
         raise click.ClickException(str(exc)) from None
     finally:

@@ -186,3 +186,25 @@ def test_the_scene_comes_from_the_logs_geometry_also_when_the_log_was_cut(crossi
         assert r.message_count == report.written
         first = next(raw for c, _, raw in r.messages() if c.topic == "/world/markers")
     assert {m.ns for m in interfaces().from_cdr(first, "visualization_msgs/msg/MarkerArray").markers} == {"walls", "discs"}
+
+
+def test_a_log_under_another_key_root_exports_as_the_same_bag(crossing_run, bag, tmp_path):
+    """A launch with ``--root run2`` logs every key under ``run2/``: the export reads the
+    log's own root (its world keys, as `cekm log cat` does) instead of finding no message."""
+    from cekm_swarm.protocol import KeySpace
+    from cekm_swarm.runtime.mcap_log import McapRecorder
+
+    moved = tmp_path / "run2.mcap"
+    rec = McapRecorder(moved, keys=KeySpace("run2"))
+    for m in read_messages(crossing_run / "run.mcap", encodings=["msgpack"]):
+        rec.write("run2/" + m.topic.split("/", 1)[1], m.data, m.log_time / 1e9)
+    rec.close()
+    out = tmp_path / "bag"
+    r = cekm("log", "export", str(moved), "--to", "ros2", "--out", str(out))
+    assert r.returncode == 0, r.stderr
+
+    def counts(path: Path) -> Counter:
+        with Reader(path) as reader:
+            return Counter(c.topic for c, _, _ in reader.messages() if c.topic != "/world/markers")
+
+    assert counts(out) == counts(bag) and sum(counts(out).values()) > 0
