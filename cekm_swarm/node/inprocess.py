@@ -21,7 +21,6 @@ from cekm_swarm.protocol import KeyKind, decode, encode
 from cekm_swarm.ticks import TICK_S, tick_time
 
 from .api import Context, Node, NodeError, start_node
-from .checks import output_check
 from .runner import Runner
 from .timing import gather
 
@@ -44,8 +43,7 @@ class GraphExecutor:
                 self.runners.append(Runner(node, start_node(cls, context(node), checked.make_params(node.decl.name))))
         # what a reader checks of what it receives, its producer's step is refused for
         # (in a launch the reader would drop it and wait for good): the run's checks of
-        # each node's outputs (.checks), and the readers' own (Node.check_input)
-        self.out_checks = [output_check(r.plan, r.node) for r in self.runners]
+        # each node's outputs (.checks, in Runner.run), and the readers' own (Node.check_input)
         self.refusers: dict[str, list[tuple[Runner, str]]] = {}  # key -> (reader, port) with a check_input
         for r in self.runners:
             if type(r.node).check_input is not Node.check_input:
@@ -73,7 +71,7 @@ class GraphExecutor:
 
     def tick(self, k: int) -> dict[str, Any]:
         """Run every node due at tick ``k``; each robot's answer."""
-        for runner, check in zip(self.runners, self.out_checks):
+        for runner in self.runners:
             node = runner.plan
             if k % node.period:
                 continue
@@ -82,8 +80,6 @@ class GraphExecutor:
                 raise NodeError(f"{node.label}: at t={round(k * TICK_S, 9)} nothing has sent {missing[0]} (in lockstep "
                                 f"this node would wait for it forever)")
             sent = runner.run(k, inputs)
-            if check is not None:
-                check(tick_time(k), sent)
             for key, msg in sent:
                 for reader, port in self.refusers.get(key, ()):
                     why = reader.node.check_input(port, msg)

@@ -11,18 +11,21 @@ from cekm_swarm.graph.plan import NodePlan
 from cekm_swarm.ticks import tick_time
 
 from .api import Inputs, Node, NodeError, NotReady
+from .checks import output_check
 
 
 class Runner:
     """A node and the checks of what its step returns: one message per output port, of
-    the port's type, stamped with the tick's time."""
+    the port's type, stamped with the tick's time, and fitting what its readers check
+    (:mod:`.checks`: a field over the run's lattice)."""
 
-    __slots__ = ("plan", "node", "runs", "skip_not_ready", "_outs")
+    __slots__ = ("plan", "node", "runs", "skip_not_ready", "_outs", "_check")
 
     def __init__(self, plan: NodePlan, node: Node) -> None:
         self.plan, self.node, self.runs = plan, node, 0
         self.skip_not_ready = False  # set by the real-time gate, which takes NotReady
         self._outs = [(port, key, node.outputs[port].type) for port, key in plan.outputs.items()]
+        self._check = output_check(plan, node)  # what its readers check of what it sends (None: nothing)
 
     def run(self, k: int, inputs: Inputs) -> list[tuple[str, Any]]:
         """The node's outputs of its run at tick ``k``, checked; raises NodeError naming the
@@ -50,6 +53,8 @@ class Runner:
             if type(msg) is not want or msg.stamp != t:
                 self._refuse(out, t)
             sent.append((key, msg))
+        if self._check is not None:
+            self._check(t, sent)
         self.runs += 1
         return sent
 

@@ -13,14 +13,11 @@ from pathlib import Path
 import pytest
 
 from cekm_swarm.experiments.default_model import default_model_path
-from cekm_swarm.node.runner import Runner
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "runtime"))
 from test_launch_support import LaunchProcess  # noqa: E402
 
-pytestmark = [pytest.mark.slow,
-              pytest.mark.skipif("_check" not in Runner.__slots__,
-                                 reason="the producer's output check runs in Runner.run (cekm_swarm.node.checks)")]
+pytestmark = pytest.mark.slow
 
 MODULE = '''
 import numpy as np
