@@ -225,7 +225,7 @@ class WorldServer:
             pub.recorder, pub.views = open_run_log(self.out / "run.mcap", self.scenario.name, self.world.seed,
                                                    cfg.mode, geometry, self.world.body_radius,
                                                    max_bytes=cfg.max_log_size, max_seconds=cfg.max_log_duration,
-                                                   record=cfg.record)
+                                                   record=cfg.record, keys=self.keys)
         except BaseException:
             session.close()
             raise
