@@ -46,6 +46,11 @@ def preflight(checked: CheckedGraph, plan: RunPlan, body: RobotBody, model: Any)
     """Build one node of every kind (its first instance of the first robot) here: what a
     node process would do first. Raises :class:`PreflightError` with the node's reason."""
     robot = plan.team[0]
+    if model is not None:  # the run's model first: a bad file is the run's fault, named as `cekm run` names it
+        try:
+            Context(robot, "model", None, plan.team, body, "check", model, "numpy").model()
+        except (CekmError, ValueError) as exc:
+            raise PreflightError(str(exc)) from None
     seen: set[str] = set()
     for node in plan.nodes[robot]:
         name = node.decl.name
