@@ -449,7 +449,7 @@ class Launcher(Supervision, WorldHost, RobotHost):
             self.say(line)
         outcome["launcher"]["nodes"] = notable(summaries)  # nodes that failed, skipped runs or dropped messages
         if self.c.mode == "lockstep":
-            outcome["reproducible"] = reproducible(self.children.values(), bool(outcome.get("aborted")))
+            outcome["reproducible"] = reproducible(self.children.values(), bool(outcome.get("aborted")), summaries)
         if self._cpu_start is not None and self._cpu_end is not None:  # where the tick loop's CPU went
             robots = len({ch.robot for ch in self.children.values()})
             ticks = tick_of(float(outcome.get("sim_seconds", 0.0)))

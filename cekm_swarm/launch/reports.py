@@ -60,18 +60,22 @@ def node_summary(reports: Iterable[dict[str, Any]]) -> dict[str, Any]:
     skipped as not ready, messages dropped (malformed, unbelievable stamps, wrong keys)."""
     runs, not_ready, dropped = 0, 0, 0
     failures: dict[str, int] = {}
+    ran_without: set[str] = set()
     for r in reports:
         runs += int(r.get("runs", 0))
+        ran_without.update(str(k) for k in (r.get("ran_without") or ()))
         not_ready += int(r.get("not_ready", 0))
         dropped += sum(int(n) for n in (r.get("dropped") or {}).values())
         for what, n in (r.get("step_failures") or {}).items():
             failures[what] = failures.get(what, 0) + int(n)
-    return {"runs": runs, "step_failures": failures, "not_ready": not_ready, "dropped": dropped}
+    return {"runs": runs, "step_failures": failures, "not_ready": not_ready, "dropped": dropped,
+            "ran_without": sorted(ran_without)}
 
 
 def notable(summaries: dict[str, dict[str, Any]]) -> dict[str, dict[str, Any]]:
     """The nodes worth a line: any failed or skipped run, or any dropped message."""
-    return {label: s for label, s in summaries.items() if s["step_failures"] or s["not_ready"] or s["dropped"]}
+    return {label: s for label, s in summaries.items()
+            if s["step_failures"] or s["not_ready"] or s["dropped"] or s.get("ran_without")}
 
 
 def summary_lines(summaries: dict[str, dict[str, Any]], logs: dict[str, Path]) -> list[str]:
@@ -88,22 +92,29 @@ def summary_lines(summaries: dict[str, dict[str, Any]], logs: dict[str, Path]) -
             parts.append(f"{n} tick{'s' if n != 1 else ''} not run (an input it needs had not arrived)")
         if s["dropped"]:
             parts.append(f"{s['dropped']} message{'s' if s['dropped'] != 1 else ''} dropped")
+        if s.get("ran_without"):
+            parts.append(f"its first run after a restart went without {', '.join(s['ran_without'])} of the tick "
+                         f"before (its producer restarted too)")
         where = f" (see {logs[label]})" if label in logs else ""
         lines.append(f"node {label}: " + ", ".join(parts) + where)
     return lines
 
 
-def reproducible(children: Iterable[Any], aborted: bool) -> dict[str, Any]:
+def reproducible(children: Iterable[Any], aborted: bool,
+                 summaries: dict[str, dict[str, Any]] | None = None) -> dict[str, Any]:
     """``outcome.json``'s ``reproducible`` of a lockstep run: whether it may claim to equal
     ``cekm run``. Not when a node restarted without what it had (its state across ticks, or
     its own previous outputs, or a world reading of the tick before, which nobody sends
-    again: ``node.timing.lost_on_restart``), nor when the run was stopped before its end."""
-    lost = sorted(ch.label for ch in children if ch.restarts and ch.stateful)
+    again: ``node.timing.lost_on_restart``; or a delayed value whose producer restarted
+    too: ``ran_without`` in its summary), nor when the run was stopped before its end."""
+    without = {label for label, s in (summaries or {}).items() if s.get("ran_without")}
+    lost = sorted({ch.label for ch in children if ch.restarts and ch.stateful} | without)
     whys = []
     if aborted:
         whys.append("the run was stopped before its end, so it is not the whole run cekm run makes")
     if lost:
-        whys.append("a node that keeps state across ticks (or reads its own previous outputs) restarted without "
-                    "it, so what it computed after its restart may differ from cekm run")
+        whys.append("a node that keeps state across ticks (or reads its own previous outputs, or a delayed value "
+                    "whose producer restarted too) restarted without it, so what it computed after its restart may "
+                    "differ from cekm run")
     return {"equals_cekm_run": not whys, "stateful_restarts": lost, "aborted": aborted,
             "why": "; ".join(whys) or "every restarted node keeps no state across ticks"}

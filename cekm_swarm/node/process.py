@@ -126,7 +126,9 @@ class NodeShell:
         # every other node reading this node's outputs (teammates, or of its own robot; with
         # a delay or not): its token -> the keys it reads. A reader's (re)appearing token
         # asks for the recent outputs it missed while down (LockstepGate.resend)
-        self.readers = outputs_readers(plan, node_plan, self.keys) if lockstep else {}  # real time: nothing sent again
+        # real time: nothing sent again; a pure node of one key (DirectGate), only to readers with a delay
+        self.readers = outputs_readers(plan, node_plan, self.keys, delayed_only=gate_cls is DirectGate) if lockstep \
+            else {}
         self.pubs: Any = None
 
     # ------------------------------------------------------------------ subscriptions
@@ -304,19 +306,26 @@ class NodeShell:
         g = self.gate
         return {"handled": self.handled, "runs": self.runner.runs, "dropped": self.drops.by_source(),
                 "repeats": getattr(g, "repeats", 0), "stale": getattr(g, "stale_drops", {}),
-                "step_failures": dict(self.step_failures), "not_ready": getattr(g, "not_ready", 0)}
+                "step_failures": dict(self.step_failures), "not_ready": getattr(g, "not_ready", 0),
+                "ran_without": list(getattr(g, "ran_without", ()))}
 
 
-def outputs_readers(plan: RunPlan, node_plan: NodePlan, keys: Any) -> dict[str, frozenset[str]]:
+def outputs_readers(plan: RunPlan, node_plan: NodePlan, keys: Any,
+                    delayed_only: bool = False) -> dict[str, frozenset[str]]:
     """The liveliness token of every other node that reads ``node_plan``'s outputs -> the
-    output keys it reads."""
+    output keys it reads (``delayed_only``: with ``delay = 1``). A pure node of one key
+    (:class:`DirectGate`) sends its recent runs again only to delayed readers: a same-tick
+    reader of it gets fresh values (the world sends a rejoining robot every reading on its
+    next tick), and such a node's last runs may be old (its reading held unchanged since
+    t = 0), whose stamps would set a restarted reader's stamp window in the past, so that it
+    dropped every value of now, the only copies of its delayed inputs among them."""
     mine = set(node_plan.outputs.values())
     readers: dict[str, set[str]] = {}
     for r in plan.team:
         for n in plan.nodes[r]:
             if (n.robot, n.name) == (node_plan.robot, node_plan.name):
                 continue
-            read = {s.key for b in n.bindings for s in b.sources if s.key in mine}
+            read = {s.key for b in n.bindings for s in b.sources if s.key in mine and (b.delay or not delayed_only)}
             if read:
                 readers.setdefault(keys.alive(n.robot, n.name), set()).update(read)
     return {k: frozenset(v) for k, v in readers.items()}

@@ -240,6 +240,36 @@ def test_a_restarted_node_that_reads_its_own_previous_output_runs_without_it(tmp
     assert second[1].stamp == pytest.approx(41 * 0.128)
 
 
+def test_a_restarted_node_gives_up_a_delayed_value_whose_producer_restarted_too(tmp_path):
+    """drive and echo restarted together: echo has no copy of the tick before to send
+    again, and waits for drive's command. drive runs once the world has re-published the
+    stalled tick (its reading comes again), without echo's copy, and names it."""
+    from cekm_swarm.protocol import DEFAULT_KEYS as K
+
+    plan = plan_of(tmp_path, "echo-loop")
+    fresh = gate_of(plan, "drive")
+    assert fresh.put(*target(40)) == []  # waits for echo's copy of tick 39: the resend it normally gets
+    (first,) = fresh.put(*target(40))  # the stalled tick re-published: nobody has that copy
+    assert first[1].stamp == pytest.approx(40 * 0.128) and fresh.born == 40
+    assert fresh.ran_without == (K.node_key("r1", "loop/echo"),)
+    assert fresh.put(*target(41)) == []  # later ticks wait for echo's copies as always
+    normal = gate_of(plan, "drive")
+    assert [m.stamp for _, m in normal.put(*target(0))] == [0.0] and normal.ran_without == ()
+
+
+def test_a_run_whose_node_went_without_a_value_does_not_claim_to_equal_cekm_run():
+    from types import SimpleNamespace
+
+    from cekm_swarm.launch.reports import node_summary, reproducible
+
+    summary = node_summary([{"runs": 3, "ran_without": ["cekm/r1/share"]}, {"runs": 9}])
+    assert summary["ran_without"] == ["cekm/r1/share"]
+    children = [SimpleNamespace(label="r1/target", restarts=1, stateful=False)]
+    rep = reproducible(children, False, {"r1/target": summary})
+    assert rep["equals_cekm_run"] is False and rep["stateful_restarts"] == ["r1/target"]
+    assert reproducible(children, False, {"r1/target": node_summary([{"runs": 3}])})["equals_cekm_run"] is True
+
+
 # ---------------------------------------------------------------- end to end
 
 MAX_TIME = "60"  # s of sim time: 469 ticks
@@ -261,8 +291,8 @@ def cekm_run(tmp_path: Path, graph_file: Path, max_time: str) -> dict:
     return json.loads((tmp_path / "ref" / "outcome.json").read_text())
 
 
-def kill_mid_run(tmp_path: Path, name: str, node: str, at_tick: int = 20) -> LaunchProcess:
-    """A lockstep launch of graph ``name``; ``node`` SIGKILLed as soon as the robot's
+def kill_mid_run(tmp_path: Path, name: str, node: str, at_tick: int = 20, *also: str) -> LaunchProcess:
+    """A lockstep launch of graph ``name``; ``node`` (and the nodes ``also``) SIGKILLed as soon as the robot's
     command of tick ``at_tick`` is out (seen on the launch's router: the node has run
     ticks, and holds outputs of the tick before that its restart loses); run to its end."""
     from cekm_swarm.protocol import DEFAULT_KEYS as K
@@ -274,19 +304,22 @@ def kill_mid_run(tmp_path: Path, name: str, node: str, at_tick: int = 20) -> Lau
     session = None
     try:
         run.wait_line("world started ticking", timeout=120)
-        pid = run.pids()[node]
+        pids = [run.pids()[n] for n in (node, *also)]
 
         def on_command(sample) -> None:
             stamp = decode(KeyKind.CMD_WHEELS, sample.payload.to_bytes()).stamp
             if stamp >= at_tick * TICK and not killed.is_set():
-                os.kill(pid, signal.SIGKILL)
+                for pid in pids:
+                    os.kill(pid, signal.SIGKILL)
                 killed.set()
 
         session = open_client(f"tcp/127.0.0.1:{run.port}")
         sub = session.declare_subscriber(K.cmd_wheels("r1"), on_command)
         assert killed.wait(60), "no command of tick %d in 60 s:\n%s" % (at_tick, "\n".join(run.lines[-20:]))
         sub.undeclare()
-        run.wait_line(f"module {node} restarted", timeout=30)
+        for n in (node, *also):  # in any order: a line already read while waiting for another is in run.lines
+            if not any(f"module {n} restarted" in line for line in run.lines):
+                run.wait_line(f"module {n} restarted", timeout=30)
         code = run.finish(timeout=120)  # it hung for good before: the world re-publishing the stalled tick
     finally:
         if session is not None:
@@ -294,7 +327,8 @@ def kill_mid_run(tmp_path: Path, name: str, node: str, at_tick: int = 20) -> Lau
         run.kill()
     assert code == 0, "\n".join(run.lines[-30:])
     outcome = run.outcome()
-    assert not outcome["aborted"] and outcome["launcher"]["restarts"] == {node: 1}, outcome["launcher"]
+    assert not outcome["aborted"] and outcome["launcher"]["restarts"] == {n: 1 for n in (node, *also)}, \
+        outcome["launcher"]
     assert outcome["ticks"] > at_tick + 50, outcome["ticks"]  # killed mid-run, not at its end
     return run
 
@@ -310,6 +344,19 @@ def test_lockstep_goes_on_when_a_delayed_inputs_producer_or_reader_restarts_and_
     assert ref["robots"]["r1"]["collisions"] == 0 and ref["robots"]["r1"]["path_length_m"] > 1.0
     assert outcome["robots"] == ref["robots"]  # time, path length, clearance, final distance: bit for bit
     assert outcome["reproducible"]["equals_cekm_run"] is True, outcome["reproducible"]
+
+
+@pytest.mark.slow
+def test_lockstep_goes_on_when_a_delayed_inputs_producer_and_reader_restart_together_and_says_so(tmp_path):
+    """Both killed at once: echo has no copy of the tick before to send again, and drive
+    waited for it for good (the world re-publishing the stalled tick); now drive gives it
+    up once the tick comes again, and the outcome says the run may differ."""
+    run = kill_mid_run(tmp_path, "echo-loop", "r1/drive", 20, "r1/echo")
+    outcome = run.outcome()
+    rep = outcome["reproducible"]
+    assert rep["equals_cekm_run"] is False and rep["stateful_restarts"] == ["r1/drive"], rep
+    assert outcome["launcher"]["nodes"]["r1/drive"]["ran_without"] == ["cekm/r1/loop/echo"]
+    assert any("went without cekm/r1/loop/echo" in line for line in run.lines)
 
 
 @pytest.mark.slow
@@ -348,3 +395,19 @@ def test_real_time_keeps_restarting_a_node_that_keeps_dying(tmp_path):
         run.kill()
     assert code == 0, "\n".join(run.lines[-20:])
     assert run.outcome()["launcher"]["restarts"]["r1/drive"] > SAME_TICK_RESTARTS
+
+
+def test_a_pure_node_of_one_key_sends_again_only_to_readers_with_a_delay():
+    """An obstacle module's last runs may be old (its reading held since t = 0): sent to a
+    restarted motor, which reads them at the same tick (and gets fresh ones from the
+    world's refresh anyway), their stamps set its stamp window in the past, so it dropped
+    the only copies of its delayed inputs and the run waited for good."""
+    from cekm_swarm.graph.check import check_graph
+    from cekm_swarm.graph.spec import graph_for
+    from cekm_swarm.node.process import outputs_readers
+    from cekm_swarm.protocol import DEFAULT_KEYS as K
+
+    plan = check_graph(str(graph_for("cekm", "navigation"))).plan(("r1",), "navigation")
+    obstacle = plan.node("r1", "obstacle-0")
+    assert outputs_readers(plan, obstacle, K) == {K.alive("r1", "motor"): frozenset({K.field_obstacle("r1", 0)})}
+    assert outputs_readers(plan, obstacle, K, delayed_only=True) == {}
