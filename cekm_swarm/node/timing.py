@@ -12,12 +12,9 @@ node in its own process (lockstep and real time) and for a whole graph in one pr
   ``resend(keys)`` gives its recent runs' outputs again, for a reader of them that
   (re)appeared. A delayed value nobody can send again (:func:`lost_on_restart`: its own
   previous output, a world reading of a tick before) is left out of its first run, as
-  before tick 0. So is any other delayed value still missing when a trigger's value of
-  the first run's tick comes again (the world re-publishing the stalled tick, a second
-  or more later): its producer restarted too and has nothing of that tick to send again
-  (two teammates' tracking modules killed together waited for each other's share for
-  good); the gate names those keys (``ran_without``), and the run may no longer equal
-  ``cekm run``.
+  before tick 0. A restarted process (first run after tick 0) gives up any delayed value
+  still missing when its tick's trigger comes again (re-published: the producer restarted
+  too, and its previous life sent it), naming it (``ran_without``).
 * :class:`RealtimeGate`: a node runs at its newest due tick as soon as every live
   same-tick producer has delivered (or at once, with what came, when a later tick
   begins), with the latest value of each source; a value older than its staleness limit
@@ -159,9 +156,11 @@ class LockstepGate:
         self._waiting: dict[int, tuple[str, int, str]] = {}  # candidate tick -> a value it still lacks
         self.lost_keys = lost_on_restart(self.node)
         self.born: int | None = None  # the tick of this process's first run
-        self._first_seen: dict[str, set[int]] = {}  # before the first run: trigger key -> ticks whose value came
-        self.gave_up_at: int | None = None  # a trigger's value of this tick came again before the first run
-        self.ran_without: tuple[str, ...] = ()  # delayed keys the first run went without, having given up
+        self._first_seen: dict[str, set[int]] = {}  # a restarted process: trigger key -> ticks whose value came
+        self.gave_up_at: int | None = None  # the latest tick whose trigger's value came again while it waited
+        self._without: set[str] = set()  # delayed keys a run went without, having given up
+
+    ran_without = property(lambda self: tuple(sorted(self._without)), doc="delayed keys given up (module docstring)")
 
     def _lost(self, key: str, n: int) -> bool:
         """Whether ``key``'s value of tick ``n`` predates this process's first run and nobody
@@ -238,10 +237,10 @@ class LockstepGate:
         if k <= self.done and key in self.used and self.used[key] == k:
             self.repeats += 1
             return list(self.last_out)  # a value again for what the last run used: send that run again
-        if self.born is None and key in self.trigger and self.gave_up_at is None:
+        if key in self.trigger and k > self.done and (self.born is None or self.born > 0):
             seen = self._first_seen.setdefault(key, set())
-            if k in seen:  # this tick again before any run: re-published, what it waits for is not coming
-                self.gave_up_at = k
+            if k in seen and (self.gave_up_at is None or k > self.gave_up_at):
+                self.gave_up_at = k  # this tick again, re-published: what a restarted process lacks is not coming
             seen.add(k)
         if key in self.watched and self.done >= 0:
             source, delay = self.sources[key]
@@ -289,16 +288,18 @@ class LockstepGate:
             if ready is None:
                 return out
             c, inputs = ready
-            if self.born is None and self.gave_up_at is not None:
-                self.ran_without = tuple(sorted(
+            if self.gave_up_at is not None:
+                self._without.update(
                     key for key, (s, d) in self.sources.items()
                     if d == 1 and key not in self.lost_keys and s.owner not in self.gone
-                    and (n := needed_tick(c, s.period, 1)) is not None and n not in self.store.get(key, ())))
+                    and (n := needed_tick(c, s.period, 1)) is not None and n < self.gave_up_at
+                    and n not in self.store.get(key, ()))
             sent = self.runner.run(c, inputs)
             self.done = c
             if self.born is None:
                 self.born = c
-                self._first_seen.clear()
+            if self._first_seen:
+                self._first_seen = {key: {x for x in seen if x > c} for key, seen in self._first_seen.items()}
             self.last_out = sent
             self.recent_out.append(sent)
             self.used = {key: n for key, (src, delay) in self.sources.items()

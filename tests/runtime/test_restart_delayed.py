@@ -257,6 +257,28 @@ def test_a_restarted_node_gives_up_a_delayed_value_whose_producer_restarted_too(
     assert [m.stamp for _, m in normal.put(*target(0))] == [0.0] and normal.ran_without == ()
 
 
+def test_a_restarted_node_gives_up_at_a_later_tick_too_and_a_node_started_at_tick_0_never_does(tmp_path):
+    """Restarts in waves: a restarted node's second run may need a value its producer's
+    previous life sent before this node came back; a process that started with the run
+    waits as always, however often a tick comes again."""
+    from cekm_swarm.protocol import DEFAULT_KEYS as K
+    from cekm_swarm.protocol import WheelCommand
+    from cekm_swarm.ticks import tick_time
+
+    echo_key = K.node_key("r1", "loop/echo")
+    plan = plan_of(tmp_path, "echo-loop")
+    fresh = gate_of(plan, "drive")
+    assert fresh.put(*target(40)) == []
+    fresh.put(echo_key, WheelCommand(tick_time(39), "r1/echo", 0.01, 0.01, 0))  # the catch-up came: no give-up
+    assert fresh.born == 40 and fresh.ran_without == ()
+    assert fresh.put(*target(41)) == []  # echo's copy of 40 was sent by echo's previous life
+    (late,) = fresh.put(*target(41))  # tick 41 re-published: not coming
+    assert late[1].stamp == pytest.approx(41 * 0.128) and fresh.ran_without == (echo_key,)
+    original = gate_of(plan, "drive")
+    original.put(*target(0))
+    assert original.put(*target(1)) == [] and original.put(*target(1)) == [] and original.ran_without == ()
+
+
 def test_a_run_whose_node_went_without_a_value_does_not_claim_to_equal_cekm_run():
     from types import SimpleNamespace
 
