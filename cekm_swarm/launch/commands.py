@@ -224,6 +224,8 @@ def outcome_summary(outcome: dict) -> list[str]:
     if cpu.get("total_ms_per_tick") is not None:
         split = ", ".join(f"{k} {v:.1f}" for k, v in cpu.get("ms_per_tick", {}).items())
         line = f"CPU per tick: {cpu['total_ms_per_tick']:.1f} ms ({split})"
+        if cpu.get("not_counted"):
+            line += f"; {cpu['not_counted']} process lives not counted (restarts: begun or ended mid-run)"
         steal = cpu.get("host", {}).get("steal")
         if steal is not None:
             line += f"; the host stole {100 * steal:.0f} % of this machine's time meanwhile"

@@ -127,7 +127,8 @@ def cpu_per_tick(start: CpuSnapshot, end: CpuSnapshot, ticks: int, robots: int) 
     """Milliseconds of CPU per tick by kind of process, between two snapshots: the
     processes present in both (same pid), summed over robots; also the total per tick and
     per robot-tick, the processes of each kind and the CPU per process of each kind per tick,
-    and the machine's idle and stolen shares meanwhile (:func:`host_shares`).
+    the process lives left out (``not_counted``: begun or ended between the snapshots, a
+    restart's two lives), and the machine's idle and stolen shares meanwhile (:func:`host_shares`).
     Empty when nothing could be read or no tick passed."""
     if ticks <= 0:
         return {}
@@ -149,4 +150,5 @@ def cpu_per_tick(start: CpuSnapshot, end: CpuSnapshot, ticks: int, robots: int) 
             "ms_per_process_tick": {k: round(1000 * by_kind[k] / ticks / count[k], 4) for k in sorted(count)},
             "total_ms_per_tick": round(1000 * total / ticks, 3),
             "ms_per_robot_tick": round(1000 * total / ticks / max(1, robots), 3),
+            "not_counted": len(set(start.seconds) ^ set(end.seconds)),  # a process's life begun or ended between
             "host": host_shares(start.host, end.host)}

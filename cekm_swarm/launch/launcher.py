@@ -169,7 +169,8 @@ class Launcher(Supervision, WorldHost, RobotHost):
                 await self._bring_up(scenario, robots, model, checkpoints, endpoint)
             finally:
                 await self._teardown()
-            if self.failure is not None:
+            if self.failure is not None:  # the world's outcome (if any) still gets the launcher's record
+                self._finish_outcome(failure=str(self.failure))
                 raise NodeCannotStart(self.failure)
             outcome = self._finish_outcome()
             self._plot(scenario, outcome)
@@ -431,8 +432,9 @@ class Launcher(Supervision, WorldHost, RobotHost):
             except asyncio.TimeoutError:
                 self.world_proc.kill()
 
-    def _finish_outcome(self) -> dict[str, Any]:
-        """The world's ``outcome.json`` with the launcher's record added ({} without one)."""
+    def _finish_outcome(self, failure: str | None = None) -> dict[str, Any]:
+        """The world's ``outcome.json`` with the launcher's record added ({} without one);
+        ``failure``: the node failure that ended the launch."""
         outcome_path = self.c.out / "outcome.json"
         try:
             outcome = json.loads(outcome_path.read_text())
@@ -443,7 +445,7 @@ class Launcher(Supervision, WorldHost, RobotHost):
             "modules": len(self.children), "interrupted": self.interrupted,
             "restarts": {ch.label: ch.restarts for ch in self.children.values() if ch.restarts},
             "exits": {ch.label: ch.exits for ch in self.children.values() if ch.exits},
-            "startup_s": self.startup_s}
+            "startup_s": self.startup_s, **({"failure": failure} if failure else {})}
         summaries = {label: node_summary(read_reports(ch.log_path)) for label, ch in self.children.items()}
         for line in summary_lines(summaries, {label: ch.log_path for label, ch in self.children.items()}):
             self.say(line)

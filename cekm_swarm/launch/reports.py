@@ -93,7 +93,7 @@ def summary_lines(summaries: dict[str, dict[str, Any]], logs: dict[str, Path]) -
         if s["dropped"]:
             parts.append(f"{s['dropped']} message{'s' if s['dropped'] != 1 else ''} dropped")
         if s.get("ran_without"):
-            parts.append(f"its first run after a restart went without {', '.join(s['ran_without'])} of the tick "
+            parts.append(f"a run after its restart went without {', '.join(s['ran_without'])} of the tick "
                          f"before (its producer restarted too)")
         where = f" (see {logs[label]})" if label in logs else ""
         lines.append(f"node {label}: " + ", ".join(parts) + where)

@@ -387,7 +387,8 @@ def main(argv: list[str] | None = None) -> int:
         runner.node.close()
     report = shell.report()
     if shell.drops.total:
-        log.warning("%s: %d malformed messages dropped: %s", label, shell.drops.total,
+        log.warning("%s: %d messages dropped (malformed, a stamp out of its window, or a value no run reads; "
+                    "the first of each source says why): %s", label, shell.drops.total,
                     "; ".join(f"{r.source} x{r.count}" for r in shell.drops.records()))
     if shell.step_failures:
         log.warning("%s: %d runs failed: %s", label, sum(shell.step_failures.values()),

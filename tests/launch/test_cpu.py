@@ -39,6 +39,7 @@ def test_cpu_per_tick_sums_kinds_over_robots_and_skips_restarted_processes():
     assert doc["total_ms_per_tick"] == 160.0 and doc["ms_per_robot_tick"] == 80.0
     assert doc["processes"] == {"launcher": 1, "obstacle": 2, "world": 1}
     assert doc["ms_per_process_tick"] == {"launcher": 10.0, "obstacle": 25.0, "world": 100.0}
+    assert doc["not_counted"] == 2  # the motor's two lives, said beside the split
     assert doc["host"] == {}  # the made-up snapshots carry no machine reading
     assert cpu_per_tick(start, end, ticks=0, robots=2) == {}
 

@@ -22,7 +22,7 @@ def test_lockstep_robots_latency_and_no_deadline_line():
 
 
 def test_real_time_misses_their_ticks_cpu_and_the_hosts_steal():
-    cpu = {"total_ms_per_tick": 18.64, "ms_per_tick": {"world": 7.7, "obstacle": 6.7},
+    cpu = {"total_ms_per_tick": 18.64, "ms_per_tick": {"world": 7.7, "obstacle": 6.7}, "not_counted": 2,
            "host": {"idle": 0.2, "steal": 0.31}}
     doc = _outcome(mode="realtime", deadline_misses=12, first_tick_ms=171.2,
                    deadline_miss_ticks={str(k): 1 for k in (30, 4, 5, 6, 7, 8, 9, 10, 11, 12)},
@@ -32,8 +32,9 @@ def test_real_time_misses_their_ticks_cpu_and_the_hosts_steal():
     assert miss.startswith("deadline misses: 12 of 200 robot-ticks, in 10 ticks (4, 5, 6, 7, 8, 9, 10, 11, ...)")
     assert "tick 0 answered after 171 ms" in miss
     cpu_line = next(x for x in lines if x.startswith("CPU per tick"))
-    assert cpu_line == ("CPU per tick: 18.6 ms (world 7.7, obstacle 6.7); the host stole 31 % of this machine's "
-                        "time meanwhile (timings are slower for it)")
+    assert cpu_line == ("CPU per tick: 18.6 ms (world 7.7, obstacle 6.7); 2 process lives not counted (restarts: "
+                        "begun or ended mid-run); the host stole 31 % of this machine's time meanwhile (timings are "
+                        "slower for it)")
     assert lines[-1] == "restarts: {'r1/motor': 1}"
 
 

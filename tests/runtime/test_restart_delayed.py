@@ -404,6 +404,10 @@ def test_lockstep_ends_when_a_node_keeps_dying_at_the_same_tick(tmp_path):
     assert "in lockstep the run cannot go on without its outputs" in last
     restarts = sum("module r1/drive restarted" in line for line in run.lines)
     assert SAME_TICK_RESTARTS <= restarts <= SAME_TICK_RESTARTS + 2, "\n".join(run.lines[-20:])
+    outcome = run.outcome()  # the launcher's record is in the outcome of a launch a node ended too
+    assert outcome["launcher"]["restarts"]["r1/drive"] == restarts
+    assert outcome["launcher"]["failure"].startswith("r1/drive: died (exit code 3)")
+    assert outcome["reproducible"]["equals_cekm_run"] is False and outcome["reproducible"]["aborted"] is True
 
 
 @pytest.mark.slow
