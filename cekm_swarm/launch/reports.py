@@ -107,14 +107,15 @@ def reproducible(children: Iterable[Any], aborted: bool,
     its own previous outputs, or a world reading of the tick before, which nobody sends
     again: ``node.timing.lost_on_restart``; or a delayed value whose producer restarted
     too: ``ran_without`` in its summary), nor when the run was stopped before its end."""
-    without = {label for label, s in (summaries or {}).items() if s.get("ran_without")}
-    lost = sorted({ch.label for ch in children if ch.restarts and ch.stateful} | without)
+    without = sorted(label for label, s in (summaries or {}).items() if s.get("ran_without"))
+    lost = sorted(ch.label for ch in children if ch.restarts and ch.stateful)
     whys = []
     if aborted:
         whys.append("the run was stopped before its end, so it is not the whole run cekm run makes")
     if lost:
-        whys.append("a node that keeps state across ticks (or reads its own previous outputs, or a delayed value "
-                    "whose producer restarted too) restarted without it, so what it computed after its restart may "
-                    "differ from cekm run")
-    return {"equals_cekm_run": not whys, "stateful_restarts": lost, "aborted": aborted,
+        whys.append("a node that keeps state across ticks (or reads its own previous outputs) restarted without "
+                    "it, so what it computed after its restart may differ from cekm run")
+    if without:
+        whys.append("a restarted node ran without a delayed value whose producer restarted too (went_without)")
+    return {"equals_cekm_run": not whys, "stateful_restarts": lost, "went_without": without, "aborted": aborted,
             "why": "; ".join(whys) or "every restarted node keeps no state across ticks"}
