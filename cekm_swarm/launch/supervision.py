@@ -116,6 +116,11 @@ class Supervision:
     async def _spawn(self, child: Child) -> None:
         await self._await_fork_server()
         env = child_env()
+        if self.fork_server is not None and not self.fork_server.alive and not self.stopping:
+            gone, self.fork_server = self.fork_server, None  # said once
+            self.say(f"the fork server (pid {gone.pid}) is gone: the nodes it forked died with it "
+                     f"(signal 15), and every node starts afresh from now on")
+            await gone.close()
         if self.fork_server is not None and self.fork_server.alive:
             try:
                 child.proc = await self.fork_server.spawn(child.argv, child.log_path, env)

@@ -129,3 +129,34 @@ def test_children_die_with_the_fork_server(tmp_path, child_module):
     while any(alive(p) for p in pids) and time.monotonic() < deadline:
         time.sleep(0.02)
     assert not any(alive(p) for p in pids)
+
+
+def test_a_gone_fork_server_is_said_once_and_nodes_start_afresh(tmp_path):
+    """The fork server killed mid-run takes its forked nodes with it (signal 15): the
+    launcher says so once, and starts every node afresh from then on."""
+    from types import SimpleNamespace
+
+    from cekm_swarm.launch.launcher import LaunchConfig, Launcher
+    from cekm_swarm.launch.supervision import Child
+
+    said: list[str] = []
+    launcher = Launcher(LaunchConfig("lone_obstacle", tmp_path), echo=said.append)
+    closed = []
+
+    async def close() -> None:
+        closed.append(True)
+
+    launcher.fork_server = SimpleNamespace(alive=False, pid=4242, close=close)
+
+    async def scenario() -> list[int]:
+        codes = []
+        for i in range(2):
+            child = Child("r1", f"n{i}", [sys.executable, "-c", "pass"], tmp_path / f"n{i}.log")
+            await launcher._spawn(child)
+            codes.append(await child.proc.wait())
+        return codes
+
+    assert asyncio.run(scenario()) == [0, 0]  # both started afresh
+    gone = [s for s in said if "fork server (pid 4242) is gone" in s]
+    assert len(gone) == 1 and "starts afresh" in gone[0] and closed == [True]
+    assert launcher.fork_server is None
