@@ -15,7 +15,7 @@ from cekm_swarm.graph.check import CheckedGraph
 from cekm_swarm.graph.plan import RunPlan
 from cekm_swarm.graph.runspec import RunSpec
 from cekm_swarm.graph.spec import GraphError
-from cekm_swarm.node.api import Context, NodeError
+from cekm_swarm.node.api import Context, cannot_start
 from cekm_swarm.protocol import KeySpace
 from cekm_swarm.robot import RobotBody
 
@@ -61,12 +61,8 @@ def preflight(checked: CheckedGraph, plan: RunPlan, body: RobotBody, model: Any)
                       logging.getLogger(f"cekm_swarm.node.{name}"))
         try:
             checked.classes[name](ctx, checked.make_params(name)).close()
-        except NodeError as exc:
-            raise PreflightError(str(exc)) from None
-        except (CekmError, ValueError) as exc:
-            raise PreflightError(f"{node.label}: {exc}") from None
         except Exception as exc:  # noqa: BLE001 - a user's node may fail in any way while starting
-            raise PreflightError(f"{node.label}: cannot start: {type(exc).__name__}: {exc}") from None
+            raise PreflightError(cannot_start(node.label, exc)) from None
 
 
 def run_spec(checked: CheckedGraph, team: tuple[str, ...], task: str, body: RobotBody, **settings: Any) -> RunSpec:

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 from cekm_swarm.controller.cooperative import ObstacleActivity, TargetActivity
 from cekm_swarm.node import In, Node, Out
 from cekm_swarm.protocol import ObstacleField, TargetField, WheelCommand
-from cekm_swarm.protocol.checks import lattice_misfit as field_misfit  # the one check, readers' and producers'
+from cekm_swarm.protocol.checks import lattice_misfit
 from cekm_swarm.ticks import tick_of
 
 from .ekm import cooperative_ekm
@@ -49,7 +49,7 @@ class MotorIntegration(Node):
         self.ekm = cooperative_ekm(self.ctx, None, self.params.allow_reverse, self.params.reverse_min_d)
 
     def check_input(self, port, msg):
-        return field_misfit(msg, self.ekm.n)
+        return lattice_misfit(msg, self.ekm.n)
 
     def step(self, t, inputs):
         out = self.ekm.integrate(target_activity(inputs["target"]), inputs["obstacles"].values())  # Eqs. 9-11

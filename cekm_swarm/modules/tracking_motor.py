@@ -7,9 +7,9 @@ from __future__ import annotations
 from cekm_swarm.models.params import TrackingParams
 from cekm_swarm.node import In, Node, Out
 from cekm_swarm.protocol import ObstacleField, TrackingField, WheelCommand
+from cekm_swarm.protocol.checks import lattice_misfit
 from cekm_swarm.ticks import tick_of
 
-from .motor_integration import field_misfit
 from .tracking_localization import tracking_activity, tracking_ekm
 
 
@@ -26,7 +26,7 @@ class TrackingMotor(Node):
         self.tekm = tracking_ekm(self.ctx, TrackingParams())
 
     def check_input(self, port, msg):
-        return field_misfit(msg, self.tekm.ekm.n)
+        return lattice_misfit(msg, self.tekm.ekm.n)
 
     def step(self, t, inputs):
         f = inputs["tracking"]

@@ -223,10 +223,6 @@ def start_node(cls: type["Node"], ctx: Context, params: Any = None) -> "Node":
     (:func:`cannot_start`) when that fails."""
     try:
         return cls(ctx, params)
-    except NodeError as exc:
-        if str(exc).startswith(f"{ctx.sender}:"):
-            raise
-        raise NodeError(cannot_start(ctx.sender, exc)) from exc
     except Exception as exc:  # noqa: BLE001 - a user's node (its own __init__) may fail in any way
         raise NodeError(cannot_start(ctx.sender, exc)) from exc
 

@@ -40,7 +40,7 @@ from cekm_swarm.graph.runspec import RunSpec
 from cekm_swarm.protocol import DropCounter, KeyKind
 from cekm_swarm.protocol.stamps import ANY_STAMP, StampWindow
 
-from .api import Context, NodeError, make_params
+from .api import Context, NodeError, make_params, start_node
 from .direct_gate import DirectGate
 from .runner import Runner
 from .timing import LockstepGate, RealtimeGate, tick_of
@@ -78,7 +78,7 @@ def build_node(spec: RunSpec, plan: RunPlan, robot: str, name: str, backend: str
     ctx = Context(robot, decl.name, node_plan.instance, spec.team, spec.body, spec.mode,
                   model_source if model_source is not None else spec.model, backend,
                   logging.getLogger(f"cekm_swarm.node.{decl.name}"))
-    return node_plan, Runner(node_plan, cls(ctx, params))
+    return node_plan, Runner(node_plan, start_node(cls, ctx, params))
 
 
 def stamp_window(plan: RunPlan, node_plan: NodePlan) -> StampWindow:
