@@ -149,7 +149,7 @@ class Supervision:
                 self.say(f"node {child.label} failed: {self.failure}; the launch ends")
                 self._interrupt_for_failure()
                 return
-            if self.c.mode == "lockstep" and self.c.world and self.session is not None:
+            if self.c.mode == "lockstep" and self.session is not None:  # a robots-only host reads the clock too
                 self.supervisors.append(asyncio.ensure_future(self._judge_death(child, code)))
             up = time.monotonic() - child.started
             if up >= HEALTHY_AFTER:

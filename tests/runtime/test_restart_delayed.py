@@ -437,3 +437,26 @@ def test_a_pure_node_of_one_key_sends_again_only_to_readers_with_a_delay():
     obstacle = plan.node("r1", "obstacle-0")
     assert outputs_readers(plan, obstacle, K) == {K.alive("r1", "motor"): frozenset({K.field_obstacle("r1", 0)})}
     assert outputs_readers(plan, obstacle, K, delayed_only=True) == {}
+
+
+@pytest.mark.slow
+def test_a_robots_only_host_ends_too_when_its_node_keeps_dying_at_the_same_tick(tmp_path):
+    """The host that runs r1's nodes without the world reads the world's clock through the
+    router, as the world's launcher does; it restarted such a node forever before."""
+    from cekm_swarm.launch.supervision import SAME_TICK_RESTARTS
+
+    g = graph(tmp_path, "exits")
+    world = launch(tmp_path, g, "world-host", "--mode", "lockstep", "--max-time", "20", "--robots", "none")
+    robots = None
+    try:
+        world.wait_line("hosts the embedded Zenoh router", timeout=60)
+        robots = launch(tmp_path, g, "robot-host", "--mode", "lockstep", "--max-time", "20", "--robots", "r1",
+                        "--no-world", "--connect", f"tcp/127.0.0.1:{world.port}")
+        code = robots.finish(timeout=120)
+    finally:
+        world.kill()
+        if robots is not None:
+            robots.kill()
+    assert code == 2, "\n".join(robots.lines[-20:])
+    assert robots.lines[-1].startswith("cekm: error: r1/drive: died (exit code 3) at t=0.512 s (tick 4), and again "
+                                       f"after each of {SAME_TICK_RESTARTS} restarts"), robots.lines[-1]
