@@ -189,6 +189,33 @@ def test_a_scenario_neither_for_tracking_nor_for_navigation_is_refused_by_robot(
     assert not (tmp_path / "out").exists()
 
 
+UNBOUNDED = """
+name = "unbounded"
+[arena]
+bounds = [0.0, 0.0, 2.0, 2.0]
+[[robots]]
+id = "a"
+start = [0.5, 0.5, 0.0]
+[[targets]]
+id = "t1"
+position = [1.0, 1.5]
+"""
+
+
+@pytest.mark.parametrize("command", ["run", "launch"])
+def test_a_tracking_scenario_with_no_target_range_is_refused_by_field_before_anything_is_written(capsys, tmp_path,
+                                                                                                 command):
+    """target_range defaults to inf, which tracking cannot use (every target always seen):
+    one line naming the file and the field, from both entry points, and no --out made."""
+    scenario = tmp_path / "unbounded.toml"
+    scenario.write_text(UNBOUNDED)
+    line = one_error_line(capsys, [command, str(scenario), "--out", str(tmp_path / "out")])
+    assert line.startswith(f"cekm: error: {scenario}: sensors.target_range: a tracking scenario (no robot has a goal) "
+                           "needs a finite target sensing range, got inf (the default when [sensors] leaves it out); "
+                           "e.g. target_range = 0.5"), line
+    assert not (tmp_path / "out").exists()
+
+
 def test_a_non_empty_out_directory_is_refused_and_left_alone(capsys, tmp_path):
     out = tmp_path / "out"
     out.mkdir()

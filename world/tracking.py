@@ -40,9 +40,14 @@ def run_kind(scenario: Any, checkpoints: Any = ()) -> str:
     """``"tracking"`` or ``"navigation"``: what a run of ``scenario`` is. Raises
     :class:`ScenarioError`, naming the file and the robot, for a scenario that is neither,
     so that it is refused before anything starts: robots with goals beside robots without
-    (with targets), or a navigation robot with no goal (and no checkpoints, whose ids are
-    ``checkpoints``' keys)."""
+    (with targets), a navigation robot with no goal (and no checkpoints, whose ids are
+    ``checkpoints``' keys), or a tracking scenario whose robots sense targets at any
+    distance (every target always observed: Parker's A is 1 whatever the robots do)."""
     if is_tracking(scenario):
+        if not math.isfinite(scenario.target_range):
+            raise ScenarioError(f"{scenario.source}: sensors.target_range: a tracking scenario (no robot has a goal) "
+                                f"needs a finite target sensing range, got {scenario.target_range} (the default when "
+                                f"[sensors] leaves it out); e.g. target_range = 0.5")
         return "tracking"
     for i, r in enumerate(scenario.robots):
         if r.goal is None and r.id not in checkpoints:

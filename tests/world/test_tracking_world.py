@@ -20,7 +20,7 @@ def test_run_kind_refuses_a_scenario_that_is_neither_naming_the_robot():
         ["tracking", "tracking", "navigation", "navigation"]
 
     def scenario(goals: dict[str, str | None], targets: bool = True):
-        return parse_scenario({"name": "s", "arena": {"bounds": [0.0, 0.0, 2.0, 2.0]},
+        return parse_scenario({"name": "s", "arena": {"bounds": [0.0, 0.0, 2.0, 2.0]}, "sensors": {"target_range": 0.5},
                                "robots": [{"id": r, "start": [0.5 + 0.5 * i, 0.5, 0.0]} | ({"goal": g} if g else {})
                                           for i, (r, g) in enumerate(goals.items())],
                                "targets": [{"id": "t1", "position": [1.0, 1.5]}] if targets else []}, source="s.toml")
@@ -33,6 +33,16 @@ def test_run_kind_refuses_a_scenario_that_is_neither_naming_the_robot():
                                             "targets"):
         run_kind(scenario({"a": None, "b": None}, targets=False), checkpoints={"a": [[1.0, 1.0]]})
     assert run_kind(scenario({"a": "t1", "b": None}), checkpoints={"b": [[1.0, 1.0]]}) == "navigation"
+
+
+def test_run_kind_refuses_a_tracking_scenario_whose_robots_see_every_target():
+    doc = {"name": "s", "arena": {"bounds": [0.0, 0.0, 2.0, 2.0]}, "robots": [{"id": "a", "start": [0.5, 0.5, 0.0]}],
+           "targets": [{"id": "t1", "position": [1.0, 1.5]}]}
+    with pytest.raises(ScenarioError, match=r"^s.toml: sensors.target_range: a tracking scenario .* needs a finite"):
+        run_kind(parse_scenario(doc, source="s.toml"))
+    assert run_kind(parse_scenario(doc | {"sensors": {"target_range": 0.5}}, source="s.toml")) == "tracking"
+    doc["robots"][0]["goal"] = "t1"  # navigation needs no target range
+    assert run_kind(parse_scenario(doc, source="s.toml")) == "navigation"
 
 
 def test_sense_messages_hold_the_pose_and_exactly_the_targets_in_range():
