@@ -189,7 +189,19 @@ def draw_paths(ax: Axes, paths: Mapping[str, tuple[Sequence[float], Sequence[flo
             if math.hypot(x - xs[-1], y - ys[-1]) < 0.02:
                 continue  # not on the final pose's goal star
             ax.annotate(f"{t:g}", (x, y), xytext=(3, 3), textcoords="offset points", fontsize=6, color=col, zorder=7)
+    widen_to(ax, [x for _, xs, _ in paths.values() for x in xs], [y for _, _, ys in paths.values() for y in ys])
     return step
+
+
+def widen_to(ax: Axes, xs: Sequence[float], ys: Sequence[float], pad: float = 0.1) -> None:
+    """Widen the axes' limits, where they do not reach, to every point (plus ``pad`` m):
+    a robot that left an arena without boundary walls stays on the picture."""
+    if not len(xs):
+        return
+    x0, x1 = ax.get_xlim()
+    y0, y1 = ax.get_ylim()
+    ax.set_xlim(min(x0, min(xs) - pad), max(x1, max(xs) + pad))
+    ax.set_ylim(min(y0, min(ys) - pad), max(y1, max(ys) + pad))
 
 
 def draw_tracking(ax: Axes, paths: Mapping[str, tuple[Sequence[float], Sequence[float]]],
@@ -256,11 +268,17 @@ def fit_bounds(ax: Axes, geometry: Mapping[str, Any] | None, points: Sequence[Se
         y0, y1 = ax.get_ylim()
         return x0, x1, y0, y1
     x0, x1, y0, y1 = min(xs) - margin, max(xs) + margin, min(ys) - margin, max(ys) + margin
-    if geometry is not None:
+    if geometry is not None and points:  # the arena clips the content, never the paths (no boundary walls: robots leave)
         bx0, by0, bx1, by1 = geometry["bounds"]
         wall = max((w["thickness"] for w in geometry.get("walls", [])), default=0.0) + 0.02
-        x0, x1 = max(x0, bx0 - wall), min(x1, bx1 + wall)
-        y0, y1 = max(y0, by0 - wall), min(y1, by1 + wall)
+        px = [float(p[0]) for p in points]
+        py = [float(p[1]) for p in points]
+        lo_x, hi_x = bx0 - wall, bx1 + wall
+        lo_y, hi_y = by0 - wall, by1 + wall
+        x0 = max(x0, lo_x if min(px) >= lo_x else min(px) - margin)
+        x1 = min(x1, hi_x if max(px) <= hi_x else max(px) + margin)
+        y0 = max(y0, lo_y if min(py) >= lo_y else min(py) - margin)
+        y1 = min(y1, hi_y if max(py) <= hi_y else max(py) + margin)
     ax.set_xlim(x0, x1)
     ax.set_ylim(y0, y1)
     ax.set_aspect("equal")

@@ -19,7 +19,7 @@ def plot_tracking(run: TrackingRun, ax=None, title: str | None = None, instants:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from world.draw import draw_paths, draw_tracking, draw_world, legend_outside, robot_colours
+    from world.draw import draw_paths, draw_tracking, draw_world, legend_outside, robot_colours, widen_to
 
     own = ax is None
     if own:
@@ -35,6 +35,7 @@ def plot_tracking(run: TrackingRun, ax=None, title: str | None = None, instants:
     bx0, by0, bx1, by1 = run.geometry["bounds"]
     ax.set_xlim(bx0 - 0.05, bx1 + 0.05)
     ax.set_ylim(by0 - 0.05, by1 + 0.05)
+    widen_to(ax, [q[1] for p in run.paths.values() for q in p], [q[2] for p in run.paths.values() for q in p])
     ax.set_aspect("equal")
     ax.set_title(title or f"{run.scenario}: {run.controller}, seed {run.seed}, A = {run.tracking['A']:.3f}",
                  fontsize=9)

@@ -81,6 +81,18 @@ def test_limits_fit_the_content_with_a_small_margin():
     assert x0 == pytest.approx(-0.04) and x1 == pytest.approx(4.04)
     w, h = figure_size(x0, x1, y0, y1)
     assert 5 < w < 9 and h == 5.5
+    # a robot that left an arena without boundary walls: the limits follow it out
+    x0, x1, y0, y1 = fit_bounds(ax, geometry | {"walls": []}, [(1.0, 1.0), (5.3, 1.9)], margin=0.1)
+    assert x1 == pytest.approx(5.4) and x0 == pytest.approx(0.8)  # the disc at 0.9, plus the margin
+    plt.close(fig)
+
+
+def test_draw_paths_widens_the_limits_to_a_path_that_leaves_them():
+    fig, ax = plt.subplots()
+    ax.set_xlim(0.0, 4.0)
+    ax.set_ylim(0.0, 4.0)  # the arena, as draw_world sets it
+    draw_paths(ax, {"a": ([0.0, 1.0, 2.0], [1.0, 3.0, 5.25], [1.0, 1.0, 1.5])}, robot_colours(["a"]))
+    assert ax.get_xlim() == pytest.approx((0.0, 5.35)) and ax.get_ylim() == pytest.approx((0.0, 4.0))
     plt.close(fig)
 
 
