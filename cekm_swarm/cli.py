@@ -11,6 +11,7 @@ import click
 from .cli_support import (
     SEED,
     Finite,
+    ScenarioFileError,
     out_dir_options,
     prepare_figure_file,
     prepare_out_dir,
@@ -253,7 +254,7 @@ def _load_scenario(name: str):
     try:
         return load_scenario(name)
     except ScenarioError as exc:
-        raise click.UsageError(str(exc)) from None
+        raise ScenarioFileError(str(exc)) from None
 
 
 def _run_kind(scenario) -> str:
@@ -264,7 +265,7 @@ def _run_kind(scenario) -> str:
     try:
         return run_kind(scenario)
     except ScenarioError as exc:
-        raise click.UsageError(str(exc)) from None
+        raise ScenarioFileError(str(exc)) from None
 
 
 def _check_seeds(seeds) -> None:

@@ -235,6 +235,13 @@ class RunFailed(click.ClickException):
     exit_code = EXIT_FAILED
 
 
+class ScenarioFileError(click.ClickException):
+    """A scenario file refused (exit 2): its own line names the file, the field and the
+    problem; no pointer to a command's --help, which does not describe the file format."""
+
+    exit_code = EXIT_USAGE
+
+
 class Interrupted(click.ClickException):
     """The user stopped the command (Ctrl-C): exit 130, after what it could save was saved."""
 

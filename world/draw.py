@@ -289,6 +289,9 @@ def legend_outside(ax: Axes, title: str | None = None, time_step: float | None =
     """The legend to the right of the axes (never over the arena); with ``time_step`` an
     entry says what the dots mean."""
     handles, labels = ax.get_legend_handles_labels()
+    if len(handles) > LEGEND_ROWS:  # a large team: one entry, not a list no figure can hold
+        handles = [ax.plot([], [], "-", color="0.4", lw=1.3)[0]]
+        labels = [f"{len(labels)} robots' paths"]
     if time_step is not None:
         h = ax.plot([], [], "o", color="0.4", ms=3.5, linestyle="none")[0]
         handles.append(h)
@@ -297,6 +300,11 @@ def legend_outside(ax: Axes, title: str | None = None, time_step: float | None =
         return None
     return ax.legend(handles, labels, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, fontsize=7,
                      title=title, title_fontsize=7, frameon=False)
+
+
+LEGEND_ROWS = 30
+"""The most robots the legend names one by one: a figure 5.5 inches high holds about 40
+entries at font size 7; a larger team gets one entry for all its paths."""
 
 
 def figure_size(x0: float, x1: float, y0: float, y1: float, height: float = 5.5,

@@ -43,7 +43,7 @@ class Parser:
             self.fail(path, f"must be a table, got {_tname(v)}")
         for k in v:
             if k not in required and k not in optional:
-                allowed = ", ".join(sorted(required + optional))
+                allowed = ", ".join(sorted(set(required + optional)))
                 self.fail(_join(path, k), f"unknown key (allowed here: {allowed})")
         for k in required:
             if k not in v:
@@ -399,7 +399,8 @@ class Parser:
                 self.fail(
                     f"robots[{i}].start",
                     f"robot body (radius {r} m) at ({x}, {y}) overlaps {hit[1]} "
-                    f"(distance from centre {hit[0]:.4f} m)",
+                    + (f"(its centre is {-hit[0]:.4f} m inside it)" if hit[0] < 0 else
+                       f"(its centre is {hit[0]:.4f} m from its surface, less than the radius)"),
                 )
             for j in range(i):
                 o = sc.robots[j]

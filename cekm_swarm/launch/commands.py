@@ -19,6 +19,7 @@ from cekm_swarm.cli_support import (
     Interrupted,
     RobotIds,
     RunFailed,
+    ScenarioFileError,
     out_dir_options,
     prepare_figure_file,
     prepare_out_dir,
@@ -107,7 +108,7 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwr
         sc = load_scenario(scenario)
         run_kind(sc)  # a tracking or a navigation scenario, or refused here
     except ScenarioError as exc:
-        raise click.UsageError(str(exc)) from None
+        raise ScenarioFileError(str(exc)) from None
     # a tracking scenario (docs/tracking.md) runs the tracking target module per robot, controller cekm
     known = [r.id for r in sc.robots]
     only = robots  # None: every robot; (): none ('none', a world-only host)

@@ -38,7 +38,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from cekm_swarm.node.timing import lost_on_restart
 from cekm_swarm.protocol import DEFAULT_ROOT, KeySpace
 from cekm_swarm.runtime.bridge import LivelinessWatcher
 from cekm_swarm.runtime.config import DEFAULT_HOST, DEFAULT_PORT, open_embedded_router
@@ -50,7 +49,7 @@ from cekm_swarm.ticks import tick_of
 from .cpu import CpuSnapshot, cpu_per_tick
 from .errors import LaunchError, NodeCannotStart
 from .plot import draw_trajectory
-from .processes import new_run_id, node_argv
+from .processes import new_run_id
 from .reports import missing_by_robot, node_summary, notable, read_reports, reproducible, summary_lines
 from .robot_host import RobotHost
 from .supervision import Child, Supervision
@@ -356,22 +355,7 @@ class Launcher(Supervision, WorldHost, RobotHost):
         self.keys = self.keys.with_run(self.run_id)
         self.say(f"run id {self.run_id}")
 
-    async def _spawn_modules(self, scenario, robots: list[str], model: Path | str, endpoint: str) -> None:
-        """Start every node process of ``robots`` (the graph's node instances), each under a supervisor."""
-        c = self.c
-        for r in robots:
-            for node in self.plan.nodes[r]:
-                argv = node_argv(str(self.spec_path), r, node.name, self.run_id)
-                child = Child(r, node.name, argv, c.out / "logs" / f"{r}-{node.name}.log",
-                              stateful=node.stateful or bool(lost_on_restart(node)))
-                self.children[child.label] = child
-        self.say(f"{scenario.name}: {self.checked.graph.name} ({self.checked.graph.controller}), {len(robots)} robot(s), "
-                 f"starting {len(self.children)} node processes ({c.mode})")
-        for child in self.children.values():
-            await self._spawn(child)
-        self.supervisors = [asyncio.ensure_future(self._supervise(ch)) for ch in self.children.values()]
-
-    wait_report_every = 5.0  # s between two "waiting for ..." lines while nodes are not alive
+    wait_report_every = 5.0  # s between two "started ..." or "waiting for ..." lines while nodes come up
 
     async def _wait_alive(self, expected: set[str]) -> bool:
         """Until every token of ``expected`` is alive, saying every :attr:`wait_report_every`

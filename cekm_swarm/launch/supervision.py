@@ -22,14 +22,19 @@ from typing import Any
 
 from cekm_swarm.errors import CekmError
 from cekm_swarm.node.process import CANNOT_START, EXIT_CANNOT_START, EXIT_STEP_FAILED, STEP_FAILED
+from cekm_swarm.node.timing import lost_on_restart
 from cekm_swarm.runtime.lifetime import child_env
 from cekm_swarm.ticks import tick_time
 
+from .processes import node_argv
 from .spawn import ForkServer, exec_process
 
 SAME_TICK_RESTARTS = 3
 """Restarts in a row that died at the same tick of a lockstep run, the world waiting there,
 after which the launch ends (the node cannot get past that tick)."""
+MEASURED_PROCESSES = 448
+"""The most node processes a launch has been measured with (32 robots of 14, docs/performance.md):
+a larger launch says so before it starts them."""
 BACKOFF_MIN = 0.25
 BACKOFF_MAX = 5.0
 HEALTHY_AFTER = 5.0  # s: a node up this long gets its back-off reset
@@ -70,6 +75,11 @@ class Supervision:
     keys: Any
     session: Any
     supervisors: list[asyncio.Future]
+    plan: Any
+    checked: Any
+    spec_path: Path
+    run_id: str | None
+    wait_report_every: float
     fork_server: ForkServer | None = None
     fork_server_start: asyncio.Future | None = None
 
@@ -131,6 +141,32 @@ class Supervision:
             child.proc = await exec_process(child.argv, child.log_path, env)
         child.started = time.monotonic()
         self._write_pids()
+
+    async def _spawn_modules(self, scenario, robots: list[str], model: Path | str, endpoint: str) -> None:
+        """Start every node process of ``robots`` (the graph's node instances), each under a supervisor."""
+        c = self.c
+        for r in robots:
+            for node in self.plan.nodes[r]:
+                argv = node_argv(str(self.spec_path), r, node.name, self.run_id)
+                child = Child(r, node.name, argv, c.out / "logs" / f"{r}-{node.name}.log",
+                              stateful=node.stateful or bool(lost_on_restart(node)))
+                self.children[child.label] = child
+        self.say(f"{scenario.name}: {self.checked.graph.name} ({self.checked.graph.controller}), {len(robots)} robot(s), "
+                 f"starting {len(self.children)} node processes ({c.mode})")
+        if len(self.children) > MEASURED_PROCESSES:
+            self.say(f"note: {len(self.children)} node processes is more than this runtime has been measured with "
+                     f"({MEASURED_PROCESSES}: 32 robots on 2 cores, docs/performance.md); starting and stopping them "
+                     f"may take minutes, and each takes about 7 MB of memory (PSS) when forked warm")
+        loop = asyncio.get_running_loop()
+        next_report = loop.time() + self.wait_report_every
+        for n, child in enumerate(self.children.values()):
+            if self.stopping:
+                return
+            await self._spawn(child)
+            if loop.time() >= next_report:
+                self.say(f"started {n + 1} of {len(self.children)} node processes ...")
+                next_report = loop.time() + self.wait_report_every
+        self.supervisors = [asyncio.ensure_future(self._supervise(ch)) for ch in self.children.values()]
 
     async def _supervise(self, child: Child) -> None:
         while True:

@@ -105,3 +105,16 @@ def test_paths_without_a_fixed_step_use_a_round_one_and_the_legend_says_so():
     assert "dot every 5 s" in [x.get_text() for x in leg.get_texts()]
     assert len(_by_gid(ax, "time:")["a"].get_data()[0]) == 6
     plt.close(fig)
+
+
+def test_a_large_team_gets_one_legend_entry_for_its_paths():
+    from world.draw import LEGEND_ROWS
+
+    fig, ax = plt.subplots()
+    for n in (LEGEND_ROWS, LEGEND_ROWS + 1):
+        ax.clear()
+        ids = [f"r{i}" for i in range(n)]
+        draw_paths(ax, {r: ([0.0, 1.0], [0.0, 0.1 * i], [0.0, 0.1]) for i, r in enumerate(ids)}, robot_colours(ids))
+        texts = [t.get_text() for t in legend_outside(ax, time_step=1.0).get_texts()]
+        assert texts == (ids if n == LEGEND_ROWS else [f"{n} robots' paths"]) + ["dot every 1 s"]
+    plt.close(fig)
