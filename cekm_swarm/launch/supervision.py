@@ -70,6 +70,7 @@ class Supervision:
     children: dict[str, Child]
     world_proc: Any
     stopping: bool
+    interrupted: bool
     failure: str | None
     c: Any
     keys: Any
@@ -160,7 +161,7 @@ class Supervision:
         loop = asyncio.get_running_loop()
         next_report = loop.time() + self.wait_report_every
         for n, child in enumerate(self.children.values()):
-            if self.stopping:
+            if self.stopping or self.interrupted:  # Ctrl-C while they start: start no more
                 return
             await self._spawn(child)
             if loop.time() >= next_report:

@@ -26,9 +26,15 @@ def port_hint(error_text: str, port: int) -> str:
     return ""
 
 
+PROGRESS_ROBOTS = 12
+"""Robots a progress line names one by one; a larger team's line ends with how many more
+(``cekm monitor`` shows them all)."""
+
+
 def format_progress(doc: dict[str, Any]) -> str:
     parts = [f"t={doc['t']:7.2f} s"]
-    for r, s in doc["robots"].items():
+    robots = list(doc["robots"].items())
+    for r, s in robots[:PROGRESS_ROBOTS]:
         where = f"{r} ({s['x']:.2f}, {s['y']:.2f})"
         if s["reached"]:
             where += " reached"
@@ -37,6 +43,8 @@ def format_progress(doc: dict[str, Any]) -> str:
         elif s.get("to_goal") is not None:  # a tracking robot has no goal: its position says it all
             where += f" {s['to_goal']:.2f} m to goal"
         parts.append(where)
+    if len(robots) > PROGRESS_ROBOTS:
+        parts.append(f"and {len(robots) - PROGRESS_ROBOTS} more robots")
     if doc.get("republished"):
         parts.append(f"republished {doc['republished']}")
     if doc.get("deadline_misses"):

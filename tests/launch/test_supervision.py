@@ -21,7 +21,7 @@ class Starter(Supervision):
         self.plan = self.checked.plan(robots, "navigation")
         self.c = SimpleNamespace(mode="lockstep", out=Path("/nonexistent"))
         self.children, self.supervisors, self.lines, self.started = {}, [], [], []
-        self.world_proc, self.stopping, self.failure = None, False, None
+        self.world_proc, self.stopping, self.interrupted, self.failure = None, False, False, None
         self.spec_path, self.run_id, self.wait_report_every = Path("spec.json"), "run", report_every
         self.stop_after = stop_after
 
@@ -31,7 +31,7 @@ class Starter(Supervision):
     async def _spawn(self, child) -> None:
         self.started.append(child.label)
         if self.stop_after is not None and len(self.started) == self.stop_after:
-            self.stopping = True  # Ctrl-C while the nodes start
+            self.interrupted = True  # Ctrl-C while the nodes start (the world then stops first)
 
     async def _supervise(self, child) -> None:
         return None
@@ -63,3 +63,4 @@ def test_a_stop_while_the_nodes_start_starts_no_more():
     s = Starter(robots, report_every=60.0, stop_after=5)
     start(s, robots)
     assert len(s.started) == 5 and s.supervisors == []
+
