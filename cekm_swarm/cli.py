@@ -16,6 +16,7 @@ from .cli_support import (
     prepare_figure_file,
     prepare_out_dir,
     prepare_out_file,
+    refuse_unplannable,
     run_cli,
 )
 from .errors import CekmError
@@ -311,6 +312,7 @@ def run_cmd(scenario: str, controller: str, graph_file: Path | None, model_path:
 
     sc = _load_scenario(scenario)
     task = _run_kind(sc)
+    refuse_unplannable(sc)
     try:
         checked = resolve_graph(controller, None if graph_file is None else str(graph_file), task)
         checked.plan([r.id for r in sc.robots], task)

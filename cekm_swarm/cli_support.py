@@ -242,6 +242,20 @@ class ScenarioFileError(click.ClickException):
     exit_code = EXIT_USAGE
 
 
+def refuse_unplannable(scenario: Any) -> None:
+    """A ``plan_checkpoints`` scenario whose known walls leave a robot no path: refused in
+    one line naming the file and the robot, before anything is written or started."""
+    if not scenario.plan_checkpoints:
+        return
+    from .controller.planner import PlanningError
+    from .experiments.navigation_run import planned_checkpoints
+
+    try:
+        planned_checkpoints(scenario)
+    except PlanningError as exc:
+        raise ScenarioFileError(str(exc)) from None
+
+
 class Interrupted(click.ClickException):
     """The user stopped the command (Ctrl-C): exit 130, after what it could save was saved."""
 

@@ -216,6 +216,43 @@ def test_a_tracking_scenario_with_no_target_range_is_refused_by_field_before_any
     assert not (tmp_path / "out").exists()
 
 
+ENCLOSED = """
+name = "enclosed"
+plan_checkpoints = true
+[arena]
+bounds = [0.0, 0.0, 2.0, 2.0]
+[[robots]]
+id = "r1"
+start = [0.3, 0.3, 0.0]
+goal = "g"
+[[targets]]
+id = "g"
+position = [1.5, 1.5]
+[[walls]]
+a = [1.2, 1.2]
+b = [1.8, 1.2]
+[[walls]]
+a = [1.8, 1.2]
+b = [1.8, 1.8]
+[[walls]]
+a = [1.8, 1.8]
+b = [1.2, 1.8]
+[[walls]]
+a = [1.2, 1.8]
+b = [1.2, 1.2]
+"""
+
+
+@pytest.mark.parametrize("command", ["run", "launch"])
+def test_a_goal_the_known_walls_close_off_is_refused_by_robot_when_checkpoints_are_planned(capsys, tmp_path, command):
+    scenario = tmp_path / "enclosed.toml"
+    scenario.write_text(ENCLOSED)
+    line = one_error_line(capsys, [command, str(scenario), "--out", str(tmp_path / "out")])
+    assert line.startswith(f"cekm: error: {scenario}: robots[0].goal: no path from (0.3, 0.3) to (1.5, 1.5) on the "
+                           "known walls (plan_checkpoints = true needs one for every robot)"), line
+    assert not (tmp_path / "out").exists()
+
+
 def test_a_non_empty_out_directory_is_refused_and_left_alone(capsys, tmp_path):
     out = tmp_path / "out"
     out.mkdir()

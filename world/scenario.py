@@ -118,6 +118,7 @@ class Scenario:
     obstacles: tuple[ObstacleSpec, ...]
     targets: tuple[TargetSpec, ...]
     speed_unit: float = DEFAULT_SPEED_UNIT  # [plant]: wheel speeds are whole multiples of it; 0 = continuous
+    plan_checkpoints: bool = False  # plan checkpoints on the known walls and feed them as goals (Fig. 12)
 
     @property
     def robot_ids(self) -> list[str]:

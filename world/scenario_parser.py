@@ -5,7 +5,11 @@ every refusal is a :class:`~world.scenario.ScenarioError` naming the file, the f
 from __future__ import annotations
 
 import math
-from typing import Any, Mapping
+from typing import Any, Mapping, get_args
+
+from cekm_swarm.protocol.errors import KeySpaceError
+from cekm_swarm.protocol.keys import validate_robot_id
+from cekm_swarm.protocol.schema import EntryId, TargetId
 
 from . import geometry as geo
 from .motion import CircleMotion, Fixed, LineMotion, Motion, RandomWalk, ScriptedMotion
@@ -27,6 +31,11 @@ from .scenario import (
 
 # ------------------------------------------------------------------ validation
 
+
+
+def _max_length(id_type: Any) -> int:
+    """The longest string the protocol's id type takes (its one declaration, protocol.schema)."""
+    return next(a.max_length for a in get_args(id_type)[1:] if getattr(a, "max_length", None) is not None)
 
 class Parser:
     """Validates a parsed scenario document field by field; every refusal names the file and the field path."""
@@ -95,11 +104,21 @@ class Parser:
             self.fail(path, f"must be a string, got {_tname(v)}")
         return v
 
-    def ident(self, v: Any, path: str) -> str:
+    def ident(self, v: Any, path: str, max_length: int | None = None) -> str:
         s = self.string(v, path)
         if not _ID_RE.match(s):
             self.fail(path, f"invalid id {s!r} (letters, digits, '_' and '-' only)")
+        if max_length is not None and len(s) > max_length:
+            self.fail(path, f"id of {len(s)} characters: at most {max_length} (it travels in the run's messages)")
         return s
+
+    def robot_id(self, v: Any, path: str) -> str:
+        """A robot id as the key space takes it (a Zenoh key segment of every key of the robot)."""
+        s = self.ident(v, path)
+        try:
+            return validate_robot_id(s)
+        except KeySpaceError as exc:
+            self.fail(path, f"{exc.problem} (it names the robot's keys)")
 
     def enum(self, v: Any, path: str, choices: tuple[str, ...]) -> str:
         s = self.string(v, path)
@@ -129,11 +148,12 @@ class Parser:
             dict(raw),
             "",
             ("arena", "robots"),
-            ("name", "description", "seed", "sensors", "plant", "targets", "walls", "obstacles"),
+            ("name", "description", "seed", "plan_checkpoints", "sensors", "plant", "targets", "walls", "obstacles"),
         )
         name = self.string(doc.get("name", default_name), "name")
         description = self.string(doc.get("description", ""), "description")
         seed = self.integer(doc.get("seed", 0), "seed", ge=0)
+        plan = self.boolean(doc.get("plan_checkpoints", False), "plan_checkpoints")
 
         arena = self.table(doc["arena"], "arena", ("bounds",), ("boundary_walls", "wall_thickness"))
         bounds = self.vector(arena["bounds"], "arena.bounds", 4, "[xmin, ymin, xmax, ymax]")
@@ -166,7 +186,7 @@ class Parser:
         for i, r in enumerate(robots_raw):
             p = f"robots[{i}]"
             t = self.table(r, p, ("id", "start"), ("goal",))
-            rid = self.ident(t["id"], f"{p}.id")
+            rid = self.robot_id(t["id"], f"{p}.id")
             claim(rid, f"{p}.id")
             start = self.vector(t["start"], f"{p}.start", 3, "[x, y, theta]")
             goal = self.ident(t["goal"], f"{p}.goal") if "goal" in t else None
@@ -182,7 +202,7 @@ class Parser:
         for i, tr in enumerate(self.items(doc.get("targets", []), "targets")):
             p = f"targets[{i}]"
             t = self.table(tr, p, ("id",), ("position", "motion"))
-            tid = self.ident(t["id"], f"{p}.id")
+            tid = self.ident(t["id"], f"{p}.id", _max_length(TargetId))
             claim(tid, f"{p}.id")
             motion = self.motion(
                 t.get("motion", {"type": "fixed"}), f"{p}.motion", ("fixed", "circle", "line", "random_walk"), bounds
@@ -241,6 +261,7 @@ class Parser:
             obstacles=tuple(obstacles),
             targets=tuple(targets),
             speed_unit=speed_unit,
+            plan_checkpoints=plan,
         )
         self.check_overlaps(sc)
         return sc
@@ -264,7 +285,7 @@ class Parser:
             req = req + ("center",)
             opt = tuple(k for k in opt if k != "center")
         t = self.table(o, p, req + ("shape",), opt + common)
-        oid = self.ident(t["id"], f"{p}.id") if "id" in t else f"o{index + 1}"
+        oid = self.ident(t["id"], f"{p}.id", _max_length(EntryId)) if "id" in t else f"o{index + 1}"
         claim(oid, f"{p}.id")
         known = self.boolean(t.get("known", False), f"{p}.known")
         motion: ScriptedMotion | None = None

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..controller.planner import plan_checkpoints
+from ..controller.planner import PlanningError, plan_checkpoints
 from ..errors import ParameterError
 from ..models.params import FieldParams
 
@@ -54,8 +54,8 @@ def run_scenario(scenario, controller: str = "cekm", model=None, seed: int | Non
     controller's graph in one process (:func:`.graph_run.run_graph`; a distributed
     lockstep run computes the same, bit for bit).
 
-    ``use_checkpoints``: plan checkpoints on the known walls (Fig. 12); default: when the
-    scenario is called "checkpoints". ``fields``: the field widths of the cooperative
+    ``use_checkpoints``: plan checkpoints on the known walls (Fig. 12); default: the
+    scenario's ``plan_checkpoints``. ``fields``: the field widths of the cooperative
     EKM's nodes (Eqs. 6, 8). ``graph``: a graph file instead of the controller's own.
     ``progress(t)`` is called every simulated second.
     """
@@ -70,11 +70,11 @@ def run_scenario(scenario, controller: str = "cekm", model=None, seed: int | Non
 
         model = default_model()
     if use_checkpoints is None:
-        use_checkpoints = scenario.name == "checkpoints"
+        use_checkpoints = scenario.plan_checkpoints
     checkpoints, plan_paths = (None, {})
     if use_checkpoints:
         w = World(scenario, seed=seed)
-        checkpoints, plan_paths = plan_all(w, w.static_geometry())
+        checkpoints, plan_paths = plan_all(w, w.static_geometry(), scenario.source)
     run = run_graph(scenario, controller, graph=graph, model=model, seed=seed, max_time=max_time,
                     checkpoints=checkpoints, params=field_overrides(fields), progress=progress)
     world, episode = run.world, run.episode
@@ -97,14 +97,30 @@ def field_overrides(fields: FieldParams | None) -> dict | None:
     return {"lenient": True, **asdict(fields)}
 
 
-def plan_all(world, geometry) -> tuple[dict, dict]:
-    """Checkpoints for every robot from its start to its goal, on the known walls (Fig. 12)."""
+def plan_all(world, geometry, source: str = "scenario") -> tuple[dict, dict]:
+    """Checkpoints for every robot from its start to its goal, on the known walls (Fig. 12).
+    Raises :class:`PlanningError` naming ``source`` (the scenario file) and the robot when
+    the known walls leave a robot no path."""
     checkpoints, paths = {}, {}
-    for r in world.robot_ids:
+    for i, r in enumerate(world.robot_ids):
         x, y, _ = world.pose(r)
-        plan = plan_checkpoints(geometry, (x, y), world.goal_of(r), body_radius=world.body_radius)
+        try:
+            plan = plan_checkpoints(geometry, (x, y), world.goal_of(r), body_radius=world.body_radius)
+        except PlanningError as exc:
+            raise PlanningError(f"{source}: robots[{i}].goal: {exc} (plan_checkpoints = true needs one for every "
+                                f"robot)") from None
         checkpoints[r], paths[r] = plan.checkpoints, plan.path
     return checkpoints, paths
+
+
+def planned_checkpoints(scenario) -> dict[str, list[list[float]]]:
+    """The checkpoints of a ``plan_checkpoints`` scenario as plain data (what a launch hands
+    the world server), or raises :class:`PlanningError` as :func:`plan_all`."""
+    from world import World
+
+    world = World(scenario)
+    checkpoints = plan_all(world, world.static_geometry(), scenario.source)[0]
+    return {r: [list(map(float, c)) for c in cps] for r, cps in checkpoints.items()}
 
 
 def world_seed(world, seed, scenario) -> int:
@@ -123,9 +139,9 @@ def fields_at(scenario, model, at_time: float, controller_seed: int | None = Non
     from .graph_run import run_graph
 
     checkpoints = None
-    if scenario.name == "checkpoints":
+    if scenario.plan_checkpoints:
         w = World(scenario, seed=controller_seed)
-        checkpoints = plan_all(w, w.static_geometry())[0]
+        checkpoints = plan_all(w, w.static_geometry(), scenario.source)[0]
     last = int(round(at_time / TICK_S))
     run = run_graph(scenario, "cekm", model=model, seed=controller_seed, checkpoints=checkpoints,
                     params=field_overrides(fields), stop_at=last, max_time=max(at_time, TICK_S) + 1.0)

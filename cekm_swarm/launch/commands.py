@@ -23,6 +23,7 @@ from cekm_swarm.cli_support import (
     out_dir_options,
     prepare_figure_file,
     prepare_out_dir,
+    refuse_unplannable,
 )
 from cekm_swarm.errors import CekmError
 from cekm_swarm.runtime.config import DEFAULT_ENDPOINT, DEFAULT_PORT
@@ -109,6 +110,7 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwr
         run_kind(sc)  # a tracking or a navigation scenario, or refused here
     except ScenarioError as exc:
         raise ScenarioFileError(str(exc)) from None
+    refuse_unplannable(sc)
     # a tracking scenario (docs/tracking.md) runs the tracking target module per robot, controller cekm
     known = [r.id for r in sc.robots]
     only = robots  # None: every robot; (): none ('none', a world-only host)

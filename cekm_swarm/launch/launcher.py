@@ -88,21 +88,6 @@ class LaunchConfig:
     alive_timeout: float = ALIVE_TIMEOUT  # s to wait for every node of every robot to be alive
 
 
-def plan_checkpoint_data(scenario) -> dict[str, list[list[float]]]:
-    """Checkpoints for every robot on the known walls (Fig. 12), as plain data."""
-    from cekm_swarm.controller.planner import plan_checkpoints
-    from world import World
-
-    world = World(scenario)
-    geometry = world.static_geometry()
-    out = {}
-    for r in world.robot_ids:
-        x, y, _ = world.pose(r)
-        plan = plan_checkpoints(geometry, (x, y), world.goal_of(r), body_radius=world.body_radius)
-        out[r] = [list(map(float, c)) for c in plan.checkpoints]
-    return out
-
-
 class Launcher(Supervision, WorldHost, RobotHost):
     """A launch: its steps here, the supervision of its nodes (:mod:`.supervision`), its
     world server (:mod:`.world_host`) and a robots-only host's side (:mod:`.robot_host`)."""
@@ -261,11 +246,13 @@ class Launcher(Supervision, WorldHost, RobotHost):
         return default_model_path()
 
     def _plan_checkpoints(self, scenario) -> Path | None:
-        """Checkpoints on the known walls (Fig. 12) for a checkpoints scenario, as a file."""
-        if scenario.name != "checkpoints":
+        """Checkpoints on the known walls (Fig. 12) for a ``plan_checkpoints`` scenario, as a file."""
+        if not scenario.plan_checkpoints:
             return None
+        from cekm_swarm.experiments.navigation_run import planned_checkpoints
+
         path = self.c.out / "checkpoints.json"
-        path.write_text(json.dumps(plan_checkpoint_data(scenario)))
+        path.write_text(json.dumps(planned_checkpoints(scenario)))
         return path
 
     def _pick_endpoint(self) -> str:

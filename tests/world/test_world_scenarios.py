@@ -270,6 +270,14 @@ BAD = [
     ("target range nan", GOOD + "\n[sensors]\ntarget_range = nan\n", ["sensors.target_range", "nan"]),
     ("robots not an array", 'robots = "r1"\n' + GOOD.split("[[robots]]")[0], ["robots", "array of tables"]),
     ("toml syntax", GOOD + "\nthis is not toml\n", ["TOML syntax error"]),
+    # ids the key space and the messages take, checked here, not at a run's first message
+    ("robot id a digit", GOOD.replace('id = "r1"', 'id = "1"'), ["robots[0].id", "must start with a letter"]),
+    ("robot id world", GOOD.replace('id = "r1"', 'id = "world"'), ["robots[0].id", "'world' is reserved"]),
+    ("robot id too long", GOOD.replace('id = "r1"', f'id = "{"r" * 65}"'), ["robots[0].id", "at most 64"]),
+    ("target id too long", GOOD.replace('"g"', f'"{"g" * 65}"'), ["targets[0].id", "id of 65 characters: at most 64"]),
+    ("obstacle id too long", GOOD + f'\n[[obstacles]]\nid = "{"o" * 257}"\nshape = "disc"\ncenter = [1.0, 1.0]\n'
+     'radius = 0.1\n', ["obstacles[0].id", "id of 257 characters: at most 256"]),
+    ("plan_checkpoints not a bool", "plan_checkpoints = 1\n" + GOOD, ["plan_checkpoints", "must be true or false"]),
 ]
 
 
@@ -289,7 +297,8 @@ def test_good_base_document_loads(tmp_path):
     path = tmp_path / "good.toml"
     path.write_text(GOOD)
     sc = load_scenario(path)
-    assert sc.robot_ids == ["r1"] and sc.seed == 0 and math.isinf(sc.target_range)
+    assert sc.robot_ids == ["r1"] and sc.seed == 0 and math.isinf(sc.target_range) and not sc.plan_checkpoints
+    assert load_scenario("checkpoints").plan_checkpoints  # Fig. 12's planner is the file's choice, not its name's
 
 
 def test_overrides_are_validated():
