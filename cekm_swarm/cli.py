@@ -295,7 +295,7 @@ def _model(path: Path | None):
 @click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               help="A trained model (.npz from `cekm train`); default: R15 trained and cached on first use.")
 @click.option("--seed", type=SEED, help="World seed (default: the scenario's).")
-@click.option("--max-time", type=Finite(min=1.0),
+@click.option("--max-time", type=Finite(min=0.2),  # as cekm launch takes it, so every launch has its cekm run
               help="Sim seconds before a robot counts as trapped (default 600); for a tracking scenario, the "
                    "run's length (default 120).")
 @out_dir_options("Directory for outcome.json and trajectory.png.")

@@ -261,3 +261,18 @@ class TrackingEpisode:
             out[r] = {"path_length_m": length, "collisions": int(self.world.stats(r)["collisions"]),
                       "final_pose": list(path[-1][1:]) if path else None}
         return out
+
+
+def _count(n: int, noun: str) -> str:
+    return f"{n} {noun}{'' if n == 1 else 's'}"
+
+
+def tracking_summary(tracking: dict[str, Any], collisions: int) -> str:
+    """One line of a tracking run's result (its ``tracking`` block: Parker's A, per target,
+    and how the team and the targets spread), the same from ``cekm run`` and ``cekm launch``."""
+    per = ", ".join(f"{k} {v:.2f}" for k, v in tracking["A_per_target"].items())
+    sp = tracking["spread"]
+    return (f"A = {tracking['A']:.3f} ({_count(tracking['robots'], 'robot')}, {_count(tracking['targets'], 'target')}; "
+            f"per target: {per}); robots apart {sp['robots_start']:.2f} -> {sp['robots_end']:.2f} m while targets "
+            f"{sp['targets_start']:.2f} -> {sp['targets_end']:.2f} m; collisions {collisions}")
+

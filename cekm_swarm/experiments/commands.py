@@ -37,7 +37,8 @@ def run_navigation_cmd(scenario, controller: str, model, seed: int | None, max_t
     fig.savefig(out_dir / "trajectory.png", dpi=130)
     for r, o in run.outcome.items():
         c = o["min_clearance_m"]
-        clearance = "nothing within sensor range" if c is None else f"{c * 1000:.0f} mm"
+        clearance = ("nothing within sensor range" if c is None else f"{c * 1000:.0f} mm" if c >= 0.0 else
+                     f"{c * 1000:.1f} mm (in contact)")
         click.echo(f"{r}: {'reached' if o['reached'] else 'NOT reached'} in {o['time_s']:.1f} s, path "
                    f"{o['path_length_m']:.2f} m, {o['collisions']} collisions, min clearance {clearance}")
     click.echo(f"wrote {out_dir / 'outcome.json'}, {out_dir / 'trajectory.png'}")
@@ -66,12 +67,9 @@ def run_tracking_cmd(scenario, controller: str, model_path, seed: int | None, du
     fig = plot_tracking(run)
     fig.savefig(out / "trajectory.png", dpi=130)
     plt.close(fig)
-    tr = run.tracking
-    per = ", ".join(f"{k} {v:.2f}" for k, v in tr["A_per_target"].items())
-    sp = tr["spread"]
-    click.echo(f"A = {tr['A']:.3f} ({tr['robots']} robots, {tr['targets']} targets; per target: {per}); robots "
-               f"apart {sp['robots_start']:.2f} -> {sp['robots_end']:.2f} m while targets {sp['targets_start']:.2f} "
-               f"-> {sp['targets_end']:.2f} m; collisions {sum(run.collisions.values())}")
+    from world.tracking import tracking_summary
+
+    click.echo(tracking_summary(run.tracking, sum(run.collisions.values())))
     click.echo(f"wrote {out / 'outcome.json'}, {out / 'trajectory.png'}")
 
 

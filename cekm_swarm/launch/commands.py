@@ -207,8 +207,9 @@ def outcome_summary(outcome: dict) -> list[str]:
             lines.append(f"{r}: {'reached' if o['reached'] else 'NOT reached'} in {o['time_s']:.1f} s, path "
                          f"{o['path_length_m']:.2f} m, {o['collisions']} collisions")
     if tracking:
-        tr = outcome["tracking"]
-        lines.append(f"A = {tr['A']:.3f} ({tr['robots']} robots, {tr['targets']} targets, {tr['ticks']} ticks)")
+        from world.tracking import tracking_summary
+
+        lines.append(tracking_summary(outcome["tracking"], sum(o["collisions"] for o in outcome["robots"].values())))
     lat = outcome.get("sense_to_command_ms", {})
     if lat.get("n"):
         lines.append(f"sense-to-command latency p50 {lat['p50']} ms, p99 {lat['p99']} ms ({lat['n']} robot-ticks)")

@@ -39,7 +39,12 @@ def test_real_time_misses_their_ticks_cpu_and_the_hosts_steal():
 
 
 def test_a_tracking_run_prints_a_and_no_goal():
-    doc = _outcome(tracking={"A": 0.8851, "robots": 2, "targets": 3, "ticks": 100})
+    spread = {"robots_start": 0.5, "robots_end": 1.25, "targets_start": 2.0, "targets_end": 2.5}
+    doc = _outcome(tracking={"A": 0.8851, "robots": 1, "targets": 2, "ticks": 100,
+                             "A_per_target": {"t1": 0.9, "t2": 0.87},
+                             "spread": spread})
     lines = outcome_summary(doc)
     assert lines[0] == "r1: path 1.50 m, 0 collisions"
-    assert "A = 0.885 (2 robots, 3 targets, 100 ticks)" in lines
+    # the line cekm run prints for the same result
+    assert ("A = 0.885 (1 robot, 2 targets; per target: t1 0.90, t2 0.87); robots apart 0.50 -> 1.25 m while targets "
+            "2.00 -> 2.50 m; collisions 1") in lines  # r2 touched once
