@@ -288,8 +288,8 @@ def _model(path: Path | None):
 @main.command("run")
 @click.argument("scenario")
 @click.option("--controller", default="cekm", show_default=True, metavar="NAME",
-              help="The controller whose graph runs (cekm graph list): cekm or fusion for navigation; cekm, acmommt, "
-                   "kmeans, kmeans-global or stay for tracking.")
+              help="The controller whose graph runs (cekm graph list): cekm, fusion or stay for navigation; cekm, "
+                   "acmommt, kmeans, kmeans-global or stay for tracking.")
 @click.option("--graph", "graph_file", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               help="Run a graph file of your own instead (docs/modules.md).")
 @click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path),
