@@ -267,6 +267,7 @@ def fit_bounds(ax: Axes, geometry: Mapping[str, Any] | None, points: Sequence[Se
         x0, x1 = ax.get_xlim()
         y0, y1 = ax.get_ylim()
         return x0, x1, y0, y1
+    margin = max(margin, 0.03 * max(max(xs) - min(xs), max(ys) - min(ys)))  # a marker's size on a large map
     x0, x1, y0, y1 = min(xs) - margin, max(xs) + margin, min(ys) - margin, max(ys) + margin
     if geometry is not None and points:  # the arena clips the content, never the paths (no boundary walls: robots leave)
         bx0, by0, bx1, by1 = geometry["bounds"]
@@ -279,6 +280,11 @@ def fit_bounds(ax: Axes, geometry: Mapping[str, Any] | None, points: Sequence[Se
         x1 = min(x1, hi_x if max(px) <= hi_x else max(px) + margin)
         y0 = max(y0, lo_y if min(py) >= lo_y else min(py) - margin)
         y1 = min(y1, hi_y if max(py) <= hi_y else max(py) + margin)
+        # content near a side of the arena shows that side's wall whole, not cut at its inner face
+        x0 = min(x0, lo_x) if x0 < bx0 + margin else x0
+        x1 = max(x1, hi_x) if x1 > bx1 - margin else x1
+        y0 = min(y0, lo_y) if y0 < by0 + margin else y0
+        y1 = max(y1, hi_y) if y1 > by1 - margin else y1
     ax.set_xlim(x0, x1)
     ax.set_ylim(y0, y1)
     ax.set_aspect("equal")
