@@ -79,11 +79,11 @@ def test_limits_fit_the_content_with_a_small_margin():
     # a path reaching the arena's edge: the limits stop at the walls
     x0, x1, y0, y1 = fit_bounds(ax, geometry, [(0.01, 0.01), (3.99, 3.99)], margin=0.3)
     assert x0 == pytest.approx(-0.04) and x1 == pytest.approx(4.04)
+    w, h = figure_size(x0, x1, y0, y1)
+    assert 5 < w < 9 and h == 5.5
     # content near a side (within the margin) shows that side's wall whole
     x0, x1, y0, y1 = fit_bounds(ax, geometry, [(0.15, 1.0), (1.4, 0.9)], margin=0.15)
     assert x0 == pytest.approx(-0.04) and x1 == pytest.approx(1.5 + 0.15)  # the target at 1.5
-    w, h = figure_size(x0, x1, y0, y1)
-    assert 5 < w < 9 and h == 5.5
     # a robot that left an arena without boundary walls: the limits follow it out
     x0, x1, y0, y1 = fit_bounds(ax, geometry | {"walls": []}, [(1.0, 1.0), (5.3, 1.9)], margin=0.1)
     margin = 0.03 * (5.3 - 0.9)  # at least 3 % of the map: a marker's size on a larger one
