@@ -36,6 +36,7 @@ from ..models.networks import IndirectEKM
 from ..models.params import FieldParams, TrackingParams
 from .anticipation import TargetTracks, held_group
 from .cooperative import CooperativeEKM, MotorOutput, ObstacleActivity, motor_command
+from .kmeans import assign
 from .readings import RangeReading
 from .team import TeammateShare, TeamView, observers_nearer, to_robot, to_world
 
@@ -54,6 +55,28 @@ def standoff_distance(speed: float | None, target_range: float, params: Tracking
     if params.standoff_speed_s > 0.0 and speed is not None:
         held = max(0.0, held - params.standoff_speed_s * speed)
     return held
+
+
+def assigned_group(robot: str, pose: tuple[float, float, float], known: dict[str, tuple[float, float]],
+                   team: dict[str, TeammateShare], target_range: float,
+                   params: TrackingParams) -> tuple[tuple[float, float], frozenset[str]] | None:
+    """Hand-offs by K-means' assignment: each target of ``known`` (world frame) goes to its
+    nearest robot (this one at ``pose``, the teammates at their shared poses); (the
+    centroid, the targets) of this robot's share when there are at least assign_min and
+    all lie within assign_radius * R of the centroid, else None."""
+    if params.assign_radius <= 0.0 or not known:
+        return None
+    robots = {robot: (pose[0], pose[1])} | {r: (sh.pose[0], sh.pose[1]) for r, sh in team.items()}
+    labels = assign(known, robots)
+    mine = [tid for tid in sorted(labels) if labels[tid] == robot]
+    if len(mine) < params.assign_min:
+        return None
+    cx = sum(known[t][0] for t in mine) / len(mine)
+    cy = sum(known[t][1] for t in mine) / len(mine)
+    reach = params.assign_radius * target_range
+    if any(math.hypot(known[t][0] - cx, known[t][1] - cy) > reach for t in mine):
+        return None
+    return (cx, cy), frozenset(mine)
 
 
 def teammate_weight(d: float, target_range: float, params: TrackingParams) -> float:
@@ -130,6 +153,11 @@ class TrackingEKM:
         full = False
         if p.predict_s > 0.0 or p.standoff_speed_s > 0.0:
             self.tracks.update(t, own)
+        known = dict(own)  # every target known now: sensed, then the teammates' fresh shares
+        for r in sorted(team):
+            for tid, xy in team[r].targets.items():
+                known.setdefault(tid, xy)
+        assigned = assigned_group(self.robot, pose, known, team, R, p)
         held: dict[str, tuple[float, float]] = {}
         for tid in sorted(sensed):
             alpha, d = sensed[tid]
@@ -138,6 +166,8 @@ class TrackingEKM:
             full = full or wt >= 1.0
             if wt >= 1.0:
                 held[tid] = own[tid]
+            if assigned is not None and tid in assigned[1]:
+                continue  # held together at the centroid below
             la, ld = alpha, d
             if p.predict_s > 0.0:  # where the target will be
                 ahead = self.tracks.predict(tid, p.predict_s)
@@ -151,6 +181,14 @@ class TrackingEKM:
             s = ekm.winner(la, u_d)
             a += (wt * (1.0 - p.urgency + p.urgency * min(d / R, 1.0))) * ekm.target_activity(s)
             inputs.append((s, la, u_d, wt))
+        if assigned is not None:  # this robot's share of the team's targets, at its centroid (no stand-off)
+            ga, gd = to_robot(pose, assigned[0])
+            if abs(ga) > p.face_angle:  # beside or behind: turn in place toward it first
+                ga, gd = math.copysign(p.face_angle, ga), 0.0
+            s = ekm.winner(ga, gd)
+            a += p.assign_weight * ekm.target_activity(s)
+            inputs.append((s, ga, gd, p.assign_weight))
+            full = True  # it has targets to hold: no search
         group = held_group(held, p.group_radius * R) if p.group_weight > 0.0 and len(held) >= 2 else None
         if group is not None:  # the point between the targets this robot can hold together
             ga, gd = to_robot(pose, group[0])

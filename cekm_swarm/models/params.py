@@ -162,6 +162,14 @@ class TrackingParams:
     * R of their centroid, the centroid is localized too (no stand-off), with a target
     field of weight group_weight: above 1 it wins over each target's, so one robot holds
     the group between them instead of following one (0: off).
+    assign_radius, assign_min, assign_weight: hand-offs by K-means' assignment (Luke et al.
+    2005). Every target the robot knows now (sensed, or in a teammate's fresh share) goes
+    to its nearest robot (this one or a teammate, by their shared poses); when at least
+    assign_min fall to this robot and all lie within assign_radius * R of their centroid,
+    the centroid is localized (no stand-off) with weight assign_weight in place of their
+    own fields, and the robot does not search. So a robot drives to a target a teammate
+    sees but is nearer to, and holds two or three close targets between them (0 radius:
+    off; 0.8 R, 1 and 1.5 chosen on the tuning seeds, docs/tracking.md).
     face_angle (rad): a sensed target more than face_angle to either side of the robot's
     heading is localized at (+-face_angle, 0), a goal state on its side, whatever its
     distance, so the robot turns in place toward it before it drives (pi: off). Without it
@@ -190,8 +198,13 @@ class TrackingParams:
     group_radius: float = 0.6
     standoff_speed_s: float = 2.0
     face_angle: float = 1.0
+    assign_radius: float = 0.8
+    assign_min: int = 1
+    assign_weight: float = 1.5
 
     def __post_init__(self) -> None:
+        if not (self.assign_radius >= 0.0 and self.assign_weight > 0.0 and self.assign_min >= 1):
+            raise ParameterError("TrackingParams: assign_radius must be >= 0, assign_weight > 0 and assign_min >= 1")
         if not 0.0 < self.face_angle <= math.pi:
             raise ParameterError(f"TrackingParams.face_angle must be in (0, pi], got {self.face_angle!r}")
         if not (self.predict_s >= 0.0 and self.group_weight >= 0.0 and self.group_radius > 0.0

@@ -150,7 +150,7 @@ def test_frames_round_trip():
 
 def test_stand_off_turns_in_place_near_a_target(model):
     """A target inside the stand-off is localized at the goal state: the winning move is short."""
-    ctl = TrackingEKM("r1", model, R)
+    ctl = TrackingEKM("r1", model, R, TrackingParams(assign_radius=0.0))  # its own field, not an assignment's
     act = ctl.localize(0.0, (1.0, 1.0, 0.0), {"a": (0.5, 0.1)}, TeamView("r1"))
     out = ctl.integrate(act, [])
     assert ctl.ekm.w[out.k][1] < 0.03
@@ -172,7 +172,7 @@ def test_a_fast_target_inside_the_stand_off_is_followed_from_nearer(model):
     u_d = {}
     for on in (0.0, 2.0):
         # face_angle off: the target circles to 2.5 rad, beyond the turn-in-place rule's 1 rad
-        ctl = TrackingEKM("r1", model, R, TrackingParams(standoff_speed_s=on, face_angle=math.pi))
+        ctl = TrackingEKM("r1", model, R, TrackingParams(standoff_speed_s=on, face_angle=math.pi, assign_radius=0.0))
         view = TeamView("r1")
         for k in range(30):
             t = 0.256 * k
@@ -190,7 +190,7 @@ def test_a_target_behind_is_turned_to_in_place(model):
     (its own winner is a reverse neuron, which may not win), away from the target."""
     pose = (1.0, 1.0, 0.0)
     for alpha in (2.6, -2.6, 1.6, -1.5):
-        ctl = TrackingEKM("r1", model, R, TrackingParams(face_angle=1.0))
+        ctl = TrackingEKM("r1", model, R, TrackingParams(face_angle=1.0, assign_radius=0.0))
         act = ctl.localize(0.0, pose, {"a": (alpha, 0.8 * R)}, TeamView("r1"))
         (s, la, u_d, wt), = act.inputs
         assert (la, u_d, wt) == (math.copysign(1.0, alpha), 0.0, 1.0)
@@ -198,7 +198,7 @@ def test_a_target_behind_is_turned_to_in_place(model):
         assert out.k == s  # Eq. 11 with the localized input
         assert math.copysign(1.0, out.v_r - out.v_l) == math.copysign(1.0, alpha)  # toward its side
         assert abs(out.v_l + out.v_r) / 2.0 < 0.01  # in place: it does not drive away
-    off = TrackingEKM("r1", model, R, TrackingParams(face_angle=math.pi))
+    off = TrackingEKM("r1", model, R, TrackingParams(face_angle=math.pi, assign_radius=0.0))
     out = off.integrate(off.localize(0.0, pose, {"a": (2.6, 0.9 * R)}, TeamView("r1")), [])
     assert out.s is None and (out.v_l + out.v_r) / 2.0 > 0.05
 
@@ -217,3 +217,39 @@ def test_face_angle_is_validated():
     for bad in (0.0, -1.0, 3.2, float("nan")):
         with pytest.raises(ParameterError):
             TrackingParams(face_angle=bad)
+
+
+# ---------------------------------------------------------------- hand-offs by K-means' assignment
+
+
+def test_assigned_group_is_this_robots_share_of_the_known_targets_near_their_centroid():
+    from cekm_swarm.controller.tracking import assigned_group
+
+    p = TrackingParams(assign_radius=0.8, assign_min=1)
+    team = {"q": TeammateShare(0.0, (3.0, 1.0, 0.0), {})}
+    known = {"a": (1.2, 1.0), "b": (1.4, 1.2), "c": (2.9, 1.0)}  # c is nearer q
+    centroid, mine = assigned_group("r1", (1.0, 1.0, 0.0), known, team, R, p)
+    assert mine == {"a", "b"} and centroid == pytest.approx((1.3, 1.1))
+    # parted further than 0.8 R from their centroid: no group (each keeps its own field)
+    assert assigned_group("r1", (1.0, 1.0, 0.0), {"a": (1.0, 1.5), "b": (1.0, 0.5)}, team, R, p) is None
+    # fewer than assign_min, or the rule off
+    assert assigned_group("r1", (1.0, 1.0, 0.0), {"a": (1.2, 1.0)}, team, R, TrackingParams(assign_min=2)) is None
+    assert assigned_group("r1", (1.0, 1.0, 0.0), known, team, R, TrackingParams(assign_radius=0.0)) is None
+
+
+def test_a_target_a_teammate_sees_but_this_robot_is_nearer_to_is_driven_to(model):
+    """A teammate's share reports a target this robot does not sense but is the nearer
+    robot to: the robot localizes it (no search); a target nearer the teammate is left."""
+    pose = (1.0, 1.0, 0.0)
+    far_teammate = TeammateShare(0.0, (2.5, 1.0, 0.0), {"a": (1.4, 1.0)})
+    view = TeamView("r1")
+    view.receive("q", far_teammate)
+    act = TrackingEKM("r1", model, R).localize(0.256, pose, {}, view)
+    assert not act.searching and len(act.inputs) == 1
+    s, la, u_d, wt = act.inputs[0]
+    assert (la, u_d, wt) == pytest.approx((0.0, 0.4, 1.5))  # straight ahead, 0.4 m: the target itself
+    near_teammate = TeammateShare(0.0, (1.5, 1.0, 0.0), {"a": (1.4, 1.0)})
+    view = TeamView("r1")
+    view.receive("q", near_teammate)
+    act = TrackingEKM("r1", model, R).localize(0.256, pose, {}, view)
+    assert act.searching  # the teammate holds it: this robot searches
