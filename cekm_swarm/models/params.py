@@ -169,7 +169,7 @@ class TrackingParams:
     the centroid is localized (no stand-off) with weight assign_weight in place of their
     own fields, and the robot does not search. So a robot drives to a target a teammate
     sees but is nearer to, and holds two or three close targets between them (0 radius:
-    off; 0.8 R, 1 and 1.5 chosen on the tuning seeds, docs/tracking.md).
+    off; 0.8 R, 1 and 1.0 chosen on the tuning seeds, docs/tracking.md).
     face_angle (rad): a sensed target more than face_angle to either side of the robot's
     heading is localized at (+-face_angle, 0), a goal state on its side, whatever its
     distance, so the robot turns in place toward it before it drives (pi: off). Without it
@@ -200,7 +200,7 @@ class TrackingParams:
     face_angle: float = 1.0
     assign_radius: float = 0.8
     assign_min: int = 1
-    assign_weight: float = 1.5
+    assign_weight: float = 1.0
 
     def __post_init__(self) -> None:
         if not (self.assign_radius >= 0.0 and self.assign_weight > 0.0 and self.assign_min >= 1):

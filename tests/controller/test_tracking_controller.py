@@ -247,7 +247,7 @@ def test_a_target_a_teammate_sees_but_this_robot_is_nearer_to_is_driven_to(model
     act = TrackingEKM("r1", model, R).localize(0.256, pose, {}, view)
     assert not act.searching and len(act.inputs) == 1
     s, la, u_d, wt = act.inputs[0]
-    assert (la, u_d, wt) == pytest.approx((0.0, 0.4, 1.5))  # straight ahead, 0.4 m: the target itself
+    assert (la, u_d, wt) == pytest.approx((0.0, 0.4, 1.0))  # straight ahead, 0.4 m: the target itself
     near_teammate = TeammateShare(0.0, (1.5, 1.0, 0.0), {"a": (1.4, 1.0)})
     view = TeamView("r1")
     view.receive("q", near_teammate)
