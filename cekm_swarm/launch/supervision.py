@@ -21,7 +21,14 @@ from pathlib import Path
 from typing import Any
 
 from cekm_swarm.errors import CekmError
-from cekm_swarm.node.process import CANNOT_START, EXIT_CANNOT_START, EXIT_STEP_FAILED, STEP_FAILED
+from cekm_swarm.node.process import (
+    CANNOT_START,
+    EXIT_CANNOT_START,
+    EXIT_STEP_FAILED,
+    STALL_SIGNAL,
+    STALLED,
+    STEP_FAILED,
+)
 from cekm_swarm.node.timing import lost_on_restart
 from cekm_swarm.runtime.lifetime import child_env
 from cekm_swarm.ticks import tick_time
@@ -35,6 +42,7 @@ after which the launch ends (the node cannot get past that tick)."""
 MEASURED_PROCESSES = 448
 """The most node processes a launch has been measured with (32 robots of 14, docs/performance.md):
 a larger launch says so before it starts them."""
+STALL_ANSWER_S = 0.5  # s the launcher gives asked nodes to write where they are
 BACKOFF_MIN = 0.25
 BACKOFF_MAX = 5.0
 HEALTHY_AFTER = 5.0  # s: a node up this long gets its back-off reset
@@ -168,6 +176,41 @@ class Supervision:
                 self.say(f"started {n + 1} of {len(self.children)} node processes ...")
                 next_report = loop.time() + self.wait_report_every
         self.supervisors = [asyncio.ensure_future(self._supervise(ch)) for ch in self.children.values()]
+
+    async def _name_stalled(self, robots: list[str], t: float) -> None:
+        """The world has waited at ``t`` for ``robots``: ask their live nodes where they are
+        (:data:`~cekm_swarm.node.process.STALL_SIGNAL`) and say each one's line, so a step
+        that hangs is named, with the stacks in its log; or that none is in a step."""
+        asked = {}
+        for child in self.children.values():
+            if child.robot in robots and child.proc is not None and child.proc.returncode is None:
+                try:
+                    asked[child.label] = (child, child.log_path.stat().st_size)
+                    child.proc.send_signal(STALL_SIGNAL)
+                except (OSError, ProcessLookupError):
+                    asked.pop(child.label, None)
+        await asyncio.sleep(STALL_ANSWER_S)
+        stepping = []
+        for child, size in asked.values():
+            try:
+                with child.log_path.open("rb") as f:
+                    f.seek(size)
+                    lines = f.read().decode(errors="replace").splitlines()
+            except OSError:
+                continue
+            said = [line[len(STALLED):].strip() for line in lines if line.startswith(STALLED)]
+            where = next((lines[i - 1].strip() for i, line in enumerate(lines)
+                          if i and "cekm_swarm/node/runner.py" in line and " in run" in line), None)
+            for line in said:
+                if "no step running" not in line:
+                    line = line.replace("; its threads' stacks follow", f", at {where}" if where else "")
+                    stepping.append(f"{line} (its threads' stacks: {child.log_path})")
+        for line in stepping:
+            self.say(f"the world waits at t={t:.2f} s: {line}")
+        if not stepping and asked:
+            self.say(f"the world waits at t={t:.2f} s for {', '.join(robots)}: no node of "
+                     f"{'it' if len(robots) == 1 else 'them'} is in a step, so each waits for an input that was "
+                     f"never sent (see their logs in {self.c.out / 'logs'})")
 
     async def _supervise(self, child: Child) -> None:
         while True:

@@ -26,6 +26,9 @@ def port_hint(error_text: str, port: int) -> str:
     return ""
 
 
+STALL_REPORT_AFTER = 5
+"""Re-publishings of one stalled lockstep tick (about a second apart) after which the
+launcher asks the waited-for robots' nodes where they are."""
 PROGRESS_ROBOTS = 12
 """Robots a progress line names one by one; a larger team's line ends with how many more
 (``cekm monitor`` shows them all)."""
@@ -57,6 +60,20 @@ class WorldHost:
 
     world_proc: Any
     c: Any
+    _stall: tuple[float, int] = (-1.0, 0)  # (the stalled tick's time, how many re-publishings of it)
+
+    def _name_stalled(self, robots: list[str], t: float) -> Any:  # pragma: no cover - the launcher's
+        raise NotImplementedError
+
+    def _note_stall(self, doc: dict[str, Any]) -> None:
+        """A lockstep tick re-published (about once a second while the world waits): at the
+        :data:`STALL_REPORT_AFTER`-th time for one tick, ask the waited-for robots' nodes
+        where they are (:meth:`~.supervision.Supervision._name_stalled`)."""
+        t = float(doc["t"])
+        count = self._stall[1] + 1 if self._stall[0] == t else 1
+        self._stall = (t, count)
+        if count == STALL_REPORT_AFTER and doc.get("waiting"):
+            asyncio.ensure_future(self._name_stalled(list(doc["waiting"]), t))
 
     async def _read_world(self, stream: asyncio.StreamReader) -> None:
         while True:
@@ -76,6 +93,8 @@ class WorldHost:
                     self.log_full = f"{doc.get('log')}; the run stopped at t={doc['t']:.2f} s of sim time"
                 extra = {k: v for k, v in doc.items() if k not in ("event", "t")}
                 self.say(f"world event at t={doc['t']:.2f} s: {doc['event']} {extra}")
+                if doc.get("event") == "republish":
+                    self._note_stall(doc)
             elif kind == "START" and doc is not None:
                 self._cpu_start, self._cpu_end = snapshot(self._pids(), self._world_cpu(doc)), None
                 self.say(f"world started ticking ({doc['mode']}, seed {doc['seed']})")

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import faulthandler
 import json
 import logging
 import os
@@ -55,6 +56,11 @@ EXIT_STEP_FAILED = 79
 outputs: a permanent failure, not restarted; the launch ends with the node's line."""
 STEP_FAILED = "STEP-FAILED"
 """The prefix of the one line such a node writes to its log."""
+STALLED = "STEP-STALLED"
+"""The prefix of the line a node writes to its log when asked (:data:`STALL_SIGNAL`) while
+a lockstep run stalls: whether a step of it is running, and for how long (then every
+thread's stack); the launcher says the lines."""
+STALL_SIGNAL = signal.SIGUSR1
 REPORT = "DROPS"
 """The prefix of the one line (``DROPS {json}``, :meth:`NodeShell.report`) a node writes
 to its log as it stops, whatever the log level: what it handled, dropped and failed, which
@@ -258,6 +264,7 @@ class NodeShell:
                 loop.add_signal_handler(sig, stop.set)
             except (NotImplementedError, RuntimeError):  # pragma: no cover - non-main thread
                 pass
+        loop.add_signal_handler(STALL_SIGNAL, self.say_where)
         put = zenoh.SampleKind.PUT
         self.on_failure = lambda: loop.call_soon_threadsafe(stop.set)
         self.pubs = Publishers(session, block=self.spec.mode == "lockstep", express=False)
@@ -301,6 +308,20 @@ class NodeShell:
             token.undeclare()
             self.pubs.close()
         return self.handled
+
+    def say_where(self) -> None:
+        """The launcher asks while the run stalls: one :data:`STALLED` line (a step running,
+        since when, or none), then every thread's stack when a step runs (where it hangs)."""
+        label, stepping = self.node_plan.label, self.runner.stepping
+        if stepping is None:
+            sys.stderr.write(f"{STALLED} {label}: no step running ({self.runner.runs} runs so far)\n")
+        else:
+            t, began = stepping
+            sys.stderr.write(f"{STALLED} {label}: its step at t={t:.3f} s has run for {time.monotonic() - began:.1f} s; "
+                             f"its threads' stacks follow\n")
+            sys.stderr.flush()
+            faulthandler.dump_traceback(file=sys.stderr, all_threads=True)
+        sys.stderr.flush()
 
     def report(self) -> dict[str, Any]:
         g = self.gate
@@ -352,6 +373,7 @@ def main(argv: list[str] | None = None) -> int:
     from cekm_swarm.runtime.lifetime import die_with_parent
 
     die_with_parent()  # started by a launcher: stop when it dies, whatever kills it
+    signal.signal(STALL_SIGNAL, signal.SIG_IGN)  # asked before it serves: nothing to say yet
     args = parser().parse_args(argv)
     label = f"{args.robot}/{args.node}"
     try:

@@ -5,6 +5,7 @@ executor run a node through."""
 from __future__ import annotations
 
 import os
+import time
 from typing import Any
 
 from cekm_swarm.graph.plan import NodePlan
@@ -19,10 +20,11 @@ class Runner:
     the port's type, stamped with the tick's time, and fitting what its readers check
     (:mod:`.checks`: a field over the run's lattice)."""
 
-    __slots__ = ("plan", "node", "runs", "skip_not_ready", "_outs", "_check")
+    __slots__ = ("plan", "node", "runs", "skip_not_ready", "stepping", "_outs", "_check")
 
     def __init__(self, plan: NodePlan, node: Node) -> None:
         self.plan, self.node, self.runs = plan, node, 0
+        self.stepping: tuple[float, float] | None = None  # (t, time.monotonic() it began) while a step runs
         self.skip_not_ready = False  # set by the real-time gate, which takes NotReady
         self._outs = [(port, key, node.outputs[port].type) for port, key in plan.outputs.items()]
         self._check = output_check(plan, node)  # what its readers check of what it sends (None: nothing)
@@ -32,6 +34,7 @@ class Runner:
         node, the tick and what failed when its step raises or returns something wrong
         (:class:`~.api.NotReady` passes through to the real-time gate, and is a failure elsewhere)."""
         t = tick_time(k)
+        self.stepping = (t, time.monotonic())
         try:
             out = self.node.step(t, inputs)
         except NotReady:
@@ -45,6 +48,8 @@ class Runner:
             raise NodeError(step_failure(self.plan.label, t, exc)) from exc
         except Exception as exc:  # noqa: BLE001 - a user's node may fail in any way
             raise NodeError(step_failure(self.plan.label, t, exc)) from exc
+        finally:
+            self.stepping = None
         if type(out) is not dict or len(out) != len(self._outs):
             self._refuse(out, t)
         sent = []

@@ -86,6 +86,19 @@ class Exits(Node):
         if t >= self.params.at:
             os._exit(3)
         return {"command": WheelCommand(t, self.ctx.sender, 0.05, 0.05, 0)}
+
+
+class Hangs(Node):
+    """Drives straight; its step from t >= 0.5 s never returns (a deadlock in a user's code)."""
+
+    inputs = {"reading": In(SenseTarget)}
+    outputs = {"command": Out(WheelCommand)}
+
+    def step(self, t, inputs):
+        if t >= 0.5:
+            import time
+            time.sleep(3600)
+        return {"command": WheelCommand(t, self.ctx.sender, 0.05, 0.05, 0)}
 '''
 
 SCENARIO = '''
@@ -134,6 +147,14 @@ name = "drive"
 program = "mine:Drive"
 every = 1
 inputs = { reading = "sense/target", prev = { key = "cmd/wheels", delay = 1 } }
+outputs = { command = "cmd/wheels" }
+''',
+    "hangs": HEAD + '''
+[[node]]
+name = "drive"
+program = "mine:Hangs"
+every = 1
+inputs = { reading = "sense/target" }
 outputs = { command = "cmd/wheels" }
 ''',
     "exits": HEAD + '''
@@ -460,3 +481,20 @@ def test_a_robots_only_host_ends_too_when_its_node_keeps_dying_at_the_same_tick(
     assert code == 2, "\n".join(robots.lines[-20:])
     assert robots.lines[-1].startswith("cekm: error: r1/drive: died (exit code 3) at t=0.512 s (tick 4), and again "
                                        f"after each of {SAME_TICK_RESTARTS} restarts"), robots.lines[-1]
+
+
+@pytest.mark.slow
+def test_a_lockstep_stall_names_the_node_whose_step_hangs(tmp_path):
+    """The world waits at t = 0.512 s; after 5 re-publishings the launcher asks the robot's
+    nodes where they are, and says which step hangs and for how long; the node's log holds
+    its stack (the line of the user's code it hangs in)."""
+    run = launch(tmp_path, graph(tmp_path, "hangs"), "ls", "--mode", "lockstep", "--max-time", "20")
+    try:
+        line = run.wait_line("the world waits at t=0.51 s", timeout=120)
+    finally:
+        run.kill()
+    assert "r1/drive: its step at t=0.512 s has run for" in line, line
+    assert f'at File "{tmp_path / "mine.py"}", line ' in line and " in step (its threads' stacks: " in line, line
+    log = (tmp_path / "ls" / "logs" / "r1-drive.log").read_text()
+    assert "STEP-STALLED r1/drive: its step at t=0.512 s" in log and "in step" in log, log[-2000:]
+
