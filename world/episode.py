@@ -210,6 +210,7 @@ class Episode:
                 "collisions_with": st["collisions_with"],
                 "min_clearance_m": _finite_or_none(st["min_clearance_m"]),
                 "final_distance_m": float(math.hypot(gx - x, gy - y)),
+                "left_arena_s": st["left_arena_s"],  # pushed through a boundary wall (None: never)
                 "checkpoints": [list(c) for c in p.checkpoints],
                 "checkpoints_reached": len(p.checkpoint_times),
             }

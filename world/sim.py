@@ -148,6 +148,7 @@ class World:
         self._touching = [0] * n
         self._released: list[dict[str, float]] = [dict() for _ in range(n)]
         self._collisions = [0] * n
+        self._left_at: list[float | None] = [None] * n  # when first pushed through a boundary wall
         self._collided_with: list[dict[str, int]] = [{} for _ in range(n)]
         space.on_collision(ph.CT_ROBOT, None, begin=self._on_begin, separate=self._on_separate)
 
@@ -358,6 +359,11 @@ class World:
             path[i] += math.hypot(px[i] - ox[i], py[i] - oy[i])
             if touching[i]:
                 cs[i] += 1
+        if self.scenario.boundary_walls:  # a centre outside walled bounds was pushed through a wall
+            x0, y0, x1, y1 = self.scenario.bounds
+            for i in range(n):
+                if self._left_at[i] is None and not (x0 <= px[i] <= x1 and y0 <= py[i] <= y1):
+                    self._left_at[i] = t1
         self._ranges.update_clearance(self._px, self._py)
         self._step_targets(t1)
 
@@ -465,13 +471,12 @@ class World:
 
     # ------------------------------------------------------------------ records
     def stats(self, robot_id: str) -> dict[str, float | int]:
-        """path_length_m (sum over sub-steps), collisions (new contacts with a wall,
-        an obstacle or a robot: one per item touched; touching the same item again
-        within 0.256 s counts once), collisions_with (those counts per item touched),
-        min_clearance_m (smallest
-        body-surface distance to any wall/obstacle/robot so far, negative when
-        penetrating; inf if the world has nothing else in it), contact_s (time
-        spent touching something, counted per sub-step that ends in contact)."""
+        """path_length_m (sum over sub-steps), collisions (new contacts with a wall, an obstacle
+        or a robot: one per item touched; the same item again within 0.256 s counts once),
+        collisions_with (those per item), min_clearance_m (smallest body-surface distance to any
+        wall/obstacle/robot so far, negative when penetrating; inf if nothing else is there),
+        contact_s (time touching something, per sub-step ending in contact), left_arena_s (when
+        its centre first left the bounds of a walled arena, pushed through a wall; None: never)."""
         i = self._i(robot_id)
         return {
             "path_length_m": self._path[i],
@@ -479,6 +484,7 @@ class World:
             "collisions_with": dict(self._collided_with[i]),
             "min_clearance_m": self._ranges.clear[i],
             "contact_s": self._contact_steps[i] * SUBSTEP,
+            "left_arena_s": self._left_at[i],
         }
 
     def in_contact(self, robot_id: str) -> bool:

@@ -258,8 +258,10 @@ class TrackingEpisode:
         for r, p in self.progress.items():
             path = p.path
             length = _path_length(path)
-            out[r] = {"path_length_m": length, "collisions": int(self.world.stats(r)["collisions"]),
-                      "final_pose": list(path[-1][1:]) if path else None}
+            st = self.world.stats(r)
+            out[r] = {"path_length_m": length, "collisions": int(st["collisions"]),
+                      "final_pose": list(path[-1][1:]) if path else None,
+                      "left_arena_s": st["left_arena_s"]}  # pushed through a boundary wall (None: never)
         return out
 
 

@@ -201,11 +201,12 @@ def outcome_summary(outcome: dict) -> list[str]:
     lines = []
     tracking = "tracking" in outcome  # docs/tracking.md
     for r, o in outcome["robots"].items():
+        left = "" if o.get("left_arena_s") is None else f", PUSHED OUT of the arena at t={o['left_arena_s']:.1f} s"
         if tracking:
-            lines.append(f"{r}: path {o['path_length_m']:.2f} m, {o['collisions']} collisions")
+            lines.append(f"{r}: path {o['path_length_m']:.2f} m, {o['collisions']} collisions{left}")
         else:
             lines.append(f"{r}: {'reached' if o['reached'] else 'NOT reached'} in {o['time_s']:.1f} s, path "
-                         f"{o['path_length_m']:.2f} m, {o['collisions']} collisions")
+                         f"{o['path_length_m']:.2f} m, {o['collisions']} collisions{left}")
     if tracking:
         from world.tracking import tracking_summary
 

@@ -197,6 +197,33 @@ def test_line_obstacle_pushes_a_robot():
     assert w.stats("r1")["collisions"] == 1
 
 
+def test_a_robot_a_moving_box_pushes_through_the_boundary_wall_is_reported():
+    """A box sweeping the whole width of a 1 m arena at 0.3 m/s squeezes a robot driving
+    into the east wall; pymunk cannot hold a kinematic body, so the robot goes through. The
+    world says when (stats' left_arena_s, in every outcome); without the box the robot
+    stops at the wall, and nothing is reported."""
+    plow = {"id": "plow", "shape": "box", "size": [0.98, 0.1],
+            "motion": {"type": "line", "a": [0.5, 0.95], "b": [0.5, 0.05], "speed": 0.3}}
+    for obstacles in ([plow], []):
+        w = make([{"id": "r1", "start": [0.2, 0.5, 0.0]}], obstacles=obstacles, bounds=(0.0, 0.0, 1.0, 1.0))
+        w.set_wheels("r1", 0.1, 0.1)
+        for _ in range(400):  # 12.8 s
+            w.step()
+        left = w.stats("r1")["left_arena_s"]
+        if obstacles:
+            assert left is not None and 1.0 < left < 12.8 and not 0.0 <= w.pose("r1")[0] <= 1.0
+        else:
+            assert left is None and w.pose("r1")[0] < 1.0
+    # without boundary walls leaving the bounds is no fault, and nothing is reported
+    free_doc = {"seed": 0, "arena": {"bounds": [0.0, 0.0, 2.0, 2.0], "boundary_walls": False},
+                "robots": [{"id": "r1", "start": [1.9, 1.0, 0.0]}]}
+    free = World(parse_scenario(free_doc, source="<test>"))
+    free.set_wheels("r1", 0.05, 0.05)
+    for _ in range(200):
+        free.step()
+    assert free.pose("r1")[0] > 2.0 and free.stats("r1")["left_arena_s"] is None
+
+
 @pytest.mark.parametrize("seed", [1, 2, 3])
 def test_robot_fits_through_the_86_mm_doorway(seed):
     sc = load_scenario("doorway", overrides={"robots[0].start": [1.38, 1.0, 0.0]})
