@@ -263,6 +263,7 @@ class Parser:
             speed_unit=speed_unit,
             plan_checkpoints=plan,
         )
+        self.check_outside(sc)
         self.check_overlaps(sc)
         return sc
 
@@ -400,6 +401,9 @@ class Parser:
             path_b = "arena.bounds"
         if not (wb[0] < wb[2] and wb[1] < wb[3]):
             self.fail(path_b, f"random-walk bounds must satisfy xmin < xmax and ymin < ymax, got {list(wb)}")
+        if not (bounds[0] <= wb[0] and bounds[1] <= wb[1] and wb[2] <= bounds[2] and wb[3] <= bounds[3]):
+            self.fail(path_b, f"random-walk bounds {list(wb)} reach outside arena.bounds {list(bounds)}: the target "
+                      "would walk out of the arena")
         return RandomWalk(
             speed=self.number(t["speed"], f"{p}.speed", ge=0.0, le=10.0),
             turn_noise=self.number(t.get("turn_noise", 0.0), f"{p}.turn_noise", ge=0.0, le=100.0),
@@ -408,6 +412,23 @@ class Parser:
         )
 
     # -- geometric consistency -----------------------------------------------------------
+    def check_outside(self, sc: Scenario) -> None:
+        """A static wall or obstacle wholly outside the arena's bounds is a typo (it can meet
+        nothing in the run): refused by its field."""
+        x0, y0, x1, y1 = sc.bounds
+        items = [(w.source, w.outline) for w in sc.walls if w.source.startswith("walls[")]
+        for o in sc.obstacles:
+            if o.motion is None:
+                pts = o.outline or tuple(p for part in o.parts for p in part)
+                if o.center is not None and o.radius is not None:
+                    (cx, cy), rr = o.center, o.radius
+                    pts = ((cx - rr, cy - rr), (cx + rr, cy + rr))
+                items.append((o.source, pts))
+        for where, pts in items:
+            if pts and (max(p[0] for p in pts) < x0 or min(p[0] for p in pts) > x1
+                        or max(p[1] for p in pts) < y0 or min(p[1] for p in pts) > y1):
+                self.fail(where, f"lies wholly outside arena.bounds {list(sc.bounds)}: it can meet nothing")
+
     def check_overlaps(self, sc: Scenario) -> None:
         from ._physics import StaticIndex
 

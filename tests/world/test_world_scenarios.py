@@ -277,6 +277,13 @@ BAD = [
     ("target id too long", GOOD.replace('"g"', f'"{"g" * 65}"'), ["targets[0].id", "id of 65 characters: at most 64"]),
     ("obstacle id too long", GOOD + f'\n[[obstacles]]\nid = "{"o" * 257}"\nshape = "disc"\ncenter = [1.0, 1.0]\n'
      'radius = 0.1\n', ["obstacles[0].id", "id of 257 characters: at most 256"]),
+    ("wall wholly outside", GOOD + "\n[[walls]]\na = [5.0, 5.0]\nb = [6.0, 5.0]\n",
+     ["walls[0]", "lies wholly outside arena.bounds"]),
+    ("disc wholly outside", GOOD + '\n[[obstacles]]\nshape = "disc"\ncenter = [3.0, 1.0]\nradius = 0.1\n',
+     ["obstacles[0]", "lies wholly outside arena.bounds"]),
+    ("random walk leaving the arena", GOOD.replace('position = [1.5, 1.5]', 'position = [1.5, 1.5]\nmotion = '
+     '{type = "random_walk", speed = 0.1, bounds = [-5.0, -5.0, 5.0, 5.0]}'),
+     ["targets[0].motion.bounds", "reach outside arena.bounds"]),
     ("plan_checkpoints not a bool", "plan_checkpoints = 1\n" + GOOD, ["plan_checkpoints", "must be true or false"]),
 ]
 
