@@ -5,7 +5,10 @@ Per robot (docs/tracking.md):
 
 * the tracking target module (every 0.256 s, on ``sense/pose``, ``sense/targets`` and the
   teammates' shares, see :mod:`.team` for which shares a tick uses) computes
-  - one target field per sensed target t, weighted by w_t = watched_factor ** n_t (n_t:
+  - hand-offs by K-means' assignment (:func:`assigned_group`): the targets of the team's
+    that fall to this robot (nearest robot), when within assign_radius * R of their
+    centroid, are one target field there, in place of their own;
+  - one target field per other sensed target t, weighted by w_t = watched_factor ** n_t (n_t:
     teammates that observe t and are nearer to it) and by its urgency (a target near
     the edge of the range pulls harder), localized at a stand-off: a target
     at distance d > standoff * R is localized at (alpha, d - standoff * R), a nearer one
@@ -14,7 +17,7 @@ Per robot (docs/tracking.md):
     stand-off shrinks with the target's estimated speed (:func:`standoff_distance`). A
     target more than face_angle to a side is localized at (+-face_angle, 0), so the robot
     turns in place toward it first;
-  - when no sensed target has full weight, the target field of the search goal (the
+  - when no sensed target has full weight and none is assigned, the target field of the search goal (the
     one search behaviour, :meth:`.team.TeamView.search_goal`), weighted search_weight;
   - one inhibitory field per teammate (Eq. 8's form with wider widths), weighted 1 within
     teammate_near * R, falling linearly to 0 at teammate_far * R, so the robots spread;

@@ -40,6 +40,7 @@ class TrackingRun:
     target_range: float
     collisions: dict[str, int] = field(default_factory=dict)
     graph: str | None = None
+    robots: dict[str, dict] = field(default_factory=dict)  # outcome.json's per-robot block, the world's
 
 
 def run_tracking(scenario, controller: str = "cekm", model=None, seed: int | None = None,
@@ -75,18 +76,14 @@ def run_tracking(scenario, controller: str = "cekm", model=None, seed: int | Non
     collisions = {r: int(world.stats(r)["collisions"]) for r in robots}
     return TrackingRun(scenario.name, controller, int(seed if seed is not None else scenario.seed), paths,
                        run.target_paths, episode.meter.summary(), world.static_geometry(), world.state(),
-                       world.target_range, collisions, run.plan.graph.name)
+                       world.target_range, collisions, run.plan.graph.name, episode.outcome())
 
 
 def outcome_doc(run: TrackingRun) -> dict[str, Any]:
-    """``outcome.json`` of a tracking run."""
-    robots = {}
-    for r, p in run.paths.items():
-        length = sum(math.hypot(b[1] - a[1], b[2] - a[2]) for a, b in zip(p, p[1:]))
-        robots[r] = {"path_length_m": length, "collisions": run.collisions.get(r, 0),
-                     "final_pose": list(p[-1][1:]) if p else None}
+    """``outcome.json`` of a tracking run (its per-robot block the world's own, as the world
+    server writes it: :meth:`world.tracking.TrackingEpisode.outcome`)."""
     return {"scenario": run.scenario, "controller": run.controller, "graph": run.graph, "seed": run.seed,
-            "robots": robots, "tracking": run.tracking}
+            "robots": run.robots, "tracking": run.tracking}
 
 
 # --------------------------------------------------------------------------- team sizes
