@@ -217,6 +217,12 @@ class Episode:
         return out
 
 
+def pushed_out_note(robot: dict[str, Any]) -> str:
+    """What a run's line adds for a robot of ``outcome()`` pushed through a boundary wall ("" if none)."""
+    left = robot.get("left_arena_s")
+    return "" if left is None else f", PUSHED OUT of the arena at t={left:.1f} s"
+
+
 def _finite_or_none(x: float) -> float | None:
     x = float(x)
     return x if math.isfinite(x) else None

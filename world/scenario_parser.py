@@ -32,10 +32,10 @@ from .scenario import (
 # ------------------------------------------------------------------ validation
 
 
-
 def _max_length(id_type: Any) -> int:
     """The longest string the protocol's id type takes (its one declaration, protocol.schema)."""
     return next(a.max_length for a in get_args(id_type)[1:] if getattr(a, "max_length", None) is not None)
+
 
 class Parser:
     """Validates a parsed scenario document field by field; every refusal names the file and the field path."""

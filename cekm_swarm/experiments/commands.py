@@ -24,6 +24,8 @@ if TYPE_CHECKING:
 
 def run_navigation_cmd(scenario, controller: str, model, seed: int | None, max_time: float, out_dir, graph) -> None:
     """``cekm run`` on a navigation scenario: outcome.json and trajectory.png, and each robot's outcome."""
+    from world.episode import pushed_out_note
+
     from .navigation_figures import plot_run
     from .navigation_run import run_scenario
 
@@ -39,9 +41,9 @@ def run_navigation_cmd(scenario, controller: str, model, seed: int | None, max_t
         c = o["min_clearance_m"]
         clearance = ("nothing within sensor range" if c is None else f"{c * 1000:.0f} mm" if c >= 0.0 else
                      f"{c * 1000:.1f} mm (in contact)")
-        left = "" if o.get("left_arena_s") is None else f", PUSHED OUT of the arena at t={o['left_arena_s']:.1f} s"
         click.echo(f"{r}: {'reached' if o['reached'] else 'NOT reached'} in {o['time_s']:.1f} s, path "
-                   f"{o['path_length_m']:.2f} m, {o['collisions']} collisions, min clearance {clearance}{left}")
+                   f"{o['path_length_m']:.2f} m, {o['collisions']} collisions, min clearance {clearance}"
+                   f"{pushed_out_note(o)}")
     click.echo(f"wrote {out_dir / 'outcome.json'}, {out_dir / 'trajectory.png'}")
 
 

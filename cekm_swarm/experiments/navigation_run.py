@@ -6,6 +6,8 @@ command fusion) run by :func:`.graph_run.run_graph`, the results as a
 
 from __future__ import annotations
 
+import copy
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -59,7 +61,6 @@ def run_scenario(scenario, controller: str = "cekm", model=None, seed: int | Non
     EKM's nodes (Eqs. 6, 8). ``graph``: a graph file instead of the controller's own.
     ``progress(t)`` is called every simulated second.
     """
-    from world import World
 
     from .graph_run import run_graph
 
@@ -71,10 +72,7 @@ def run_scenario(scenario, controller: str = "cekm", model=None, seed: int | Non
         model = default_model()
     if use_checkpoints is None:
         use_checkpoints = scenario.plan_checkpoints
-    checkpoints, plan_paths = (None, {})
-    if use_checkpoints:
-        w = World(scenario, seed=seed)
-        checkpoints, plan_paths = plan_all(w, w.static_geometry(), scenario.source)
+    checkpoints, plan_paths = planned(scenario) if use_checkpoints else (None, {})
     run = run_graph(scenario, controller, graph=graph, model=model, seed=seed, max_time=max_time,
                     checkpoints=checkpoints, params=field_overrides(fields), progress=progress)
     world, episode = run.world, run.episode
@@ -113,14 +111,25 @@ def plan_all(world, geometry, source: str = "scenario") -> tuple[dict, dict]:
     return checkpoints, paths
 
 
-def planned_checkpoints(scenario) -> dict[str, list[list[float]]]:
-    """The checkpoints of a ``plan_checkpoints`` scenario as plain data (what a launch hands
-    the world server), or raises :class:`PlanningError` as :func:`plan_all`."""
+def planned(scenario) -> tuple[dict, dict]:
+    """:func:`plan_all` of ``scenario`` (its start poses and goals on its known walls, which
+    no seed changes), planned once: the command's early check, the run and a launch each
+    want it, and a plan takes about a second. A copy, so no caller changes the next one's."""
+    return copy.deepcopy(_planned(scenario))
+
+
+@functools.lru_cache(maxsize=4)
+def _planned(scenario) -> tuple[dict, dict]:
     from world import World
 
     world = World(scenario)
-    checkpoints = plan_all(world, world.static_geometry(), scenario.source)[0]
-    return {r: [list(map(float, c)) for c in cps] for r, cps in checkpoints.items()}
+    return plan_all(world, world.static_geometry(), scenario.source)
+
+
+def planned_checkpoints(scenario) -> dict[str, list[list[float]]]:
+    """The checkpoints of a ``plan_checkpoints`` scenario as plain data (what a launch hands
+    the world server), or raises :class:`PlanningError` as :func:`plan_all`."""
+    return {r: [list(map(float, c)) for c in cps] for r, cps in planned(scenario)[0].items()}
 
 
 def world_seed(world, seed, scenario) -> int:
@@ -132,16 +141,12 @@ def fields_at(scenario, model, at_time: float, controller_seed: int | None = Non
     """Run the cooperative EKM to sim time ``at_time`` and return the activities of Fig. 4:
     the target field, each obstacle field, the combined obstacle fields and the integrated
     activity, with the winners, the robot's pose and the input weights."""
-    from world import World
     from world.episode import TICK_S
 
     from ..controller.cooperative import CooperativeEKM
     from .graph_run import run_graph
 
-    checkpoints = None
-    if scenario.plan_checkpoints:
-        w = World(scenario, seed=controller_seed)
-        checkpoints = plan_all(w, w.static_geometry(), scenario.source)[0]
+    checkpoints = planned(scenario)[0] if scenario.plan_checkpoints else None
     last = int(round(at_time / TICK_S))
     run = run_graph(scenario, "cekm", model=model, seed=controller_seed, checkpoints=checkpoints,
                     params=field_overrides(fields), stop_at=last, max_time=max(at_time, TICK_S) + 1.0)

@@ -38,9 +38,13 @@ class TrackingRun:
     geometry: dict
     final_state: dict
     target_range: float
-    collisions: dict[str, int] = field(default_factory=dict)
     graph: str | None = None
     robots: dict[str, dict] = field(default_factory=dict)  # outcome.json's per-robot block, the world's
+
+    @property
+    def collisions(self) -> dict[str, int]:
+        """Each robot's collisions (from its block in :attr:`robots`)."""
+        return {r: int(o["collisions"]) for r, o in self.robots.items()}
 
 
 def run_tracking(scenario, controller: str = "cekm", model=None, seed: int | None = None,
@@ -73,10 +77,9 @@ def run_tracking(scenario, controller: str = "cekm", model=None, seed: int | Non
     world, episode = run.world, run.episode
     robots = list(world.robot_ids)
     paths = {r: list(episode.progress[r].path) for r in robots}
-    collisions = {r: int(world.stats(r)["collisions"]) for r in robots}
     return TrackingRun(scenario.name, controller, int(seed if seed is not None else scenario.seed), paths,
                        run.target_paths, episode.meter.summary(), world.static_geometry(), world.state(),
-                       world.target_range, collisions, run.plan.graph.name, episode.outcome())
+                       world.target_range, run.plan.graph.name, episode.outcome())
 
 
 def outcome_doc(run: TrackingRun) -> dict[str, Any]:

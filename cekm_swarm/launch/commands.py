@@ -200,8 +200,10 @@ def outcome_summary(outcome: dict) -> list[str]:
 
     lines = []
     tracking = "tracking" in outcome  # docs/tracking.md
+    from world.episode import pushed_out_note
+
     for r, o in outcome["robots"].items():
-        left = "" if o.get("left_arena_s") is None else f", PUSHED OUT of the arena at t={o['left_arena_s']:.1f} s"
+        left = pushed_out_note(o)
         if tracking:
             lines.append(f"{r}: path {o['path_length_m']:.2f} m, {o['collisions']} collisions{left}")
         else:
