@@ -1,4 +1,4 @@
-"""Tracking grid speed: the default `cekm experiment tracking --grid` (28 cells, seeds 1-5,
+"""Tracking grid speed: the default `cekm experiment tracking --grid` (28 cells, seeds 1-15,
 60 s of sim time per run, cekm, A-CMOMMT, K-means and global K-means; one worker per core).
 
 Goal (issue 19): under 15 minutes on 2 cores. Baseline, measured in the same run: one
@@ -22,7 +22,9 @@ GOAL_S = 900.0
 
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--seeds", type=int, default=5)
+    from cekm_swarm.experiments.grid_report import DEFAULT_SEEDS
+
+    ap.add_argument("--seeds", type=int, default=DEFAULT_SEEDS[1] - DEFAULT_SEEDS[0] + 1)
     ap.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     args = ap.parse_args()
     from cekm_swarm.experiments.default_model import default_model

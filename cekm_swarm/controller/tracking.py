@@ -7,7 +7,8 @@ Per robot (docs/tracking.md):
   teammates' shares, see :mod:`.team` for which shares a tick uses) computes
   - hand-offs by K-means' assignment (:func:`assigned_group`): the targets of the team's
     that fall to this robot (nearest robot), when within assign_radius * R of their
-    centroid, are one target field there, in place of their own;
+    centroid, are one target field there, in place of their own, led assign_lead_s along
+    their mean velocity (:func:`led_centroid`);
   - one target field per other sensed target t, weighted by w_t = watched_factor ** n_t (n_t:
     teammates that observe t and are nearer to it) and by its urgency (a target near
     the edge of the range pulls harder), localized at a stand-off: a target
@@ -82,6 +83,17 @@ def assigned_group(robot: str, pose: tuple[float, float, float], known: dict[str
     return (cx, cy), frozenset(mine)
 
 
+def led_centroid(group: tuple[tuple[float, float], frozenset[str]], tracks: TargetTracks,
+                 lead_s: float) -> tuple[float, float]:
+    """The assigned group's centroid moved lead_s along its targets' mean velocity (their
+    tracks; a target without one counts as still), so the robot meets the group where it
+    is going rather than where it was (A-CMOMMT's predictive idea, for the centroid)."""
+    (cx, cy), ids = group
+    vx = sum(tracks.tracks[t][2] for t in ids if t in tracks.tracks) / len(ids)
+    vy = sum(tracks.tracks[t][3] for t in ids if t in tracks.tracks) / len(ids)
+    return cx + lead_s * vx, cy + lead_s * vy
+
+
 def teammate_weight(d: float, target_range: float, params: TrackingParams) -> float:
     """A teammate's field weight at distance d: 1 within teammate_near * R, 0 beyond teammate_far * R, linear between."""
     near, far = params.teammate_near * target_range, params.teammate_far * target_range
@@ -126,6 +138,7 @@ class TrackingEKM:
     fields: FieldParams = field(default_factory=FieldParams.paper)  # the values tracking was tuned with
     backend: str = "numba"
     tracks: TargetTracks = field(default_factory=TargetTracks)
+    known_tracks: TargetTracks = field(default_factory=TargetTracks)  # every known target's, for the lead
 
     def __post_init__(self) -> None:
         if not math.isfinite(self.target_range):
@@ -161,6 +174,10 @@ class TrackingEKM:
             for tid, xy in team[r].targets.items():
                 known.setdefault(tid, xy)
         assigned = assigned_group(self.robot, pose, known, team, R, p)
+        if p.assign_lead_s > 0.0:
+            self.known_tracks.update(t, known)
+            if assigned is not None:
+                assigned = (led_centroid(assigned, self.known_tracks, p.assign_lead_s), assigned[1])
         held: dict[str, tuple[float, float]] = {}
         for tid in sorted(sensed):
             alpha, d = sensed[tid]

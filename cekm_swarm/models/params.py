@@ -170,6 +170,10 @@ class TrackingParams:
     own fields, and the robot does not search. So a robot drives to a target a teammate
     sees but is nearer to, and holds two or three close targets between them (0 radius:
     off; 0.8 R, 1 and 1.0 chosen on the tuning seeds, docs/tracking.md).
+    assign_lead_s: the assigned group's centroid is localized assign_lead_s ahead along its
+    targets' mean velocity (an alpha-beta track of every known target's reported position),
+    so the robot meets a moving group where it is going (0: where it is; 1 s chosen on the
+    tuning seeds, docs/tracking.md).
     face_angle (rad): a sensed target more than face_angle to either side of the robot's
     heading is localized at (+-face_angle, 0), a goal state on its side, whatever its
     distance, so the robot turns in place toward it before it drives (pi: off). Without it
@@ -201,6 +205,7 @@ class TrackingParams:
     assign_radius: float = 0.8
     assign_min: int = 1
     assign_weight: float = 1.0
+    assign_lead_s: float = 1.0
 
     def __post_init__(self) -> None:
         if not (self.assign_radius >= 0.0 and self.assign_weight > 0.0 and self.assign_min >= 1):
@@ -208,9 +213,9 @@ class TrackingParams:
         if not 0.0 < self.face_angle <= math.pi:
             raise ParameterError(f"TrackingParams.face_angle must be in (0, pi], got {self.face_angle!r}")
         if not (self.predict_s >= 0.0 and self.group_weight >= 0.0 and self.group_radius > 0.0
-                and self.standoff_speed_s >= 0.0):
-            raise ParameterError("TrackingParams: predict_s, group_weight and standoff_speed_s must be >= 0, "
-                                 "group_radius > 0")
+                and self.standoff_speed_s >= 0.0 and 0.0 <= self.assign_lead_s < math.inf):
+            raise ParameterError("TrackingParams: predict_s, group_weight, standoff_speed_s and assign_lead_s must be "
+                                 ">= 0 (assign_lead_s finite), group_radius > 0")
         _check_positive(self, "teammate_near", "teammate_far", "teammate_sigma_alpha", "teammate_sigma_d_beyond",
                         "teammate_sigma_d_near", "search_weight", "search_reached", "wander_ahead_m",
                         "share_timeout_s", "memory_s")

@@ -203,6 +203,25 @@ def test_a_target_behind_is_turned_to_in_place(model):
     assert out.s is None and (out.v_l + out.v_r) / 2.0 > 0.05
 
 
+def test_the_assigned_centroid_is_met_where_it_is_going(model):
+    """assign_lead_s: a lone target moving steadily is localized assign_lead_s ahead of where
+    it is, along its track's velocity (0: where it is)."""
+    pose = (1.0, 1.0, 0.0)
+    v = 0.02  # m/s, sideways
+    led = {}
+    for lead in (0.0, 1.0):
+        ctl = TrackingEKM("r1", model, R, TrackingParams(assign_lead_s=lead, face_angle=math.pi))
+        view = TeamView("r1")
+        for k in range(60):
+            t = 0.256 * k
+            where = (1.3, 1.0 + v * t)
+            act = ctl.localize(t, pose, {"a": to_robot(pose, where)}, view)
+        (s, ga, gd, wt), = act.inputs
+        led[lead] = np.subtract(to_world(pose, ga, gd), where)
+    assert np.allclose(led[0.0], 0.0, atol=1e-9)
+    assert np.allclose(led[1.0], (0.0, v * 1.0), atol=0.002)
+
+
 def test_a_target_ahead_is_localized_as_before(model):
     """Within face_angle of the heading nothing changes: the same inputs with the rule on and off."""
     pose = (1.0, 1.0, 0.0)
