@@ -1,4 +1,4 @@
-"""Tracking grid speed: the default `cekm experiment tracking --grid` (28 cells, seeds 1-15,
+"""Tracking grid speed: the default `cekm experiment tracking --grid` (28 cells, seeds 1-10,
 60 s of sim time per run, cekm, A-CMOMMT, K-means and global K-means; one worker per core).
 
 Goal (issue 19): under 15 minutes on 2 cores. Baseline, measured in the same run: one

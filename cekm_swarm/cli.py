@@ -189,7 +189,7 @@ def obstacles(seeds: str, speed_unit: float | None, max_time: float, model_path:
 @experiment.command("tracking")
 @out_dir_options("Directory for results.json, tables.md and the figures.")
 @click.option("--seeds", type=click.IntRange(2, 1000), help="N seeds per team size, from --first-seed (default 10; "
-              "--grid: 15 per cell, --quick 2).")
+              "--grid: 10 per cell, --quick 2).")
 @click.option("--robots", default="2,4,8", show_default=True, help="Team sizes, comma-separated.")
 @click.option("--duration", type=Finite(min=1.0), help="Sim seconds per run (default 60; --grid --quick 8).")
 @click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path))
@@ -199,7 +199,7 @@ def obstacles(seeds: str, speed_unit: float | None, max_time: float, model_path:
               "sensing range, obstacles; docs/tracking.md): results.json, tables.md, grid.png.")
 @click.option("--quick", is_flag=True, help="With --grid: a small grid (CI).")
 @click.option("--first-seed", default=1, show_default=True, type=click.IntRange(0),
-              help="Seeds first-seed .. first-seed + N - 1 (the grid's default held-out 1-15; its tuning used 1001-1099).")
+              help="Seeds first-seed .. first-seed + N - 1 (the grid's default held-out 1-10; its tuning used 1001-1099).")
 def tracking_experiment(out_dir: Path, overwrite: bool, seeds: int | None, robots: str, duration: float | None,
                         model_path: Path | None, workers: int | None, quiet: bool, grid: bool, quick: bool,
                         first_seed: int) -> None:
