@@ -238,6 +238,13 @@ def test_face_angle_is_validated():
             TrackingParams(face_angle=bad)
 
 
+def test_assign_lead_s_is_validated():
+    for bad in (-0.5, float("inf"), float("nan")):
+        with pytest.raises(ParameterError, match="assign_lead_s"):
+            TrackingParams(assign_lead_s=bad)
+    assert TrackingParams(assign_lead_s=0.0).assign_lead_s == 0.0
+
+
 # ---------------------------------------------------------------- hand-offs by K-means' assignment
 
 
