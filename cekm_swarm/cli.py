@@ -200,23 +200,29 @@ def obstacles(seeds: str, speed_unit: float | None, max_time: float, model_path:
 @click.option("--quick", is_flag=True, help="With --grid: a small grid (CI).")
 @click.option("--first-seed", default=1, show_default=True, type=click.IntRange(0),
               help="Seeds first-seed .. first-seed + N - 1 (the grid's default held-out 1-10; its tuning used 1001-1099).")
+@click.option("--param", "params", multiple=True, metavar="NAME=VALUE",
+              help="With --grid: one of cekm's TrackingParams for this run (repeatable), e.g. assign_lead_s=0.5; "
+                   "recorded in results.json. How the defaults were tuned (docs/tracking.md).")
 def tracking_experiment(out_dir: Path, overwrite: bool, seeds: int | None, robots: str, duration: float | None,
                         model_path: Path | None, workers: int | None, quiet: bool, grid: bool, quick: bool,
-                        first_seed: int) -> None:
+                        first_seed: int, params: tuple[str, ...]) -> None:
     """Multi-robot tracking (Fig. 13): cooperative EKMs, A-CMOMMT, K-means (local and global) and static robots
     on the same seeds; with --grid, over the scenario grid."""
     if quick and not grid:
         raise click.UsageError("--quick goes with --grid")
+    if params and not grid:
+        raise click.UsageError("--param goes with --grid")
     _model(model_path)
     if grid:
-        from .experiments.commands import run_grid_cmd
+        from .experiments.commands import parse_cekm_params, run_grid_cmd
         from .experiments.grid_report import DEFAULT_DURATION, DEFAULT_SEEDS
 
+        cekm_params = parse_cekm_params(params)  # before anything is written
         n = seeds if seeds is not None else (2 if quick else DEFAULT_SEEDS[1])
         prepare_out_dir(out_dir, overwrite)
         run_grid_cmd(out_dir, quick, list(range(first_seed, first_seed + n)),
                      duration if duration is not None else (8.0 if quick else DEFAULT_DURATION), model_path, workers,
-                     quiet)
+                     quiet, cekm_params)
         return
     from .experiments.commands import parse_team_sizes, run_tracking_experiment_cmd
 

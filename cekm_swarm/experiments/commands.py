@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING, Callable, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Sequence
 
 import click
 
@@ -114,12 +114,58 @@ def run_tracking_experiment_cmd(out_dir, seeds: int, sizes: tuple[int, ...], dur
     click.echo(f"{doc['wall_seconds']:.1f} s; wrote " + ", ".join(str(p) for p in paths))
 
 
-def run_grid_cmd(out_dir, quick: bool, seeds: list[int], duration: float, model_path, workers, quiet: bool) -> None:
-    """``cekm experiment tracking --grid`` once its options are checked."""
+def parse_cekm_params(items: tuple[str, ...]) -> dict[str, Any]:
+    """``--param NAME=VALUE`` (repeatable): overrides of cekm's TrackingParams, typed by the
+    field (a number, an integer, or true/false) and checked by TrackingParams itself; a
+    ParameterError names the option and the field."""
+    import typing
+
+    from ..models.params import TrackingParams
+
+    hints = typing.get_type_hints(TrackingParams)
+    names = [f.name for f in dataclasses.fields(TrackingParams)]
+    out: dict[str, Any] = {}
+    for item in items:
+        name, sep, text = item.partition("=")
+        name, text = name.strip(), text.strip()
+        if not sep or not name or not text:
+            raise ParameterError(f"--param {item!r}: expected NAME=VALUE, e.g. assign_lead_s=0.5")
+        if name not in hints:
+            raise ParameterError(f"--param {name!r}: cekm's TrackingParams has no such field; one of {', '.join(names)}")
+        kind = hints[name]
+        try:
+            if kind is bool:
+                if text.lower() not in ("true", "false"):
+                    raise ValueError
+                value: Any = text.lower() == "true"
+            elif kind is int:
+                value = int(text)
+            else:
+                value = float(text)
+        except ValueError:
+            raise ParameterError(f"--param {name}: expected {'true or false' if kind is bool else kind.__name__}, "
+                                 f"got {text!r}") from None
+        if name in out:
+            raise ParameterError(f"--param {name}: given twice")
+        out[name] = value
+    try:
+        TrackingParams(**out)  # its own checks, naming the field
+    except ParameterError as exc:
+        raise ParameterError(f"--param: {exc}") from None
+    return out
+
+
+def run_grid_cmd(out_dir, quick: bool, seeds: list[int], duration: float, model_path, workers, quiet: bool,
+                 cekm_params: dict[str, Any] | None = None) -> None:
+    """``cekm experiment tracking --grid`` once its options are checked; ``cekm_params``:
+    overrides of cekm's TrackingParams (``--param``), recorded in results.json."""
+    from ..models.params import TrackingParams
     from .grid_report import grid_doc, tables_markdown, write_grid
 
     model_path = _trained_model_path(model_path)
-    doc = grid_doc(quick, seeds, duration, model_path, workers, progress=not quiet, out_dir=out_dir)
+    tparams = TrackingParams(**cekm_params) if cekm_params else None
+    doc = grid_doc(quick, seeds, duration, model_path, workers, progress=not quiet, tparams=tparams, out_dir=out_dir)
+    doc["cekm_params"] = dict(cekm_params or {})
     paths = write_grid(doc, out_dir)
     click.echo(tables_markdown(doc).split("\n\n")[0])
     beat = [d for d in doc["cells"] if d["cekm_vs_best"]["cekm_above_all"]]

@@ -68,6 +68,32 @@ def test_cekm_experiment_tracking_grid_quick_writes_every_cell_and_the_heatmaps(
     assert (out / "grid.png").read_bytes()[:4] == b"\x89PNG" and "| robots |" in (out / "tables.md").read_text()
     bad = CliRunner().invoke(main, ["experiment", "tracking", "--quick", "--out", str(tmp_path / "x")])
     assert bad.exit_code == 2 and "--grid" in bad.output
+    assert doc["cekm_params"] == {}
+    # --param: cekm's TrackingParams for this run, recorded; the baselines' runs are the same
+    out2 = tmp_path / "grid2"
+    r = CliRunner().invoke(main, ["experiment", "tracking", "--grid", "--quick", "--seeds", "2", "--duration", "3",
+                                  "--workers", "1", "--quiet", "--param", "assign_radius=0", "--param",
+                                  "search_weight=2", "--out", str(out2)])
+    assert r.exit_code == 0, r.output
+    doc2 = json.loads((out2 / "results.json").read_text())
+    assert doc2["cekm_params"] == {"assign_radius": 0.0, "search_weight": 2.0}
+    pairs = list(zip(doc["cells"], doc2["cells"]))
+    assert any(a["controllers"]["cekm"]["per_seed"] != b["controllers"]["cekm"]["per_seed"] for a, b in pairs)
+    assert all(a["controllers"][k]["per_seed"] == b["controllers"][k]["per_seed"]
+               for a, b in pairs for k in ("acmommt", "kmeans", "kmeans-global"))
+
+
+def test_param_overrides_are_typed_by_the_field_and_refused_by_name():
+    from cekm_swarm.errors import ParameterError
+    from cekm_swarm.experiments.commands import parse_cekm_params
+
+    assert parse_cekm_params(()) == {}
+    assert parse_cekm_params(("assign_lead_s=0.5", "assign_min = 2")) == {"assign_lead_s": 0.5, "assign_min": 2}
+    for bad, words in ((("nope=1",), "no such field"), (("assign_min=1.5",), "expected int"),
+                       (("assign_lead_s",), "NAME=VALUE"), (("assign_lead_s=-1",), "assign_lead_s"),
+                       (("standoff=0.5", "standoff=0.6"), "given twice"), (("standoff=x",), "expected float")):
+        with pytest.raises(ParameterError, match=words):
+            parse_cekm_params(bad)
 
 
 @pytest.mark.slow  # runs git
