@@ -1,6 +1,6 @@
-"""The tracking grid's picture: one heatmap per pair of axes of cekm's A minus the best
+"""The tracking grid's pictures: one heatmap per pair of axes of cekm's A minus the best
 baseline's (A-CMOMMT or local K-means, whichever is higher there), pooled over the cells
-at each level pair; a star marks Welch p < 0.05."""
+at each level pair, a star marking Welch p < 0.05; and A over the run, per controller."""
 
 from __future__ import annotations
 
@@ -53,4 +53,27 @@ def heatmaps(pairs: list[dict[str, Any]], title: str):
     if im is not None:
         cax = fig.add_axes((0.925, 0.15, 0.012, 0.7))
         fig.colorbar(im, cax=cax, label="A cekm - A best baseline")
+    return fig
+
+
+def over_the_run(by_part: dict[str, Any], title: str):
+    """A per part of the run, one line per controller with its 95 % interval as a band."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.4, 4.0))
+    mids = [(lo + hi) / 2 for lo, hi in by_part["parts"]]
+    for name, parts in by_part["controllers"].items():
+        line, = ax.plot(mids, [p["mean"] for p in parts], marker="o", label=name)
+        ax.fill_between(mids, [p["ci95"][0] for p in parts], [p["ci95"][1] for p in parts],
+                        color=line.get_color(), alpha=0.15, linewidth=0)
+    ax.set_xlabel("sim time (s), the middle of each part of the run")
+    ax.set_ylabel("Parker's A over that part")
+    ax.set_xlim(0, by_part["parts"][-1][1])
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc="lower right")
+    ax.set_title(title, fontsize=9)
+    fig.tight_layout()
     return fig

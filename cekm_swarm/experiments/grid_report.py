@@ -11,7 +11,7 @@ from typing import Any
 from .. import jsonfile
 from .grid_design import LEVELS, QUICK, design
 from .grid_run import BASELINES, GRID_CONTROLLERS, run_grid
-from .grid_stats import by_axis, by_pair, cell_stats
+from .grid_stats import by_axis, by_pair, by_part, cell_stats
 
 DEFAULT_SEEDS = (1, 10)  # held-out seeds 1..10 (docs/tracking.md: why 10); tuning used 1001-1099
 DEFAULT_DURATION = 60.0
@@ -57,7 +57,7 @@ def grid_doc(quick: bool, seeds: list[int], duration: float, model_path, workers
                              "starts; with obstacles round(n / 2) discs and boxes (cekm_swarm/experiments/grid_design.py)",
             "wall_seconds": round(wall, 1), "workers": workers, **checkout,
             "cells": per_cell, "by_axis": by_axis(per_cell, GRID_CONTROLLERS),
-            "by_pair": by_pair(per_cell, GRID_CONTROLLERS)}
+            "by_pair": by_pair(per_cell, GRID_CONTROLLERS), "by_part": by_part(rows, GRID_CONTROLLERS, duration)}
 
 
 def _ci(a: dict[str, Any]) -> str:
@@ -78,6 +78,16 @@ def tables_markdown(doc: dict[str, Any]) -> str:
             lines.append(f"| {row['level']} | {row['cells']} | " + " | ".join(_ci(row["controllers"][c]) for c in ctl)
                          + f" | {vs} |")
         lines.append("")
+    parts = doc.get("by_part", {})
+    if parts.get("parts"):
+        lines += ["A over the run: every cell and seed pooled, per part of the run's ticks (s of sim time).", "",
+                  "| part (s) | " + " | ".join(f"A {c}" for c in parts["controllers"])
+                  + " | " + " | ".join(f"cekm - {c}" for c in parts["cekm_minus"]) + " |",
+                  "|---|" + "---:|" * (len(parts["controllers"]) + len(parts["cekm_minus"]))]
+        for k, (lo, hi) in enumerate(parts["parts"]):
+            lines.append(f"| {lo:g}-{hi:g} | " + " | ".join(_ci(v[k]) for v in parts["controllers"].values()) + " | "
+                         + " | ".join(f"{v[k]['diff']:+.3f} (p = {v[k]['p']:.2g})" for v in parts["cekm_minus"].values()) + " |")
+        lines.append("")
     lines += ["| cell | " + " | ".join(f"A {c}" for c in ctl) + " | cekm - best baseline (p) | cekm - kmeans-global (p) |",
               "|---|" + "---:|" * len(ctl) + "---|---|"]
     for d in doc["cells"]:
@@ -90,11 +100,11 @@ def tables_markdown(doc: dict[str, Any]) -> str:
 
 
 def write_grid(doc: dict[str, Any], out_dir) -> list[Path]:
-    """results.json, tables.md, grid.png."""
+    """results.json, tables.md, grid.png and parts.png (A over the run)."""
 
     import matplotlib.pyplot as plt
 
-    from .grid_figures import heatmaps
+    from .grid_figures import heatmaps, over_the_run
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -105,4 +115,11 @@ def write_grid(doc: dict[str, Any], out_dir) -> list[Path]:
                                    f"level pair ({n} seeds per cell; * Welch p < 0.05)")
     fig.savefig(out / "grid.png", dpi=110)
     plt.close(fig)
-    return [out / "results.json", out / "tables.md", out / "grid.png"]
+    paths = [out / "results.json", out / "tables.md", out / "grid.png"]
+    if doc.get("by_part", {}).get("parts"):
+        fig = over_the_run(doc["by_part"], f"A over the run: every cell and seed pooled ({len(doc['cells'])} cells, "
+                                           f"{n} seeds), 95 % intervals")
+        fig.savefig(out / "parts.png", dpi=110)
+        plt.close(fig)
+        paths.append(out / "parts.png")
+    return paths

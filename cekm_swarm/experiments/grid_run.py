@@ -11,6 +11,10 @@ from typing import Any
 from .grid_design import Cell, grid_scenario
 
 GRID_CONTROLLERS = ("cekm", "acmommt", "kmeans", "kmeans-global")
+PARTS = 6
+"""A run's ticks are cut into this many equal parts, and A is also kept per part
+(``A_parts``): where in the run a controller gains or loses (the first part is mostly
+finding the targets, the last ones holding them)."""
 BASELINES = ("acmommt", "kmeans")
 """The baselines cekm must beat in every cell; ``kmeans-global`` (every target known) is the
 centralized upper baseline, compared honestly but apart."""
@@ -30,7 +34,18 @@ def run_one(job: tuple) -> dict[str, Any]:
     run = run_tracking(grid_scenario(cell, seed), controller, model, seed, duration,
                        tparams=tparams if controller == "cekm" else None)
     return {"cell": cell.label, "seed": seed, "controller": controller, "A": run.tracking["A"],
-            "collisions": int(sum(run.collisions.values()))}
+            "A_parts": a_parts(run.tracking["series"]["A"]), "collisions": int(sum(run.collisions.values()))}
+
+
+def a_parts(per_tick: list[float], parts: int = PARTS) -> list[float] | None:
+    """Parker's A over each of ``parts`` equal runs of consecutive ticks (the first parts
+    one tick longer when the ticks do not divide evenly); None for a run of fewer ticks
+    than parts."""
+    import numpy as np
+
+    if len(per_tick) < parts:
+        return None
+    return [float(np.mean(chunk)) for chunk in np.array_split(np.asarray(per_tick, dtype=float), parts)]
 
 
 def run_grid(cells: list[Cell], seeds: list[int], duration: float, model_path, workers: int | None = None,

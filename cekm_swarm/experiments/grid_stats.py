@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from .grid_design import AXES, Cell
-from .grid_run import BASELINES
+from .grid_run import BASELINES, PARTS
 from .metrics import welch_p
 from .tracking_stats import mean_ci95
 
@@ -80,4 +80,23 @@ def by_pair(cells: list[dict[str, Any]], controllers: tuple[str, ...]) -> list[d
             pooled = _pooled(sub, controllers)
             grid.append({a: va, b: vb, "cells": len(sub), **_versus(pooled["cekm"], {k: pooled[k] for k in BASELINES})})
         out.append({"axes": [a, b], "levels": [la, lb], "cells": grid})
+    return out
+
+
+def by_part(rows: list[dict[str, Any]], controllers: tuple[str, ...], duration: float) -> dict[str, Any]:
+    """A over the run: per controller, per part of the run (:data:`.grid_run.PARTS` equal
+    parts of its ticks), A pooled over every cell and seed with its interval, and cekm's
+    minus each other controller's with Welch's p. So one sees where a controller gains: the
+    first part is mostly finding the targets, the later ones holding them."""
+    have = [r for r in rows if r.get("A_parts") is not None]
+    if not have:
+        return {"parts": [], "controllers": {}, "cekm_minus": {}}
+    span = duration / PARTS
+    per = {c: [[r["A_parts"][k] for r in have if r["controller"] == c] for k in range(PARTS)] for c in controllers}
+    out = {"parts": [[round(k * span, 3), round((k + 1) * span, 3)] for k in range(PARTS)],
+           "controllers": {c: [mean_ci95(v) for v in per[c]] for c in controllers if per[c][0]}}
+    if "cekm" in out["controllers"]:
+        out["cekm_minus"] = {c: [{"diff": float(np.mean(per["cekm"][k]) - np.mean(per[c][k])),
+                                  "p": welch_p(per["cekm"][k], per[c][k])} for k in range(PARTS)]
+                             for c in out["controllers"] if c != "cekm"}
     return out

@@ -66,6 +66,12 @@ def test_cekm_experiment_tracking_grid_quick_writes_every_cell_and_the_heatmaps(
         assert math.isclose(best["diff"], c["controllers"]["cekm"]["A"]["mean"] - max(means.values()))
     assert len(doc["by_pair"]) == 10 and set(doc["by_axis"]) == set(AXES)
     assert (out / "grid.png").read_bytes()[:4] == b"\x89PNG" and "| robots |" in (out / "tables.md").read_text()
+    # A over the run: six parts of 0.5 s, each controller's pooled over every cell and seed
+    parts = doc["by_part"]
+    assert parts["parts"][0] == [0.0, 0.5] and parts["parts"][-1] == [2.5, 3.0]
+    assert set(parts["controllers"]) == {"cekm", "acmommt", "kmeans", "kmeans-global"}
+    assert all(v[k]["n"] == 2 * len(doc["cells"]) for v in parts["controllers"].values() for k in range(6))
+    assert (out / "parts.png").read_bytes()[:4] == b"\x89PNG" and "| part (s) |" in (out / "tables.md").read_text()
     bad = CliRunner().invoke(main, ["experiment", "tracking", "--quick", "--out", str(tmp_path / "x")])
     assert bad.exit_code == 2 and "--grid" in bad.output
     assert doc["cekm_params"] == {}
@@ -117,3 +123,26 @@ def test_the_results_commit_is_dirty_for_changed_code_not_for_their_own_director
     assert git_commit(ignore=tmp_path / "out", where=tmp_path)["dirty"] is False
     (tmp_path / "code.py").write_text("x = 2\n")
     assert git_commit(ignore=tmp_path / "out", where=tmp_path)["dirty"] is True
+
+
+def test_a_over_the_run_is_split_into_equal_parts_whose_weighted_mean_is_a():
+    from cekm_swarm.experiments.grid_run import a_parts
+
+    ticks = [0.0, 0.0, 1.0, 1.0, 0.5, 0.5, 1.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0]  # 13 ticks: parts of 3, 2, 2, 2, 2, 2
+    parts = a_parts(ticks)
+    assert parts == [1 / 3, 0.75, 0.75, 0.0, 0.5, 1.0]
+    assert math.isclose((3 * parts[0] + 2 * sum(parts[1:])) / 13, sum(ticks) / 13)
+    assert a_parts(ticks[:5]) is None  # fewer ticks than parts
+
+
+def test_a_over_the_run_pools_every_cell_and_seed_and_compares_cekm_with_each_controller():
+    from cekm_swarm.experiments.grid_stats import by_part
+
+    rows = [{"controller": c, "A_parts": [a + 0.01 * k for k in range(6)]}
+            for c, values in (("cekm", (0.6, 0.62, 0.64)), ("acmommt", (0.4, 0.42, 0.44))) for a in values]
+    doc = by_part(rows, ("cekm", "acmommt"), 60.0)
+    assert doc["parts"] == [[0.0, 10.0], [10.0, 20.0], [20.0, 30.0], [30.0, 40.0], [40.0, 50.0], [50.0, 60.0]]
+    assert math.isclose(doc["controllers"]["cekm"][2]["mean"], 0.64) and doc["controllers"]["acmommt"][0]["n"] == 3
+    assert all(math.isclose(d["diff"], 0.2) for d in doc["cekm_minus"]["acmommt"])
+    assert all(0.0 < d["p"] < 0.05 for d in doc["cekm_minus"]["acmommt"])
+    assert by_part([{"controller": "cekm", "A_parts": None}], ("cekm",), 1.0)["parts"] == []
