@@ -170,7 +170,10 @@ def run_grid_cmd(out_dir, quick: bool, seeds: list[int], duration: float, model_
     click.echo(tables_markdown(doc).split("\n\n")[0])
     beat = [d for d in doc["cells"] if d["cekm_vs_best"]["cekm_above_all"]]
     sig = [d for d in beat if d["cekm_vs_best"]["p"] < 0.05]
-    click.echo(f"cekm above both baselines in {len(beat)} of {len(doc['cells'])} cells ({len(sig)} with p < 0.05); "
+    both = [d for d in beat if all(p is not None and p < 0.05 for p in d["cekm_vs_best"]["p_each"].values())]
+    paired = [d for d in beat if all(p is not None and p < 0.05 for p in d["cekm_vs_best"]["p_paired_each"].values())]
+    click.echo(f"cekm above both baselines in {len(beat)} of {len(doc['cells'])} cells ({len(sig)} with Welch p < 0.05 "
+               f"against the best, {len(both)} against both; {len(paired)} with paired p < 0.05 against both); "
                f"{doc['wall_seconds']:.1f} s; wrote " + ", ".join(str(p) for p in paths))
 
 

@@ -88,11 +88,13 @@ def tables_markdown(doc: dict[str, Any]) -> str:
             lines.append(f"| {lo:g}-{hi:g} | " + " | ".join(_ci(v[k]) for v in parts["controllers"].values()) + " | "
                          + " | ".join(f"{v[k]['diff']:+.3f} (p = {v[k]['p']:.2g})" for v in parts["cekm_minus"].values()) + " |")
         lines.append("")
-    lines += ["| cell | " + " | ".join(f"A {c}" for c in ctl) + " | cekm - best baseline (p) | cekm - kmeans-global (p) |",
+    lines += ["| cell | " + " | ".join(f"A {c}" for c in ctl)
+              + " | cekm - best baseline (Welch p; paired p) | cekm - kmeans-global (p) |",
               "|---|" + "---:|" * len(ctl) + "---|---|"]
     for d in doc["cells"]:
         v, g = d.get("cekm_vs_best"), d.get("cekm_vs_global")
-        vs = f"{v['diff']:+.3f} vs {v['best_baseline']} (p = {v['p']:.2g})" if v else ""
+        vs = (f"{v['diff']:+.3f} vs {v['best_baseline']} (p = {v['p']:.2g}; "
+              f"{v['p_paired_each'][v['best_baseline']]:.2g})") if v else ""
         gs = f"{g['diff']:+.3f} (p = {g['p']:.2g})" if g else ""
         lines.append(f"| {d['label']} | " + " | ".join(f"{d['controllers'][c]['A']['mean']:.3f}" for c in ctl)
                      + f" | {vs} | {gs} |")

@@ -1,7 +1,8 @@
 """The tracking grid's statistics: per cell, per level of an axis and per level pair of
 two axes, each controller's mean A with a 95 % t interval (clipped to [0, 1]:
 :func:`.tracking_stats.mean_ci95`), and cekm's A minus the best baseline's (the
-baseline with the higher mean there) with Welch's p."""
+baseline with the higher mean there) with Welch's p (the acceptance's test) and, since
+every controller runs on the same scenarios and seeds, a paired t-test's p as well."""
 
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ import numpy as np
 
 from .grid_design import AXES, Cell
 from .grid_run import BASELINES, PARTS
-from .metrics import welch_p
+from .metrics import paired_p, welch_p
 from .tracking_stats import mean_ci95
 
 
@@ -20,7 +21,8 @@ def _versus(cekm: list[float], base: dict[str, list[float]]) -> dict[str, Any]:
     best = max(base, key=lambda c: np.mean(base[c]))
     return {"best_baseline": best, "diff": float(np.mean(cekm) - np.mean(base[best])),
             "p": welch_p(cekm, base[best]), "cekm_above_all": bool(all(np.mean(cekm) > np.mean(v) for v in base.values())),
-            "p_each": {c: welch_p(cekm, v) for c, v in base.items()}}
+            "p_each": {c: welch_p(cekm, v) for c, v in base.items()},
+            "p_paired_each": {c: paired_p(cekm, v) for c, v in base.items()}}
 
 
 def cell_stats(rows: list[dict[str, Any]], cells: list[Cell], controllers: tuple[str, ...]) -> list[dict[str, Any]]:
@@ -28,7 +30,7 @@ def cell_stats(rows: list[dict[str, Any]], cells: list[Cell], controllers: tuple
     interval, cekm against the best baseline and against global K-means."""
     out = []
     for cell in cells:
-        sub = [r for r in rows if r["cell"] == cell.label]
+        sub = sorted((r for r in rows if r["cell"] == cell.label), key=lambda r: r["seed"])  # paired by seed
         per = {c: [r["A"] for r in sub if r["controller"] == c] for c in controllers}
         doc = {**cell.as_dict(), "controllers": {c: {"A": mean_ci95(v), "per_seed": v} for c, v in per.items()},
                "collisions": {c: sum(r["collisions"] for r in sub if r["controller"] == c) for c in controllers}}

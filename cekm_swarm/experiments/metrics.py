@@ -82,3 +82,18 @@ def welch_p(a, b) -> float | None:
         warnings.simplefilter("ignore", RuntimeWarning)
         p = stats.ttest_ind(a, b, equal_var=False).pvalue
     return None if not np.isfinite(p) else float(p)
+
+
+def paired_p(a, b) -> float | None:
+    """Two-sided paired t-test p-value between two controllers' results on the same trials
+    (a[i] and b[i] on the same scenario and seed); None when undefined."""
+    from scipy import stats
+
+    d = np.asarray(a, dtype=np.float64) - np.asarray(b, dtype=np.float64)
+    d = d[~np.isnan(d)]
+    if d.size < 2:
+        return None
+    if np.ptp(d) == 0:
+        return 1.0 if d[0] == 0 else 0.0
+    p = stats.ttest_1samp(d, 0.0).pvalue
+    return None if not np.isfinite(p) else float(p)

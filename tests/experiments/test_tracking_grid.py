@@ -64,6 +64,7 @@ def test_cekm_experiment_tracking_grid_quick_writes_every_cell_and_the_heatmaps(
         means = {k: c["controllers"][k]["A"]["mean"] for k in ("acmommt", "kmeans")}
         assert best["best_baseline"] == max(means, key=means.get)
         assert math.isclose(best["diff"], c["controllers"]["cekm"]["A"]["mean"] - max(means.values()))
+        assert set(best["p_paired_each"]) == {"acmommt", "kmeans"}
     assert len(doc["by_pair"]) == 10 and set(doc["by_axis"]) == set(AXES)
     assert (out / "grid.png").read_bytes()[:4] == b"\x89PNG" and "| robots |" in (out / "tables.md").read_text()
     # A over the run: six parts of 0.5 s, each controller's pooled over every cell and seed
@@ -146,3 +147,13 @@ def test_a_over_the_run_pools_every_cell_and_seed_and_compares_cekm_with_each_co
     assert all(math.isclose(d["diff"], 0.2) for d in doc["cekm_minus"]["acmommt"])
     assert all(0.0 < d["p"] < 0.05 for d in doc["cekm_minus"]["acmommt"])
     assert by_part([{"controller": "cekm", "A_parts": None}], ("cekm",), 1.0)["parts"] == []
+
+
+def test_the_paired_test_pairs_trials_and_is_stronger_when_scenarios_differ():
+    from cekm_swarm.experiments.metrics import paired_p, welch_p
+
+    hard_easy = [0.2, 0.8, 0.3, 0.9, 0.5]  # scenarios of very different difficulty
+    better = [a + 0.03 + 0.002 * i for i, a in enumerate(hard_easy)]  # a little better on every one
+    assert paired_p(better, hard_easy) < 0.001 < 0.5 < welch_p(better, hard_easy)
+    assert paired_p([0.5, 0.5], [0.5, 0.5]) == 1.0 and paired_p([0.6, 0.6], [0.5, 0.5]) == 0.0
+    assert paired_p([0.5], [0.4]) is None
