@@ -160,21 +160,15 @@ def run_grid_cmd(out_dir, quick: bool, seeds: list[int], duration: float, model_
     """``cekm experiment tracking --grid`` once its options are checked; ``cekm_params``:
     overrides of cekm's TrackingParams (``--param``), recorded in results.json."""
     from ..models.params import TrackingParams
-    from .grid_report import grid_doc, tables_markdown, write_grid
+    from .grid_report import grid_doc, summary, tables_markdown, write_grid
 
     model_path = _trained_model_path(model_path)
     tparams = TrackingParams(**cekm_params) if cekm_params else None
     doc = grid_doc(quick, seeds, duration, model_path, workers, progress=not quiet, tparams=tparams, out_dir=out_dir)
     doc["cekm_params"] = dict(cekm_params or {})
     paths = write_grid(doc, out_dir)
-    click.echo(tables_markdown(doc).split("\n\n")[0])
-    beat = [d for d in doc["cells"] if d["cekm_vs_best"]["cekm_above_all"]]
-    sig = [d for d in beat if d["cekm_vs_best"]["p"] < 0.05]
-    both = [d for d in beat if all(p is not None and p < 0.05 for p in d["cekm_vs_best"]["p_each"].values())]
-    paired = [d for d in beat if all(p is not None and p < 0.05 for p in d["cekm_vs_best"]["p_paired_each"].values())]
-    click.echo(f"cekm above both baselines in {len(beat)} of {len(doc['cells'])} cells ({len(sig)} with Welch p < 0.05 "
-               f"against the best, {len(both)} against both; {len(paired)} with paired p < 0.05 against both); "
-               f"{doc['wall_seconds']:.1f} s; wrote " + ", ".join(str(p) for p in paths))
+    click.echo(tables_markdown(doc).split("\n\n")[1])
+    click.echo(summary(doc) + f"; {doc['wall_seconds']:.1f} s; wrote " + ", ".join(str(p) for p in paths))
 
 
 def parse_floats(text: str, name: str) -> tuple[float, ...]:

@@ -60,14 +60,34 @@ def grid_doc(quick: bool, seeds: list[int], duration: float, model_path, workers
             "by_pair": by_pair(per_cell, GRID_CONTROLLERS), "by_part": by_part(rows, GRID_CONTROLLERS, duration)}
 
 
+def cells_above(doc: dict[str, Any], key: str = "cekm_vs_best", test: str | None = None) -> list[str]:
+    """The cells where ``key``'s controller (cekm; global K-means for "global_vs_best") is
+    above both baselines, and with ``test`` ("p_each": Welch, "p_paired_each": paired)
+    significantly (p < 0.05) against each."""
+    above = "cekm_above_all" if key == "cekm_vs_best" else "above_all"
+    return [d["label"] for d in doc["cells"] if key in d and d[key][above]
+            and (test is None or all(p is not None and p < 0.05 for p in d[key][test].values()))]
+
+
+def summary(doc: dict[str, Any]) -> str:
+    """The acceptance's count (above both baselines; significantly, Welch p < 0.05 against
+    each), the paired test's, and the same bar for global K-means: what the cells and seeds
+    let even a controller that sees every target show."""
+    n = len(doc["cells"])
+    return (f"cekm above both baselines in {len(cells_above(doc))} of {n} cells, significantly (Welch p < 0.05 "
+            f"against each) in {len(cells_above(doc, test='p_each'))}, by a paired test in "
+            f"{len(cells_above(doc, test='p_paired_each'))}; by the same bar global K-means is above both in "
+            f"{len(cells_above(doc, 'global_vs_best'))}, significantly in {len(cells_above(doc, 'global_vs_best', 'p_each'))}")
+
+
 def _ci(a: dict[str, Any]) -> str:
     return f"{a['mean']:.3f} [{a['ci95'][0]:.3f}, {a['ci95'][1]:.3f}]"
 
 
 def tables_markdown(doc: dict[str, Any]) -> str:
-    """By team size and by target speed (every controller, 95 % intervals), then every cell."""
+    """The summary, by every axis (every controller, 95 % intervals), A over the run, then every cell."""
     ctl = doc["controllers"]
-    lines = []
+    lines = [summary(doc) + ".", ""] if doc["cells"] and "cekm_vs_best" in doc["cells"][0] else []
     for axis, name in (("robots", "robots"), ("speed", "target speed"), ("targets_per_robot", "m/n"),
                        ("target_range", "R (m)"), ("obstacles", "obstacles")):
         lines += [f"| {name} | cells | " + " | ".join(f"A {c}" for c in ctl) + " | cekm - best baseline (Welch p) |",

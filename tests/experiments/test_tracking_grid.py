@@ -65,6 +65,9 @@ def test_cekm_experiment_tracking_grid_quick_writes_every_cell_and_the_heatmaps(
         assert best["best_baseline"] == max(means, key=means.get)
         assert math.isclose(best["diff"], c["controllers"]["cekm"]["A"]["mean"] - max(means.values()))
         assert set(best["p_paired_each"]) == {"acmommt", "kmeans"}
+        oracle = c["global_vs_best"]  # the same bar for global K-means
+        assert math.isclose(oracle["diff"], c["controllers"]["kmeans-global"]["A"]["mean"] - max(means.values()))
+        assert oracle["above_all"] == (oracle["diff"] > 0)
     assert len(doc["by_pair"]) == 10 and set(doc["by_axis"]) == set(AXES)
     assert (out / "grid.png").read_bytes()[:4] == b"\x89PNG" and "| robots |" in (out / "tables.md").read_text()
     # A over the run: six parts of 0.5 s, each controller's pooled over every cell and seed
@@ -157,3 +160,21 @@ def test_the_paired_test_pairs_trials_and_is_stronger_when_scenarios_differ():
     assert paired_p(better, hard_easy) < 0.001 < 0.5 < welch_p(better, hard_easy)
     assert paired_p([0.5, 0.5], [0.5, 0.5]) == 1.0 and paired_p([0.6, 0.6], [0.5, 0.5]) == 0.0
     assert paired_p([0.5], [0.4]) is None
+
+
+def test_the_summary_counts_cells_above_both_baselines_and_holds_global_kmeans_to_the_same_bar():
+    from cekm_swarm.experiments.grid_report import cells_above, summary
+
+    def versus(above, p_a, p_k, key="cekm_above_all"):
+        return {key: above, "p_each": {"acmommt": p_a, "kmeans": p_k}, "p_paired_each": {"acmommt": p_a / 2, "kmeans": p_k / 2}}
+
+    doc = {"cells": [
+        {"label": "a", "cekm_vs_best": versus(True, 0.01, 0.02), "global_vs_best": versus(True, 0.2, 0.01, "above_all")},
+        {"label": "b", "cekm_vs_best": versus(True, 0.01, 0.08), "global_vs_best": versus(True, 0.01, 0.01, "above_all")},
+        {"label": "c", "cekm_vs_best": versus(False, 0.01, 0.01), "global_vs_best": versus(False, 0.01, 0.01, "above_all")},
+    ]}
+    assert cells_above(doc) == ["a", "b"] and cells_above(doc, test="p_each") == ["a"]
+    assert cells_above(doc, test="p_paired_each") == ["a", "b"]  # 0.04 paired in b
+    assert cells_above(doc, "global_vs_best", "p_each") == ["b"]
+    assert summary(doc) == ("cekm above both baselines in 2 of 3 cells, significantly (Welch p < 0.05 against each) in 1, "
+                            "by a paired test in 2; by the same bar global K-means is above both in 2, significantly in 1")
