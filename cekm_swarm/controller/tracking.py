@@ -63,11 +63,12 @@ def standoff_distance(speed: float | None, target_range: float, params: Tracking
 
 def assigned_group(robot: str, pose: tuple[float, float, float], known: dict[str, tuple[float, float]],
                    team: dict[str, TeammateShare], target_range: float,
-                   params: TrackingParams) -> tuple[tuple[float, float], frozenset[str]] | None:
+                   params: TrackingParams) -> tuple[tuple[float, float], tuple[str, ...]] | None:
     """Hand-offs by K-means' assignment: each target of ``known`` (world frame) goes to its
     nearest robot (this one at ``pose``, the teammates at their shared poses); (the
     centroid, the targets) of this robot's share when there are at least assign_min and
-    all lie within assign_radius * R of the centroid, else None."""
+    all lie within assign_radius * R of the centroid, else None. The targets are in sorted
+    order: every sum over them has one order, whatever the process's string hashes."""
     if params.assign_radius <= 0.0 or not known:
         return None
     robots = {robot: (pose[0], pose[1])} | {r: (sh.pose[0], sh.pose[1]) for r, sh in team.items()}
@@ -80,10 +81,10 @@ def assigned_group(robot: str, pose: tuple[float, float, float], known: dict[str
     reach = params.assign_radius * target_range
     if any(math.hypot(known[t][0] - cx, known[t][1] - cy) > reach for t in mine):
         return None
-    return (cx, cy), frozenset(mine)
+    return (cx, cy), tuple(mine)
 
 
-def led_centroid(group: tuple[tuple[float, float], frozenset[str]], tracks: TargetTracks,
+def led_centroid(group: tuple[tuple[float, float], tuple[str, ...]], tracks: TargetTracks,
                  lead_s: float) -> tuple[float, float]:
     """The assigned group's centroid moved lead_s along its targets' mean velocity (their
     tracks; a target without one counts as still), so the robot meets the group where it

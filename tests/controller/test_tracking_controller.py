@@ -255,7 +255,7 @@ def test_assigned_group_is_this_robots_share_of_the_known_targets_near_their_cen
     team = {"q": TeammateShare(0.0, (3.0, 1.0, 0.0), {})}
     known = {"a": (1.2, 1.0), "b": (1.4, 1.2), "c": (2.9, 1.0)}  # c is nearer q
     centroid, mine = assigned_group("r1", (1.0, 1.0, 0.0), known, team, R, p)
-    assert mine == {"a", "b"} and centroid == pytest.approx((1.3, 1.1))
+    assert mine == ("a", "b") and centroid == pytest.approx((1.3, 1.1))  # sorted: one order for every sum
     # parted further than 0.8 R from their centroid: no group (each keeps its own field)
     assert assigned_group("r1", (1.0, 1.0, 0.0), {"a": (1.0, 1.5), "b": (1.0, 0.5)}, team, R, p) is None
     # fewer than assign_min, or the rule off

@@ -178,3 +178,31 @@ def test_the_summary_counts_cells_above_both_baselines_and_holds_global_kmeans_t
     assert cells_above(doc, "global_vs_best", "p_each") == ["b"]
     assert summary(doc) == ("cekm above both baselines in 2 of 3 cells, significantly (Welch p < 0.05 against each) in 1, "
                             "by a paired test in 2; by the same bar global K-means is above both in 2, significantly in 1")
+
+
+_HASH_PROBE = """
+from cekm_swarm.experiments.grid_design import design, grid_scenario
+from cekm_swarm.experiments.tracking_run import run_tracking
+from cekm_swarm.experiments.default_model import default_model
+cell = next(c for c in design() if c.label == "n12-m3-fast-R0.35-obst")
+run = run_tracking(grid_scenario(cell, 8), "cekm", default_model(progress=False), 8, 12.0)
+print(repr(sorted((r, p[-1]) for r, p in run.paths.items())))
+"""
+
+
+@pytest.mark.slow  # two processes, 12 s of a 12-robot run each
+def test_a_run_does_not_depend_on_the_process_string_hashes():
+    """The grid's workers are processes with their own PYTHONHASHSEED: a sum over a set of
+    target ids (the assignment's led centroid summed a frozenset) took its order from the
+    hashes, and this run's robot r12 got a command 1e-16 apart at tick 72 and a different A
+    in one run of 1,120 from one grid to the next. Every pose must be equal bit for bit."""
+    import os
+    import subprocess
+    import sys
+
+    out = {}
+    for h in ("0", "9"):  # 9 gave the other order before the fix
+        env = dict(os.environ, PYTHONHASHSEED=h)
+        out[h] = subprocess.run([sys.executable, "-c", _HASH_PROBE], env=env, capture_output=True, text=True,
+                                check=True).stdout
+    assert out["0"] and out["0"] == out["9"]
