@@ -206,3 +206,17 @@ def test_a_run_does_not_depend_on_the_process_string_hashes():
         out[h] = subprocess.run([sys.executable, "-c", _HASH_PROBE], env=env, capture_output=True, text=True,
                                 check=True).stdout
     assert out["0"] and out["0"] == out["9"]
+
+
+@pytest.mark.slow  # a pool of worker processes
+def test_the_grid_gives_the_same_rows_with_one_worker_or_two():
+    """Which worker runs a job, and what it ran before, must not change a row."""
+    from cekm_swarm.experiments.default_model import default_model, default_model_path
+    from cekm_swarm.experiments.grid_run import run_grid
+
+    cells = design(QUICK)
+    default_model(progress=False)  # trained and cached on first use
+    path = default_model_path()
+    one = run_grid(cells, [1, 2], 4.0, path, workers=1, progress=False)
+    two = run_grid(cells, [1, 2], 4.0, path, workers=2, progress=False)
+    assert len(one) == 4 * len(cells) * 2 and one == two
