@@ -232,6 +232,25 @@ def tracking_experiment(out_dir: Path, overwrite: bool, seeds: int | None, robot
                                 duration if duration is not None else 60.0, model_path, workers, quiet, first_seed)
 
 
+@experiment.command("tracking-power")
+@click.argument("results", type=click.Path(dir_okay=False, exists=True, path_type=Path))
+@click.option("--seeds", default="10,15,20,30,40,60", show_default=True, help="The seed counts a cell to estimate.")
+@click.option("--reps", default=1000, show_default=True, type=click.IntRange(1), help="Bootstrap replicates per count.")
+def tracking_power(results: Path, seeds: str, reps: int) -> None:
+    """How many seeds a cell the tracking grid needs: a bootstrap of a grid's RESULTS (its results.json) at
+    other seed counts, by the acceptance's bar (above both baselines, and Welch-significant against each)."""
+    from .experiments.commands import run_tracking_power_cmd
+
+    try:
+        counts = tuple(int(x) for x in seeds.split(",") if x.strip())
+    except ValueError:
+        raise click.BadParameter(f"{seeds!r}: give comma-separated whole numbers, e.g. 10,20,40",
+                                 param_hint="'--seeds'") from None
+    if not counts or min(counts) < 2:
+        raise click.BadParameter(f"{seeds!r}: give at least one count, each at least 2", param_hint="'--seeds'")
+    run_tracking_power_cmd(results, counts, reps)
+
+
 @main.command()
 @click.option("--network", default="R15", show_default=True, help="Network name, e.g. R15 or G12.")
 @click.option("--steps", default=100_000, show_default=True, type=click.IntRange(1))

@@ -44,3 +44,7 @@ class ModelFormatError(CekmError):
 
 class ParameterError(CekmError, ValueError):
     """A model or experiment parameter is out of its valid range."""
+
+
+class ResultsFileError(CekmError, ValueError):
+    """An experiment's results file that does not hold what a command reads from it."""

@@ -171,6 +171,23 @@ def run_grid_cmd(out_dir, quick: bool, seeds: list[int], duration: float, model_
     click.echo(summary(doc) + f"; {doc['wall_seconds']:.1f} s; wrote " + ", ".join(str(p) for p in paths))
 
 
+def run_tracking_power_cmd(results: Path, seeds: tuple[int, ...], reps: int) -> None:
+    """``cekm experiment tracking-power``: the bootstrap of a grid's results.json, printed."""
+    import json
+
+    from ..errors import ResultsFileError
+    from .grid_power import per_seed_table, power_markdown, seeds_power
+
+    try:
+        doc = json.loads(Path(results).read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ResultsFileError(f"{results}: not a readable JSON file ({exc})") from None
+    if not isinstance(doc, dict):
+        raise ResultsFileError(f"{results}: expected a JSON object (a tracking grid's results.json)")
+    observed = len(per_seed_table(doc, str(results))[1][0]["cekm"])
+    click.echo(power_markdown(seeds_power(doc, seeds, reps, source=str(results)), str(results), observed))
+
+
 def parse_floats(text: str, name: str) -> tuple[float, ...]:
     try:
         values = tuple(float(v) for v in text.split(",") if v.strip())

@@ -76,6 +76,11 @@ def test_cekm_experiment_tracking_grid_quick_writes_every_cell_and_the_heatmaps(
     assert set(parts["controllers"]) == {"cekm", "acmommt", "kmeans", "kmeans-global"}
     assert all(v[k]["n"] == 2 * len(doc["cells"]) for v in parts["controllers"].values() for k in range(6))
     assert (out / "parts.png").read_bytes()[:4] == b"\x89PNG" and "| part (s) |" in (out / "tables.md").read_text()
+    # the seed-count bootstrap reads the grid's own results.json
+    power = CliRunner().invoke(main, ["experiment", "tracking-power", str(out / "results.json"), "--seeds", "2,4",
+                                      "--reps", "20"])
+    assert power.exit_code == 0, power.output
+    assert "| cekm | 4 |" in power.output and "| kmeans-global | 2 |" in power.output
     bad = CliRunner().invoke(main, ["experiment", "tracking", "--quick", "--out", str(tmp_path / "x")])
     assert bad.exit_code == 2 and "--grid" in bad.output
     assert doc["cekm_params"] == {}
