@@ -239,16 +239,10 @@ def tracking_experiment(out_dir: Path, overwrite: bool, seeds: int | None, robot
 def tracking_power(results: Path, seeds: str, reps: int) -> None:
     """How many seeds a cell the tracking grid needs: a bootstrap of a grid's RESULTS (its results.json) at
     other seed counts, by the acceptance's bar (above both baselines, and Welch-significant against each)."""
-    from .experiments.commands import run_tracking_power_cmd
+    from .experiments.commands import parse_whole_numbers, run_tracking_power_cmd
 
-    try:
-        counts = tuple(int(x) for x in seeds.split(",") if x.strip())
-    except ValueError:
-        raise click.BadParameter(f"{seeds!r}: give comma-separated whole numbers, e.g. 10,20,40",
-                                 param_hint="'--seeds'") from None
-    if not counts or min(counts) < 2:
-        raise click.BadParameter(f"{seeds!r}: give at least one count, each at least 2", param_hint="'--seeds'")
-    run_tracking_power_cmd(results, counts, reps)
+    run_tracking_power_cmd(results, parse_whole_numbers(seeds, "--seeds", "seed counts like 10,20,40", 2, 100_000),
+                           reps)
 
 
 @main.command()

@@ -76,15 +76,21 @@ def run_tracking_cmd(scenario, controller: str, model_path, seed: int | None, du
     click.echo(f"wrote {out / 'outcome.json'}, {out / 'trajectory.png'}")
 
 
+def parse_whole_numbers(text: str, option: str, what: str, low: int, high: int) -> tuple[int, ...]:
+    """``option`` given as comma-separated whole numbers (``what``, e.g. "team sizes like
+    2,4,8"), each in low..high; a clear usage error otherwise."""
+    try:
+        values = tuple(int(x) for x in text.split(",") if x.strip())
+    except ValueError:
+        raise click.UsageError(f"{option} {text!r}: expected {what}") from None
+    if not values or any(n < low or n > high for n in values):
+        raise click.UsageError(f"{option} {text!r}: give {what.split(' like ')[0]} between {low} and {high}")
+    return values
+
+
 def parse_team_sizes(text: str) -> tuple[int, ...]:
     """``--robots 2,4,8`` as team sizes; a clear usage error otherwise."""
-    try:
-        sizes = tuple(int(x) for x in text.split(",") if x.strip())
-    except ValueError:
-        raise click.UsageError(f"--robots {text!r}: expected team sizes like 2,4,8") from None
-    if not sizes or any(n < 1 or n > 64 for n in sizes):
-        raise click.UsageError(f"--robots {text!r}: give team sizes between 1 and 64")
-    return sizes
+    return parse_whole_numbers(text, "--robots", "team sizes like 2,4,8", 1, 64)
 
 
 def _trained_model_path(model_path):
@@ -176,7 +182,7 @@ def run_tracking_power_cmd(results: Path, seeds: tuple[int, ...], reps: int) -> 
     import json
 
     from ..errors import ResultsFileError
-    from .grid_power import per_seed_table, power_markdown, seeds_power
+    from .grid_power import power_markdown, seeds_power
 
     try:
         doc = json.loads(Path(results).read_text())
@@ -184,8 +190,7 @@ def run_tracking_power_cmd(results: Path, seeds: tuple[int, ...], reps: int) -> 
         raise ResultsFileError(f"{results}: not a readable JSON file ({exc})") from None
     if not isinstance(doc, dict):
         raise ResultsFileError(f"{results}: expected a JSON object (a tracking grid's results.json)")
-    observed = len(per_seed_table(doc, str(results))[1][0]["cekm"])
-    click.echo(power_markdown(seeds_power(doc, seeds, reps, source=str(results)), str(results), observed))
+    click.echo(power_markdown(seeds_power(doc, seeds, reps, source=str(results)), str(results)))
 
 
 def parse_floats(text: str, name: str) -> tuple[float, ...]:

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ResultsFileError
+from ..errors import ParameterError, ResultsFileError
 from .grid_run import BASELINES
 
 
@@ -34,7 +34,7 @@ def per_seed_table(doc: dict[str, Any], source: str = "results.json") -> tuple[l
             raise ResultsFileError(f"{source}: cell {label}: no 'controllers'")
         per = {}
         for c in ("cekm", *BASELINES, "kmeans-global"):
-            seeds = (ctl.get(c) or {}).get("per_seed") if isinstance(ctl.get(c), dict) else None
+            seeds = ctl[c].get("per_seed") if isinstance(ctl.get(c), dict) else None
             if seeds is None and c == "kmeans-global":
                 continue
             try:
@@ -94,15 +94,15 @@ def seeds_power(doc: dict[str, Any], seeds: tuple[int, ...] = (10, 15, 20, 30, 4
     the grid ran it): the mean and 5-95 % range over ``reps`` replicates of the cells above
     both baselines and of those also significant. Seeded: the same input, the same answer."""
     if reps < 1 or any(n < 2 for n in seeds):
-        raise ResultsFileError("tracking-power: reps must be >= 1 and every N of seeds >= 2")
+        raise ParameterError("tracking-power: reps must be >= 1 and every N of seeds >= 2")
     labels, table = per_seed_table(doc, source)
     who = ["cekm"] + (["kmeans-global"] if all("kmeans-global" in per for per in table) else [])
     out = []
-    for c in who:
+    observed = len(table[0]["cekm"])
+    for i, c in enumerate(who):
         for n in seeds:
-            rng = np.random.default_rng([rng_seed, n, who.index(c)])
-            runs = _counts(table, c, n, reps, rng)
-            out.append({"controller": c, "seeds": n, "cells": len(labels),
+            runs = _counts(table, c, n, reps, np.random.default_rng([rng_seed, n, i]))
+            out.append({"controller": c, "seeds": n, "cells": len(labels), "observed_seeds": observed,
                         "above_mean": float(runs[:, 0].mean()), "significant_mean": float(runs[:, 1].mean()),
                         "significant_5": float(np.percentile(runs[:, 1], 5)),
                         "significant_95": float(np.percentile(runs[:, 1], 95)),
@@ -111,9 +111,9 @@ def seeds_power(doc: dict[str, Any], seeds: tuple[int, ...] = (10, 15, 20, 30, 4
     return out
 
 
-def power_markdown(rows: list[dict[str, Any]], source: str, observed_seeds: int) -> str:
+def power_markdown(rows: list[dict[str, Any]], source: str) -> str:
     """The bootstrap as a table."""
-    lines = [f"Bootstrap of {source} ({observed_seeds} seeds a cell resampled; {rows[0]['cells']} cells): "
+    lines = [f"Bootstrap of {source} ({rows[0]['observed_seeds']} seeds a cell resampled; {rows[0]['cells']} cells): "
              "what the grid with N seeds a cell would show by the acceptance's bar (mean A above both baselines; "
              "and Welch p < 0.05 against each).", "",
              "| controller | N seeds | cells above both | cells significant (5-95 %) | P(every cell above) | "
