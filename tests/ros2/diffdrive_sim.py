@@ -1,0 +1,220 @@
+"""A small differential-drive robot simulator that lives in ROS 2, written on PyPI's
+``zenoh-ros2-sdk`` (independent of this project's ROS 2 code; it imports nothing of
+``cekm_swarm`` nor ``world``): the robots of the ROS 2 plant's end-to-end tests.
+
+``python diffdrive_sim.py HOST:PORT MSG_DIR DOMAIN CONFIG_JSON``; CONFIG_JSON holds
+``robots`` ({id: [x, y, theta]}), ``bounds`` [xmin, ymin, xmax, ymax] (walls), ``disc``
+[cx, cy, r], ``rate_hz`` (odometry and scan), ``body_radius``, ``beams``.
+
+Each robot publishes ``nav_msgs/msg/Odometry`` on ``/<id>/odom`` (frame ``odom``, child
+``base_link``) and a ``sensor_msgs/msg/LaserScan`` on ``/<id>/scan`` (frame ``base_scan``,
+``beams`` rays over a full turn from -pi, ranges from the robot's centre to the walls,
+the disc and the other robots) at ``rate_hz``, and integrates the Twists it receives on
+``/<id>/cmd_vel`` (unicycle, 200 Hz; a Twist holds until the next). A robot stops where it
+would enter the disc, a wall or another robot (counted as a contact).
+
+Stdout: ``READY``, then ``TWIST <id> <monotonic s> <v> <omega>`` per Twist, and on
+``quit`` (stdin) ``DONE {json}``: per robot the pose, the smallest clearance to the disc
+and to anything, contacts, Twists. Stdin ``bad <id>`` publishes a burst of bad input on
+the robot's topics (printed as ``BAD {json}`` with how many of each kind).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import struct
+import sys
+import threading
+import time
+
+import numpy as np
+
+router, msg_dir, domain, config = sys.argv[1], sys.argv[2], int(sys.argv[3]), json.loads(sys.argv[4])
+host, port = router.rsplit(":", 1)
+
+from zenoh_ros2_sdk import ROS2Publisher, ROS2Subscriber, ZenohSession, get_message_class, get_registry  # noqa: E402
+
+get_registry(msg_dir)
+session = ZenohSession.get_instance(host, int(port))
+out_lock = threading.Lock()
+
+
+def say(*parts: str) -> None:
+    with out_lock:
+        print(*parts, flush=True)
+
+
+T = {n: get_message_class(n) for n in (
+    "builtin_interfaces/msg/Time", "std_msgs/msg/Header", "geometry_msgs/msg/Point", "geometry_msgs/msg/Quaternion",
+    "geometry_msgs/msg/Pose", "geometry_msgs/msg/PoseWithCovariance", "geometry_msgs/msg/Vector3",
+    "geometry_msgs/msg/Twist", "geometry_msgs/msg/TwistWithCovariance")}
+BOUNDS, DISC = config["bounds"], config["disc"]
+RADIUS, BEAMS, RATE = config["body_radius"], config["beams"], config["rate_hz"]
+STEP = 0.005
+
+
+def stamp(t: float):
+    return T["builtin_interfaces/msg/Time"](sec=int(t), nanosec=int((t - int(t)) * 1e9))
+
+
+def header(t: float, frame: str):
+    return T["std_msgs/msg/Header"](stamp=stamp(t), frame_id=frame)
+
+
+class Robot:
+    def __init__(self, rid: str, pose: list[float]) -> None:
+        self.id = rid
+        self.x, self.y, self.th = pose
+        self.v = self.w = 0.0
+        self.min_disc = self.min_any = math.inf
+        self.contacts = self.twists = 0
+        ns = f"/{rid}"
+        self.odom = ROS2Publisher(f"{ns}/odom", "nav_msgs/msg/Odometry", domain_id=domain, router_ip=host,
+                                  router_port=int(port))
+        self.scan = ROS2Publisher(f"{ns}/scan", "sensor_msgs/msg/LaserScan", domain_id=domain, router_ip=host,
+                                  router_port=int(port))
+        self.cmd = ROS2Subscriber(f"{ns}/cmd_vel", "geometry_msgs/msg/Twist", self.on_twist, domain_id=domain,
+                                  router_ip=host, router_port=int(port))
+
+    def on_twist(self, msg) -> None:
+        with lock:
+            self.v, self.w = float(msg.linear.x), float(msg.angular.z)
+            self.twists += 1
+        say("TWIST", self.id, f"{time.monotonic():.6f}", f"{msg.linear.x:.6f}", f"{msg.angular.z:.6f}")
+
+
+robots = {rid: Robot(rid, pose) for rid, pose in config["robots"].items()}
+lock = threading.Lock()
+
+
+def clearance(x: float, y: float, me: str) -> tuple[float, float]:
+    """(surface distance to the disc, to anything) of a robot centred at (x, y)."""
+    disc = math.hypot(x - DISC[0], y - DISC[1]) - DISC[2] - RADIUS
+    walls = min(x - BOUNDS[0], BOUNDS[2] - x, y - BOUNDS[1], BOUNDS[3] - y) - RADIUS
+    others = [math.hypot(x - o.x, y - o.y) - 2 * RADIUS for o in robots.values() if o.id != me]
+    return disc, min([disc, walls] + others)
+
+
+def ray(x: float, y: float, a: float, me: str) -> float:
+    """Distance from (x, y) along direction a to the walls, the disc or another robot."""
+    c, s = math.cos(a), math.sin(a)
+    best = math.inf
+    for (bound, d) in ((BOUNDS[0], c), (BOUNDS[2], c)):
+        if abs(d) > 1e-12 and (t := (bound - x) / d) > 0:
+            best = min(best, t)
+    for (bound, d) in ((BOUNDS[1], s), (BOUNDS[3], s)):
+        if abs(d) > 1e-12 and (t := (bound - y) / d) > 0:
+            best = min(best, t)
+    circles = [(DISC[0], DISC[1], DISC[2])] + [(o.x, o.y, RADIUS) for o in robots.values() if o.id != me]
+    for cx, cy, r in circles:
+        fx, fy = x - cx, y - cy
+        b = fx * c + fy * s
+        disc = b * b - (fx * fx + fy * fy - r * r)
+        if disc >= 0 and (t := -b - math.sqrt(disc)) > 0:
+            best = min(best, t)
+    return best
+
+
+def publish(r: Robot, now: float) -> None:
+    with lock:
+        x, y, th, v, w = r.x, r.y, r.th, r.v, r.w
+    pose = T["geometry_msgs/msg/Pose"](position=T["geometry_msgs/msg/Point"](x=x, y=y, z=0.0),
+                                       orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=math.sin(th / 2),
+                                                                                     w=math.cos(th / 2)))
+    twist = T["geometry_msgs/msg/Twist"](linear=T["geometry_msgs/msg/Vector3"](x=v, y=0.0, z=0.0),
+                                         angular=T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=w))
+    r.odom.publish(header=header(now, "odom"), child_frame_id="base_link",
+                   pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=np.zeros(36)),
+                   twist=T["geometry_msgs/msg/TwistWithCovariance"](twist=twist, covariance=np.zeros(36)))
+    inc = 2 * math.pi / BEAMS
+    ranges = np.array([ray(x, y, th - math.pi + i * inc, r.id) for i in range(BEAMS)], dtype=np.float32)
+    r.scan.publish(header=header(now, "base_scan"), angle_min=-math.pi, angle_max=-math.pi + inc * (BEAMS - 1),
+                   angle_increment=inc, time_increment=0.0, scan_time=1.0 / RATE, range_min=0.005, range_max=5.0,
+                   ranges=ranges, intensities=np.zeros(0, dtype=np.float32))
+
+
+def raw(pub, data: bytes) -> None:
+    """Put ``data`` on a publisher's key with its attachment (bytes that need not be its type)."""
+    att = struct.pack("<qqB", pub.sequence_number, time.time_ns(), 16) + pub.publisher_gid
+    pub.sequence_number += 1
+    pub.pub.put(data, attachment=att)
+
+
+def bad(r: Robot) -> None:
+    """A burst of bad input: NaN poses, unknown frames, stale stamps, scans of the wrong
+    length, and 10,000 payloads that are not CDR of the type."""
+    now = time.time()
+    counts = {"nan_odom": 5, "unknown_frame_odom": 5, "stale_scan": 5, "wrong_length_scan": 5, "garbage_scan": 10_000}
+    nan = T["geometry_msgs/msg/Pose"](position=T["geometry_msgs/msg/Point"](x=float("nan"), y=0.0, z=0.0),
+                                      orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0))
+    zero = T["geometry_msgs/msg/Twist"](linear=T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0),
+                                        angular=T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0))
+    for i in range(5):
+        r.odom.publish(header=header(now, "odom"), child_frame_id="base_link",
+                       pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=nan, covariance=np.zeros(36)),
+                       twist=T["geometry_msgs/msg/TwistWithCovariance"](twist=zero, covariance=np.zeros(36)))
+        r.odom.publish(header=header(now, "world"), child_frame_id="base_link",
+                       pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=nan, covariance=np.zeros(36)),
+                       twist=T["geometry_msgs/msg/TwistWithCovariance"](twist=zero, covariance=np.zeros(36)))
+        for t, n in ((now - 30.0, BEAMS), (now, BEAMS // 2)):  # stale; wrong length
+            inc = 2 * math.pi / BEAMS
+            r.scan.publish(header=header(t, "base_scan"), angle_min=-math.pi, angle_max=-math.pi + inc * (BEAMS - 1),
+                           angle_increment=inc, time_increment=0.0, scan_time=0.1, range_min=0.005, range_max=5.0,
+                           ranges=np.ones(n, dtype=np.float32), intensities=np.zeros(0, dtype=np.float32))
+    rng = np.random.default_rng(7)
+    for i in range(10_000):
+        raw(r.scan, rng.bytes(int(rng.integers(0, 200))) if i % 2 else b"\x00\x01\x00\x00" + rng.bytes(int(rng.integers(0, 60))))
+    say("BAD", json.dumps(counts))
+
+
+def physics() -> None:
+    nxt = time.monotonic()
+    while not done.is_set():
+        nxt += STEP
+        with lock:
+            for r in robots.values():
+                nx = r.x + r.v * math.cos(r.th) * STEP
+                ny = r.y + r.v * math.sin(r.th) * STEP
+                r.th = math.atan2(math.sin(r.th + r.w * STEP), math.cos(r.th + r.w * STEP))
+                disc, any_ = clearance(nx, ny, r.id)
+                if any_ < 0:
+                    r.contacts += 1
+                else:
+                    r.x, r.y = nx, ny
+                r.min_disc, r.min_any = min(r.min_disc, disc), min(r.min_any, any_)
+        time.sleep(max(0.0, nxt - time.monotonic()))
+
+
+def sensors() -> None:
+    nxt = time.monotonic()
+    while not done.is_set():
+        nxt += 1.0 / RATE
+        now = time.time()
+        for r in robots.values():
+            publish(r, now)
+        time.sleep(max(0.0, nxt - time.monotonic()))
+
+
+done = threading.Event()
+threads = [threading.Thread(target=f, daemon=True) for f in (physics, sensors)]
+for th_ in threads:
+    th_.start()
+say("READY")
+for line in sys.stdin:
+    cmd, *args = line.split()
+    if cmd == "quit":
+        break
+    if cmd == "bad":
+        bad(robots[args[0]])
+done.set()
+for th_ in threads:
+    th_.join(timeout=5)
+say("DONE", json.dumps({r.id: {"x": r.x, "y": r.y, "theta": r.th, "min_disc_clearance": r.min_disc,
+                               "min_clearance": r.min_any, "contacts": r.contacts, "twists": r.twists}
+                        for r in robots.values()}))
+for r in robots.values():
+    r.odom.close()
+    r.scan.close()
+    r.cmd.close()
+session.close()
