@@ -16,13 +16,11 @@ It speaks ROS 2 over ``rmw_zenoh``'s wire format (:mod:`.wire`) on one side, as 
 - a zero Twist stops a robot when its commands stop for the dead-man limit (checked on
   its own deadline, not only at tick boundaries), when its input is stale, when it reached
   its goal (within :data:`GOAL_TOLERANCE_M`), at the run's end, on SIGINT/SIGTERM;
-- ``OUT/run.mcap`` holds what it sent and received: the protocol's messages (msgpack, as a
-  world's log) and the robots' ROS 2 messages and Twists (CDR, ``ros2msg`` schemas);
-  ``OUT/outcome.json`` what happened.
+- ``OUT/run.mcap`` holds the protocol's messages (msgpack, as a world's log) and the robots' ROS 2
+  messages it believed and its Twists (CDR, ``ros2msg`` schemas); ``OUT/outcome.json`` what happened.
 
-Stdout lines ``READY``, ``START``, ``PROGRESS``, ``EVENT``, ``DONE`` (JSON) as the world
-server's, so the launcher follows it unchanged. It imports neither the world nor any
-controller code: the launcher writes everything it needs into ``OUT/plant.json``.
+Stdout lines ``READY``, ``START``, ``PROGRESS``, ``EVENT``, ``DONE`` (JSON) as the world server's. It
+imports neither the world nor controller code: the launcher writes what it needs into ``OUT/plant.json``.
 
 ``python -m cekm_swarm.ros2.plant_server OUT/plant.json``
 """
@@ -107,7 +105,8 @@ class PlantServer:
         self.stop = threading.Event()
         self.wake = threading.Event()
         self.ros_time: float | None = None  # the newest /clock
-        self.use_clock = False
+        self.use_clock = False  # ROS time from /clock: one came before tick 0
+        self.started = False
         self.drops: Counter = Counter()  # (robot, topic, reason) -> n
         self.cmd_drops = DropCounter("plant commands", keys=self.keys)
         self.received = Counter()
@@ -205,6 +204,7 @@ class PlantServer:
             return
         if math.isfinite(t) and (self.ros_time is None or t >= self.ros_time):
             self.ros_time = t
+            self.use_clock = self.use_clock or not self.started  # a /clock before tick 0: ROS time for the run
             self.wake.set()
 
     # ------------------------------------------------------------------ commands (Zenoh thread)
@@ -321,7 +321,7 @@ class PlantServer:
                                                  "drops": drop_doc(self)})
                 return False
             self.stop.wait(0.1)
-        self.use_clock = self.ros_time is not None
+        self.started = True  # the clock chosen now stays the run's
         return not self.stop.is_set()
 
     def pubs(self, key: str) -> Any:

@@ -4,7 +4,10 @@
 
 ``python diffdrive_sim.py HOST:PORT MSG_DIR DOMAIN CONFIG_JSON``; CONFIG_JSON holds
 ``robots`` ({id: [x, y, theta]}), ``bounds`` [xmin, ymin, xmax, ymax] (walls), ``disc``
-[cx, cy, r], ``rate_hz`` (odometry and scan), ``body_radius``, ``beams``.
+[cx, cy, r], ``rate_hz`` (odometry and scan), ``body_radius``, ``beams``; optional
+``clock_offset`` (s: ROS time is the wall clock less this), ``publish_clock`` (``/clock``),
+``wheel_noise`` (each wheel's speed off by up to this fraction, as the simulated Khepera's),
+``axle`` and ``seed``.
 
 Each robot publishes ``nav_msgs/msg/Odometry`` on ``/<id>/odom`` (frame ``odom``, child
 ``base_link``) and a ``sensor_msgs/msg/LaserScan`` on ``/<id>/scan`` (frame ``base_scan``,
@@ -52,6 +55,8 @@ T = {n: get_message_class(n) for n in (
 BOUNDS, DISC = config["bounds"], config["disc"]
 RADIUS, BEAMS, RATE = config["body_radius"], config["beams"], config["rate_hz"]
 STEP = 0.005
+OFFSET = config.get("clock_offset", 0.0)
+"""ROS time = wall time - OFFSET: every stamp, and ``/clock`` when ``publish_clock`` (as a simulator's)."""
 
 
 def stamp(t: float):
@@ -144,7 +149,7 @@ def raw(pub, data: bytes) -> None:
 def bad(r: Robot) -> None:
     """A burst of bad input: NaN poses, unknown frames, stale stamps, scans of the wrong
     length, and 10,000 payloads that are not CDR of the type."""
-    now = time.time()
+    now = time.time() - OFFSET
     counts = {"nan_odom": 5, "unknown_frame_odom": 5, "stale_scan": 5, "wrong_length_scan": 5, "garbage_scan": 10_000}
     nan = T["geometry_msgs/msg/Pose"](position=T["geometry_msgs/msg/Point"](x=float("nan"), y=0.0, z=0.0),
                                       orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0))
@@ -168,15 +173,26 @@ def bad(r: Robot) -> None:
     say("BAD", json.dumps(counts))
 
 
+AXLE, NOISE = config.get("axle", 0.053), config.get("wheel_noise", 0.0)
+SLIP_EVERY = 0.032
+"""Each wheel's speed is off by a factor 1 + U(-NOISE, NOISE), drawn every 32 ms (wheel slip)."""
+
+
 def physics() -> None:
     nxt = time.monotonic()
+    slip_rng, slip, slip_at = np.random.default_rng(config.get("seed", 1)), {}, -1.0
     while not done.is_set():
         nxt += STEP
+        if nxt - slip_at >= SLIP_EVERY:
+            slip_at = nxt
+            slip = {r: 1.0 + slip_rng.uniform(-NOISE, NOISE, 2) for r in robots}
         with lock:
             for r in robots.values():
-                nx = r.x + r.v * math.cos(r.th) * STEP
-                ny = r.y + r.v * math.sin(r.th) * STEP
-                r.th = math.atan2(math.sin(r.th + r.w * STEP), math.cos(r.th + r.w * STEP))
+                v_l, v_r = (r.v - r.w * AXLE / 2) * slip[r.id][0], (r.v + r.w * AXLE / 2) * slip[r.id][1]
+                v, w = (v_l + v_r) / 2, (v_r - v_l) / AXLE
+                nx = r.x + v * math.cos(r.th) * STEP
+                ny = r.y + v * math.sin(r.th) * STEP
+                r.th = math.atan2(math.sin(r.th + w * STEP), math.cos(r.th + w * STEP))
                 disc, any_ = clearance(nx, ny, r.id)
                 if any_ < 0:
                     r.contacts += 1
@@ -190,14 +206,24 @@ def sensors() -> None:
     nxt = time.monotonic()
     while not done.is_set():
         nxt += 1.0 / RATE
-        now = time.time()
+        now = time.time() - OFFSET
         for r in robots.values():
             publish(r, now)
         time.sleep(max(0.0, nxt - time.monotonic()))
 
 
+def clock() -> None:
+    """``/clock`` at 100 Hz, as Gazebo or Webots publish their simulation time."""
+    pub = ROS2Publisher("/clock", "rosgraph_msgs/msg/Clock", domain_id=domain, router_ip=host, router_port=int(port))
+    while not done.wait(0.01):
+        pub.publish(clock=stamp(time.time() - OFFSET))
+    pub.close()
+
+
 done = threading.Event()
 threads = [threading.Thread(target=f, daemon=True) for f in (physics, sensors)]
+if config.get("publish_clock"):
+    threads.append(threading.Thread(target=clock, daemon=True))
 for th_ in threads:
     th_.start()
 say("READY")
