@@ -6,19 +6,18 @@ Twists and none of its."""
 
 from __future__ import annotations
 
-import json
 import threading
 import time
-from pathlib import Path
 
 import pytest
 import zenoh
+from ros2_helpers import acl_router
 
 from cekm_swarm.ros2.interfaces import interfaces
 from cekm_swarm.ros2.plant import ODOMETRY, TWIST, twist_cdr
 from cekm_swarm.ros2.wire import topic_key
 from cekm_swarm.runtime.bridge import wait_matching
-from cekm_swarm.runtime.config import client_config, free_port, load_config, open_session
+from cekm_swarm.runtime.config import client_config, free_port
 
 pytestmark = pytest.mark.slow  # starts a router and sessions on loopback
 
@@ -51,27 +50,10 @@ POLICIES = {"plant": ["declarations-out", "ros-graph", "plant-commands", "plant-
                for r in ("r1", "r2")}}
 
 
-def acl_router(tmp_path: Path, port: int) -> zenoh.Session:
-    creds = tmp_path / "credentials.txt"
-    creds.write_text("".join(f"{u}:pw-{u}\n" for u in USERS))
-    doc = {"mode": "router", "listen": {"endpoints": [f"tcp/127.0.0.1:{port}"]},
-           "scouting": {"multicast": {"enabled": False}, "delay": 0},
-           "transport": {"auth": {"usrpwd": {"dictionary_file": str(creds)}}},
-           "access_control": {
-               "enabled": True, "default_permission": "deny",
-               "rules": [{"id": i, "permission": "allow", "flows": [f], "messages": m, "key_exprs": k}
-                         for i, f, m, k in RULES],
-               "subjects": [{"id": u, "usernames": [u]} for u in USERS],
-               "policies": [{"id": u, "subjects": [u], "rules": r} for u, r in POLICIES.items()]}}
-    path = tmp_path / "router.json5"
-    path.write_text(json.dumps(doc))
-    return open_session(load_config(path), "ACL router")
-
-
 def test_only_the_plant_may_publish_a_robots_cmd_vel(tmp_path):
     port = free_port()
     ep = f"tcp/127.0.0.1:{port}"
-    router = acl_router(tmp_path, port)
+    router = acl_router(tmp_path, port, RULES, POLICIES)
     s = {u: zenoh.open(client_config(ep, user=u, password=f"pw-{u}")) for u in USERS}
     try:
         cmd_vel = topic_key(0, "/r1/cmd_vel", TWIST, IFC.hash(TWIST))
