@@ -13,8 +13,9 @@ Each robot publishes ``nav_msgs/msg/Odometry`` on ``/<id>/odom`` (frame ``odom``
 ``base_link``) and a ``sensor_msgs/msg/LaserScan`` on ``/<id>/scan`` (frame ``base_scan``,
 ``beams`` rays over a full turn from -pi, ranges from the robot's centre to the walls,
 the disc and the other robots) at ``rate_hz``, and integrates the Twists it receives on
-``/<id>/cmd_vel`` (unicycle, 200 Hz; a Twist holds until the next). A robot stops where it
-would enter the disc, a wall or another robot (counted as a contact).
+``/<id>/cmd_vel`` (unicycle, 200 Hz; a Twist holds until the next). A robot that would enter
+the disc, a wall or another robot is pushed back to its surface and slides along it, as a
+rigid body would (each new contact counted).
 
 Stdout: ``READY``, then ``TWIST <id> <monotonic s> <v> <omega>`` per Twist, and on
 ``quit`` (stdin) ``DONE {json}``: per robot the pose, the smallest clearance to the disc
@@ -74,6 +75,7 @@ class Robot:
         self.v = self.w = 0.0
         self.min_disc = self.min_any = math.inf
         self.contacts = self.twists = 0
+        self.touching = False
         ns = f"/{rid}"
         self.odom = ROS2Publisher(f"{ns}/odom", "nav_msgs/msg/Odometry", domain_id=domain, router_ip=host,
                                   router_port=int(port))
@@ -99,6 +101,16 @@ def clearance(x: float, y: float, me: str) -> tuple[float, float]:
     walls = min(x - BOUNDS[0], BOUNDS[2] - x, y - BOUNDS[1], BOUNDS[3] - y) - RADIUS
     others = [math.hypot(x - o.x, y - o.y) - 2 * RADIUS for o in robots.values() if o.id != me]
     return disc, min([disc, walls] + others)
+
+
+def slide(x: float, y: float, me: str) -> tuple[float, float]:
+    """A robot that would enter something is pushed back to its surface (it slides along it,
+    as a rigid body does), and kept inside the walls."""
+    for cx, cy, r in [(DISC[0], DISC[1], DISC[2])] + [(o.x, o.y, RADIUS) for o in robots.values() if o.id != me]:
+        d = math.hypot(x - cx, y - cy)
+        if 0 < d < r + RADIUS:
+            x, y = cx + (x - cx) * (r + RADIUS) / d, cy + (y - cy) * (r + RADIUS) / d
+    return (min(max(x, BOUNDS[0] + RADIUS), BOUNDS[2] - RADIUS), min(max(y, BOUNDS[1] + RADIUS), BOUNDS[3] - RADIUS))
 
 
 def ray(x: float, y: float, a: float, me: str) -> float:
@@ -194,10 +206,10 @@ def physics() -> None:
                 ny = r.y + v * math.sin(r.th) * STEP
                 r.th = math.atan2(math.sin(r.th + w * STEP), math.cos(r.th + w * STEP))
                 disc, any_ = clearance(nx, ny, r.id)
-                if any_ < 0:
-                    r.contacts += 1
-                else:
-                    r.x, r.y = nx, ny
+                touching = any_ < 0
+                r.contacts += touching and not r.touching  # a new contact
+                r.touching = touching
+                r.x, r.y = slide(nx, ny, r.id) if touching else (nx, ny)
                 r.min_disc, r.min_any = min(r.min_disc, disc), min(r.min_any, any_)
         time.sleep(max(0.0, nxt - time.monotonic()))
 
