@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import math
 import sys
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -160,3 +161,23 @@ def drop_doc(plant: Any) -> dict[str, Any]:
         for (r, topic, reason), n in sorted(plant.drops.items()):
             out.setdefault(topic, {})[reason] = n
         return out
+
+
+def wait_alive(session: zenoh.Session, key_expr: str, expected: set[str], timeout: float, stop: Any) -> set[str]:
+    """Until every liveliness token of ``expected`` is up (at most ``timeout`` s, or until
+    ``stop`` is set); the ones still missing (empty when stopped)."""
+    alive: set[str] = set()
+
+    def on_token(sample: zenoh.Sample) -> None:
+        (alive.add if sample.kind == zenoh.SampleKind.PUT else alive.discard)(str(sample.key_expr))
+
+    watcher = session.liveliness().declare_subscriber(key_expr, on_token, history=True)
+    deadline = time.monotonic() + timeout
+    try:
+        while not stop.is_set() and not expected <= alive:
+            if time.monotonic() > deadline:
+                return expected - alive
+            stop.wait(0.1)
+    finally:
+        watcher.undeclare()
+    return set()

@@ -69,7 +69,7 @@ from . import plant as P
 from .bridge import _RosPublisher
 from .interfaces import interfaces
 from .mapping import RosOut, ros_name
-from .plant_run import PlantConfig, RobotPort, drain_log, drop_doc, emit, outcome_doc, progress_doc
+from .plant_run import PlantConfig, RobotPort, drain_log, drop_doc, emit, outcome_doc, progress_doc, wait_alive
 from .wire import SUBSCRIPTION, Node, Qos, topic_key
 
 log = logging.getLogger("cekm_swarm.ros2.plant")
@@ -107,6 +107,7 @@ class PlantServer:
         self.ros_time: float | None = None  # the newest /clock
         self.use_clock = False  # ROS time from /clock: one came before tick 0
         self.started = False
+        self.ended = False  # the run is over: commands are no longer taken
         self.drops: Counter = Counter()  # (robot, topic, reason) -> n
         self.cmd_drops = DropCounter("plant commands", keys=self.keys)
         self.received = Counter()
@@ -229,17 +230,20 @@ class PlantServer:
             port.heard, port.answered = at, max(port.answered, msg.stamp)
             scan_at = port.tick_scan_at.get(msg.stamp)
             sent = self.sent_at.get(msg.stamp)
-        self.send_twist(robot, *P.twist_of(msg.v_l, msg.v_r, self.desc.body))
+        self.send_twist(robot, *P.twist_of(msg.v_l, msg.v_r, self.desc.body), command=True)
         with self.lock:
             if sent is not None and msg.stamp == self.now_t:
                 self.sense_to_command.append(at - sent)
             if scan_at is not None and msg.stamp == self.now_t:
                 self.scan_to_twist.append(time.monotonic() - scan_at)
 
-    def send_twist(self, robot: str, v: float, omega: float) -> None:
+    def send_twist(self, robot: str, v: float, omega: float, command: bool = False) -> None:
+        """A Twist to ``robot``; a ``command``'s is not sent once the run is over (the nodes may still answer)."""
         payload = P.twist_cdr(self.ifc, v, omega)
         port = self.ports[robot]
         with self.lock:
+            if command and self.ended:
+                return
             port.stopped = v == 0.0 and omega == 0.0
             port.twists += 1
             self.cmd_vel[robot].put(payload)
@@ -287,21 +291,10 @@ class PlantServer:
         """Before tick 0: every node alive, every reading's subscriber matched, every
         robot's first odometry and distance input in. False when stopped or timed out."""
         expected = self.plan.tokens(self.robots)
-        alive: set[str] = set()
-
-        def on_token(sample: zenoh.Sample) -> None:
-            (alive.add if sample.kind == zenoh.SampleKind.PUT else alive.discard)(str(sample.key_expr))
-
-        watcher = session.liveliness().declare_subscriber(self.keys.alive_all(), on_token, history=True)
-        deadline = time.monotonic() + self.cfg.wait_modules
-        try:
-            while not self.stop.is_set() and not expected <= alive:
-                if time.monotonic() > deadline:
-                    self.event("modules_missing", 0.0, {"missing": sorted(expected - alive)})
-                    return False
-                self.stop.wait(0.1)
-        finally:
-            watcher.undeclare()
+        missing = wait_alive(session, self.keys.alive_all(), expected, self.cfg.wait_modules, self.stop)
+        if missing:
+            self.event("modules_missing", 0.0, {"missing": sorted(missing)})
+            return False
         for r in self.robots:
             for k in self.plan.world_keys(r):
                 if not self.stop.is_set() and not wait_matching(self.pubs(k), 30.0):
@@ -325,10 +318,9 @@ class PlantServer:
         return not self.stop.is_set()
 
     def pubs(self, key: str) -> Any:
-        p = self._pubs.get(key)
-        if p is None:
-            p = self._pubs[key] = self.session.declare_publisher(key, congestion_control=zenoh.CongestionControl.BLOCK)
-        return p
+        if key not in self._pubs:
+            self._pubs[key] = self.session.declare_publisher(key, congestion_control=zenoh.CongestionControl.BLOCK)
+        return self._pubs[key]
 
     def put(self, key: str, msg: Any) -> None:
         payload = encode(msg)
@@ -378,9 +370,8 @@ class PlantServer:
                     target = SenseTarget(t, SENDER, alpha if visible else 0.0, d if visible else 0.0, visible)
                 self.put(self.keys.sense_target(r), target)
         self.put(self.keys.world_clock(), Clock(t, SENDER, k))
-        targets = {self.cfg.goal_ids.get(r, f"{r}-goal"): TargetState(p.goal[0], p.goal[1])
-                   for r, p in self.ports.items() if p.goal is not None}
-        self.put(self.keys.world_state(), WorldState(t, SENDER, robots, targets, {}))
+        self.put(self.keys.world_state(), WorldState(t, SENDER, robots, {
+            self.cfg.goal_ids.get(r, f"{r}-goal"): TargetState(*p.goal) for r, p in self.ports.items() if p.goal}, {}))
 
     def _wait_boundary(self, boundary: float) -> None:
         """Until the plant's clock reaches ``boundary``, stopping a robot on its dead-man
@@ -434,6 +425,8 @@ class PlantServer:
                 wall0 = time.perf_counter()
                 ticks, aborted = self._ticks(recorder)
                 loop_s = time.perf_counter() - wall0
+            with self.lock:
+                self.ended = True
             for r in self.robots:  # the run's end, or a signal: every robot stops
                 self.send_twist(r, 0.0, 0.0)
             time.sleep(0.05)

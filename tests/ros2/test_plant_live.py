@@ -90,3 +90,24 @@ def test_cekm_drives_a_ros2_robot_past_the_disc_through_bad_input_and_a_killed_m
     topics = {c.topic: summary.statistics.channel_message_counts.get(c.id, 0) for c in summary.channels.values()}
     assert topics["ros2/r1/cmd_vel"] == r1["twists"] and topics["ros2/r1/scan"] > 50 and topics["cekm/world/state"] > 50
     assert topics["cekm/r1/cmd/wheels"] > 50 and topics["cekm/r1/sense/range/0"] > 50
+
+
+def test_ctrl_c_stops_the_robot_with_a_zero_twist(processes, msg_dir, tmp_path):
+    from cekm_swarm.runtime.config import free_port
+
+    port, out = free_port(), tmp_path / "run"
+    launch = processes(launch_argv("lone_obstacle", "--port", str(port), "--out", str(out)))
+    launch.expect("", timeout=180, where=lambda s: "hosts the embedded Zenoh router" in s)
+    sim = processes(sim_argv(f"tcp/127.0.0.1:{port}", msg_dir, LONE))
+    sim.expect("READY", timeout=60)
+    launch.expect("", timeout=120, where=lambda s: " m to goal" in s and "t=   0.00" not in s)  # driving
+    launch.proc.send_signal(signal.SIGINT)
+    interrupted = time.monotonic()
+    assert launch.proc.wait(timeout=60) == 130, "\n".join(launch.seen[-20:])
+    sim.send("quit")
+    sim.expect("DONE", timeout=30)
+    seen = twists(sim.seen)
+    assert any(v != 0.0 for _, v, _ in seen)  # it drove,
+    assert seen[-1][1:] == (0.0, 0.0) and seen[-1][0] > interrupted  # and the last Twist, after Ctrl-C, stops it
+    outcome = json.loads((out / "outcome.json").read_text())
+    assert outcome["aborted"] and not outcome["robots"]["r1"]["reached"]
