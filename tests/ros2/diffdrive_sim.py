@@ -19,7 +19,8 @@ rigid body would (each new contact counted).
 
 Stdout: ``READY``, then ``TWIST <id> <monotonic s> <v> <omega>`` per Twist, and on
 ``quit`` (stdin) ``DONE {json}``: per robot the pose, the smallest clearance to the disc
-and to anything, contacts, Twists. Stdin ``bad <id>`` publishes a burst of bad input on
+and to anything, contacts, Twists. Stdin ``goal <id> <x> <y>`` publishes a
+``geometry_msgs/msg/PoseStamped`` on ``/<id>/goal_pose``; ``bad <id>`` a burst of bad input on
 the robot's topics (printed as ``BAD {json}`` with how many of each kind).
 """
 
@@ -81,6 +82,8 @@ class Robot:
                                   router_port=int(port))
         self.scan = ROS2Publisher(f"{ns}/scan", "sensor_msgs/msg/LaserScan", domain_id=domain, router_ip=host,
                                   router_port=int(port))
+        self.goal = ROS2Publisher(f"{ns}/goal_pose", "geometry_msgs/msg/PoseStamped", domain_id=domain,
+                                  router_ip=host, router_port=int(port))
         self.cmd = ROS2Subscriber(f"{ns}/cmd_vel", "geometry_msgs/msg/Twist", self.on_twist, domain_id=domain,
                                   router_ip=host, router_port=int(port))
 
@@ -245,6 +248,11 @@ for line in sys.stdin:
         break
     if cmd == "bad":
         bad(robots[args[0]])
+    if cmd == "goal":  # goal r1 x y: a goal pose as Nav2 sends it
+        robots[args[0]].goal.publish(header=header(time.time() - OFFSET, "map"), pose=T["geometry_msgs/msg/Pose"](
+            position=T["geometry_msgs/msg/Point"](x=float(args[1]), y=float(args[2]), z=0.0),
+            orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0)))
+        say("GOAL", args[0])
 done.set()
 for th_ in threads:
     th_.join(timeout=5)
@@ -254,5 +262,6 @@ say("DONE", json.dumps({r.id: {"x": r.x, "y": r.y, "theta": r.th, "min_disc_clea
 for r in robots.values():
     r.odom.close()
     r.scan.close()
+    r.goal.close()
     r.cmd.close()
 session.close()

@@ -92,7 +92,7 @@ def test_cekm_drives_a_ros2_robot_past_the_disc_through_bad_input_and_a_killed_m
     assert topics["cekm/r1/cmd/wheels"] > 50 and topics["cekm/r1/sense/range/0"] > 50
 
 
-def test_ctrl_c_stops_the_robot_with_a_zero_twist(processes, msg_dir, tmp_path):
+def test_a_goal_pose_then_ctrl_c_which_stops_the_robot_with_a_zero_twist(processes, msg_dir, tmp_path):
     from cekm_swarm.runtime.config import free_port
 
     port, out = free_port(), tmp_path / "run"
@@ -101,6 +101,10 @@ def test_ctrl_c_stops_the_robot_with_a_zero_twist(processes, msg_dir, tmp_path):
     sim = processes(sim_argv(f"tcp/127.0.0.1:{port}", msg_dir, LONE))
     sim.expect("READY", timeout=60)
     launch.expect("", timeout=120, where=lambda s: " m to goal" in s and "t=   0.00" not in s)  # driving
+    sim.send("goal r1 0.3 1.7")  # Nav2's goal_pose: a new goal, behind the robot
+    sim.expect("GOAL", timeout=30)
+    launch.expect("", timeout=30, where=lambda s: ": goal {'robot': 'r1', 'goal': [0.3, 1.7]}" in s)
+    launch.expect("", timeout=30, where=lambda s: " m to goal" in s)  # (a progress line after it)
     launch.proc.send_signal(signal.SIGINT)
     interrupted = time.monotonic()
     assert launch.proc.wait(timeout=60) == 130, "\n".join(launch.seen[-20:])
@@ -110,4 +114,5 @@ def test_ctrl_c_stops_the_robot_with_a_zero_twist(processes, msg_dir, tmp_path):
     assert any(v != 0.0 for _, v, _ in seen)  # it drove,
     assert seen[-1][1:] == (0.0, 0.0) and seen[-1][0] > interrupted  # and the last Twist, after Ctrl-C, stops it
     outcome = json.loads((out / "outcome.json").read_text())
-    assert outcome["aborted"] and not outcome["robots"]["r1"]["reached"]
+    r1 = outcome["robots"]["r1"]
+    assert outcome["aborted"] and not r1["reached"] and r1["goal"] == [0.3, 1.7]
