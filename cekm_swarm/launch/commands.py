@@ -234,6 +234,9 @@ def outcome_summary(outcome: dict) -> list[str]:
     lat = outcome.get("sense_to_command_ms", {})
     if lat.get("n"):
         lines.append(f"sense-to-command latency p50 {lat['p50']} ms, p99 {lat['p99']} ms ({lat['n']} robot-ticks)")
+    scan = outcome.get("scan_to_twist_ms", {})  # a ROS 2 plant's run (docs/ros2.md)
+    if scan.get("n"):
+        lines.append(f"scan-to-Twist latency p50 {scan['p50']} ms, p99 {scan['p99']} ms ({scan['n']} Twists)")
     if outcome.get("mode") == "realtime":
         misses = outcome.get("deadline_misses", 0)
         robot_ticks = outcome.get("ticks", 0) * len(outcome["robots"])
