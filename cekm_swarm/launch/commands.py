@@ -225,8 +225,8 @@ def outcome_summary(outcome: dict) -> list[str]:
             lines.append(f"{r}: path {o['path_length_m']:.2f} m, {o['collisions']} collisions{left}")
         else:
             hits = "collisions not known (a ROS 2 robot)" if o["collisions"] is None else f"{o['collisions']} collisions"
-            lines.append(f"{r}: {'reached' if o['reached'] else 'NOT reached'} in {o['time_s']:.1f} s, path "
-                         f"{o['path_length_m']:.2f} m, {hits}{left}")
+            state = "" if o["reached"] is None else f"{'reached' if o['reached'] else 'NOT reached'} in {o['time_s']:.1f} s, "
+            lines.append(f"{r}: {state}path {o['path_length_m']:.2f} m, {hits}{left}")  # (None: a ROS 2 tracking robot)
     if tracking:
         from world.tracking import tracking_summary
 

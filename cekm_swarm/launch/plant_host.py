@@ -21,17 +21,11 @@ from cekm_swarm.ros2.plant import RobotDescription, check_body, load_description
 PLANTS = ("ros2",)
 
 
-class PlantRefused(CekmError):
-    """A plant run that cannot start as asked (a body the model does not fit, a tracking scenario)."""
-
-
 def plant_description(scenario: Any, description: Path | None, trained: RobotBody, uses_model: bool,
                       task: str) -> RobotDescription:
-    """The robot description of a ``--plant ros2`` run, checked: a navigation scenario, and
-    (when the graph reads a model) the body the model was trained for."""
-    if task != "navigation":
-        raise PlantRefused(f"{scenario.name}: --plant ros2 runs navigation scenarios; tracking targets from "
-                           f"ROS 2 are not supported yet")
+    """The robot description of a ``--plant ros2`` run, checked (when the graph reads a
+    model) against the body the model was trained for. ``task``: navigation or tracking
+    (whose targets come on ``/targets``)."""
     desc = RobotDescription(trained) if description is None else load_description(description, trained)
     if uses_model:
         check_body(desc.body, trained, str(description) if description else scenario.name)
@@ -65,15 +59,15 @@ def plant_argv(launcher: Any, where: str, hosts_router: bool) -> list[str]:
                       listen=where if hosts_router else None, connect=None if hosts_router else where,
                       zenoh_config=None if hosts_router or c.zenoh_config is None else str(c.zenoh_config),
                       max_time=float(c.max_time), deadman=c.deadman, wait_modules=c.alive_timeout,
-                      progress_every=c.progress_every, geometry=World(sc).static_geometry(), goal_ids=ids)
+                      progress_every=c.progress_every, geometry=World(sc).static_geometry(), goal_ids=ids,
+                      task=launcher.task, target_ids=[t.id for t in sc.targets] if launcher.task == "tracking" else [])
     path = cfg.write(c.out / "plant.json")
     return [sys.executable, "-m", "cekm_swarm.ros2.plant_server", str(path)]
 
 
 def refuse_plant(scenario: Any, checked: Any, task: str, mode: str, description: Path | None) -> None:
     """``cekm launch --plant ros2``'s checks before anything is written or started, each a
-    one-line usage error: a real-time run, a navigation scenario, a readable description
-    whose body fits the model."""
+    one-line usage error: a real-time run, a readable description whose body fits the model."""
     import click
 
     from .prepare import body_of

@@ -46,6 +46,7 @@ ODOMETRY = "nav_msgs/msg/Odometry"
 LASER_SCAN = "sensor_msgs/msg/LaserScan"
 RANGE = "sensor_msgs/msg/Range"
 POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
+POSE_ARRAY = "geometry_msgs/msg/PoseArray"
 TWIST = "geometry_msgs/msg/Twist"
 CLOCK = "rosgraph_msgs/msg/Clock"
 
@@ -340,6 +341,32 @@ def decode_goal(ifc: Interfaces, payload: bytes, desc: RobotDescription, robot: 
     if not (math.isfinite(p.x) and math.isfinite(p.y)):
         raise Refused(NOT_FINITE, f"goal position ({p.x}, {p.y})")
     return float(p.x), float(p.y)
+
+
+def decode_targets(ifc: Interfaces, payload: bytes, desc: RobotDescription, ids: list[str],
+                   now: float) -> dict[str, tuple[float, float]]:
+    """A tracking run's targets (``/targets``, a PoseArray in the odometry frame or ``map``):
+    the i-th pose is the scenario's i-th target, {id: (x, y)}; as many poses as targets."""
+    m = _decode(ifc, payload, POSE_ARRAY)
+    _frame(m.header.frame_id, frozenset({desc.odom_frame, "map"}), "targets")
+    if len(m.poses) != len(ids):
+        raise Refused(WRONG_LENGTH, f"{len(m.poses)} target poses, the scenario has {len(ids)} targets")
+    xy = [(float(p.position.x), float(p.position.y)) for p in m.poses]
+    if not all(math.isfinite(v) for p in xy for v in p):
+        raise Refused(NOT_FINITE, f"target positions {xy}")
+    _stamp(m.header, now, "targets")
+    return dict(zip(ids, xy))
+
+
+def targets_seen(odom: Odom, targets: dict[str, tuple[float, float]], target_range: float) -> dict[str, tuple[float, float]]:
+    """The targets within ``target_range`` of the robot, each as (alpha, d) in its frame (the
+    target reading of :func:`target_reading`)."""
+    out = {}
+    for tid, xy in targets.items():
+        alpha, d, visible = target_reading(odom, xy, target_range)
+        if visible:
+            out[tid] = (alpha, d)
+    return out
 
 
 def decode_clock(ifc: Interfaces, payload: bytes) -> float:

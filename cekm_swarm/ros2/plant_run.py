@@ -13,11 +13,15 @@ from typing import Any
 
 import zenoh
 
+from cekm_swarm.protocol import SensePose, SenseTarget, SenseTargets
 from cekm_swarm.runtime.mcap_record import SchemaSpec
 from cekm_swarm.runtime.percentiles import Samples
 from cekm_swarm.ticks import tick_time
 
 from . import plant as P
+
+SENDER = "world"
+"""The sender of the readings: the nodes' graph reads them as the world's."""
 
 
 @dataclass
@@ -43,6 +47,8 @@ class PlantConfig:
     progress_every: float = 1.0
     geometry: dict[str, Any] = field(default_factory=dict)
     goal_ids: dict[str, str] = field(default_factory=dict)
+    task: str = "navigation"  # or tracking: the targets come on /targets
+    target_ids: list[str] = field(default_factory=list)  # ... the i-th pose of /targets is the i-th of these
 
     def write(self, path: Path) -> Path:
         path.write_text(json.dumps(self.__dict__, indent=1))
@@ -97,7 +103,7 @@ def outcome_doc(plant: Any, ticks: int, aborted: bool, wall: float, loop_s: floa
     robots = {}
     for r, p in plant.ports.items():
         o = p.odom
-        robots[r] = {"reached": p.reached, "time_s": p.reached_time if p.reached else tick_time(max(ticks - 1, 0)),
+        robots[r] = {"reached": None if plant.cfg.task == "tracking" else p.reached, "time_s": p.reached_time if p.reached else tick_time(max(ticks - 1, 0)),
                      "path_length_m": round(p.path_m, 4), "collisions": None,
                      "final_distance_m": None if o is None or p.goal is None else
                      round(math.hypot(p.goal[0] - o.x, p.goal[1] - o.y), 4),
@@ -181,3 +187,20 @@ def wait_alive(session: zenoh.Session, key_expr: str, expected: set[str], timeou
     finally:
         watcher.undeclare()
     return set()
+
+
+def target_messages(plant: Any, robot: str, odom: P.Odom, t: float) -> list[tuple[str, Any]]:
+    """A target tick's readings of ``robot``: navigation, its goal (``sense/target``; not
+    visible without a goal); tracking, its own pose and the targets of ``/targets`` within
+    its target range (``sense/pose``, ``sense/targets``; none when ``/targets`` is stale)."""
+    keys, body = plant.keys, plant.desc.body
+    if plant.cfg.task == "tracking":
+        with plant.lock:
+            targets = plant.targets if plant.targets_stamp >= plant.now() - P.STALE_S else {}
+        return [(keys.sense_pose(robot), SensePose(t, SENDER, (odom.x, odom.y, odom.theta))),
+                (keys.sense_targets(robot), SenseTargets(t, SENDER, P.targets_seen(odom, targets, body.target_range)))]
+    goal = plant.ports[robot].goal
+    if goal is None:
+        return [(keys.sense_target(robot), SenseTarget(t, SENDER, 0.0, 0.0, False))]
+    alpha, d, visible = P.target_reading(odom, goal, body.target_range)
+    return [(keys.sense_target(robot), SenseTarget(t, SENDER, alpha if visible else 0.0, d if visible else 0.0, visible))]

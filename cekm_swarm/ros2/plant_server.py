@@ -48,14 +48,13 @@ from cekm_swarm.protocol import (
     KeySpace,
     RobotState,
     SenseRange,
-    SenseTarget,
     TargetState,
     WheelCommand,
     WorldState,
     encode,
 )
 from cekm_swarm.protocol.stamps import PAST_S, stamp_problem
-from cekm_swarm.runtime.bridge import declare_alive, wait_matching
+from cekm_swarm.runtime.bridge import Publishers, declare_alive, wait_matching
 from cekm_swarm.runtime.config import open_embedded_router, tcp_host_port
 from cekm_swarm.runtime.lifetime import die_with_parent
 from cekm_swarm.runtime.mcap_record import SchemaSpec
@@ -69,14 +68,23 @@ from . import plant as P
 from .bridge import _RosPublisher
 from .interfaces import interfaces
 from .mapping import RosOut, ros_name
-from .plant_run import PlantConfig, RobotPort, drain_log, drop_doc, emit, outcome_doc, progress_doc, wait_alive
+from .plant_run import (
+    SENDER,
+    PlantConfig,
+    RobotPort,
+    drain_log,
+    drop_doc,
+    emit,
+    outcome_doc,
+    progress_doc,
+    target_messages,
+    wait_alive,
+)
 from .wire import SUBSCRIPTION, Node, Qos, topic_key
 
 log = logging.getLogger("cekm_swarm.ros2.plant")
 
 NODE_NAME = "cekm_plant"
-SENDER = "world"
-"""The sender of the readings: the nodes' graph reads them as the world's."""
 GOAL_TOLERANCE_M = 0.03
 """A robot whose odometry is this close to its goal has reached it (the checkpoint radius
 of the simulated world, and like Nav2's ``xy_goal_tolerance``): it is stopped."""
@@ -108,6 +116,8 @@ class PlantServer:
         self.use_clock = False  # ROS time from /clock: one came before tick 0
         self.started = False
         self.ended = False  # the run is over: commands are no longer taken
+        self.targets: dict[str, tuple[float, float]] = {}  # a tracking run's targets (from /targets)
+        self.targets_stamp = -math.inf
         self.drops: Counter = Counter()  # (robot, topic, reason) -> n
         self.cmd_drops = DropCounter("plant commands", keys=self.keys)
         self.received = Counter()
@@ -121,7 +131,6 @@ class PlantServer:
         self.misses: Counter = Counter()
         self.recorded = 0
         self.pending_log: list[tuple[str, bytes, float]] = []
-        self._pubs: dict[str, Any] = {}
         self._schemas: dict[str, SchemaSpec] = {}
         self.inbox: queue.SimpleQueue = queue.SimpleQueue()
         self.input_thread = threading.Thread(target=self._input_loop, name="plant-input", daemon=True)
@@ -130,9 +139,7 @@ class PlantServer:
 
     def now(self) -> float:
         """The plant's clock (s): ROS time from /clock when the robots publish it, else the wall clock."""
-        if self.use_clock and self.ros_time is not None:
-            return self.ros_time
-        return time.time()
+        return self.ros_time if self.use_clock and self.ros_time is not None else time.time()
 
     def event(self, name: str, t: float, extra: dict[str, Any]) -> None:
         doc = {"event": name, "t": t, **extra}
@@ -168,9 +175,13 @@ class PlantServer:
         """One ROS message from a robot: checked, kept when believed, logged either way."""
         with self.lock:
             self.received[topic] += 1
-        port, now = self.ports[robot], self.now()
+        port, now = self.ports.get(robot), self.now()
         try:
-            if kind == P.ODOMETRY:
+            if kind == P.POSE_ARRAY:  # a tracking run's targets
+                targets = P.decode_targets(self.ifc, payload, self.desc, self.cfg.target_ids, now)
+                with self.lock:
+                    self.targets, self.targets_stamp = targets, now
+            elif kind == P.ODOMETRY:
                 odom = P.decode_odometry(self.ifc, payload, self.desc, ros_name(robot), now)
                 with self.lock:
                     port.odom = odom
@@ -272,6 +283,8 @@ class PlantServer:
                                                         lambda s: fn(s.payload.to_bytes())))
 
         subscribe("/clock", P.CLOCK, self.on_clock)
+        if cfg.task == "tracking":
+            subscribe("/targets", P.POSE_ARRAY, lambda b: self.on_sample("-", "/targets", P.POSE_ARRAY, b))
         self.cmd_vel: dict[str, _RosPublisher] = {}
         for r in self.robots:
             ns = f"/{ros_name(r)}"
@@ -297,7 +310,7 @@ class PlantServer:
             return False
         for r in self.robots:
             for k in self.plan.world_keys(r):
-                if not self.stop.is_set() and not wait_matching(self.pubs(k), 30.0):
+                if not self.stop.is_set() and not wait_matching(self._pubs.publisher(k), 30.0):
                     log.warning("no subscriber on %s after 30 s; starting anyway", k)
         deadline = time.monotonic() + FIRST_INPUT_WAIT_S
         said = False
@@ -317,14 +330,9 @@ class PlantServer:
         self.started = True  # the clock chosen now stays the run's
         return not self.stop.is_set()
 
-    def pubs(self, key: str) -> Any:
-        if key not in self._pubs:
-            self._pubs[key] = self.session.declare_publisher(key, congestion_control=zenoh.CongestionControl.BLOCK)
-        return self._pubs[key]
-
     def put(self, key: str, msg: Any) -> None:
         payload = encode(msg)
-        self.pubs(key).put(payload)
+        self._pubs.put(key, payload)
         self.log_msg(key, payload, msg.stamp)
 
     # ------------------------------------------------------------------ ticks
@@ -363,15 +371,13 @@ class PlantServer:
             for j, (a, d) in enumerate(zip(self.desc.body.sensor_angles, readings)):
                 self.put(self.keys.sense_range(r, j), SenseRange(t, SENDER, j, float(a), d))
             if k % TARGET_EVERY == 0:
-                if port.goal is None:
-                    target = SenseTarget(t, SENDER, 0.0, 0.0, False)
-                else:
-                    alpha, d, visible = P.target_reading(odom, port.goal, self.desc.body.target_range)
-                    target = SenseTarget(t, SENDER, alpha if visible else 0.0, d if visible else 0.0, visible)
-                self.put(self.keys.sense_target(r), target)
+                for key, msg in target_messages(self, r, odom, t):
+                    self.put(key, msg)
         self.put(self.keys.world_clock(), Clock(t, SENDER, k))
-        self.put(self.keys.world_state(), WorldState(t, SENDER, robots, {
-            self.cfg.goal_ids.get(r, f"{r}-goal"): TargetState(*p.goal) for r, p in self.ports.items() if p.goal}, {}))
+        targets = dict(self.targets) if self.cfg.task == "tracking" else {
+            self.cfg.goal_ids.get(r, f"{r}-goal"): p.goal for r, p in self.ports.items() if p.goal}
+        self.put(self.keys.world_state(), WorldState(t, SENDER, robots, {i: TargetState(*xy) for i, xy in targets.items()},
+                                                     {}))
 
     def _wait_boundary(self, boundary: float) -> None:
         """Until the plant's clock reaches ``boundary``, stopping a robot on its dead-man
@@ -406,6 +412,7 @@ class PlantServer:
             self.session = open_embedded_router(port, host)
         else:
             self.session = open_client_when_ready(cfg.connect, cfg.zenoh_config, stop=self.stop)
+        self._pubs = Publishers(self.session, block=True)  # the readings, as the world's (express: no)
         out = Path(cfg.out)
         recorder = open_recorder(out / "run.mcap", metadata={"scenario": cfg.scenario, "seed": str(cfg.seed),
                                                              "mode": "realtime", "record": "full", "root": cfg.root,

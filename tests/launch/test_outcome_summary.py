@@ -56,3 +56,5 @@ def test_a_ros2_plant_run_says_collisions_are_not_known_and_its_scan_to_twist_la
     lines = outcome_summary(doc)
     assert lines[0] == "r1: reached in 12.3 s, path 1.50 m, collisions not known (a ROS 2 robot)"
     assert "scan-to-Twist latency p50 38.7 ms, p99 78.0 ms (73 Twists)" in lines
+    doc["robots"]["r2"]["reached"] = None  # a tracking robot of a ROS 2 plant run: no goal
+    assert outcome_summary(doc)[1] == "r2: path 0.70 m, 1 collisions"

@@ -7,7 +7,7 @@ import pytest
 
 from cekm_swarm.cli import main
 from cekm_swarm.cli_support import run_cli
-from cekm_swarm.launch.plant_host import PlantRefused, goals_of, plant_description
+from cekm_swarm.launch.plant_host import goals_of, plant_description
 from cekm_swarm.robot import RobotBody
 from world import load_scenario
 
@@ -19,11 +19,9 @@ def test_goals_come_from_the_scenario():
     assert set(goals) == {r.id for r in crossing.robots} and all(len(g) == 2 for g in goals.values())
 
 
-def test_the_description_defaults_to_the_scenarios_body_and_tracking_is_refused(tmp_path):
+def test_the_description_defaults_to_the_scenarios_body(tmp_path):
     desc = plant_description(load_scenario("lone_obstacle"), None, RobotBody(), True, "navigation")
     assert desc.body == RobotBody() and desc.sensors == "scan"
-    with pytest.raises(PlantRefused, match="navigation scenarios"):
-        plant_description(load_scenario("tracking"), None, RobotBody(), True, "tracking")
     f = tmp_path / "bot.toml"
     f.write_text("axle = 0.16\n")
     assert plant_description(load_scenario("lone_obstacle"), f, RobotBody(), False, "navigation").body.axle == 0.16

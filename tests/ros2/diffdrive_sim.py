@@ -7,7 +7,8 @@
 [cx, cy, r], ``rate_hz`` (odometry and scan), ``body_radius``, ``beams``; optional
 ``clock_offset`` (s: ROS time is the wall clock less this), ``publish_clock`` (``/clock``),
 ``wheel_noise`` (each wheel's speed off by up to this fraction, as the simulated Khepera's),
-``axle`` and ``seed``.
+``axle``, ``seed``, and ``targets`` ([x, y, vx, vy] each: points moving straight, turning
+back at the walls, published together as a ``geometry_msgs/msg/PoseArray`` on ``/targets``).
 
 Each robot publishes ``nav_msgs/msg/Odometry`` on ``/<id>/odom`` (frame ``odom``, child
 ``base_link``) and a ``sensor_msgs/msg/LaserScan`` on ``/<id>/scan`` (frame ``base_scan``,
@@ -209,12 +210,29 @@ def physics() -> None:
                 ny = r.y + v * math.sin(r.th) * STEP
                 r.th = math.atan2(math.sin(r.th + w * STEP), math.cos(r.th + w * STEP))
                 disc, any_ = clearance(nx, ny, r.id)
-                touching = any_ < 0
+                touching = bool(any_ < 0)
                 r.contacts += touching and not r.touching  # a new contact
                 r.touching = touching
                 r.x, r.y = slide(nx, ny, r.id) if touching else (nx, ny)
                 r.min_disc, r.min_any = min(r.min_disc, disc), min(r.min_any, any_)
         time.sleep(max(0.0, nxt - time.monotonic()))
+
+
+TARGETS = [list(map(float, t)) for t in config.get("targets", [])]  # [x, y, vx, vy]: points moving straight
+TARGET_PUB = None if not TARGETS else ROS2Publisher("/targets", "geometry_msgs/msg/PoseArray", domain_id=domain,
+                                                    router_ip=host, router_port=int(port))
+
+
+def publish_targets(now: float, dt: float) -> None:
+    """The targets move on (turning back at the walls) and go out as one PoseArray in ``odom``."""
+    for t in TARGETS:
+        for i in (0, 1):
+            t[i] += t[i + 2] * dt
+            if not BOUNDS[i] < t[i] < BOUNDS[i + 2]:
+                t[i + 2] = -t[i + 2]
+    TARGET_PUB.publish(header=header(now, "odom"), poses=[T["geometry_msgs/msg/Pose"](
+        position=T["geometry_msgs/msg/Point"](x=x, y=y, z=0.0),
+        orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0)) for x, y, _, _ in TARGETS])
 
 
 def sensors() -> None:
@@ -224,6 +242,8 @@ def sensors() -> None:
         now = time.time() - OFFSET
         for r in robots.values():
             publish(r, now)
+        if TARGETS:
+            publish_targets(now, 1.0 / RATE)
         time.sleep(max(0.0, nxt - time.monotonic()))
 
 

@@ -175,3 +175,19 @@ def test_description_file_and_body_check(tmp_path):
             P.load_description(f)
     with pytest.raises(P.DescriptionError, match="cannot read"):
         P.load_description(tmp_path / "missing.toml")
+
+
+def test_targets_of_a_tracking_run():
+    def poses(*xy, frame="odom"):
+        ps = [IFC.make("geometry_msgs/msg/Pose", position=IFC.make("geometry_msgs/msg/Point", x=x, y=y, z=0.0),
+                       orientation=IFC.make("geometry_msgs/msg/Quaternion", w=1.0)) for x, y in xy]
+        return IFC.cdr(IFC.make(P.POSE_ARRAY, header=header(frame), poses=ps), P.POSE_ARRAY)
+    targets = P.decode_targets(IFC, poses((1.0, 1.0), (3.0, 0.0)), DESC, ["t1", "t2"], NOW)
+    assert targets == {"t1": (1.0, 1.0), "t2": (3.0, 0.0)}
+    seen = P.targets_seen(P.Odom(NOW, 1.0, 0.5, 0.0, 0.0, 0.0), targets, 0.6)
+    assert list(seen) == ["t1"] and seen["t1"][0] == pytest.approx(math.pi / 2) and seen["t1"][1] == pytest.approx(0.5)
+    for payload, reason in [(poses((1.0, 1.0)), P.WRONG_LENGTH), (poses((1.0, 1.0), (float("nan"), 0.0)), P.NOT_FINITE),
+                            (poses((1.0, 1.0), (2.0, 2.0), frame="r1/base_link"), P.UNKNOWN_FRAME)]:
+        with pytest.raises(P.Refused) as e:
+            P.decode_targets(IFC, payload, DESC, ["t1", "t2"], NOW)
+        assert e.value.reason == reason

@@ -31,9 +31,10 @@ def launch_argv(*args: str) -> list[str]:
     return [sys.executable, "-m", "cekm_swarm", "launch", *args, "--plant", "ros2", "--no-plot"]
 
 
-def twists(lines: list[str]) -> list[tuple[float, float, float]]:
-    """The (monotonic s, v, omega) of every Twist the simulator took."""
-    return [(float(p[2]), float(p[3]), float(p[4])) for p in (x.split() for x in lines) if p[0] == "TWIST"]
+def twists(lines: list[str], robot: str = "r1") -> list[tuple[float, float, float]]:
+    """The (monotonic s, v, omega) of every Twist the simulator took for ``robot``."""
+    return [(float(p[2]), float(p[3]), float(p[4])) for p in (x.split() for x in lines)
+            if p[0] == "TWIST" and p[1] == robot]
 
 
 def test_cekm_drives_a_ros2_robot_past_the_disc_through_bad_input_and_a_killed_motor_node(processes, msg_dir,
@@ -47,6 +48,9 @@ def test_cekm_drives_a_ros2_robot_past_the_disc_through_bad_input_and_a_killed_m
     sim = processes(sim_argv(ep, msg_dir, LONE))
     sim.expect("READY", timeout=60)
     launch.expect("", timeout=120, where=lambda s: "world started ticking" in s)
+    sim.send("goal r1 1.7 1.0")  # Nav2's goal_pose: the goal moves 0.2 m further, behind the disc still
+    sim.expect("GOAL", timeout=30)
+    launch.expect("", timeout=30, where=lambda s: ": goal {'robot': 'r1', 'goal': [1.7, 1.0]}" in s)
     sim.send("bad r1")  # NaN poses, an unknown frame, stale stamps, a short scan, 10,000 malformed payloads
     bad = json.loads(sim.expect("BAD", timeout=120).split(" ", 1)[1])
     launch.expect("", timeout=60, where=lambda s: " m to goal" in s and "t=   0.00" not in s)  # on its way
@@ -64,7 +68,7 @@ def test_cekm_drives_a_ros2_robot_past_the_disc_through_bad_input_and_a_killed_m
     outcome = json.loads((out / "outcome.json").read_text())
     r1 = outcome["robots"]["r1"]
     # past the disc to its goal, never touching the disc or anything else
-    assert r1["reached"] and math.hypot(done["x"] - 1.5, done["y"] - 1.0) <= 0.04
+    assert r1["reached"] and r1["goal"] == [1.7, 1.0] and math.hypot(done["x"] - 1.7, done["y"] - 1.0) <= 0.04
     assert done["contacts"] == 0 and done["min_disc_clearance"] > 0.0 and done["min_clearance"] > 0.0
     # every bad message dropped and counted by topic and reason; the run went on
     dropped = outcome["ros_dropped"]
@@ -92,27 +96,36 @@ def test_cekm_drives_a_ros2_robot_past_the_disc_through_bad_input_and_a_killed_m
     assert topics["cekm/r1/cmd/wheels"] > 50 and topics["cekm/r1/sense/range/0"] > 50
 
 
-def test_a_goal_pose_then_ctrl_c_which_stops_the_robot_with_a_zero_twist(processes, msg_dir, tmp_path):
+TRACKING = {"robots": {"r1": [1.42, 1.0, math.pi / 2], "r2": [1.58, 1.0, math.pi / 2]}, "bounds": [0.0, 0.0, 3.0, 2.0],
+            "disc": [2.8, 1.8, 0.05], "rate_hz": 15, "body_radius": BODY, "beams": 360,
+            "targets": [[1.3, 1.2, -0.0188, 0.0067], [1.3, 0.8, -0.0188, -0.0067], [1.7, 1.0, 0.02, 0.0]]}
+"""The ``tracking`` scenario's start: its three targets on /targets, two drifting west, one east."""
+
+
+def test_tracking_targets_from_ros2_then_ctrl_c_stops_the_robots_with_a_zero_twist(processes, msg_dir, tmp_path):
+    """The cekm tracking graph, its targets from ``/targets``: the robots part (one west, one
+    east, as the targets do); Ctrl-C then leaves each robot stopped."""
     from cekm_swarm.runtime.config import free_port
 
     port, out = free_port(), tmp_path / "run"
-    launch = processes(launch_argv("lone_obstacle", "--port", str(port), "--out", str(out)))
+    launch = processes(launch_argv("tracking", "--port", str(port), "--out", str(out)))
     launch.expect("", timeout=180, where=lambda s: "hosts the embedded Zenoh router" in s)
-    sim = processes(sim_argv(f"tcp/127.0.0.1:{port}", msg_dir, LONE))
+    sim = processes(sim_argv(f"tcp/127.0.0.1:{port}", msg_dir, TRACKING))
     sim.expect("READY", timeout=60)
-    launch.expect("", timeout=120, where=lambda s: " m to goal" in s and "t=   0.00" not in s)  # driving
-    sim.send("goal r1 0.3 1.7")  # Nav2's goal_pose: a new goal, behind the robot
-    sim.expect("GOAL", timeout=30)
-    launch.expect("", timeout=30, where=lambda s: ": goal {'robot': 'r1', 'goal': [0.3, 1.7]}" in s)
-    launch.expect("", timeout=30, where=lambda s: " m to goal" in s)  # (a progress line after it)
+
+    def apart(line: str) -> float:  # "t=  3.07 s  r1 (1.30, 1.00)  r2 (1.70, 1.00)": how far apart in x
+        xs = [float(x.split(",")[0]) for x in line.split("(")[1:3]]
+        return xs[1] - xs[0]
+
+    launch.expect("", timeout=120, where=lambda s: " t=" in s and " r2 (" in s and apart(s) >= 0.4)  # from 0.16 m
     launch.proc.send_signal(signal.SIGINT)
     interrupted = time.monotonic()
     assert launch.proc.wait(timeout=60) == 130, "\n".join(launch.seen[-20:])
     sim.send("quit")
-    sim.expect("DONE", timeout=30)
-    seen = twists(sim.seen)
-    assert any(v != 0.0 for _, v, _ in seen)  # it drove,
-    assert seen[-1][1:] == (0.0, 0.0) and seen[-1][0] > interrupted  # and the last Twist, after Ctrl-C, stops it
+    done = json.loads(sim.expect("DONE", timeout=30).split(" ", 1)[1])
+    assert done["r1"]["x"] < 1.42 - 0.1 and done["r2"]["x"] > 1.58 + 0.1  # west and east, with the targets
+    for r in ("r1", "r2"):
+        seen = twists(sim.seen, r)
+        assert seen[-1][1:] == (0.0, 0.0) and seen[-1][0] > interrupted  # the last Twist, after Ctrl-C, stops it
     outcome = json.loads((out / "outcome.json").read_text())
-    r1 = outcome["robots"]["r1"]
-    assert outcome["aborted"] and not r1["reached"] and r1["goal"] == [0.3, 1.7]
+    assert outcome["aborted"] and outcome["ros_dropped"] == {} and outcome["ros_received"]["/targets"] > 10
