@@ -12,7 +12,8 @@ In (per robot, ROS namespace ``/<robot>``; REP 103 units, REP 105 frames):
   within the sensor range beyond the body surface; or ``sensor_msgs/msg/Range`` on
   ``/<robot>/range_<j>`` (from the body surface, as the bridge publishes it: d = range +
   body radius);
-- ``geometry_msgs/msg/PoseStamped`` on ``/<robot>/goal_pose`` (Nav2's goal): a new goal.
+- ``geometry_msgs/msg/PoseStamped`` on ``/<robot>/goal_pose`` (Nav2's goal): a new goal;
+- ``geometry_msgs/msg/PoseArray`` on ``/targets`` (a tracking run): the scenario's targets.
 
 The target reading is the goal in the robot's frame from the odometry: alpha =
 atan2 in (-pi, pi], d rounded to 1 mm (the target sensor's resolution), alpha 0 when the
