@@ -35,6 +35,7 @@ import threading
 import time
 
 import numpy as np
+import zenoh
 
 router, msg_dir, domain, config = sys.argv[1], sys.argv[2], int(sys.argv[3]), json.loads(sys.argv[4])
 host, port = router.rsplit(":", 1)
@@ -156,10 +157,11 @@ def publish(r: Robot, now: float) -> None:
 
 
 def raw(pub, data: bytes) -> None:
-    """Put ``data`` on a publisher's key with its attachment (bytes that need not be its type)."""
+    """Put ``data`` on a publisher's key with its attachment (bytes that need not be its type),
+    with congestion control BLOCK: every one arrives (the SDK's publisher may drop under load)."""
     att = struct.pack("<qqB", pub.sequence_number, time.time_ns(), 16) + pub.publisher_gid
     pub.sequence_number += 1
-    pub.pub.put(data, attachment=att)
+    session.session.put(pub.keyexpr, data, attachment=att, congestion_control=zenoh.CongestionControl.BLOCK)
 
 
 def bad(r: Robot) -> None:

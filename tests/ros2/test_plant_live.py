@@ -69,7 +69,7 @@ def test_cekm_drives_a_ros2_robot_past_the_disc_through_bad_input_and_a_killed_m
     r1 = outcome["robots"]["r1"]
     # past the disc to its goal, never touching the disc or anything else
     assert r1["reached"] and r1["goal"] == [1.7, 1.0] and math.hypot(done["x"] - 1.7, done["y"] - 1.0) <= 0.04
-    assert done["contacts"] == 0 and done["min_disc_clearance"] > 0.0 and done["min_clearance"] > 0.0
+    assert done["contacts"] == 0 and done["min_disc_clearance"] > 0.0 and done["min_clearance"] > 0.0, done
     # every bad message dropped and counted by topic and reason; the run went on
     dropped = outcome["ros_dropped"]
     assert dropped["/r1/odom"] == {"not finite": bad["nan_odom"], "unknown frame": bad["unknown_frame_odom"]}
