@@ -78,8 +78,8 @@ def test_cekm_drives_a_ros2_robot_past_the_disc_through_bad_input_and_a_killed_m
     assert sum(scan.values()) == bad["stale_scan"] + bad["wrong_length_scan"] + bad["garbage_scan"]
     assert scan["malformed CDR"] >= bad["garbage_scan"] - 10  # (random bytes that happen to parse: another reason)
     # the dead-man: a zero Twist within the limit of the last command, then the restarted motor drove on
-    (deadman,) = [e for e in outcome["events"] if e["event"] == "deadman"]
-    assert deadman["robot"] == "r1" and deadman["silent_s"] <= deadman["limit_s"] == 0.5
+    deadman = [e for e in outcome["events"] if e["event"] == "deadman"]  # (one per kill when a restart is slow)
+    assert 1 <= len(deadman) <= 2 and all(e["robot"] == "r1" and e["silent_s"] <= e["limit_s"] == 0.5 for e in deadman)
     seen = twists(sim.seen)
     after = [tw for tw in seen if tw[0] > killed]
     first_zero = next(i for i, tw in enumerate(after) if tw[1] == 0.0 and tw[2] == 0.0)
