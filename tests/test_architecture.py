@@ -113,3 +113,14 @@ def test_experiments_keep_the_terminal_and_the_pictures_apart():
     for path in (ROOT / "cekm_swarm" / "experiments").glob("*.py"):
         top = _top_level_imports(path)
         assert not any(n == "matplotlib" or n.startswith("matplotlib.") for n in top), path
+
+
+def test_the_ros2_plant_imports_neither_the_world_nor_controller_code():
+    """The ROS 2 plant is the world's counterpart: it meets the graph only through the protocol."""
+    for path, names in imports_of("cekm_swarm.ros2").items():
+        if "/plant" not in path:
+            continue
+        bad = {n for n in names if n == "world" or n.startswith(("world.", "cekm_swarm.controller", "cekm_swarm.models",
+                                                                  "cekm_swarm.modules", "cekm_swarm.node",
+                                                                  "cekm_swarm.experiments", "cekm_swarm.launch"))}
+        assert not bad, (path, bad)

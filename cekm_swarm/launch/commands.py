@@ -88,12 +88,22 @@ def _env_endpoint() -> str | None:
 @click.option("--record", "record", type=click.Choice(["full", "lean"]), default="full", show_default=True,
               help="What run.mcap holds: full (every message and view), or lean for long runs (the world's "
                    "messages, commands and shares, views at 1 Hz; docs/tools.md).")
+@click.option("--plant", type=click.Choice(["ros2"]), default=None,
+              help="ros2: the robots live in ROS 2 (a real robot, Gazebo, Webots over rmw_zenoh); no world is "
+                   "simulated (docs/ros2.md, 'Driving a ROS 2 robot').")
+@click.option("--domain", "plant_domain", default=0, show_default=True, type=click.IntRange(0, 232),
+              help="--plant ros2: ROS_DOMAIN_ID.")
+@click.option("--distro", "plant_distro", type=click.Choice(["jazzy", "kilted"]), default="jazzy", show_default=True,
+              help="--plant ros2: the ROS 2 distribution.")
+@click.option("--robot-description", type=click.Path(dir_okay=False, exists=True, path_type=Path),
+              help="--plant ros2: the robots' body (TOML; default: the scenario's simulated body).")
 def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwrite: bool, connect: str | None,
                port: int, model_path: Path | None, max_time: float | None, controller: str, graph_file: Path | None,
                root: str, no_plot: bool, robots: tuple[str, ...] | None, no_world: bool, listen_host: str,
                zenoh_config: Path | None, model_from_zenoh: bool, run_id: str | None, cold_start: bool,
                send_every_reading: bool, max_log_size: int | None, max_log_duration: float | None,
-               record: str) -> None:
+               record: str, plant: str | None = None, plant_domain: int = 0, plant_distro: str = "jazzy",
+               robot_description: Path | None = None) -> None:
     """Run SCENARIO through the distributed runtime: the world server and, per robot, every
     node of the controller's graph as its own process on Zenoh (cekm: 1 + 12 + 1),
     supervised (restarted when they die)."""
@@ -144,6 +154,12 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwr
         checked.plan([r.id for r in sc.robots], task)
     except GraphError as exc:
         raise click.UsageError(str(exc)) from None
+    if plant is not None:  # a body the model does not fit, a lockstep run: refused before anything starts
+        from .plant_host import refuse_plant
+
+        refuse_plant(sc, checked, task, mode, robot_description)
+    elif robot_description is not None:
+        raise click.UsageError("--robot-description describes a ROS 2 robot: use it with --plant ros2")
     if model_path is not None and checked.uses_model:  # a bad model is refused before --overwrite clears --out
         from .prepare import body_of, plan_of, preflight
 
@@ -154,8 +170,9 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwr
                           max_time=max_time, controller=controller, graph=graph_file, root=root, plot=not no_plot,
                           robots=only, world=not no_world, listen_host=listen_host, zenoh_config=zenoh_config,
                           model_from_zenoh=model_from_zenoh, run_id=run_id, warm_start=not cold_start,
-                          hold_readings=not send_every_reading, max_log_size=max_log_size,
-                          max_log_duration=max_log_duration, record=record)
+                          hold_readings=not send_every_reading and plant is None, max_log_size=max_log_size,
+                          max_log_duration=max_log_duration, record=record, plant=plant, plant_domain=plant_domain,
+                          plant_distro=plant_distro, robot_description=robot_description)
     launcher = Launcher(config, echo=lambda s: click.echo(s))
     try:
         outcome = launcher.launch()
@@ -207,8 +224,9 @@ def outcome_summary(outcome: dict) -> list[str]:
         if tracking:
             lines.append(f"{r}: path {o['path_length_m']:.2f} m, {o['collisions']} collisions{left}")
         else:
-            lines.append(f"{r}: {'reached' if o['reached'] else 'NOT reached'} in {o['time_s']:.1f} s, path "
-                         f"{o['path_length_m']:.2f} m, {o['collisions']} collisions{left}")
+            hits = "collisions not known (a ROS 2 robot)" if o["collisions"] is None else f"{o['collisions']} collisions"
+            state = "" if o["reached"] is None else f"{'reached' if o['reached'] else 'NOT reached'} in {o['time_s']:.1f} s, "
+            lines.append(f"{r}: {state}path {o['path_length_m']:.2f} m, {hits}{left}")  # (None: a ROS 2 tracking robot)
     if tracking:
         from world.tracking import tracking_summary
 
@@ -216,6 +234,9 @@ def outcome_summary(outcome: dict) -> list[str]:
     lat = outcome.get("sense_to_command_ms", {})
     if lat.get("n"):
         lines.append(f"sense-to-command latency p50 {lat['p50']} ms, p99 {lat['p99']} ms ({lat['n']} robot-ticks)")
+    scan = outcome.get("scan_to_twist_ms", {})  # a ROS 2 plant's run (docs/ros2.md)
+    if scan.get("n"):
+        lines.append(f"scan-to-Twist latency p50 {scan['p50']} ms, p99 {scan['p99']} ms ({scan['n']} Twists)")
     if outcome.get("mode") == "realtime":
         misses = outcome.get("deadline_misses", 0)
         robot_ticks = outcome.get("ticks", 0) * len(outcome["robots"])

@@ -86,6 +86,10 @@ class LaunchConfig:
     max_log_duration: float | None = None  # ... or sim s per file
     record: str = "full"  # full, or lean (world.recorder)
     alive_timeout: float = ALIVE_TIMEOUT  # s to wait for every node of every robot to be alive
+    plant: str | None = None  # "ros2": the robots live in ROS 2, no world is simulated (launch.plant_host)
+    plant_domain: int = 0  # ... its ROS_DOMAIN_ID
+    plant_distro: str = "jazzy"  # ... its ROS 2 distribution
+    robot_description: Path | None = None  # ... its robot description file (default: the scenario's body)
 
 
 class Launcher(Supervision, WorldHost, RobotHost):
@@ -202,6 +206,12 @@ class Launcher(Supervision, WorldHost, RobotHost):
         c = self.c
         self.checked, self.task = resolve(scenario, c.controller, c.graph, c.params)
         self.body = body_of(scenario)
+        if c.plant:  # a ROS 2 robot: its declared body, refused when the model was trained for another
+            from .plant_host import plant_description
+
+            self.plant_desc = plant_description(scenario, c.robot_description, self.body, self.checked.uses_model,
+                                                self.task)
+            self.body = self.plant_desc.body
         self.plan = plan_of(self.checked, tuple(self.all_robots), self.task, self.body, c.root)
         for w in self.plan.warnings:
             self.say(f"warning: {w}")

@@ -120,7 +120,9 @@ class WorldHost:
         for that router as every networked command does) and wait for its READY line: its
         session is open, so modules can join. Returns early if interrupted meanwhile."""
         c = self.c
-        world_argv = server_argv(
+        if c.plant:  # robots in ROS 2: the plant process in the world's place (launch.plant_host)
+            from .plant_host import plant_argv
+        world_argv = plant_argv(self, where, hosts_router) if c.plant else server_argv(
             scenario=c.scenario, spec=self.spec_path, listen=where if hosts_router else None,
             connect=None if hosts_router else where,
             root=c.root, run_id=self.run_id, out=c.out, mode=c.mode, max_time=c.max_time, deadman=c.deadman,

@@ -38,8 +38,12 @@ JAZZY_TYPE_HASHES: dict[str, str] = {
     "std_msgs/msg/Float64MultiArray": "RIHS01_1025ddc6b9552d191f89ef1a8d2f60f3d373e28b283d8891ddcc974e8c55397f",
     "std_msgs/msg/Int32MultiArray": "RIHS01_84a7346323525d1b4dfca899df3820f245e54009dac5a6b69217d14fdefd1701",
     "rosgraph_msgs/msg/Clock": "RIHS01_692f7a66e93a3c83e71765d033b60349ba68023a8c689a79e48078bcb5c58564",
+    "sensor_msgs/msg/LaserScan": "RIHS01_64c191398013af96509d518dac71d5164f9382553fce5c1f8cca5be7924bd828",
+    "geometry_msgs/msg/PoseStamped": "RIHS01_10f3786d7d40fd2b54367835614bff85d4ad3b5dab62bf8bca0cc232d73b4cd8",
+    "geometry_msgs/msg/PoseArray": "RIHS01_af0cc36d190e104d546d168d6b39df04fa4b4ccecf59cb4c9ed328d3d5004aa0",
 }
-"""Jazzy's RIHS01 type hash of every message type the project publishes or accepts."""
+"""Jazzy's RIHS01 type hash of every message type the project publishes or accepts (the
+last three: what the ROS 2 plant reads from a robot and its targets, :mod:`.plant`)."""
 
 MESSAGE_TYPES: tuple[str, ...] = tuple(JAZZY_TYPE_HASHES)
 

@@ -48,3 +48,13 @@ def test_a_tracking_run_prints_a_and_no_goal():
     # the line cekm run prints for the same result
     assert ("A = 0.885 (1 robot, 2 targets; per target: t1 0.90, t2 0.87); robots apart 0.50 -> 1.25 m while targets "
             "2.00 -> 2.50 m; collisions 1") in lines  # r2 touched once
+
+
+def test_a_ros2_plant_run_says_collisions_are_not_known_and_its_scan_to_twist_latency():
+    doc = _outcome(mode="realtime", scan_to_twist_ms={"p50": 38.7, "p99": 78.0, "n": 73})
+    doc["robots"]["r1"]["collisions"] = None
+    lines = outcome_summary(doc)
+    assert lines[0] == "r1: reached in 12.3 s, path 1.50 m, collisions not known (a ROS 2 robot)"
+    assert "scan-to-Twist latency p50 38.7 ms, p99 78.0 ms (73 Twists)" in lines
+    doc["robots"]["r2"]["reached"] = None  # a tracking robot of a ROS 2 plant run: no goal
+    assert outcome_summary(doc)[1] == "r2: path 0.70 m, 1 collisions"

@@ -4,6 +4,7 @@ that every wait has a timeout."""
 
 from __future__ import annotations
 
+import json
 import os
 import queue
 import subprocess
@@ -12,6 +13,7 @@ import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from cekm_swarm.ros2.interfaces import MESSAGE_TYPES, interfaces
 
@@ -100,3 +102,26 @@ def peer_argv(endpoint: str, msg_dir: Path, domain: int = 0) -> list[str]:
 
 def bridge_argv(endpoint: str, *args: str) -> list[str]:
     return [sys.executable, "-m", "cekm_swarm", "ros2", "bridge", "--connect", endpoint, "--json", *args]
+
+
+def acl_router(tmp_path: Path, port: int, rules: list[tuple[str, str, list[str], list[str]]],
+               policies: dict[str, list[str]]) -> Any:
+    """A router on loopback with access control (deny by default): ``rules`` (id, flow, messages,
+    key expressions) allowed, each identity of ``policies`` (user name -> its rules) logging in
+    with the password ``pw-<user>``."""
+    from cekm_swarm.runtime.config import load_config, open_session
+
+    creds = tmp_path / "credentials.txt"
+    creds.write_text("".join(f"{u}:pw-{u}\n" for u in policies))
+    doc = {"mode": "router", "listen": {"endpoints": [f"tcp/127.0.0.1:{port}"]},
+           "scouting": {"multicast": {"enabled": False}, "delay": 0},
+           "transport": {"auth": {"usrpwd": {"dictionary_file": str(creds)}}},
+           "access_control": {
+               "enabled": True, "default_permission": "deny",
+               "rules": [{"id": i, "permission": "allow", "flows": [f], "messages": m, "key_exprs": k}
+                         for i, f, m, k in rules],
+               "subjects": [{"id": u, "usernames": [u]} for u in policies],
+               "policies": [{"id": u, "subjects": [u], "rules": r} for u, r in policies.items()]}}
+    path = tmp_path / "router.json5"
+    path.write_text(json.dumps(doc))
+    return open_session(load_config(path), "ACL router")

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import pytest
 import zenoh
+from ros2_helpers import acl_router as shared_acl_router
 from ros2_helpers import bridge_argv, cekm, peer_argv
 
 from cekm_swarm.protocol import Clock, WheelCommand, decode, encode
@@ -27,10 +28,8 @@ from cekm_swarm.runtime.bridge import wait_matching
 from cekm_swarm.runtime.config import (
     client_config,
     free_port,
-    load_config,
     open_client,
     open_embedded_router,
-    open_session,
 )
 from cekm_swarm.ticks import tick_time
 
@@ -211,14 +210,11 @@ def test_a_lockstep_run_with_the_bridge_attached_equals_the_run_without_it(proce
     assert (last.pose.pose.position.x, last.pose.pose.position.y) == (traj["x"][-1], traj["y"][-1])
 
 
-ACL_USERS = ("world", "bridge", "teleop", "intruder", "observer")
 
 
 def acl_router(tmp_path: Path, port: int) -> zenoh.Session:
     """A router with access control: what the bridge needs (docs/ros2.md lists it), a teleop
     identity allowed to publish /r1/cmd_vel, and an intruder allowed to publish nothing."""
-    creds = tmp_path / "credentials.txt"
-    creds.write_text("".join(f"{u}:pw-{u}\n" for u in ACL_USERS))
     ros = ["0/**", "@ros2_lv/**"]
     rules = [
         ("declarations-out", "egress", ["declare_subscriber", "declare_queryable", "declare_liveliness_subscriber",
@@ -243,18 +239,7 @@ def acl_router(tmp_path: Path, port: int) -> zenoh.Session:
                 "teleop": ["declarations-out", "teleop-publish"],
                 "intruder": ["declarations-out"],
                 "observer": ["declarations-out", "run-receive", "observer-listen"]}
-    doc = {"mode": "router", "listen": {"endpoints": [f"tcp/127.0.0.1:{port}"]},
-           "scouting": {"multicast": {"enabled": False}, "delay": 0},
-           "transport": {"auth": {"usrpwd": {"dictionary_file": str(creds)}}},
-           "access_control": {
-               "enabled": True, "default_permission": "deny",
-               "rules": [{"id": i, "permission": "allow", "flows": [f], "messages": m, "key_exprs": k}
-                         for i, f, m, k in rules],
-               "subjects": [{"id": u, "usernames": [u]} for u in ACL_USERS],
-               "policies": [{"id": u, "subjects": [u], "rules": r} for u, r in policies.items()]}}
-    path = tmp_path / "router.json5"
-    path.write_text(json.dumps(doc))
-    return open_session(load_config(path), "ACL router")
+    return shared_acl_router(tmp_path, port, rules, policies)
 
 
 def test_access_control_keeps_a_refused_publishers_twists_out(processes, tmp_path):
