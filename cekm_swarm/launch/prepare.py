@@ -15,13 +15,18 @@ from cekm_swarm.graph.check import CheckedGraph
 from cekm_swarm.graph.plan import RunPlan
 from cekm_swarm.graph.runspec import RunSpec
 from cekm_swarm.graph.spec import GraphError
-from cekm_swarm.node.api import Context, cannot_start
+from cekm_swarm.node.api import Context, cannot_start, traceback_text
 from cekm_swarm.protocol import KeySpace
 from cekm_swarm.robot import RobotBody
 
 
 class PreflightError(CekmError):
-    """A node of the graph cannot start as configured (bad model, bad parameter)."""
+    """A node of the graph cannot start as configured (bad model, bad parameter); ``trace``
+    is the traceback of the node's code that raised, for the launch's log."""
+
+    def __init__(self, line: str, trace: str = "") -> None:
+        super().__init__(line)
+        self.trace = trace
 
 
 def resolve(scenario: Any, controller: str | None, graph: str | Path | None,
@@ -62,7 +67,7 @@ def preflight(checked: CheckedGraph, plan: RunPlan, body: RobotBody, model: Any)
         try:
             checked.classes[name](ctx, checked.make_params(name)).close()
         except Exception as exc:  # noqa: BLE001 - a user's node may fail in any way while starting
-            raise PreflightError(cannot_start(node.label, exc)) from None
+            raise PreflightError(cannot_start(node.label, exc), traceback_text(exc)) from None
 
 
 def run_spec(checked: CheckedGraph, team: tuple[str, ...], task: str, body: RobotBody, **settings: Any) -> RunSpec:

@@ -62,18 +62,23 @@ class WorldHost:
     c: Any
     _stall: tuple[float, int] = (-1.0, 0)  # (the stalled tick's time, how many re-publishings of it)
 
-    def _name_stalled(self, robots: list[str], t: float) -> Any:  # pragma: no cover - the launcher's
+    failure: str | None
+
+    def _name_stalled(self, robots: list[str], t: float, end: bool = False) -> Any:  # pragma: no cover - the launcher's
         raise NotImplementedError
 
     def _note_stall(self, doc: dict[str, Any]) -> None:
         """A lockstep tick re-published (about once a second while the world waits): at the
         :data:`STALL_REPORT_AFTER`-th time for one tick, ask the waited-for robots' nodes
-        where they are (:meth:`~.supervision.Supervision._name_stalled`)."""
+        where they are (:meth:`~.supervision.Supervision._name_stalled`); once it has waited
+        ``--step-timeout`` s, ask again and end the run with that line."""
         t = float(doc["t"])
         count = self._stall[1] + 1 if self._stall[0] == t else 1
         self._stall = (t, count)
-        if count == STALL_REPORT_AFTER and doc.get("waiting"):
-            asyncio.ensure_future(self._name_stalled(list(doc["waiting"]), t))
+        timeout = self.c.step_timeout
+        ends = timeout is not None and count * self.c.republish >= timeout and self.failure is None
+        if (count == STALL_REPORT_AFTER or ends) and doc.get("waiting"):
+            asyncio.ensure_future(self._name_stalled(list(doc["waiting"]), t, end=ends))
 
     async def _read_world(self, stream: asyncio.StreamReader) -> None:
         while True:

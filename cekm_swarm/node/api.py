@@ -34,7 +34,9 @@ from __future__ import annotations
 import dataclasses
 import logging
 import math
+import os
 import threading
+import traceback
 import typing
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -49,6 +51,13 @@ class NodeError(CekmError):
     """A node cannot be built or run as declared (a bad parameter, a model it cannot use);
     the message names the node and what is wrong. A node that raises it while starting is
     a permanent failure: the launch ends with this line, and the node is not restarted."""
+
+
+class StepFailed(NodeError):
+    """A node's step raised, returned what it may not, or ran past ``--step-timeout``: the
+    run failed (``cekm: failed: ...``, exit code 1), in one line naming the node and the tick."""
+
+    exit_code = 1
 
 
 class NotReady(Exception):
@@ -208,14 +217,34 @@ class Node:
 
 def cannot_start(label: str, exc: BaseException) -> str:
     """The one line of node ``label`` that cannot start because building or setting it up
-    raised ``exc``: a :class:`NodeError`, another of the package's errors or a ValueError
-    (a bad parameter, a model it cannot use) say what is wrong, after the node's name;
-    any other exception is a fault of the node's code, named by its type. The same line
-    in ``cekm run``, the launcher's check of a graph and a node's process."""
+    raised ``exc``: a :class:`NodeError` or another of the package's errors says what is
+    wrong, after the node's name; any other exception is a fault of the node's code, named
+    by its type and the file and line that raised it (:func:`raised_at`). The same line in
+    ``cekm run``, the launcher's check of a graph and a node's process; the traceback goes
+    to the node's log (:func:`traceback_text`)."""
     what = " ".join(str(exc).split())
-    if not isinstance(exc, (CekmError, ValueError)):
-        return f"{label}: cannot start: {type(exc).__name__}: {what}"
+    if not isinstance(exc, CekmError):
+        at = raised_at(exc)
+        return f"{label}: cannot start: {type(exc).__name__}: {what}" + (f" ({at})" if at else "")
     return what if what.startswith(f"{label}:") else f"{label}: {what}"
+
+
+_PLUMBING = tuple(os.path.join(os.path.dirname(os.path.dirname(__file__)), d) + os.sep for d in ("node", "protocol"))
+
+
+def raised_at(exc: BaseException) -> str:
+    """``file.py:line`` of the innermost frame of ``exc``'s traceback in the node's own code
+    (not the framework's checks), "" when it has none."""
+    frames = traceback.extract_tb(exc.__traceback__)
+    own = [f for f in frames if not f.filename.startswith(_PLUMBING + ("<",))]
+    f = (own or frames or [None])[-1]
+    return f"{os.path.basename(f.filename)}:{f.lineno}" if f is not None else ""
+
+
+def traceback_text(exc: BaseException) -> str:
+    """The traceback of what made ``exc`` (its cause when it wraps one), for a node's log."""
+    cause = exc.__cause__ if exc.__cause__ is not None else exc
+    return "".join(traceback.format_exception(type(cause), cause, cause.__traceback__))
 
 
 def start_node(cls: type["Node"], ctx: Context, params: Any = None) -> "Node":

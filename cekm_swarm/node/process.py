@@ -41,7 +41,7 @@ from cekm_swarm.graph.runspec import RunSpec
 from cekm_swarm.protocol import DropCounter, KeyKind
 from cekm_swarm.protocol.stamps import ANY_STAMP, StampWindow
 
-from .api import Context, NodeError, make_params, start_node
+from .api import Context, NodeError, cannot_start, make_params, raised_at, start_node, traceback_text
 from .direct_gate import DirectGate
 from .runner import Runner
 from .timing import LockstepGate, RealtimeGate, tick_of
@@ -109,7 +109,8 @@ class NodeShell:
         self.lock = threading.RLock()
         self.closed = threading.Event()
         self.handled = 0
-        self.step_failures: dict[str, int] = {}  # "Type: message" -> count
+        self.step_failures: dict[str, int] = {}  # "Type: first message (file:line)" -> count
+        self._failure_groups: dict[tuple[str, str], str] = {}  # (type, file:line) -> its step_failures key
         self.failure: str | None = None  # lockstep: the step failure that ends the node
         self.on_failure: Any = lambda: None  # set by serve(): stops the node
         lockstep = spec.mode == "lockstep"
@@ -175,10 +176,14 @@ class NodeShell:
         the launch ends with its line (:data:`EXIT_STEP_FAILED`)."""
         cause = exc.__cause__ if isinstance(exc, NodeError) and exc.__cause__ is not None else exc
         what = " ".join(f"{type(cause).__name__}: {cause}".split())  # the kind of failure, without the tick
-        first = what not in self.step_failures
-        if first and len(self.step_failures) >= 64:
-            what = "other failures"
-        self.step_failures[what] = self.step_failures.get(what, 0) + 1
+        at = raised_at(cause)
+        where = (type(cause).__name__, at or what)  # grouped by where it was raised, not by its text
+        group = self._failure_groups.get(where)
+        first = group is None
+        if first:  # named by its first failure's text and its line
+            group = "other failures" if len(self.step_failures) >= 64 else what + (f" ({at})" if at else "")
+            self._failure_groups[where] = group
+        self.step_failures[group] = self.step_failures.get(group, 0) + 1
         line = str(exc) if isinstance(exc, NodeError) else f"{self.node_plan.label}: {what}"
         if first:
             log.error("%s", line, exc_info=cause)
@@ -395,9 +400,12 @@ def main(argv: list[str] | None = None) -> int:
             source = _fetch_model(spec)
         node_plan, runner = build_node(spec, plan, args.robot, args.node, "numpy", source)
     except (CekmError, ValueError) as exc:
+        if exc.__cause__ is not None:  # the node's own code raised: its traceback in this log
+            sys.stderr.write(traceback_text(exc))
         return _cannot_start(label, str(exc))
     except Exception as exc:  # noqa: BLE001 - a user's node may fail in any way while starting
-        return _cannot_start(label, f"{type(exc).__name__}: {exc}")
+        sys.stderr.write(traceback_text(exc))
+        return _cannot_start(label, cannot_start(label, exc))
     log.info("%s: built in %.2f s (pid %d)", label, time.perf_counter() - t0, os.getpid())
     freeze_startup_heap()  # the model and tables stay; per message only short-lived objects
     shell = NodeShell(spec, plan, node_plan, runner)

@@ -4,14 +4,13 @@ executor run a node through."""
 
 from __future__ import annotations
 
-import os
 import time
 from typing import Any
 
 from cekm_swarm.graph.plan import NodePlan
 from cekm_swarm.ticks import tick_time
 
-from .api import Inputs, Node, NodeError, NotReady
+from .api import Inputs, Node, NodeError, NotReady, StepFailed, raised_at
 from .checks import output_check
 
 
@@ -40,14 +39,14 @@ class Runner:
         except NotReady:
             if self.skip_not_ready:
                 raise
-            raise NodeError(f"{self.plan.label}: its step at t={t:.3f} s raised NotReady, but in lockstep and "
+            raise StepFailed(f"{self.plan.label}: its step at t={t:.3f} s raised NotReady, but in lockstep and "
                             f"in one process every input of a run is there (NotReady is for real time)") from None
         except NodeError as exc:
             if str(exc).startswith(self.plan.label):
-                raise
-            raise NodeError(step_failure(self.plan.label, t, exc)) from exc
+                raise StepFailed(str(exc)) from exc
+            raise StepFailed(step_failure(self.plan.label, t, exc)) from exc
         except Exception as exc:  # noqa: BLE001 - a user's node may fail in any way
-            raise NodeError(step_failure(self.plan.label, t, exc)) from exc
+            raise StepFailed(step_failure(self.plan.label, t, exc)) from exc
         finally:
             self.stepping = None
         if type(out) is not dict or len(out) != len(self._outs):
@@ -59,7 +58,12 @@ class Runner:
                 self._refuse(out, t)
             sent.append((key, msg))
         if self._check is not None:
-            self._check(t, sent)
+            try:
+                self._check(t, sent)
+            except StepFailed:
+                raise
+            except NodeError as exc:  # what its readers check of what it sends: its step failed
+                raise StepFailed(str(exc)) from exc
         self.runs += 1
         return sent
 
@@ -67,35 +71,27 @@ class Runner:
         """Raise the NodeError that says what is wrong with a step's return value."""
         label = self.plan.label
         if not isinstance(out, dict):
-            raise NodeError(f"{label}: step() returned {type(out).__name__}, expected a dict of its outputs")
+            raise StepFailed(f"{label}: step() returned {type(out).__name__}, expected a dict of its outputs")
         extra = set(out) - {p for p, _, _ in self._outs}
         if extra:
-            raise NodeError(f"{label}: step() returned unknown output {sorted(extra)[0]!r}")
+            raise StepFailed(f"{label}: step() returned unknown output {sorted(extra)[0]!r}")
         for port, _, want in self._outs:
             msg = out.get(port)
             if msg is None:
-                raise NodeError(f"{label}: step() at t={t} gave no message for output {port!r}")
+                raise StepFailed(f"{label}: step() at t={t} gave no message for output {port!r}")
             if type(msg) is not want:
-                raise NodeError(f"{label}: output {port!r} must be {want.__name__}, got {type(msg).__name__}")
+                raise StepFailed(f"{label}: output {port!r} must be {want.__name__}, got {type(msg).__name__}")
             if msg.stamp != t:
-                raise NodeError(f"{label}: output {port!r} is stamped {msg.stamp}, the tick is {t}")
-        raise NodeError(f"{label}: step() returned {out!r}")
-
-
-_PLUMBING = tuple(os.path.join(os.path.dirname(os.path.dirname(__file__)), d) + os.sep for d in ("node", "protocol"))
+                raise StepFailed(f"{label}: output {port!r} is stamped {msg.stamp}, the tick is {t}")
+        raise StepFailed(f"{label}: step() returned {out!r}")
 
 
 def step_failure(label: str, t: float, exc: BaseException) -> str:
     """One line for a node's step that raised: the node, the tick, the exception and where
     in the node's code it was raised (the innermost frame)."""
-    import traceback
-
-    frames = traceback.extract_tb(exc.__traceback__)
-    own = [f for f in frames if not f.filename.startswith(_PLUMBING + ("<",))]  # the node's line, not the checks'
-    f = (own or frames or [None])[-1]
-    at = f" ({os.path.basename(f.filename)}:{f.lineno})" if f is not None else ""
+    at = raised_at(exc)
     what = " ".join(f"{type(exc).__name__}: {exc}".split())
-    return f"{label}: its step at t={t:.3f} s failed: {what}{at}"
+    return f"{label}: its step at t={t:.3f} s failed: {what}" + (f" ({at})" if at else "")
 
 
 __all__ = ["Runner", "step_failure"]
