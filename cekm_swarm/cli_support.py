@@ -235,11 +235,16 @@ class RunFailed(click.ClickException):
     exit_code = EXIT_FAILED
 
 
-class ScenarioFileError(click.ClickException):
-    """A scenario file refused (exit 2): its own line names the file, the field and the
-    problem; no pointer to a command's --help, which does not describe the file format."""
+class FileRefused(click.ClickException):
+    """An input file refused (a scenario, a graph; exit 2): its own line names the file,
+    the field and the problem; no pointer to a command's --help, which does not describe
+    the file format."""
 
     exit_code = EXIT_USAGE
+
+
+class ScenarioFileError(FileRefused):
+    """A scenario file refused (exit 2)."""
 
 
 def refuse_unplannable(scenario: Any) -> None:

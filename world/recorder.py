@@ -15,7 +15,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from cekm_swarm.protocol import DropCounter, KeyKind, KeySpace, KeySpaceError
+from cekm_swarm.protocol import DropCounter, KeyKind, KeySpace, KeySpaceError, expect_of
 from cekm_swarm.protocol.stamps import PAST_S, stamp_problem
 from cekm_swarm.runtime.mcap_sets import open_recorder
 
@@ -54,7 +54,7 @@ class RecordFilter:
         self.keys, self.robots, self.drops = keys, frozenset(robots), drops
         self.lean = lean
         self.left_out = 0  # a lean log: messages of the run not logged (fields), not drops
-        self.declared = None if declared is None else {k: KeyKind(v) for k, v in declared.items()}
+        self.declared = None if declared is None else {k: expect_of(v) for k, v in declared.items()}
         self._known: dict[str, tuple[KeyKind, int | None] | str] = {}  # key -> (kind, index) or why not
         self._expect: dict[str, KeyKind] = {}
 

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from cekm_swarm.node.api import Node, make_params, param_fields
-from cekm_swarm.protocol import KeySpace
+from cekm_swarm.protocol import KeySpace, kind_of
 
 from .plan import PortTypes, RunPlan
 from .resolve import build_plan
@@ -66,8 +66,8 @@ def _beside(source: str) -> None:
 
 def port_types(cls: type[Node]) -> PortTypes:
     """A node class's ports as plain data."""
-    return PortTypes({p: (i.type.KIND.value, i.many) for p, i in cls.inputs.items()},
-                     {p: o.type.KIND.value for p, o in cls.outputs.items()}, bool(cls.stateful), bool(cls.uses_model),
+    return PortTypes({p: (kind_of(i.type), i.many) for p, i in cls.inputs.items()},
+                     {p: kind_of(o.type) for p, o in cls.outputs.items()}, bool(cls.stateful), bool(cls.uses_model),
                      bool(getattr(cls, "pure", False)))
 
 

@@ -15,6 +15,7 @@ from cekm_swarm.cli_support import (
     RUN_ID,
     SEED,
     SIZE,
+    FileRefused,
     Finite,
     Interrupted,
     RobotIds,
@@ -147,7 +148,7 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwr
         checked, task = resolve(sc, controller, graph_file)
         checked.plan([r.id for r in sc.robots], task)
     except GraphError as exc:
-        raise click.UsageError(str(exc)) from None
+        raise FileRefused(str(exc)) from None
     if model_path is not None and checked.uses_model:  # a bad model is refused before --overwrite clears --out
         from .prepare import body_of, plan_of, preflight
 

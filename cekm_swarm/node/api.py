@@ -43,7 +43,7 @@ from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 from cekm_swarm.errors import CekmError
-from cekm_swarm.protocol import MESSAGE_TYPES
+from cekm_swarm.protocol import is_message_type
 from cekm_swarm.robot import RobotBody
 
 
@@ -79,8 +79,8 @@ class In:
     doc: str = ""
 
     def __post_init__(self) -> None:
-        if self.type not in MESSAGE_TYPES.values():
-            raise TypeError(f"In({self.type!r}): not a message type of cekm_swarm.protocol")
+        if not is_message_type(self.type):
+            raise TypeError(f"In({self.type!r}): not a message type of cekm_swarm.protocol, nor a UserMessage")
 
 
 @dataclass(frozen=True)
@@ -91,8 +91,8 @@ class Out:
     doc: str = ""
 
     def __post_init__(self) -> None:
-        if self.type not in MESSAGE_TYPES.values():
-            raise TypeError(f"Out({self.type!r}): not a message type of cekm_swarm.protocol")
+        if not is_message_type(self.type):
+            raise TypeError(f"Out({self.type!r}): not a message type of cekm_swarm.protocol, nor a UserMessage")
 
 
 @dataclass(frozen=True)

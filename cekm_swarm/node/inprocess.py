@@ -17,7 +17,7 @@ from typing import Any
 
 from cekm_swarm.graph.check import CheckedGraph
 from cekm_swarm.graph.plan import NodePlan, RunPlan
-from cekm_swarm.protocol import KeyKind, decode, encode
+from cekm_swarm.protocol import decode, encode, expect_of
 from cekm_swarm.ticks import STEP_TIMEOUT, TICK_S, tick_time
 
 from .api import Context, Node, NodeError, StepFailed, start_node
@@ -55,7 +55,7 @@ class GraphExecutor:
         self.answer_keys = {r: plan.answer_key(r) for r in plan.team}
         keep = max([n.period for r in plan.team for n in plan.nodes[r]] + [1])
         self.keep = max(KEEP_TICKS, 4 * keep)
-        self.kinds = {k: KeyKind(v) for r in plan.team for k, v in plan.sent_keys(r).items()}
+        self.kinds = {k: expect_of(v) for r in plan.team for k, v in plan.sent_keys(r).items()}
         self.watchdog = None if step_timeout is None else Watchdog(step_timeout)  # a step that never returns
 
     def _lookup(self, key: str, tick: int) -> Any:

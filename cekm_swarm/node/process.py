@@ -38,7 +38,7 @@ from cekm_swarm.errors import CekmError
 from cekm_swarm.graph.check import node_class
 from cekm_swarm.graph.plan import NodePlan, RunPlan
 from cekm_swarm.graph.runspec import RunSpec
-from cekm_swarm.protocol import DropCounter, KeyKind
+from cekm_swarm.protocol import DropCounter, KeyKind, expect_of
 from cekm_swarm.protocol.stamps import ANY_STAMP, StampWindow
 
 from .api import Context, NodeError, cannot_start, make_params, raised_at, start_node, traceback_text
@@ -117,7 +117,7 @@ class NodeShell:
         self.lockstep = lockstep
         gate_cls = DirectGate if DirectGate.fits(node_plan) else LockstepGate if lockstep else RealtimeGate
         self.gate = gate_cls(runner, drop=self.drops.drop)
-        self.kinds: dict[str, KeyKind] = {s.key: KeyKind(b.kind) for b in node_plan.bindings for s in b.sources}
+        self.kinds: dict[str, Any] = {s.key: expect_of(b.kind) for b in node_plan.bindings for s in b.sources}
         self.ports: dict[str, str] = {s.key: b.port for b in node_plan.bindings for s in b.sources}
         if node_plan.clock_key is not None:
             self.kinds[node_plan.clock_key] = KeyKind.WORLD_CLOCK

@@ -30,6 +30,7 @@ from mcap.data_stream import RecordBuilder
 from mcap.records import DataEnd, Footer
 
 from cekm_swarm.protocol import DEFAULT_KEYS, KeySpace, KeySpaceError, peek
+from cekm_swarm.protocol.codec import peek_type
 
 from .errors import McapLogError
 from .mcap_writer import COMPRESSIONS, MAGIC, ChunkedWriter
@@ -173,11 +174,18 @@ class McapRecorder:
         self._sequence[cid] = 0
         return cid
 
-    def _msgpack_schema(self, key: str) -> SchemaSpec:
+    def _msgpack_schema(self, key: str, payload: bytes = b"") -> SchemaSpec:
+        """``cekm.<kind>`` of the key; on a graph's own key, the kind its first message says
+        (``cekm.data``, ``cekm.field/target``), a user's type by its name (``cekm.data:FreeDirection``)."""
         try:
             kind = self.keys.parse(key).kind.value
         except KeySpaceError:
             kind = "unknown"
+        if kind == "node" and payload:
+            said, _ = peek(payload)
+            if said is not None:
+                name = peek_type(payload) if said == "data" else None
+                kind = said if name is None else f"data:{name}"
         return SchemaSpec(f"cekm.{kind}")
 
     # ------------------------------------------------------------------ writing
@@ -190,7 +198,7 @@ class McapRecorder:
             self.refused += 1
             return False
         cid = entry[0] if entry is not None and entry[1] == MSGPACK else self.channel(key, MSGPACK,
-                                                                                     self._msgpack_schema(key))
+                                                                                     self._msgpack_schema(key, payload))
         self._add(cid, payload, sim_time, sim_time if publish_time is None else publish_time)
         return True
 

@@ -155,7 +155,7 @@ def test_ports_bound_wrong_are_refused(write):
             "node 'o'.inputs.reading", "takes one key")
     refused(write(HEAD + SOURCE + f'\n[[node]]\nname = "wheels"\nprogram = "{P}:Wheels"\n'
                   'inputs = { x = "sense/target" }\noutputs = { command = "cmd/wheels" }\n'),
-            "node 'wheels'.inputs.x", "carries sense/target messages, the port takes data")
+            "node 'wheels'.inputs.x", "carries sense/target messages, the port of node 'wheels' takes data")
 
 
 def test_a_misspelled_port_is_named_with_the_programs_ports(write):

@@ -1,0 +1,178 @@
+"""A user's own message type (cekm_swarm.protocol.UserMessage) between two user nodes
+(docs/examples/free_direction.py): decoded against its declaration, refused on a key of
+another type, compared by `cekm graph check` between the nodes that send and read it,
+filled in by the runner (stamp, sender, seq), recorded with its type in run.mcap and
+decoded by `cekm log cat` and `cekm topic echo`; a run in one process, in lockstep and in
+real time."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cekm_swarm.experiments.graph_run import run_graph
+from cekm_swarm.graph.check import check_graph
+from cekm_swarm.graph.spec import GraphError
+from cekm_swarm.node.api import StepFailed
+from cekm_swarm.protocol import (
+    MessageKindError,
+    UntypedData,
+    UserMessage,
+    WheelCommand,
+    decode,
+    encode,
+    summary,
+    to_plain,
+)
+from cekm_swarm.protocol.user import USER_TYPES
+from world import load_scenario
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "docs" / "examples"
+
+
+@pytest.fixture
+def example(tmp_path, monkeypatch):
+    """The example where a user keeps it: the graph file and its module side by side."""
+    for name in ("free.toml", "free_direction.py"):
+        shutil.copy(EXAMPLES / name, tmp_path / name)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    return tmp_path / "free.toml"
+
+
+def test_a_user_message_is_encoded_decoded_and_refused_by_its_declaration():
+    class Heading(UserMessage):
+        TYPE = "qa.Heading"
+        alpha: float
+        gains: np.ndarray | None = None
+
+    m = Heading(0.128, "r1/h", 0.5, np.arange(3.0))
+    key = "cekm/r1/mine/heading"
+    assert decode(key, encode(m)) == m  # the payload names its type: decoded as declared
+    assert to_plain(m) == {"kind": "data", "type": "qa.Heading", "stamp": 0.128, "sender": "r1/h", "alpha": 0.5,
+                           "gains": [0.0, 1.0, 2.0]}
+    assert summary(m).startswith("qa.Heading t=0.128 from=r1/h alpha=0.5")
+
+    class Other(UserMessage):
+        TYPE = "qa.Other"
+        alpha: float
+
+    with pytest.raises(MessageKindError, match="message type 'qa.Heading', the key carries qa.Other"):
+        decode(key, encode(m), expect=Other)  # a reader drops it (and counts it)
+    with pytest.raises(MessageKindError, match="message type 'qa.Heading', the key carries data"):
+        decode(key, encode(m), expect=__import__("cekm_swarm.protocol", fromlist=["KeyKind"]).KeyKind.DATA)
+    # a process without the declaration (the world's recorder) checks the envelope, reads the fields
+    del USER_TYPES["qa.Heading"]
+    u = decode(key, encode(m))
+    assert type(u) is UntypedData and u.type == "qa.Heading" and u.values == {"alpha": 0.5, "gains": [0.0, 1.0, 2.0]}
+    assert to_plain(u) == to_plain(m)
+    with pytest.raises(TypeError, match="field 'type' is a name of the envelope"):
+        class Clash(UserMessage):
+            type: str
+
+
+def test_two_user_nodes_run_in_one_process_through_the_codec_and_the_runner_fills_the_envelope(example):
+    sc = load_scenario("lone_obstacle")
+    run = run_graph(sc, graph=str(example), max_time=3.0, stop_at=20, codec=True)
+    free = run.executor.output("cekm/r1/avoid/free", 20)
+    assert type(free).__name__ == "FreeDirection" and isinstance(free, UserMessage)
+    assert free.stamp == pytest.approx(20 * 0.128) and free.sender == "r1/free"
+    cmd = run.executor.output("cekm/r1/cmd/wheels", 20)
+    assert type(cmd) is WheelCommand and cmd.seq == 20 and cmd.sender == "r1/motor"  # seq: the tick
+    plain = run_graph(sc, graph=str(example), max_time=3.0, stop_at=20)
+    assert plain.executor.output("cekm/r1/cmd/wheels", 20) == cmd  # through the codec or not: the same
+
+
+def test_a_step_that_leaves_out_a_field_fails_naming_the_output_and_the_field(example):
+    text = (example.parent / "free_direction.py").read_text()
+    (example.parent / "free_typo.py").write_text(text.replace('"clearance": reach if best.d is None else best.d',
+                                                              '"clearence": 1.0'))
+    example.write_text(example.read_text().replace("free_direction:", "free_typo:"))
+    with pytest.raises(StepFailed, match=r"^r1/free: its step at t=0.000 s failed: output 'free': FreeDirection: "
+                                         r".*clearence"):
+        run_graph(load_scenario("lone_obstacle"), graph=str(example), max_time=1.0)
+
+
+def test_graph_check_refuses_two_user_nodes_that_disagree_on_the_type_naming_both(example):
+    (example.parent / "other_mod.py").write_text(textwrap.dedent('''
+        from cekm_swarm.node import In, Node, Out
+        from cekm_swarm.protocol import UserMessage, WheelCommand
+
+
+        class Gap(UserMessage):
+            width: float
+
+
+        class GapMotor(Node):
+            inputs = {"free": In(Gap)}
+            outputs = {"command": Out(WheelCommand)}
+
+            def step(self, t, inputs):
+                return {"command": {"v_l": 0.0, "v_r": 0.0}}
+        '''))
+    text = example.read_text().replace('program = "free_direction:Blend"', 'program = "other_mod:GapMotor"')
+    bad = example.parent / "bad.toml"
+    bad.write_text(text.replace('inputs = { target = "sense/target", free = "avoid/free" }',
+                                'inputs = { free = "avoid/free" }'))
+    with pytest.raises(GraphError) as info:
+        check_graph(str(bad)).plan(("r1",), "navigation")  # what `cekm graph check` runs
+    line = str(info.value)
+    assert "node 'motor'.inputs.free" in line and "(node 'free' sends them)" in line, line
+    assert "'avoid/free' carries data:FreeDirection messages" in line and "takes data:Gap" in line, line
+
+
+def cekm(*args: str, cwd: Path) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "cekm_swarm", *args], cwd=cwd, capture_output=True, text=True,
+                          timeout=300)
+
+
+@pytest.mark.slow
+def test_two_user_nodes_with_a_typed_message_in_lockstep_equal_cekm_run_and_are_decoded_in_the_log(example, tmp_path):
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "runtime"))
+    from test_launch_support import LaunchProcess
+
+    ref = cekm("run", "lone_obstacle", "--graph", str(example), "--max-time", "8", "--out", str(tmp_path / "run"),
+               cwd=tmp_path)
+    assert ref.returncode == 0, ref.stderr
+    launch = LaunchProcess("lone_obstacle", tmp_path / "ls", "--graph", str(example), "--mode", "lockstep",
+                           "--max-time", "8", "--no-plot", cwd=tmp_path)
+    try:
+        assert launch.finish(timeout=180) == 0, "\n".join(launch.lines[-30:])
+    finally:
+        launch.kill()
+    a = json.loads((tmp_path / "run" / "outcome.json").read_text())
+    assert a["robots"] == launch.outcome()["robots"]  # bit for bit
+    log = str(tmp_path / "ls" / "run.mcap")
+    cat = cekm("log", "cat", log, "--json", "--topics", "cekm/r1/avoid/free", cwd=tmp_path)
+    docs = [json.loads(line)["message"] for line in cat.stdout.splitlines()]
+    assert [d["stamp"] for d in docs] == [round(k * 0.128, 9) for k in range(64)]  # every tick of 8 s
+    assert all(d["type"] == "FreeDirection" and set(d) == {
+        "kind", "type", "stamp", "sender", "alpha", "clearance"} for d in docs), cat.stdout[:500]
+    info = cekm("log", "info", log, cwd=tmp_path)
+    assert any("cekm/r1/avoid/free" in line and "cekm.data:FreeDirection" in line for line in info.stdout.splitlines())
+
+
+@pytest.mark.slow
+def test_two_user_nodes_with_a_typed_message_in_real_time_are_decoded_by_topic_echo(example, tmp_path):
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "runtime"))
+    from test_launch_support import LaunchProcess
+
+    run = LaunchProcess("lone_obstacle", tmp_path / "rt", "--graph", str(example), "--mode", "realtime",
+                        "--max-time", "6", "--no-plot", cwd=tmp_path)
+    try:
+        run.wait_line("world started ticking", timeout=120)
+        echo = cekm("topic", "echo", "cekm/r1/avoid/free", "--count", "3", "--timeout", "10",
+                    "--connect", f"tcp/127.0.0.1:{run.port}", cwd=tmp_path)
+        code = run.finish(timeout=120)
+    finally:
+        run.kill()
+    assert code == 0, "\n".join(run.lines[-30:])
+    lines = echo.stdout.splitlines()
+    assert len(lines) == 3 and all("FreeDirection t=" in line and "from=r1/free alpha=" in line and "clearance=" in line
+                                   for line in lines), echo.stdout + echo.stderr
