@@ -107,12 +107,21 @@ _LOCK = threading.Lock()
 
 @dataclass(frozen=True)
 class Context:
-    """What a node knows of where it runs: its robot, its name and instance, the team,
-    its body and sensors, the run's mode and model.
+    """What a node knows of where it runs (``self.ctx``):
 
-    ``mode`` is ``lockstep``, ``realtime`` or ``inprocess`` (``cekm run``); ``backend``
-    is how EKM winners are found: ``numba`` in one process, ``numpy`` in a module process
-    (a third of the memory); both give the same winners bit for bit."""
+    * ``robot``: its robot's id (``r1``); ``node``: its name in the graph; ``instance``: its
+      instance number (0..11 for ``obstacle-0..11``; None for a node of one instance);
+      :attr:`name` and :attr:`sender` (``r1/obstacle-3``);
+    * ``team``: every robot of the run, in scenario order; :attr:`teammates`: the others;
+    * ``body``: its body and sensors, a :class:`cekm_swarm.robot.RobotBody` (``body_radius``,
+      ``axle``, ``v_max``, ``sensor_angles``, ``sensor_range``, ``target_range``, in m,
+      m/s and rad), from the scenario;
+    * ``mode``: ``lockstep``, ``realtime``, ``inprocess`` (``cekm run``) or ``check`` (the
+      launcher's build of the node before anything starts: skip side effects there);
+    * :meth:`model`: the run's trained model; :meth:`shared`: a value computed once per process;
+    * ``log``: a logger whose lines go to the node's log;
+    * ``backend``: how EKM winners are found: ``numba`` in one process, ``numpy`` in a
+      module process (a third of the memory); both give the same winners bit for bit."""
 
     robot: str
     node: str

@@ -29,7 +29,8 @@ class FreeSpace(Node):
     pure = True  # a function of the readings alone
 
     def step(self, t, inputs):
-        reach = self.ctx.body.sensor_range
+        body = self.ctx.body
+        reach = body.body_radius + body.sensor_range  # a reading's d is from the centre, the range from the surface
         best = max(inputs["ranges"].values(), key=lambda r: (reach if r.d is None else r.d, -abs(r.alpha)))
         return {"free": {"alpha": best.alpha, "clearance": reach if best.d is None else best.d}}
 
