@@ -154,6 +154,13 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwr
 
         body = body_of(sc)
         preflight(checked, plan_of(checked, tuple(known), task, body, root), body, str(model_path))
+    if connect is None:  # a taken port is refused before --out is touched, so the retry with --port needs no --overwrite
+        from .prepare import port_taken
+
+        why = port_taken(listen_host, port)
+        if why is not None:
+            raise RunFailed(f"cannot open the Zenoh router on {listen_host}:{port}: {why}; port {port} is taken "
+                            f"(another run or program listens there): choose another with --port")
     prepare_out_dir(out_dir, overwrite)
     config = LaunchConfig(scenario, out_dir, mode=mode, seed=seed, connect=connect, port=port, model=model_path,
                           max_time=max_time, controller=controller, graph=graph_file, root=root, plot=not no_plot,

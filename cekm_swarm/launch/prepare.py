@@ -82,3 +82,20 @@ def plan_of(checked: CheckedGraph, team: tuple[str, ...], task: str, body: Robot
         return checked.plan(team, task, body.sensors, KeySpace(root, body.sensors, run_id))
     except GraphError:
         raise
+
+
+def port_taken(host: str, port: int) -> str | None:
+    """Why the embedded router could not listen on ``host:port`` (the OS's words, say
+    "Address already in use"), None when it could: probed by binding it a moment, as the
+    router would (a race with another program remains, and the launch then says so)."""
+    import socket
+
+    family = socket.AF_INET6 if ":" in host.strip("[]") else socket.AF_INET
+    with socket.socket(family, socket.SOCK_STREAM) as s:
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            s.bind((host.strip("[]"), port))
+            s.listen(1)
+        except OSError as exc:
+            return exc.strerror or str(exc)
+    return None
