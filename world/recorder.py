@@ -113,7 +113,8 @@ class RecordFilter:
 
 def open_run_log(path: Path, scenario: str, seed: int, mode: str, geometry: dict[str, Any],
                  robot_radius: float, *, max_bytes: int | None = None, max_seconds: float | None = None,
-                 record: str = "full", keys: KeySpace | None = None) -> tuple[Any, Any]:
+                 record: str = "full", keys: KeySpace | None = None,
+                 kinds: dict[str, str] | None = None) -> tuple[Any, Any]:
     """The run's MCAP log (one file, or a set with ``max_bytes``/``max_seconds``) with its
     metadata (scenario, seed, mode, recording, the key root of ``keys``, the static geometry)
     and, when foxglove-sdk is installed, its Foxglove views with the scene written at t = 0
@@ -125,6 +126,8 @@ def open_run_log(path: Path, scenario: str, seed: int, mode: str, geometry: dict
     if keys is not None:
         metadata["root"] = keys.root
         options["keys"] = keys
+    if kinds:
+        options["kinds"] = kinds
     recorder = open_recorder(path, max_bytes=max_bytes, max_seconds=max_seconds, metadata=metadata, **options)
     recorder.add_metadata("geometry", {"json": json.dumps(geometry)})
     views = None

@@ -17,7 +17,7 @@ from typing import Any
 
 from cekm_swarm.graph.check import CheckedGraph
 from cekm_swarm.graph.plan import NodePlan, RunPlan
-from cekm_swarm.protocol import decode, encode, expect_of
+from cekm_swarm.protocol import Nothing, decode, encode, expect_of
 from cekm_swarm.ticks import STEP_TIMEOUT, TICK_S, tick_time
 
 from .api import Context, Node, NodeError, StepFailed, start_node
@@ -41,7 +41,8 @@ class GraphExecutor:
         for robot in plan.team:
             for node in plan.nodes[robot]:
                 cls = checked.classes[node.decl.name]
-                self.runners.append(Runner(node, start_node(cls, context(node), checked.make_params(node.decl.name))))
+                self.runners.append(Runner(node, start_node(cls, context(node), checked.make_params(node.decl.name)),
+                                           plan.answer_key(robot)))
         # what a reader checks of what it receives, its producer's step is refused for
         # (in a launch the reader would drop it and wait for good): the run's checks of
         # each node's outputs (.checks, in Runner.run), and the readers' own (Node.check_input)
@@ -83,7 +84,7 @@ class GraphExecutor:
                                 f"this node would wait for it forever)")
             sent = self._run(runner, k, inputs)
             for key, msg in sent:
-                for reader, port in self.refusers.get(key, ()):
+                for reader, port in self.refusers.get(key, ()) if type(msg) is not Nothing else ():
                     why = reader.node.check_input(port, msg)
                     if why is not None:
                         self._refused(runner, k, key, reader, why)

@@ -38,7 +38,7 @@ from cekm_swarm.errors import CekmError
 from cekm_swarm.graph.check import node_class
 from cekm_swarm.graph.plan import NodePlan, RunPlan
 from cekm_swarm.graph.runspec import RunSpec
-from cekm_swarm.protocol import DropCounter, KeyKind, expect_of
+from cekm_swarm.protocol import DropCounter, KeyKind, Nothing, expect_of
 from cekm_swarm.protocol.stamps import ANY_STAMP, StampWindow
 
 from .api import Context, NodeError, cannot_start, make_params, raised_at, start_node, traceback_text
@@ -84,7 +84,7 @@ def build_node(spec: RunSpec, plan: RunPlan, robot: str, name: str, backend: str
     ctx = Context(robot, decl.name, node_plan.instance, spec.team, spec.body, spec.mode,
                   model_source if model_source is not None else spec.model, backend,
                   logging.getLogger(f"cekm_swarm.node.{decl.name}"))
-    return node_plan, Runner(node_plan, start_node(cls, ctx, params))
+    return node_plan, Runner(node_plan, start_node(cls, ctx, params), plan.answer_key(robot))
 
 
 def stamp_window(plan: RunPlan, node_plan: NodePlan) -> StampWindow:
@@ -157,7 +157,7 @@ class NodeShell:
         if kind is KeyKind.SENSE_UNCHANGED:
             return self.on_unchanged(key, msg)
         port = self.ports.get(key)
-        why = None if port is None else self.runner.node.check_input(port, msg)
+        why = None if port is None or type(msg) is Nothing else self.runner.node.check_input(port, msg)
         if why is None:
             why = self.window.check(msg.stamp)
         if why is not None:

@@ -8,6 +8,7 @@ import time
 from typing import Any
 
 from cekm_swarm.graph.plan import NodePlan
+from cekm_swarm.protocol import Nothing
 from cekm_swarm.ticks import tick_time
 
 from .api import Inputs, Node, NodeError, NotReady, StepFailed, raised_at
@@ -19,10 +20,11 @@ class Runner:
     the port's type, stamped with the tick's time, and fitting what its readers check
     (:mod:`.checks`: a field over the run's lattice)."""
 
-    __slots__ = ("plan", "node", "runs", "skip_not_ready", "stepping", "_outs", "_check")
+    __slots__ = ("plan", "node", "runs", "skip_not_ready", "stepping", "answer", "_outs", "_check")
 
-    def __init__(self, plan: NodePlan, node: Node) -> None:
+    def __init__(self, plan: NodePlan, node: Node, answer: str | None = None) -> None:
         self.plan, self.node, self.runs = plan, node, 0
+        self.answer = answer  # the run's answer key (the world needs it every tick: never nothing on it)
         self.stepping: tuple[float, float] | None = None  # (t, time.monotonic() it began) while a step runs
         self.skip_not_ready = False  # set by the real-time gate, which takes NotReady
         self._outs = [(port, key, node.outputs[port].type) for port, key in plan.outputs.items()]
@@ -56,6 +58,12 @@ class Runner:
             msg = out.get(port)
             if type(msg) is dict:  # its own fields: the runner adds what it knows
                 msg = self._fill(want, msg, k, t, port)
+            elif msg is None and port in out:  # nothing on this output this tick
+                if key == self.answer:
+                    raise StepFailed(f"{self.plan.label}: its step at t={t:.3f} s failed: output {port!r} is the run's "
+                                     f"answer ({key}): the world needs a {want.__name__} every tick, not None")
+                sent.append((key, Nothing(t, self.plan.label)))
+                continue
             if type(msg) is not want or msg.stamp != t:
                 self._refuse(out, t)
             sent.append((key, msg))
@@ -92,9 +100,10 @@ class Runner:
             raise StepFailed(f"{label}: step() returned unknown output {sorted(extra)[0]!r}")
         for port, _, want in self._outs:
             msg = out.get(port)
-            if msg is None:
-                raise StepFailed(f"{label}: step() at t={t} gave no message for output {port!r}")
-            if type(msg) is dict:  # filled in and checked by _fill
+            if msg is None and port not in out:
+                raise StepFailed(f"{label}: step() at t={t} gave no message for output {port!r} (None sends nothing "
+                                 f"on it this tick)")
+            if msg is None or type(msg) is dict:  # nothing, or filled in and checked by _fill
                 continue
             if type(msg) is not want:
                 raise StepFailed(f"{label}: output {port!r} must be {want.__name__}, got {type(msg).__name__}")

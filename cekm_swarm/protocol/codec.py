@@ -34,7 +34,7 @@ from .errors import (
 )
 from .keys import DEFAULT_KEYS, KeyKind, KeySpace
 from .schema import MESSAGE_TYPES, SCHEMA_VERSION, Message, WireVector
-from .user import USER_TYPES, UntypedData, UserMessage, is_message_type
+from .user import NOTHING_HEAD, USER_TYPES, Nothing, UntypedData, UserMessage, is_message_type
 
 _F8 = np.dtype("<f8")
 
@@ -74,6 +74,8 @@ def encode(msg: Message) -> bytes:
     """The msgpack bytes of ``msg`` (already checked when it was built)."""
     head = _HEADS.get(type(msg))
     if head is None:
+        if type(msg) is Nothing:
+            return NOTHING_HEAD + _encoder.encode({"stamp": msg.stamp, "sender": msg.sender})[1:]
         if type(msg) is UntypedData:
             return _encoder.encode({"v": SCHEMA_VERSION, "kind": KeyKind.DATA.value, "type": msg.type,
                                     "stamp": msg.stamp, "sender": msg.sender, **msg.values})
@@ -198,8 +200,13 @@ def decode(key: str | KeyKind, data: bytes | bytearray | memoryview, *, keys: Ke
             kind, key_index = _parse_cached(keys, where)
         except KeySpaceError as exc:
             raise MessageKindError(exc.problem, key=where) from None
-        if kind is KeyKind.NODE:
-            kind = expect if expect is not None else _payload_kind(data, where)
+    if data[:14] == NOTHING_HEAD:  # 14: len(NOTHING_HEAD); a node's "nothing this tick" on an output
+        if kind not in _NOTHING_KINDS:
+            raise MessageKindError(f"'nothing' (kind none) is sent only on a node's outputs, not on a key of kind "
+                                   f"'{kind.value}'", key=where, field="kind")
+        return _nothing(where, data)
+    if kind is KeyKind.NODE:
+        kind = expect if expect is not None else _payload_kind(data, where)
     if type(kind) is str:  # a user's type by name: its class if declared here, else its envelope and fields
         declared = USER_TYPES.get(kind)
         if declared is None:
@@ -347,6 +354,30 @@ def _plain_vector(v: Any) -> Any:
     return v
 
 
+class _NothingWire(msgspec.Struct, forbid_unknown_fields=True, gc=False):
+    v: Literal[SCHEMA_VERSION]
+    kind: Literal["none"]
+    stamp: Any
+    sender: Any
+
+
+_nothing_decoder = msgspec.msgpack.Decoder(_NothingWire)
+_NOTHING_KINDS = frozenset({KeyKind.NODE, KeyKind.FIELD_TARGET, KeyKind.FIELD_OBSTACLE, KeyKind.FIELD_TRACKING,
+                            KeyKind.SHARE})
+"""Where a node may send :class:`~.user.Nothing`: its outputs other than the world's answer
+(cmd/wheels), which the world needs every tick."""
+
+
+def _nothing(where: str, data: Any) -> Message:
+    try:
+        wire = _nothing_decoder.decode(data)
+        return Nothing(wire.stamp, wire.sender)
+    except MessageError as exc:
+        raise exc.at_key(where) from None
+    except Exception as exc:  # noqa: BLE001 - msgspec's refusal
+        raise _from_msgspec(exc, where) from None
+
+
 def peek_type(data: bytes | bytearray | memoryview) -> str | None:
     """The ``type`` a user message's payload names, None when it names none (unvalidated)."""
     try:
@@ -417,6 +448,8 @@ def _lists(x: Any) -> Any:
 def to_plain(msg: Message) -> dict[str, Any]:
     """``msg`` as plain data (arrays and tuples as lists, entries as maps), for printing and JSON;
     a user's message with its ``type``."""
+    if type(msg) is Nothing:
+        return {"kind": "none", "stamp": msg.stamp, "sender": msg.sender}
     if type(msg) is UntypedData:
         return {"kind": msg.KIND.value, "type": msg.type, "stamp": msg.stamp, "sender": msg.sender,
                 **_lists(msgspec.to_builtins(msg.values, enc_hook=_plain_hook))}
@@ -428,7 +461,8 @@ def to_plain(msg: Message) -> dict[str, Any]:
 
 def summary(msg: Message, max_items: int = 6) -> str:
     """A one-line description of ``msg`` (long arrays shortened), for ``topic echo``."""
-    what = msg.TYPE if isinstance(msg, UserMessage) else msg.type if type(msg) is UntypedData else msg.KIND.value
+    what = msg.TYPE if isinstance(msg, UserMessage) else msg.type if type(msg) is UntypedData else \
+        "none (nothing sent)" if type(msg) is Nothing else msg.KIND.value
     parts = [f"{what} t={msg.stamp:.3f} from={msg.sender}"]
     fields = msg.values if type(msg) is UntypedData else {n: getattr(msg, n) for n in msg.__struct_fields__[2:]}
     for name, v in fields.items():

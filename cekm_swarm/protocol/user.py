@@ -71,6 +71,19 @@ class UntypedData(Message):
 UntypedData.KIND = KeyKind.DATA
 
 
+class Nothing(Message):
+    """What a node sent on an output at ``stamp`` when its step gave None for it: nothing
+    this tick. A reader's step sees None for a one-key port and no entry in a many-key
+    port's dict; in lockstep it tells the reader not to wait for that value. On the wire
+    ``{"v": 1, "kind": "none", "stamp", "sender"}``."""
+
+
+Nothing.KIND = KeyKind.DATA  # never the kind of a key: a reader meets it on the output's own key
+
+NOTHING_HEAD = b"\x84\xa1v\x01\xa4kind\xa4none"
+"""How the wire bytes of a :class:`Nothing` begin (a msgpack map of 4: v = 1, kind = none)."""
+
+
 def kind_of(cls: type) -> str:
     """The kind a graph gives a port of message class ``cls``: ``field/target`` for the
     protocol's, ``data:FreeDirection`` for a user's type."""

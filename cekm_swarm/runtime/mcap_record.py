@@ -123,9 +123,11 @@ class McapRecorder:
 
     def __init__(self, path: str | Path, *, chunk_size: int = DEFAULT_CHUNK_SIZE,
                  flush_interval: float | None = DEFAULT_FLUSH_INTERVAL, compression: str = "zstd",
-                 keys: KeySpace = DEFAULT_KEYS, metadata: dict[str, str] | None = None) -> None:
+                 keys: KeySpace = DEFAULT_KEYS, metadata: dict[str, str] | None = None,
+                 kinds: dict[str, str] | None = None) -> None:
         self.path = Path(path)
         self.keys = keys
+        self.kinds = dict(kinds or {})  # a graph's keys -> their message kind (data:FreeDirection), for schema names
         self.flush_interval = flush_interval
         if compression not in COMPRESSIONS:  # before the file is opened
             raise McapLogError(str(path), f"compression {compression!r}: use {' or '.join(COMPRESSIONS)}")
@@ -181,9 +183,11 @@ class McapRecorder:
             kind = self.keys.parse(key).kind.value
         except KeySpaceError:
             kind = "unknown"
-        if kind == "node" and payload:
+        if kind == "node" and key in self.kinds:  # what the run's graph declares it carries
+            kind = self.kinds[key]
+        elif kind == "node" and payload:
             said, _ = peek(payload)
-            if said is not None:
+            if said is not None and said != "none":
                 name = peek_type(payload) if said == "data" else None
                 kind = said if name is None else f"data:{name}"
         return SchemaSpec(f"cekm.{kind}")

@@ -23,6 +23,7 @@ from cekm_swarm.graph.spec import GraphError
 from cekm_swarm.node.api import StepFailed
 from cekm_swarm.protocol import (
     MessageKindError,
+    Nothing,
     UntypedData,
     UserMessage,
     WheelCommand,
@@ -43,6 +44,10 @@ def example(tmp_path, monkeypatch):
     for name in ("free.toml", "free_direction.py"):
         shutil.copy(EXAMPLES / name, tmp_path / name)
     monkeypatch.syspath_prepend(str(tmp_path))
+    # lone_obstacle with the robot nearer the disc: nothing in sight for its first ticks (FreeSpace sends
+    # nothing), then the disc (it sends the free direction)
+    lone = (Path(__file__).resolve().parents[2] / "world" / "scenarios" / "lone_obstacle.toml").read_text()
+    (tmp_path / "near.toml").write_text(lone.replace("start = [0.5, 1.0, 0.0]", "start = [0.7, 1.0, 0.0]"))
     return tmp_path / "free.toml"
 
 
@@ -78,15 +83,18 @@ def test_a_user_message_is_encoded_decoded_and_refused_by_its_declaration():
 
 
 def test_two_user_nodes_run_in_one_process_through_the_codec_and_the_runner_fills_the_envelope(example):
-    sc = load_scenario("lone_obstacle")
-    run = run_graph(sc, graph=str(example), max_time=3.0, stop_at=20, codec=True)
-    free = run.executor.output("cekm/r1/avoid/free", 20)
+    sc = load_scenario(str(example.parent / "near.toml"))
+    start = run_graph(sc, graph=str(example), max_time=8.0, stop_at=0, codec=True)
+    assert type(start.executor.output("cekm/r1/avoid/free", 0)) is Nothing  # nothing in sight: nothing sent
+    assert start.executor.output("cekm/r1/cmd/wheels", 0).v_l > 0  # and its reader drove on (it saw None)
+    run = run_graph(sc, graph=str(example), max_time=8.0, stop_at=40, codec=True)
+    free = run.executor.output("cekm/r1/avoid/free", 40)
     assert type(free).__name__ == "FreeDirection" and isinstance(free, UserMessage)
-    assert free.stamp == pytest.approx(20 * 0.128) and free.sender == "r1/free"
-    cmd = run.executor.output("cekm/r1/cmd/wheels", 20)
-    assert type(cmd) is WheelCommand and cmd.seq == 20 and cmd.sender == "r1/motor"  # seq: the tick
-    plain = run_graph(sc, graph=str(example), max_time=3.0, stop_at=20)
-    assert plain.executor.output("cekm/r1/cmd/wheels", 20) == cmd  # through the codec or not: the same
+    assert free.stamp == pytest.approx(40 * 0.128) and free.sender == "r1/free"
+    cmd = run.executor.output("cekm/r1/cmd/wheels", 40)
+    assert type(cmd) is WheelCommand and cmd.seq == 40 and cmd.sender == "r1/motor"  # seq: the tick
+    plain = run_graph(sc, graph=str(example), max_time=8.0, stop_at=40)
+    assert plain.executor.output("cekm/r1/cmd/wheels", 40) == cmd  # through the codec or not: the same
 
 
 def test_a_step_that_leaves_out_a_field_fails_naming_the_output_and_the_field(example):
@@ -94,9 +102,9 @@ def test_a_step_that_leaves_out_a_field_fails_naming_the_output_and_the_field(ex
     (example.parent / "free_typo.py").write_text(text.replace('"clearance": reach if best.d is None else best.d',
                                                               '"clearence": 1.0'))
     example.write_text(example.read_text().replace("free_direction:", "free_typo:"))
-    with pytest.raises(StepFailed, match=r"^r1/free: its step at t=0.000 s failed: output 'free': FreeDirection: "
+    with pytest.raises(StepFailed, match=r"^r1/free: its step at t=\d\.\d{3} s failed: output 'free': FreeDirection: "
                                          r".*clearence"):
-        run_graph(load_scenario("lone_obstacle"), graph=str(example), max_time=1.0)
+        run_graph(load_scenario(str(example.parent / "near.toml")), graph=str(example), max_time=8.0)
 
 
 def test_graph_check_refuses_two_user_nodes_that_disagree_on_the_type_naming_both(example):
@@ -137,11 +145,11 @@ def test_two_user_nodes_with_a_typed_message_in_lockstep_equal_cekm_run_and_are_
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "runtime"))
     from test_launch_support import LaunchProcess
 
-    ref = cekm("run", "lone_obstacle", "--graph", str(example), "--max-time", "8", "--out", str(tmp_path / "run"),
-               cwd=tmp_path)
+    ref = cekm("run", "near.toml", "--graph", str(example), "--max-time", "8", "--out", str(tmp_path / "run"),
+               cwd=example.parent)
     assert ref.returncode == 0, ref.stderr
-    launch = LaunchProcess("lone_obstacle", tmp_path / "ls", "--graph", str(example), "--mode", "lockstep",
-                           "--max-time", "8", "--no-plot", cwd=tmp_path)
+    launch = LaunchProcess("near.toml", tmp_path / "ls", "--graph", str(example), "--mode", "lockstep",
+                           "--max-time", "8", "--no-plot", cwd=example.parent)
     try:
         assert launch.finish(timeout=180) == 0, "\n".join(launch.lines[-30:])
     finally:
@@ -152,8 +160,11 @@ def test_two_user_nodes_with_a_typed_message_in_lockstep_equal_cekm_run_and_are_
     cat = cekm("log", "cat", log, "--json", "--topics", "cekm/r1/avoid/free", cwd=tmp_path)
     docs = [json.loads(line)["message"] for line in cat.stdout.splitlines()]
     assert [d["stamp"] for d in docs] == [round(k * 0.128, 9) for k in range(64)]  # every tick of 8 s
-    assert all(d["type"] == "FreeDirection" and set(d) == {
-        "kind", "type", "stamp", "sender", "alpha", "clearance"} for d in docs), cat.stdout[:500]
+    typed = [d for d in docs if d["kind"] == "data"]
+    nothing = [d for d in docs if d["kind"] == "none"]  # nothing in sight: nothing sent, and the run went on
+    assert typed and nothing and len(typed) + len(nothing) == 64, cat.stdout[:500]
+    assert all(d["type"] == "FreeDirection" and set(d) == {"kind", "type", "stamp", "sender", "alpha", "clearance"}
+               for d in typed), cat.stdout[:500]
     info = cekm("log", "info", log, cwd=tmp_path)
     assert any("cekm/r1/avoid/free" in line and "cekm.data:FreeDirection" in line for line in info.stdout.splitlines())
 
@@ -163,16 +174,17 @@ def test_two_user_nodes_with_a_typed_message_in_real_time_are_decoded_by_topic_e
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "runtime"))
     from test_launch_support import LaunchProcess
 
-    run = LaunchProcess("lone_obstacle", tmp_path / "rt", "--graph", str(example), "--mode", "realtime",
-                        "--max-time", "6", "--no-plot", cwd=tmp_path)
+    run = LaunchProcess("near.toml", tmp_path / "rt", "--graph", str(example), "--mode", "realtime",
+                        "--max-time", "6", "--no-plot", cwd=example.parent)
     try:
         run.wait_line("world started ticking", timeout=120)
-        echo = cekm("topic", "echo", "cekm/r1/avoid/free", "--count", "3", "--timeout", "10",
+        echo = cekm("topic", "echo", "cekm/r1/avoid/free", "--count", "40", "--timeout", "10",
                     "--connect", f"tcp/127.0.0.1:{run.port}", cwd=tmp_path)
         code = run.finish(timeout=120)
     finally:
         run.kill()
     assert code == 0, "\n".join(run.lines[-30:])
-    lines = echo.stdout.splitlines()
-    assert len(lines) == 3 and all("FreeDirection t=" in line and "from=r1/free alpha=" in line and "clearance=" in line
-                                   for line in lines), echo.stdout + echo.stderr
+    lines = [line.removeprefix("cekm/r1/avoid/free: ") for line in echo.stdout.splitlines()]
+    typed = [line for line in lines if line.startswith("FreeDirection t=")]
+    assert len(lines) == 40 and typed and all("from=r1/free alpha=" in line and "clearance=" in line for line in typed)
+    assert all(line.startswith("none (nothing sent) t=") for line in lines if line not in typed), echo.stdout
