@@ -171,10 +171,13 @@ def prepare_out_dir(path: Path, overwrite: bool) -> Path:
                     shutil.rmtree(p)
                 else:
                     p.unlink()
+    missing = [p for p in path.absolute().parents if not p.exists()]
     try:
         path.mkdir(parents=True, exist_ok=True)
     except OSError as exc:  # a parent that is a file, /proc, a read-only file system
         raise OutputDirError(f"--out {path}: cannot create the directory: {_os_reason(exc)}") from None
+    if missing:  # fine, but said: a typo in a parent's name makes a new tree
+        click.echo(f"note: --out {path}: created its missing parent {missing[-1]}", err=True)
     return path
 
 

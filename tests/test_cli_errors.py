@@ -262,6 +262,14 @@ def test_a_non_empty_out_directory_is_refused_and_left_alone(capsys, tmp_path):
     assert (out / "trajectory.png").read_bytes() == b"old run"
 
 
+def test_an_out_whose_parents_are_missing_is_made_and_said(tmp_path, capsys):
+    out = tmp_path / "runs" / "today" / "one"
+    assert prepare_out_dir(out, overwrite=False) == out and out.is_dir()
+    assert capsys.readouterr().err == f"note: --out {out}: created its missing parent {tmp_path / 'runs'}\n"
+    prepare_out_dir(tmp_path / "two", overwrite=False)  # its parent is there: nothing said
+    assert capsys.readouterr().err == ""
+
+
 def test_overwrite_clears_the_directory_first(tmp_path):
     out = tmp_path / "out"
     (out / "logs").mkdir(parents=True)
