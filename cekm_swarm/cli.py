@@ -462,6 +462,9 @@ def _register_view_command() -> None:
 
     main.add_command(view_cmd)
     main.add_command(graph_group)
+    from .runtime.param_commands import param_group  # cekm param list|get|set
+
+    main.add_command(param_group)
 
 
 _register_view_command()

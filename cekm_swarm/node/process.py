@@ -43,6 +43,7 @@ from cekm_swarm.protocol.stamps import ANY_STAMP, StampWindow
 
 from .api import Context, NodeError, cannot_start, make_params, raised_at, start_node, traceback_text
 from .direct_gate import DirectGate
+from .live_params import LiveParams
 from .runner import Runner
 from .timing import LockstepGate, RealtimeGate, tick_of
 from .wire import Decoder, Encoder
@@ -137,6 +138,7 @@ class NodeShell:
         self.readers = outputs_readers(plan, node_plan, self.keys, delayed_only=gate_cls is DirectGate) if lockstep \
             else {}
         self.pubs: Any = None
+        runner.live = LiveParams(runner)  # cekm param: parameters changed while it runs
 
     # ------------------------------------------------------------------ subscriptions
 
@@ -297,6 +299,8 @@ class NodeShell:
         watch = self.token_expr()
         if watch is not None:
             tokens = session.liveliness().declare_subscriber(watch, serve_token, history=True)
+        params = session.declare_queryable(self.keys.param(self.node_plan.robot, self.node_plan.name),
+                                           zenoh.handlers.Callback(self.serve_param, indirect=True))
         # the token comes last: once it is up, the subscriptions are in place
         token = declare_alive(session, self.keys.alive(self.node_plan.robot, self.node_plan.name))
         log.info("%s: up (%s), listening on %s", self.node_plan.label, self.spec.mode, ", ".join(self.listen_exprs()))
@@ -311,8 +315,24 @@ class NodeShell:
             if tokens is not None:
                 tokens.undeclare()
             token.undeclare()
+            params.undeclare()
             self.pubs.close()
         return self.handled
+
+    def serve_param(self, query: Any) -> None:
+        """``cekm param``: the query's JSON payload ``{}`` (what it has) or ``{"set": name,
+        "value": v, "at": t}``; the reply's, the parameters or the change scheduled, or ``{"error": why}``."""
+        try:
+            ask = json.loads(query.payload.to_bytes()) if query.payload is not None else {}
+            with self.lock:
+                doc = self.runner.live.describe() if "set" not in ask else \
+                    self.runner.live.set(str(ask["set"]), ask.get("value"), ask.get("at"))
+        except (ValueError, TypeError, KeyError) as exc:
+            doc = {"error": " ".join(str(exc).split())}
+        if "name" in doc:  # a change scheduled
+            log.info("%s: parameter %s = %r scheduled from t=%.3f s", self.node_plan.label, doc["name"], doc["value"],
+                     doc["t"])
+        query.reply(query.key_expr, json.dumps(doc).encode())
 
     def say_where(self) -> None:
         """The launcher asks while the run stalls: one :data:`STALLED` line (a step running,
@@ -333,7 +353,7 @@ class NodeShell:
         return {"handled": self.handled, "runs": self.runner.runs, "dropped": self.drops.by_source(),
                 "repeats": getattr(g, "repeats", 0), "stale": getattr(g, "stale_drops", {}),
                 "step_failures": dict(self.step_failures), "not_ready": getattr(g, "not_ready", 0),
-                "ran_without": list(getattr(g, "ran_without", ()))}
+                "ran_without": list(getattr(g, "ran_without", ())), "param_changes": list(self.runner.live.changes)}
 
 
 def outputs_readers(plan: RunPlan, node_plan: NodePlan, keys: Any,

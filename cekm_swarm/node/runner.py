@@ -20,11 +20,13 @@ class Runner:
     the port's type, stamped with the tick's time, and fitting what its readers check
     (:mod:`.checks`: a field over the run's lattice)."""
 
-    __slots__ = ("plan", "node", "runs", "skip_not_ready", "stepping", "answer", "_outs", "_check")
+    __slots__ = ("plan", "node", "runs", "skip_not_ready", "stepping", "answer", "done", "live", "_outs", "_check")
 
     def __init__(self, plan: NodePlan, node: Node, answer: str | None = None) -> None:
         self.plan, self.node, self.runs = plan, node, 0
         self.answer = answer  # the run's answer key (the world needs it every tick: never nothing on it)
+        self.done = -1  # the tick of its last run
+        self.live: Any = None  # parameters changed while it runs (.live_params.LiveParams), in a node's process
         self.stepping: tuple[float, float] | None = None  # (t, time.monotonic() it began) while a step runs
         self.skip_not_ready = False  # set by the real-time gate, which takes NotReady
         self._outs = [(port, key, node.outputs[port].type) for port, key in plan.outputs.items()]
@@ -35,6 +37,8 @@ class Runner:
         node, the tick and what failed when its step raises or returns something wrong
         (:class:`~.api.NotReady` passes through to the real-time gate, and is a failure elsewhere)."""
         t = tick_time(k)
+        if self.live is not None and self.live.pending:
+            self.live.apply_due(k)
         self.stepping = (t, time.monotonic())
         try:
             out = self.node.step(t, inputs)
@@ -75,6 +79,7 @@ class Runner:
             except NodeError as exc:  # what its readers check of what it sends: its step failed
                 raise StepFailed(str(exc)) from exc
         self.runs += 1
+        self.done = max(self.done, k)
         return sent
 
     def _fill(self, want: type, fields: dict[str, Any], k: int, t: float, port: str) -> Any:

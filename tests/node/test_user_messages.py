@@ -188,3 +188,82 @@ def test_two_user_nodes_with_a_typed_message_in_real_time_are_decoded_by_topic_e
     typed = [line for line in lines if line.startswith("FreeDirection t=")]
     assert len(lines) == 40 and typed and all("from=r1/free alpha=" in line and "clearance=" in line for line in typed)
     assert all(line.startswith("none (nothing sent) t=") for line in lines if line not in typed), echo.stdout
+
+
+@pytest.mark.slow
+def test_a_parameter_changed_while_a_lockstep_run_goes_is_applied_at_its_tick_and_logged(example, tmp_path):
+    """r1's FreeSpace is held (SIGSTOP: the lockstep world waits for it), so the motor's
+    last run is known while `cekm param` asks; the change names its sim time, and the
+    motor's commands show it from exactly that tick (Blend's wheel speeds average `speed`)."""
+    import math
+    import os
+    import signal
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "runtime"))
+    from test_launch_support import LaunchProcess
+
+    from cekm_swarm.runtime.mcap_log import read_messages
+
+    run = LaunchProcess("near.toml", tmp_path / "ls", "--graph", str(example), "--mode", "lockstep",
+                        "--max-time", "20", "--no-plot", cwd=example.parent)
+    connect = ("--connect", f"tcp/127.0.0.1:{run.port}")
+    try:
+        run.wait_line("world started ticking", timeout=120)
+        free = run.pids()["r1/free"]
+        os.kill(free, signal.SIGSTOP)
+        try:
+            listed = cekm("param", "list", "r1/motor", *connect, cwd=tmp_path)
+            assert listed.returncode == 0, listed.stderr
+            head, *rows = listed.stdout.splitlines()
+            assert rows == ["speed = 0.05  (float)", "near = 0.2  (float)", "gain = 0.08  (float)"], listed.stdout
+            last = float(head.split("t=")[1].split()[0]) if "t=" in head else 0.0  # the motor's last run
+            got = cekm("param", "get", "r1/motor", "speed", *connect, cwd=tmp_path)
+            assert got.stdout == "0.05\n"
+            bad = cekm("param", "set", "r1/motor", "speed", "fast", *connect, cwd=tmp_path)
+            assert bad.returncode == 2 and "r1/motor.params.speed: expected a number, got 'fast'" in bad.stderr
+            at = last + 1.0
+            ok = cekm("param", "set", "r1/motor", "speed", "0.08", "--at", str(at), *connect, cwd=tmp_path)
+            assert ok.returncode == 0, ok.stderr
+        finally:
+            os.kill(free, signal.SIGCONT)
+        assert run.finish(timeout=120) == 0, "\n".join(run.lines[-20:])
+    finally:
+        run.kill()
+    t_at = round(math.ceil(round(at / 0.128, 9)) * 0.128, 9)
+    assert ok.stdout == f"r1/motor: speed = 0.08 from t={t_at:.3f} s\n"
+    assert run.outcome()["launcher"]["nodes"]["r1/motor"]["param_changes"] == [
+        {"name": "speed", "value": 0.08, "t": t_at}]  # logged with the run
+    assert f"parameter speed = 0.08 from t={t_at:.3f} s" in (tmp_path / "ls" / "logs" / "r1-motor.log").read_text()
+    from cekm_swarm.protocol import decode
+
+    cmds = [decode(m.topic, m.data) for m in read_messages(tmp_path / "ls" / "run.mcap", topics=["cekm/r1/cmd/wheels"])]
+    moving = [(c.stamp, round((c.v_l + c.v_r) / 2, 9)) for c in cmds if (c.v_l, c.v_r) != (0.0, 0.0)]
+    assert {v for t, v in moving if t < t_at} == {0.05} and {v for t, v in moving if t >= t_at} == {0.08}, moving
+
+
+def test_a_change_for_a_tick_the_node_has_run_is_refused_and_one_to_come_waits_for_its_tick():
+    from types import SimpleNamespace
+
+    from cekm_swarm.node.live_params import LiveParams
+
+    class Node_:
+        from dataclasses import dataclass
+
+        @dataclass(frozen=True)
+        class Params:
+            speed: float = 0.05
+
+        def __init__(self):
+            self.params = self.Params()
+
+    runner = SimpleNamespace(node=Node_(), plan=SimpleNamespace(label="r1/motor", period=1), done=10)
+    live = LiveParams(runner)
+    with pytest.raises(ValueError, match="too late for t=1.280 s: the node has run t=1.280 s"):
+        live.set("speed", 0.1, 1.28)
+    with pytest.raises(ValueError, match="expected a number"):
+        live.set("speed", "fast", None)
+    assert live.set("speed", 0.1, None) == {"node": "r1/motor", "name": "speed", "value": 0.1, "t": 1.536}  # 2 periods on
+    live.apply_due(11)
+    assert runner.node.params.speed == 0.05 and live.changes == []
+    live.apply_due(12)
+    assert runner.node.params.speed == 0.1 and live.changes == [{"name": "speed", "value": 0.1, "t": 1.536}]
