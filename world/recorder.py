@@ -114,7 +114,7 @@ class RecordFilter:
 def open_run_log(path: Path, scenario: str, seed: int, mode: str, geometry: dict[str, Any],
                  robot_radius: float, *, max_bytes: int | None = None, max_seconds: float | None = None,
                  record: str = "full", keys: KeySpace | None = None,
-                 kinds: dict[str, str] | None = None) -> tuple[Any, Any]:
+                 kinds: dict[str, str] | None = None, schemas: dict[str, Any] | None = None) -> tuple[Any, Any]:
     """The run's MCAP log (one file, or a set with ``max_bytes``/``max_seconds``) with its
     metadata (scenario, seed, mode, recording, the key root of ``keys``, the static geometry)
     and, when foxglove-sdk is installed, its Foxglove views with the scene written at t = 0
@@ -128,6 +128,8 @@ def open_run_log(path: Path, scenario: str, seed: int, mode: str, geometry: dict
         options["keys"] = keys
     if kinds:
         options["kinds"] = kinds
+    if schemas:
+        options["schemas"] = schemas
     recorder = open_recorder(path, max_bytes=max_bytes, max_seconds=max_seconds, metadata=metadata, **options)
     recorder.add_metadata("geometry", {"json": json.dumps(geometry)})
     views = None

@@ -226,7 +226,8 @@ class WorldServer:
             pub.recorder, pub.views = open_run_log(self.out / "run.mcap", self.scenario.name, self.world.seed,
                                                    cfg.mode, geometry, self.world.body_radius,
                                                    max_bytes=cfg.max_log_size, max_seconds=cfg.max_log_duration,
-                                                   record=cfg.record, keys=self.keys, kinds=self.declared)
+                                                   record=cfg.record, keys=self.keys, kinds=self.declared,
+                                                   schemas=None if self.spec is None else dict(self.spec.schemas))
         except BaseException:
             session.close()
             raise

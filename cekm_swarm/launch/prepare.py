@@ -72,8 +72,11 @@ def preflight(checked: CheckedGraph, plan: RunPlan, body: RobotBody, model: Any)
 
 def run_spec(checked: CheckedGraph, team: tuple[str, ...], task: str, body: RobotBody, **settings: Any) -> RunSpec:
     """The run spec of a launch (see :mod:`cekm_swarm.graph.runspec`)."""
+    from cekm_swarm.protocol.user import user_schemas
+
+    types = [p.type for cls in checked.classes.values() for p in (*cls.inputs.values(), *cls.outputs.values())]
     return RunSpec(checked.graph, dict(checked.ports), {k: dict(v) for k, v in checked.params.items()}, tuple(team),
-                   task, body, **settings)
+                   task, body, **settings, schemas=user_schemas(types))
 
 
 def plan_of(checked: CheckedGraph, team: tuple[str, ...], task: str, body: RobotBody, root: str,

@@ -21,7 +21,8 @@ the module on its path) still checks the envelope and reads the fields as plain 
 from __future__ import annotations
 
 import re
-from typing import Any, ClassVar
+from collections.abc import Iterable
+from typing import Any, ClassVar, get_type_hints
 
 from .errors import MessageKindError
 from .keys import KeyKind
@@ -82,6 +83,29 @@ Nothing.KIND = KeyKind.DATA  # never the kind of a key: a reader meets it on the
 
 NOTHING_HEAD = b"\x84\xa1v\x01\xa4kind\xa4none"
 """How the wire bytes of a :class:`Nothing` begin (a msgpack map of 4: v = 1, kind = none)."""
+
+
+def json_schema(cls: type["UserMessage"]) -> dict[str, Any]:
+    """A JSON Schema of user message type ``cls`` as it travels (its map's fields, their
+    types and ranges, its docstring): what the run's MCAP log keeps for its channels, so a
+    reader without the declaration knows what the fields are."""
+    import msgspec
+
+    hints = get_type_hints(cls, include_extras=True)
+    props: dict[str, Any] = {"v": {"const": 1}, "kind": {"const": "data"}, "type": {"const": cls.TYPE}}
+    for name in cls.__struct_fields__:
+        try:
+            props[name] = msgspec.json.schema(hints[name])
+        except (TypeError, ValueError):  # a Vector: its wire map
+            props[name] = {"description": "a float64 vector: {dtype: '<f8', shape: [n], data: n * 8 bytes}"}
+    return {"$schema": "https://json-schema.org/draft/2020-12/schema", "title": cls.TYPE,
+            "description": " ".join((cls.__doc__ or "").split()), "type": "object", "properties": props,
+            "required": list(props)}
+
+
+def user_schemas(types: Iterable[type]) -> dict[str, dict[str, Any]]:
+    """``{kind: JSON Schema}`` of every user message type among ``types`` (``data:FreeDirection``)."""
+    return {kind_of(t): json_schema(t) for t in types if isinstance(t, type) and issubclass(t, UserMessage)}
 
 
 def kind_of(cls: type) -> str:

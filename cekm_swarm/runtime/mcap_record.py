@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import asyncio
 import io
+import json
 import os
 import time
 from dataclasses import dataclass
@@ -124,8 +125,9 @@ class McapRecorder:
     def __init__(self, path: str | Path, *, chunk_size: int = DEFAULT_CHUNK_SIZE,
                  flush_interval: float | None = DEFAULT_FLUSH_INTERVAL, compression: str = "zstd",
                  keys: KeySpace = DEFAULT_KEYS, metadata: dict[str, str] | None = None,
-                 kinds: dict[str, str] | None = None) -> None:
+                 kinds: dict[str, str] | None = None, schemas: dict[str, Any] | None = None) -> None:
         self.path = Path(path)
+        self.schemas = dict(schemas or {})  # a user message kind -> its JSON Schema, written as its channel's schema
         self.keys = keys
         self.kinds = dict(kinds or {})  # a graph's keys -> their message kind (data:FreeDirection), for schema names
         self.flush_interval = flush_interval
@@ -190,6 +192,8 @@ class McapRecorder:
             if said is not None and said != "none":
                 name = peek_type(payload) if said == "data" else None
                 kind = said if name is None else f"data:{name}"
+        if kind in self.schemas:
+            return SchemaSpec(f"cekm.{kind}", "jsonschema", json.dumps(self.schemas[kind]).encode())
         return SchemaSpec(f"cekm.{kind}")
 
     # ------------------------------------------------------------------ writing

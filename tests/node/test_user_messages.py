@@ -165,6 +165,13 @@ def test_two_user_nodes_with_a_typed_message_in_lockstep_equal_cekm_run_and_are_
     assert typed and nothing and len(typed) + len(nothing) == 64, cat.stdout[:500]
     assert all(d["type"] == "FreeDirection" and set(d) == {"kind", "type", "stamp", "sender", "alpha", "clearance"}
                for d in typed), cat.stdout[:500]
+    from mcap.reader import make_reader
+
+    with open(log, "rb") as fh:  # the channel's schema: the type's JSON Schema, from its declaration
+        schema = next(s for s in make_reader(fh).get_summary().schemas.values() if s.name == "cekm.data:FreeDirection")
+    doc = json.loads(schema.data)
+    assert schema.encoding == "jsonschema" and doc["title"] == "FreeDirection" and "robot frame" in doc["description"]
+    assert doc["properties"]["alpha"]["maximum"] > 3.14 and doc["properties"]["clearance"]["minimum"] == 0.0
     info = cekm("log", "info", log, cwd=tmp_path)
     assert any("cekm/r1/avoid/free" in line and "cekm.data:FreeDirection" in line for line in info.stdout.splitlines())
 
