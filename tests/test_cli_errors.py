@@ -62,7 +62,8 @@ def valid_argv(cmd: click.Command, tmp_path) -> list[str]:
     values = {"scenario": "lone_obstacle", "out_dir": str(tmp_path / "new-out"), "out_path": str(tmp_path / "o.png"),
               "at_time": "1", "key_expr": "cekm/**", "log_file": str(existing), "log": str(existing),
               "key": "cekm/r1/cmd/wheels", "message": "{}", "graph": "cekm-navigation",
-              "out_file": str(tmp_path / "out.mcap"), "to": "ros2", "results": str(existing)}
+              "out_file": str(tmp_path / "out.mcap"), "to": "ros2", "results": str(existing),
+              "node": "r1/motor", "name": "speed", "value": "0.1"}
     argv: list[str] = []
     for p in cmd.params:
         if p.required:
