@@ -10,6 +10,7 @@ import click
 
 from .cli_support import (
     SEED,
+    FileRefused,
     Finite,
     ScenarioFileError,
     out_dir_options,
@@ -336,7 +337,7 @@ def run_cmd(scenario: str, controller: str, graph_file: Path | None, model_path:
         checked = resolve_graph(controller, None if graph_file is None else str(graph_file), task)
         checked.plan([r.id for r in sc.robots], task)
     except GraphError as exc:
-        raise click.UsageError(str(exc)) from None
+        raise FileRefused(str(exc)) from None
     controller = checked.graph.controller
     model = _model(model_path) if checked.uses_model else None
     if task == "tracking":
@@ -461,6 +462,9 @@ def _register_view_command() -> None:
 
     main.add_command(view_cmd)
     main.add_command(graph_group)
+    from .runtime.param_commands import param_group  # cekm param list|get|set
+
+    main.add_command(param_group)
 
 
 _register_view_command()

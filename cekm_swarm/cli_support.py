@@ -171,10 +171,13 @@ def prepare_out_dir(path: Path, overwrite: bool) -> Path:
                     shutil.rmtree(p)
                 else:
                     p.unlink()
+    missing = [p for p in path.absolute().parents if not p.exists()]
     try:
         path.mkdir(parents=True, exist_ok=True)
     except OSError as exc:  # a parent that is a file, /proc, a read-only file system
         raise OutputDirError(f"--out {path}: cannot create the directory: {_os_reason(exc)}") from None
+    if missing:  # fine, but said: a typo in a parent's name makes a new tree
+        click.echo(f"note: --out {path}: created its missing parent {missing[-1]}", err=True)
     return path
 
 
@@ -235,11 +238,16 @@ class RunFailed(click.ClickException):
     exit_code = EXIT_FAILED
 
 
-class ScenarioFileError(click.ClickException):
-    """A scenario file refused (exit 2): its own line names the file, the field and the
-    problem; no pointer to a command's --help, which does not describe the file format."""
+class FileRefused(click.ClickException):
+    """An input file refused (a scenario, a graph; exit 2): its own line names the file,
+    the field and the problem; no pointer to a command's --help, which does not describe
+    the file format."""
 
     exit_code = EXIT_USAGE
+
+
+class ScenarioFileError(FileRefused):
+    """A scenario file refused (exit 2)."""
 
 
 def refuse_unplannable(scenario: Any) -> None:

@@ -59,9 +59,17 @@ class RobotBody:
     :attr:`cekm_swarm.node.Context.body`): taken from the scenario by whoever starts the
     controller (``cekm run``, ``cekm launch``), so no node needs the world.
 
-    ``sensor_angles``: each distance sensor's direction relative to the heading (rad);
-    ``sensor_range``: how far a distance sensor sees beyond the body surface (m);
-    ``target_range``: the target sensor's range (m; inf: unlimited)."""
+    * ``body_radius``: the body's radius (m);
+    * ``axle``: the distance between the wheels (m);
+    * ``v_max``: the fastest a wheel turns (m/s, c* of Eq. 11): the world clamps a wheel
+      speed beyond it to it, without a word;
+    * ``sensor_angles``: each distance sensor's direction relative to the heading (rad,
+      counter-clockwise positive), sensor j at index j;
+    * ``sensor_range``: how far a distance sensor sees beyond the body surface (m); a
+      reading's ``d`` is measured from the robot's centre, so it is at most
+      ``body_radius + sensor_range``;
+    * ``target_range``: the target sensor's range (m; inf: unlimited);
+    * :attr:`sensors`: how many distance sensors it has."""
 
     body_radius: float = KHEPERA.body_radius
     axle: float = KHEPERA.axle

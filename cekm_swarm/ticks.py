@@ -13,6 +13,10 @@ TICK_S = 0.128  # obstacle localization period (section 3.1)
 TARGET_PERIOD_S = 0.256  # target localization period (section 3.1)
 SUBSTEPS_PER_TICK = round(TICK_S / SUBSTEP_S)
 TARGET_EVERY = round(TARGET_PERIOD_S / TICK_S)  # ticks
+STEP_TIMEOUT = 60.0
+"""Wall seconds a lockstep tick (``cekm launch --mode lockstep``) or a step of ``cekm run``
+may wait on one node's step before the run ends as failed, naming the step's line
+(``--step-timeout``)."""
 
 
 def tick_time(tick: int) -> float:

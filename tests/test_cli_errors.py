@@ -62,7 +62,8 @@ def valid_argv(cmd: click.Command, tmp_path) -> list[str]:
     values = {"scenario": "lone_obstacle", "out_dir": str(tmp_path / "new-out"), "out_path": str(tmp_path / "o.png"),
               "at_time": "1", "key_expr": "cekm/**", "log_file": str(existing), "log": str(existing),
               "key": "cekm/r1/cmd/wheels", "message": "{}", "graph": "cekm-navigation",
-              "out_file": str(tmp_path / "out.mcap"), "to": "ros2", "results": str(existing)}
+              "out_file": str(tmp_path / "out.mcap"), "to": "ros2", "results": str(existing),
+              "node": "r1/motor", "name": "speed", "value": "0.1"}
     argv: list[str] = []
     for p in cmd.params:
         if p.required:
@@ -260,6 +261,14 @@ def test_a_non_empty_out_directory_is_refused_and_left_alone(capsys, tmp_path):
     line = one_error_line(capsys, ["run", "lone_obstacle", "--out", str(out)])
     assert f"--out {out}: not empty" in line and "--overwrite" in line
     assert (out / "trajectory.png").read_bytes() == b"old run"
+
+
+def test_an_out_whose_parents_are_missing_is_made_and_said(tmp_path, capsys):
+    out = tmp_path / "runs" / "today" / "one"
+    assert prepare_out_dir(out, overwrite=False) == out and out.is_dir()
+    assert capsys.readouterr().err == f"note: --out {out}: created its missing parent {tmp_path / 'runs'}\n"
+    prepare_out_dir(tmp_path / "two", overwrite=False)  # its parent is there: nothing said
+    assert capsys.readouterr().err == ""
 
 
 def test_overwrite_clears_the_directory_first(tmp_path):

@@ -15,7 +15,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from cekm_swarm.protocol import DropCounter, KeyKind, KeySpace, KeySpaceError
+from cekm_swarm.protocol import DropCounter, KeyKind, KeySpace, KeySpaceError, expect_of
 from cekm_swarm.protocol.stamps import PAST_S, stamp_problem
 from cekm_swarm.runtime.mcap_sets import open_recorder
 
@@ -54,7 +54,7 @@ class RecordFilter:
         self.keys, self.robots, self.drops = keys, frozenset(robots), drops
         self.lean = lean
         self.left_out = 0  # a lean log: messages of the run not logged (fields), not drops
-        self.declared = None if declared is None else {k: KeyKind(v) for k, v in declared.items()}
+        self.declared = None if declared is None else {k: expect_of(v) for k, v in declared.items()}
         self._known: dict[str, tuple[KeyKind, int | None] | str] = {}  # key -> (kind, index) or why not
         self._expect: dict[str, KeyKind] = {}
 
@@ -113,7 +113,8 @@ class RecordFilter:
 
 def open_run_log(path: Path, scenario: str, seed: int, mode: str, geometry: dict[str, Any],
                  robot_radius: float, *, max_bytes: int | None = None, max_seconds: float | None = None,
-                 record: str = "full", keys: KeySpace | None = None) -> tuple[Any, Any]:
+                 record: str = "full", keys: KeySpace | None = None,
+                 kinds: dict[str, str] | None = None, schemas: dict[str, Any] | None = None) -> tuple[Any, Any]:
     """The run's MCAP log (one file, or a set with ``max_bytes``/``max_seconds``) with its
     metadata (scenario, seed, mode, recording, the key root of ``keys``, the static geometry)
     and, when foxglove-sdk is installed, its Foxglove views with the scene written at t = 0
@@ -125,6 +126,10 @@ def open_run_log(path: Path, scenario: str, seed: int, mode: str, geometry: dict
     if keys is not None:
         metadata["root"] = keys.root
         options["keys"] = keys
+    if kinds:
+        options["kinds"] = kinds
+    if schemas:
+        options["schemas"] = schemas
     recorder = open_recorder(path, max_bytes=max_bytes, max_seconds=max_seconds, metadata=metadata, **options)
     recorder.add_metadata("geometry", {"json": json.dumps(geometry)})
     views = None

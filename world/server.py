@@ -138,6 +138,7 @@ class WorldServer:
         self.record_drops = DropCounter("world recorder", keys=self.keys)
         plan = self.plan
         declared = None if plan is None else {k: v for r in self.robots for k, v in plan.sent_keys(r).items()}
+        self.declared = declared
         answers = ({plan.answer_key(r): r for r in self.robots} if plan is not None
                    else {self.keys.cmd_wheels(r): r for r in self.robots})
         sends = None if plan is None else {r: set(plan.world_keys(r)) for r in self.robots}
@@ -225,7 +226,8 @@ class WorldServer:
             pub.recorder, pub.views = open_run_log(self.out / "run.mcap", self.scenario.name, self.world.seed,
                                                    cfg.mode, geometry, self.world.body_radius,
                                                    max_bytes=cfg.max_log_size, max_seconds=cfg.max_log_duration,
-                                                   record=cfg.record, keys=self.keys)
+                                                   record=cfg.record, keys=self.keys, kinds=self.declared,
+                                                   schemas=None if self.spec is None else dict(self.spec.schemas))
         except BaseException:
             session.close()
             raise

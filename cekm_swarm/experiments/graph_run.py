@@ -23,7 +23,7 @@ from ..node.api import Context
 from ..node.inprocess import GraphExecutor
 from ..protocol import DEFAULT_KEYS, Clock, KeySpace, WorldState
 from ..robot import RobotBody
-from ..ticks import TICK_S
+from ..ticks import STEP_TIMEOUT, TICK_S
 
 DEFAULT_MAX_TIME = {"navigation": 600.0, "tracking": 120.0}
 """Sim seconds of a run unless told otherwise, by task: the same for ``cekm run`` and
@@ -95,10 +95,12 @@ class GraphRun:
 def run_graph(scenario, controller: str | None = "cekm", *, graph: str | Graph | CheckedGraph | None = None,
               model=None, seed: int | None = None, max_time: float | None = None, checkpoints=None,
               params: dict[str, Any] | None = None, progress: Callable[[float], None] | None = None,
-              stop_at: int | None = None, codec: bool = False, keys: KeySpace = DEFAULT_KEYS) -> GraphRun:
+              stop_at: int | None = None, codec: bool = False, keys: KeySpace = DEFAULT_KEYS,
+              step_timeout: float | None = STEP_TIMEOUT) -> GraphRun:
     """Run ``scenario`` with a controller's graph to the end (navigation: every robot at
     its goal, or ``max_time``; tracking: ``max_time``). ``stop_at``: stop after computing
-    that tick (for a look at the fields, Fig. 4). ``progress(t)`` every simulated second."""
+    that tick (for a look at the fields, Fig. 4). ``progress(t)`` every simulated second.
+    ``step_timeout``: wall seconds a step may run before the run fails naming it."""
     from world import World
     from world.episode import make_episode
     from world.sense import SENDER, sense_messages
@@ -124,7 +126,7 @@ def run_graph(scenario, controller: str | None = "cekm", *, graph: str | Graph |
     def context(node) -> Context:
         return Context(node.robot, node.decl.name, node.instance, team, body, "inprocess", model, "numba")
 
-    executor = GraphExecutor(plan, checked, context, codec=codec)
+    executor = GraphExecutor(plan, checked, context, codec=codec, step_timeout=step_timeout)
     max_ticks = int(math.ceil(max_time / TICK_S))
     episode = make_episode(world, task, checkpoints, max_ticks)
     reads = {r: set(plan.world_keys(r)) for r in team}

@@ -16,8 +16,8 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, Mapping
 
-from cekm_swarm.node.api import Node, make_params, param_fields
-from cekm_swarm.protocol import KeySpace
+from cekm_swarm.node.api import Node, make_params, param_fields, raised_at
+from cekm_swarm.protocol import KeySpace, kind_of
 
 from .plan import PortTypes, RunPlan
 from .resolve import build_plan
@@ -32,11 +32,18 @@ def node_class(program: str, source: str = "", where: str = "") -> type[Node]:
     try:
         mod = importlib.import_module(mod_name)
     except ImportError as exc:
+        missing = getattr(exc, "name", None)
+        if missing is not None and missing != mod_name and not mod_name.startswith(missing + "."):
+            # the program's module was found, and an import of its own failed
+            at = raised_at(exc)
+            raise GraphError(source, f"{where}.program", f"program {program!r} failed to import: "
+                                                        f"{type(exc).__name__}: {exc}" + (f" ({at})" if at else "")) from None
         raise GraphError(source, f"{where}.program", f"unknown program {program!r}: cannot import {mod_name!r} "
                                                     f"({exc})") from None
     except Exception as exc:  # noqa: BLE001 - a user's module may fail in any way on import
+        at = raised_at(exc)
         raise GraphError(source, f"{where}.program", f"program {program!r} failed to import: "
-                                                    f"{type(exc).__name__}: {exc}") from None
+                                                    f"{type(exc).__name__}: {exc}" + (f" ({at})" if at else "")) from None
     if cls_name:
         cls = getattr(mod, cls_name, None)
         if not (inspect.isclass(cls) and issubclass(cls, Node)):
@@ -66,8 +73,8 @@ def _beside(source: str) -> None:
 
 def port_types(cls: type[Node]) -> PortTypes:
     """A node class's ports as plain data."""
-    return PortTypes({p: (i.type.KIND.value, i.many) for p, i in cls.inputs.items()},
-                     {p: o.type.KIND.value for p, o in cls.outputs.items()}, bool(cls.stateful), bool(cls.uses_model),
+    return PortTypes({p: (kind_of(i.type), i.many) for p, i in cls.inputs.items()},
+                     {p: kind_of(o.type) for p, o in cls.outputs.items()}, bool(cls.stateful), bool(cls.uses_model),
                      bool(getattr(cls, "pure", False)))
 
 

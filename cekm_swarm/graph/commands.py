@@ -8,7 +8,7 @@ from pathlib import Path
 
 import click
 
-from cekm_swarm.cli_support import RobotIds
+from cekm_swarm.cli_support import FileRefused, RobotIds
 from cekm_swarm.ticks import TICK_S
 
 from .spec import GraphError, load_graph, shipped_graphs
@@ -38,7 +38,7 @@ def _checked(graph: str):
     try:
         return check_graph(graph)
     except GraphError as exc:
-        raise click.UsageError(str(exc)) from None
+        raise FileRefused(str(exc)) from None
 
 
 def _task(checked, task: str | None) -> str:
@@ -106,7 +106,7 @@ def show_cmd(graph: str, task: str | None, robots: tuple[str, ...], as_json: boo
     try:
         plan = checked.plan(robots, t)
     except GraphError as exc:
-        raise click.UsageError(str(exc)) from None
+        raise FileRefused(str(exc)) from None
     if as_json:
         doc = plan.to_dict()
         doc["params"] = {k: dict(v) for k, v in checked.params.items()}
@@ -127,7 +127,7 @@ def check_cmd(graph: str, task: str | None) -> None:
         try:
             plan = checked.plan(TEAM, t)
         except GraphError as exc:
-            raise click.UsageError(str(exc)) from None
+            raise FileRefused(str(exc)) from None
         for w in plan.warnings:
             click.echo(f"warning: {w}", err=True)
         for name in checked.classes:
@@ -151,7 +151,7 @@ def acl_cmd(graphs: tuple[str, ...], robots: tuple[str, ...], tls: bool, out_pat
     try:
         text = router_config([_checked(g) for g in graphs], robots, tls=tls)
     except GraphError as exc:
-        raise click.UsageError(str(exc)) from None
+        raise FileRefused(str(exc)) from None
     if out_path is None:
         click.echo(text, nl=False)
     else:

@@ -158,9 +158,11 @@ def build_plan(graph: Graph, team: tuple[str, ...] | list[str], task: str, ports
                 if not hits:
                     raise GraphError(src, where, f"unknown key {rel!r}: no node of the graph sends it and the world "
                                                  f"does not publish it")
-                for k, lab, kind, _, _ in hits:
+                for k, lab, kind, _, prod in hits:
                     if kind != want_kind:
-                        raise GraphError(src, where, f"{rel!r} carries {kind} messages, the port takes {want_kind}")
+                        by = "" if prod == WORLD_OWNER else f" (node {prod!r} sends them)"
+                        raise GraphError(src, where, f"{rel!r} carries {kind} messages{by}, the port of node "
+                                                     f"{n.name!r} takes {want_kind}")
                 if not many and (len(hits) > 1 or d.scope == "teammates" or rel.endswith("/*")):
                     raise GraphError(src, where, f"port {d.port!r} takes one key, {rel!r} "
                                                  f"{'is every teammate' if d.scope == 'teammates' else 'matches several'}")

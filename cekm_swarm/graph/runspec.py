@@ -45,6 +45,7 @@ class RunSpec:
     model_timeout: float = 30.0
     log_level: str = "INFO"
     hold_readings: bool = True  # the world leaves unchanged readings out (RunPlan.held_readings)
+    schemas: Mapping[str, Any] = field(default_factory=dict)  # a user message kind -> its JSON Schema (for the log)
 
     @property
     def keys(self) -> KeySpace:
@@ -70,7 +71,7 @@ class RunSpec:
                 "body": self.body.to_dict(), "root": self.root, "run_id": self.run_id, "mode": self.mode,
                 "connect": self.connect, "zenoh_config": self.zenoh_config, "model": self.model,
                 "model_timeout": self.model_timeout, "log_level": self.log_level,
-                "hold_readings": self.hold_readings}
+                "hold_readings": self.hold_readings, **({"schemas": dict(self.schemas)} if self.schemas else {})}
 
     @classmethod
     def from_dict(cls, doc: Mapping[str, Any], source: str = "run spec") -> "RunSpec":
@@ -81,7 +82,7 @@ class RunSpec:
                        {k: dict(v) for k, v in doc["params"].items()}, tuple(doc["team"]), doc["task"],
                        RobotBody.from_dict(doc["body"]), doc["root"], doc["run_id"], doc["mode"], doc["connect"],
                        doc["zenoh_config"], doc["model"], float(doc["model_timeout"]), doc["log_level"],
-                       bool(doc.get("hold_readings", True)))
+                       bool(doc.get("hold_readings", True)), dict(doc.get("schemas") or {}))
         except (KeyError, TypeError, ValueError) as exc:
             raise GraphError(source, None, f"not a run spec ({type(exc).__name__}: {exc})") from None
 

@@ -15,6 +15,7 @@ from cekm_swarm.cli_support import (
     RUN_ID,
     SEED,
     SIZE,
+    FileRefused,
     Finite,
     Interrupted,
     RobotIds,
@@ -28,6 +29,7 @@ from cekm_swarm.cli_support import (
 from cekm_swarm.errors import CekmError
 from cekm_swarm.runtime.config import DEFAULT_ENDPOINT, DEFAULT_PORT
 from cekm_swarm.runtime.log_commands import LOG_HELP
+from cekm_swarm.ticks import STEP_TIMEOUT
 
 
 def _env_endpoint() -> str | None:
@@ -85,6 +87,9 @@ def _env_endpoint() -> str | None:
                    "(500M, 2G, ...); cekm log and cekm replay take the set (docs/tools.md).")
 @click.option("--max-log-duration", type=Finite(0.0, min_open=True), metavar="S",
               help="Split the log into a set: a new file every S s of sim time.")
+@click.option("--step-timeout", type=Finite(0.0, min_open=True), default=STEP_TIMEOUT, show_default=True,
+              metavar="S", help="Lockstep: a tick the world waits S s for (a step that hangs) ends the launch with "
+                               "the stall report, exit 1.")
 @click.option("--record", "record", type=click.Choice(["full", "lean"]), default="full", show_default=True,
               help="What run.mcap holds: full (every message and view), or lean for long runs (the world's "
                    "messages, commands and shares, views at 1 Hz; docs/tools.md).")
@@ -102,8 +107,8 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwr
                root: str, no_plot: bool, robots: tuple[str, ...] | None, no_world: bool, listen_host: str,
                zenoh_config: Path | None, model_from_zenoh: bool, run_id: str | None, cold_start: bool,
                send_every_reading: bool, max_log_size: int | None, max_log_duration: float | None,
-               record: str, plant: str | None = None, plant_domain: int = 0, plant_distro: str = "jazzy",
-               robot_description: Path | None = None) -> None:
+               record: str, step_timeout: float, plant: str | None = None, plant_domain: int = 0,
+               plant_distro: str = "jazzy", robot_description: Path | None = None) -> None:
     """Run SCENARIO through the distributed runtime: the world server and, per robot, every
     node of the controller's graph as its own process on Zenoh (cekm: 1 + 12 + 1),
     supervised (restarted when they die)."""
@@ -146,14 +151,14 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwr
             raise click.UsageError(str(exc)) from None
     from cekm_swarm.graph.spec import GraphError
 
-    from .errors import NodeCannotStart
+    from .errors import NodeCannotStart, NodeFailed
     from .prepare import PreflightError, resolve
 
     try:  # the graph, checked before anything is written or started
         checked, task = resolve(sc, controller, graph_file)
         checked.plan([r.id for r in sc.robots], task)
     except GraphError as exc:
-        raise click.UsageError(str(exc)) from None
+        raise FileRefused(str(exc)) from None
     if plant is not None:  # a body the model does not fit, a lockstep run: refused before anything starts
         from .plant_host import refuse_plant
 
@@ -165,14 +170,21 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwr
 
         body = body_of(sc)
         preflight(checked, plan_of(checked, tuple(known), task, body, root), body, str(model_path))
+    if connect is None:  # a taken port is refused before --out is touched, so the retry with --port needs no --overwrite
+        from .prepare import port_taken
+
+        why = port_taken(listen_host, port)
+        if why is not None:
+            raise RunFailed(f"cannot open the Zenoh router on {listen_host}:{port}: {why}; port {port} is taken "
+                            f"(another run or program listens there): choose another with --port")
     prepare_out_dir(out_dir, overwrite)
     config = LaunchConfig(scenario, out_dir, mode=mode, seed=seed, connect=connect, port=port, model=model_path,
                           max_time=max_time, controller=controller, graph=graph_file, root=root, plot=not no_plot,
                           robots=only, world=not no_world, listen_host=listen_host, zenoh_config=zenoh_config,
                           model_from_zenoh=model_from_zenoh, run_id=run_id, warm_start=not cold_start,
                           hold_readings=not send_every_reading and plant is None, max_log_size=max_log_size,
-                          max_log_duration=max_log_duration, record=record, plant=plant, plant_domain=plant_domain,
-                          plant_distro=plant_distro, robot_description=robot_description)
+                          max_log_duration=max_log_duration, record=record, step_timeout=step_timeout, plant=plant,
+                          plant_domain=plant_domain, plant_distro=plant_distro, robot_description=robot_description)
     launcher = Launcher(config, echo=lambda s: click.echo(s))
     try:
         outcome = launcher.launch()
@@ -180,6 +192,8 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwr
         raise click.UsageError(str(exc)) from None
     except (GraphError, PreflightError, NodeCannotStart):  # bad input: cekm: error: <the one line>
         raise
+    except NodeFailed as exc:  # a step failed or hung: the run failed (exit 1), its one line
+        raise RunFailed(str(exc)) from None
     except CekmError as exc:  # the world server or the embedded router did not come up: say why, no traceback
         raise RunFailed(str(exc)) from None
     if no_world:

@@ -10,4 +10,9 @@ class LaunchError(RunError):
 
 
 class NodeCannotStart(CekmError):
-    """A node of the graph cannot start (a bad model, a bad parameter): its own line."""
+    """A node of the graph cannot start (a bad model, a bad parameter): its own line (exit 2)."""
+
+
+class NodeFailed(RunError):
+    """A node's step failed, hung past ``--step-timeout``, or its process kept dying at one
+    lockstep tick: the run cannot go on (exit 1), its own line."""

@@ -44,10 +44,10 @@ from cekm_swarm.runtime.config import DEFAULT_HOST, DEFAULT_PORT, open_embedded_
 from cekm_swarm.runtime.errors import RuntimeTransportError
 from cekm_swarm.runtime.model_service import ZENOH_MODEL, ModelServer
 from cekm_swarm.runtime.wait import open_client_when_ready
-from cekm_swarm.ticks import tick_of
+from cekm_swarm.ticks import STEP_TIMEOUT, tick_of
 
 from .cpu import CpuSnapshot, cpu_per_tick
-from .errors import LaunchError, NodeCannotStart
+from .errors import LaunchError, NodeCannotStart, NodeFailed
 from .plot import draw_trajectory
 from .processes import new_run_id
 from .reports import missing_by_robot, node_summary, notable, read_reports, reproducible, summary_lines
@@ -90,6 +90,7 @@ class LaunchConfig:
     plant_domain: int = 0  # ... its ROS_DOMAIN_ID
     plant_distro: str = "jazzy"  # ... its ROS 2 distribution
     robot_description: Path | None = None  # ... its robot description file (default: the scenario's body)
+    step_timeout: float | None = STEP_TIMEOUT  # lockstep: s a tick may wait on a hung step before the run fails
 
 
 class Launcher(Supervision, WorldHost, RobotHost):
@@ -120,6 +121,7 @@ class Launcher(Supervision, WorldHost, RobotHost):
         self.checked: Any = None  # the controller's graph, checked (cekm_swarm.graph.check)
         self.plan: Any = None  # ... resolved for the team
         self.spec_path: Path | None = None
+        self.failed_running = False  # the failure is a step's that failed or hung (exit 1), not a start's
         self.failure: str | None = None  # a node that cannot start: the launch ends with its line
         self.log_full: str | None = None  # the world's log filled its disk: the launch ends with this line
 
@@ -159,7 +161,7 @@ class Launcher(Supervision, WorldHost, RobotHost):
                 await self._teardown()
             if self.failure is not None:  # the world's outcome (if any) still gets the launcher's record
                 self._finish_outcome(failure=str(self.failure))
-                raise NodeCannotStart(self.failure)
+                raise (NodeFailed if self.failed_running else NodeCannotStart)(self.failure)
             outcome = self._finish_outcome()
             self._plot(scenario, outcome)
             return outcome
@@ -223,11 +225,17 @@ class Launcher(Supervision, WorldHost, RobotHost):
     def _preflight(self, model) -> None:
         """One node of every kind built here: a bad model or parameter is refused before
         any process starts (a robot host fetching the model checks it when it has it)."""
-        from .prepare import preflight
+        from .prepare import PreflightError, preflight
 
         if model == ZENOH_MODEL:
             return
-        preflight(self.checked, self.plan, self.body, None if model is None else str(model))
+        try:
+            preflight(self.checked, self.plan, self.body, None if model is None else str(model))
+        except PreflightError as exc:  # the one line is the command's; the traceback goes to launch.log
+            if exc.trace and self._log is not None:
+                self._log.write(f"{exc}\n{exc.trace}")
+                self._log.flush()
+            raise
 
     def _write_spec(self, model, endpoint: str) -> Path:
         """``OUT/run-spec.json``: what every process of this launch reads."""

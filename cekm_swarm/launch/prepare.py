@@ -15,13 +15,18 @@ from cekm_swarm.graph.check import CheckedGraph
 from cekm_swarm.graph.plan import RunPlan
 from cekm_swarm.graph.runspec import RunSpec
 from cekm_swarm.graph.spec import GraphError
-from cekm_swarm.node.api import Context, cannot_start
+from cekm_swarm.node.api import Context, cannot_start, traceback_text
 from cekm_swarm.protocol import KeySpace
 from cekm_swarm.robot import RobotBody
 
 
 class PreflightError(CekmError):
-    """A node of the graph cannot start as configured (bad model, bad parameter)."""
+    """A node of the graph cannot start as configured (bad model, bad parameter); ``trace``
+    is the traceback of the node's code that raised, for the launch's log."""
+
+    def __init__(self, line: str, trace: str = "") -> None:
+        super().__init__(line)
+        self.trace = trace
 
 
 def resolve(scenario: Any, controller: str | None, graph: str | Path | None,
@@ -62,13 +67,16 @@ def preflight(checked: CheckedGraph, plan: RunPlan, body: RobotBody, model: Any)
         try:
             checked.classes[name](ctx, checked.make_params(name)).close()
         except Exception as exc:  # noqa: BLE001 - a user's node may fail in any way while starting
-            raise PreflightError(cannot_start(node.label, exc)) from None
+            raise PreflightError(cannot_start(node.label, exc), traceback_text(exc)) from None
 
 
 def run_spec(checked: CheckedGraph, team: tuple[str, ...], task: str, body: RobotBody, **settings: Any) -> RunSpec:
     """The run spec of a launch (see :mod:`cekm_swarm.graph.runspec`)."""
+    from cekm_swarm.protocol.user import user_schemas
+
+    types = [p.type for cls in checked.classes.values() for p in (*cls.inputs.values(), *cls.outputs.values())]
     return RunSpec(checked.graph, dict(checked.ports), {k: dict(v) for k, v in checked.params.items()}, tuple(team),
-                   task, body, **settings)
+                   task, body, **settings, schemas=user_schemas(types))
 
 
 def plan_of(checked: CheckedGraph, team: tuple[str, ...], task: str, body: RobotBody, root: str,
@@ -77,3 +85,20 @@ def plan_of(checked: CheckedGraph, team: tuple[str, ...], task: str, body: Robot
         return checked.plan(team, task, body.sensors, KeySpace(root, body.sensors, run_id))
     except GraphError:
         raise
+
+
+def port_taken(host: str, port: int) -> str | None:
+    """Why the embedded router could not listen on ``host:port`` (the OS's words, say
+    "Address already in use"), None when it could: probed by binding it a moment, as the
+    router would (a race with another program remains, and the launch then says so)."""
+    import socket
+
+    family = socket.AF_INET6 if ":" in host.strip("[]") else socket.AF_INET
+    with socket.socket(family, socket.SOCK_STREAM) as s:
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            s.bind((host.strip("[]"), port))
+            s.listen(1)
+        except OSError as exc:
+            return exc.strerror or str(exc)
+    return None

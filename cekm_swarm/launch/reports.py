@@ -61,7 +61,9 @@ def node_summary(reports: Iterable[dict[str, Any]]) -> dict[str, Any]:
     runs, not_ready, dropped = 0, 0, 0
     failures: dict[str, int] = {}
     ran_without: set[str] = set()
+    changes: list[dict[str, Any]] = []
     for r in reports:
+        changes += [c for c in (r.get("param_changes") or ()) if isinstance(c, dict)]
         runs += int(r.get("runs", 0))
         ran_without.update(str(k) for k in (r.get("ran_without") or ()))
         not_ready += int(r.get("not_ready", 0))
@@ -69,13 +71,13 @@ def node_summary(reports: Iterable[dict[str, Any]]) -> dict[str, Any]:
         for what, n in (r.get("step_failures") or {}).items():
             failures[what] = failures.get(what, 0) + int(n)
     return {"runs": runs, "step_failures": failures, "not_ready": not_ready, "dropped": dropped,
-            "ran_without": sorted(ran_without)}
+            "ran_without": sorted(ran_without), **({"param_changes": changes} if changes else {})}
 
 
 def notable(summaries: dict[str, dict[str, Any]]) -> dict[str, dict[str, Any]]:
     """The nodes worth a line: any failed or skipped run, or any dropped message."""
     return {label: s for label, s in summaries.items()
-            if s["step_failures"] or s["not_ready"] or s["dropped"] or s.get("ran_without")}
+            if s["step_failures"] or s["not_ready"] or s["dropped"] or s.get("ran_without") or s.get("param_changes")}
 
 
 def summary_lines(summaries: dict[str, dict[str, Any]], logs: dict[str, Path]) -> list[str]:
@@ -95,6 +97,8 @@ def summary_lines(summaries: dict[str, dict[str, Any]], logs: dict[str, Path]) -
         if s.get("ran_without"):
             parts.append(f"a run after its restart went without {', '.join(s['ran_without'])} of the tick "
                          f"before (its producer restarted too)")
+        for c in s.get("param_changes", ()):
+            parts.append(f"parameter {c.get('name')} = {c.get('value')!r} from t={c.get('t')} s")
         where = f" (see {logs[label]})" if label in logs else ""
         lines.append(f"node {label}: " + ", ".join(parts) + where)
     return lines

@@ -80,6 +80,7 @@ class Supervision:
     stopping: bool
     interrupted: bool
     failure: str | None
+    failed_running: bool
     c: Any
     keys: Any
     session: Any
@@ -177,10 +178,11 @@ class Supervision:
                 next_report = loop.time() + self.wait_report_every
         self.supervisors = [asyncio.ensure_future(self._supervise(ch)) for ch in self.children.values()]
 
-    async def _name_stalled(self, robots: list[str], t: float) -> None:
+    async def _name_stalled(self, robots: list[str], t: float, end: bool = False) -> None:
         """The world has waited at ``t`` for ``robots``: ask their live nodes where they are
         (:data:`~cekm_swarm.node.process.STALL_SIGNAL`) and say each one's line, so a step
-        that hangs is named, with the stacks in its log; or that none is in a step."""
+        that hangs is named, with the stacks in its log; or that none is in a step. ``end``:
+        the wait passed ``--step-timeout``, so the run ends as failed with the first line."""
         asked = {}
         for child in self.children.values():
             if child.robot in robots and child.proc is not None and child.proc.returncode is None:
@@ -205,12 +207,17 @@ class Supervision:
                 if "no step running" not in line:
                     line = line.replace("; its threads' stacks follow", f", at {where}" if where else "")
                     stepping.append(f"{line} (its threads' stacks: {child.log_path})")
-        for line in stepping:
-            self.say(f"the world waits at t={t:.2f} s: {line}")
+        said = [f"the world waits at t={t:.2f} s: {line}" for line in stepping]
         if not stepping and asked:
-            self.say(f"the world waits at t={t:.2f} s for {', '.join(robots)}: no node of "
-                     f"{'it' if len(robots) == 1 else 'them'} is in a step, so each waits for an input that was "
-                     f"never sent (see their logs in {self.c.out / 'logs'})")
+            said.append(f"the world waits at t={t:.2f} s for {', '.join(robots)}: no node of "
+                        f"{'it' if len(robots) == 1 else 'them'} is in a step, so each waits for an input that was "
+                        f"never sent (see their logs in {self.c.out / 'logs'})")
+        for line in said:
+            self.say(line)
+        if end and said and self.failure is None and not self.stopping:
+            self.failure, self.failed_running = f"{said[0]}; --step-timeout {self.c.step_timeout:g} s passed", True
+            self.say("the launch ends (--step-timeout)")
+            self._interrupt_for_failure()
 
     async def _supervise(self, child: Child) -> None:
         while True:
@@ -225,7 +232,7 @@ class Supervision:
                 self._interrupt_for_failure()
                 return
             if code == EXIT_STEP_FAILED:  # lockstep cannot go on without that run's outputs
-                self.failure = self._own_line(child, STEP_FAILED, code)
+                self.failure, self.failed_running = self._own_line(child, STEP_FAILED, code), True
                 self.say(f"node {child.label} failed: {self.failure}; the launch ends")
                 self._interrupt_for_failure()
                 return
@@ -262,6 +269,7 @@ class Supervision:
         if child.same_tick < SAME_TICK_RESTARTS or self.failure is not None:
             return
         why = f"signal {-code}" if code < 0 else f"exit code {code}"
+        self.failed_running = True
         self.failure = (f"{child.label}: died ({why}) at t={tick_time(tick):.3f} s (tick {tick}), and again after each "
                         f"of {child.same_tick} restarts, the world waiting at that tick; in lockstep the run cannot go "
                         f"on without its outputs (see {child.log_path})")

@@ -55,6 +55,21 @@ def format_progress(doc: dict[str, Any]) -> str:
     return "  ".join(parts)
 
 
+def format_event(doc: dict[str, Any]) -> str:
+    """A world event as a person reads it: ``world event at t=3.07 s: deadman: r1 silent for
+    0.52 s (limit 0.5 s), stopped`` (no Python dict, no epoch stamp)."""
+    what, t = doc.get("event"), float(doc.get("t", 0.0))
+    if what == "deadman":
+        said = (f"{doc.get('robot')} silent for {doc.get('silent_s')} s (limit {doc.get('limit_s')} s), stopped "
+                f"until its commands come again")
+    elif what == "republish":
+        said = f"waiting for {', '.join(map(str, doc.get('waiting') or [])) or 'nobody'}, the tick's readings sent again"
+    else:
+        said = ", ".join(f"{k} {', '.join(map(str, v)) if isinstance(v, list) else v}" for k, v in doc.items()
+                         if k not in ("event", "t", "wall"))
+    return f"world event at t={t:.2f} s: {what}" + (f": {said}" if said else "")
+
+
 class WorldHost:
     """The world-server part of :class:`~cekm_swarm.launch.launcher.Launcher`."""
 
@@ -62,18 +77,23 @@ class WorldHost:
     c: Any
     _stall: tuple[float, int] = (-1.0, 0)  # (the stalled tick's time, how many re-publishings of it)
 
-    def _name_stalled(self, robots: list[str], t: float) -> Any:  # pragma: no cover - the launcher's
+    failure: str | None
+
+    def _name_stalled(self, robots: list[str], t: float, end: bool = False) -> Any:  # pragma: no cover - the launcher's
         raise NotImplementedError
 
     def _note_stall(self, doc: dict[str, Any]) -> None:
         """A lockstep tick re-published (about once a second while the world waits): at the
         :data:`STALL_REPORT_AFTER`-th time for one tick, ask the waited-for robots' nodes
-        where they are (:meth:`~.supervision.Supervision._name_stalled`)."""
+        where they are (:meth:`~.supervision.Supervision._name_stalled`); once it has waited
+        ``--step-timeout`` s, ask again and end the run with that line."""
         t = float(doc["t"])
         count = self._stall[1] + 1 if self._stall[0] == t else 1
         self._stall = (t, count)
-        if count == STALL_REPORT_AFTER and doc.get("waiting"):
-            asyncio.ensure_future(self._name_stalled(list(doc["waiting"]), t))
+        timeout = self.c.step_timeout
+        ends = timeout is not None and count * self.c.republish >= timeout and self.failure is None
+        if (count == STALL_REPORT_AFTER or ends) and doc.get("waiting"):
+            asyncio.ensure_future(self._name_stalled(list(doc["waiting"]), t, end=ends))
 
     async def _read_world(self, stream: asyncio.StreamReader) -> None:
         while True:
@@ -91,8 +111,7 @@ class WorldHost:
             elif kind == "EVENT" and doc is not None:
                 if doc.get("event") == "log_full":
                     self.log_full = f"{doc.get('log')}; the run stopped at t={doc['t']:.2f} s of sim time"
-                extra = {k: v for k, v in doc.items() if k not in ("event", "t")}
-                self.say(f"world event at t={doc['t']:.2f} s: {doc['event']} {extra}")
+                self.say(format_event(doc))
                 if doc.get("event") == "republish":
                     self._note_stall(doc)
             elif kind == "START" and doc is not None:

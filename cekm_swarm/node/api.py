@@ -34,14 +34,16 @@ from __future__ import annotations
 import dataclasses
 import logging
 import math
+import os
 import threading
+import traceback
 import typing
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 from cekm_swarm.errors import CekmError
-from cekm_swarm.protocol import MESSAGE_TYPES
+from cekm_swarm.protocol import is_message_type
 from cekm_swarm.robot import RobotBody
 
 
@@ -49,6 +51,13 @@ class NodeError(CekmError):
     """A node cannot be built or run as declared (a bad parameter, a model it cannot use);
     the message names the node and what is wrong. A node that raises it while starting is
     a permanent failure: the launch ends with this line, and the node is not restarted."""
+
+
+class StepFailed(NodeError):
+    """A node's step raised, returned what it may not, or ran past ``--step-timeout``: the
+    run failed (``cekm: failed: ...``, exit code 1), in one line naming the node and the tick."""
+
+    exit_code = 1
 
 
 class NotReady(Exception):
@@ -70,8 +79,8 @@ class In:
     doc: str = ""
 
     def __post_init__(self) -> None:
-        if self.type not in MESSAGE_TYPES.values():
-            raise TypeError(f"In({self.type!r}): not a message type of cekm_swarm.protocol")
+        if not is_message_type(self.type):
+            raise TypeError(f"In({self.type!r}): not a message type of cekm_swarm.protocol, nor a UserMessage")
 
 
 @dataclass(frozen=True)
@@ -82,8 +91,8 @@ class Out:
     doc: str = ""
 
     def __post_init__(self) -> None:
-        if self.type not in MESSAGE_TYPES.values():
-            raise TypeError(f"Out({self.type!r}): not a message type of cekm_swarm.protocol")
+        if not is_message_type(self.type):
+            raise TypeError(f"Out({self.type!r}): not a message type of cekm_swarm.protocol, nor a UserMessage")
 
 
 @dataclass(frozen=True)
@@ -98,12 +107,21 @@ _LOCK = threading.Lock()
 
 @dataclass(frozen=True)
 class Context:
-    """What a node knows of where it runs: its robot, its name and instance, the team,
-    its body and sensors, the run's mode and model.
+    """What a node knows of where it runs (``self.ctx``):
 
-    ``mode`` is ``lockstep``, ``realtime`` or ``inprocess`` (``cekm run``); ``backend``
-    is how EKM winners are found: ``numba`` in one process, ``numpy`` in a module process
-    (a third of the memory); both give the same winners bit for bit."""
+    * ``robot``: its robot's id (``r1``); ``node``: its name in the graph; ``instance``: its
+      instance number (0..11 for ``obstacle-0..11``; None for a node of one instance);
+      :attr:`name` and :attr:`sender` (``r1/obstacle-3``);
+    * ``team``: every robot of the run, in scenario order; :attr:`teammates`: the others;
+    * ``body``: its body and sensors, a :class:`cekm_swarm.robot.RobotBody` (``body_radius``,
+      ``axle``, ``v_max``, ``sensor_angles``, ``sensor_range``, ``target_range``, in m,
+      m/s and rad), from the scenario;
+    * ``mode``: ``lockstep``, ``realtime``, ``inprocess`` (``cekm run``) or ``check`` (the
+      launcher's build of the node before anything starts: skip side effects there);
+    * :meth:`model`: the run's trained model; :meth:`shared`: a value computed once per process;
+    * ``log``: a logger whose lines go to the node's log;
+    * ``backend``: how EKM winners are found: ``numba`` in one process, ``numpy`` in a
+      module process (a third of the memory); both give the same winners bit for bit."""
 
     robot: str
     node: str
@@ -208,14 +226,34 @@ class Node:
 
 def cannot_start(label: str, exc: BaseException) -> str:
     """The one line of node ``label`` that cannot start because building or setting it up
-    raised ``exc``: a :class:`NodeError`, another of the package's errors or a ValueError
-    (a bad parameter, a model it cannot use) say what is wrong, after the node's name;
-    any other exception is a fault of the node's code, named by its type. The same line
-    in ``cekm run``, the launcher's check of a graph and a node's process."""
+    raised ``exc``: a :class:`NodeError` or another of the package's errors says what is
+    wrong, after the node's name; any other exception is a fault of the node's code, named
+    by its type and the file and line that raised it (:func:`raised_at`). The same line in
+    ``cekm run``, the launcher's check of a graph and a node's process; the traceback goes
+    to the node's log (:func:`traceback_text`)."""
     what = " ".join(str(exc).split())
-    if not isinstance(exc, (CekmError, ValueError)):
-        return f"{label}: cannot start: {type(exc).__name__}: {what}"
+    if not isinstance(exc, CekmError):
+        at = raised_at(exc)
+        return f"{label}: cannot start: {type(exc).__name__}: {what}" + (f" ({at})" if at else "")
     return what if what.startswith(f"{label}:") else f"{label}: {what}"
+
+
+_PLUMBING = tuple(os.path.join(os.path.dirname(os.path.dirname(__file__)), d) + os.sep for d in ("node", "protocol"))
+
+
+def raised_at(exc: BaseException) -> str:
+    """``file.py:line`` of the innermost frame of ``exc``'s traceback in the node's own code
+    (not the framework's checks), "" when it has none."""
+    frames = traceback.extract_tb(exc.__traceback__)
+    own = [f for f in frames if not f.filename.startswith(_PLUMBING + ("<",))]
+    f = (own or frames or [None])[-1]
+    return f"{os.path.basename(f.filename)}:{f.lineno}" if f is not None else ""
+
+
+def traceback_text(exc: BaseException) -> str:
+    """The traceback of what made ``exc`` (its cause when it wraps one), for a node's log."""
+    cause = exc.__cause__ if exc.__cause__ is not None else exc
+    return "".join(traceback.format_exception(type(cause), cause, cause.__traceback__))
 
 
 def start_node(cls: type["Node"], ctx: Context, params: Any = None) -> "Node":

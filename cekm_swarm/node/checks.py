@@ -16,6 +16,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from cekm_swarm.graph.plan import NodePlan
+from cekm_swarm.protocol import Nothing
 from cekm_swarm.protocol.checks import lattice_misfit, on_lattice
 
 from .api import Context, Node, NodeError
@@ -44,6 +45,8 @@ class OutputCheck:
         if not n:
             return
         for i, port in self.ports:
+            if type(sent[i][1]) is Nothing:  # nothing sent on it this tick
+                continue
             why = lattice_misfit(sent[i][1], n)
             if why is not None:
                 raise NodeError(f"{self.label}: its step at t={t:.3f} s failed: output {port!r}: {why}")

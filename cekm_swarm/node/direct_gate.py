@@ -8,6 +8,7 @@ from collections.abc import Collection, Iterable
 from typing import Any
 
 from cekm_swarm.graph.plan import NodePlan
+from cekm_swarm.protocol import Nothing
 
 from .api import Inputs
 from .runner import Runner
@@ -43,7 +44,7 @@ class DirectGate:
     def put(self, key: str, msg: Any) -> list[tuple[str, Any]]:
         if key != self.key:
             return []
-        sent = self.runner.run(tick_of(msg.stamp), Inputs({self.port: msg}))
+        sent = self.runner.run(tick_of(msg.stamp), Inputs({self.port: None if type(msg) is Nothing else msg}))
         self.recent_out.append(sent)
         return sent
 

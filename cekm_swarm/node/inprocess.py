@@ -17,12 +17,13 @@ from typing import Any
 
 from cekm_swarm.graph.check import CheckedGraph
 from cekm_swarm.graph.plan import NodePlan, RunPlan
-from cekm_swarm.protocol import KeyKind, decode, encode
-from cekm_swarm.ticks import TICK_S, tick_time
+from cekm_swarm.protocol import Nothing, decode, encode, expect_of
+from cekm_swarm.ticks import STEP_TIMEOUT, TICK_S, tick_time
 
-from .api import Context, Node, NodeError, start_node
+from .api import Context, Node, NodeError, StepFailed, start_node
 from .runner import Runner
 from .timing import gather
+from .watchdog import Watchdog
 
 KEEP_TICKS = 16
 """Ticks of values kept per key (more than any shipped node's period and delay need)."""
@@ -33,14 +34,15 @@ class GraphExecutor:
     :meth:`tick` (k) returns each robot's answer (its wheel command of tick k)."""
 
     def __init__(self, plan: RunPlan, checked: CheckedGraph, context: Callable[[NodePlan], Context],
-                 codec: bool = False) -> None:
+                 codec: bool = False, step_timeout: float | None = STEP_TIMEOUT) -> None:
         self.plan = plan
         self.codec = codec
         self.runners: list[Runner] = []
         for robot in plan.team:
             for node in plan.nodes[robot]:
                 cls = checked.classes[node.decl.name]
-                self.runners.append(Runner(node, start_node(cls, context(node), checked.make_params(node.decl.name))))
+                self.runners.append(Runner(node, start_node(cls, context(node), checked.make_params(node.decl.name)),
+                                           plan.answer_key(robot)))
         # what a reader checks of what it receives, its producer's step is refused for
         # (in a launch the reader would drop it and wait for good): the run's checks of
         # each node's outputs (.checks, in Runner.run), and the readers' own (Node.check_input)
@@ -54,7 +56,8 @@ class GraphExecutor:
         self.answer_keys = {r: plan.answer_key(r) for r in plan.team}
         keep = max([n.period for r in plan.team for n in plan.nodes[r]] + [1])
         self.keep = max(KEEP_TICKS, 4 * keep)
-        self.kinds = {k: KeyKind(v) for r in plan.team for k, v in plan.sent_keys(r).items()}
+        self.kinds = {k: expect_of(v) for r in plan.team for k, v in plan.sent_keys(r).items()}
+        self.watchdog = None if step_timeout is None else Watchdog(step_timeout)  # a step that never returns
 
     def _lookup(self, key: str, tick: int) -> Any:
         held = self.values.get(key)
@@ -79,9 +82,9 @@ class GraphExecutor:
             if missing:
                 raise NodeError(f"{node.label}: at t={round(k * TICK_S, 9)} nothing has sent {missing[0]} (in lockstep "
                                 f"this node would wait for it forever)")
-            sent = runner.run(k, inputs)
+            sent = self._run(runner, k, inputs)
             for key, msg in sent:
-                for reader, port in self.refusers.get(key, ()):
+                for reader, port in self.refusers.get(key, ()) if type(msg) is not Nothing else ():
                     why = reader.node.check_input(port, msg)
                     if why is not None:
                         self._refused(runner, k, key, reader, why)
@@ -94,10 +97,26 @@ class GraphExecutor:
                     del held[t]
         return answers
 
+    def _run(self, runner: Runner, k: int, inputs: Any) -> list[tuple[str, Any]]:
+        """``runner.run``, watched: a step past ``step_timeout`` ends the run (:mod:`.watchdog`)."""
+        dog = self.watchdog
+        if dog is None:
+            return runner.run(k, inputs)
+        dog.runner = runner
+        try:
+            return runner.run(k, inputs)
+        except KeyboardInterrupt:
+            timeout = dog.timed_out()
+            if timeout is None:
+                raise
+            raise timeout from None
+        finally:
+            dog.runner = None
+
     @staticmethod
     def _refused(runner: Runner, k: int, key: str, reader: Runner, why: str) -> None:
         port = next(p for p, kk in runner.plan.outputs.items() if kk == key)
-        raise NodeError(f"{runner.plan.label}: its step at t={tick_time(k):.3f} s failed: output {port!r}: "
+        raise StepFailed(f"{runner.plan.label}: its step at t={tick_time(k):.3f} s failed: output {port!r}: "
                         f"{reader.plan.label} cannot use it: {why}")
 
     def output(self, key: str, tick: int) -> Any:
@@ -112,5 +131,7 @@ class GraphExecutor:
         raise KeyError(f"{robot}/{name}")
 
     def close(self) -> None:
+        if self.watchdog is not None:
+            self.watchdog.close()
         for r in self.runners:
             r.node.close()

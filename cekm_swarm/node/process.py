@@ -38,11 +38,12 @@ from cekm_swarm.errors import CekmError
 from cekm_swarm.graph.check import node_class
 from cekm_swarm.graph.plan import NodePlan, RunPlan
 from cekm_swarm.graph.runspec import RunSpec
-from cekm_swarm.protocol import DropCounter, KeyKind
+from cekm_swarm.protocol import DropCounter, KeyKind, Nothing, expect_of
 from cekm_swarm.protocol.stamps import ANY_STAMP, StampWindow
 
-from .api import Context, NodeError, make_params, start_node
+from .api import Context, NodeError, cannot_start, make_params, raised_at, start_node, traceback_text
 from .direct_gate import DirectGate
+from .live_params import LiveParams
 from .runner import Runner
 from .timing import LockstepGate, RealtimeGate, tick_of
 from .wire import Decoder, Encoder
@@ -84,7 +85,7 @@ def build_node(spec: RunSpec, plan: RunPlan, robot: str, name: str, backend: str
     ctx = Context(robot, decl.name, node_plan.instance, spec.team, spec.body, spec.mode,
                   model_source if model_source is not None else spec.model, backend,
                   logging.getLogger(f"cekm_swarm.node.{decl.name}"))
-    return node_plan, Runner(node_plan, start_node(cls, ctx, params))
+    return node_plan, Runner(node_plan, start_node(cls, ctx, params), plan.answer_key(robot))
 
 
 def stamp_window(plan: RunPlan, node_plan: NodePlan) -> StampWindow:
@@ -109,14 +110,15 @@ class NodeShell:
         self.lock = threading.RLock()
         self.closed = threading.Event()
         self.handled = 0
-        self.step_failures: dict[str, int] = {}  # "Type: message" -> count
+        self.step_failures: dict[str, int] = {}  # "Type: first message (file:line)" -> count
+        self._failure_groups: dict[tuple[str, str], str] = {}  # (type, file:line) -> its step_failures key
         self.failure: str | None = None  # lockstep: the step failure that ends the node
         self.on_failure: Any = lambda: None  # set by serve(): stops the node
         lockstep = spec.mode == "lockstep"
         self.lockstep = lockstep
         gate_cls = DirectGate if DirectGate.fits(node_plan) else LockstepGate if lockstep else RealtimeGate
         self.gate = gate_cls(runner, drop=self.drops.drop)
-        self.kinds: dict[str, KeyKind] = {s.key: KeyKind(b.kind) for b in node_plan.bindings for s in b.sources}
+        self.kinds: dict[str, Any] = {s.key: expect_of(b.kind) for b in node_plan.bindings for s in b.sources}
         self.ports: dict[str, str] = {s.key: b.port for b in node_plan.bindings for s in b.sources}
         if node_plan.clock_key is not None:
             self.kinds[node_plan.clock_key] = KeyKind.WORLD_CLOCK
@@ -136,6 +138,7 @@ class NodeShell:
         self.readers = outputs_readers(plan, node_plan, self.keys, delayed_only=gate_cls is DirectGate) if lockstep \
             else {}
         self.pubs: Any = None
+        runner.live = LiveParams(runner)  # cekm param: parameters changed while it runs
 
     # ------------------------------------------------------------------ subscriptions
 
@@ -156,7 +159,7 @@ class NodeShell:
         if kind is KeyKind.SENSE_UNCHANGED:
             return self.on_unchanged(key, msg)
         port = self.ports.get(key)
-        why = None if port is None else self.runner.node.check_input(port, msg)
+        why = None if port is None or type(msg) is Nothing else self.runner.node.check_input(port, msg)
         if why is None:
             why = self.window.check(msg.stamp)
         if why is not None:
@@ -175,10 +178,14 @@ class NodeShell:
         the launch ends with its line (:data:`EXIT_STEP_FAILED`)."""
         cause = exc.__cause__ if isinstance(exc, NodeError) and exc.__cause__ is not None else exc
         what = " ".join(f"{type(cause).__name__}: {cause}".split())  # the kind of failure, without the tick
-        first = what not in self.step_failures
-        if first and len(self.step_failures) >= 64:
-            what = "other failures"
-        self.step_failures[what] = self.step_failures.get(what, 0) + 1
+        at = raised_at(cause)
+        where = (type(cause).__name__, at or what)  # grouped by where it was raised, not by its text
+        group = self._failure_groups.get(where)
+        first = group is None
+        if first:  # named by its first failure's text and its line
+            group = "other failures" if len(self.step_failures) >= 64 else what + (f" ({at})" if at else "")
+            self._failure_groups[where] = group
+        self.step_failures[group] = self.step_failures.get(group, 0) + 1
         line = str(exc) if isinstance(exc, NodeError) else f"{self.node_plan.label}: {what}"
         if first:
             log.error("%s", line, exc_info=cause)
@@ -292,6 +299,8 @@ class NodeShell:
         watch = self.token_expr()
         if watch is not None:
             tokens = session.liveliness().declare_subscriber(watch, serve_token, history=True)
+        params = session.declare_queryable(self.keys.param(self.node_plan.robot, self.node_plan.name),
+                                           zenoh.handlers.Callback(self.serve_param, indirect=True))
         # the token comes last: once it is up, the subscriptions are in place
         token = declare_alive(session, self.keys.alive(self.node_plan.robot, self.node_plan.name))
         log.info("%s: up (%s), listening on %s", self.node_plan.label, self.spec.mode, ", ".join(self.listen_exprs()))
@@ -306,8 +315,24 @@ class NodeShell:
             if tokens is not None:
                 tokens.undeclare()
             token.undeclare()
+            params.undeclare()
             self.pubs.close()
         return self.handled
+
+    def serve_param(self, query: Any) -> None:
+        """``cekm param``: the query's JSON payload ``{}`` (what it has) or ``{"set": name,
+        "value": v, "at": t}``; the reply's, the parameters or the change scheduled, or ``{"error": why}``."""
+        try:
+            ask = json.loads(query.payload.to_bytes()) if query.payload is not None else {}
+            with self.lock:
+                doc = self.runner.live.describe() if "set" not in ask else \
+                    self.runner.live.set(str(ask["set"]), ask.get("value"), ask.get("at"))
+        except (ValueError, TypeError, KeyError) as exc:
+            doc = {"error": " ".join(str(exc).split())}
+        if "name" in doc:  # a change scheduled
+            log.info("%s: parameter %s = %r scheduled from t=%.3f s", self.node_plan.label, doc["name"], doc["value"],
+                     doc["t"])
+        query.reply(query.key_expr, json.dumps(doc).encode())
 
     def say_where(self) -> None:
         """The launcher asks while the run stalls: one :data:`STALLED` line (a step running,
@@ -328,7 +353,7 @@ class NodeShell:
         return {"handled": self.handled, "runs": self.runner.runs, "dropped": self.drops.by_source(),
                 "repeats": getattr(g, "repeats", 0), "stale": getattr(g, "stale_drops", {}),
                 "step_failures": dict(self.step_failures), "not_ready": getattr(g, "not_ready", 0),
-                "ran_without": list(getattr(g, "ran_without", ()))}
+                "ran_without": list(getattr(g, "ran_without", ())), "param_changes": list(self.runner.live.changes)}
 
 
 def outputs_readers(plan: RunPlan, node_plan: NodePlan, keys: Any,
@@ -395,9 +420,12 @@ def main(argv: list[str] | None = None) -> int:
             source = _fetch_model(spec)
         node_plan, runner = build_node(spec, plan, args.robot, args.node, "numpy", source)
     except (CekmError, ValueError) as exc:
+        if exc.__cause__ is not None:  # the node's own code raised: its traceback in this log
+            sys.stderr.write(traceback_text(exc))
         return _cannot_start(label, str(exc))
     except Exception as exc:  # noqa: BLE001 - a user's node may fail in any way while starting
-        return _cannot_start(label, f"{type(exc).__name__}: {exc}")
+        sys.stderr.write(traceback_text(exc))
+        return _cannot_start(label, cannot_start(label, exc))
     log.info("%s: built in %.2f s (pid %d)", label, time.perf_counter() - t0, os.getpid())
     freeze_startup_heap()  # the model and tables stay; per message only short-lived objects
     shell = NodeShell(spec, plan, node_plan, runner)

@@ -25,8 +25,8 @@ node in its own process (lockstep and real time) and for a whole graph in one pr
   (:meth:`cekm_swarm.graph.plan.RunPlan.held_readings`). ``hold_all`` takes every hold
   of one ``Unchanged`` message and looks for runs once, after them all.
 
-Everything here is plain Python, free of Zenoh: :mod:`cekm_swarm.node.process` feeds it
-from subscriptions, :mod:`cekm_swarm.node.inprocess` from a whole graph's outputs.
+Plain Python, free of Zenoh (fed by :mod:`.process` and :mod:`.inprocess`). A ``Nothing``
+is a value: the reader sees None (no entry in a many-key port) and does not wait for it.
 """
 
 from __future__ import annotations
@@ -41,7 +41,8 @@ from typing import Any
 from msgspec import Struct
 
 from cekm_swarm.graph.plan import WORLD_OWNER, Binding, NodePlan, needed_tick
-from cekm_swarm.ticks import TICK_S, tick_time
+from cekm_swarm.protocol import Nothing
+from cekm_swarm.ticks import TICK_S, tick_of, tick_time
 
 from .api import Inputs, NotReady
 from .runner import Runner
@@ -56,10 +57,6 @@ RESEND_RUNS = 4
 
 Drop = Callable[[str, str], None]
 """Called with (source key, reason) for a value a gate refuses (the shell counts it)."""
-
-
-def tick_of(stamp: float) -> int:
-    return int(round(stamp / TICK_S))
 
 
 def restamp(msg: Any, t: float) -> Any:
@@ -99,14 +96,14 @@ def gather(node: NodePlan, k: int, lookup: Callable[[str, int], Any], skip: Call
                     got[s.label] = m
                 elif not lost(s.key, n):
                     missing.append(s.key)
-            values[b.port] = got
+            values[b.port] = {lab: m for lab, m in got.items() if type(m) is not Nothing}  # Nothing: no entry
         else:
             s = b.sources[0]
             n = needed_tick(k, s.period, delay)
             m = None if n is None else lookup(s.key, n)
             if m is None and n is not None and not skip(s.owner) and not lost(s.key, n):
                 missing.append(s.key)
-            values[b.port] = m
+            values[b.port] = None if type(m) is Nothing else m
     return Inputs(values), missing
 
 

@@ -54,6 +54,8 @@ from .messages import (
                      WorldState,
                      with_stamp,
 )
+from .schema import Angle, Count, Distance, Finite, Plain, Point, Pose, Vector, Weight
+from .user import USER_TYPES, Nothing, UntypedData, UserMessage, expect_of, is_message_type, kind_of
 
 __all__ = [
     "DropCounter", "DropRecord",
@@ -65,4 +67,6 @@ __all__ = [
     "ObstacleState", "RobotState", "SensePose", "SenseRange", "SenseTarget", "SenseTargets", "Share", "TargetField",
     "TargetState", "TrackingField", "Unchanged", "WheelCommand", "WorldState", "with_stamp",
     "decode", "encode", "peek", "summary", "to_plain", "to_wire",
+    "Angle", "Count", "Distance", "Finite", "Plain", "Point", "Pose", "Vector", "Weight",
+    "USER_TYPES", "Nothing", "UntypedData", "UserMessage", "expect_of", "is_message_type", "kind_of",
 ]

@@ -34,6 +34,7 @@ from .errors import (
 )
 from .keys import DEFAULT_KEYS, KeyKind, KeySpace
 from .schema import MESSAGE_TYPES, SCHEMA_VERSION, Message, WireVector
+from .user import NOTHING_HEAD, USER_TYPES, Nothing, UntypedData, UserMessage, is_message_type
 
 _F8 = np.dtype("<f8")
 
@@ -54,14 +55,18 @@ _HEADS: dict[type, bytes] = {}
 
 
 def _head(cls: type) -> bytes:
-    """The wire map's header and its envelope entries ``v`` and ``kind``: what comes before
-    the message's own fields (msgspec packs those as a map of their own, whose one-byte
-    header this replaces)."""
-    n = len(cls.__struct_fields__) + 2
-    if n > 15:  # pragma: no cover - a declaration would have to grow past 13 fields
-        raise TypeError(f"{cls.__name__}: more fields than one msgpack fixmap holds")
-    head = _HEADS[cls] = bytes([0x80 | n]) + msgpack.packb("v") + msgpack.packb(SCHEMA_VERSION) + \
+    """The wire map's header and its envelope entries ``v`` and ``kind`` (and a user type's
+    ``type``): what comes before the message's own fields (msgspec packs those as a map of
+    their own, whose one-byte header this replaces)."""
+    user = issubclass(cls, UserMessage)
+    n = len(cls.__struct_fields__) + 2 + user
+    if n > 15:  # a declaration past 12 (a user's: 11) fields of its own
+        raise TypeError(f"{cls.__name__}: more fields than one msgpack fixmap holds (at most {15 - 2 - user})")
+    head = bytes([0x80 | n]) + msgpack.packb("v") + msgpack.packb(SCHEMA_VERSION) + \
         msgpack.packb("kind") + msgpack.packb(cls.KIND.value)
+    if user:
+        head += msgpack.packb("type") + msgpack.packb(cls.TYPE)
+    _HEADS[cls] = head
     return head
 
 
@@ -69,7 +74,12 @@ def encode(msg: Message) -> bytes:
     """The msgpack bytes of ``msg`` (already checked when it was built)."""
     head = _HEADS.get(type(msg))
     if head is None:
-        if type(msg) not in MESSAGE_TYPES.values():
+        if type(msg) is Nothing:
+            return NOTHING_HEAD + _encoder.encode({"stamp": msg.stamp, "sender": msg.sender})[1:]
+        if type(msg) is UntypedData:
+            return _encoder.encode({"v": SCHEMA_VERSION, "kind": KeyKind.DATA.value, "type": msg.type,
+                                    "stamp": msg.stamp, "sender": msg.sender, **msg.values})
+        if not is_message_type(type(msg)):
             raise MessageKindError(f"{type(msg).__name__} is not a protocol message")
         head = _head(type(msg))
     return head + _encoder.encode(msg)[1:]
@@ -95,7 +105,7 @@ def _wire_type(t: Any) -> Any:
 class _Codec:
     """Decoding one message class: its generated wire type and decoder."""
 
-    __slots__ = ("cls", "fields", "vectors", "indexed", "decoder")
+    __slots__ = ("cls", "fields", "vectors", "indexed", "decoder", "head", "type")
 
     def __init__(self, cls: type[Message]) -> None:
         hints = get_type_hints(cls, include_extras=True)
@@ -103,21 +113,25 @@ class _Codec:
         self.fields = frozenset(cls.__struct_fields__)
         self.vectors = frozenset(n for n in cls.__struct_fields__ if _wire_type(hints[n]) is not hints[n])
         self.indexed = "index" in self.fields  # a sensor's index: held to the key's and the key space's
+        self.type = cls.TYPE if issubclass(cls, UserMessage) else None  # a user's type: its name on the wire
+        envelope = [("v", Literal[SCHEMA_VERSION]), ("kind", Literal[cls.KIND.value])]
+        if self.type is not None:
+            envelope.append(("type", Literal[self.type]))
+        self.head = len(envelope)
         wire = msgspec.defstruct(
-            f"{cls.__name__}Wire",
-            [("v", Literal[SCHEMA_VERSION]), ("kind", Literal[cls.KIND.value])]
-            + [(name, _wire_type(hints[name])) for name in cls.__struct_fields__],
+            f"{cls.__name__}Wire", envelope + [(name, _wire_type(hints[name])) for name in cls.__struct_fields__],
             forbid_unknown_fields=True, gc=False)
         self.decoder = msgspec.msgpack.Decoder(wire)
 
 
-_CODECS: dict[KeyKind, _Codec] = {}
+_CODECS: dict[Any, _Codec] = {}
 
 
-def _codec(kind: KeyKind) -> _Codec | None:
+def _codec(kind: Any) -> _Codec | None:
+    """The codec of a KeyKind's message class, or of a user's message class."""
     c = _CODECS.get(kind)
     if c is None:
-        cls = MESSAGE_TYPES.get(kind)
+        cls = kind if isinstance(kind, type) else MESSAGE_TYPES.get(kind)
         if cls is None:
             return None
         c = _CODECS[kind] = _Codec(cls)
@@ -186,8 +200,18 @@ def decode(key: str | KeyKind, data: bytes | bytearray | memoryview, *, keys: Ke
             kind, key_index = _parse_cached(keys, where)
         except KeySpaceError as exc:
             raise MessageKindError(exc.problem, key=where) from None
-        if kind is KeyKind.NODE:
-            kind = expect if expect is not None else _payload_kind(data, where)
+    if data[:14] == NOTHING_HEAD:  # 14: len(NOTHING_HEAD); a node's "nothing this tick" on an output
+        if kind not in _NOTHING_KINDS:
+            raise MessageKindError(f"'nothing' (kind none) is sent only on a node's outputs, not on a key of kind "
+                                   f"'{kind.value}'", key=where, field="kind")
+        return _nothing(where, data)
+    if kind is KeyKind.NODE:
+        kind = expect if expect is not None else _payload_kind(data, where)
+    if type(kind) is str:  # a user's type by name: its class if declared here, else its envelope and fields
+        declared = USER_TYPES.get(kind)
+        if declared is None:
+            return _untyped(kind, where, data)
+        kind = declared
     codec = _CODECS.get(kind) or _codec(kind)
     if codec is None:
         raise MessageKindError(f"keys of kind '{kind.value}' carry no message", key=where)
@@ -196,7 +220,7 @@ def decode(key: str | KeyKind, data: bytes | bytearray | memoryview, *, keys: Ke
     except Exception as exc:  # noqa: BLE001 - msgspec's ValidationError, DecodeError, RecursionError ...
         raise _explain(codec, kind, where, data, exc) from None
     try:
-        msg = codec.cls(*_astuple(wire)[2:])
+        msg = codec.cls(*_astuple(wire)[codec.head:])
     except MessageError as exc:
         raise exc.at_key(where) from None
     if codec.indexed:
@@ -232,9 +256,15 @@ def _explain(codec: _Codec, kind: KeyKind, where: str, data: Any, refusal: BaseE
     if type(v) is not int or v != SCHEMA_VERSION:
         return MessageVersionError(f"schema version {v!r}, this code speaks {SCHEMA_VERSION}", key=where, field="v")
     mkind = m.pop("kind", None)
-    if mkind != kind.value:
-        return MessageKindError(f"message kind {mkind!r} does not match the key's kind '{kind.value}'",
+    want = codec.cls.KIND.value
+    if mkind != want:
+        return MessageKindError(f"message kind {mkind!r} does not match the key's kind '{want}'",
                                 key=where, field="kind")
+    if codec.type is not None or "type" in m:
+        mtype = m.pop("type", None)
+        if mtype != codec.type:
+            return MessageKindError(f"message type {mtype!r}, the key carries {codec.type or 'data'}",
+                                    key=where, field="type")
     if m.keys() != codec.fields:
         missing = sorted(codec.fields - m.keys())
         if missing:
@@ -280,9 +310,14 @@ def _from_msgspec(exc: BaseException, where: str) -> MessageError:
     return MessageFieldError(problem, key=where, field=field)
 
 
-def _payload_kind(data: bytes | bytearray | memoryview, where: str) -> KeyKind:
-    """The kind a payload on a graph's own key says it is (checked again by the decode)."""
+def _payload_kind(data: bytes | bytearray | memoryview, where: str) -> Any:
+    """The kind a payload on a graph's own key says it is (checked again by the decode): a
+    KeyKind, or a user's type (its class when declared here, else its name)."""
     got, _ = peek(data)
+    if got == KeyKind.DATA.value:
+        name = peek_type(data)
+        if name is not None:
+            return USER_TYPES.get(name, name)
     try:
         kind = KeyKind(got)
     except ValueError:
@@ -303,6 +338,80 @@ class _Peek(msgspec.Struct, gc=False):
 
 
 _peek = msgspec.msgpack.Decoder(_Peek)
+
+
+class _PeekType(msgspec.Struct, gc=False):
+    type: Any = None
+
+
+_peek_type = msgspec.msgpack.Decoder(_PeekType)
+
+
+def _plain_vector(v: Any) -> Any:
+    """A wire vector (:class:`~.schema.WireVector`'s map) as its list of floats; anything else as it is."""
+    if type(v) is dict and v.get("dtype") == "<f8" and type(v.get("data")) is bytes:
+        return np.frombuffer(v["data"], dtype=_F8).tolist()
+    return v
+
+
+class _NothingWire(msgspec.Struct, forbid_unknown_fields=True, gc=False):
+    v: Literal[SCHEMA_VERSION]
+    kind: Literal["none"]
+    stamp: Any
+    sender: Any
+
+
+_nothing_decoder = msgspec.msgpack.Decoder(_NothingWire)
+_NOTHING_KINDS = frozenset({KeyKind.NODE, KeyKind.FIELD_TARGET, KeyKind.FIELD_OBSTACLE, KeyKind.FIELD_TRACKING,
+                            KeyKind.SHARE})
+"""Where a node may send :class:`~.user.Nothing`: its outputs other than the world's answer
+(cmd/wheels), which the world needs every tick."""
+
+
+def _nothing(where: str, data: Any) -> Message:
+    try:
+        wire = _nothing_decoder.decode(data)
+        return Nothing(wire.stamp, wire.sender)
+    except MessageError as exc:
+        raise exc.at_key(where) from None
+    except Exception as exc:  # noqa: BLE001 - msgspec's refusal
+        raise _from_msgspec(exc, where) from None
+
+
+def peek_type(data: bytes | bytearray | memoryview) -> str | None:
+    """The ``type`` a user message's payload names, None when it names none (unvalidated)."""
+    try:
+        name = _peek_type.decode(data).type
+    except Exception:  # noqa: BLE001 - unreadable, whatever the reason
+        return None
+    return name if type(name) is str else None
+
+
+def _untyped(name: str, where: str, data: Any) -> Message:
+    """A user message of type ``name`` whose declaration this process lacks: the envelope
+    checked (version, kind, type, stamp, sender), its fields read as plain data."""
+    try:
+        m = msgpack.unpackb(data, raw=False, strict_map_key=True)
+    except Exception as exc:  # noqa: BLE001 - msgpack's many errors
+        raise MessageFormatError(f"not valid msgpack ({type(exc).__name__}: {exc})", key=where) from None
+    if type(m) is not dict:
+        raise MessageFormatError(f"not a msgpack map: a msgpack {_msgpack_type(m)}", key=where)
+    if m.pop("v", None) != SCHEMA_VERSION:
+        raise MessageVersionError(f"schema version missing or not {SCHEMA_VERSION}", key=where, field="v")
+    if m.pop("kind", None) != KeyKind.DATA.value:
+        raise MessageKindError("message kind is not 'data'", key=where, field="kind")
+    got = m.pop("type", None)
+    if got != name:
+        raise MessageKindError(f"message type {got!r}, the key carries {name}", key=where, field="type")
+    missing = [f for f in ("stamp", "sender") if f not in m]
+    if missing:
+        raise MessageFieldError("missing", key=where, field=missing[0])
+    stamp, sender = m.pop("stamp"), m.pop("sender")
+    values = {k: _plain_vector(v) for k, v in m.items()}
+    try:
+        return UntypedData(stamp, sender, name, values)
+    except MessageError as exc:
+        raise exc.at_key(where) from None
 
 
 def peek(data: bytes | bytearray | memoryview) -> tuple[str | None, float | None]:
@@ -337,15 +446,26 @@ def _lists(x: Any) -> Any:
 
 
 def to_plain(msg: Message) -> dict[str, Any]:
-    """``msg`` as plain data (arrays and tuples as lists, entries as maps), for printing and JSON."""
-    return {"kind": msg.KIND.value, **_lists(msgspec.to_builtins(msg, enc_hook=_plain_hook))}
+    """``msg`` as plain data (arrays and tuples as lists, entries as maps), for printing and JSON;
+    a user's message with its ``type``."""
+    if type(msg) is Nothing:
+        return {"kind": "none", "stamp": msg.stamp, "sender": msg.sender}
+    if type(msg) is UntypedData:
+        return {"kind": msg.KIND.value, "type": msg.type, "stamp": msg.stamp, "sender": msg.sender,
+                **_lists(msgspec.to_builtins(msg.values, enc_hook=_plain_hook))}
+    doc = _lists(msgspec.to_builtins(msg, enc_hook=_plain_hook))
+    if isinstance(msg, UserMessage):
+        return {"kind": msg.KIND.value, "type": msg.TYPE, **doc}
+    return {"kind": msg.KIND.value, **doc}
 
 
 def summary(msg: Message, max_items: int = 6) -> str:
     """A one-line description of ``msg`` (long arrays shortened), for ``topic echo``."""
-    parts = [f"{msg.KIND.value} t={msg.stamp:.3f} from={msg.sender}"]
-    for name in msg.__struct_fields__[2:]:
-        v = getattr(msg, name)
+    what = msg.TYPE if isinstance(msg, UserMessage) else msg.type if type(msg) is UntypedData else \
+        "none (nothing sent)" if type(msg) is Nothing else msg.KIND.value
+    parts = [f"{what} t={msg.stamp:.3f} from={msg.sender}"]
+    fields = msg.values if type(msg) is UntypedData else {n: getattr(msg, n) for n in msg.__struct_fields__[2:]}
+    for name, v in fields.items():
         if isinstance(v, np.ndarray):
             head = ", ".join(f"{x:.3g}" for x in v[:max_items])
             more = f", ... ({v.shape[0]} values, max {v.max():.3g} at {int(v.argmax())})" if v.shape[0] > max_items else ""

@@ -232,6 +232,10 @@ class KeySpace:
         not a publication: ``--model zenoh``; see :mod:`cekm_swarm.runtime.model_service`)."""
         return f"{self.root}/{WORLD}/model"
 
+    def param(self, robot: str, node: str) -> str:
+        """Tools -> a node: the queryable of its parameters (``cekm param``; JSON both ways)."""
+        return f"{self._robot(robot)}/param/{validate_module_name(node)}"
+
     def world_geometry(self) -> str:
         """World -> recorders: the queryable serving the static scene as JSON (walls, fixed
         obstacles; what the world's own log keeps as metadata; see

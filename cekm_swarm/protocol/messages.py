@@ -134,7 +134,11 @@ class ObstacleField(Message):
 
 
 class WheelCommand(Message):
-    """Motor module -> world: wheel linear speeds (m/s) and a per-sender sequence number."""
+    """Motor module -> world: the left and right wheels' linear speeds ``v_l``, ``v_r`` (m/s,
+    positive forward; the world clamps each to +-``v_max`` of the robot's body without a
+    word, and executes it with its wheel noise) and ``seq``, a sequence number of the
+    sender's own (the shipped motors send the tick number, which the runner also fills in
+    when a step leaves it out)."""
 
     v_l: Finite
     v_r: Finite

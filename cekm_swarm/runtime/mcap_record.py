@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import asyncio
 import io
+import json
 import os
 import time
 from dataclasses import dataclass
@@ -30,6 +31,7 @@ from mcap.data_stream import RecordBuilder
 from mcap.records import DataEnd, Footer
 
 from cekm_swarm.protocol import DEFAULT_KEYS, KeySpace, KeySpaceError, peek
+from cekm_swarm.protocol.codec import peek_type
 
 from .errors import McapLogError
 from .mcap_writer import COMPRESSIONS, MAGIC, ChunkedWriter
@@ -122,9 +124,12 @@ class McapRecorder:
 
     def __init__(self, path: str | Path, *, chunk_size: int = DEFAULT_CHUNK_SIZE,
                  flush_interval: float | None = DEFAULT_FLUSH_INTERVAL, compression: str = "zstd",
-                 keys: KeySpace = DEFAULT_KEYS, metadata: dict[str, str] | None = None) -> None:
+                 keys: KeySpace = DEFAULT_KEYS, metadata: dict[str, str] | None = None,
+                 kinds: dict[str, str] | None = None, schemas: dict[str, Any] | None = None) -> None:
         self.path = Path(path)
+        self.schemas = dict(schemas or {})  # a user message kind -> its JSON Schema, written as its channel's schema
         self.keys = keys
+        self.kinds = dict(kinds or {})  # a graph's keys -> their message kind (data:FreeDirection), for schema names
         self.flush_interval = flush_interval
         if compression not in COMPRESSIONS:  # before the file is opened
             raise McapLogError(str(path), f"compression {compression!r}: use {' or '.join(COMPRESSIONS)}")
@@ -173,11 +178,22 @@ class McapRecorder:
         self._sequence[cid] = 0
         return cid
 
-    def _msgpack_schema(self, key: str) -> SchemaSpec:
+    def _msgpack_schema(self, key: str, payload: bytes = b"") -> SchemaSpec:
+        """``cekm.<kind>`` of the key; on a graph's own key, the kind its first message says
+        (``cekm.data``, ``cekm.field/target``), a user's type by its name (``cekm.data:FreeDirection``)."""
         try:
             kind = self.keys.parse(key).kind.value
         except KeySpaceError:
             kind = "unknown"
+        if kind == "node" and key in self.kinds:  # what the run's graph declares it carries
+            kind = self.kinds[key]
+        elif kind == "node" and payload:
+            said, _ = peek(payload)
+            if said is not None and said != "none":
+                name = peek_type(payload) if said == "data" else None
+                kind = said if name is None else f"data:{name}"
+        if kind in self.schemas:
+            return SchemaSpec(f"cekm.{kind}", "jsonschema", json.dumps(self.schemas[kind]).encode())
         return SchemaSpec(f"cekm.{kind}")
 
     # ------------------------------------------------------------------ writing
@@ -190,7 +206,7 @@ class McapRecorder:
             self.refused += 1
             return False
         cid = entry[0] if entry is not None and entry[1] == MSGPACK else self.channel(key, MSGPACK,
-                                                                                     self._msgpack_schema(key))
+                                                                                     self._msgpack_schema(key, payload))
         self._add(cid, payload, sim_time, sim_time if publish_time is None else publish_time)
         return True
 

@@ -103,7 +103,8 @@ class SplitRecorder:
     def __init__(self, path: str | Path, *, max_bytes: int | None = None, max_seconds: float | None = None,
                  chunk_size: int = DEFAULT_CHUNK_SIZE, flush_interval: float | None = DEFAULT_FLUSH_INTERVAL,
                  compression: str = "zstd", keys: KeySpace = DEFAULT_KEYS,
-                 metadata: dict[str, str] | None = None) -> None:
+                 metadata: dict[str, str] | None = None, kinds: dict[str, str] | None = None,
+                 schemas: dict[str, Any] | None = None) -> None:
         if max_bytes is None and max_seconds is None:
             raise ValueError("a log set needs max_bytes or max_seconds")
         if (max_bytes is not None and max_bytes <= 0) or (max_seconds is not None and not max_seconds > 0):
@@ -113,7 +114,7 @@ class SplitRecorder:
         self.max_ns = None if max_seconds is None else sim_ns(max_seconds)
         self.max_bytes = max_bytes
         self._options = {"chunk_size": chunk_size, "flush_interval": flush_interval, "compression": compression,
-                         "keys": keys}
+                         "keys": keys, "kinds": kinds, "schemas": schemas}
         self._metadata: list[tuple[str, dict[str, str]]] = []  # every file gets them all
         if metadata:
             self._metadata.append(("cekm", {str(k): str(v) for k, v in metadata.items()}))

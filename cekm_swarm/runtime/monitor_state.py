@@ -116,7 +116,21 @@ class MonitorState:
         self.drops = DropCounter("monitor", keys=keys)
         self.expected: tuple[str, ...] | None = None  # one robot's nodes, from the run's graph (None: not known)
         self.graph: str | None = None  # the run's graph's name
+        self.run_id: str | None = None  # the run whose figures are shown (its world server's token)
         self._lock = threading.Lock()
+
+    def _new_run(self) -> None:
+        """A new run began (another world server's run id, or sim time went back: a new run
+        or a replay): forget the previous run's robots, latencies, rates and observations,
+        so no figure of it stays on screen."""
+        self.robots.clear()
+        self.arrivals.clear()
+        self.last_stamp.clear()
+        self.shares.clear()
+        self.sensed.clear()
+        self.targets = {}
+        self.sim_time = math.nan
+        self.world_at = None
 
     def robot(self, rid: str) -> RobotView | None:
         """The view of robot ``rid``, made on first sight; None beyond :data:`MAX_ROBOTS`."""
@@ -151,8 +165,8 @@ class MonitorState:
                 return
             if isinstance(msg, WorldState):  # typed: every robot has a finite pose (protocol.messages)
                 if math.isfinite(self.sim_time) and msg.stamp < self.sim_time:  # a new run or replay
-                    self.shares.clear()
-                    self.sensed.clear()
+                    self._new_run()
+                    self.arrivals[key] = q
                 self.targets = {tid: (t.x, t.y) for tid, t in msg.targets.items()}
                 self.last_stamp[key] = msg.stamp
                 self.sim_time = msg.stamp
@@ -232,6 +246,11 @@ class MonitorState:
         """The liveliness tokens alive now (of any run: ``<root>/<owner>/alive/<module>[/<run>]``)."""
         with self._lock:
             self.alive = set(tokens)
+            run = self.world_run()
+            if run is not None and run != self.run_id:
+                if self.run_id is not None:  # the next run's world server: the last one's figures go
+                    self._new_run()
+                self.run_id = run
         if self._world_alive():
             self.world_token_seen = True
 

@@ -34,7 +34,7 @@ def _num(x: float, width: int, digits: int) -> str:
     return _fit("-" if not math.isfinite(x) else f"{x:.{digits}f}", width)
 
 
-_STATUS_STYLE = {"moving": "green", "reached": "bold cyan", "stopped": "yellow", "waiting": "dim"}
+_STATUS_STYLE = {"ended": "dim", "moving": "green", "reached": "bold cyan", "stopped": "yellow", "waiting": "dim"}
 _PHASE_STYLE = {"running": "bold green", "replay": "bold green", "run ended": "bold red", "waiting for the world": "bold yellow",
                 "waiting for the modules": "bold yellow"}
 _HEADER = (f"{_fit('robot', 6, '<')} {_fit('x', 6)} {_fit('y', 6)} {_fit('theta', 5)} {_fit('goal', 13)} "
@@ -129,7 +129,8 @@ def render(state: MonitorState, now: float, *, robots: set[str] | None = None, k
         lat = f"{v.latency_ms(0.5):.1f}/{v.latency_ms(0.99):.1f}" if v.latencies else "-"
         row = Text(no_wrap=True, overflow="ellipsis")
         row.append(f"{_fit(rid, 6, '<')} {_num(x, 6, 3)} {_num(y, 6, 3)} {_num(th, 5, 2)} {_fit(goal, 13)} ")
-        row.append(_fit(v.status, 7, "<"), style=_STATUS_STYLE.get(v.status, ""))
+        status = v.status if phase != "run ended" or v.status == "reached" else "ended"  # no robot moves any more
+        row.append(_fit(status, 7, "<"), style=_STATUS_STYLE.get(status, ""))
         row.append(f" {_num(vl, 6, 3)} {_num(vr, 6, 3)} ")
         row.append(_fit(f"{n}/{expected}" if expected is not None else f"{n}", 5),
                    style="" if expected is None or n == expected else "bold red")
@@ -169,7 +170,8 @@ def snapshot(state: MonitorState, now: float, *, robots: set[str] | None = None,
             continue
         v = state.robots[rid]
         n, missing = state.modules_alive(rid)
-        out["robots"][rid] = {"pose": v.pose, "goal": v.goal, "in_contact": v.in_contact, "status": v.status,
+        status = v.status if out["phase"] != "run ended" or v.status == "reached" else "ended"
+        out["robots"][rid] = {"pose": v.pose, "goal": v.goal, "in_contact": v.in_contact, "status": status,
                               "command": v.command, "modules_alive": n, "modules_missing": missing,
                               "latency_ms_p50": v.latency_ms(0.5), "latency_ms_p99": v.latency_ms(0.99)}
     if state.is_tracking():

@@ -110,6 +110,21 @@ def wait_for_tokens(session: zenoh.Session, keys: KeySpace, timeout: float,
         return set(seen) | live_tokens(session, keys)
 
 
+def short_names(names: tuple[str, ...]) -> list[str]:
+    """Node names with each run of instances shortened: ``obstacle-0..11`` for obstacle-0 ... obstacle-11."""
+    out: list[str] = []
+    i = 0
+    while i < len(names):
+        base, _, n = names[i].rpartition("-")
+        j = i
+        if base and n.isdigit():
+            while j + 1 < len(names) and names[j + 1] == f"{base}-{int(n) + j + 1 - i}":
+                j += 1
+        out.append(names[i] if j - i < 2 else f"{names[i]}..{names[j].rpartition('-')[2]}")
+        i = j + 1
+    return out
+
+
 def format_nodes(groups: list[OwnerNodes], other: list[str]) -> str:
     """One line per owner: ``r1  14/14  target obstacle-0..11 motor``, missing ones named."""
     if not groups and not other:
@@ -121,7 +136,9 @@ def format_nodes(groups: list[OwnerNodes], other: list[str]) -> str:
             lines.append(f"{g.owner:<8} {', '.join(g.alive)}{run}")
             continue
         line = (f"{g.owner:<8} {g.expected - len(g.missing):>2}/{g.expected} nodes alive{run}" if g.expected
-                else f"{g.owner:<8} {len(g.alive):>2} nodes alive{run}: {', '.join(g.alive)}")
+                else f"{g.owner:<8} {len(g.alive):>2} nodes alive{run}")
+        if g.alive:
+            line += f": {', '.join(short_names(g.alive))}"
         if g.missing:
             line += f"; missing: {', '.join(g.missing)}"
         lines.append(line)

@@ -59,6 +59,11 @@ def format_hz(stats: Sequence[HzStats]) -> str:
     lines = [f"{'key':<{w}}  {'count':>6} {'rate Hz':>9} {'period ms':>10} {'min ms':>8} {'max ms':>8} "
              f"{'std ms':>8} {'age s':>7}"]
     for s in stats:
+        if s.count < 2:  # one message in the window (a held reading, sent only when it changes): no period
+            why = "held (sent when it changes)" if "/sense/" in s.key else "fewer than 2 messages in the window"
+            lines.append(f"{s.key:<{w}}  {s.count:>6} {'-':>9} {'-':>10} {'-':>8} {'-':>8} {'-':>8} "
+                         f"{s.age:>7.2f}  {why}")
+            continue
         lines.append(f"{s.key:<{w}}  {s.count:>6} {s.rate:>9.2f} {s.mean_period * 1e3:>10.2f} "
                      f"{s.min_period * 1e3:>8.2f} {s.max_period * 1e3:>8.2f} {s.std_period * 1e3:>8.2f} {s.age:>7.2f}")
     return "\n".join(lines)

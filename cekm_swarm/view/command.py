@@ -90,21 +90,32 @@ def view_cmd(scenario: str | None, log: Path | None, seed: int | None, robot: st
              wait_s: float, foxglove_port: int | None) -> None:
     """A live 2-D view of a running or replayed run in the browser: arena, obstacles,
     robots with headings, paths and sensing circles, targets, and for one robot its
-    target field, obstacle fields and motor-EKM activity (the paper's Fig. 4)."""
+    target field, obstacle fields and motor-EKM activity (the paper's Fig. 4).
+
+    The arena is the run's (the world server serves it): without SCENARIO the view waits
+    for a run and draws its arena; a SCENARIO that is not the run's is drawn until the run
+    is seen, then replaced by the run's, with a warning."""
     from cekm_swarm.protocol import KeySpace
     from world.draw import robot_colours
 
     from .live import LiveView
     from .server import ViewServer
 
-    if (scenario is None) == (log is None):
-        raise click.UsageError("give a SCENARIO (name or TOML file) or --log RUN.mcap, not both or neither")
-    geometry, ranges = _geometry(scenario, log, seed)
-    ids = [r["id"] for r in geometry.get("robots", [])]
-    if robot is not None and robot not in ids:
+    if scenario is not None and log is not None:
+        raise click.UsageError("give a SCENARIO (name or TOML file) or --log RUN.mcap, not both")
+    geometry, ranges = _geometry(scenario, log, seed) if scenario or log else (None, [])
+    ids = [r["id"] for r in (geometry or {}).get("robots", [])]
+    if robot is not None and geometry is not None and robot not in ids:
         raise click.BadParameter(f"{robot!r} is not a robot of this arena ({', '.join(ids)})", param_hint="--robot")
     with _session(endpoint, config_file, wait_s) as session:
         keys = KeySpace(root=root)
+        if geometry is None:  # the run's arena: wait for a world server to serve it
+            geometry = _run_geometry(session, keys, wait_s)
+            if geometry is None:
+                raise click.ClickException(f"no run's world server answered on {keys.world_geometry()} within "
+                                           f"{wait_s:g} s: start a run, or give a SCENARIO or --log")
+            ranges = sensing_radii(geometry, geometry.get("sensor_range"), geometry.get("target_range"))
+            ids = [r["id"] for r in geometry.get("robots", [])]
         view = LiveView(geometry, robot=robot, ranges=ranges, colours=robot_colours(sorted(ids)), keys=keys)
         sub = session.declare_subscriber(f"{root}/**", lambda s: view.observe(str(s.key_expr), s.payload.to_bytes()))
         try:
@@ -126,13 +137,22 @@ def view_cmd(scenario: str | None, log: Path | None, seed: int | None, robot: st
         # thread, before the run's first state), not after the graph is fetched: by then a
         # lockstep run can be seconds into its sim time, and its path would be lost; the
         # first token seen names the run the view joined
-        runs = RunWatch(session, keys, on_run=view.run_seen)
+        runs = RunWatch(session, keys, on_run=view.run_seen, on_end=view.run_ended)
         view.w = _lattice(session, model_path, root, timeout=5.0)
         try:
             while True:
                 run = runs.changed(timeout=0.5)
-                if run is not None:  # the graph the new run runs
+                if run is not None:  # the arena and the graph the new run runs
+                    from cekm_swarm.runtime.record import fetch_json
                     from cekm_swarm.runtime.rungraph import fetch_run_graph
+
+                    g = None if log is not None else fetch_json(session, keys.world_geometry())
+                    if g is not None and "bounds" in g and g.get("name") != view.geometry.get("name"):
+                        click.echo(f"the run {run} is of arena {g.get('name')!r}, not {view.geometry.get('name')!r}: "
+                                   f"drawing the run's", err=True)
+                        gids = sorted(r["id"] for r in g.get("robots", []))
+                        view.set_geometry(g, sensing_radii(g, g.get("sensor_range"), g.get("target_range")),
+                                          robot_colours(gids))
 
                     g = fetch_run_graph(session, keys.world_graph())
                     view.set_graph(None if g is None else f"{g.name} ({g.controller})")
@@ -146,12 +166,29 @@ def view_cmd(scenario: str | None, log: Path | None, seed: int | None, robot: st
             sub.undeclare()
 
 
+def _run_geometry(session, keys, wait_s: float) -> dict | None:
+    """The arena the run's world server serves, waiting up to ``wait_s`` s for one."""
+    import time
+
+    from cekm_swarm.runtime.record import fetch_json
+
+    end = time.monotonic() + wait_s
+    while True:
+        g = fetch_json(session, keys.world_geometry(), timeout=1.0)
+        if g is not None and "bounds" in g:
+            return g
+        if time.monotonic() >= end:
+            return None
+        time.sleep(0.5)
+
+
 class RunWatch:
     """The run id of the world server alive on the router, from its liveliness token
     (``<root>/world/alive/server/<run>``); :meth:`changed` returns a new one once, and
     ``on_run(run)`` is called on Zenoh's thread for every token seen."""
 
-    def __init__(self, session, keys, on_run: Callable[[str], None] | None = None) -> None:
+    def __init__(self, session, keys, on_run: Callable[[str], None] | None = None,
+                 on_end: Callable[[str], None] | None = None) -> None:
         import zenoh
 
         self._lock = threading.Lock()
@@ -161,11 +198,13 @@ class RunWatch:
         any_run = keys.with_run(None)
 
         def on_token(sample) -> None:  # Zenoh's thread: note it and return
-            if sample.kind != zenoh.SampleKind.PUT:
-                return
             try:
                 run = any_run.parse(str(sample.key_expr)).run
             except CekmError:
+                return
+            if sample.kind != zenoh.SampleKind.PUT:  # the world server went away: its run ended
+                if run and on_end is not None:
+                    on_end(run)
                 return
             if run:
                 with self._lock:

@@ -67,6 +67,7 @@ class LiveView:
         self.obstacle_fields: dict[str, ObstacleField] = {}  # by key
         self.run: str | None = None  # the run id of the world server, when known
         self.graph: str | None = None  # the run's graph (controller), when the world serves it
+        self.ended = False  # the run's world server is gone: the page says the run has ended
         self.version = 0
         self.changed = threading.Condition()
 
@@ -74,6 +75,7 @@ class LiveView:
         """Start afresh: a new run (or a replay from its start) shares no path or field with the last."""
         with self.changed:
             self.run, self.graph = run, graph
+            self.ended = False
             self.time = math.nan
             self.poses, self.targets, self.obstacles, self.paths = {}, {}, {}, {}
             self.target_field, self.obstacle_fields = None, {}
@@ -90,6 +92,26 @@ class LiveView:
                 self.changed.notify_all()
             elif run != self.run:
                 self.new_run(run)
+
+    def set_geometry(self, geometry: Mapping[str, Any], ranges: Sequence[float], colours: Mapping[str, str]) -> None:
+        """Draw another arena (the run's, when it is not the one the view started with)."""
+        with self.changed:
+            self.geometry = dict(geometry)
+            ids = [r["id"] for r in geometry.get("robots", [])]
+            if self.robot not in ids:
+                self.robot = ids[0] if ids else None
+            self.ranges = [float(r) for r in ranges]
+            self.colours = dict(colours)
+            self.version += 1
+            self.changed.notify_all()
+
+    def run_ended(self, run: str) -> None:
+        """The world server of ``run`` is gone (its liveliness token went away)."""
+        with self.changed:
+            if run == self.run and not self.ended:
+                self.ended = True
+                self.version += 1
+                self.changed.notify_all()
 
     def set_graph(self, graph: str | None) -> None:
         with self.changed:
@@ -188,7 +210,8 @@ class LiveView:
             return self._tick()
 
     def _tick(self) -> dict[str, Any]:
-        return {"version": self.version, "run": self.run, "graph": self.graph,
+        return {"version": self.version, "run": self.run, "graph": self.graph, "ended": self.ended,
+                "arena": self.geometry.get("name"),
                 "time": None if math.isnan(self.time) else _r(self.time, 3),
                 "robots": dict(self.poses), "targets": self.targets, "obstacles": self.obstacles,
                 "fields": self.fields(), "dropped": self.drops.total}

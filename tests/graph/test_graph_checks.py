@@ -155,7 +155,7 @@ def test_ports_bound_wrong_are_refused(write):
             "node 'o'.inputs.reading", "takes one key")
     refused(write(HEAD + SOURCE + f'\n[[node]]\nname = "wheels"\nprogram = "{P}:Wheels"\n'
                   'inputs = { x = "sense/target" }\noutputs = { command = "cmd/wheels" }\n'),
-            "node 'wheels'.inputs.x", "carries sense/target messages, the port takes data")
+            "node 'wheels'.inputs.x", "carries sense/target messages, the port of node 'wheels' takes data")
 
 
 def test_a_misspelled_port_is_named_with_the_programs_ports(write):
@@ -234,3 +234,14 @@ def test_graph_list_names_every_shipped_graph_in_aligned_columns():
     lines = out.output.splitlines()
     assert [line.split()[0] for line in lines] == sorted(shipped_graphs())
     assert len({line.index("--controller") for line in lines}) == 1  # one column, however long a name
+
+
+def test_a_program_whose_own_import_fails_is_not_called_unknown(write, tmp_path):
+    """The module exists, and an import of its own fails: named as such, with its file and line."""
+    (tmp_path / "graph_test_broken.py").write_text("import no_such_package_of_mine\n")
+    text = refused(write(HEAD + SOURCE + WHEELS.replace(f"{P}:Wheels", "graph_test_broken:Wheels")),
+                   "program 'graph_test_broken:Wheels' failed to import: ModuleNotFoundError: "
+                   "No module named 'no_such_package_of_mine' (graph_test_broken.py:1)")
+    assert "unknown program" not in text
+    refused(write(HEAD + SOURCE + WHEELS.replace(f"{P}:Wheels", "graph_test_nowhere:Wheels")),
+            "unknown program 'graph_test_nowhere:Wheels': cannot import 'graph_test_nowhere'")

@@ -52,6 +52,16 @@ class InitRaises(Base):
         raise KeyError("own init")
 
 
+class Hangs(Base):
+    """A step that never returns at its fourth run."""
+
+    def step(self, t, inputs):
+        if t > 0.3:
+            import threading
+            threading.Event().wait()  # the hang
+        return super().step(t, inputs)
+
+
 class WrongShape(Node):
     """An obstacle module's replacement whose field has 10 values (the lattice has 225)."""
 
@@ -159,6 +169,11 @@ def model():
     return default_model(progress=False)
 
 
+def line_of(text: str) -> int:
+    """The line of MODULE (as written to qa_start_mods.py) that holds ``text``."""
+    return next(i for i, line in enumerate(textwrap.dedent(MODULE).splitlines(), 1) if text in line)
+
+
 def run_error(scenario, model, path: str) -> str:
     with pytest.raises(NodeError) as info:
         run_graph(scenario, graph=path, model=model, max_time=1.0)
@@ -181,7 +196,7 @@ def preflight_error(path: str, model) -> str:
 def test_a_setup_that_raises_is_one_line_naming_the_node_in_cekm_run_as_in_a_launch(graph, scenario, model):
     path = graph(smooth="qa_start_mods:SetupRaises")
     line = run_error(scenario, model, path)
-    assert line == "r1/smooth: cannot start: RuntimeError: setup went wrong"
+    assert line == f"r1/smooth: cannot start: RuntimeError: setup went wrong (qa_start_mods.py:{line_of('setup went')})"
     assert preflight_error(path, model) == line
 
 
@@ -194,17 +209,18 @@ def test_a_node_error_raised_in_setup_names_the_node(graph, scenario, model):
 
 def test_a_node_whose_own_init_raises_cannot_start_in_cekm_run(graph, scenario, model):
     assert run_error(scenario, model, graph(smooth="qa_start_mods:InitRaises")) == \
-        "r1/smooth: cannot start: KeyError: 'own init'"
+        f"r1/smooth: cannot start: KeyError: 'own init' (qa_start_mods.py:{line_of('own init')})"
 
 
 def test_the_cannot_start_line_is_said_in_one_place():
     class Boom(Exception):
         pass
 
-    assert cannot_start("r1/x", Boom("it\nbroke")) == "r1/x: cannot start: Boom: it broke"
+    assert cannot_start("r1/x", Boom("it\nbroke")) == "r1/x: cannot start: Boom: it broke"  # no traceback: no line
     assert cannot_start("r1/x", NodeError("bad model")) == "r1/x: bad model"
     assert cannot_start("r1/x", NodeError("r1/x: bad model")) == "r1/x: bad model"
-    assert cannot_start("r1/x", ValueError("gain must be positive")) == "r1/x: gain must be positive"
+    assert cannot_start("r1/x", ValueError("gain must be positive")) == \
+        "r1/x: cannot start: ValueError: gain must be positive"  # its type, as any fault of the node's code
 
     from cekm_swarm.node import Node
 
@@ -251,3 +267,23 @@ def test_the_output_check_is_the_readers_lattice_check(graph, model):
     # no model in the run: nothing to fit
     no_model = WrongShape(Context("r1", "obstacle", 3))
     output_check(node_plan, no_model)(0.128, [("k", bad)])
+
+
+def test_a_step_that_hangs_in_cekm_run_ends_the_run_naming_its_line(graph, scenario, model):
+    """The in-process watchdog (node.watchdog): after step_timeout s the run fails (exit 1)
+    with the line a lockstep launch says of a stalled tick, instead of hanging without a word."""
+    import time
+
+    from cekm_swarm.node.watchdog import StepTimeout
+
+    path = graph(smooth="qa_start_mods:Hangs")
+    from cekm_swarm.experiments import graph_run
+
+    t0 = time.monotonic()
+    with pytest.raises(StepTimeout) as info:
+        graph_run.run_graph(scenario, graph=path, model=model, max_time=1.0, step_timeout=1.0)
+    assert time.monotonic() - t0 < 10
+    line = str(info.value)
+    assert line.startswith("r1/smooth: its step at t=0.384 s has run for "), line
+    assert f'qa_start_mods.py", line {line_of("the hang")} in step; --step-timeout 1 s passed' in line, line
+    assert info.value.exit_code == 1

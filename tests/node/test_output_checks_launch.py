@@ -72,9 +72,9 @@ def test_a_lockstep_launch_ends_with_the_producers_line(tmp_path):
         code = run.finish(timeout=120)
     finally:
         run.kill()
-    assert code == 2, "\n".join(run.lines[-20:])
+    assert code == 1, "\n".join(run.lines[-20:])
     last = run.lines[-1]
-    assert last.startswith("cekm: error: r1/obstacle-"), last
+    assert last.startswith("cekm: failed: r1/obstacle-"), last
     assert ": its step at t=0.000 s failed: output 'field': field b has 10 values, the model's lattice 225 neurons" \
            in last, last
     assert "lockstep the run cannot go on" in last

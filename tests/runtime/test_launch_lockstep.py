@@ -124,18 +124,28 @@ def test_cekm_plot_draws_the_run_from_its_log(lockstep_run, tmp_path):
     assert drawn["geometry"]["name"] == "concave"
 
 
-def test_a_taken_port_stops_the_launch_with_a_clear_error(tmp_path):
-    """The world server cannot host the router on a port another program listens on:
-    the launch ends at once, naming the address and the world's log, with no traceback."""
+def test_a_taken_port_stops_the_launch_with_a_clear_error_and_leaves_out_as_it_found_it(tmp_path):
+    """The router cannot listen on a port another program listens on: the launch is
+    refused at once, in one line naming the address, before --out is touched, so the retry
+    the line suggests (--port) needs no --overwrite."""
+    out = tmp_path / "out"
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        s.listen()
+        port = s.getsockname()[1]
+        r = subprocess.run([sys.executable, "-m", "cekm_swarm", "launch", "lone_obstacle", "--mode", "lockstep",
+                            "--out", str(out), "--port", str(port), "--no-plot"],
+                           capture_output=True, text=True, timeout=120)
+    assert r.returncode == 1
+    assert f"cannot open the Zenoh router on 127.0.0.1:{port}: Address already in use" in r.stderr
+    assert r.stderr.startswith("cekm: failed: ") and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
+    assert "choose another with --port" in r.stderr
+    assert not out.exists()  # as it was found: the retry needs no --overwrite
+    out.mkdir()  # an empty directory stays empty
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         s.listen()
         r = subprocess.run([sys.executable, "-m", "cekm_swarm", "launch", "lone_obstacle", "--mode", "lockstep",
-                            "--out", str(tmp_path), "--port", str(s.getsockname()[1]), "--no-plot"],
+                            "--out", str(out), "--port", str(s.getsockname()[1]), "--no-plot"],
                            capture_output=True, text=True, timeout=120)
-    assert r.returncode == 1
-    assert "before its Zenoh session opened" in r.stderr and "Address already in use" in r.stderr, r.stderr
-    assert str(tmp_path / "logs" / "world.log") in r.stderr and "Traceback" not in r.stderr
-    assert r.stderr.startswith("cekm: failed: ") and r.stderr.count("\n") == 1  # one line
-    assert "choose another with --port" in r.stderr
-    assert not (tmp_path / "logs" / "r1-motor.log").exists()  # no module was started
+    assert r.returncode == 1 and list(out.iterdir()) == []

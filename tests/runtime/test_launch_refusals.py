@@ -54,7 +54,7 @@ def test_a_bad_graph_is_refused_before_anything_is_written(tmp_path):
 
 
 FAILING = '''
-from cekm_swarm.node import Node, NodeError, Out
+from cekm_swarm.node import Node, Out
 from cekm_swarm.protocol import WheelCommand
 
 
@@ -62,8 +62,8 @@ class NeedsADevice(Node):
     outputs = {"command": Out(WheelCommand)}
 
     def setup(self):
-        if self.ctx.mode != "check":  # fine in the launcher's check; its own host has no such device
-            raise NodeError(f"{self.ctx.sender}: no wheel encoder on /dev/encoder0")
+        if self.ctx.mode != "check":  # fine in the launcher's check; its own process fails (a bug of its code)
+            self.gain = 1 / 0
 
     def step(self, t, inputs):
         return {"command": WheelCommand(t, self.ctx.sender, 0.0, 0.0, 0)}
@@ -80,8 +80,11 @@ def test_a_node_that_cannot_start_ends_the_launch_with_its_own_line(tmp_path):
     r = cekm("launch", "lone_obstacle", "--graph", str(graph), "--mode", "lockstep", "--out", str(tmp_path / "out"),
              "--port", str(free_port()), "--model", str(default_model_path()))
     assert r.returncode == 2, (r.stdout, r.stderr)
-    assert r.stderr == "cekm: error: r1/wheels: no wheel encoder on /dev/encoder0\n", r.stderr
+    assert r.stderr == "cekm: error: r1/wheels: cannot start: ZeroDivisionError: division by zero (device_node.py:11)\n", \
+        r.stderr  # its type, file and line
     assert "restarted" not in r.stdout and "cannot start" in r.stdout
+    log = (tmp_path / "out" / "logs" / "r1-wheels.log").read_text()
+    assert "Traceback (most recent call last)" in log and 'device_node.py", line 11, in setup' in log, log
     assert time.monotonic() - t0 < 60
 
 

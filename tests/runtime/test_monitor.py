@@ -58,6 +58,36 @@ def test_view_model_poses_latency_rates_and_drops():
     assert st.robots["r1"].status == "stopped"
 
 
+def test_a_monitor_open_across_two_runs_shows_only_the_current_runs_figures():
+    """Left open into the next run, it kept the last run's latency for the whole new run
+    and showed its robots 'moving' with 0/14 modules once the run had ended."""
+    st = MonitorState()
+    st.expected = NODES
+    from cekm_swarm.protocol import KeySpace
+
+    r1, r2 = KeySpace(run="run1"), KeySpace(run="run2")
+    st.set_alive({r1.alive("world", "server")} | {r1.alive("r1", m) for m in NODES})
+    st.observe(K.world_state(), encode(world_state(5.0, 0.3)), at=10.0)
+    st.observe(K.sense_range("r1", 0), encode(SenseRange(5.12, "world", 0, 0.0, None)), at=10.0)
+    st.observe(K.cmd_wheels("r1"), encode(WheelCommand(5.12, "r1/motor", 0.1, 0.1, 40)), at=10.020)
+    assert st.robots["r1"].latency_ms(0.5) == pytest.approx(20.0)
+    st.set_alive(set())  # the run ended: every token gone
+    row = next(line for line in lines_of(render_text(st, now=20.0)) if line.startswith("r1 "))
+    assert row.split()[5] == "ended" and snapshot(st, 20.0)["robots"]["r1"]["status"] == "ended"
+    st.set_alive({r2.alive("world", "server")})  # the next run's world server
+    assert st.robots == {} and st.run_id == "run2"
+    assert lines_of(render_text(st, now=21.0))[0].startswith("cekm monitor waiting for the modules  sim -")
+    st.observe(K.world_state(), encode(world_state(0.0, 0.9)), at=22.0)
+    st.observe(K.cmd_wheels("r1"), encode(WheelCommand(0.0, "r1/motor", 0.1, 0.1, 0)), at=22.001)
+    v = st.robots["r1"]
+    assert v.pose == (0.9, 0.5, 0.1) and not v.latencies  # nothing of run1's latency
+    row = next(line for line in lines_of(render_text(st, now=22.1)) if line.startswith("r1 "))
+    assert row.split()[-1] == "-"  # no latency yet in this run
+    st.observe(K.world_state(), encode(world_state(0.5, 0.9)), at=23.0)
+    st.observe(K.world_state(), encode(world_state(0.0, 0.9)), at=24.0)  # a replay from the start: sim time back
+    assert st.robots["r1"].command is None and st.sim_time == 0.0
+
+
 def test_phases_waiting_running_stale_ended_and_replay():
     st = MonitorState()
     text = render_text(st, now=0.0)

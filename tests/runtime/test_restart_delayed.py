@@ -418,9 +418,9 @@ def test_lockstep_ends_when_a_node_keeps_dying_at_the_same_tick(tmp_path):
         code = run.finish(timeout=120)  # it was restarted forever before
     finally:
         run.kill()
-    assert code == 2, "\n".join(run.lines[-20:])
+    assert code == 1, "\n".join(run.lines[-20:])
     last = run.lines[-1]
-    assert last.startswith("cekm: error: r1/drive: died (exit code 3) at t=0.512 s (tick 4), and again after each "
+    assert last.startswith("cekm: failed: r1/drive: died (exit code 3) at t=0.512 s (tick 4), and again after each "
                            f"of {SAME_TICK_RESTARTS} restarts"), last
     assert "in lockstep the run cannot go on without its outputs" in last
     restarts = sum("module r1/drive restarted" in line for line in run.lines)
@@ -478,21 +478,33 @@ def test_a_robots_only_host_ends_too_when_its_node_keeps_dying_at_the_same_tick(
         world.kill()
         if robots is not None:
             robots.kill()
-    assert code == 2, "\n".join(robots.lines[-20:])
-    assert robots.lines[-1].startswith("cekm: error: r1/drive: died (exit code 3) at t=0.512 s (tick 4), and again "
+    assert code == 1, "\n".join(robots.lines[-20:])
+    assert robots.lines[-1].startswith("cekm: failed: r1/drive: died (exit code 3) at t=0.512 s (tick 4), and again "
                                        f"after each of {SAME_TICK_RESTARTS} restarts"), robots.lines[-1]
 
 
 @pytest.mark.slow
-def test_a_lockstep_stall_names_the_node_whose_step_hangs(tmp_path):
+def test_a_lockstep_stall_names_the_node_whose_step_hangs_and_ends_at_the_step_timeout(tmp_path):
     """The world waits at t = 0.512 s; after 5 re-publishings the launcher asks the robot's
     nodes where they are, and says which step hangs and for how long; the node's log holds
-    its stack (the line of the user's code it hangs in)."""
-    run = launch(tmp_path, graph(tmp_path, "hangs"), "ls", "--mode", "lockstep", "--max-time", "20")
+    its stack (the line of the user's code it hangs in). With --step-timeout 5 that ends the
+    launch as failed (exit 1) within 10 s of the hang, on that line."""
+    import time
+
+    run = launch(tmp_path, graph(tmp_path, "hangs"), "ls", "--mode", "lockstep", "--max-time", "20",
+                 "--step-timeout", "5")
     try:
+        run.wait_line("world started ticking", timeout=120)
+        t0 = time.monotonic()
         line = run.wait_line("the world waits at t=0.51 s", timeout=120)
+        code = run.finish(timeout=60)
+        took = time.monotonic() - t0
     finally:
         run.kill()
+    assert code == 1 and took < 10, (code, took, run.lines[-10:])
+    assert run.lines[-1].startswith("cekm: failed: the world waits at t=0.51 s: r1/drive: its step at t=0.512 s "
+                                    "has run for "), run.lines[-1]
+    assert run.lines[-1].endswith("; --step-timeout 5 s passed") and 'mine.py", line ' in run.lines[-1]
     assert "r1/drive: its step at t=0.512 s has run for" in line, line
     assert f'at File "{tmp_path / "mine.py"}", line ' in line and " in step (its threads' stacks: " in line, line
     log = (tmp_path / "ls" / "logs" / "r1-drive.log").read_text()

@@ -162,8 +162,8 @@ def test_node_list_groups_live_modules_and_names_the_missing(router, clients):
     lines = res.output.splitlines()
     assert lines[0] == "graph cekm-navigation (controller cekm): 14 nodes per robot"
     assert lines[1] == "world    server"
-    assert lines[2] == "r1       14/14 nodes alive"
-    assert lines[3].startswith("r2        2/14 nodes alive; missing: obstacle-0, obstacle-1")
+    assert lines[2] == "r1       14/14 nodes alive: target, obstacle-0..11, motor"  # their names, too
+    assert lines[3].startswith("r2        2/14 nodes alive: target, motor; missing: obstacle-0, obstacle-1")
     listed = run("node", "list", "--connect", router, "--json")
     js = [json.loads(line) for line in listed.output.splitlines()]
     assert len(js) == 3, listed.output
@@ -195,14 +195,14 @@ def test_node_list_names_the_run():
     nodes = default_nodes()
     groups, other = group_tokens({run.alive("world", "server"), run.alive("r1", "motor"), "cekm/r1/nothing"}, K, nodes)
     assert format_nodes(groups, other).splitlines() == [
-        "world    server (run abc-1)", "r1        1/14 nodes alive (run abc-1); missing: " +
+        "world    server (run abc-1)", "r1        1/14 nodes alive (run abc-1): motor; missing: " +
         ", ".join(["target"] + [f"obstacle-{j}" for j in range(12)]), "other token: cekm/r1/nothing"]
     groups, other = group_tokens({run.alive("r1", "motor")}, K)  # no graph known: what is alive, nothing missing
     assert format_nodes(groups, other) == "r1        1 nodes alive (run abc-1): motor"
     # a robot of the run's team with no live node (its host not started) is named, all missing
     groups, _ = group_tokens({run.alive("r1", n) for n in nodes}, K, nodes, ("r1", "r2"))
     lines = format_nodes(groups, []).splitlines()
-    assert lines[0] == "r1       14/14 nodes alive (run abc-1)"
+    assert lines[0] == "r1       14/14 nodes alive (run abc-1): target, obstacle-0..11, motor"
     assert lines[1].startswith("r2        0/14 nodes alive; missing: target, obstacle-0")
 
 

@@ -103,8 +103,8 @@ def test_cli_errors_name_the_option():
 
     from cekm_swarm.cli import main
 
-    r = CliRunner().invoke(main, ["view"])
-    assert r.exit_code == 2 and "give a SCENARIO" in r.output
+    r = CliRunner().invoke(main, ["view", "crossing", "--log", __file__])
+    assert r.exit_code == 2 and "give a SCENARIO (name or TOML file) or --log RUN.mcap, not both" in r.output
     r = CliRunner().invoke(main, ["view", "crossing", "--robot", "r9", "--wait", "0"])
     assert r.exit_code == 2 and "--robot" in r.output and "'r9' is not a robot of this arena (r1, r2, r3)" in r.output
     r = CliRunner().invoke(main, ["view", "no_such_scenario"])
