@@ -27,6 +27,7 @@ import numpy as np
 
 from cekm_swarm.ticks import TARGET_EVERY, TICK_S, tick_time
 
+from .odometry import Odometer
 from .rows import Rows
 from .sim import World
 
@@ -120,6 +121,7 @@ class Episode:
         self.world = world
         self.radius = checkpoint_radius
         self.tick = 0
+        self.odometer = Odometer(world)
         self.progress: dict[str, RobotProgress] = {}
         for r in world.robot_ids:
             cps = [tuple(map(float, c)) for c in (checkpoints or {}).get(r, [])] or [world.goal_of(r)]
@@ -176,7 +178,7 @@ class Episode:
         self.tick += 1
 
     def messages(self, robot: str) -> list[tuple[str, Any]]:
-        return []  # navigation: the target reading is part of the readings
+        return self.odometer.messages(robot, self.tick, self.t)  # the target reading is part of the readings
 
     def summary(self) -> dict[str, Any]:
         return {}

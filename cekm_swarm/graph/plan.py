@@ -51,6 +51,7 @@ WORLD_KEYS: dict[str, WorldKey] = {
     "sense/range/{j}": WorldKey("sense/range", 1, ("navigation", "tracking")),
     "sense/pose": WorldKey("sense/pose", TARGET_EVERY, ("tracking",)),
     "sense/targets": WorldKey("sense/targets", TARGET_EVERY, ("tracking",)),
+    "sense/odometry": WorldKey("sense/odometry", 1, ("navigation",)),
     "world/clock": WorldKey("world/clock", 1, ("navigation", "tracking"), per_robot=False),
     "world/state": WorldKey("world/state", 1, ("navigation", "tracking"), per_robot=False),
 }

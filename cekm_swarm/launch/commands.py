@@ -26,6 +26,7 @@ from cekm_swarm.cli_support import (
     refuse_unplannable,
 )
 from cekm_swarm.errors import CekmError
+from cekm_swarm.experiments.learning_run import MODEL_CHOICE, UNTRAINED, model_file_for_launch
 from cekm_swarm.runtime.config import DEFAULT_ENDPOINT, DEFAULT_PORT
 from cekm_swarm.runtime.log_commands import LOG_HELP
 
@@ -52,8 +53,9 @@ def _env_endpoint() -> str | None:
                                                "--port is given].")
 @click.option("--port", default=DEFAULT_PORT, show_default=True, type=click.IntRange(1, 65535),
               help="Port of the embedded router on 127.0.0.1 (without --connect).")
-@click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path),
-              help="A trained model (.npz); default: R15 trained and cached on first use.")
+@click.option("--model", "model_path", type=MODEL_CHOICE,
+              help="A trained model (.npz), or 'untrained' (with --learn); default: R15 trained and cached on first use.")
+@click.option("--learn", is_flag=True, help="The robots' maps learn online as they move (docs/learning.md).")
 @click.option("--max-time", type=Finite(min=0.2),
               help="Sim seconds before the run ends (default: as cekm run, 600 for navigation, 120 for tracking).")
 @click.option("--controller", default="cekm", show_default=True, metavar="NAME",
@@ -89,7 +91,8 @@ def _env_endpoint() -> str | None:
               help="What run.mcap holds: full (every message and view), or lean for long runs (the world's "
                    "messages, commands and shares, views at 1 Hz; docs/tools.md).")
 def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwrite: bool, connect: str | None,
-               port: int, model_path: Path | None, max_time: float | None, controller: str, graph_file: Path | None,
+               port: int, model_path: Path | None, learn: bool, max_time: float | None, controller: str,
+               graph_file: Path | None,
                root: str, no_plot: bool, robots: tuple[str, ...] | None, no_world: bool, listen_host: str,
                zenoh_config: Path | None, model_from_zenoh: bool, run_id: str | None, cold_start: bool,
                send_every_reading: bool, max_log_size: int | None, max_log_duration: float | None,
@@ -139,23 +142,29 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwr
     from .errors import NodeCannotStart
     from .prepare import PreflightError, resolve
 
+    params = None
+    if learn:
+        from cekm_swarm.experiments.learning_run import learning_controller, learning_params
+
+        controller, params = learning_controller(controller, graph_file), learning_params(model_path)
     try:  # the graph, checked before anything is written or started
-        checked, task = resolve(sc, controller, graph_file)
+        checked, task = resolve(sc, controller, graph_file, params)
         checked.plan([r.id for r in sc.robots], task)
     except GraphError as exc:
         raise click.UsageError(str(exc)) from None
-    if model_path is not None and checked.uses_model:  # a bad model is refused before --overwrite clears --out
+    if model_path not in (None, UNTRAINED) and checked.uses_model:  # a bad model is refused before --overwrite clears --out
         from .prepare import body_of, plan_of, preflight
 
         body = body_of(sc)
         preflight(checked, plan_of(checked, tuple(known), task, body, root), body, str(model_path))
     prepare_out_dir(out_dir, overwrite)
+    model_path = model_file_for_launch(model_path, out_dir)  # untrained maps: a file the nodes read
     config = LaunchConfig(scenario, out_dir, mode=mode, seed=seed, connect=connect, port=port, model=model_path,
                           max_time=max_time, controller=controller, graph=graph_file, root=root, plot=not no_plot,
                           robots=only, world=not no_world, listen_host=listen_host, zenoh_config=zenoh_config,
                           model_from_zenoh=model_from_zenoh, run_id=run_id, warm_start=not cold_start,
                           hold_readings=not send_every_reading, max_log_size=max_log_size,
-                          max_log_duration=max_log_duration, record=record)
+                          max_log_duration=max_log_duration, record=record, params=params)
     launcher = Launcher(config, echo=lambda s: click.echo(s))
     try:
         outcome = launcher.launch()

@@ -57,7 +57,7 @@ from .schema import (
 __all__ = ["MAX_ARRAY_LEN", "MAX_INDEX", "MAX_SENDER_LEN", "MAX_TARGETS", "MESSAGE_TYPES", "MSGPACK_ENCODING",
            "SCHEMA_VERSION", "Message", "SenseTarget", "SenseRange", "TargetField", "ObstacleField", "WheelCommand",
            "Share", "SensePose", "SenseTargets", "Unchanged", "TrackingField", "RobotState", "TargetState", "ObstacleState",
-           "WorldState", "Clock", "Data", "with_stamp", "decode", "encode", "peek", "summary", "to_plain", "to_wire"]
+           "WorldState", "Clock", "Data", "SenseOdometry", "MapVersion", "with_stamp", "decode", "encode", "peek", "summary", "to_plain", "to_wire"]
 
 
 def _fail(field: str, problem: str) -> MessageFieldError:
@@ -277,6 +277,55 @@ class Data(Message):
 
     values: dict[str, Plain]
     KIND: ClassVar[KeyKind] = KeyKind.DATA
+
+
+class SenseOdometry(Message):
+    """World -> the learner: what the robot's wheel encoders measured over the tick that
+    ends at ``stamp``: each wheel's travel ``left``, ``right`` (m, signed; the executed
+    wheel speeds, with the plant's slip noise, over each sub-step) in ``dt`` seconds, and
+    ``blocked``, whether the body touched a wall, an obstacle or a robot meanwhile (the
+    motors' stall signal): a step the wheels spent pushing is not learned from
+    (docs/learning.md)."""
+
+    left: Finite
+    right: Finite
+    dt: Annotated[float, Meta(ge=1e-6, le=60.0)]
+    blocked: bool
+    KIND: ClassVar[KeyKind] = KeyKind.SENSE_ODOMETRY
+
+
+Digest = Annotated[str, Meta(pattern=r"^[0-9a-f]{16}$")]
+"""A map's digest: the first 16 hex digits of the SHA-256 of its arrays (docs/learning.md)."""
+
+
+class MapVersion(Message):
+    """Learner -> every EKM node of its robot: version ``version`` of the robot's map (section
+    3.5: all of a robot's EKMs share one set of input weights), whole: the input weights
+    ``w`` (2n: alpha_i, d_i per neuron), the control parameters ``M`` (4n, row-major 2x2
+    per neuron, internal units) and R^-1 (``rinv``, 4n), after ``steps`` learning steps
+    (``applied`` learned from, ``skipped`` stopped or blocked), and ``digest`` of the three
+    arrays. A reader uses version k from the tick after its stamp (docs/learning.md)."""
+
+    version: Count
+    steps: Count
+    applied: Count
+    skipped: Count
+    digest: Digest
+    w: Vector
+    M: Vector
+    rinv: Vector
+    KIND: ClassVar[KeyKind] = KeyKind.MAP_VERSION
+
+    def check(self) -> None:
+        n2 = self.w.shape[0]
+        if n2 % 2:
+            raise _fail("w", f"length {n2} is not two values per neuron")
+        n = n2 // 2
+        for name in ("M", "rinv"):
+            if getattr(self, name).shape[0] != 4 * n:
+                raise _fail(name, f"length {getattr(self, name).shape[0]}, w has {n} neurons (4 values each)")
+        if self.applied + self.skipped != self.steps:
+            raise _fail("steps", f"{self.steps} steps, but {self.applied} applied and {self.skipped} skipped")
 
 
 def with_stamp(msg: Message, t: float) -> Message:

@@ -1,0 +1,122 @@
+"""``--learn`` for ``cekm run`` and ``cekm launch`` (docs/learning.md): the controller's
+learning graph, the model it starts from (a trained file, or ``untrained`` maps), and the
+``learning`` block of ``outcome.json``: per robot what its learner did, its final map's
+digest, and the map's E and T on the section 4.1 test targets at the start and the end.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import click
+
+from ..errors import ParameterError
+
+UNTRAINED = "untrained"
+"""``--model untrained``: R15 with regular input weights and uninformed random M_i
+(docs/design.md section 3, item 7), drawn from :data:`UNTRAINED_SEED`."""
+UNTRAINED_SEED = 0
+UNTRAINED_NAME = "R15"
+LEARNER = "learner"
+"""The learner node's name in a learning graph."""
+TEST_SEED = 2005
+"""The seed of the section 4.1 test targets a map is scored on (``cekm experiment target-reaching``'s default)."""
+
+
+class ModelChoice(click.ParamType):
+    """``--model``: a model file that exists, or the word ``untrained``."""
+
+    name = "FILE|untrained"
+
+    def convert(self, value, param, ctx):
+        if value is None or isinstance(value, Path) or value == UNTRAINED:
+            return value
+        path = Path(value)
+        if not path.is_file():
+            self.fail(f"{value!r}: no such file (give a model .npz, or 'untrained')", param, ctx)
+        return path
+
+
+MODEL_CHOICE = ModelChoice()
+
+
+def untrained_model():
+    """The untrained map ``--model untrained`` gives (the same in ``cekm run`` and ``cekm launch``)."""
+    import numpy as np
+
+    from ..models.networks import make_network
+
+    return make_network(UNTRAINED_NAME, np.random.default_rng(UNTRAINED_SEED))
+
+
+def learning_controller(controller: str, graph_file) -> str:
+    """The controller whose learning graph ``--learn`` runs: ``cekm`` -> ``cekm-learning``."""
+    if graph_file is not None:
+        raise click.UsageError("--learn runs a controller's learning graph; with --graph, give a graph with a "
+                               "learner node instead (docs/learning.md)")
+    return controller if controller.endswith("-learning") else f"{controller}-learning"
+
+
+def learning_params(model_choice) -> dict[str, Any]:
+    """The learner's parameters for the model it starts from: untrained maps start the
+    neighbourhood schedule at step 0, a trained one at its final width."""
+    return {"start_step": 0} if model_choice == UNTRAINED else {}
+
+
+def model_file_for_launch(model_choice, out_dir: Path) -> Path | None:
+    """A model file the launched nodes can read: ``untrained`` is written into ``out_dir``."""
+    if model_choice != UNTRAINED:
+        return model_choice
+    from ..models.io import save_model
+
+    return save_model(Path(out_dir) / "untrained-R15.npz", untrained_model(),
+                      {"untrained": True, "seed": UNTRAINED_SEED})
+
+
+def test_score(model) -> dict[str, float]:
+    """The map's E (mm), T (s/m) and D on the section 4.1 test targets (50, from the arena's
+    centre, no learning; :func:`cekm_swarm.experiments.trial.test_reference`)."""
+    import numpy as np
+
+    from .arena import Arena
+    from .metrics import score
+    from .stopping import GOAL_STOP
+    from .streams import Schedule, TrialStreams
+    from .trial import network_command, test_reference
+
+    arena = Arena()
+    streams = TrialStreams(TEST_SEED, 0, arena, Schedule(steps=10, test_interval=10))
+    s = score(test_reference(network_command(model, GOAL_STOP), streams, np.array([0.005])), arena.step_s)
+    return {"E_mm": round(s.E_mm, 3), "T_s_per_m": round(s.T_s_per_m, 3), "D": round(s.D, 4),
+            "ended_by_budget": s.ended_by_budget}
+
+
+def learner_summary(learner, dropped: int = 0, start=None) -> dict[str, Any]:
+    """One robot's ``learning`` block from its learner node (and the start map's score)."""
+    c = learner.counts
+    out = {"versions": learner.version, "steps": c.steps, "updates_applied": c.applied, "skipped_stopped": c.stopped,
+           "skipped_blocked": c.blocked, "updates_dropped": dropped, "final_digest": learner.digest,
+           "start": start, "end": test_score(learner.net)}
+    return out
+
+
+def learning_outcome(executor, team, base_model) -> dict[str, dict]:
+    """The ``learning`` block of an in-process run: per robot with a learner."""
+    out = {}
+    start = None
+    for robot in team:
+        try:
+            node = executor.node(robot, LEARNER)
+        except KeyError:
+            continue
+        if start is None:
+            start = test_score(base_model)
+        out[robot] = learner_summary(node, 0, start)
+    return out
+
+
+def check_learning_model(model) -> None:
+    """A model a learner can start from: an indirect-mapping EKM."""
+    if not str(getattr(model, "kind", "")).startswith("indirect"):
+        raise ParameterError(f"--learn needs an indirect-mapping EKM (G or R), not {getattr(model, 'kind', model)!r}")

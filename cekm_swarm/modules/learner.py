@@ -1,0 +1,183 @@
+"""Online learning through the runtime (section 3.5; docs/learning.md): the robot's one
+map, learned while it moves and shared by all of its EKM nodes.
+
+* :class:`Learner` (one per robot, every tick): from the wheel odometry of the tick
+  (``sense/odometry``) and the command that produced it (``cmd/wheels`` of the tick
+  before) it forms the displacement v (:func:`cekm_swarm.models.learning.wheel_displacement`)
+  and applies one step of self-organized learning with the models' own rule
+  (:meth:`cekm_swarm.models.networks.IndirectEKM.learn`: winner for v, Eq. 15 or Eqs.
+  16-17, Eq. 12), except on a stopped step (c = 0, or wheels that did not turn) or a
+  blocked one (the body touched something). Every ``publish_every`` ticks, when it
+  learned, it makes a new version of the map; every run it sends the current version,
+  whole (:class:`~cekm_swarm.protocol.MapVersion`: version, digest, w, M, R^-1).
+* Every EKM node of the robot reads that message with ``delay = 1`` and uses the version
+  of the learner's latest run before the tick (:class:`MapFollower`): version k from the
+  tick after its stamp. A new version is made at the last tick of a period of
+  ``publish_every`` ticks, so every node whose period divides it switches at the same
+  tick. A message whose version is older than the node's, whose digest does not match
+  its arrays, or whose lattice is not the model's, is dropped and counted; a node that
+  restarted or missed a version catches up from the next message, which holds the whole
+  current map.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from cekm_swarm.models.learning import map_digest, wheel_displacement
+from cekm_swarm.models.networks import IndirectEKM
+from cekm_swarm.node import In, Node, NodeError, Out
+from cekm_swarm.protocol import MapVersion, SenseOdometry, WheelCommand
+from cekm_swarm.ticks import tick_of
+
+from .ekm import indirect_model
+
+STEP_S = 1.024
+"""s: one step of the map (section 4.1): v is the displacement over it."""
+MAX_MAP_BYTES = 30_000
+"""The largest map message a learner sends (under the runtime's 32 KB message limit): a
+15 x 15 map is 18 KB."""
+
+
+@dataclass
+class LearnerCounts:
+    """What one learner did: steps seen, learned from, skipped (stopped / blocked)."""
+
+    applied: int = 0
+    stopped: int = 0
+    blocked: int = 0
+
+    @property
+    def skipped(self) -> int:
+        return self.stopped + self.blocked
+
+    @property
+    def steps(self) -> int:
+        return self.applied + self.skipped
+
+
+def copy_model(model: IndirectEKM, w: np.ndarray | None = None, M: np.ndarray | None = None,
+               Rinv: np.ndarray | None = None) -> IndirectEKM:
+    """A private copy of ``model`` (the run's model is shared by every robot of a process),
+    with the arrays given in place of its own."""
+    n = model.lattice.n
+    return IndirectEKM(model.lattice, model.rule,
+                       np.array(model.w if w is None else np.reshape(w, (n, 2)), dtype=np.float64),
+                       np.array(model.M if M is None else np.reshape(M, (n, 2, 2)), dtype=np.float64),
+                       np.array(model.Rinv if Rinv is None else np.reshape(Rinv, (n, 2, 2)), dtype=np.float64),
+                       model.comp, model.learn_p, model.v_max,
+                       None if model.converged is None else model.converged.copy())
+
+
+def learn_step(net: IndirectEKM, odo: SenseOdometry, c: tuple[float, float], t_learn: float, axle: float,
+               counts: LearnerCounts) -> np.ndarray | None:
+    """One learning step of section 3.5 from the odometry of a step and the command c that
+    produced it: v, then the models' rule. Returns v, or None for a step not learned from
+    (stopped: c = 0 or wheels that did not turn; blocked: the body touched something)."""
+    c_exec = np.clip(np.array(c, dtype=np.float64), -net.v_max, net.v_max)  # what the wheels execute
+    if (c_exec[0] == 0.0 and c_exec[1] == 0.0) or (odo.left == 0.0 and odo.right == 0.0):
+        counts.stopped += 1
+        return None
+    if odo.blocked:
+        counts.blocked += 1
+        return None
+    v = wheel_displacement(odo.left, odo.right, odo.dt, axle, STEP_S)
+    net.learn(v, c_exec, t_learn)  # winner for v, Eq. 15 or Eqs. 16-17, Eq. 12
+    counts.applied += 1
+    return v
+
+
+class Learner(Node):
+    """The robot's learner: odometry and the command it answers -> a new map version
+    every ``publish_every`` ticks in which it learned (docs/learning.md)."""
+
+    inputs = {"odometry": In(SenseOdometry, doc="the wheel encoders' travel over the tick"),
+              "command": In(WheelCommand, doc="the command of the tick before (read with delay = 1)")}
+    outputs = {"map": Out(MapVersion, doc="the robot's current map version, whole")}
+    uses_model = True
+    stateful = True
+
+    @dataclass(frozen=True)
+    class Params:
+        publish_every: int = 8  # ticks per map version (8: the map's step, 1.024 s)
+        start_step: int = 100_000  # the training step the neighbourhood schedule sigma(t) starts at (0: untrained)
+
+    def setup(self) -> None:
+        if self.params.publish_every < 1 or self.params.start_step < 0:
+            raise NodeError(f"{self.ctx.sender}: publish_every must be >= 1 and start_step >= 0")
+        self.net = copy_model(indirect_model(self.ctx))
+        size = 8 * 10 * self.net.lattice.n
+        if size > MAX_MAP_BYTES:
+            raise NodeError(f"{self.ctx.sender}: a {self.net.lattice.size}x{self.net.lattice.size} map is {size} bytes, "
+                            f"more than a map message may hold ({MAX_MAP_BYTES}); learn with a lattice of at most 19x19")
+        self.counts = LearnerCounts()
+        self.version = 0
+        self.dirty = False
+        self.axle = self.ctx.body.axle
+        self.history: list[tuple[int, float, str]] = []  # (version, sim time it was made, digest)
+        self._publish(0.0)
+
+    def _publish(self, t: float) -> None:
+        net = self.net
+        self.digest = map_digest(net.w, net.M, net.Rinv)
+        self.arrays = (net.w.reshape(-1).copy(), net.M.reshape(-1).copy(), net.Rinv.reshape(-1).copy())
+        self.history.append((self.version, t, self.digest))
+
+    def step(self, t, inputs):
+        odo, cmd = inputs["odometry"], inputs["command"]
+        if odo is not None and cmd is not None:
+            before = self.counts.applied
+            learn_step(self.net, odo, (cmd.v_l, cmd.v_r), float(self.params.start_step + self.counts.applied),
+                       self.axle, self.counts)
+            self.dirty = self.dirty or self.counts.applied > before
+        if self.dirty and (tick_of(t) + 1) % self.params.publish_every == 0:
+            self.version += 1
+            self.dirty = False
+            self._publish(t)
+        c = self.counts
+        w, M, rinv = self.arrays
+        return {"map": MapVersion(t, self.ctx.sender, self.version, c.steps, c.applied, c.skipped, self.digest,
+                                  w, M, rinv)}
+
+
+def model_of(base: IndirectEKM, msg: MapVersion) -> IndirectEKM:
+    """The map a version message holds, on ``base``'s lattice and parameters."""
+    return copy_model(base, msg.w, msg.M, msg.rinv)
+
+
+def map_misfit(msg: MapVersion, version: int, n: int) -> str | None:
+    """Why a node holding ``version`` of an n-neuron map cannot use ``msg`` (None: it can)."""
+    if msg.w.shape[0] != 2 * n:
+        return f"a map of {msg.w.shape[0] // 2} neurons, the model's lattice has {n}"
+    if msg.version < version:
+        return f"stale: version {msg.version}, this node has version {version}"
+    if msg.version > version and map_digest(msg.w, msg.M, msg.rinv) != msg.digest:
+        return f"version {msg.version}: its digest {msg.digest} does not match its arrays"
+    if not all(math.isfinite(x) for x in (msg.w[0], msg.M[0])):
+        return "not finite"
+    return None
+
+
+class MapFollower:
+    """What an EKM node of a learning robot adds: its ``map`` input, the learner's latest
+    version before the tick, used from that tick on (``self.ekm`` rebuilt on a new version,
+    its field rows computed as they are needed)."""
+
+    version = 0
+
+    def follow(self, msg: MapVersion | None) -> None:
+        if msg is None or msg.version == self.version or map_misfit(msg, self.version, self.ekm.n) is not None:
+            return
+        from dataclasses import replace
+
+        self.ekm = replace(self.ekm, model=model_of(self.ekm.model, msg), tabulate=False)
+        self.version = msg.version
+        self.digest = msg.digest
+
+    def map_check(self, port: str, msg) -> str | None:
+        if port == "map":
+            return map_misfit(msg, self.version, self.ekm.n)
+        return None

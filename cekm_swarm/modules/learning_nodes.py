@@ -1,0 +1,57 @@
+"""The cooperative-EKM nodes of a learning robot (docs/learning.md): target localization,
+obstacle localization and motor integration as shipped, each with one more input, ``map``
+(the robot's learner's latest map version, read with ``delay = 1``), whose version it uses
+from that tick on (:class:`cekm_swarm.modules.learner.MapFollower`)."""
+
+from __future__ import annotations
+
+from cekm_swarm.node import In
+from cekm_swarm.protocol import MapVersion
+
+from .learner import MapFollower
+from .motor_integration import MotorIntegration
+from .obstacle_localization import ObstacleLocalization
+from .target_localization import TargetLocalization
+
+MAP_INPUT = In(MapVersion, doc="the robot's map version of the learner's latest run before this tick")
+
+
+class LearningTargetLocalization(MapFollower, TargetLocalization):
+    """Target localization (Eqs. 2-6) on the robot's current map version."""
+
+    inputs = {**TargetLocalization.inputs, "map": MAP_INPUT}
+    pure = False  # its field depends on the map version too
+
+    def check_input(self, port, msg):
+        return self.map_check(port, msg)
+
+    def step(self, t, inputs):
+        self.follow(inputs["map"])
+        return super().step(t, inputs)
+
+
+class LearningObstacleLocalization(MapFollower, ObstacleLocalization):
+    """Obstacle localization j (Eqs. 2-8) on the robot's current map version."""
+
+    inputs = {**ObstacleLocalization.inputs, "map": MAP_INPUT}
+    pure = False
+
+    def check_input(self, port, msg):
+        return self.map_check(port, msg)
+
+    def step(self, t, inputs):
+        self.follow(inputs["map"])
+        return super().step(t, inputs)
+
+
+class LearningMotorIntegration(MapFollower, MotorIntegration):
+    """Motor integration (Eqs. 9-11) on the robot's current map version."""
+
+    inputs = {**MotorIntegration.inputs, "map": MAP_INPUT}
+
+    def check_input(self, port, msg):
+        return self.map_check(port, msg) if port == "map" else super().check_input(port, msg)
+
+    def step(self, t, inputs):
+        self.follow(inputs["map"])
+        return super().step(t, inputs)
