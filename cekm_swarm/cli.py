@@ -20,7 +20,7 @@ from .cli_support import (
     run_cli,
 )
 from .errors import CekmError
-from .experiments.learning_run import MODEL_CHOICE
+from .experiments.learning_commands import MODEL_CHOICE
 
 MIN_SPEED_UNIT = 1e-6
 """The smallest positive wheel speed unit (m/s) a command takes for the plant."""
@@ -468,6 +468,9 @@ def _register_view_command() -> None:
 
     main.add_command(view_cmd)
     main.add_command(graph_group)
+    from .experiments.learning_commands import model_group  # cekm model extract (docs/learning.md)
+
+    main.add_command(model_group)
 
 
 _register_view_command()

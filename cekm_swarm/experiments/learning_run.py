@@ -9,8 +9,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import click
-
 from ..errors import ParameterError
 
 UNTRAINED = "untrained"
@@ -22,23 +20,6 @@ LEARNER = "learner"
 """The learner node's name in a learning graph."""
 TEST_SEED = 2005
 """The seed of the section 4.1 test targets a map is scored on (``cekm experiment target-reaching``'s default)."""
-
-
-class ModelChoice(click.ParamType):
-    """``--model``: a model file that exists, or the word ``untrained``."""
-
-    name = "FILE|untrained"
-
-    def convert(self, value, param, ctx):
-        if value is None or isinstance(value, Path) or value == UNTRAINED:
-            return value
-        path = Path(value)
-        if not path.is_file():
-            self.fail(f"{value!r}: no such file (give a model .npz, or 'untrained')", param, ctx)
-        return path
-
-
-MODEL_CHOICE = ModelChoice()
 
 
 def untrained_model():
@@ -53,8 +34,8 @@ def untrained_model():
 def learning_controller(controller: str, graph_file) -> str:
     """The controller whose learning graph ``--learn`` runs: ``cekm`` -> ``cekm-learning``."""
     if graph_file is not None:
-        raise click.UsageError("--learn runs a controller's learning graph; with --graph, give a graph with a "
-                               "learner node instead (docs/learning.md)")
+        raise ParameterError("--learn runs a controller's learning graph; with --graph, give a graph with a "
+                             "learner node instead (docs/learning.md)")
     return controller if controller.endswith("-learning") else f"{controller}-learning"
 
 

@@ -26,7 +26,8 @@ from cekm_swarm.cli_support import (
     refuse_unplannable,
 )
 from cekm_swarm.errors import CekmError
-from cekm_swarm.experiments.learning_run import MODEL_CHOICE, UNTRAINED, model_file_for_launch
+from cekm_swarm.experiments.learning_commands import MODEL_CHOICE
+from cekm_swarm.experiments.learning_run import UNTRAINED, model_file_for_launch
 from cekm_swarm.runtime.config import DEFAULT_ENDPOINT, DEFAULT_PORT
 from cekm_swarm.runtime.log_commands import LOG_HELP
 
@@ -174,6 +175,10 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwr
         raise
     except CekmError as exc:  # the world server or the embedded router did not come up: say why, no traceback
         raise RunFailed(str(exc)) from None
+    if learn and not no_world:
+        from cekm_swarm.experiments.learning_commands import add_launch_learning
+
+        add_launch_learning(out_dir, outcome, model_path)
     if no_world:
         click.echo(f"modules of {', '.join(only) if only else 'every robot'} stopped; the world host writes the outcome")
         if launcher.interrupted:
