@@ -74,11 +74,14 @@ def test_score(model) -> dict[str, float]:
 
 
 def learner_summary(learner, dropped: int = 0, start=None) -> dict[str, Any]:
-    """One robot's ``learning`` block from its learner node (and the start map's score)."""
+    """One robot's ``learning`` block from its learner node (and the start map's score): the
+    map of its last version (steps learned since are in no version yet)."""
+    from ..modules.learner import copy_model
+
     c = learner.counts
     out = {"versions": learner.version, "steps": c.steps, "updates_applied": c.applied, "skipped_stopped": c.stopped,
            "skipped_blocked": c.blocked, "updates_dropped": dropped, "final_digest": learner.digest,
-           "start": start, "end": test_score(learner.net)}
+           "start": start, "end": test_score(copy_model(learner.net, *learner.arrays))}  # the last version's map
     return out
 
 

@@ -1,0 +1,84 @@
+"""`cekm launch --learn --mode lockstep` equals `cekm run --learn` bit for bit (docs/learning.md):
+every pose and command of every tick, the outcome, and every map version's digest, from
+untrained maps with three robots (an obstacle node of one SIGKILLed as the world starts
+ticking: it catches up from the learner's next message) and from the trained map with one;
+`cekm model extract` on the log gives the run's final map."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+
+import pytest
+from test_launch_support import LaunchProcess
+
+from cekm_swarm.experiments.default_model import default_model, default_model_path
+from cekm_swarm.experiments.graph_run import resolve_graph, with_params
+from cekm_swarm.experiments.learning_run import LEARNER, learning_params, untrained_model
+from cekm_swarm.experiments.navigation_run import run_scenario
+from cekm_swarm.models.io import load_model
+from cekm_swarm.models.learning import map_digest
+from cekm_swarm.runtime.map_log import versions
+from world import load_scenario
+
+pytestmark = pytest.mark.slow  # starts real processes (tests/process_guard.py)
+
+
+def in_process(scenario: str, model, choice, max_time: float):
+    from cekm_swarm.experiments.graph_run import run_graph
+
+    checked = with_params(resolve_graph("cekm-learning", None, "navigation"), learning_params(choice))
+    ref = run_scenario(load_scenario(scenario), "cekm-learning", model, None, max_time=max_time, graph=checked)
+    graph = run_graph(load_scenario(scenario), graph=checked, model=model, max_time=max_time)
+    history = {r: [(v, d) for v, _, d in graph.executor.node(r, LEARNER).history] for r in graph.world.robot_ids}
+    return ref, history
+
+
+def launched(tmp_path, scenario, max_time, *args, kill=None):
+    run = LaunchProcess(scenario, tmp_path / "run", "--learn", "--mode", "lockstep", "--max-time", str(max_time), *args)
+    try:
+        if kill:
+            run.wait_line("world started ticking", timeout=120)
+            os.kill(run.pids()[kill], signal.SIGKILL)
+        code = run.finish(timeout=180)
+    finally:
+        run.kill()
+    assert code == 0, "\n".join(run.lines)
+    return run
+
+
+def assert_equal_runs(run, ref, history):
+    outcome = run.outcome()
+    traj = json.loads((run.out / "trajectory.json").read_text())
+    for r, log in ref.logs.items():
+        assert traj[r]["t"] == log.t
+        assert traj[r]["x"] == log.x and traj[r]["y"] == log.y and traj[r]["theta"] == log.theta
+        assert traj[r]["v_l"] == log.v_l and traj[r]["v_r"] == log.v_r
+    assert outcome["robots"] == json.loads(json.dumps(ref.outcome))
+    assert versions(run.out / "run.mcap") == history  # every version, its digest, in order
+    for r, block in ref.learning.items():
+        got = outcome["learning"][r]
+        assert got["final_digest"] == block["final_digest"] == history[r][-1][1]
+        assert got["updates_applied"] == block["updates_applied"] > 0
+        assert got["end"] == block["end"] and got["start"] == block["start"]
+
+
+def test_three_untrained_robots_learn_the_same_in_lockstep_as_in_process(tmp_path):
+    run = launched(tmp_path, "crossing", 4, "--model", "untrained", kill="r2/obstacle-3")
+    ref, history = in_process("crossing", untrained_model(), "untrained", 4)
+    assert run.outcome()["launcher"]["restarts"] == {"r2/obstacle-3": 1}
+    assert all(len(h) > 2 for h in history.values())
+    assert_equal_runs(run, ref, history)
+    from cekm_swarm.cli import run_cli_args
+
+    out = tmp_path / "r3.npz"
+    assert run_cli_args(["model", "extract", str(run.out / "run.mcap"), "--robot", "r3", "--out", str(out)]) == 0
+    m = load_model(out)  # a model file cekm run --model takes
+    assert map_digest(m.w, m.M, m.Rinv) == history["r3"][-1][1]
+
+
+def test_one_trained_robot_learns_the_same_in_lockstep_as_in_process(tmp_path):
+    run = launched(tmp_path, "lone_obstacle", 3, "--model", str(default_model_path()))
+    ref, history = in_process("lone_obstacle", default_model(progress=False), None, 3)
+    assert_equal_runs(run, ref, history)
