@@ -17,7 +17,7 @@ map, learned while it moves and shared by all of its EKM nodes.
   tick. A message whose version is older than the node's, whose digest does not match
   its arrays, or whose lattice is not the model's, is dropped and counted; a node that
   restarted or missed a version catches up from the next message, which holds the whole
-  current map.
+  current map. (A restarted learner starts again from the run's model: docs/learning.md.)
 """
 
 from __future__ import annotations
@@ -164,12 +164,21 @@ def map_misfit(msg: MapVersion, version: int, n: int) -> str | None:
 class MapFollower:
     """What an EKM node of a learning robot adds: its ``map`` input, the learner's latest
     version before the tick, used from that tick on (``self.ekm`` rebuilt on a new version,
-    its field rows computed as they are needed)."""
+    its field rows computed as they are needed). A malformed message or one of another
+    lattice is refused on receipt (the shell drops and counts it); an older version than the
+    node holds (a resend, or a learner restarted from its model) is dropped here and counted
+    in ``dropped``, and the node keeps its version, so a lockstep run never waits on it."""
 
     version = 0
+    dropped = 0
 
     def follow(self, msg: MapVersion | None) -> None:
-        if msg is None or msg.version == self.version or map_misfit(msg, self.version, self.ekm.n) is not None:
+        if msg is None or msg.version == self.version:
+            return
+        why = map_misfit(msg, self.version, self.ekm.n)
+        if why is not None:
+            self.dropped += 1
+            self.last_drop = why
             return
         from dataclasses import replace
 
@@ -178,6 +187,6 @@ class MapFollower:
         self.digest = msg.digest
 
     def map_check(self, port: str, msg) -> str | None:
-        if port == "map":
+        if port == "map" and msg.version >= self.version:
             return map_misfit(msg, self.version, self.ekm.n)
         return None

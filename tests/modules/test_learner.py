@@ -97,7 +97,9 @@ def test_stale_malformed_and_misfit_map_messages_are_refused(base):
     f.step(v2.stamp + TICK_S, Inputs({"reading": None, "map": v2}))
     assert f.version == 2
     v1 = next(m for m in msgs if m.version == 1)
-    assert "stale" in f.check_input("map", v1)  # older than what the node holds: dropped, counted by the shell
+    assert f.check_input("map", v1) is None  # older than what the node holds: not refused on receipt (no stall) ...
+    f.step(v1.stamp + TICK_S, Inputs({"reading": None, "map": v1}))
+    assert f.version == 2 and f.dropped == 1 and "stale" in f.last_drop  # ... but dropped and counted when met
     bad = MapVersion(v2.stamp, v2.sender, 3, v2.steps, v2.applied, v2.skipped, v2.digest, v2.w + 1e-9, v2.M, v2.rinv)
     assert "digest" in f.check_input("map", bad)
     other = make_network("R5", np.random.default_rng(0))
