@@ -36,7 +36,7 @@ def learning_controller(controller: str, graph_file) -> str:
     if graph_file is not None:
         raise ParameterError("--learn runs a controller's learning graph; with --graph, give a graph with a "
                              "learner node instead (docs/learning.md)")
-    return controller if controller.endswith("-learning") else f"{controller}-learning"
+    return controller if controller.endswith(("-learning", "-learning-team")) else f"{controller}-learning"
 
 
 def learning_params(model_choice) -> dict[str, Any]:
@@ -79,7 +79,8 @@ def learner_summary(learner, dropped: int = 0, start=None) -> dict[str, Any]:
     from ..modules.learner import copy_model
 
     c = learner.counts
-    out = {"versions": learner.version, "steps": c.steps, "updates_applied": c.applied, "skipped_stopped": c.stopped,
+    out = {"versions": learner.version, "steps": c.steps, "updates_applied": c.learned, "own_steps": c.applied,
+           "team_steps": c.team, "skipped_stopped": c.stopped,
            "skipped_blocked": c.blocked, "updates_dropped": dropped, "final_digest": learner.digest,
            "start": start, "end": test_score(copy_model(learner.net, *learner.arrays))}  # the last version's map
     return out

@@ -30,7 +30,7 @@ import numpy as np
 from cekm_swarm.models.learning import map_digest, wheel_displacement
 from cekm_swarm.models.networks import IndirectEKM
 from cekm_swarm.node import In, Node, NodeError, Out
-from cekm_swarm.protocol import MapVersion, SenseOdometry, WheelCommand
+from cekm_swarm.protocol import Data, MapVersion, SenseOdometry, WheelCommand
 from cekm_swarm.ticks import tick_of
 
 from .ekm import indirect_model
@@ -46,17 +46,23 @@ MAX_MAP_BYTES = 30_000
 class LearnerCounts:
     """What one learner did: steps seen, learned from, skipped (stopped / blocked)."""
 
-    applied: int = 0
+    applied: int = 0  # own steps learned from
     stopped: int = 0
     blocked: int = 0
+    team: int = 0  # teammates' steps learned from (TeamLearner)
 
     @property
     def skipped(self) -> int:
         return self.stopped + self.blocked
 
     @property
+    def learned(self) -> int:
+        """Every update of the map: own steps and teammates'."""
+        return self.applied + self.team
+
+    @property
     def steps(self) -> int:
-        return self.applied + self.skipped
+        return self.learned + self.skipped
 
 
 def copy_model(model: IndirectEKM, w: np.ndarray | None = None, M: np.ndarray | None = None,
@@ -126,21 +132,69 @@ class Learner(Node):
         self.arrays = (net.w.reshape(-1).copy(), net.M.reshape(-1).copy(), net.Rinv.reshape(-1).copy())
         self.history.append((self.version, t, self.digest))
 
-    def step(self, t, inputs):
+    def t_learn(self) -> float:
+        """The training step the neighbourhood schedule sigma(t) is at."""
+        return float(self.params.start_step + self.counts.learned)
+
+    def learn_own(self, inputs) -> np.ndarray | None:
+        """This tick's own step (section 3.5); v, or None when nothing was learned."""
         odo, cmd = inputs["odometry"], inputs["command"]
-        if odo is not None and cmd is not None:
-            before = self.counts.applied
-            learn_step(self.net, odo, (cmd.v_l, cmd.v_r), float(self.params.start_step + self.counts.applied),
-                       self.axle, self.counts)
-            self.dirty = self.dirty or self.counts.applied > before
+        if odo is None or cmd is None:
+            return None
+        v = learn_step(self.net, odo, (cmd.v_l, cmd.v_r), self.t_learn(), self.axle, self.counts)
+        self.dirty = self.dirty or v is not None
+        return v
+
+    def map_message(self, t) -> MapVersion:
+        """The current version (a new one at the last tick of a period in which it learned)."""
         if self.dirty and (tick_of(t) + 1) % self.params.publish_every == 0:
             self.version += 1
             self.dirty = False
             self._publish(t)
         c = self.counts
         w, M, rinv = self.arrays
-        return {"map": MapVersion(t, self.ctx.sender, self.version, c.steps, c.applied, c.skipped, self.digest,
-                                  w, M, rinv)}
+        return MapVersion(t, self.ctx.sender, self.version, c.steps, c.learned, c.skipped, self.digest, w, M, rinv)
+
+    def step(self, t, inputs):
+        self.learn_own(inputs)
+        return {"map": self.map_message(t)}
+
+
+class TeamLearner(Learner):
+    """A learner that shares experience with its team (docs/learning.md): each tick it
+    learns first from its teammates' (v, c) pairs of the tick before, in robot-id order,
+    then from its own step, and sends its own pair (or none) to the team."""
+
+    inputs = {**Learner.inputs, "team": In(Data, many=True, doc="each teammate's (v, c) of its previous run")}
+    outputs = {**Learner.outputs, "experience": Out(Data, doc="this tick's (v, c), or v = None")}
+
+    def step(self, t, inputs):
+        for robot in sorted(inputs["team"]):
+            pair = experience_pair(inputs["team"][robot])
+            if pair is not None:
+                self.net.learn(pair[0], pair[1], self.t_learn())  # the models' rule, as for an own step
+                self.counts.team += 1
+                self.dirty = True
+        v = self.learn_own(inputs)
+        c = inputs["command"]
+        own = {"v": None, "c": None} if v is None else {"v": [float(v[0]), float(v[1])], "c": [
+            *(float(x) for x in np.clip([c.v_l, c.v_r], -self.net.v_max, self.net.v_max))]}
+        return {"map": self.map_message(t), "experience": Data(t, self.ctx.sender, own)}
+
+
+def experience_pair(msg: Data | None) -> tuple[np.ndarray, np.ndarray] | None:
+    """A teammate's (v, c) from its experience message; None when it learned nothing or the
+    message is not a pair of two finite numbers each."""
+    if msg is None:
+        return None
+    v, c = msg.values.get("v"), msg.values.get("c")
+    try:
+        v, c = np.array(v, dtype=np.float64), np.array(c, dtype=np.float64)
+    except (TypeError, ValueError):
+        return None
+    if v.shape != (2,) or c.shape != (2,) or not (np.all(np.isfinite(v)) and np.all(np.isfinite(c))):
+        return None
+    return v, c
 
 
 def model_of(base: IndirectEKM, msg: MapVersion) -> IndirectEKM:

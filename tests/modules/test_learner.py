@@ -11,10 +11,19 @@ import pytest
 from cekm_swarm.experiments.arena import displacement, move
 from cekm_swarm.models.learning import map_digest, wheel_displacement
 from cekm_swarm.models.networks import make_network
-from cekm_swarm.modules.learner import STEP_S, Learner, LearnerCounts, copy_model, learn_step, map_misfit
+from cekm_swarm.modules.learner import (
+    STEP_S,
+    Learner,
+    LearnerCounts,
+    TeamLearner,
+    copy_model,
+    experience_pair,
+    learn_step,
+    map_misfit,
+)
 from cekm_swarm.modules.learning_nodes import LearningObstacleLocalization
 from cekm_swarm.node.api import Context, Inputs, start_node
-from cekm_swarm.protocol import MapVersion, SenseOdometry, SenseRange, WheelCommand, with_stamp
+from cekm_swarm.protocol import Data, MapVersion, SenseOdometry, SenseRange, WheelCommand, with_stamp
 from cekm_swarm.robot import KHEPERA
 from cekm_swarm.ticks import TICK_S
 
@@ -140,3 +149,22 @@ def test_lazy_field_rows_equal_the_tabulated_ones(base):
         assert np.array_equal(ekm.target_activity(s), lazy.target_activity(s))
         assert np.array_equal(ekm.obstacle_activity(s), lazy.obstacle_activity(s))
     assert math.isfinite(float(lazy.obstacle_activity(3)[0]))
+
+
+def test_a_team_learner_learns_its_teammates_pairs_in_robot_id_order_then_its_own(base):
+    team_ctx = Context("r2", "learner", None, ("r3", "r1", "r2"), mode="inprocess", model_source=base, backend="numpy")
+    node = start_node(TeamLearner, team_ctx, TeamLearner.Params(start_step=0))
+    pairs = {"r3": ([0.3, 0.05], [0.04, 0.06]), "r1": ([-0.2, 0.02], [0.03, 0.01])}
+    team = {r: Data(0.0, f"{r}/learner", {"v": v, "c": c}) for r, (v, c) in pairs.items()}
+    team["r4"] = Data(0.0, "r4/learner", {"v": None, "c": None})  # learned nothing: skipped
+    odo, cmd = odometry(0.006, 0.008), WheelCommand(0.0, "r2/motor", 0.05, 0.0625, 0)
+    out = node.step(TICK_S, Inputs({"odometry": odo, "command": cmd, "team": team}))
+    ref = copy_model(base)
+    for i, r in enumerate(("r1", "r3")):  # robot-id order
+        ref.learn(np.array(pairs[r][0]), np.array(pairs[r][1]), float(i))
+    ref.learn(wheel_displacement(0.006, 0.008, TICK_S, KHEPERA.axle, STEP_S), np.array([0.05, 0.0625]), 2.0)
+    assert np.array_equal(node.net.w, ref.w) and np.array_equal(node.net.M, ref.M)
+    assert node.counts.team == 2 and node.counts.applied == 1
+    own = experience_pair(out["experience"])
+    assert own is not None and np.array_equal(own[1], [0.05, 0.0625])
+    assert experience_pair(Data(0.0, "x", {"v": [1.0], "c": [0.0, 0.0]})) is None  # not a pair: ignored

@@ -1,6 +1,6 @@
 """`cekm launch --learn --mode lockstep` equals `cekm run --learn` bit for bit (docs/learning.md):
 every pose and command of every tick, the outcome, and every map version's digest, from
-untrained maps with three robots (an obstacle node of one SIGKILLed as the world starts
+untrained maps with a team of three sharing their experience (an obstacle node of one SIGKILLed as the world starts
 ticking: it catches up from the learner's next message) and from the trained map with one;
 `cekm model extract` on the log gives the run's final map."""
 
@@ -25,11 +25,11 @@ from world import load_scenario
 pytestmark = pytest.mark.slow  # starts real processes (tests/process_guard.py)
 
 
-def in_process(scenario: str, model, choice, max_time: float):
+def in_process(scenario: str, model, choice, max_time: float, controller: str = "cekm-learning"):
     from cekm_swarm.experiments.graph_run import run_graph
 
-    checked = with_params(resolve_graph("cekm-learning", None, "navigation"), learning_params(choice))
-    ref = run_scenario(load_scenario(scenario), "cekm-learning", model, None, max_time=max_time, graph=checked)
+    checked = with_params(resolve_graph(controller, None, "navigation"), learning_params(choice))
+    ref = run_scenario(load_scenario(scenario), controller, model, None, max_time=max_time, graph=checked)
     graph = run_graph(load_scenario(scenario), graph=checked, model=model, max_time=max_time)
     history = {r: [(v, d) for v, _, d in graph.executor.node(r, LEARNER).history] for r in graph.world.robot_ids}
     return ref, history
@@ -64,9 +64,12 @@ def assert_equal_runs(run, ref, history):
         assert got["end"] == block["end"] and got["start"] == block["start"]
 
 
-def test_three_untrained_robots_learn_the_same_in_lockstep_as_in_process(tmp_path):
-    run = launched(tmp_path, "crossing", 4, "--model", "untrained", kill="r2/obstacle-3")
-    ref, history = in_process("crossing", untrained_model(), "untrained", 4)
+def test_a_team_of_three_untrained_robots_learns_the_same_in_lockstep_as_in_process(tmp_path):
+    """Team sharing: each learner also learns from its teammates' (v, c) of the tick before."""
+    run = launched(tmp_path, "crossing", 4, "--model", "untrained", "--controller", "cekm-learning-team",
+                   kill="r2/obstacle-3")
+    ref, history = in_process("crossing", untrained_model(), "untrained", 4, "cekm-learning-team")
+    assert all(b["team_steps"] > 0 for b in ref.learning.values())
     assert run.outcome()["launcher"]["restarts"] == {"r2/obstacle-3": 1}
     assert all(len(h) > 2 for h in history.values())
     assert_equal_runs(run, ref, history)
