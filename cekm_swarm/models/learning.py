@@ -87,10 +87,11 @@ def wheel_displacement(left: float, right: float, dt: float, axle: float, step_s
     return np.array([math.atan2(ly, lx), d])
 
 
-def map_digest(w: np.ndarray, M: np.ndarray, Rinv: np.ndarray) -> str:
-    """A map's digest: the first 16 hex digits of the SHA-256 of its input weights, control
-    parameters and R^-1 as float64 little-endian bytes, in that order."""
+def map_digest(w: np.ndarray, M: np.ndarray) -> str:
+    """A map's digest: the first 16 hex digits of the SHA-256 of its input weights and
+    control parameters as float64 little-endian bytes, in that order (what every EKM of
+    the robot uses; R^-1 is the learner's own)."""
     h = hashlib.sha256()
-    for a in (w, M, Rinv):
+    for a in (w, M):
         h.update(np.ascontiguousarray(a, dtype="<f8").tobytes())
     return h.hexdigest()[:16]

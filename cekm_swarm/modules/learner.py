@@ -1,20 +1,19 @@
 """Online learning through the runtime (section 3.5; docs/learning.md): the robot's one
 map, learned while it moves and shared by all of its EKM nodes.
 
-* :class:`Learner` (one per robot, every tick): from the wheel odometry of the tick
-  (``sense/odometry``) and the command that produced it (``cmd/wheels`` of the tick
-  before) it forms the displacement v (:func:`cekm_swarm.models.learning.wheel_displacement`)
-  and applies one step of self-organized learning with the models' own rule
+* :class:`Learner` (one per robot, every 8 ticks): for each tick of the motor
+  controller's record (``sense/odometry``: the wheel speeds held, the encoders' travel,
+  the stall signal) it has not learned from, it forms the displacement v
+  (:func:`cekm_swarm.models.learning.wheel_displacement`) and applies one step of
+  self-organized learning with the models' own rule
   (:meth:`cekm_swarm.models.networks.IndirectEKM.learn`: winner for v, Eq. 15 or Eqs.
   16-17, Eq. 12), except on a stopped step (c = 0, or wheels that did not turn) or a
-  blocked one (the body touched something). Every ``publish_every`` ticks, when it
-  learned, it makes a new version of the map; every run it sends the current version,
-  whole (:class:`~cekm_swarm.protocol.MapVersion`: version, digest, w, M, R^-1).
+  blocked one (the body touched something). A run that learned makes a new version of
+  the map; every run sends the current version, whole
+  (:class:`~cekm_swarm.protocol.MapVersion`: version, digest, w, M, R^-1).
 * Every EKM node of the robot reads that message with ``delay = 1`` and uses the version
   of the learner's latest run before the tick (:class:`MapFollower`): version k from the
-  tick after its stamp. A new version is made at the last tick of a period of
-  ``publish_every`` ticks, so every node whose period divides it switches at the same
-  tick. A message whose version is older than the node's, whose digest does not match
+  tick after its stamp. A message whose version is older than the node's, whose digest does not match
   its arrays, or whose lattice is not the model's, is dropped and counted; a node that
   restarted or missed a version catches up from the next message, which holds the whole
   current map. (A restarted learner starts again from the run's model: docs/learning.md.)
@@ -30,8 +29,7 @@ import numpy as np
 from cekm_swarm.models.learning import map_digest, wheel_displacement
 from cekm_swarm.models.networks import IndirectEKM
 from cekm_swarm.node import In, Node, NodeError, Out
-from cekm_swarm.protocol import Data, MapVersion, SenseOdometry, WheelCommand
-from cekm_swarm.ticks import tick_of
+from cekm_swarm.protocol import Data, MapVersion, SenseOdometry
 
 from .ekm import indirect_model
 
@@ -39,7 +37,7 @@ STEP_S = 1.024
 """s: one step of the map (section 4.1): v is the displacement over it."""
 MAX_MAP_BYTES = 30_000
 """The largest map message a learner sends (under the runtime's 32 KB message limit): a
-15 x 15 map is 18 KB."""
+15 x 15 map is 10.8 KB."""
 
 
 @dataclass
@@ -78,128 +76,132 @@ def copy_model(model: IndirectEKM, w: np.ndarray | None = None, M: np.ndarray | 
                        None if model.converged is None else model.converged.copy())
 
 
-def learn_step(net: IndirectEKM, odo: SenseOdometry, c: tuple[float, float], t_learn: float, axle: float,
-               counts: LearnerCounts) -> np.ndarray | None:
-    """One learning step of section 3.5 from the odometry of a step and the command c that
-    produced it: v, then the models' rule. Returns v, or None for a step not learned from
-    (stopped: c = 0 or wheels that did not turn; blocked: the body touched something)."""
+def learn_step(net: IndirectEKM, left: float, right: float, dt: float, blocked: bool, c: tuple[float, float],
+               t_learn: float, axle: float, counts: LearnerCounts) -> np.ndarray | None:
+    """One learning step of section 3.5 from one tick of odometry (each wheel's travel over
+    ``dt``, ``blocked``) and the command c the wheels held meanwhile: v, then the models'
+    rule. Returns v, or None for a step not learned from (stopped: c = 0 or wheels that did
+    not turn; blocked: the body touched something)."""
     c_exec = np.clip(np.array(c, dtype=np.float64), -net.v_max, net.v_max)  # what the wheels execute
-    if (c_exec[0] == 0.0 and c_exec[1] == 0.0) or (odo.left == 0.0 and odo.right == 0.0):
+    if (c_exec[0] == 0.0 and c_exec[1] == 0.0) or (left == 0.0 and right == 0.0):
         counts.stopped += 1
         return None
-    if odo.blocked:
+    if blocked:
         counts.blocked += 1
         return None
-    v = wheel_displacement(odo.left, odo.right, odo.dt, axle, STEP_S)
+    v = wheel_displacement(left, right, dt, axle, STEP_S)
     net.learn(v, c_exec, t_learn)  # winner for v, Eq. 15 or Eqs. 16-17, Eq. 12
     counts.applied += 1
     return v
 
 
 class Learner(Node):
-    """The robot's learner: odometry and the command it answers -> a new map version
-    every ``publish_every`` ticks in which it learned (docs/learning.md)."""
+    """The robot's learner: each run, one learning step per tick of odometry it has not
+    learned from yet, then a new map version if it learned (docs/learning.md)."""
 
-    inputs = {"odometry": In(SenseOdometry, doc="the wheel encoders' travel over the tick"),
-              "command": In(WheelCommand, doc="the command of the tick before (read with delay = 1)")}
+    inputs = {"odometry": In(SenseOdometry, doc="the motor controller's record of the last ticks")}
     outputs = {"map": Out(MapVersion, doc="the robot's current map version, whole")}
     uses_model = True
     stateful = True
 
     @dataclass(frozen=True)
     class Params:
-        publish_every: int = 8  # ticks per map version (8: the map's step, 1.024 s)
         start_step: int = 100_000  # the training step the neighbourhood schedule sigma(t) starts at (0: untrained)
 
     def setup(self) -> None:
-        if self.params.publish_every < 1 or self.params.start_step < 0:
-            raise NodeError(f"{self.ctx.sender}: publish_every must be >= 1 and start_step >= 0")
+        if self.params.start_step < 0:
+            raise NodeError(f"{self.ctx.sender}: start_step must be >= 0")
         self.net = copy_model(indirect_model(self.ctx))
-        size = 8 * 10 * self.net.lattice.n
+        size = 8 * 6 * self.net.lattice.n
         if size > MAX_MAP_BYTES:
             raise NodeError(f"{self.ctx.sender}: a {self.net.lattice.size}x{self.net.lattice.size} map is {size} bytes, "
-                            f"more than a map message may hold ({MAX_MAP_BYTES}); learn with a lattice of at most 19x19")
+                            f"more than a map message may hold ({MAX_MAP_BYTES}); learn with a lattice of at most 25x25")
         self.counts = LearnerCounts()
         self.version = 0
-        self.dirty = False
+        self.last_tick = 0  # the last tick of odometry learned from
         self.axle = self.ctx.body.axle
         self.history: list[tuple[int, float, str]] = []  # (version, sim time it was made, digest)
         self._publish(0.0)
 
     def _publish(self, t: float) -> None:
         net = self.net
-        self.digest = map_digest(net.w, net.M, net.Rinv)
-        self.arrays = (net.w.reshape(-1).copy(), net.M.reshape(-1).copy(), net.Rinv.reshape(-1).copy())
+        self.digest = map_digest(net.w, net.M)
+        self.arrays = (net.w.reshape(-1).copy(), net.M.reshape(-1).copy())
         self.history.append((self.version, t, self.digest))
 
     def t_learn(self) -> float:
         """The training step the neighbourhood schedule sigma(t) is at."""
         return float(self.params.start_step + self.counts.learned)
 
-    def learn_own(self, inputs) -> np.ndarray | None:
-        """This tick's own step (section 3.5); v, or None when nothing was learned."""
-        odo, cmd = inputs["odometry"], inputs["command"]
-        if odo is None or cmd is None:
-            return None
-        v = learn_step(self.net, odo, (cmd.v_l, cmd.v_r), self.t_learn(), self.axle, self.counts)
-        self.dirty = self.dirty or v is not None
-        return v
+    def learn_own(self, odo: SenseOdometry | None) -> list[list[float]]:
+        """One step per new tick of odometry (section 3.5); the (v, c) pairs learned from."""
+        pairs: list[list[float]] = []
+        if odo is None:
+            return pairs
+        for i, k in enumerate(odo.ticks):
+            if k <= self.last_tick:
+                continue
+            self.last_tick = k
+            c = (odo.set_l[i], odo.set_r[i])
+            v = learn_step(self.net, odo.left[i], odo.right[i], odo.dt, odo.blocked[i], c, self.t_learn(), self.axle,
+                           self.counts)
+            if v is not None:
+                pairs.append([float(v[0]), float(v[1]), *(float(x) for x in np.clip(c, -self.net.v_max,
+                                                                                       self.net.v_max))])
+        return pairs
 
-    def map_message(self, t) -> MapVersion:
-        """The current version (a new one at the last tick of a period in which it learned)."""
-        if self.dirty and (tick_of(t) + 1) % self.params.publish_every == 0:
+    def map_message(self, t, learned: bool) -> MapVersion:
+        """The current version: a new one when this run learned."""
+        if learned:
             self.version += 1
-            self.dirty = False
             self._publish(t)
         c = self.counts
-        w, M, rinv = self.arrays
-        return MapVersion(t, self.ctx.sender, self.version, c.steps, c.learned, c.skipped, self.digest, w, M, rinv)
+        w, M = self.arrays
+        return MapVersion(t, self.ctx.sender, self.version, c.steps, c.learned, c.skipped, self.digest, w, M)
 
     def step(self, t, inputs):
-        self.learn_own(inputs)
-        return {"map": self.map_message(t)}
+        pairs = self.learn_own(inputs["odometry"])
+        return {"map": self.map_message(t, bool(pairs))}
 
 
 class TeamLearner(Learner):
-    """A learner that shares experience with its team (docs/learning.md): each tick it
-    learns first from its teammates' (v, c) pairs of the tick before, in robot-id order,
-    then from its own step, and sends its own pair (or none) to the team."""
+    """A learner that shares experience with its team (docs/learning.md): each run it
+    learns first from its teammates' (v, c) pairs of their previous run, in robot-id order,
+    then from its own ticks, and sends its own pairs to the team."""
 
-    inputs = {**Learner.inputs, "team": In(Data, many=True, doc="each teammate's (v, c) of its previous run")}
-    outputs = {**Learner.outputs, "experience": Out(Data, doc="this tick's (v, c), or v = None")}
+    inputs = {**Learner.inputs, "team": In(Data, many=True, doc="each teammate's (v, c) pairs of its previous run")}
+    outputs = {**Learner.outputs, "experience": Out(Data, doc="this run's own (v, c) pairs")}
 
     def step(self, t, inputs):
+        learned = False
         for robot in sorted(inputs["team"]):
-            pair = experience_pair(inputs["team"][robot])
-            if pair is not None:
-                self.net.learn(pair[0], pair[1], self.t_learn())  # the models' rule, as for an own step
+            for v, c in experience_pairs(inputs["team"][robot]):
+                self.net.learn(v, c, self.t_learn())  # the models' rule, as for an own step
                 self.counts.team += 1
-                self.dirty = True
-        v = self.learn_own(inputs)
-        c = inputs["command"]
-        own = {"v": None, "c": None} if v is None else {"v": [float(v[0]), float(v[1])], "c": [
-            *(float(x) for x in np.clip([c.v_l, c.v_r], -self.net.v_max, self.net.v_max))]}
-        return {"map": self.map_message(t), "experience": Data(t, self.ctx.sender, own)}
+                learned = True
+        pairs = self.learn_own(inputs["odometry"])
+        return {"map": self.map_message(t, learned or bool(pairs)),
+                "experience": Data(t, self.ctx.sender, {"pairs": pairs})}
 
 
-def experience_pair(msg: Data | None) -> tuple[np.ndarray, np.ndarray] | None:
-    """A teammate's (v, c) from its experience message; None when it learned nothing or the
-    message is not a pair of two finite numbers each."""
-    if msg is None:
-        return None
-    v, c = msg.values.get("v"), msg.values.get("c")
-    try:
-        v, c = np.array(v, dtype=np.float64), np.array(c, dtype=np.float64)
-    except (TypeError, ValueError):
-        return None
-    if v.shape != (2,) or c.shape != (2,) or not (np.all(np.isfinite(v)) and np.all(np.isfinite(c))):
-        return None
-    return v, c
+def experience_pairs(msg: Data | None) -> list[tuple[np.ndarray, np.ndarray]]:
+    """A teammate's (v, c) pairs from its experience message, in its order; a row that is
+    not four finite numbers (alpha_v, d_v, c_l, c_r) is left out."""
+    out: list[tuple[np.ndarray, np.ndarray]] = []
+    rows = None if msg is None else msg.values.get("pairs")
+    for row in rows if isinstance(rows, list) else ():
+        try:
+            a = np.array(row, dtype=np.float64)
+        except (TypeError, ValueError):
+            continue
+        if a.shape == (4,) and np.all(np.isfinite(a)):
+            out.append((a[:2], a[2:]))
+    return out
 
 
 def model_of(base: IndirectEKM, msg: MapVersion) -> IndirectEKM:
     """The map a version message holds, on ``base``'s lattice and parameters."""
-    return copy_model(base, msg.w, msg.M, msg.rinv)
+    return copy_model(base, msg.w, msg.M)
 
 
 def map_misfit(msg: MapVersion, version: int, n: int) -> str | None:
@@ -208,7 +210,7 @@ def map_misfit(msg: MapVersion, version: int, n: int) -> str | None:
         return f"a map of {msg.w.shape[0] // 2} neurons, the model's lattice has {n}"
     if msg.version < version:
         return f"stale: version {msg.version}, this node has version {version}"
-    if msg.version > version and map_digest(msg.w, msg.M, msg.rinv) != msg.digest:
+    if msg.version > version and map_digest(msg.w, msg.M) != msg.digest:
         return f"version {msg.version}: its digest {msg.digest} does not match its arrays"
     if not all(math.isfinite(x) for x in (msg.w[0], msg.M[0])):
         return "not finite"
@@ -225,14 +227,15 @@ class MapFollower:
 
     version = 0
     dropped = 0
+    _checked: tuple[int, str] | None = None  # the (version, digest) last checked on receipt
 
     def follow(self, msg: MapVersion | None) -> None:
         if msg is None or msg.version == self.version:
             return
-        why = map_misfit(msg, self.version, self.ekm.n)
-        if why is not None:
+        why = None if self._checked == (msg.version, msg.digest) else map_misfit(msg, self.version, self.ekm.n)
+        if why is not None or msg.version < self.version:
             self.dropped += 1
-            self.last_drop = why
+            self.last_drop = why or f"stale: version {msg.version}, this node has version {self.version}"
             return
         from dataclasses import replace
 
@@ -241,6 +244,8 @@ class MapFollower:
         self.digest = msg.digest
 
     def map_check(self, port: str, msg) -> str | None:
-        if port == "map" and msg.version >= self.version:
-            return map_misfit(msg, self.version, self.ekm.n)
+        if port == "map" and msg.version > self.version:
+            why = map_misfit(msg, self.version, self.ekm.n)
+            self._checked = (msg.version, msg.digest) if why is None else None
+            return why
         return None

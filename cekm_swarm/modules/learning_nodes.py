@@ -20,7 +20,7 @@ class LearningTargetLocalization(MapFollower, TargetLocalization):
     """Target localization (Eqs. 2-6) on the robot's current map version."""
 
     inputs = {**TargetLocalization.inputs, "map": MAP_INPUT}
-    pure = False  # its field depends on the map version too
+    pure = True  # a function of the reading and the map version (the world refreshes readings as a version starts)
 
     def check_input(self, port, msg):
         return self.map_check(port, msg)
@@ -34,7 +34,7 @@ class LearningObstacleLocalization(MapFollower, ObstacleLocalization):
     """Obstacle localization j (Eqs. 2-8) on the robot's current map version."""
 
     inputs = {**ObstacleLocalization.inputs, "map": MAP_INPUT}
-    pure = False
+    pure = True  # a function of the reading and the map version (the world refreshes readings as a version starts)
 
     def check_input(self, port, msg):
         return self.map_check(port, msg)
