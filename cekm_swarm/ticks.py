@@ -13,6 +13,9 @@ TICK_S = 0.128  # obstacle localization period (section 3.1)
 TARGET_PERIOD_S = 0.256  # target localization period (section 3.1)
 SUBSTEPS_PER_TICK = round(TICK_S / SUBSTEP_S)
 TARGET_EVERY = round(TARGET_PERIOD_S / TICK_S)  # ticks
+ODOMETRY_EVERY = 8
+"""Ticks between two odometry readings (``sense/odometry``, 1.024 s: one step of the map,
+section 4.1); each holds the record of the last 16 ticks (docs/learning.md)."""
 
 
 def tick_time(tick: int) -> float:

@@ -1,4 +1,4 @@
-"""The robots' odometry, as the world publishes it (``<robot>/sense/odometry``).
+"""The robots' odometry, as the world publishes it (``<robot>/sense/odometry``, every 8 ticks).
 
 What a real Khepera's motor controller can report: for each of the robot's last ticks
 (:data:`~cekm_swarm.protocol.messages.ODOMETRY_ROWS`) the wheel speeds it held (the
@@ -14,7 +14,7 @@ from __future__ import annotations
 from collections import deque
 
 from cekm_swarm.protocol.messages import ODOMETRY_ROWS, SenseOdometry
-from cekm_swarm.ticks import TICK_S
+from cekm_swarm.ticks import ODOMETRY_EVERY, TICK_S
 
 from .sim import World
 
@@ -53,5 +53,7 @@ class Odometer:
         return msg
 
     def messages(self, robot: str, tick: int, t: float) -> list[tuple[str, SenseOdometry]]:
-        """The reading as the episode's other messages of the tick: ``[(KEY, message)]``."""
-        return [(KEY, self.reading(robot, tick, t))]
+        """The reading as the episode's other messages of the tick: ``[(KEY, message)]`` every
+        :data:`~cekm_swarm.ticks.ODOMETRY_EVERY` ticks (the record grows every tick)."""
+        msg = self.reading(robot, tick, t)
+        return [(KEY, msg)] if tick % ODOMETRY_EVERY == 0 else []

@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 from typing import Any, Mapping
 
 from cekm_swarm.protocol import KeySpace
-from cekm_swarm.ticks import TARGET_EVERY
+from cekm_swarm.ticks import ODOMETRY_EVERY, TARGET_EVERY
 
 from .spec import Graph, NodeDecl
 
@@ -52,7 +52,7 @@ WORLD_KEYS: dict[str, WorldKey] = {
     "sense/range/{j}": WorldKey("sense/range", 1, ("navigation", "tracking")),
     "sense/pose": WorldKey("sense/pose", TARGET_EVERY, ("tracking",)),
     "sense/targets": WorldKey("sense/targets", TARGET_EVERY, ("tracking",)),
-    "sense/odometry": WorldKey("sense/odometry", 1, ("navigation",)),
+    "sense/odometry": WorldKey("sense/odometry", ODOMETRY_EVERY, ("navigation",)),
     "world/clock": WorldKey("world/clock", 1, ("navigation", "tracking"), per_robot=False),
     "world/state": WorldKey("world/state", 1, ("navigation", "tracking"), per_robot=False),
 }

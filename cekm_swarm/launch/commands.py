@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import ipaddress
 import json
+import os
 from pathlib import Path
 
 import click
@@ -166,6 +167,9 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwr
                           model_from_zenoh=model_from_zenoh, run_id=run_id, warm_start=not cold_start,
                           hold_readings=not send_every_reading, max_log_size=max_log_size,
                           max_log_duration=max_log_duration, record=record, params=params)
+    from cekm_swarm.modules.learner import SNAPSHOT_DIR
+
+    os.environ[SNAPSHOT_DIR] = str((out_dir / "maps").resolve())  # a learner's state: a restart goes on from it
     launcher = Launcher(config, echo=lambda s: click.echo(s))
     try:
         outcome = launcher.launch()

@@ -22,7 +22,9 @@ map, learned while it moves and shared by all of its EKM nodes.
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -102,7 +104,7 @@ class Learner(Node):
     inputs = {"odometry": In(SenseOdometry, doc="the motor controller's record of the last ticks")}
     outputs = {"map": Out(MapVersion, doc="the robot's current map version, whole")}
     uses_model = True
-    stateful = True
+    stateful = False  # its state survives a restart: a launch keeps it on disk after every run (SNAPSHOT_DIR)
 
     @dataclass(frozen=True)
     class Params:
@@ -121,7 +123,12 @@ class Learner(Node):
         self.last_tick = 0  # the last tick of odometry learned from
         self.axle = self.ctx.body.axle
         self.history: list[tuple[int, float, str]] = []  # (version, sim time it was made, digest)
-        self._publish(0.0)
+        self.lost = 0  # steps a restart lost (older than the odometry record when it came back)
+        self.snapshots = snapshot_path(self.ctx)
+        self.resumed = self.snapshots is not None and resume(self, self.snapshots)
+        self.saved_tick = self.last_tick
+        if not self.resumed:
+            self._publish(0.0)
 
     def _publish(self, t: float) -> None:
         net = self.net
@@ -138,6 +145,12 @@ class Learner(Node):
         pairs: list[list[float]] = []
         if odo is None:
             return pairs
+        if self.resumed and odo.ticks:  # the first run after a restart: what the record no longer holds is lost
+            self.resumed = False
+            self.lost = max(0, odo.ticks[0] - self.last_tick - 1)
+            if self.lost:
+                self.ctx.log.warning("%s: restarted from map version %d; %d steps (ticks %d-%d) were lost",
+                                     self.ctx.sender, self.version, self.lost, self.last_tick + 1, odo.ticks[0] - 1)
         for i, k in enumerate(odo.ticks):
             if k <= self.last_tick:
                 continue
@@ -151,10 +164,14 @@ class Learner(Node):
         return pairs
 
     def map_message(self, t, learned: bool) -> MapVersion:
-        """The current version: a new one when this run learned."""
+        """The current version: a new one when this run learned (kept on disk in a launch,
+        with the counts and the last tick learned from, before it is sent)."""
         if learned:
             self.version += 1
             self._publish(t)
+        if self.snapshots is not None and self.last_tick != self.saved_tick:
+            save_snapshot(self, self.snapshots)
+            self.saved_tick = self.last_tick
         c = self.counts
         w, M = self.arrays
         return MapVersion(t, self.ctx.sender, self.version, c.steps, c.learned, c.skipped, self.digest, w, M)
@@ -197,6 +214,52 @@ def experience_pairs(msg: Data | None) -> list[tuple[np.ndarray, np.ndarray]]:
         if a.shape == (4,) and np.all(np.isfinite(a)):
             out.append((a[:2], a[2:]))
     return out
+
+
+SNAPSHOT_DIR = "CEKM_LEARNER_DIR"
+"""The environment variable naming the directory where a launch's learners keep their
+latest version (``cekm launch`` sets it to ``OUT/maps``): a restarted learner goes on from it."""
+
+
+def snapshot_path(ctx) -> Path | None:
+    """Where this learner keeps its latest version (None: nowhere, as in ``cekm run``)."""
+    folder = os.environ.get(SNAPSHOT_DIR)
+    if not folder or ctx.mode not in ("lockstep", "realtime"):
+        return None
+    return Path(folder) / f"{ctx.robot}.npy"
+
+
+def save_snapshot(learner: Learner, path: Path) -> None:
+    """The learner's whole state as one float64 vector, written atomically."""
+    c, net = learner.counts, learner.net
+    head = [learner.version, learner.last_tick, c.applied, c.stopped, c.blocked, c.team]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".tmp")
+    with open(tmp, "wb") as fh:
+        np.save(fh, np.concatenate([np.array(head, dtype=np.float64), net.w.reshape(-1), net.M.reshape(-1),
+                                    net.Rinv.reshape(-1)]))
+    os.replace(tmp, path)
+
+
+def resume(learner: Learner, path: Path) -> bool:
+    """Go on from the snapshot at ``path`` (False: none, or not this map's)."""
+    try:
+        a = np.load(path)
+    except (OSError, ValueError):
+        return False
+    n = learner.net.lattice.n
+    if a.shape != (6 + 10 * n,):
+        return False
+    version, last_tick, applied, stopped, blocked, team = (int(x) for x in a[:6])
+    learner.net = copy_model(learner.net, a[6:6 + 2 * n], a[6 + 2 * n:6 + 6 * n], a[6 + 6 * n:])
+    learner.version, learner.last_tick = version, last_tick
+    learner.counts = LearnerCounts(applied, stopped, blocked, team)
+    net = learner.net
+    learner.digest = map_digest(net.w, net.M)
+    learner.arrays = (net.w.reshape(-1).copy(), net.M.reshape(-1).copy())
+    learner.ctx.log.warning("%s: restarted from map version %d (%s), %d steps learned", learner.ctx.sender, version,
+                            learner.digest, applied + team)
+    return True
 
 
 def model_of(base: IndirectEKM, msg: MapVersion) -> IndirectEKM:

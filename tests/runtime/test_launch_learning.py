@@ -9,7 +9,9 @@ from __future__ import annotations
 import json
 import os
 import signal
+import time
 
+import numpy as np
 import pytest
 from test_launch_support import LaunchProcess
 
@@ -81,7 +83,23 @@ def test_a_team_of_three_untrained_robots_learns_the_same_in_lockstep_as_in_proc
     assert map_digest(m.w, m.M) == history["r3"][-1][1]
 
 
-def test_one_trained_robot_learns_the_same_in_lockstep_as_in_process(tmp_path):
-    run = launched(tmp_path, "lone_obstacle", 3, "--model", str(default_model_path()))
-    ref, history = in_process("lone_obstacle", default_model(progress=False), None, 3)
+def test_one_trained_robot_learns_the_same_in_lockstep_as_in_process_its_learner_killed(tmp_path):
+    """The learner SIGKILLed once it has made a version: it goes on from its snapshot."""
+    snapshot = tmp_path / "run" / "maps" / "r1.npy"
+    run = LaunchProcess("lone_obstacle", tmp_path / "run", "--learn", "--mode", "lockstep", "--max-time", "6",
+                        "--model", str(default_model_path()))
+    try:
+        run.wait_line("world started ticking", timeout=120)
+        deadline = time.monotonic() + 60
+        while not (snapshot.exists() and np.load(snapshot)[0] >= 1):  # version 1 made and kept
+            assert time.monotonic() < deadline, "no map version on disk"
+            time.sleep(0.005)
+        os.kill(run.pids()["r1/learner"], signal.SIGKILL)
+        code = run.finish(timeout=180)
+    finally:
+        run.kill()
+    assert code == 0, "\n".join(run.lines)
+    ref, history = in_process("lone_obstacle", default_model(progress=False), None, 6)
+    assert run.outcome()["launcher"]["restarts"] == {"r1/learner": 1}
+    assert "restarted from map version" in (run.out / "logs" / "r1-learner.log").read_text()
     assert_equal_runs(run, ref, history)
