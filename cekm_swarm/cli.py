@@ -468,9 +468,10 @@ def _register_view_command() -> None:
 
     main.add_command(view_cmd)
     main.add_command(graph_group)
-    from .experiments.learning_commands import model_group  # cekm model extract (docs/learning.md)
+    from .experiments.learning_commands import learning_experiment_cmd, model_group  # docs/learning.md
 
     main.add_command(model_group)
+    experiment.add_command(learning_experiment_cmd)
 
 
 _register_view_command()

@@ -10,7 +10,7 @@ from typing import Any
 import click
 
 from .. import jsonfile
-from ..cli_support import Finite
+from ..cli_support import Finite, out_dir_options
 from .learning_run import UNTRAINED
 
 
@@ -106,3 +106,45 @@ def add_launch_learning(out_dir: Path, outcome: dict[str, Any], model_path) -> d
     outcome["learning"] = block
     (Path(out_dir) / "outcome.json").write_text(jsonfile.dumps(outcome))
     return block
+
+
+@click.command("learning")
+@click.option("--teams", default="1,2,4,8", show_default=True, help="Team sizes, comma-separated.")
+@click.option("--seeds", default="1,2", show_default=True, help="Seeds: a list and/or ranges, e.g. 1-5.")
+@click.option("--ticks", default=1600, show_default=True, type=click.IntRange(16, 100_000),
+              help="Ticks of 0.128 s per run (about one learning step each per robot).")
+@click.option("--workers", type=click.IntRange(1), help="Parallel processes (default: one per core).")
+@out_dir_options("Directory for results.json and learning.png.")
+def learning_experiment_cmd(teams: str, seeds: str, ticks: int, workers: int | None, out_dir: Path,
+                            overwrite: bool) -> None:
+    """Learning curves through the graph: untrained R15 maps learning online in section 4.1's
+    arena, teams of 1-8 robots with and without sharing their (v, c) pairs (docs/learning.md)."""
+    import os
+    import time
+
+    from ..cli_support import prepare_out_dir
+    from ..errors import CekmError
+    from .commands import parse_team_sizes, seeds_of
+    from .learning_experiment import LearningConfig, plot_curves, results_doc, run_experiment
+
+    try:
+        config = LearningConfig(teams=parse_team_sizes(teams), seeds=tuple(seeds_of(seeds)), ticks=ticks,
+                                evals=tuple(t for t in LearningConfig.evals if t < ticks) + (ticks,))
+    except CekmError as exc:
+        raise click.UsageError(str(exc)) from None
+    if not config.seeds:
+        raise click.UsageError("--seeds: give at least one seed")
+    prepare_out_dir(out_dir, overwrite)
+    n_runs = sum((2 if n > 1 else 1) * len(config.seeds) for n in config.teams)
+    t0 = time.perf_counter()
+    with click.progressbar(length=n_runs, label="runs", show_eta=True) as bar:
+        curves = run_experiment(config, out_dir, workers or min(2, os.cpu_count() or 1), lambda c: bar.update(1))
+    doc = results_doc(config, curves)
+    doc["wall_seconds"] = round(time.perf_counter() - t0, 1)
+    (out_dir / "results.json").write_text(jsonfile.dumps(doc))
+    plot_curves(config, curves).savefig(out_dir / "learning.png", dpi=120)
+    for key, row in doc["summary"].items():
+        click.echo(f"{key:>10}: steps of r1 to E < {config.threshold_mm} mm {row['steps_to_E']}, to T < "
+                   f"{config.threshold_T} s/m {row['steps_to_T']}; final E {row['final_E_mm']} mm, T "
+                   f"{row['final_T_s_per_m']} s/m")
+    click.echo(f"wrote {out_dir / 'results.json'}, {out_dir / 'learning.png'} ({doc['wall_seconds']} s)")
