@@ -306,9 +306,15 @@ class MapFollower:
         self.version = msg.version
         self.digest = msg.digest
 
-    def map_check(self, port: str, msg) -> str | None:
-        if port == "map" and msg.version > self.version:
+    def check_input(self, port: str, msg) -> str | None:
+        if port != "map":
+            return super().check_input(port, msg)
+        if msg.version > self.version:
             why = map_misfit(msg, self.version, self.ekm.n)
             self._checked = (msg.version, msg.digest) if why is None else None
             return why
         return None
+
+    def step(self, t, inputs):
+        self.follow(inputs["map"])  # the version of the learner's latest run before t
+        return super().step(t, inputs)

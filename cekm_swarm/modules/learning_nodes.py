@@ -22,13 +22,6 @@ class LearningTargetLocalization(MapFollower, TargetLocalization):
     inputs = {**TargetLocalization.inputs, "map": MAP_INPUT}
     pure = True  # a function of the reading and the map version (the world refreshes readings as a version starts)
 
-    def check_input(self, port, msg):
-        return self.map_check(port, msg)
-
-    def step(self, t, inputs):
-        self.follow(inputs["map"])
-        return super().step(t, inputs)
-
 
 class LearningObstacleLocalization(MapFollower, ObstacleLocalization):
     """Obstacle localization j (Eqs. 2-8) on the robot's current map version."""
@@ -36,22 +29,8 @@ class LearningObstacleLocalization(MapFollower, ObstacleLocalization):
     inputs = {**ObstacleLocalization.inputs, "map": MAP_INPUT}
     pure = True  # a function of the reading and the map version (the world refreshes readings as a version starts)
 
-    def check_input(self, port, msg):
-        return self.map_check(port, msg)
-
-    def step(self, t, inputs):
-        self.follow(inputs["map"])
-        return super().step(t, inputs)
-
 
 class LearningMotorIntegration(MapFollower, MotorIntegration):
     """Motor integration (Eqs. 9-11) on the robot's current map version."""
 
     inputs = {**MotorIntegration.inputs, "map": MAP_INPUT}
-
-    def check_input(self, port, msg):
-        return self.map_check(port, msg) if port == "map" else super().check_input(port, msg)
-
-    def step(self, t, inputs):
-        self.follow(inputs["map"])
-        return super().step(t, inputs)
