@@ -27,7 +27,6 @@ import numpy as np
 
 from cekm_swarm.ticks import TARGET_EVERY, TICK_S, tick_time
 
-from .odometry import Odometer
 from .rows import Rows
 from .sim import World
 
@@ -121,7 +120,7 @@ class Episode:
         self.world = world
         self.radius = checkpoint_radius
         self.tick = 0
-        self.odometer = Odometer(world)
+        self.odometer = None  # the robots' odometry readings (world.odometry), made on first use
         self.progress: dict[str, RobotProgress] = {}
         for r in world.robot_ids:
             cps = [tuple(map(float, c)) for c in (checkpoints or {}).get(r, [])] or [world.goal_of(r)]
@@ -178,6 +177,10 @@ class Episode:
         self.tick += 1
 
     def messages(self, robot: str) -> list[tuple[str, Any]]:
+        if self.odometer is None:  # the protocol's messages, imported when a run publishes them
+            from .odometry import Odometer
+
+            self.odometer = Odometer(self.world)
         return self.odometer.messages(robot, self.tick, self.t)  # the target reading is part of the readings
 
     def summary(self) -> dict[str, Any]:

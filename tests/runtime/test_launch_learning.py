@@ -8,11 +8,13 @@ from __future__ import annotations
 
 import json
 import os
+import random
 import signal
 import time
 
 import numpy as np
 import pytest
+from scenario_gen import generated_scenario
 from test_launch_support import LaunchProcess
 
 from cekm_swarm.experiments.default_model import default_model, default_model_path
@@ -52,6 +54,7 @@ def launched(tmp_path, scenario, max_time, *args, kill=None):
 
 def assert_equal_runs(run, ref, history):
     outcome = run.outcome()
+    assert outcome["reproducible"]["equals_cekm_run"] is True
     traj = json.loads((run.out / "trajectory.json").read_text())
     for r, log in ref.logs.items():
         assert traj[r]["t"] == log.t
@@ -102,4 +105,22 @@ def test_one_trained_robot_learns_the_same_in_lockstep_as_in_process_its_learner
     ref, history = in_process("lone_obstacle", default_model(progress=False), None, 6)
     assert run.outcome()["launcher"]["restarts"] == {"r1/learner": 1}
     assert "restarted from map version" in (run.out / "logs" / "r1-learner.log").read_text()
+    assert_equal_runs(run, ref, history)
+
+
+@pytest.mark.parametrize("seed", [711])
+def test_a_generated_scenario_learns_the_same_in_lockstep_with_a_node_killed(tmp_path, seed):
+    """Seeded (the seed names the failure): 2 robots of a generated navigation scenario, the
+    learning graph with or without sharing, untrained or trained maps, one node SIGKILLed."""
+    rng = random.Random(seed)
+    path = str(generated_scenario(tmp_path, seed, 2, "navigation"))
+    controller = rng.choice(["cekm-learning", "cekm-learning-team"])
+    untrained = rng.random() < 0.5
+    kill = f"r{rng.randint(1, 2)}/{rng.choice(['motor', 'target', 'learner', 'obstacle-5'])}"
+    print(f"seed {seed}: {controller}, {'untrained' if untrained else 'trained'}, kill {kill}")
+    model = ("untrained",) if untrained else (str(default_model_path()),)
+    run = launched(tmp_path, path, 4, "--model", *model, "--controller", controller, kill=kill)
+    ref, history = in_process(path, untrained_model() if untrained else default_model(progress=False),
+                              "untrained" if untrained else None, 4, controller)
+    assert run.outcome()["launcher"]["restarts"].get(kill) == 1
     assert_equal_runs(run, ref, history)
