@@ -50,6 +50,7 @@ class LearnerCounts:
     stopped: int = 0
     blocked: int = 0
     team: int = 0  # teammates' steps learned from (TeamLearner)
+    error: float = 0.0  # m/s: |c - M_s v| of the last own step, before it was learned from
 
     @property
     def skipped(self) -> int:
@@ -92,6 +93,7 @@ def learn_step(net: IndirectEKM, left: float, right: float, dt: float, blocked: 
         counts.blocked += 1
         return None
     v = wheel_displacement(left, right, dt, axle, STEP_S)
+    counts.error = float(np.hypot(*(c_exec - net.output(v))))  # how far the map was from c (Eq. 13), before
     net.learn(v, c_exec, t_learn)  # winner for v, Eq. 15 or Eqs. 16-17, Eq. 12
     counts.applied += 1
     return v
@@ -123,6 +125,7 @@ class Learner(Node):
         self.last_tick = 0  # the last tick of odometry learned from
         self.axle = self.ctx.body.axle
         self.history: list[tuple[int, float, str]] = []  # (version, sim time it was made, digest)
+        self.error = 0.0  # m/s: the mean |c - M_s v| of the last run's own steps, before learning (Eq. 13)
         self.lost = 0  # steps a restart lost (older than the odometry record when it came back)
         self.snapshots = snapshot_path(self.ctx)
         self.resumed = self.snapshots is not None and resume(self, self.snapshots)
@@ -143,6 +146,7 @@ class Learner(Node):
     def learn_own(self, odo: SenseOdometry | None) -> list[list[float]]:
         """One step per new tick of odometry (section 3.5); the (v, c) pairs learned from."""
         pairs: list[list[float]] = []
+        errors: list[float] = []
         if odo is None:
             return pairs
         if self.resumed and odo.ticks:  # the first run after a restart: what the record no longer holds is lost
@@ -159,8 +163,11 @@ class Learner(Node):
             v = learn_step(self.net, odo.left[i], odo.right[i], odo.dt, odo.blocked[i], c, self.t_learn(), self.axle,
                            self.counts)
             if v is not None:
+                errors.append(self.counts.error)
                 pairs.append([float(v[0]), float(v[1]), *(float(x) for x in np.clip(c, -self.net.v_max,
                                                                                        self.net.v_max))])
+        if errors:
+            self.error = sum(errors) / len(errors)
         return pairs
 
     def map_message(self, t, learned: bool) -> MapVersion:
@@ -174,7 +181,8 @@ class Learner(Node):
             self.saved_tick = self.last_tick
         c = self.counts
         w, M = self.arrays
-        return MapVersion(t, self.ctx.sender, self.version, c.steps, c.learned, c.skipped, self.digest, w, M)
+        return MapVersion(t, self.ctx.sender, self.version, c.steps, c.learned, c.skipped, self.digest, w, M,
+                          self.error)
 
     def step(self, t, inputs):
         pairs = self.learn_own(inputs["odometry"])
@@ -232,7 +240,7 @@ def snapshot_path(ctx) -> Path | None:
 def save_snapshot(learner: Learner, path: Path) -> None:
     """The learner's whole state as one float64 vector, written atomically."""
     c, net = learner.counts, learner.net
-    head = [learner.version, learner.last_tick, c.applied, c.stopped, c.blocked, c.team]
+    head = [learner.version, learner.last_tick, c.applied, c.stopped, c.blocked, c.team, learner.error]
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + ".tmp")
     with open(tmp, "wb") as fh:
@@ -248,10 +256,12 @@ def resume(learner: Learner, path: Path) -> bool:
     except (OSError, ValueError):
         return False
     n = learner.net.lattice.n
-    if a.shape != (6 + 10 * n,):
+    h = 7
+    if a.shape != (h + 10 * n,):
         return False
     version, last_tick, applied, stopped, blocked, team = (int(x) for x in a[:6])
-    learner.net = copy_model(learner.net, a[6:6 + 2 * n], a[6 + 2 * n:6 + 6 * n], a[6 + 6 * n:])
+    learner.error = float(a[6])
+    learner.net = copy_model(learner.net, a[h:h + 2 * n], a[h + 2 * n:h + 6 * n], a[h + 6 * n:])
     learner.version, learner.last_tick = version, last_tick
     learner.counts = LearnerCounts(applied, stopped, blocked, team)
     net = learner.net

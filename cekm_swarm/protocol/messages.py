@@ -332,6 +332,7 @@ class MapVersion(Message):
     digest: Digest
     w: Vector
     M: Vector
+    error: Weight = 0.0  # m/s: the mean |c - M_s v| of its own last run's steps before it learned them (Eq. 13)
     KIND: ClassVar[KeyKind] = KeyKind.MAP_VERSION
 
     def check(self) -> None:
