@@ -75,6 +75,8 @@ def test_a_team_of_three_untrained_robots_learns_the_same_in_lockstep_as_in_proc
                    kill="r2/obstacle-3")
     ref, history = in_process("crossing", untrained_model(), "untrained", 4, "cekm-learning-team")
     assert all(b["team_steps"] > 0 for b in ref.learning.values())
+    nodes = run.outcome()["launcher"].get("nodes") or {}
+    assert not any(s["dropped"] for label, s in nodes.items() if label.endswith("/learner"))  # own experience: not a drop
     assert run.outcome()["launcher"]["restarts"] == {"r2/obstacle-3": 1}
     assert all(len(h) > 2 for h in history.values())
     assert_equal_runs(run, ref, history)
