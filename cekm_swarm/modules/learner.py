@@ -194,11 +194,12 @@ class TeamLearner(Learner):
     learns first from its teammates' (v, c) pairs of their previous run, in robot-id order,
     then from its own ticks, and sends its own pairs to the team."""
 
-    inputs = {**Learner.inputs, "team": In(Data, many=True, doc="each teammate's (v, c) pairs of its previous run")}
+    inputs = {**Learner.inputs, "team": In(Data, many=True, doc="each teammate's (v, c) pairs of its previous run"),
+              "maps": In(MapVersion, many=True, doc="each teammate's map version of its previous run")}
     outputs = {**Learner.outputs, "experience": Out(Data, doc="this run's own (v, c) pairs")}
 
     def step(self, t, inputs):
-        learned = False
+        learned = self.catch_up(inputs["maps"])
         for robot in sorted(inputs["team"]):
             for v, c in experience_pairs(inputs["team"][robot]):
                 self.net.learn(v, c, self.t_learn())  # the models' rule, as for an own step
@@ -207,6 +208,25 @@ class TeamLearner(Learner):
         pairs = self.learn_own(inputs["odometry"])
         return {"map": self.map_message(t, learned or bool(pairs)),
                 "experience": Data(t, self.ctx.sender, {"pairs": pairs})}
+
+
+    def catch_up(self, maps: dict) -> bool:
+        """A learner that has seen nothing yet (a robot that joins a running team, with no
+        snapshot of its own) starts from the teammate map that has learned most (the first
+        in robot-id order on a tie); its own R^-1 stays. Never at tick 0 (no teammate has
+        run before it), so a run whose robots all start together is not changed."""
+        if self.counts.steps or self.version:
+            return False
+        held = [(robot, m) for robot, m in sorted(maps.items()) if m is not None and m.applied > 0
+                and m.w.shape[0] == 2 * self.net.lattice.n and map_digest(m.w, m.M) == m.digest]
+        if not held:
+            return False
+        robot, best = max(held, key=lambda rm: rm[1].applied)  # max keeps the first of equals
+        self.net = copy_model(self.net, best.w, best.M, self.net.Rinv)
+        self.counts.team += best.applied
+        self.ctx.log.warning("%s: joined late: starts from %s's map version %d (%d steps)", self.ctx.sender, robot,
+                             best.version, best.applied)
+        return True
 
 
 def experience_pairs(msg: Data | None) -> list[tuple[np.ndarray, np.ndarray]]:

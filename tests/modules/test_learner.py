@@ -166,7 +166,7 @@ def test_a_team_learner_learns_its_teammates_pairs_in_robot_id_order_then_its_ow
     pairs = {"r3": [[0.3, 0.05, 0.04, 0.06]], "r1": [[-0.2, 0.02, 0.03, 0.01], [0.1, 0.03, 0.02, 0.03]]}
     team = {r: Data(0.0, f"{r}/learner", {"pairs": p}) for r, p in pairs.items()}
     team["r4"] = Data(0.0, "r4/learner", {"pairs": [[1.0, 2.0], "x"]})  # not pairs: left out
-    out = node.step(8 * TICK_S, Inputs({"odometry": odometry([7, 8], (0.05, 0.0625)), "team": team}))
+    out = node.step(8 * TICK_S, Inputs({"odometry": odometry([7, 8], (0.05, 0.0625)), "team": team, "maps": {}}))
     ref = copy_model(base)
     rows = pairs["r1"] + pairs["r3"]  # robot-id order
     for i, row in enumerate(rows):
@@ -178,3 +178,20 @@ def test_a_team_learner_learns_its_teammates_pairs_in_robot_id_order_then_its_ow
     assert node.counts.team == 3 and node.counts.applied == 2
     own = experience_pairs(out["experience"])
     assert len(own) == 2 and np.array_equal(own[0][1], [0.05, 0.0625]) and np.array_equal(own[0][0], v)
+
+
+def test_a_team_learner_that_joins_late_starts_from_the_teammate_map_that_learned_most(base):
+    team_ctx = Context("r3", "learner", None, ("r1", "r2", "r3"), mode="inprocess", model_source=base, backend="numpy")
+    teammates = {}
+    for robot, runs in (("r2", 3), ("r1", 3)):
+        other = start_node(Learner, ctx(base, robot=robot), Learner.Params(start_step=0))
+        teammates[robot] = run_learner(other, runs)[-1]
+    assert teammates["r1"].applied == teammates["r2"].applied == 16
+    late = start_node(TeamLearner, team_ctx, TeamLearner.Params(start_step=0))
+    out = late.step(40 * TICK_S, Inputs({"odometry": None, "team": {}, "maps": teammates}))["map"]
+    assert out.version == 1 and out.digest == teammates["r1"].digest  # r1's: the first of equals in robot-id order
+    assert late.counts.team == 16
+    again = late.step(48 * TICK_S, Inputs({"odometry": None, "team": {}, "maps": teammates}))["map"]
+    assert again.version == 1  # once only
+    first = start_node(TeamLearner, team_ctx, TeamLearner.Params(start_step=0))  # a run's tick 0: nobody has run
+    assert first.step(0.0, Inputs({"odometry": odometry([]), "team": {}, "maps": {}}))["map"].version == 0
