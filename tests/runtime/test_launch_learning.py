@@ -110,7 +110,7 @@ def test_one_trained_robot_learns_the_same_in_lockstep_as_in_process_its_learner
     assert_equal_runs(run, ref, history)
 
 
-@pytest.mark.parametrize("seed", [711])
+@pytest.mark.parametrize("seed", [711, 714])
 def test_a_generated_scenario_learns_the_same_in_lockstep_with_a_node_killed(tmp_path, seed):
     """Seeded (the seed names the failure): 2 robots of a generated navigation scenario, the
     learning graph with or without sharing, untrained or trained maps, one node SIGKILLed."""
