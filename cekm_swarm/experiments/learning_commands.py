@@ -67,6 +67,22 @@ def extract_cmd(log: Path, robot: str | None, at_time: float | None, base_model:
                f"{msg.digest}); wrote {out_path}")
 
 
+@model_group.command("lattice")
+@click.argument("log", type=click.Path(exists=True, path_type=Path))
+@click.option("--out", "out_path", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help="The .mcap to write (replaced if it exists).")
+def lattice_cmd(log: Path, out_path: Path) -> None:
+    """Write every map version of a learning run's LOG as a Foxglove view of its lattice
+    (``/view/lattice/<robot>``; a --learn launch writes OUT/lattice.mcap itself)."""
+    from ..runtime.lattice_view import write_lattice_log
+
+    try:
+        n = write_lattice_log(log, out_path)
+    except ImportError as exc:
+        raise click.UsageError(str(exc)) from None
+    click.echo(f"{n} map versions; wrote {out_path}")
+
+
 def _base_model(log: Path, base: Path | None):
     from ..models.io import load_model
     from .default_model import default_model
@@ -105,6 +121,12 @@ def add_launch_learning(out_dir: Path, outcome: dict[str, Any], model_path) -> d
                         "start": start, "end": test_score(model_of(base, msg))}
     outcome["learning"] = block
     (Path(out_dir) / "outcome.json").write_text(jsonfile.dumps(outcome))
+    from ..runtime import foxglove_view
+
+    if foxglove_view.available():  # the maps as Foxglove views (docs/learning.md)
+        from ..runtime.lattice_view import write_lattice_log
+
+        write_lattice_log(log, Path(out_dir) / "lattice.mcap")
     return block
 
 

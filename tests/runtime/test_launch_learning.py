@@ -108,6 +108,11 @@ def test_one_trained_robot_learns_the_same_in_lockstep_as_in_process_its_learner
     assert run.outcome()["launcher"]["restarts"] == {"r1/learner": 1}
     assert "restarted from map version" in (run.out / "logs" / "r1-learner.log").read_text()
     assert_equal_runs(run, ref, history)
+    from cekm_swarm.runtime.mcap_read import read_messages
+
+    views = list(read_messages(run.out / "lattice.mcap"))  # a Foxglove view of every version's lattice
+    assert [m.topic for m in views] == ["/view/lattice/r1"] * len(history["r1"])
+    assert {m.schema_name for m in views} == {"foxglove.SceneUpdate"}
 
 
 @pytest.mark.parametrize("seed", [711, 714])
