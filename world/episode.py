@@ -107,6 +107,10 @@ def make_episode(world: World, task: str, checkpoints: dict | None = None, max_t
         from .tracking import TrackingEpisode
 
         return TrackingEpisode(world, max_ticks)
+    if world.scenario.retarget:  # section 4.1's training: a new target at each stop (docs/learning.md)
+        from .training import TrainingEpisode
+
+        return TrainingEpisode(world, world.seed)
     return Episode(world, checkpoints)
 
 

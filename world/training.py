@@ -41,3 +41,10 @@ class TrainingEpisode(Episode):
     @property
     def done(self) -> bool:
         return False  # training runs to its max time
+
+    def outcome(self) -> dict[str, dict]:
+        """:meth:`Episode.outcome` (of each robot's current target) and the targets it reached."""
+        out = super().outcome()
+        for r, o in out.items():
+            o["targets_reached"] = self.reached_count[r]
+        return out

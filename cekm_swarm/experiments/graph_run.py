@@ -96,13 +96,11 @@ def run_graph(scenario, controller: str | None = "cekm", *, graph: str | Graph |
               model=None, seed: int | None = None, max_time: float | None = None, checkpoints=None,
               params: dict[str, Any] | None = None, progress: Callable[[float], None] | None = None,
               stop_at: int | None = None, codec: bool = False, keys: KeySpace = DEFAULT_KEYS,
-              episode_of: Callable[[Any], Any] | None = None,
               observe: Callable[[GraphExecutor, int], None] | None = None) -> GraphRun:
     """Run ``scenario`` with a controller's graph to the end (navigation: every robot at
     its goal, or ``max_time``; tracking: ``max_time``). ``stop_at``: stop after computing
     that tick (for a look at the fields, Fig. 4). ``progress(t)`` every simulated second.
-    ``episode_of(world)``: the world's side of the ticks instead of the task's episode (a
-    learning experiment's, docs/learning.md); ``observe(executor, k)`` after each tick."""
+    ``observe(executor, k)`` after each tick (a learning experiment's scores, docs/learning.md)."""
     from world import World
     from world.episode import make_episode
     from world.sense import SENDER, sense_messages
@@ -130,7 +128,7 @@ def run_graph(scenario, controller: str | None = "cekm", *, graph: str | Graph |
 
     executor = GraphExecutor(plan, checked, context, codec=codec)
     max_ticks = int(math.ceil(max_time / TICK_S))
-    episode = make_episode(world, task, checkpoints, max_ticks) if episode_of is None else episode_of(world)
+    episode = make_episode(world, task, checkpoints, max_ticks)
     reads = {r: set(plan.world_keys(r)) for r in team}
     read_clock = any(n.clock_key is not None or any(s.key == keys.world_clock() for b in n.bindings for s in b.sources)
                      for r in team for n in plan.nodes[r])

@@ -35,7 +35,8 @@ class LearningConfig:
 
 def scenario_text(n: int) -> str:
     """A team of n robots in the arena, on a ring around its centre facing out, each with a target."""
-    lines = ['name = "learning"', 'description = "section 4.1 arena, a team learning online"', "seed = 1", "",
+    lines = ['name = "learning"', 'description = "section 4.1 arena, a team learning online"', "seed = 1",
+             "retarget = true", "",
              "[arena]", f"bounds = [{-ARENA}, {-ARENA}, {ARENA}, {ARENA}]", "boundary_walls = true",
              "wall_thickness = 0.02", ""]
     for i in range(n):
@@ -65,7 +66,6 @@ class Curve:
 def run_one(team: int, share: bool, seed: int, config: LearningConfig, folder: Path) -> Curve:
     """One seeded run of a team, scored as it learns."""
     from world import load_scenario
-    from world.training import TrainingEpisode
 
     from ..modules.learner import copy_model
     from .graph_run import resolve_graph, run_graph, with_params
@@ -88,7 +88,7 @@ def run_one(team: int, share: bool, seed: int, config: LearningConfig, folder: P
             curve.T_s_per_m.append(s["T_s_per_m"])
 
     run = run_graph(load_scenario(path), graph=checked, model=untrained_model(), seed=seed,
-                    max_time=(config.ticks - 0.5) * 0.128, episode_of=lambda w: TrainingEpisode(w, seed), observe=observe)
+                    max_time=(config.ticks - 0.5) * 0.128, observe=observe)
     curve.targets_reached = sum(run.episode.reached_count.values())
     curve.collisions = sum(run.world.stats(r)["collisions"] for r in run.world.robot_ids)
     return curve
