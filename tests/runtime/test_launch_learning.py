@@ -131,3 +131,28 @@ def test_a_generated_scenario_learns_the_same_in_lockstep_with_a_node_killed(tmp
                               "untrained" if untrained else None, 4, controller)
     assert run.outcome()["launcher"]["restarts"].get(kill) == 1
     assert_equal_runs(run, ref, history)
+
+
+RETARGET = """name = "retarget"
+seed = 4
+retarget = true
+[arena]
+bounds = [-1.0, -1.0, 1.0, 1.0]
+[[robots]]
+id = "r1"
+start = [0.0, 0.0, 0.0]
+goal = "t1"
+[[targets]]
+id = "t1"
+position = [0.06, 0.0]
+"""
+
+
+def test_section_4_1_training_through_the_world_server_equals_cekm_run(tmp_path):
+    """A retarget scenario: the world gives the robot a new target at each stop."""
+    path = tmp_path / "retarget.toml"
+    path.write_text(RETARGET)
+    run = launched(tmp_path, str(path), 8, "--model", str(default_model_path()))
+    ref, history = in_process(str(path), default_model(progress=False), None, 8)
+    assert run.outcome()["robots"]["r1"]["targets_reached"] >= 1
+    assert_equal_runs(run, ref, history)
