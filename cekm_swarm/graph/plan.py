@@ -230,7 +230,8 @@ class RunPlan:
         stand for the tick's): a pure node reading that one key of its own period at the
         same tick, not the graph's answer. None otherwise. A delayed map version input (a
         learning robot's, docs/learning.md) does not count: the world sends every reading
-        again at the first tick of each version (:meth:`map_period`)."""
+        that sees something again at the first tick of each version (:meth:`map_period`;
+        a sensor that sees nothing has no field, whatever the map)."""
         bindings = [b for b in node.bindings if not (b.kind == MAP_KIND and b.delay)]
         if not node.pure or node.clock_key is not None or len(bindings) != 1:
             return None
@@ -247,7 +248,7 @@ class RunPlan:
     def map_period(self, robot: str) -> int | None:
         """The period of ``robot``'s map versions (its learner's, docs/learning.md), None
         without one: a version made at tick k is used from k + 1, so the world sends every
-        reading at the ticks k with k % period == 1 % period."""
+        reading that sees something at the ticks k with k % period == 1 % period."""
         return next((n.period for n in self.nodes[robot] if MAP_KIND in n.output_kinds.values()), None)
 
     def held_readings(self, robot: str) -> list[str]:
