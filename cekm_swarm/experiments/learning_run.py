@@ -36,7 +36,14 @@ def learning_controller(controller: str, graph_file) -> str:
     if graph_file is not None:
         raise ParameterError("--learn runs a controller's learning graph; with --graph, give a graph with a "
                              "learner node instead (docs/learning.md)")
-    return controller if controller.endswith(("-learning", "-learning-team")) else f"{controller}-learning"
+    name = controller if controller.endswith(("-learning", "-learning-team")) else f"{controller}-learning"
+    from ..graph.spec import shipped_graphs
+
+    learning = sorted({g.rsplit("-", 1)[0] for g in shipped_graphs() if "-learning" in g})
+    if name not in learning:
+        raise ParameterError(f"--learn: controller {controller!r} has no learning graph (learning controllers: "
+                             f"{', '.join(learning)}; docs/learning.md)")
+    return name
 
 
 def learning_params(model_choice) -> dict[str, Any]:
