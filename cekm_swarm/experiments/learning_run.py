@@ -104,7 +104,11 @@ def learning_outcome(executor, team, base_model) -> dict[str, dict]:
             continue
         if start is None:
             start = test_score(base_model)
-        out[robot] = learner_summary(node, 0, start)
+        from ..modules.learner import MapFollower
+
+        dropped = sum(r.node.dropped for r in executor.runners
+                      if r.plan.robot == robot and isinstance(r.node, MapFollower))  # versions its nodes dropped
+        out[robot] = learner_summary(node, dropped, start)
     return out
 
 

@@ -348,3 +348,9 @@ class MapFollower:
     def step(self, t, inputs):
         self.follow(inputs["map"])  # the version of the learner's latest run before t
         return super().step(t, inputs)
+
+    def close(self) -> None:
+        if self.dropped:
+            self.ctx.log.warning("%s: dropped %d map messages older than its version %d (the last: %s)",
+                                 self.ctx.sender, self.dropped, self.version, self.last_drop)
+        super().close()
