@@ -20,7 +20,7 @@ from .cli_support import (
     run_cli,
 )
 from .errors import CekmError
-from .experiments.learning_commands import MODEL_CHOICE
+from .experiments.learning_commands import MODEL_CHOICE, learning_experiment_cmd
 
 MIN_SPEED_UNIT = 1e-6
 """The smallest positive wheel speed unit (m/s) a command takes for the plant."""
@@ -49,6 +49,9 @@ def main() -> None:
 @main.group()
 def experiment() -> None:
     """Reproduce the paper's experiments."""
+
+
+experiment.add_command(learning_experiment_cmd)  # docs/learning.md
 
 
 @experiment.command("target-reaching")
@@ -296,11 +299,9 @@ def _check_seeds(seeds) -> None:
 
 
 def _model(path: Path | None):
-    from .experiments.default_model import default_model
-    from .experiments.learning_run import UNTRAINED, untrained_model
-    from .models.io import load_model
+    from .experiments.learning_run import model_of_choice
 
-    model = untrained_model() if path == UNTRAINED else load_model(path) if path else default_model()
+    model = model_of_choice(path)  # a file, 'untrained' (docs/learning.md), or the default R15
     if not model.kind.startswith("indirect"):
         raise click.UsageError(f"{path}: the controller needs an indirect-mapping EKM (G or R), not {model.kind!r}")
     return model
@@ -314,8 +315,7 @@ def _model(path: Path | None):
 @click.option("--graph", "graph_file", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               help="Run a graph file of your own instead (docs/modules.md).")
 @click.option("--model", "model_path", type=MODEL_CHOICE,
-              help="A trained model (.npz from `cekm train`), or 'untrained' (with --learn); default: R15 trained "
-                   "and cached on first use.")
+              help="A trained model (.npz from `cekm train`) or 'untrained'; default: R15 trained, cached.")
 @click.option("--learn", is_flag=True, help="The robots' maps learn online as they move (docs/learning.md).")
 @click.option("--seed", type=SEED, help="World seed (default: the scenario's).")
 @click.option("--max-time", type=Finite(min=0.2),  # as cekm launch takes it, so every launch has its cekm run
@@ -468,10 +468,6 @@ def _register_view_command() -> None:
 
     main.add_command(view_cmd)
     main.add_command(graph_group)
-    from .experiments.learning_commands import learning_experiment_cmd, model_group  # docs/learning.md
-
-    main.add_command(model_group)
-    experiment.add_command(learning_experiment_cmd)
 
 
 _register_view_command()

@@ -31,6 +31,14 @@ def untrained_model():
     return make_network(UNTRAINED_NAME, np.random.default_rng(UNTRAINED_SEED))
 
 
+def model_of_choice(choice):
+    """The model of ``--model``: a file, ``untrained`` maps, or (None) the default R15."""
+    from ..models.io import load_model
+    from .default_model import default_model
+
+    return untrained_model() if choice == UNTRAINED else load_model(choice) if choice else default_model()
+
+
 def learning_controller(controller: str, graph_file) -> str:
     """The controller whose learning graph ``--learn`` runs: ``cekm`` -> ``cekm-learning``."""
     if graph_file is not None:

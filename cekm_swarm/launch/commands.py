@@ -27,7 +27,7 @@ from cekm_swarm.cli_support import (
     refuse_unplannable,
 )
 from cekm_swarm.errors import CekmError
-from cekm_swarm.experiments.learning_commands import MODEL_CHOICE
+from cekm_swarm.experiments.learning_commands import MODEL_CHOICE, model_group
 from cekm_swarm.experiments.learning_run import UNTRAINED, model_file_for_launch
 from cekm_swarm.runtime.config import DEFAULT_ENDPOINT, DEFAULT_PORT
 from cekm_swarm.runtime.log_commands import LOG_HELP
@@ -295,4 +295,4 @@ def plot_cmd(log: Path, out_path: Path, title: str | None) -> None:
     click.echo(f"wrote {out_path}")
 
 
-COMMANDS = [launch_cmd, plot_cmd]
+COMMANDS = [launch_cmd, plot_cmd, model_group]  # cekm model extract|lattice (docs/learning.md)
