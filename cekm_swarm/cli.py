@@ -21,6 +21,7 @@ from .cli_support import (
     run_cli,
 )
 from .errors import CekmError
+from .experiments.learning_commands import MODEL_CHOICE, learning_experiment_cmd
 
 MIN_SPEED_UNIT = 1e-6
 """The smallest positive wheel speed unit (m/s) a command takes for the plant."""
@@ -49,6 +50,9 @@ def main() -> None:
 @main.group()
 def experiment() -> None:
     """Reproduce the paper's experiments."""
+
+
+experiment.add_command(learning_experiment_cmd)  # docs/learning.md
 
 
 @experiment.command("target-reaching")
@@ -296,10 +300,9 @@ def _check_seeds(seeds) -> None:
 
 
 def _model(path: Path | None):
-    from .experiments.default_model import default_model
-    from .models.io import load_model
+    from .experiments.learning_run import model_of_choice
 
-    model = load_model(path) if path else default_model()
+    model = model_of_choice(path)  # a file, 'untrained' (docs/learning.md), or the default R15
     if not model.kind.startswith("indirect"):
         raise click.UsageError(f"{path}: the controller needs an indirect-mapping EKM (G or R), not {model.kind!r}")
     return model
@@ -312,32 +315,36 @@ def _model(path: Path | None):
                    "acmommt, kmeans, kmeans-global or stay for tracking.")
 @click.option("--graph", "graph_file", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               help="Run a graph file of your own instead (docs/modules.md).")
-@click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path),
-              help="A trained model (.npz from `cekm train`); default: R15 trained and cached on first use.")
+@click.option("--model", "model_path", type=MODEL_CHOICE,
+              help="A trained model (.npz from `cekm train`) or 'untrained'; default: R15 trained, cached.")
+@click.option("--learn", is_flag=True, help="The robots' maps learn online as they move (docs/learning.md).")
 @click.option("--seed", type=SEED, help="World seed (default: the scenario's).")
 @click.option("--max-time", type=Finite(min=0.2),  # as cekm launch takes it, so every launch has its cekm run
               help="Sim seconds before a robot counts as trapped (default 600); for a tracking scenario, the "
                    "run's length (default 120).")
 @out_dir_options("Directory for outcome.json and trajectory.png.")
-def run_cmd(scenario: str, controller: str, graph_file: Path | None, model_path: Path | None, seed: int | None,
-            max_time: float | None, out_dir: Path, overwrite: bool) -> None:
+def run_cmd(scenario: str, controller: str, graph_file: Path | None, model_path: Path | None, learn: bool,
+            seed: int | None, max_time: float | None, out_dir: Path, overwrite: bool) -> None:
     """Run SCENARIO (a name under world/scenarios or a .toml path) in one process, no Zenoh:
     the controller's graph, every node in this process, by the rule a lockstep launch
     follows (so `cekm launch --mode lockstep` gives the same run).
 
     A scenario with targets whose robots have no goal is a tracking scenario (Fig. 13)."""
     from .experiments.commands import run_navigation_cmd
-    from .experiments.graph_run import default_max_time, resolve_graph
+    from .experiments.graph_run import default_max_time, resolve_graph, with_params
+    from .experiments.learning_run import learning_controller, learning_params
     from .graph.spec import GraphError
 
     sc = _load_scenario(scenario)
     task = _run_kind(sc)
     refuse_unplannable(sc)
+    controller = learning_controller(controller, graph_file) if learn else controller
     try:
         checked = resolve_graph(controller, None if graph_file is None else str(graph_file), task)
         checked.plan([r.id for r in sc.robots], task)
     except GraphError as exc:
         raise FileRefused(str(exc)) from None
+    checked = with_params(checked, learning_params(model_path) if learn else None)
     controller = checked.graph.controller
     model = _model(model_path) if checked.uses_model else None
     if task == "tracking":

@@ -17,6 +17,9 @@ STEP_TIMEOUT = 60.0
 """Wall seconds a lockstep tick (``cekm launch --mode lockstep``) or a step of ``cekm run``
 may wait on one node's step before the run ends as failed, naming the step's line
 (``--step-timeout``)."""
+ODOMETRY_EVERY = 8
+"""Ticks between two odometry readings (``sense/odometry``, 1.024 s: one step of the map,
+section 4.1); each holds the record of the last 16 ticks (docs/learning.md)."""
 
 
 def tick_time(tick: int) -> float:

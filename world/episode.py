@@ -107,6 +107,10 @@ def make_episode(world: World, task: str, checkpoints: dict | None = None, max_t
         from .tracking import TrackingEpisode
 
         return TrackingEpisode(world, max_ticks)
+    if world.scenario.retarget:  # section 4.1's training: a new target at each stop (docs/learning.md)
+        from .training import TrainingEpisode
+
+        return TrainingEpisode(world, world.seed)
     return Episode(world, checkpoints)
 
 
@@ -120,6 +124,7 @@ class Episode:
         self.world = world
         self.radius = checkpoint_radius
         self.tick = 0
+        self.odometer = None  # the robots' odometry readings (world.odometry), made on first use
         self.progress: dict[str, RobotProgress] = {}
         for r in world.robot_ids:
             cps = [tuple(map(float, c)) for c in (checkpoints or {}).get(r, [])] or [world.goal_of(r)]
@@ -176,7 +181,11 @@ class Episode:
         self.tick += 1
 
     def messages(self, robot: str) -> list[tuple[str, Any]]:
-        return []  # navigation: the target reading is part of the readings
+        if self.odometer is None:  # the protocol's messages, imported when a run publishes them
+            from .odometry import Odometer
+
+            self.odometer = Odometer(self.world)
+        return self.odometer.messages(robot, self.tick, self.t)  # the target reading is part of the readings
 
     def summary(self) -> dict[str, Any]:
         return {}

@@ -51,6 +51,7 @@ class TickPublisher:
         self.left_out = 0  # readings left out, unchanged
         self.phase: dict[str, int] = {}  # held reading key -> its tick of the refresh cycle, in turn as first seen
         self._rejoined: deque[str] = deque()  # robots to send every reading to next tick (any thread appends)
+        self.map_every: dict[str, int] = {}  # robot -> its map versions' period: every reading sent as one starts
         self.record_filter = record_filter
         self.pubs: Any = None  # runtime.bridge.Publishers
         self.recorder: Any = None  # runtime.mcap_log.McapRecorder
@@ -135,6 +136,11 @@ class TickPublisher:
     def publish(self, readings: list[TickReadings]) -> dict[str, Any]:
         """The tick's readings, clock and state (in this order); returns the state."""
         ep = self.episode
+        for r, p in self.map_every.items():  # a map version starts: what sees something is sent again (docs/learning.md)
+            if ep.tick % p == 1 % p:
+                head = f"{self.keys.root}/{r}/"
+                for key in [k for k, (c, _) in self.last_sent.items() if k.startswith(head) and c is not None]:
+                    del self.last_sent[key]
         while self._rejoined:
             head = f"{self.keys.root}/{self._rejoined.popleft()}/"
             for key in [k for k in self.last_sent if k.startswith(head)]:

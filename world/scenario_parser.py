@@ -148,12 +148,13 @@ class Parser:
             dict(raw),
             "",
             ("arena", "robots"),
-            ("name", "description", "seed", "plan_checkpoints", "sensors", "plant", "targets", "walls", "obstacles"),
+            ("name", "description", "seed", "plan_checkpoints", "retarget", "sensors", "plant", "targets", "walls",
+             "obstacles"),
         )
         name = self.string(doc.get("name", default_name), "name")
         description = self.string(doc.get("description", ""), "description")
         seed = self.integer(doc.get("seed", 0), "seed", ge=0)
-        plan = self.boolean(doc.get("plan_checkpoints", False), "plan_checkpoints")
+        plan, retarget = (self.boolean(doc.get(k, False), k) for k in ("plan_checkpoints", "retarget"))
 
         arena = self.table(doc["arena"], "arena", ("bounds",), ("boundary_walls", "wall_thickness"))
         bounds = self.vector(arena["bounds"], "arena.bounds", 4, "[xmin, ymin, xmax, ymax]")
@@ -261,7 +262,7 @@ class Parser:
             obstacles=tuple(obstacles),
             targets=tuple(targets),
             speed_unit=speed_unit,
-            plan_checkpoints=plan,
+            plan_checkpoints=plan, retarget=retarget,
         )
         self.check_outside(sc)
         self.check_overlaps(sc)

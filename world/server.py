@@ -148,6 +148,7 @@ class WorldServer:
         self.publisher = TickPublisher(self.keys, self.world, self.episode, sends,
                                        RecordFilter(self.keys, self.robots, self.record_drops, declared,
                                                     lean=cfg.record == "lean"), held)
+        self.publisher.map_every = {} if plan is None else {r: p for r in self.robots if (p := plan.map_period(r))}
         if cfg.record == "lean":
             self.publisher.view_every = LEAN_VIEW_TICKS
         self.stats = RunStats()

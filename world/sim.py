@@ -169,13 +169,12 @@ class World:
         self._exec = np.zeros((n, 2))
         self._goal: list[tuple[str, Any] | None] = []
         tindex = {t.id: k for k, t in enumerate(scenario.targets)}
-        self._tindex = tindex
+        self._tindex, self._encoders = tindex, np.zeros((n, 2))  # wheel encoders: each wheel's travel (m) since t = 0
         for r in scenario.robots:
             self._goal.append(("target", tindex[r.goal]) if r.goal is not None else None)
         self._tpos = np.array([t.position for t in scenario.targets], dtype=float).reshape(-1, 2)
-        self._theading = np.array(
-            [t.motion.heading if isinstance(t.motion, RandomWalk) else 0.0 for t in scenario.targets], dtype=float
-        )
+        self._theading = np.array([t.motion.heading if isinstance(t.motion, RandomWalk) else 0.0
+                                   for t in scenario.targets], dtype=float)
         self._path = [0.0] * n
         self._contact_steps = [0] * n
         self._sensor_range = scenario.sensor_range
@@ -305,6 +304,7 @@ class World:
         u = self._rng_wheels.uniform(-WHEEL_NOISE, WHEEL_NOISE, size=(n, 2))
         ex = self._cmd * (1.0 + u)
         self._exec = ex
+        self._encoders += ex * dt
         exl = ex.tolist()
         th = self._pth
         touching = self._touching

@@ -113,6 +113,21 @@ def motor_command(M: np.ndarray, w: np.ndarray, alpha: float, d: float, k: int, 
     return min(max(c0, -v_max), v_max), min(max(c1, -v_max), v_max)
 
 
+class FieldRows(dict):
+    """A field's rows by winner s, each computed when first asked for (read-only): the
+    values a tabulated row holds, for a map that changes too often to tabulate."""
+
+    def __init__(self, w: np.ndarray, fields: FieldParams, field_of) -> None:
+        super().__init__()
+        self.w, self.fields, self.field_of = w, fields, field_of
+
+    def __missing__(self, s: int) -> np.ndarray:
+        row = self.field_of(self.w, s, self.fields)
+        row.flags.writeable = False
+        self[s] = row
+        return row
+
+
 @dataclass
 class CooperativeEKM:
     """The cooperative-EKM controller of one robot, from a trained indirect-mapping EKM.
@@ -128,6 +143,7 @@ class CooperativeEKM:
     allow_reverse: bool = False
     reverse_min_d: float = 0.02
     backend: str = "numba"
+    tabulate: bool = True  # every field row at once (False: each when first asked for, the same values)
 
     def __post_init__(self) -> None:
         if self.backend not in ("numba", "numpy"):
@@ -136,15 +152,19 @@ class CooperativeEKM:
         self._M = np.ascontiguousarray(self.model.M)
         self.n = self.w.shape[0]
         self.eligible = motor_candidates(self.model, self.allow_reverse, self.reverse_min_d)
-        # A field depends only on its winner s (Eqs. 6, 8), so both are tabulated once per model.
-        self._A = np.stack([target_field(self.w, s, self.fields) for s in range(self.n)])
-        self._B = np.stack([obstacle_field(self.w, s, self.fields) for s in range(self.n)])
-        self._A.flags.writeable = False
-        self._B.flags.writeable = False
-        # one read-only row object per winner, made once: each call hands out the same array
-        # (no view made per message; a field message takes a read-only array as it is)
-        self._A_rows = tuple(self._A[s] for s in range(self.n))
-        self._B_rows = tuple(self._B[s] for s in range(self.n))
+        if self.tabulate:
+            # A field depends only on its winner s (Eqs. 6, 8), so both are tabulated once per model.
+            self._A = np.stack([target_field(self.w, s, self.fields) for s in range(self.n)])
+            self._B = np.stack([obstacle_field(self.w, s, self.fields) for s in range(self.n)])
+            self._A.flags.writeable = False
+            self._B.flags.writeable = False
+            # one read-only row object per winner, made once: each call hands out the same array
+            # (no view made per message; a field message takes a read-only array as it is)
+            self._A_rows = tuple(self._A[s] for s in range(self.n))
+            self._B_rows = tuple(self._B[s] for s in range(self.n))
+        else:  # a map that changes as it learns (docs/learning.md): the rows it meets, when it meets them
+            self._A_rows = FieldRows(self.w, self.fields, target_field)
+            self._B_rows = FieldRows(self.w, self.fields, obstacle_field)
         if self.backend == "numba":
             from ..models import fast
 

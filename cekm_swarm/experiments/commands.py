@@ -34,6 +34,8 @@ def run_navigation_cmd(scenario, controller: str, model, seed: int | None, max_t
     doc = {"scenario": scenario.name, "controller": controller, "graph": graph.graph.name, "seed": run.seed,
            "robots": run.outcome,
            "wall_seconds": round(time.perf_counter() - t0, 3)}
+    if run.learning:
+        doc["learning"] = run.learning
     (out_dir / "outcome.json").write_text(jsonfile.dumps(doc))
     fig = plot_run(run)
     fig.savefig(out_dir / "trajectory.png", dpi=130)

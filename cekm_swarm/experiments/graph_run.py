@@ -96,11 +96,13 @@ def run_graph(scenario, controller: str | None = "cekm", *, graph: str | Graph |
               model=None, seed: int | None = None, max_time: float | None = None, checkpoints=None,
               params: dict[str, Any] | None = None, progress: Callable[[float], None] | None = None,
               stop_at: int | None = None, codec: bool = False, keys: KeySpace = DEFAULT_KEYS,
-              step_timeout: float | None = STEP_TIMEOUT) -> GraphRun:
+              step_timeout: float | None = STEP_TIMEOUT,
+              observe: Callable[[GraphExecutor, int], None] | None = None) -> GraphRun:
     """Run ``scenario`` with a controller's graph to the end (navigation: every robot at
     its goal, or ``max_time``; tracking: ``max_time``). ``stop_at``: stop after computing
     that tick (for a look at the fields, Fig. 4). ``progress(t)`` every simulated second.
-    ``step_timeout``: wall seconds a step may run before the run fails naming it."""
+    ``step_timeout``: wall seconds a step may run before the run fails naming it.
+    ``observe(executor, k)`` after each tick (a learning experiment's scores, docs/learning.md)."""
     from world import World
     from world.episode import make_episode
     from world.sense import SENDER, sense_messages
@@ -158,6 +160,8 @@ def run_graph(scenario, controller: str | None = "cekm", *, graph: str | Graph |
             executor.put(keys.world_state(), k, WorldState(t, SENDER, st["robots"], st["targets"], st["obstacles"]))
         answers = executor.tick(k)
         episode.apply({r: (c.v_l, c.v_r) for r, c in answers.items()})
+        if observe is not None:
+            observe(executor, k)
         if episode.done or episode.tick >= max_ticks or (stop_at is not None and k >= stop_at):
             break
         episode.advance()

@@ -47,6 +47,7 @@ class NavigationRun:
     geometry: dict
     final_state: dict
     plan_paths: dict[str, list] = field(default_factory=dict)
+    learning: dict[str, dict] = field(default_factory=dict)  # per robot with a learner (docs/learning.md)
 
 
 def run_scenario(scenario, controller: str = "cekm", model=None, seed: int | None = None,
@@ -81,8 +82,11 @@ def run_scenario(scenario, controller: str = "cekm", model=None, seed: int | Non
         t, x, y, th = (list(col) for col in zip(*p.path))
         logs[r] = RobotLog(r, t, x, y, th, [c[0] for c in p.commands], [c[1] for c in p.commands],
                            list(p.checkpoints), list(p.checkpoint_times), p.reached, p.reached_time)
+    from .learning_run import learning_outcome
+
     return NavigationRun(scenario.name, controller, world_seed(world, seed, scenario), logs, episode.outcome(),
-                         world.static_geometry(), world.state(), plan_paths)
+                         world.static_geometry(), world.state(), plan_paths,
+                         learning_outcome(run.executor, world.robot_ids, model))
 
 
 def field_overrides(fields: FieldParams | None) -> dict | None:

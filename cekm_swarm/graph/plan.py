@@ -28,11 +28,12 @@ from dataclasses import dataclass, field
 from typing import Any, Mapping
 
 from cekm_swarm.protocol import KeySpace
-from cekm_swarm.ticks import TARGET_EVERY
+from cekm_swarm.ticks import ODOMETRY_EVERY, TARGET_EVERY
 
 from .spec import Graph, NodeDecl
 
 WORLD_OWNER = "world"
+MAP_KIND = "map"  # a learner's map version (protocol KeyKind.MAP_VERSION)
 
 
 @dataclass(frozen=True)
@@ -51,6 +52,7 @@ WORLD_KEYS: dict[str, WorldKey] = {
     "sense/range/{j}": WorldKey("sense/range", 1, ("navigation", "tracking")),
     "sense/pose": WorldKey("sense/pose", TARGET_EVERY, ("tracking",)),
     "sense/targets": WorldKey("sense/targets", TARGET_EVERY, ("tracking",)),
+    "sense/odometry": WorldKey("sense/odometry", ODOMETRY_EVERY, ("navigation",)),
     "world/clock": WorldKey("world/clock", 1, ("navigation", "tracking"), per_robot=False),
     "world/state": WorldKey("world/state", 1, ("navigation", "tracking"), per_robot=False),
 }
@@ -226,10 +228,14 @@ class RunPlan:
         """The one world reading ``node`` is a pure function of, when a tick in which that
         reading is unchanged may leave the node's run out (its previous outputs, restamped,
         stand for the tick's): a pure node reading that one key of its own period at the
-        same tick, not the graph's answer. None otherwise."""
-        if not node.pure or node.clock_key is not None or len(node.bindings) != 1:
+        same tick, not the graph's answer. None otherwise. A delayed map version input (a
+        learning robot's, docs/learning.md) does not count: the world sends every reading
+        that sees something again at the first tick of each version (:meth:`map_period`;
+        a sensor that sees nothing has no field, whatever the map)."""
+        bindings = [b for b in node.bindings if not (b.kind == MAP_KIND and b.delay)]
+        if not node.pure or node.clock_key is not None or len(bindings) != 1:
             return None
-        b = node.bindings[0]
+        b = bindings[0]
         if len(b.sources) != 1 or b.delay != 0 or b.team:
             return None
         s = b.sources[0]
@@ -238,6 +244,12 @@ class RunPlan:
         if self.answer_key(node.robot) in node.outputs.values():
             return None
         return s.key
+
+    def map_period(self, robot: str) -> int | None:
+        """The period of ``robot``'s map versions (its learner's, docs/learning.md), None
+        without one: a version made at tick k is used from k + 1, so the world sends every
+        reading that sees something at the ticks k with k % period == 1 % period."""
+        return next((n.period for n in self.nodes[robot] if MAP_KIND in n.output_kinds.values()), None)
 
     def held_readings(self, robot: str) -> list[str]:
         """The readings of ``robot`` the world may leave out in a tick where they equal the

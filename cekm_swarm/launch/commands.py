@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import ipaddress
 import json
+import os
 from pathlib import Path
 
 import click
@@ -27,6 +28,8 @@ from cekm_swarm.cli_support import (
     refuse_unplannable,
 )
 from cekm_swarm.errors import CekmError
+from cekm_swarm.experiments.learning_commands import MODEL_CHOICE, model_group
+from cekm_swarm.experiments.learning_run import UNTRAINED, model_file_for_launch
 from cekm_swarm.runtime.config import DEFAULT_ENDPOINT, DEFAULT_PORT
 from cekm_swarm.runtime.log_commands import LOG_HELP
 from cekm_swarm.ticks import STEP_TIMEOUT
@@ -54,8 +57,9 @@ def _env_endpoint() -> str | None:
                                                "--port is given].")
 @click.option("--port", default=DEFAULT_PORT, show_default=True, type=click.IntRange(1, 65535),
               help="Port of the embedded router on 127.0.0.1 (without --connect).")
-@click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path),
-              help="A trained model (.npz); default: R15 trained and cached on first use.")
+@click.option("--model", "model_path", type=MODEL_CHOICE,
+              help="A trained model (.npz), or 'untrained' (with --learn); default: R15 trained and cached on first use.")
+@click.option("--learn", is_flag=True, help="The robots' maps learn online as they move (docs/learning.md).")
 @click.option("--max-time", type=Finite(min=0.2),
               help="Sim seconds before the run ends (default: as cekm run, 600 for navigation, 120 for tracking).")
 @click.option("--controller", default="cekm", show_default=True, metavar="NAME",
@@ -103,7 +107,8 @@ def _env_endpoint() -> str | None:
 @click.option("--robot-description", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               help="--plant ros2: the robots' body (TOML; default: the scenario's simulated body).")
 def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwrite: bool, connect: str | None,
-               port: int, model_path: Path | None, max_time: float | None, controller: str, graph_file: Path | None,
+               port: int, model_path: Path | None, learn: bool, max_time: float | None, controller: str,
+               graph_file: Path | None,
                root: str, no_plot: bool, robots: tuple[str, ...] | None, no_world: bool, listen_host: str,
                zenoh_config: Path | None, model_from_zenoh: bool, run_id: str | None, cold_start: bool,
                send_every_reading: bool, max_log_size: int | None, max_log_duration: float | None,
@@ -154,8 +159,13 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwr
     from .errors import NodeCannotStart, NodeFailed
     from .prepare import PreflightError, resolve
 
+    params = None
+    if learn:
+        from cekm_swarm.experiments.learning_run import learning_controller, learning_params
+
+        controller, params = learning_controller(controller, graph_file), learning_params(model_path)
     try:  # the graph, checked before anything is written or started
-        checked, task = resolve(sc, controller, graph_file)
+        checked, task = resolve(sc, controller, graph_file, params)
         checked.plan([r.id for r in sc.robots], task)
     except GraphError as exc:
         raise FileRefused(str(exc)) from None
@@ -165,7 +175,7 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwr
         refuse_plant(sc, checked, task, mode, robot_description)
     elif robot_description is not None:
         raise click.UsageError("--robot-description describes a ROS 2 robot: use it with --plant ros2")
-    if model_path is not None and checked.uses_model:  # a bad model is refused before --overwrite clears --out
+    if model_path not in (None, UNTRAINED) and checked.uses_model:  # a bad model is refused before --overwrite clears --out
         from .prepare import body_of, plan_of, preflight
 
         body = body_of(sc)
@@ -178,13 +188,18 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwr
             raise RunFailed(f"cannot open the Zenoh router on {listen_host}:{port}: {why}; port {port} is taken "
                             f"(another run or program listens there): choose another with --port")
     prepare_out_dir(out_dir, overwrite)
+    model_path = model_file_for_launch(model_path, out_dir)  # untrained maps: a file the nodes read
     config = LaunchConfig(scenario, out_dir, mode=mode, seed=seed, connect=connect, port=port, model=model_path,
                           max_time=max_time, controller=controller, graph=graph_file, root=root, plot=not no_plot,
                           robots=only, world=not no_world, listen_host=listen_host, zenoh_config=zenoh_config,
                           model_from_zenoh=model_from_zenoh, run_id=run_id, warm_start=not cold_start,
                           hold_readings=not send_every_reading and plant is None, max_log_size=max_log_size,
                           max_log_duration=max_log_duration, record=record, step_timeout=step_timeout, plant=plant,
-                          plant_domain=plant_domain, plant_distro=plant_distro, robot_description=robot_description)
+                          plant_domain=plant_domain, plant_distro=plant_distro, robot_description=robot_description,
+                          params=params)
+    from cekm_swarm.modules.learner import SNAPSHOT_DIR
+
+    os.environ[SNAPSHOT_DIR] = str((out_dir / "maps").resolve())  # a learner's state: a restart goes on from it
     launcher = Launcher(config, echo=lambda s: click.echo(s))
     try:
         outcome = launcher.launch()
@@ -196,6 +211,10 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwr
         raise RunFailed(str(exc)) from None
     except CekmError as exc:  # the world server or the embedded router did not come up: say why, no traceback
         raise RunFailed(str(exc)) from None
+    if learn and not no_world:
+        from cekm_swarm.experiments.learning_commands import add_launch_learning
+
+        add_launch_learning(out_dir, outcome, model_path)
     if no_world:
         click.echo(f"modules of {', '.join(only) if only else 'every robot'} stopped; the world host writes the outcome")
         if launcher.interrupted:
@@ -312,4 +331,4 @@ def plot_cmd(log: Path, out_path: Path, title: str | None) -> None:
     click.echo(f"wrote {out_path}")
 
 
-COMMANDS = [launch_cmd, plot_cmd]
+COMMANDS = [launch_cmd, plot_cmd, model_group]  # cekm model extract|lattice (docs/learning.md)

@@ -6,9 +6,14 @@ with their weights ``g`` = G(k, i).
 
 from __future__ import annotations
 
+import hashlib
+import math
+
 import numpy as np
 
-from ..angles import wrap
+from ..angles import wrap, wrap_scalar
+
+SMALL_D = 1e-4  # m: below it a displacement's direction is dtheta / 2 (docs/design.md section 3, item 2)
 
 
 def on_branch(alpha: float, alpha_i: np.ndarray) -> np.ndarray:
@@ -60,3 +65,33 @@ def recursive_least_squares(M: np.ndarray, Rinv: np.ndarray, x: np.ndarray, c: n
 def direct_output_update(C: np.ndarray, c: np.ndarray, idx: np.ndarray, g: np.ndarray, eta: float) -> None:
     """Direct-mapping EKM output rule: c_i += eta G(k, i) (c - c_i)."""
     C[idx] += (eta * g)[:, None] * (c[None, :] - C[idx])
+
+
+def wheel_displacement(left: float, right: float, dt: float, axle: float, step_s: float) -> np.ndarray:
+    """v (section 3.5, step 3) from wheel odometry: the displacement one step of the map
+    (``step_s``, 1.024 s) makes at the wheel speeds the encoders measured, left / dt and
+    right / dt, on the exact differential-drive arc, in polar form (alpha_v, d_v) in the
+    robot frame at the step's start. Below 1e-4 m, alpha_v = dtheta / 2, the limit of the
+    chord's direction, so pure turns still train the d = 0 neurons."""
+    v = 0.5 * (left + right) / dt
+    om = (right - left) / (axle * dt)
+    dth = om * step_s
+    if abs(om) > 1e-12:
+        r = v / om
+        lx, ly = r * math.sin(dth), r * (1.0 - math.cos(dth))
+    else:
+        lx, ly = v * step_s, 0.0
+    d = math.hypot(lx, ly)
+    if d < SMALL_D:
+        return np.array([wrap_scalar(0.5 * dth), d])
+    return np.array([math.atan2(ly, lx), d])
+
+
+def map_digest(w: np.ndarray, M: np.ndarray) -> str:
+    """A map's digest: the first 16 hex digits of the SHA-256 of its input weights and
+    control parameters as float64 little-endian bytes, in that order (what every EKM of
+    the robot uses; R^-1 is the learner's own)."""
+    h = hashlib.sha256()
+    for a in (w, M):
+        h.update(np.ascontiguousarray(a, dtype="<f8").tobytes())
+    return h.hexdigest()[:16]

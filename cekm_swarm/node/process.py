@@ -130,6 +130,8 @@ class NodeShell:
         self.holds_rel = {mk: {reading[len(mk) - len("sense/unchanged"):]: sources
                                for reading, sources in held.items()} for mk, held in self.holds.items()}
         self.mates = {s.owner for b in node_plan.bindings if b.team for s in b.sources}
+        self.own_team_keys = {f"{self.keys.root}/{node_plan.robot}/{d.key}" for d in node_plan.decl.inputs
+                              if d.scope == "teammates"}
         self.mate_tokens: dict[str, set[str]] = {m: set() for m in self.mates}
         # every other node reading this node's outputs (teammates, or of its own robot; with
         # a delay or not): its token -> the keys it reads. A reader's (re)appearing token
@@ -150,7 +152,7 @@ class NodeShell:
         """One received sample: validate, admit its stamp, hand it to the gate."""
         kind = self.kinds.get(key)
         if kind is None:
-            if not key.endswith("/share") or key.split("/")[-2] != self.node_plan.robot:  # own share: not an input
+            if key not in self.own_team_keys:  # its own robot's share (or other teammates' key): not an input
                 self.drops.drop(key, "not a key this node reads")
             return []
         msg = self.decoder.decode(key, kind, payload)

@@ -7,6 +7,7 @@ Keys (root ``cekm`` by default, ``<robot>`` a robot id such as ``r1``):
 ``<root>/<robot>/sense/range/<j>``        KeyKind.SENSE_RANGE
 ``<root>/<robot>/sense/pose``             KeyKind.SENSE_POSE (tracking)
 ``<root>/<robot>/sense/targets``          KeyKind.SENSE_TARGETS (tracking)
+``<root>/<robot>/sense/odometry``         KeyKind.SENSE_ODOMETRY (wheel encoders)
 ``<root>/<robot>/field/target``           KeyKind.FIELD_TARGET
 ``<root>/<robot>/field/obstacle/<j>``     KeyKind.FIELD_OBSTACLE
 ``<root>/<robot>/field/tracking``         KeyKind.FIELD_TRACKING (tracking)
@@ -60,6 +61,7 @@ class KeyKind(str, enum.Enum):
     SENSE_POSE = "sense/pose"
     SENSE_TARGETS = "sense/targets"
     SENSE_UNCHANGED = "sense/unchanged"
+    SENSE_ODOMETRY = "sense/odometry"
     FIELD_TARGET = "field/target"
     FIELD_OBSTACLE = "field/obstacle"
     FIELD_TRACKING = "field/tracking"
@@ -72,6 +74,9 @@ class KeyKind(str, enum.Enum):
     """A key a graph declares for a node's output (``<root>/<robot>/<path>``); not a message kind."""
     DATA = "data"
     """The message kind of a node's own named values (:class:`~cekm_swarm.protocol.messages.Data`); no key has it."""
+    MAP_VERSION = "map"
+    """The message kind of a learner's map version (:class:`~cekm_swarm.protocol.messages.MapVersion`,
+    docs/learning.md); it travels on a key its graph declares (``model/update``)."""
 
     @property
     def indexed(self) -> bool:
@@ -185,6 +190,10 @@ class KeySpace:
     def sense_targets(self, robot: str) -> str:
         """World -> tracking module: every target within sensing range (tracking scenarios)."""
         return f"{self._robot(robot)}/sense/targets"
+
+    def sense_odometry(self, robot: str) -> str:
+        """World -> the learner: the wheel encoders' travel over the tick (docs/learning.md)."""
+        return f"{self._robot(robot)}/sense/odometry"
 
     def sense_unchanged(self, robot: str) -> str:
         """World -> the readers of a robot's held readings: which of its readings this tick
@@ -339,7 +348,8 @@ class KeySpace:
         if n == 2:
             suffix = f"{rest[0]}/{rest[1]}"
             for kind in (KeyKind.SENSE_TARGET, KeyKind.FIELD_TARGET, KeyKind.CMD_WHEELS, KeyKind.SENSE_POSE,
-                         KeyKind.SENSE_TARGETS, KeyKind.SENSE_UNCHANGED, KeyKind.FIELD_TRACKING):
+                         KeyKind.SENSE_TARGETS, KeyKind.SENSE_UNCHANGED, KeyKind.FIELD_TRACKING,
+                         KeyKind.SENSE_ODOMETRY):
                 if suffix == kind.value:
                     return ParsedKey(kind, owner)
             if rest[0] == "alive":

@@ -57,7 +57,7 @@ from .schema import (
 __all__ = ["MAX_ARRAY_LEN", "MAX_INDEX", "MAX_SENDER_LEN", "MAX_TARGETS", "MESSAGE_TYPES", "MSGPACK_ENCODING",
            "SCHEMA_VERSION", "Message", "SenseTarget", "SenseRange", "TargetField", "ObstacleField", "WheelCommand",
            "Share", "SensePose", "SenseTargets", "Unchanged", "TrackingField", "RobotState", "TargetState", "ObstacleState",
-           "WorldState", "Clock", "Data", "with_stamp", "decode", "encode", "peek", "summary", "to_plain", "to_wire"]
+           "WorldState", "Clock", "Data", "SenseOdometry", "MapVersion", "with_stamp", "decode", "encode", "peek", "summary", "to_plain", "to_wire"]
 
 
 def _fail(field: str, problem: str) -> MessageFieldError:
@@ -281,6 +281,72 @@ class Data(Message):
 
     values: dict[str, Plain]
     KIND: ClassVar[KeyKind] = KeyKind.DATA
+
+
+ODOMETRY_ROWS = 16
+"""Ticks a :class:`SenseOdometry` reading covers (the last ones): a learner running every
+8 ticks loses no tick when one reading is lost."""
+_Rows = Annotated[tuple[Finite, ...], Meta(max_length=ODOMETRY_ROWS)]
+
+
+class SenseOdometry(Message):
+    """World -> the learner: the robot's motor controller's record of its last ticks
+    (docs/learning.md), one row per tick ``ticks[i]`` (the interval that ends at it): the
+    wheel speeds it held, ``set_l``, ``set_r`` (m/s, the robot's command clipped to c*),
+    what the wheel encoders measured, ``left``, ``right`` (m, signed; the executed speeds
+    with the plant's slip noise, over each sub-step), and ``blocked``, whether the body
+    touched a wall, an obstacle or a robot meanwhile (the motors' stall signal). ``dt``: a
+    tick's length (s). Never the pose."""
+
+    ticks: Annotated[tuple[Count, ...], Meta(max_length=ODOMETRY_ROWS)]
+    set_l: _Rows
+    set_r: _Rows
+    left: _Rows
+    right: _Rows
+    blocked: Annotated[tuple[bool, ...], Meta(max_length=ODOMETRY_ROWS)]
+    dt: Annotated[float, Meta(ge=1e-6, le=60.0)]
+    KIND: ClassVar[KeyKind] = KeyKind.SENSE_ODOMETRY
+
+    def check(self) -> None:
+        n = len(self.ticks)
+        for name in ("set_l", "set_r", "left", "right", "blocked"):
+            if len(getattr(self, name)) != n:
+                raise _fail(name, f"{len(getattr(self, name))} rows, ticks has {n}")
+        if any(b <= a for a, b in zip(self.ticks, self.ticks[1:])):
+            raise _fail("ticks", "not increasing")
+
+
+Digest = Annotated[str, Meta(pattern=r"^[0-9a-f]{16}$")]
+"""A map's digest: the first 16 hex digits of the SHA-256 of its w and M (docs/learning.md)."""
+
+
+class MapVersion(Message):
+    """Learner -> every EKM node of its robot: version ``version`` of the robot's map (section
+    3.5: all of a robot's EKMs share one set of input weights), whole: the input weights
+    ``w`` (2n: alpha_i, d_i per neuron) and the control parameters ``M`` (4n, row-major 2x2
+    per neuron, internal units; R^-1 stays with the learner), after ``steps`` learning
+    steps (``applied`` learned from, own and teammates', ``skipped`` stopped or blocked),
+    and ``digest`` of the two arrays. A reader uses version k from the tick after its
+    stamp (docs/learning.md)."""
+
+    version: Count
+    steps: Count
+    applied: Count
+    skipped: Count
+    digest: Digest
+    w: Vector
+    M: Vector
+    error: Weight = 0.0  # m/s: the mean |c - M_s v| of its own last run's steps before it learned them (Eq. 13)
+    KIND: ClassVar[KeyKind] = KeyKind.MAP_VERSION
+
+    def check(self) -> None:
+        n2 = self.w.shape[0]
+        if n2 % 2:
+            raise _fail("w", f"length {n2} is not two values per neuron")
+        if self.M.shape[0] != 2 * n2:
+            raise _fail("M", f"length {self.M.shape[0]}, w has {n2 // 2} neurons (4 values each)")
+        if self.applied + self.skipped != self.steps:
+            raise _fail("steps", f"{self.steps} steps, but {self.applied} applied and {self.skipped} skipped")
 
 
 def with_stamp(msg: Message, t: float) -> Message:

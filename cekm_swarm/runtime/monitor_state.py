@@ -24,6 +24,7 @@ from cekm_swarm.protocol import (
     DropCounter,
     KeyKind,
     KeySpace,
+    MapVersion,
     SenseRange,
     SenseTarget,
     SenseTargets,
@@ -67,6 +68,7 @@ class RobotView:
     in_contact: bool = False
     command: tuple[float, float] | None = None
     command_stamp: float | None = None
+    map: tuple[int, int, float] | None = None  # a learning robot's map: version, steps learned, error (m/s)
     latencies: deque = field(default_factory=lambda: deque(maxlen=200))  # seconds
     sense_first: dict = field(default_factory=dict)  # stamp -> wall time of the first sense message
 
@@ -185,6 +187,11 @@ class MonitorState:
                 if robot in book or self.robot(robot) is not None:
                     book[robot] = Observation(msg.stamp, frozenset(msg.targets),
                                               "share" if isinstance(msg, Share) else "sense")
+                return
+            if robot and isinstance(msg, MapVersion):  # a learning robot (docs/learning.md)
+                mv = self.robot(robot)
+                if mv is not None:
+                    mv.map = (msg.version, msg.applied, msg.error)
                 return
             v = self.robot(robot) if robot and isinstance(msg, (SenseRange, SenseTarget, WheelCommand)) else None
             if v is None:

@@ -139,6 +139,9 @@ def render(state: MonitorState, now: float, *, robots: set[str] | None = None, k
         if missing and n:
             lines.append(Text(f"       missing: {', '.join(missing)}", style="red", no_wrap=True,
                               overflow="ellipsis"))
+        if v.map is not None:  # a learning robot (docs/learning.md)
+            lines.append(Text(f"       map v{v.map[0]}, {v.map[1]} steps learned, error {v.map[2]:.4f} m/s",
+                              style="cyan", no_wrap=True, overflow="ellipsis"))
     if state.is_tracking():
         lines.extend(_tracking_lines(state, robots, width))
     stats = state.key_stats(now)
@@ -174,6 +177,8 @@ def snapshot(state: MonitorState, now: float, *, robots: set[str] | None = None,
         out["robots"][rid] = {"pose": v.pose, "goal": v.goal, "in_contact": v.in_contact, "status": status,
                               "command": v.command, "modules_alive": n, "modules_missing": missing,
                               "latency_ms_p50": v.latency_ms(0.5), "latency_ms_p99": v.latency_ms(0.99)}
+        if v.map is not None:
+            out["robots"][rid]["map"] = {"version": v.map[0], "steps": v.map[1], "error_m_s": v.map[2]}
     if state.is_tracking():
         out["tracking"] = state.tracking(robots)
     if key_filter is not None:

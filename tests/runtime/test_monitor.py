@@ -300,3 +300,23 @@ def test_targets_and_robots_are_listed_as_a_person_counts():
     st.observe(K.share("r2"), encode(Share(1.0, "r2", (0.0, 0.2, 0.0), {"t1": (0.1, 0.5)})), at=1.0)
     tr = json.loads(json_line(snapshot(st, 1.1)))["tracking"]
     assert list(tr["targets"]) == ["t1", "t2", "t10"] and list(tr["per_robot"]) == ["r2", "r10"]
+
+
+def test_a_learning_robots_map_version_is_shown():
+    """docs/learning.md: the monitor shows each learning robot's map version, steps and error."""
+    import numpy as np
+
+    from cekm_swarm.protocol import MapVersion
+
+    st = MonitorState()
+    st.observe(K.world_state(), encode(world_state(1.0, 0.3)), at=10.0)
+    w, M = np.zeros(18), np.zeros(36)
+    from cekm_swarm.models.learning import map_digest
+
+    msg = MapVersion(1.024, "r1/learner", 3, 24, 20, 4, map_digest(w, M), w, M, 0.0125)
+    st.observe(K.node_key("r1", "model/update"), encode(msg), at=10.1)
+    assert st.robots["r1"].map == (3, 20, 0.0125)
+    text = render_text(st, now=10.2)
+    assert "map v3, 20 steps learned, error 0.0125 m/s" in text
+    assert all(len(line) <= 80 for line in lines_of(text))
+    assert snapshot(st, now=10.2)["robots"]["r1"]["map"] == {"version": 3, "steps": 20, "error_m_s": 0.0125}

@@ -1,0 +1,172 @@
+"""``cekm model extract``: a learning run's map at any moment of its log, as a model file
+``cekm run --model`` takes (docs/learning.md); and the ``learning`` block a launch adds to
+its ``outcome.json`` from its log."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import click
+
+from .. import jsonfile
+from ..cli_support import Finite, out_dir_options
+from .learning_run import UNTRAINED
+
+
+class ModelChoice(click.ParamType):
+    """``--model``: a model file that exists, or the word ``untrained``."""
+
+    name = "FILE|untrained"
+
+    def convert(self, value, param, ctx):
+        if value is None or isinstance(value, Path) or value == UNTRAINED:
+            return value
+        path = Path(value)
+        if not path.is_file():
+            self.fail(f"{value!r}: no such file (give a model .npz, or 'untrained')", param, ctx)
+        return path
+
+
+MODEL_CHOICE = ModelChoice()
+
+
+@click.group("model")
+def model_group() -> None:
+    """Models: the maps a learning run learned (docs/learning.md)."""
+
+
+@model_group.command("extract")
+@click.argument("log", type=click.Path(exists=True, path_type=Path))
+@click.option("--robot", help="Robot id (default: the first with a map in the log).")
+@click.option("--at", "at_time", type=Finite(0.0), help="Sim time (s): the version in force then (default: the last).")
+@click.option("--base", "base_model", type=click.Path(dir_okay=False, exists=True, path_type=Path),
+              help="The model the run started from, for its lattice and parameters (default: the run's "
+                   "untrained-R15.npz beside the log, else the default R15).")
+@click.option("--out", "out_path", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help="The .npz to write (replaced if it exists).")
+def extract_cmd(log: Path, robot: str | None, at_time: float | None, base_model: Path | None, out_path: Path) -> None:
+    """Write ROBOT's map from a learning run's LOG (run.mcap) as a model file."""
+    from ..models.io import save_model
+    from ..modules.learner import model_of
+    from ..runtime.map_log import map_at, versions
+
+    if robot is None:
+        robots = sorted(versions(log))
+        if not robots:
+            raise click.UsageError(f"{log}: no map versions in this log (was it a --learn run?)")
+        robot = robots[0]
+    msg = map_at(log, robot, at_time)
+    if msg is None:
+        raise click.UsageError(f"{log}: no map version of robot {robot!r}" + ("" if at_time is None else
+                                                                              f" before t={at_time} s"))
+    net = model_of(_base_model(log, base_model), msg)
+    save_model(out_path, net, {"extracted_from": str(log), "robot": robot, "version": msg.version,
+                               "stamp": msg.stamp, "digest": msg.digest})
+    click.echo(f"{robot}: map version {msg.version} (t={msg.stamp:.3f} s, {msg.applied} learning steps, digest "
+               f"{msg.digest}); wrote {out_path}")
+
+
+@model_group.command("lattice")
+@click.argument("log", type=click.Path(exists=True, path_type=Path))
+@click.option("--out", "out_path", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help="The .mcap to write (replaced if it exists).")
+def lattice_cmd(log: Path, out_path: Path) -> None:
+    """Write every map version of a learning run's LOG as a Foxglove view of its lattice
+    (``/view/lattice/<robot>``; a --learn launch writes OUT/lattice.mcap itself)."""
+    from ..runtime.lattice_view import write_lattice_log
+
+    try:
+        n = write_lattice_log(log, out_path)
+    except ImportError as exc:
+        raise click.UsageError(str(exc)) from None
+    click.echo(f"{n} map versions; wrote {out_path}")
+
+
+def _base_model(log: Path, base: Path | None):
+    from ..models.io import load_model
+    from .default_model import default_model
+
+    beside = Path(log).parent / "untrained-R15.npz"
+    if base is not None:
+        return load_model(base)
+    return load_model(beside) if beside.is_file() else default_model()
+
+
+def add_launch_learning(out_dir: Path, outcome: dict[str, Any], model_path) -> dict[str, Any]:
+    """A launch's ``learning`` block from its log (each robot's last map version), written
+    into ``outcome.json``; {} when the run had no learner."""
+    from ..models.io import load_model
+    from ..modules.learner import model_of
+    from ..runtime.map_log import map_at, versions
+    from .default_model import default_model
+    from .learning_run import test_score
+
+    log = Path(out_dir) / "run.mcap"
+    if not log.exists():
+        return {}
+    seen = versions(log)
+    if not seen:
+        return {}
+    base = load_model(model_path) if model_path is not None else default_model()
+    start = test_score(base)
+    nodes = (outcome.get("launcher") or {}).get("nodes") or {}
+    block = {}
+    for robot in sorted(seen):
+        msg = map_at(log, robot)
+        block[robot] = {"versions": msg.version, "steps": msg.steps, "updates_applied": msg.applied,
+                        "skipped": msg.skipped, "final_digest": msg.digest,
+                        "messages_dropped_by_nodes": sum(int(s.get("dropped") or 0) for label, s in nodes.items()
+                                                         if label.startswith(robot + "/")),
+                        "start": start, "end": test_score(model_of(base, msg))}
+    outcome["learning"] = block
+    (Path(out_dir) / "outcome.json").write_text(jsonfile.dumps(outcome))
+    from ..runtime import foxglove_view
+
+    if foxglove_view.available():  # the maps as Foxglove views (docs/learning.md)
+        from ..runtime.lattice_view import write_lattice_log
+
+        write_lattice_log(log, Path(out_dir) / "lattice.mcap")
+    return block
+
+
+@click.command("learning")
+@click.option("--teams", default="1,2,4,8", show_default=True, help="Team sizes, comma-separated.")
+@click.option("--seeds", default="1,2", show_default=True, help="Seeds: a list and/or ranges, e.g. 1-5.")
+@click.option("--ticks", default=1600, show_default=True, type=click.IntRange(16, 100_000),
+              help="Ticks of 0.128 s per run (about one learning step each per robot).")
+@click.option("--workers", type=click.IntRange(1), help="Parallel processes (default: one per core).")
+@out_dir_options("Directory for results.json and learning.png.")
+def learning_experiment_cmd(teams: str, seeds: str, ticks: int, workers: int | None, out_dir: Path,
+                            overwrite: bool) -> None:
+    """Learning curves through the graph: untrained R15 maps learning online in section 4.1's
+    arena, teams of 1-8 robots with and without sharing their (v, c) pairs (docs/learning.md)."""
+    import os
+    import time
+
+    from ..cli_support import prepare_out_dir
+    from ..errors import CekmError
+    from .commands import parse_team_sizes, seeds_of
+    from .learning_experiment import LearningConfig, plot_curves, results_doc, run_experiment
+
+    try:
+        config = LearningConfig(teams=parse_team_sizes(teams), seeds=tuple(seeds_of(seeds)), ticks=ticks,
+                                evals=tuple(t for t in LearningConfig.evals if t < ticks) + (ticks,))
+    except CekmError as exc:
+        raise click.UsageError(str(exc)) from None
+    if not config.seeds:
+        raise click.UsageError("--seeds: give at least one seed")
+    prepare_out_dir(out_dir, overwrite)
+    n_runs = sum((2 if n > 1 else 1) * len(config.seeds) for n in config.teams)
+    t0 = time.perf_counter()
+    with click.progressbar(length=n_runs, label="runs", show_eta=True) as bar:
+        curves = run_experiment(config, out_dir, workers or min(2, os.cpu_count() or 1), lambda c: bar.update(1))
+    doc = results_doc(config, curves)
+    doc["wall_seconds"] = round(time.perf_counter() - t0, 1)
+    (out_dir / "results.json").write_text(jsonfile.dumps(doc))
+    plot_curves(config, curves).savefig(out_dir / "learning.png", dpi=120)
+    for key, row in doc["summary"].items():
+        click.echo(f"{key:>10}: steps of r1 to E < {config.threshold_mm} mm {row['steps_to_E']}, to T < "
+                   f"{config.threshold_T} s/m {row['steps_to_T']}; final E {row['final_E_mm']} mm, T "
+                   f"{row['final_T_s_per_m']} s/m")
+    click.echo(f"wrote {out_dir / 'results.json'}, {out_dir / 'learning.png'} ({doc['wall_seconds']} s)")
