@@ -275,8 +275,10 @@ class NodeShell:
         put = zenoh.SampleKind.PUT
         self.on_failure = lambda: loop.call_soon_threadsafe(stop.set)
         self.pubs = Publishers(session, block=self.spec.mode == "lockstep", express=False)
-        for key in self.node_plan.outputs.values():  # before listening: no declaration on Zenoh's thread later
+        param_key = self.keys.param(self.node_plan.robot, self.node_plan.name)
+        for key in (*self.node_plan.outputs.values(), param_key):  # before listening: none on Zenoh's thread later
             self.pubs.publisher(key)
+        self.runner.live.on_change = lambda msg: self.publish([(param_key, msg)])  # the world records it
 
         def serve_sample(sample: zenoh.Sample) -> None:
             if self.closed.is_set() or sample.kind != put:
@@ -299,8 +301,7 @@ class NodeShell:
         watch = self.token_expr()
         if watch is not None:
             tokens = session.liveliness().declare_subscriber(watch, serve_token, history=True)
-        params = session.declare_queryable(self.keys.param(self.node_plan.robot, self.node_plan.name),
-                                           zenoh.handlers.Callback(self.serve_param, indirect=True))
+        params = session.declare_queryable(param_key, zenoh.handlers.Callback(self.serve_param, indirect=True))
         # the token comes last: once it is up, the subscriptions are in place
         token = declare_alive(session, self.keys.alive(self.node_plan.robot, self.node_plan.name))
         log.info("%s: up (%s), listening on %s", self.node_plan.label, self.spec.mode, ", ".join(self.listen_exprs()))

@@ -246,6 +246,16 @@ def test_a_parameter_changed_while_a_lockstep_run_goes_is_applied_at_its_tick_an
     cmds = [decode(m.topic, m.data) for m in read_messages(tmp_path / "ls" / "run.mcap", topics=["cekm/r1/cmd/wheels"])]
     moving = [(c.stamp, round((c.v_l + c.v_r) / 2, 9)) for c in cmds if (c.v_l, c.v_r) != (0.0, 0.0)]
     assert {v for t, v in moving if t < t_at} == {0.05} and {v for t, v in moving if t >= t_at} == {0.08}, moving
+    # and in the run's log, on a channel of its own, decoded by `cekm log cat` and listed by `cekm log info`
+    log = str(tmp_path / "ls" / "run.mcap")
+    cat = cekm("log", "cat", log, "--json", "--topics", "cekm/*/param/*", cwd=tmp_path)
+    records = [json.loads(line) for line in cat.stdout.splitlines()]
+    assert [(r["topic"], r["message"]) for r in records] == [
+        ("cekm/r1/param/motor", {"kind": "data", "type": "cekm.ParamChange", "stamp": t_at, "sender": "r1/motor",
+                                 "node": "motor", "name": "speed", "value": 0.08, "was": 0.05})], cat.stdout + cat.stderr
+    info = cekm("log", "info", log, cwd=tmp_path)
+    assert any("cekm/r1/param/motor" in line and "cekm.data:cekm.ParamChange" in line
+               for line in info.stdout.splitlines()), info.stdout
 
 
 def test_a_change_for_a_tick_the_node_has_run_is_refused_and_one_to_come_waits_for_its_tick():
