@@ -176,11 +176,49 @@ def test_two_user_nodes_with_a_typed_message_in_lockstep_equal_cekm_run_and_are_
     assert any("cekm/r1/avoid/free" in line and "cekm.data:FreeDirection" in line for line in info.stdout.splitlines())
 
 
+BEAT = """
+import time
+
+from cekm_swarm.node import In, Node, Out
+from cekm_swarm.protocol import Data, SenseTarget
+
+
+class Beat(Node):
+    \"\"\"Says when (wall clock) each of its runs was.\"\"\"
+
+    inputs = {"target": In(SenseTarget)}
+    outputs = {"beat": Out(Data)}
+
+    def step(self, t, inputs):
+        return {"beat": Data(t, self.ctx.sender, {"wall": time.monotonic()})}
+"""
+TIMER_S = 0.3
+
+
+def add_beat(example: Path) -> None:
+    """A third node for the example's graph, on a timer of its own (``timer = 0.3``)."""
+    (example.parent / "beat.py").write_text(BEAT)
+    example.write_text(example.read_text() + f"""
+[[node]]
+name = "beat"
+program = "beat:Beat"
+timer = {TIMER_S}
+inputs = {{ target = "sense/target" }}
+outputs = {{ beat = "beat" }}
+""")
+
+
 @pytest.mark.slow
 def test_two_user_nodes_with_a_typed_message_in_real_time_are_decoded_by_topic_echo(example, tmp_path):
+    """And a third node on a timer of its own (``timer = 0.3``): it runs at its timer's
+    rate, at most once a tick, whatever rate its input comes at."""
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "runtime"))
     from test_launch_support import LaunchProcess
 
+    from cekm_swarm.protocol import decode
+    from cekm_swarm.runtime.mcap_log import read_messages
+
+    add_beat(example)
     run = LaunchProcess("near.toml", tmp_path / "rt", "--graph", str(example), "--mode", "realtime",
                         "--max-time", "6", "--no-plot", cwd=example.parent)
     try:
@@ -195,6 +233,13 @@ def test_two_user_nodes_with_a_typed_message_in_real_time_are_decoded_by_topic_e
     typed = [line for line in lines if line.startswith("FreeDirection t=")]
     assert len(lines) == 40 and typed and all("from=r1/free alpha=" in line and "clearance=" in line for line in typed)
     assert all(line.startswith("none (nothing sent) t=") for line in lines if line not in typed), echo.stdout
+    beats = [decode(m.topic, m.data) for m in read_messages(tmp_path / "rt" / "run.mcap", topics=["cekm/r1/beat"])]
+    ticks = [round(b.stamp / 0.128) for b in beats]
+    walls = [b.values["wall"] for b in beats]
+    span = walls[-1] - walls[0]
+    assert len(beats) >= 3 and ticks == sorted(set(ticks)), ticks  # at most once a tick
+    # at its timer's rate: never faster (its first run may be late by up to a period), nor three times slower
+    assert (len(beats) - 1) * TIMER_S <= span + TIMER_S and (len(beats) - 1) * 3 * TIMER_S >= span, (len(beats), span)
 
 
 @pytest.mark.slow
@@ -284,3 +329,11 @@ def test_a_change_for_a_tick_the_node_has_run_is_refused_and_one_to_come_waits_f
     assert runner.node.params.speed == 0.05 and live.changes == []
     live.apply_due(12)
     assert runner.node.params.speed == 0.1 and live.changes == [{"name": "speed", "value": 0.1, "t": 1.536}]
+
+
+def test_a_node_on_a_timer_runs_at_its_graph_rate_in_one_process(example):
+    """In ``cekm run`` (and lockstep) a node's timer is not used: it runs at its inputs'
+    rate (sense/target: every other tick), so the run stays reproducible."""
+    add_beat(example)
+    run = run_graph(load_scenario(str(example.parent / "near.toml")), graph=str(example), max_time=8.0, stop_at=10)
+    assert [k for k in range(11) if run.executor.output("cekm/r1/beat", k) is not None] == [0, 2, 4, 6, 8, 10]
