@@ -156,11 +156,12 @@ def view_cmd(scenario: str | None, log: Path | None, seed: int | None, robot: st
 
                     g = None if log is not None else fetch_json(session, keys.world_geometry())
                     if g is not None and "bounds" in g and g.get("name") != view.geometry.get("name"):
-                        click.echo(f"the run {run} is of arena {g.get('name')!r}, not {view.geometry.get('name')!r}: "
-                                   f"drawing the run's", err=True)
+                        given = view.geometry.get("name")
                         gids = sorted(r["id"] for r in g.get("robots", []))
                         view.set_geometry(g, sensing_radii(g, g.get("sensor_range"), g.get("target_range")),
-                                          robot_colours(gids))
+                                          robot_colours(gids))  # drawn before it is said
+                        click.echo(f"the run {run} is of arena {g.get('name')!r}, not {given!r}: drawing the run's",
+                                   err=True)
 
                     g = fetch_run_graph(session, keys.world_graph())
                     view.set_graph(None if g is None else f"{g.name} ({g.controller})")
