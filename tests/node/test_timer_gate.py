@@ -51,26 +51,12 @@ def test_the_timer_keeps_its_grid_and_skips_what_it_missed():
 
 
 def graph_with_timer(tmp_path, timer) -> str:
+    """The shipped cekm-navigation graph with a timer on its target node."""
+    from cekm_swarm.graph.spec import shipped_graphs
+
+    text = shipped_graphs()["cekm-navigation"].read_text()
     f = tmp_path / "g.toml"
-    f.write_text(f'''[graph]
-controller = "t"
-task = "navigation"
-answer = "cmd/wheels"
-
-[[node]]
-name = "target"
-program = "cekm_swarm.modules.target_localization"
-every = 2
-timer = {timer}
-inputs = {{ reading = "sense/target" }}
-outputs = {{ field = "field/target" }}
-
-[[node]]
-name = "motor"
-program = "cekm_swarm.modules.stay"
-inputs = {{ target = "field/target" }}
-outputs = {{ command = "cmd/wheels" }}
-''')
+    f.write_text(text.replace("every = 2 ", f"timer = {timer}\nevery = 2 ", 1))
     return str(f)
 
 
