@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import shutil
+import signal
 import subprocess
 import sys
 import textwrap
@@ -208,27 +209,57 @@ outputs = {{ beat = "beat" }}
 """)
 
 
+def foxglove_channel(port: int, topic: str) -> dict:
+    """The channel ``topic`` as the Foxglove server on ``port`` advertises it."""
+    import time
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "view"))
+    from test_foxglove_live import WsClient
+
+    ws, deadline = WsClient(port), time.monotonic() + 60
+    while time.monotonic() < deadline:
+        op, data = ws.frame()
+        for c in json.loads(data).get("channels", []) if op == 1 else []:
+            if c["topic"] == topic:
+                return c
+    raise AssertionError(f"no channel {topic} advertised")
+
+
 @pytest.mark.slow
 def test_two_user_nodes_with_a_typed_message_in_real_time_are_decoded_by_topic_echo(example, tmp_path):
     """And a third node on a timer of its own (``timer = 0.3``): it runs at its timer's
-    rate, at most once a tick, whatever rate its input comes at."""
+    rate, at most once a tick, whatever rate its input comes at; and `cekm view --foxglove`
+    serves the typed messages under their JSON Schema, taken from the run spec."""
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "runtime"))
-    from test_launch_support import LaunchProcess
+    from test_launch_support import LaunchProcess, interrupt
 
     from cekm_swarm.protocol import decode
+    from cekm_swarm.runtime.config import free_port
     from cekm_swarm.runtime.mcap_log import read_messages
 
     add_beat(example)
+    port = free_port()  # a view with its Foxglove server attached from the start (the type's schema)
+    view = subprocess.Popen([sys.executable, "-m", "cekm_swarm", "view", "--http", "0", "--foxglove", "0",
+                             "--connect", f"tcp/127.0.0.1:{port}"], stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, text=True, start_new_session=True)
     run = LaunchProcess("near.toml", tmp_path / "rt", "--graph", str(example), "--mode", "realtime",
-                        "--max-time", "6", "--no-plot", cwd=example.parent)
+                        "--max-time", "6", "--no-plot", cwd=example.parent, port=port)
     try:
         run.wait_line("world started ticking", timeout=120)
         echo = cekm("topic", "echo", "cekm/r1/avoid/free", "--count", "40", "--timeout", "10",
-                    "--connect", f"tcp/127.0.0.1:{run.port}", cwd=tmp_path)
+                    "--connect", f"tcp/127.0.0.1:{port}", cwd=tmp_path)
         code = run.finish(timeout=120)
+        said = ""
+        while "foxglove WebSocket server on ws://" not in said:
+            said = view.stderr.readline()
+            assert said, "the view ended without serving Foxglove"
+        free = foxglove_channel(int(said.split(":")[-1]), "cekm/r1/avoid/free")
     finally:
         run.kill()
+        interrupt(view)
     assert code == 0, "\n".join(run.lines[-30:])
+    assert free["encoding"] == "json" and free["schemaName"] == "cekm.data:FreeDirection"
+    assert json.loads(free["schema"])["properties"]["clearance"]["minimum"] == 0.0  # from the run spec
     lines = [line.removeprefix("cekm/r1/avoid/free: ") for line in echo.stdout.splitlines()]
     typed = [line for line in lines if line.startswith("FreeDirection t=")]
     assert len(lines) == 40 and typed and all("from=r1/free alpha=" in line and "clearance=" in line for line in typed)
@@ -249,7 +280,6 @@ def test_a_parameter_changed_while_a_lockstep_run_goes_is_applied_at_its_tick_an
     motor's commands show it from exactly that tick (Blend's wheel speeds average `speed`)."""
     import math
     import os
-    import signal
 
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "runtime"))
     from test_launch_support import LaunchProcess

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 import queue
-import signal
 import subprocess
 import sys
 import threading
@@ -16,7 +15,7 @@ from pathlib import Path
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "runtime"))
-from test_launch_support import LaunchProcess  # noqa: E402
+from test_launch_support import LaunchProcess, interrupt  # noqa: E402
 
 from cekm_swarm.runtime.config import free_port  # noqa: E402
 
@@ -53,8 +52,4 @@ def test_a_view_given_another_scenario_draws_the_runs_arena_with_a_warning(tmp_p
         assert run.finish(timeout=120) == 0, "\n".join(run.lines[-20:])
     finally:
         run.kill()
-        view.send_signal(signal.SIGINT)
-        try:
-            view.wait(timeout=20)
-        except subprocess.TimeoutExpired:
-            view.kill()
+        interrupt(view)
