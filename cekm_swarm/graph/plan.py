@@ -226,11 +226,13 @@ class RunPlan:
         """The one world reading ``node`` is a pure function of, when a tick in which that
         reading is unchanged may leave the node's run out (its previous outputs, restamped,
         stand for the tick's): a pure node reading that one key of its own period at the
-        same tick, not the graph's answer, not on a timer of its own. None otherwise."""
-        if not node.pure or node.clock_key is not None or len(node.bindings) != 1 or node.decl.timer is not None:
+        same tick, not the graph's answer. None otherwise."""
+        if not node.pure or node.clock_key is not None or len(node.bindings) != 1:
             return None
         b = node.bindings[0]
         if len(b.sources) != 1 or b.delay != 0 or b.team:
+            return None
+        if node.decl.timer is not None:  # on a timer of its own in real time: its runs are not the reading's
             return None
         s = b.sources[0]
         if s.owner != WORLD_OWNER or s.period != node.period or s.key.startswith(f"{self.keys.root}/world/"):
