@@ -15,13 +15,14 @@ import json
 from pathlib import Path
 from typing import Any
 
-from cekm_swarm.protocol import DropCounter, KeyKind, KeySpace, KeySpaceError, expect_of
+from cekm_swarm.protocol import DropCounter, KeyKind, KeySpace, KeySpaceError, ParamChange, expect_of
 from cekm_swarm.protocol.stamps import PAST_S, stamp_problem
 from cekm_swarm.runtime.mcap_sets import open_recorder
 
 RECORD_MODES = ("full", "lean")
-LEAN_KINDS = frozenset({KeyKind.CMD_WHEELS, KeyKind.SHARE})
-"""The kinds of the nodes' messages a lean log keeps (not the fields, the bulk of a full log)."""
+LEAN_KINDS = frozenset({KeyKind.CMD_WHEELS, KeyKind.SHARE, ParamChange})
+"""The kinds of the nodes' messages a lean log keeps (not the fields, the bulk of a full log):
+the answers, what teammates share, and every parameter change (``cekm param set``)."""
 WORLD_SENT_KINDS = frozenset(k for k in KeyKind if k.value.startswith("sense/"))
 """The kinds of a robot's keys only the world publishes: its readings (with a graph, the
 recorder takes none of them from other sessions)."""

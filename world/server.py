@@ -53,6 +53,7 @@ from cekm_swarm.errors import CekmError
 from cekm_swarm.graph.plan import WORLD_KEYS
 from cekm_swarm.graph.spec import GraphError
 from cekm_swarm.protocol import DropCounter, KeySpace
+from cekm_swarm.protocol.user import PARAM_CHANGE_KIND, ParamChange, user_schemas
 from cekm_swarm.runtime.bridge import (
     InlineSubscription,
     LivelinessWatcher,
@@ -138,6 +139,8 @@ class WorldServer:
         self.record_drops = DropCounter("world recorder", keys=self.keys)
         plan = self.plan
         declared = None if plan is None else {k: v for r in self.robots for k, v in plan.sent_keys(r).items()}
+        if plan is not None:  # each node's parameter changes (cekm param set), recorded as its messages are
+            declared.update({self.keys.param(r, n.name): PARAM_CHANGE_KIND for r in self.robots for n in plan.nodes[r]})
         self.declared = declared
         answers = ({plan.answer_key(r): r for r in self.robots} if plan is not None
                    else {self.keys.cmd_wheels(r): r for r in self.robots})
@@ -228,7 +231,8 @@ class WorldServer:
                                                    cfg.mode, geometry, self.world.body_radius,
                                                    max_bytes=cfg.max_log_size, max_seconds=cfg.max_log_duration,
                                                    record=cfg.record, keys=self.keys, kinds=self.declared,
-                                                   schemas=None if self.spec is None else dict(self.spec.schemas))
+                                                   schemas=None if self.spec is None else
+                                                   {**self.spec.schemas, **user_schemas([ParamChange])})
         except BaseException:
             session.close()
             raise

@@ -1,7 +1,9 @@
 """The router's access control, derived from the graphs a deployment runs: each robot
 identity may publish only the keys its nodes send, hold only its own liveliness tokens,
 and subscribe to and receive only what its nodes read (its own readings and fields, its
-teammates' shares, the clock). The world, the monitor and the operator identities keep
+teammates' shares, the clock); its nodes serve their parameters (``cekm param``, asked
+by the operator identity: a change is a write, so not the monitor's) on their own
+parameter keys and publish each change there. The world, the monitor and the operator identities keep
 fixed roles. ``cekm graph acl`` writes the whole router config; ``deploy/router.json5``
 and ``deploy/tls/router.json5`` are its output for every shipped graph and robots r1-r4
 (a test holds them equal).
@@ -41,6 +43,8 @@ def robot_keys(graphs: Iterable[CheckedGraph], robot: str, root: str = ROOT) -> 
                 listen.append(f"{root}/world/clock")
         if any(g.ports[n.name].pure for n in g.graph.nodes):  # its readers learn which readings are held
             listen.append(f"{root}/{robot}/sense/unchanged")
+    if publish:  # its nodes' parameter changes (cekm param set: a ParamChange on each node's parameter key)
+        publish.append(f"{root}/{robot}/param/*")
     return sorted(dict.fromkeys(publish)), sorted(dict.fromkeys(listen))
 
 
@@ -128,11 +132,14 @@ def router_config(graphs: list[CheckedGraph], robots: tuple[str, ...], *, tls: b
     for r in robots:
         pub, listen = robot_keys(graphs, r, root)
         rules += [
-            (f"Robot {r}: publishes only what its nodes send; holds only its own tokens; receives only what its nodes read.",
+            (f"Robot {r}: publishes only what its nodes send; holds only its own tokens; receives only what its nodes read; "
+             "its nodes answer cekm param (the operator's) on their own parameter keys.",
              f"{r}-publish", ["ingress"], ["put", "delete"], pub),
             (None, f"{r}-alive", ["ingress"], ["liveliness_token"], [f"{root}/{r}/alive/**"]),
             (None, f"{r}-listen", ["ingress"], ["declare_subscriber"], listen),
             (None, f"{r}-receive", ["egress"], ["put", "delete"], listen),
+            (None, f"{r}-param-serve", ["ingress"], ["declare_queryable", "reply"], [f"{root}/{r}/param/*"]),
+            (None, f"{r}-param-asked", ["egress"], ["query"], [f"{root}/{r}/param/*"]),
         ]
     rules += [
         ("Monitors (cekm monitor, cekm topic ...): read everything, publish nothing.",
@@ -162,7 +169,7 @@ def router_config(graphs: list[CheckedGraph], robots: tuple[str, ...], *, tls: b
     policies = [("world", ["declarations-out", "world-publish", "world-alive", "world-listen", "world-receive", *common,
                            "model-serve", "model-serve-out"])]
     policies += [(r, ["declarations-out", f"{r}-publish", f"{r}-alive", f"{r}-listen", f"{r}-receive", *common,
-                      "model-fetch", "model-fetch-in"]) for r in robots]
+                      "model-fetch", "model-fetch-in", f"{r}-param-serve", f"{r}-param-asked"]) for r in robots]
     policies += [("monitor", ["declarations-out", "monitor-listen", "monitor-receive", "geometry-fetch", "geometry-fetch-in"]),
                  ("operator", ["operator-all"])]
     for who, ids in policies:

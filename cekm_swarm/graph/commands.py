@@ -70,7 +70,8 @@ def describe(checked, plan) -> list[str]:
         inst = f" x{n} ({d.name}-0 .. {d.name}-{n - 1})" if d.instances is not None else ""
         rate = f"every {node.period} tick{'s' if node.period > 1 else ''} ({node.period * TICK_S:.3f} s)"
         how = ("declared" if d.every is not None else "once its inputs of a tick are in") + (
-            ", told of each tick by the world's clock" if node.clock_key else "")
+            ", told of each tick by the world's clock" if node.clock_key else "") + (
+            f"; in real time on a timer of its own, every {d.timer:g} s" if d.timer is not None else "")
         flags = [f for f, on in (("stateful", node.stateful), ("reads the model", node.uses_model)) if on]
         lines.append(f"    {d.name}{inst}: {d.program}")
         lines.append(f"      runs {rate}, {how}" + (f"; {', '.join(flags)}" if flags else ""))

@@ -238,6 +238,8 @@ class RunPlan:
         b = bindings[0]
         if len(b.sources) != 1 or b.delay != 0 or b.team:
             return None
+        if node.decl.timer is not None:  # on a timer of its own in real time: its runs are not the reading's
+            return None
         s = b.sources[0]
         if s.owner != WORLD_OWNER or s.period != node.period or s.key.startswith(f"{self.keys.root}/world/"):
             return None

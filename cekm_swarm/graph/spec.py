@@ -16,6 +16,7 @@ One TOML file per controller (the shipped ones are in ``cekm_swarm/graph/shipped
     program = "cekm_swarm.modules.obstacle"   # a module with one Node class, or "module:Class"
     instances = "sensors"        # one per distance sensor (or a number; default one)
     every = 1                    # runs every N ticks of 0.128 s (default: when its inputs of a tick are in)
+    # timer = 0.5                # real time only: runs every 0.5 s of wall time, on a timer of its own
     inputs = { reading = "sense/range/{i}" }  # port -> key ({i}: the instance)
     outputs = { field = "field/obstacle/{i}" }
     params = { }                 # this node's parameters (over [params])
@@ -49,6 +50,8 @@ _NAME_RE = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,47}\Z")
 _PORT_RE = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,47}\Z")
 _CHUNK_RE = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*\Z")
 SHIPPED = "shipped"
+MIN_TIMER_S = 0.01
+"""The shortest ``timer`` a node may declare (s): 100 runs a second at most."""
 
 
 class GraphError(CekmError):
@@ -92,6 +95,7 @@ class NodeDecl:
     outputs: tuple[OutputDecl, ...] = ()
     params: Mapping[str, Any] = field(default_factory=dict)
     index: int = 0  # its position in the file (node[index])
+    timer: float | None = None  # real time: runs every `timer` s of wall time (lockstep: its `every`)
 
     @property
     def where(self) -> str:
@@ -134,6 +138,7 @@ class Graph:
         return {"name": self.name, "controller": self.controller, "task": self.task, "description": self.description,
                 "answer": self.answer, "params": dict(self.params), "source": self.source,
                 "nodes": [{"name": n.name, "program": n.program, "instances": n.instances, "every": n.every,
+                           **({"timer": n.timer} if n.timer is not None else {}),
                            "params": dict(n.params),
                            "inputs": [{"port": i.port, "key": i.key, "scope": i.scope, "delay": i.delay,
                                        "stale": i.stale} for i in n.inputs],
@@ -144,7 +149,8 @@ class Graph:
         """The inverse of :meth:`to_dict` (a run spec's graph, already checked)."""
         nodes = tuple(NodeDecl(n["name"], n["program"], n["instances"], n["every"],
                                tuple(InputDecl(i["port"], i["key"], i["scope"], i["delay"], i["stale"]) for i in n["inputs"]),
-                               tuple(OutputDecl(o["port"], o["key"]) for o in n["outputs"]), dict(n["params"]), k)
+                               tuple(OutputDecl(o["port"], o["key"]) for o in n["outputs"]), dict(n["params"]), k,
+                               n.get("timer"))
                       for k, n in enumerate(doc["nodes"]))
         return cls(doc["name"], doc["controller"], doc["task"], doc["description"], doc["answer"], dict(doc["params"]),
                    nodes, doc["source"])
@@ -224,7 +230,7 @@ def parse_graph(doc: Mapping[str, Any], source: str) -> Graph:
         name = raw.get("name")
         if isinstance(name, str) and name:
             where = f"node '{name}'"
-        p.keys(raw, where, {"name", "program", "instances", "every", "inputs", "outputs", "params"})
+        p.keys(raw, where, {"name", "program", "instances", "every", "timer", "inputs", "outputs", "params"})
         name = p.text(name, f"{where}.name")
         if not _NAME_RE.match(name):
             raise GraphError(source, f"{where}.name", "a letter, then letters, digits or '_' (at most 48)")
@@ -238,6 +244,9 @@ def parse_graph(doc: Mapping[str, Any], source: str) -> Graph:
         every = raw.get("every")
         if every is not None and not (type(every) is int and 1 <= every <= 10_000):
             raise GraphError(source, f"{where}.every", f"{every!r}: expected a whole number of ticks >= 1")
+        timer = raw.get("timer")
+        if timer is not None and not (type(timer) in (int, float) and MIN_TIMER_S <= timer <= 3600):
+            raise GraphError(source, f"{where}.timer", f"{timer!r}: expected seconds between {MIN_TIMER_S} and 3600")
         ins = tuple(p.input(port, v, f"{where}.inputs.{port}", instances is not None)
                     for port, v in p.table(raw.get("inputs", {}), f"{where}.inputs").items())
         outs = []
@@ -249,7 +258,8 @@ def parse_graph(doc: Mapping[str, Any], source: str) -> Graph:
             p.placeholder(key, f"{where}.outputs.{port}", instances is not None)
             outs.append(OutputDecl(port, key))
         nparams = p.table(raw.get("params", {}), f"{where}.params")
-        nodes.append(NodeDecl(name, program, instances, every, ins, tuple(outs), dict(nparams), k))
+        nodes.append(NodeDecl(name, program, instances, every, ins, tuple(outs), dict(nparams), k,
+                              None if timer is None else float(timer)))
     return Graph(head.get("name", Path(source).stem), controller, task, p.text(head.get("description", controller),
                  "[graph].description"), answer, dict(params), tuple(nodes), source)
 

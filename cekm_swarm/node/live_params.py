@@ -1,8 +1,10 @@
 """A node's parameters changed while it runs (``cekm param set``): validated against the
 node's ``Params`` as a graph's values are (:func:`~.api.make_params`), then applied
 before the node's first run at or after the sim time the change names, so a lockstep run
-given the same changes at the same times computes the same; every change is logged and
-reported (``outcome.json``: ``launcher.nodes[...].param_changes``).
+given the same changes at the same times computes the same; every change is logged (the
+node's log, and a :class:`~cekm_swarm.protocol.ParamChange` on the node's parameter key,
+which the world records in ``run.mcap``) and reported (``outcome.json``:
+``launcher.nodes[...].param_changes``).
 
 The rule of the tick: a change for sim time ``at`` applies from tick ``ceil(at / 0.128)``;
 one whose tick the node has already run is refused ("too late"); without ``at`` it
@@ -16,6 +18,7 @@ import logging
 import math
 from typing import Any
 
+from cekm_swarm.protocol import ParamChange
 from cekm_swarm.ticks import TICK_S, tick_time
 
 from .api import make_params, param_fields
@@ -30,6 +33,7 @@ class LiveParams:
         self.runner = runner
         self.pending: list[tuple[int, str, Any, Any]] = []  # (tick, name, value, the Params it makes)
         self.changes: list[dict[str, Any]] = []  # applied: {"name", "value", "t"}
+        self.on_change: Any = None  # called with the ParamChange of each change applied (the node's process sends it)
 
     def describe(self) -> dict[str, Any]:
         """The node's parameters now: name -> {value, type}; and the changes waiting."""
@@ -66,3 +70,11 @@ class LiveParams:
             self.changes.append({"name": name, "value": value, "t": tick_time(k)})
             log.info("%s: parameter %s = %r from t=%.3f s (was %r)", self.runner.plan.label, name, value, tick_time(k),
                      old)
+            if self.on_change is not None:
+                plan = self.runner.plan
+                self.on_change(ParamChange(tick_time(k), plan.label, plan.name, name, _plain(value), _plain(old)))
+
+
+def _plain(value: Any) -> Any:
+    """A parameter's value as plain data (a tuple as a list) for its :class:`ParamChange`."""
+    return [_plain(v) for v in value] if isinstance(value, (tuple, list)) else value

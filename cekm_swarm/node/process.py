@@ -45,6 +45,7 @@ from .api import Context, NodeError, cannot_start, make_params, raised_at, start
 from .direct_gate import DirectGate
 from .live_params import LiveParams
 from .runner import Runner
+from .timer_gate import Timer, TimerGate
 from .timing import LockstepGate, RealtimeGate, tick_of
 from .wire import Decoder, Encoder
 
@@ -116,12 +117,17 @@ class NodeShell:
         self.on_failure: Any = lambda: None  # set by serve(): stops the node
         lockstep = spec.mode == "lockstep"
         self.lockstep = lockstep
-        gate_cls = DirectGate if DirectGate.fits(node_plan) else LockstepGate if lockstep else RealtimeGate
-        self.gate = gate_cls(runner, drop=self.drops.drop)
+        self.clock_key = node_plan.clock_key
+        if TimerGate.fits(node_plan, spec.mode):  # its own timer; it learns each tick from the clock
+            self.clock_key = self.keys.world_clock()
+            self.gate: Any = TimerGate(runner, drop=self.drops.drop, clock_key=self.clock_key)
+        else:
+            gate_cls = DirectGate if DirectGate.fits(node_plan) else LockstepGate if lockstep else RealtimeGate
+            self.gate = gate_cls(runner, drop=self.drops.drop)
         self.kinds: dict[str, Any] = {s.key: expect_of(b.kind) for b in node_plan.bindings for s in b.sources}
         self.ports: dict[str, str] = {s.key: b.port for b in node_plan.bindings for s in b.sources}
-        if node_plan.clock_key is not None:
-            self.kinds[node_plan.clock_key] = KeyKind.WORLD_CLOCK
+        if self.clock_key is not None:
+            self.kinds[self.clock_key] = KeyKind.WORLD_CLOCK
         # readings the world leaves out when unchanged: sense/unchanged key -> reading -> our source keys
         self.holds = plan.holds(node_plan)
         for mk in self.holds:
@@ -137,16 +143,17 @@ class NodeShell:
         # a delay or not): its token -> the keys it reads. A reader's (re)appearing token
         # asks for the recent outputs it missed while down (LockstepGate.resend)
         # real time: nothing sent again; a pure node of one key (DirectGate), only to readers with a delay
-        self.readers = outputs_readers(plan, node_plan, self.keys, delayed_only=gate_cls is DirectGate) if lockstep \
-            else {}
+        self.readers = outputs_readers(plan, node_plan, self.keys, delayed_only=type(self.gate) is DirectGate) \
+            if lockstep else {}
         self.pubs: Any = None
         runner.live = LiveParams(runner)  # cekm param: parameters changed while it runs
 
     # ------------------------------------------------------------------ subscriptions
 
     def listen_exprs(self) -> list[str]:
-        """What to subscribe to (:meth:`~cekm_swarm.graph.plan.RunPlan.listens`)."""
-        return self.plan.listens(self.node_plan)
+        """What to subscribe to (:meth:`~cekm_swarm.graph.plan.RunPlan.listens`; the clock for a timer)."""
+        exprs = self.plan.listens(self.node_plan)
+        return exprs if self.clock_key is None or self.clock_key in exprs else [*exprs, self.clock_key]
 
     def on_sample(self, key: str, payload: bytes) -> list[tuple[str, Any]]:
         """One received sample: validate, admit its stamp, hand it to the gate."""
@@ -277,8 +284,10 @@ class NodeShell:
         put = zenoh.SampleKind.PUT
         self.on_failure = lambda: loop.call_soon_threadsafe(stop.set)
         self.pubs = Publishers(session, block=self.spec.mode == "lockstep", express=False)
-        for key in self.node_plan.outputs.values():  # before listening: no declaration on Zenoh's thread later
+        param_key = self.keys.param(self.node_plan.robot, self.node_plan.name)
+        for key in (*self.node_plan.outputs.values(), param_key):  # before listening: none on Zenoh's thread later
             self.pubs.publisher(key)
+        self.runner.live.on_change = lambda msg: self.publish([(param_key, msg)])  # the world records it
 
         def serve_sample(sample: zenoh.Sample) -> None:
             if self.closed.is_set() or sample.kind != put:
@@ -301,11 +310,12 @@ class NodeShell:
         watch = self.token_expr()
         if watch is not None:
             tokens = session.liveliness().declare_subscriber(watch, serve_token, history=True)
-        params = session.declare_queryable(self.keys.param(self.node_plan.robot, self.node_plan.name),
-                                           zenoh.handlers.Callback(self.serve_param, indirect=True))
+        params = session.declare_queryable(param_key, zenoh.handlers.Callback(self.serve_param, indirect=True))
         # the token comes last: once it is up, the subscriptions are in place
         token = declare_alive(session, self.keys.alive(self.node_plan.robot, self.node_plan.name))
         log.info("%s: up (%s), listening on %s", self.node_plan.label, self.spec.mode, ", ".join(self.listen_exprs()))
+        if isinstance(self.gate, TimerGate):
+            threading.Thread(target=self.run_timer, name="timer", daemon=True).start()
         if ready is not None:
             ready()
         try:
@@ -320,6 +330,16 @@ class NodeShell:
             params.undeclare()
             self.pubs.close()
         return self.handled
+
+    def run_timer(self) -> None:
+        """A node on a timer of its own (:mod:`.timer_gate`): a run every ``timer`` s until it stops."""
+        timer = Timer(float(self.node_plan.decl.timer))
+        while not self.closed.wait(timer.wait()):
+            with self.lock:
+                try:
+                    self.publish(self.gate.fire())
+                except Exception as exc:  # noqa: BLE001 - as for a run a message completes
+                    self.step_failed(exc)
 
     def serve_param(self, query: Any) -> None:
         """``cekm param``: the query's JSON payload ``{}`` (what it has) or ``{"set": name,

@@ -57,7 +57,7 @@ from .messages import (
                      with_stamp,
 )
 from .schema import Angle, Count, Distance, Finite, Plain, Point, Pose, Vector, Weight
-from .user import USER_TYPES, Nothing, UntypedData, UserMessage, expect_of, is_message_type, kind_of
+from .user import USER_TYPES, Nothing, ParamChange, UntypedData, UserMessage, expect_of, is_message_type, kind_of
 
 __all__ = [
     "DropCounter", "DropRecord",
@@ -70,5 +70,5 @@ __all__ = [
     "TargetState", "TrackingField", "Unchanged", "WheelCommand", "WorldState", "with_stamp",
     "decode", "encode", "peek", "summary", "to_plain", "to_wire",
     "Angle", "Count", "Distance", "Finite", "Plain", "Point", "Pose", "Vector", "Weight",
-    "USER_TYPES", "Nothing", "UntypedData", "UserMessage", "expect_of", "is_message_type", "kind_of",
+    "USER_TYPES", "Nothing", "ParamChange", "UntypedData", "UserMessage", "expect_of", "is_message_type", "kind_of",
 ]

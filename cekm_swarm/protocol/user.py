@@ -132,3 +132,21 @@ def expect_of(kind: str) -> Any:
         return KeyKind(kind)
     except ValueError:
         raise MessageKindError(f"message kind {kind!r} is not a kind of the protocol") from None
+
+
+class ParamChange(UserMessage):
+    """A parameter of a running node changed (``cekm param set``): the node sends it on its
+    parameter key (``<root>/<robot>/param/<node>``, :meth:`~.keys.KeySpace.param`) when the
+    change applies, stamped with the sim time of the node's first run with the new value,
+    so the run's log (``run.mcap``) holds every change beside the messages it changed.
+    ``value`` and ``was``: the parameter's new and previous values (plain data)."""
+
+    TYPE: ClassVar[str] = "cekm.ParamChange"
+    node: str
+    name: str
+    value: Plain
+    was: Plain
+
+
+PARAM_CHANGE_KIND = kind_of(ParamChange)
+"""The graph kind of a parameter key (``data:cekm.ParamChange``): what the world's recorder expects on it."""

@@ -6,6 +6,7 @@ import math
 import threading
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import click
 
@@ -117,12 +118,19 @@ def view_cmd(scenario: str | None, log: Path | None, seed: int | None, robot: st
             ranges = sensing_radii(geometry, geometry.get("sensor_range"), geometry.get("target_range"))
             ids = [r["id"] for r in geometry.get("robots", [])]
         view = LiveView(geometry, robot=robot, ranges=ranges, colours=robot_colours(sorted(ids)), keys=keys)
-        sub = session.declare_subscriber(f"{root}/**", lambda s: view.observe(str(s.key_expr), s.payload.to_bytes()))
+        fox = None
+
+        def observe(s: Any) -> None:
+            key, data = str(s.key_expr), s.payload.to_bytes()
+            view.observe(key, data)
+            if fox is not None:  # a user's typed messages, as JSON with their schema
+                fox.observe(key, data)
+
+        sub = session.declare_subscriber(f"{root}/**", observe)
         try:
             server = ViewServer(view, host, http_port)
         except OSError as exc:
             raise click.ClickException(f"--http {http_port}: cannot serve on {host}: {exc.strerror}") from None
-        fox = None
         if foxglove_port is not None:
             from .foxglove_live import FoxgloveLive
 
@@ -148,14 +156,17 @@ def view_cmd(scenario: str | None, log: Path | None, seed: int | None, robot: st
 
                     g = None if log is not None else fetch_json(session, keys.world_geometry())
                     if g is not None and "bounds" in g and g.get("name") != view.geometry.get("name"):
-                        click.echo(f"the run {run} is of arena {g.get('name')!r}, not {view.geometry.get('name')!r}: "
-                                   f"drawing the run's", err=True)
+                        given = view.geometry.get("name")
                         gids = sorted(r["id"] for r in g.get("robots", []))
                         view.set_geometry(g, sensing_radii(g, g.get("sensor_range"), g.get("target_range")),
-                                          robot_colours(gids))
+                                          robot_colours(gids))  # drawn before it is said
+                        click.echo(f"the run {run} is of arena {g.get('name')!r}, not {given!r}: drawing the run's",
+                                   err=True)
 
                     g = fetch_run_graph(session, keys.world_graph())
                     view.set_graph(None if g is None else f"{g.name} ({g.controller})")
+                    if fox is not None:
+                        fox.set_schemas((fetch_json(session, keys.world_graph()) or {}).get("schemas") or {})
         except KeyboardInterrupt:
             pass
         finally:

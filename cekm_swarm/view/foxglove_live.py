@@ -3,6 +3,12 @@
 :class:`cekm_swarm.runtime.foxglove_view.FoxgloveViews`) served live on foxglove-sdk's
 WebSocket server, for the Foxglove desktop app ("Open connection", ws://HOST:PORT).
 
+Beside them, every message of a user's own type (``cekm_swarm.protocol.UserMessage``) and
+every parameter change (``cekm.ParamChange``) of the run goes out on a channel named by
+its key, as JSON with the type's JSON Schema (``cekm.data:FreeDirection``, the schema the
+MCAP log keeps for it; the run's world serves it in the run spec): Foxglove reads JSON with
+a JSON Schema, not the key space's msgpack, so its panels plot the fields by name.
+
 :class:`ChannelSink` stands where the views expect an MCAP recorder and logs each message
 on a foxglove channel instead; :class:`FoxgloveLive` feeds the views from a
 :class:`~cekm_swarm.view.live.LiveView` in its own thread.
@@ -10,10 +16,16 @@ on a foxglove channel instead; :class:`FoxgloveLive` feeds the views from a
 
 from __future__ import annotations
 
+import json
 import threading
 import time
+from collections.abc import Mapping
 from typing import Any
 
+from cekm_swarm.protocol import ParamChange, decode, expect_of, to_plain
+from cekm_swarm.protocol.codec import peek_type
+from cekm_swarm.protocol.errors import ProtocolError
+from cekm_swarm.protocol.user import user_schemas
 from cekm_swarm.runtime.foxglove_view import FoxgloveViews
 from cekm_swarm.runtime.mcap_log import SchemaSpec
 
@@ -29,18 +41,20 @@ class ChannelSink:
     def __init__(self) -> None:
         self.channels: dict[str, Any] = {}
         self.messages = 0
+        self._lock = threading.Lock()  # the views' thread and Zenoh's (a user's messages) both write
 
     def write_encoded(self, topic: str, message_encoding: str, schema: SchemaSpec, data: bytes,
                       sim_time: float, sticky: bool = False) -> None:
         import foxglove
 
-        ch = self.channels.get(topic)
-        if ch is None:
-            ch = self.channels[topic] = foxglove.Channel(
-                topic, message_encoding=message_encoding,
-                schema=foxglove.Schema(name=schema.name, encoding=schema.encoding, data=schema.data))
-        ch.log(data, log_time=max(0, int(round(sim_time * 1e9))))
-        self.messages += 1
+        with self._lock:
+            ch = self.channels.get(topic)
+            if ch is None:
+                ch = self.channels[topic] = foxglove.Channel(
+                    topic, message_encoding=message_encoding,
+                    schema=foxglove.Schema(name=schema.name, encoding=schema.encoding, data=schema.data))
+            ch.log(data, log_time=max(0, int(round(sim_time * 1e9))))
+            self.messages += 1
 
 
 class FoxgloveLive:
@@ -53,11 +67,31 @@ class FoxgloveLive:
         self.rate = rate
         self.sink = ChannelSink()
         self.views = FoxgloveViews(self.sink, robot_radius=float(view.geometry.get("body_radius", 0.03)))
+        self.dropped = 0  # user messages that did not decode against their type
+        self.set_schemas({})
         self.server = foxglove.start_server(name="cekm view", host=host, port=port)
         self.port = self.server.port
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="view-foxglove", daemon=True)
         self._thread.start()
+
+    def set_schemas(self, schemas: Mapping[str, Any]) -> None:
+        """The run's user message types: ``{kind: JSON Schema}`` (``data:FreeDirection``), from its run spec."""
+        self.schemas = {kind: SchemaSpec(f"cekm.{kind}", "jsonschema", json.dumps(doc).encode())
+                        for kind, doc in {**schemas, **user_schemas([ParamChange])}.items()}
+
+    def observe(self, key: str, payload: bytes) -> None:
+        """A message of the run: one of a user's type with a schema goes out as JSON on channel ``key``."""
+        name = peek_type(payload)
+        spec = None if name is None else self.schemas.get(f"data:{name}")
+        if spec is None:
+            return
+        try:
+            msg = decode(key, payload, expect=expect_of(f"data:{name}"))
+        except ProtocolError:
+            self.dropped += 1
+            return
+        self.sink.write_encoded(key, "json", spec, json.dumps({"v": 1, **to_plain(msg)}).encode(), msg.stamp)
 
     def _run(self) -> None:
         version, sent_geometry = -1, -float("inf")

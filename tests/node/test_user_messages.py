@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import shutil
+import signal
 import subprocess
 import sys
 import textwrap
@@ -176,25 +177,100 @@ def test_two_user_nodes_with_a_typed_message_in_lockstep_equal_cekm_run_and_are_
     assert any("cekm/r1/avoid/free" in line and "cekm.data:FreeDirection" in line for line in info.stdout.splitlines())
 
 
+BEAT = """
+import time
+
+from cekm_swarm.node import In, Node, Out
+from cekm_swarm.protocol import Data, SenseTarget
+
+
+class Beat(Node):
+    \"\"\"Says when (wall clock) each of its runs was.\"\"\"
+
+    inputs = {"target": In(SenseTarget)}
+    outputs = {"beat": Out(Data)}
+
+    def step(self, t, inputs):
+        return {"beat": Data(t, self.ctx.sender, {"wall": time.monotonic()})}
+"""
+TIMER_S = 0.3
+
+
+def add_beat(example: Path) -> None:
+    """A third node for the example's graph, on a timer of its own (``timer = 0.3``)."""
+    (example.parent / "beat.py").write_text(BEAT)
+    example.write_text(example.read_text() + f"""
+[[node]]
+name = "beat"
+program = "beat:Beat"
+timer = {TIMER_S}
+inputs = {{ target = "sense/target" }}
+outputs = {{ beat = "beat" }}
+""")
+
+
+def foxglove_channel(port: int, topic: str) -> dict:
+    """The channel ``topic`` as the Foxglove server on ``port`` advertises it."""
+    import time
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "view"))
+    from test_foxglove_live import WsClient
+
+    ws, deadline = WsClient(port), time.monotonic() + 60
+    while time.monotonic() < deadline:
+        op, data = ws.frame()
+        for c in json.loads(data).get("channels", []) if op == 1 else []:
+            if c["topic"] == topic:
+                return c
+    raise AssertionError(f"no channel {topic} advertised")
+
+
 @pytest.mark.slow
 def test_two_user_nodes_with_a_typed_message_in_real_time_are_decoded_by_topic_echo(example, tmp_path):
+    """And a third node on a timer of its own (``timer = 0.3``): it runs at its timer's
+    rate, at most once a tick, whatever rate its input comes at; and `cekm view --foxglove`
+    serves the typed messages under their JSON Schema, taken from the run spec."""
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "runtime"))
-    from test_launch_support import LaunchProcess
+    from test_launch_support import LaunchProcess, interrupt
 
+    from cekm_swarm.protocol import decode
+    from cekm_swarm.runtime.config import free_port
+    from cekm_swarm.runtime.mcap_log import read_messages
+
+    add_beat(example)
+    port = free_port()  # a view with its Foxglove server attached from the start (the type's schema)
+    view = subprocess.Popen([sys.executable, "-m", "cekm_swarm", "view", "--http", "0", "--foxglove", "0",
+                             "--connect", f"tcp/127.0.0.1:{port}"], stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, text=True, start_new_session=True)
     run = LaunchProcess("near.toml", tmp_path / "rt", "--graph", str(example), "--mode", "realtime",
-                        "--max-time", "6", "--no-plot", cwd=example.parent)
+                        "--max-time", "6", "--no-plot", cwd=example.parent, port=port)
     try:
         run.wait_line("world started ticking", timeout=120)
         echo = cekm("topic", "echo", "cekm/r1/avoid/free", "--count", "40", "--timeout", "10",
-                    "--connect", f"tcp/127.0.0.1:{run.port}", cwd=tmp_path)
+                    "--connect", f"tcp/127.0.0.1:{port}", cwd=tmp_path)
         code = run.finish(timeout=120)
+        said = ""
+        while "foxglove WebSocket server on ws://" not in said:
+            said = view.stderr.readline()
+            assert said, "the view ended without serving Foxglove"
+        free = foxglove_channel(int(said.split(":")[-1]), "cekm/r1/avoid/free")
     finally:
         run.kill()
+        interrupt(view)
     assert code == 0, "\n".join(run.lines[-30:])
+    assert free["encoding"] == "json" and free["schemaName"] == "cekm.data:FreeDirection"
+    assert json.loads(free["schema"])["properties"]["clearance"]["minimum"] == 0.0  # from the run spec
     lines = [line.removeprefix("cekm/r1/avoid/free: ") for line in echo.stdout.splitlines()]
     typed = [line for line in lines if line.startswith("FreeDirection t=")]
     assert len(lines) == 40 and typed and all("from=r1/free alpha=" in line and "clearance=" in line for line in typed)
     assert all(line.startswith("none (nothing sent) t=") for line in lines if line not in typed), echo.stdout
+    beats = [decode(m.topic, m.data) for m in read_messages(tmp_path / "rt" / "run.mcap", topics=["cekm/r1/beat"])]
+    ticks = [round(b.stamp / 0.128) for b in beats]
+    walls = [b.values["wall"] for b in beats]
+    span = walls[-1] - walls[0]
+    assert len(beats) >= 3 and ticks == sorted(set(ticks)), ticks  # at most once a tick
+    # at its timer's rate: never faster (its first run may be late by up to a period), nor three times slower
+    assert (len(beats) - 1) * TIMER_S <= span + TIMER_S and (len(beats) - 1) * 3 * TIMER_S >= span, (len(beats), span)
 
 
 @pytest.mark.slow
@@ -204,7 +280,6 @@ def test_a_parameter_changed_while_a_lockstep_run_goes_is_applied_at_its_tick_an
     motor's commands show it from exactly that tick (Blend's wheel speeds average `speed`)."""
     import math
     import os
-    import signal
 
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "runtime"))
     from test_launch_support import LaunchProcess
@@ -246,6 +321,16 @@ def test_a_parameter_changed_while_a_lockstep_run_goes_is_applied_at_its_tick_an
     cmds = [decode(m.topic, m.data) for m in read_messages(tmp_path / "ls" / "run.mcap", topics=["cekm/r1/cmd/wheels"])]
     moving = [(c.stamp, round((c.v_l + c.v_r) / 2, 9)) for c in cmds if (c.v_l, c.v_r) != (0.0, 0.0)]
     assert {v for t, v in moving if t < t_at} == {0.05} and {v for t, v in moving if t >= t_at} == {0.08}, moving
+    # and in the run's log, on a channel of its own, decoded by `cekm log cat` and listed by `cekm log info`
+    log = str(tmp_path / "ls" / "run.mcap")
+    cat = cekm("log", "cat", log, "--json", "--topics", "cekm/*/param/*", cwd=tmp_path)
+    records = [json.loads(line) for line in cat.stdout.splitlines()]
+    assert [(r["topic"], r["message"]) for r in records] == [
+        ("cekm/r1/param/motor", {"kind": "data", "type": "cekm.ParamChange", "stamp": t_at, "sender": "r1/motor",
+                                 "node": "motor", "name": "speed", "value": 0.08, "was": 0.05})], cat.stdout + cat.stderr
+    info = cekm("log", "info", log, cwd=tmp_path)
+    assert any("cekm/r1/param/motor" in line and "cekm.data:cekm.ParamChange" in line
+               for line in info.stdout.splitlines()), info.stdout
 
 
 def test_a_change_for_a_tick_the_node_has_run_is_refused_and_one_to_come_waits_for_its_tick():
@@ -274,3 +359,11 @@ def test_a_change_for_a_tick_the_node_has_run_is_refused_and_one_to_come_waits_f
     assert runner.node.params.speed == 0.05 and live.changes == []
     live.apply_due(12)
     assert runner.node.params.speed == 0.1 and live.changes == [{"name": "speed", "value": 0.1, "t": 1.536}]
+
+
+def test_a_node_on_a_timer_runs_at_its_graph_rate_in_one_process(example):
+    """In ``cekm run`` (and lockstep) a node's timer is not used: it runs at its inputs'
+    rate (sense/target: every other tick), so the run stays reproducible."""
+    add_beat(example)
+    run = run_graph(load_scenario(str(example.parent / "near.toml")), graph=str(example), max_time=8.0, stop_at=10)
+    assert [k for k in range(11) if run.executor.output("cekm/r1/beat", k) is not None] == [0, 2, 4, 6, 8, 10]

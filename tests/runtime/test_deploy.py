@@ -239,3 +239,30 @@ def test_the_documented_split_launch_starts_every_robot_of_its_scenario():
     assert started == set(robots), (scenario, robots, started)
     for r in robots:
         assert (DEPLOY / f"robot-{r}.json5").is_file() and (DEPLOY / "tls" / f"robot-{r}.json5").is_file(), r
+
+
+def test_cekm_param_under_access_control_reaches_a_robots_own_nodes_only(acl_router):
+    """``cekm param``: the operator asks a node's parameter queryable and gets its answer; a
+    robot serves only its own nodes' parameter keys (r2 serving r1's is dropped: r2's own,
+    declared after it from the same session, answers first); the monitor may not ask (a
+    change is a write); the node publishes its ParamChange on its key and the world gets it."""
+    world, r1, r2 = acl_router("world"), acl_router("robot-r1"), acl_router("robot-r2")
+    operator, monitor = acl_router("operator"), acl_router("monitor")
+    key = K.param("r1", "motor")
+    served = [r2.declare_queryable(key, lambda q: q.reply(key, b"r2")),  # another robot's node: denied
+              r2.declare_queryable(K.param("r2", "motor"), lambda q: q.reply(K.param("r2", "motor"), b"mine")),
+              r1.declare_queryable(key, lambda q: q.reply(key, b"r1"))]
+    inbox = Inbox(world, "cekm/*/param/*")
+    try:
+        assert replies_once_served(operator, K.param("r2", "motor")) == [b"mine"]  # r2's denied one came before
+        assert replies_once_served(operator, key) == [b"r1"]
+        assert [r for r in monitor.get(key, timeout=1.0) if r.ok is not None] == []
+        with Publishers(r1, block=True) as pubs:
+            assert pubs.wait_matching(key, T)
+            pubs.put(K.param("r2", "motor"), b"\x80")  # another robot's parameter key: denied
+            pubs.put(key, b"\x80")
+        assert inbox.until(key) == [key]
+    finally:
+        for q in served:
+            q.undeclare()
+        inbox.sub.undeclare()

@@ -127,7 +127,7 @@ def test_cekm_plot_draws_the_run_from_its_log(lockstep_run, tmp_path):
 def test_a_taken_port_stops_the_launch_with_a_clear_error_and_leaves_out_as_it_found_it(tmp_path):
     """The router cannot listen on a port another program listens on: the launch is
     refused at once, in one line naming the address, before --out is touched, so the retry
-    the line suggests (--port) needs no --overwrite."""
+    the line suggests (--port) needs no --overwrite: it runs, into the same --out."""
     out = tmp_path / "out"
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
@@ -149,3 +149,10 @@ def test_a_taken_port_stops_the_launch_with_a_clear_error_and_leaves_out_as_it_f
                             "--out", str(out), "--port", str(s.getsockname()[1]), "--no-plot"],
                            capture_output=True, text=True, timeout=120)
     assert r.returncode == 1 and list(out.iterdir()) == []
+    # the retry the line suggests: another --port, the same --out, no --overwrite
+    retry = LaunchProcess("lone_obstacle", out, "--mode", "lockstep", "--max-time", "0.5", "--no-plot")
+    try:
+        assert retry.finish(timeout=120) == 0, "\n".join(retry.lines[-20:])
+    finally:
+        retry.kill()
+    assert retry.outcome()["robots"] and (out / "run.mcap").exists()

@@ -88,3 +88,12 @@ class LaunchProcess:
                     pass
         except (OSError, ValueError):
             pass
+
+
+def interrupt(proc: subprocess.Popen, timeout: float = 30) -> None:
+    """Stop a tool this test started (``cekm view``) as Ctrl-C would; killed if it does not end."""
+    proc.send_signal(signal.SIGINT)
+    try:
+        proc.wait(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        proc.kill()

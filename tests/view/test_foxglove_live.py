@@ -102,3 +102,58 @@ def test_foxglove_server_advertises_and_streams_the_scene():
         assert fox.sink.messages > 2
     finally:
         fox.close()
+
+
+def test_a_users_typed_messages_go_out_as_json_with_their_json_schema():
+    """A user message type of the run (its schema from the run spec) and a parameter change:
+    each on a channel named by its key, JSON encoded, its schema the type's JSON Schema;
+    a message of a type the run did not declare goes nowhere, a malformed one is counted."""
+    from cekm_swarm.protocol import ParamChange, UserMessage
+    from cekm_swarm.protocol.user import USER_TYPES, json_schema, user_schemas
+
+    class Gap(UserMessage):
+        """The widest gap (rad, robot frame) and its width (m)."""
+
+        TYPE = "qa.Gap"
+        alpha: float
+        width: float
+
+    class Stray(UserMessage):
+        TYPE = "qa.Stray"
+        x: float
+
+    fox = FoxgloveLive(LiveView(GEOMETRY), port=0)
+    try:
+        fox.set_schemas(user_schemas([Gap]))
+        del USER_TYPES["qa.Gap"]  # as in a view without the user's module: the schema comes from the run spec
+        fox.observe("cekm/r1/mine/stray", encode(Stray(0.128, "r1/x", 1.0)))  # not a type of the run: no channel
+        fox.observe("cekm/r1/mine/gap", encode(Gap(0.256, "r1/gap", 0.5, 0.2)))
+        fox.observe("cekm/r1/param/gap", encode(ParamChange(0.384, "r1/gap", "gap", "near", 0.3, 0.2)))
+        ws = WsClient(fox.port)
+        channels: dict[str, dict] = {}
+        deadline = time.monotonic() + 20
+        while "cekm/r1/mine/gap" not in channels or "cekm/r1/param/gap" not in channels:
+            assert time.monotonic() < deadline, channels
+            op, data = ws.frame()
+            if op == 1 and json.loads(data)["op"] == "advertise":
+                channels.update({c["topic"]: c for c in json.loads(data)["channels"]})
+        gap = channels["cekm/r1/mine/gap"]
+        assert gap["encoding"] == "json" and gap["schemaName"] == "cekm.data:qa.Gap"
+        assert gap["schemaEncoding"] == "jsonschema" and json.loads(gap["schema"]) == json_schema(Gap)
+        assert json.loads(channels["cekm/r1/param/gap"]["schema"])["title"] == "cekm.ParamChange"
+        assert "cekm/r1/mine/stray" not in channels
+        ws.send_json({"op": "subscribe", "subscriptions": [{"id": 3, "channelId": gap["id"]}]})
+        while True:  # a message sent once subscribed reaches the app as JSON
+            fox.observe("cekm/r1/mine/gap", encode(Gap(0.512, "r1/gap", 0.25, 0.1)))
+            op, data = ws.frame()
+            if op == 2:
+                break
+            assert time.monotonic() < deadline, "no message on the user's channel"
+        assert json.loads(data[13:]) == {"v": 1, "kind": "data", "type": "qa.Gap", "stamp": 0.512, "sender": "r1/gap",
+                                         "alpha": 0.25, "width": 0.1}
+        import msgpack
+
+        fox.observe("cekm/r1/mine/gap", msgpack.packb({"v": 1, "kind": "data", "type": "qa.Gap", "stamp": 0.64}))
+        assert fox.dropped == 1  # no sender: dropped and counted
+    finally:
+        fox.close()
