@@ -223,7 +223,9 @@ class FaultLink:
                  asyncio.ensure_future(self._tcp_write(queue_down, c_writer))]
         try:
             await asyncio.wait(parts, return_when=asyncio.FIRST_COMPLETED)
-            # One side ended: deliver what the other may still be owed, then close both.
+            # One side ended: its close crosses no cut either; then deliver what the other
+            # may still be owed, and close both.
+            await self._restored.wait()
             await asyncio.wait([parts[1], parts[3]], timeout=self.settings.delay + 1.0)
         finally:
             for p in parts:
