@@ -88,12 +88,17 @@ def _env_endpoint() -> str | None:
 @click.option("--record", "record", type=click.Choice(["full", "lean"]), default="full", show_default=True,
               help="What run.mcap holds: full (every message and view), or lean for long runs (the world's "
                    "messages, commands and shares, views at 1 Hz; docs/tools.md).")
+@click.option("--deadman", type=Finite(0.0, min_open=True), default=0.5, show_default=True, metavar="S",
+              help="Real time: s without a robot's commands before the world stops it (a slow or lossy "
+                   "link wants more: docs/faults.md).")
+@click.option("--republish", type=Finite(0.0, min_open=True), default=1.0, show_default=True, metavar="S",
+              help="Lockstep: s the world waits on a tick before re-publishing its readings.")
 def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwrite: bool, connect: str | None,
                port: int, model_path: Path | None, max_time: float | None, controller: str, graph_file: Path | None,
                root: str, no_plot: bool, robots: tuple[str, ...] | None, no_world: bool, listen_host: str,
                zenoh_config: Path | None, model_from_zenoh: bool, run_id: str | None, cold_start: bool,
                send_every_reading: bool, max_log_size: int | None, max_log_duration: float | None,
-               record: str) -> None:
+               record: str, deadman: float, republish: float) -> None:
     """Run SCENARIO through the distributed runtime: the world server and, per robot, every
     node of the controller's graph as its own process on Zenoh (cekm: 1 + 12 + 1),
     supervised (restarted when they die)."""
@@ -155,7 +160,7 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwr
                           robots=only, world=not no_world, listen_host=listen_host, zenoh_config=zenoh_config,
                           model_from_zenoh=model_from_zenoh, run_id=run_id, warm_start=not cold_start,
                           hold_readings=not send_every_reading, max_log_size=max_log_size,
-                          max_log_duration=max_log_duration, record=record)
+                          max_log_duration=max_log_duration, record=record, deadman=deadman, republish=republish)
     launcher = Launcher(config, echo=lambda s: click.echo(s))
     try:
         outcome = launcher.launch()
