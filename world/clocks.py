@@ -144,6 +144,7 @@ class RealtimeClock(_Clock):
                                                        "limit_s": self.deadman.limit, "wall": time.time()})
             else:
                 commands[r] = (c.v_l, c.v_r)
+                self.stats.applied(round((ep.t - c.stamp) / TICK_S))
                 if was_stopped:  # its commands are back: it drives on
                     self.stats.event("deadman_resumed", ep.t, {"robot": r, "wall": time.time()})
         return commands

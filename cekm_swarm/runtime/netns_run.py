@@ -29,12 +29,13 @@ ROUTER = ("import sys; from cekm_swarm.runtime.netns_run import open_router; "
 
 
 def open_router(port: int, host: str, connect: list[str]) -> Any:
-    """A router listening on ``tcp/host:port`` that also joins the routers ``connect``
-    names (a robot host's own router joining the world's: its nodes' traffic to each other
-    stays on the host), retrying a lost one as the clients do."""
+    """A router listening on ``tcp/host:port`` (and ``udp/host:port``) that also joins the
+    routers ``connect`` names (a robot host's own router joining the world's: its nodes'
+    traffic to each other stays on the host), retrying a lost one as the clients do."""
     from .config import RECONNECT_RETRY, _insert, embedded_router_config, open_session
 
     config = embedded_router_config(port, host)
+    _insert(config, "listen/endpoints", [f"tcp/{host}:{port}", f"udp/{host}:{port}"])
     if connect:
         _insert(config, "connect/endpoints", connect)
         _insert(config, "connect/retry", RECONNECT_RETRY)
@@ -47,10 +48,12 @@ class NetRun:
 
     def __init__(self, hosts: Hosts, work: Path, scenario: str | Path, mode: str, opts: list[str],
                  faulty: dict[str, LinkSettings], outside_router: bool = False, seed: int = 0,
-                 host_routers: bool = False) -> None:
+                 host_routers: bool = False, transport: str = "tcp") -> None:
         self.hosts, self.work, self.scenario, self.mode = hosts, work, str(scenario), mode
         self.opts, self.faulty, self.outside_router, self.seed = opts, faulty, outside_router, seed
         self.host_routers = host_routers  # a router on each robot host, joined to the world's
+        self.transport = transport  # the faulty robots' link to the world's router: tcp, or udp (outside router)
+        assert transport == "tcp" or outside_router, "a udp link needs the outside router (it listens on udp too)"
         bindir = str(Path(sys.executable).parent)  # where the cekm console script lives
         self.env = dict(os.environ, PYTHONUNBUFFERED="1", PATH=bindir + os.pathsep + os.environ.get("PATH", ""))
         self.router: NsProcess | None = None
@@ -89,14 +92,14 @@ class NetRun:
             addr = self.hosts.world_addr[r]
             if r in self.faulty:
                 s = self.faulty[r]
-                argv = [sys.executable, "-m", "cekm_swarm.runtime.faultlink", "--tcp",
+                argv = [sys.executable, "-m", "cekm_swarm.runtime.faultlink", f"--{self.transport}",
                         f"{addr}:{LINK_PORT}=127.0.0.1:{PORT}", "--delay", str(s.delay), "--jitter", str(s.jitter),
                         "--loss", str(s.loss), "--seed", str(self.seed), "--log", str(self.work / f"link-{r}.jsonl")]
                 if s.rate is not None:
                     argv += ["--rate", str(s.rate)]
                 self.links[r] = self.hosts.start("world", argv, self.env, self.work, stdin=True)
                 self.links[r].wait_line("READY", timeout=60)
-            upstream = f"tcp/{addr}:{LINK_PORT if r in self.faulty else PORT}"
+            upstream = f"{self.transport if r in self.faulty else 'tcp'}/{addr}:{LINK_PORT if r in self.faulty else PORT}"
             if self.host_routers:
                 self.hosts.start(r, [sys.executable, "-c", ROUTER, str(PORT), "127.0.0.1", upstream], self.env,
                                  self.work, stdin=True).wait_line("READY", timeout=60)

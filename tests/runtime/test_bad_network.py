@@ -23,6 +23,7 @@ import pytest
 from test_multihost_netns import SCENARIO
 
 from cekm_swarm.experiments.default_model import default_model, default_model_path
+from cekm_swarm.protocol.stamps import PAST_S
 from cekm_swarm.runtime.faultlink import LinkSettings
 from cekm_swarm.runtime.mcap_log import is_complete, read_messages
 from cekm_swarm.runtime.netns import Hosts, namespaces_unavailable
@@ -112,6 +113,8 @@ def test_a_robot_cut_off_for_3_s_is_stopped_in_time_drives_on_after_and_the_log_
     # by key), or superseded by a newer one; r2 lost nothing
     assert sum(outcome["deadline_miss_ticks"].values()) == outcome["deadline_misses"] >= CUT_S / TICK_S - 8
     assert all(key.startswith("cekm/r1/") for key in outcome["drops"]["commands"])
+    ages = {int(k): n for k, n in outcome["command_age_ticks"].items()}
+    assert max(ages) <= PAST_S / TICK_S + 1e-9 and sum(ages.values()) > 0  # never a command older than that applied
     for r in ("r1", "r2"):
         log = [m.log_time for m in read_messages(run.world_out / "run.mcap") if m.topic == f"cekm/{r}/cmd/wheels"]
         assert log == sorted(log)  # no command recorded out of order
