@@ -20,8 +20,12 @@ ratio of it. Goal: A at 50 ms at least 0.9 of A at 0 ms; no lost world message i
 memory at minute 1 and at the end, misses outside the partitions, dead-man stops, the log
 set and ``cekm log info`` over it.
 
+``--lockstep`` instead runs ``crossing`` in lockstep (10 s of sim time) through each delay:
+wall time per tick against the round trip, and equality with ``cekm run``.
+
 Run (as root, Linux): python benchmarks/bench_network.py [--grid reduced|full]
     [--tracking-time 40] [--crossing-time 90] [--out DIR] [--json FILE] [--plot FILE]
+    python benchmarks/bench_network.py --lockstep [--loss 0.05]
     python benchmarks/bench_network.py --soak 60 --out DIR
 """
 
@@ -76,7 +80,7 @@ def wait_sim(run: NetRun, t: float) -> None:
 
 
 def one_row(work: Path, scenario: str, max_time: float, delay_ms: float, loss: float, partition: bool,
-            tag: str, deadman: float | None = None) -> dict:
+            tag: str, deadman: float | None = None, host_routers: bool = True) -> dict:
     robots = robots_of(scenario)
     hosts = Hosts(robots, tag=tag)
     try:
@@ -84,7 +88,7 @@ def one_row(work: Path, scenario: str, max_time: float, delay_ms: float, loss: f
         opts = ["--seed", str(SEED), "--max-time", str(max_time), "--model", str(default_model_path())]
         if deadman is not None:
             opts += ["--deadman", str(deadman)]
-        run = NetRun(hosts, work, scenario, "realtime", opts, {r: link for r in robots}, host_routers=True,
+        run = NetRun(hosts, work, scenario, "realtime", opts, {r: link for r in robots}, host_routers=host_routers,
                      seed=SEED)
         before = host_times()
         run.start()
@@ -98,7 +102,7 @@ def one_row(work: Path, scenario: str, max_time: float, delay_ms: float, loss: f
         hosts.remove()
     gaps = world_log_gaps(work / "world-host" / "run.mcap", out, list(robots))
     row = {"scenario": scenario, "delay_ms": delay_ms, "loss": loss, "partition_s": PARTITION_S if partition else 0,
-           "deadman_s": deadman or DEADMAN_S,
+           "deadman_s": deadman or DEADMAN_S, "host_routers": host_routers,
            "ticks": out["ticks"], "robot_ticks": out["ticks"] * len(robots),
            "misses": out["deadline_misses"], "deadman_stops": sum(e["event"] == "deadman" for e in out["events"]),
            "lost_world_ticks": sum(v for k, v in gaps.items() if k != "recorded"),
@@ -123,6 +127,41 @@ def grid(args) -> list[tuple[float, float, bool, float | None]]:
         [(50, x, False, None) for x in losses]
     # the setting docs/faults.md recommends for a lossy link, and the partition
     return cells + [(50, x, False, WIFI_DEADMAN_S) for x in losses] + [(0, 0.0, True, None)]
+
+
+def lockstep_speed(work: Path, delays: list[float], loss: float, max_time: float) -> None:
+    """Lockstep ``crossing`` through each delay (every robot behind its link, host routers):
+    wall s per tick against the one-way delay, and whether the outcome still equals the
+    one-process run bit for bit."""
+    from cekm_swarm.experiments.default_model import default_model
+    from cekm_swarm.experiments.navigation_run import run_scenario
+    from world import load_scenario
+
+    scenario, robots = "crossing", robots_of("crossing")
+    ref = run_scenario(load_scenario(scenario), "cekm", default_model(progress=False), SEED, max_time=max_time)
+    for i, d in enumerate(delays):
+        hosts = Hosts(robots, tag=f"l{i}")
+        try:
+            opts = ["--seed", str(SEED), "--max-time", str(max_time), "--model", str(default_model_path())]
+            run = NetRun(hosts, work / f"lockstep-{d}ms", scenario, "lockstep", opts,
+                         {r: LinkSettings(delay=d / 1000, loss=loss) for r in robots}, host_routers=True, seed=SEED)
+            before = host_times()
+            run.start()
+            t0 = time.monotonic()
+            out = run.finish(timeout=max_time * 20 + 300)
+            wall = time.monotonic() - t0
+        finally:
+            hosts.remove()
+        traj = json.loads((work / f"lockstep-{d}ms" / "world-host" / "trajectory.json").read_text())
+        equal = all(traj[r]["x"] == ref.logs[r].x and traj[r]["v_l"] == ref.logs[r].v_l for r in robots)
+        steal = steal_since(before)
+        per_tick = 1000 * wall / out["ticks"]
+        ratio = f"{per_tick / (2 * d):.2f} x the round trip" if d else "no delay"
+        print(f"lockstep crossing {d:4.0f} ms {100 * loss:3.0f} %: {out['ticks']} ticks, {per_tick:6.1f} ms per tick "
+              f"({ratio}), "
+              f"republished {out['republished']}, equals cekm run: {equal} | load "
+              f"{open('/proc/loadavg').read().split()[0]} steal {'?' if steal is None else f'{100 * steal:.1f} %'}",
+              flush=True)
 
 
 def fmt(row: dict, base_a: float | None) -> str:
@@ -265,6 +304,9 @@ def main() -> None:
     p.add_argument("--json", type=Path, default=None)
     p.add_argument("--plot", type=Path, default=None)
     p.add_argument("--soak", type=float, default=None, metavar="MINUTES")
+    p.add_argument("--no-host-routers", action="store_true", help="every process a client of the world's router")
+    p.add_argument("--lockstep", action="store_true", help="instead: lockstep speed against the delay")
+    p.add_argument("--loss", type=float, default=0.0, help="--lockstep: the links' loss")
     p.add_argument("--cut-every", type=float, default=600.0, metavar="S", help="soak: s between two partitions")
     args = p.parse_args()
     why = namespaces_unavailable()
@@ -274,13 +316,16 @@ def main() -> None:
     if args.soak:
         soak(args, work / "soak")
         return
+    if args.lockstep:
+        lockstep_speed(work, list(DELAYS_MS), args.loss, 10.0)
+        return
     rows: list[dict] = []
     for scen in args.scenarios.split(","):
         base_a = None
         for i, (d, loss, cut, deadman) in enumerate(grid(args)):
             t = args.tracking_time if scen.startswith("tracking") else args.crossing_time
             row = one_row(work / f"{scen}-{d}ms-{loss}-{int(cut)}-{deadman}", scen, t, d, loss, cut, str(i % 10),
-                          deadman)
+                          deadman, host_routers=not args.no_host_routers)
             if d == 0 and not loss and not cut:
                 base_a = row.get("A")
             rows.append(row)
