@@ -93,12 +93,15 @@ def _env_endpoint() -> str | None:
                    "link wants more: docs/faults.md).")
 @click.option("--republish", type=Finite(0.0, min_open=True), default=1.0, show_default=True, metavar="S",
               help="Lockstep: s the world waits on a tick before re-publishing its readings.")
+@click.option("--world-grace", type=Finite(0.0), default=0.0, show_default=True, metavar="S",
+              help="A robots-only host: s to wait for the world server when its token goes without its end "
+                   "(a cut link, docs/faults.md) before ending; 0: end at once.")
 def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwrite: bool, connect: str | None,
                port: int, model_path: Path | None, max_time: float | None, controller: str, graph_file: Path | None,
                root: str, no_plot: bool, robots: tuple[str, ...] | None, no_world: bool, listen_host: str,
                zenoh_config: Path | None, model_from_zenoh: bool, run_id: str | None, cold_start: bool,
                send_every_reading: bool, max_log_size: int | None, max_log_duration: float | None,
-               record: str, deadman: float, republish: float) -> None:
+               record: str, deadman: float, republish: float, world_grace: float) -> None:
     """Run SCENARIO through the distributed runtime: the world server and, per robot, every
     node of the controller's graph as its own process on Zenoh (cekm: 1 + 12 + 1),
     supervised (restarted when they die)."""
@@ -160,7 +163,8 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwr
                           robots=only, world=not no_world, listen_host=listen_host, zenoh_config=zenoh_config,
                           model_from_zenoh=model_from_zenoh, run_id=run_id, warm_start=not cold_start,
                           hold_readings=not send_every_reading, max_log_size=max_log_size,
-                          max_log_duration=max_log_duration, record=record, deadman=deadman, republish=republish)
+                          max_log_duration=max_log_duration, record=record, deadman=deadman, republish=republish,
+                          world_grace=world_grace)
     launcher = Launcher(config, echo=lambda s: click.echo(s))
     try:
         outcome = launcher.launch()

@@ -67,7 +67,7 @@ class RobotHost:
                 event = await watcher.next_event(timeout=1.0)
             except asyncio.TimeoutError:
                 if seen and not session.info.routers_zid():
-                    if await self._router_back(watcher, world_key, session):
+                    if await self._router_back(watcher, world_key, session) or await self._world_back(watcher, world_key):
                         continue
                     self.say("the world server has ended (its host's Zenoh router is gone)")
                     return
@@ -81,7 +81,8 @@ class RobotHost:
                 self.say("the world server is up")
                 seen = True
             elif not event.alive:
-                if ended_key not in watcher.alive and await self._router_back(watcher, world_key, session):
+                if ended_key not in watcher.alive and (await self._router_back(watcher, world_key, session)
+                                                       or await self._world_back(watcher, world_key)):
                     continue
                 self.say("the world server has ended")
                 return
@@ -101,6 +102,23 @@ class RobotHost:
         except asyncio.TimeoutError:
             return False
         self.say(f"reconnected: the world server is up again after {time.monotonic() - t0:.1f} s")
+        return True
+
+    async def _world_back(self, watcher: LivelinessWatcher, world_key: str) -> bool:
+        """The world's token went without its end (``world/alive/ended``): a cut link looks
+        the same as a dead world from here. With ``--world-grace S`` wait up to S s for the
+        token to come back (the link returned; Zenoh reconnects and re-declares by itself):
+        True if it did. False at once without it (ending at once, as before)."""
+        grace = self.c.world_grace
+        if grace <= 0 or self.stopping:
+            return False
+        self.say(f"the world server's token went without its end (a cut link?); waiting up to {grace:g} s for it")
+        t0 = time.monotonic()
+        try:
+            await watcher.wait_for(world_key, True, grace)
+        except asyncio.TimeoutError:
+            return False
+        self.say(f"the world server is back after {time.monotonic() - t0:.1f} s")
         return True
 
     @staticmethod
