@@ -95,14 +95,10 @@ class RobotHost:
         when this host serves its own router."""
         if not self.c.connect or not await self._router_lost(session):
             return False
-        self.say(f"lost the Zenoh router; waiting up to {ROUTER_GRACE:.0f} s for it and the world server to come back")
-        t0 = time.monotonic()
-        try:
-            await watcher.wait_for(world_key, True, ROUTER_GRACE)
-        except asyncio.TimeoutError:
-            return False
-        self.say(f"reconnected: the world server is up again after {time.monotonic() - t0:.1f} s")
-        return True
+        return await self._await_world(
+            watcher, world_key, ROUTER_GRACE,
+            f"lost the Zenoh router; waiting up to {ROUTER_GRACE:.0f} s for it and the world server to come back",
+            "reconnected: the world server is up again after")
 
     async def _world_back(self, watcher: LivelinessWatcher, world_key: str) -> bool:
         """The world's token went without its end (``world/alive/ended``): a cut link looks
@@ -112,13 +108,22 @@ class RobotHost:
         grace = self.c.world_grace
         if grace <= 0 or self.stopping:
             return False
-        self.say(f"the world server's token went without its end (a cut link?); waiting up to {grace:g} s for it")
+        return await self._await_world(
+            watcher, world_key, grace,
+            f"the world server's token went without its end (a cut link?); waiting up to {grace:g} s for it",
+            "the world server is back after")
+
+    async def _await_world(self, watcher: LivelinessWatcher, world_key: str, limit: float, waiting: str,
+                           back: str) -> bool:
+        """Say ``waiting``, then wait up to ``limit`` s for the world's token: True (saying
+        ``back`` and how long it took) if it came back."""
+        self.say(waiting)
         t0 = time.monotonic()
         try:
-            await watcher.wait_for(world_key, True, grace)
+            await watcher.wait_for(world_key, True, limit)
         except asyncio.TimeoutError:
             return False
-        self.say(f"the world server is back after {time.monotonic() - t0:.1f} s")
+        self.say(f"{back} {time.monotonic() - t0:.1f} s")
         return True
 
     @staticmethod
