@@ -24,7 +24,7 @@ set and ``cekm log info`` over it.
 wall time per tick against the round trip, and equality with ``cekm run``.
 
 Run (as root, Linux): python benchmarks/bench_network.py [--grid reduced|full]
-    [--tracking-time 40] [--crossing-time 90] [--out DIR] [--json FILE] [--plot FILE]
+    [--tracking-time 30] [--crossing-time 90] [--out DIR] [--json FILE] [--plot FILE]
     python benchmarks/bench_network.py --lockstep [--loss 0.05]
     python benchmarks/bench_network.py --soak 60 --out DIR
 """
@@ -298,7 +298,7 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--grid", choices=["reduced", "full"], default="reduced")
     p.add_argument("--scenarios", default="tracking-crowd,crossing")
-    p.add_argument("--tracking-time", type=float, default=40.0)
+    p.add_argument("--tracking-time", type=float, default=30.0)
     p.add_argument("--crossing-time", type=float, default=90.0)
     p.add_argument("--out", type=Path, default=None)
     p.add_argument("--json", type=Path, default=None)
