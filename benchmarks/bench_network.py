@@ -259,7 +259,7 @@ def soak(args, work: Path) -> None:
         hosts.remove()
     first = work / "world-host" / "run_0.mcap"
     files = log_files(first if first.is_file() else work / "world-host" / "run.mcap")
-    gaps = world_log_gaps(files, out, list(robots))
+    gaps = world_log_gaps(files[0], out, list(robots))  # the first file of a set reads the whole set
     info = subprocess.run([sys.executable, "-m", "cekm_swarm", "log", "info", str(files[0])], capture_output=True,
                           text=True, timeout=600)
     stops = [e for e in out["events"] if e["event"] == "deadman"]

@@ -137,8 +137,8 @@ class NetRun:
         return {}
 
 
-def world_log_gaps(log: Path | list[Path], outcome: dict[str, Any], robots: list[str]) -> dict[str, int]:
-    """What the world's log (a file, or a split set in order) lacks of the run: per world key
+def world_log_gaps(log: Path, outcome: dict[str, Any], robots: list[str]) -> dict[str, int]:
+    """What the world's log (``run.mcap``, or ``run_0.mcap`` of a split set: read whole) lacks of the run: per world key
     (clock, state) and per robot (its readings: any ``sense/`` message, a reading unchanged
     since it was last sent being named in the tick's ``sense/unchanged``), the ticks with
     none; and ``recorded`` the messages the world says it recorded that are not in the log.
@@ -151,13 +151,12 @@ def world_log_gaps(log: Path | list[Path], outcome: dict[str, Any], robots: list
     ticks = set(range(outcome["ticks"] + 1))
     stamps: dict[str, set[int]] = {}
     recorded = 0
-    for path in ([log] if isinstance(log, Path) else log):
-        for m in read_messages(path):
-            if not m.topic.startswith(K.root + "/"):
-                continue
-            recorded += 1
-            name = m.topic if m.topic in (K.world_state(), K.world_clock()) else m.topic.split("/sense/")[0]
-            stamps.setdefault(name, set()).add(round(m.log_time / 1e9 / TICK_S))
+    for m in read_messages(log):
+        if not m.topic.startswith(K.root + "/"):
+            continue
+        recorded += 1
+        name = m.topic if m.topic in (K.world_state(), K.world_clock()) else m.topic.split("/sense/")[0]
+        stamps.setdefault(name, set()).add(round(m.log_time / 1e9 / TICK_S))
     gaps = {"recorded": outcome["recorded_messages"] - recorded}
     for name in (K.world_state(), K.world_clock(), *(f"{K.root}/{r}" for r in robots)):
         gaps[name] = len(ticks - stamps.get(name, set()))
