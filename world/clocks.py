@@ -135,6 +135,7 @@ class RealtimeClock(_Clock):
             c = self.inbox.latest.get(r)
             if c is None or c.stamp < ep.t:
                 self.stats.missed(ep.tick)
+            was_stopped = self.deadman.stopped[r]
             stop, newly = self.deadman.check(r, now, TICK_S)
             if stop or c is None:
                 commands[r] = (0.0, 0.0)
@@ -143,4 +144,7 @@ class RealtimeClock(_Clock):
                                                        "limit_s": self.deadman.limit, "wall": time.time()})
             else:
                 commands[r] = (c.v_l, c.v_r)
+                self.stats.applied(round((ep.t - c.stamp) / TICK_S))
+                if was_stopped:  # its commands are back: it drives on
+                    self.stats.event("deadman_resumed", ep.t, {"robot": r, "wall": time.time()})
         return commands

@@ -39,6 +39,7 @@ class RunStats:
     events: list[dict[str, Any]] = field(default_factory=list)
     deadline_misses: int = 0
     missed_ticks: dict[int, int] = field(default_factory=dict)  # tick -> robots that missed it (the first ones)
+    command_age: dict[int, int] = field(default_factory=dict)  # real time: ticks old -> commands applied that old
     first_tick_s: float | None = None  # real time: tick 0's readings to its last command
     tick_loop_seconds: float = 0.0  # wall s from the first tick's readings to the last tick
     tick_loop_cpu_end: float | None = None  # the server's CPU s (time.process_time) when the tick loop ended
@@ -47,6 +48,11 @@ class RunStats:
         doc = {"event": kind, "t": t, **doc}
         self.events.append(doc)
         emit("EVENT", doc)
+
+    def applied(self, age_ticks: int) -> None:
+        """A robot's command applied at a tick, made ``age_ticks`` ticks before it (0: its own;
+        more on a link whose round trip is longer than a tick: docs/faults.md)."""
+        self.command_age[age_ticks] = self.command_age.get(age_ticks, 0) + 1
 
     def missed(self, tick: int) -> None:
         self.deadline_misses += 1

@@ -379,6 +379,7 @@ class WorldServer:
                "log": _log_doc(pub, self.config),
                "deadline_misses": st.deadline_misses,
                "deadline_miss_ticks": {str(k): v for k, v in st.missed_ticks.items()},
+               "command_age_ticks": {str(k): v for k, v in sorted(st.command_age.items())},
                "first_tick_ms": None if st.first_tick_s is None else round(1000 * st.first_tick_s, 3),
                "sense_to_command_ms": latency_ms(inbox.latencies),
                "dropped_messages": self.drops.total + self.record_drops.total, "recorded_messages": pub.recorded,

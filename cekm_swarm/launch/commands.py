@@ -106,14 +106,23 @@ def _env_endpoint() -> str | None:
               help="--plant ros2: the ROS 2 distribution.")
 @click.option("--robot-description", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               help="--plant ros2: the robots' body (TOML; default: the scenario's simulated body).")
+@click.option("--deadman", type=Finite(0.0, min_open=True), default=0.5, show_default=True, metavar="S",
+              help="Real time: s without a robot's commands before the world stops it (a slow or lossy "
+                   "link wants more: docs/faults.md).")
+@click.option("--republish", type=Finite(0.0, min_open=True), default=1.0, show_default=True, metavar="S",
+              help="Lockstep: s the world waits on a tick before re-publishing its readings.")
+@click.option("--world-grace", type=Finite(0.0), default=0.0, show_default=True, metavar="S",
+              help="A robots-only host: s to wait for the world server when its token goes without its end "
+                   "(a cut link, docs/faults.md) before ending; 0: end at once.")
 def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwrite: bool, connect: str | None,
                port: int, model_path: Path | None, learn: bool, max_time: float | None, controller: str,
                graph_file: Path | None,
                root: str, no_plot: bool, robots: tuple[str, ...] | None, no_world: bool, listen_host: str,
                zenoh_config: Path | None, model_from_zenoh: bool, run_id: str | None, cold_start: bool,
                send_every_reading: bool, max_log_size: int | None, max_log_duration: float | None,
-               record: str, step_timeout: float, plant: str | None = None, plant_domain: int = 0,
-               plant_distro: str = "jazzy", robot_description: Path | None = None) -> None:
+               record: str, step_timeout: float, deadman: float, republish: float, world_grace: float,
+               plant: str | None = None, plant_domain: int = 0, plant_distro: str = "jazzy",
+               robot_description: Path | None = None) -> None:
     """Run SCENARIO through the distributed runtime: the world server and, per robot, every
     node of the controller's graph as its own process on Zenoh (cekm: 1 + 12 + 1),
     supervised (restarted when they die)."""
@@ -196,7 +205,7 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwr
                           hold_readings=not send_every_reading and plant is None, max_log_size=max_log_size,
                           max_log_duration=max_log_duration, record=record, step_timeout=step_timeout, plant=plant,
                           plant_domain=plant_domain, plant_distro=plant_distro, robot_description=robot_description,
-                          params=params)
+                          params=params, deadman=deadman, republish=republish, world_grace=world_grace)
     from cekm_swarm.modules.learner import SNAPSHOT_DIR
 
     os.environ[SNAPSHOT_DIR] = str((out_dir / "maps").resolve())  # a learner's state: a restart goes on from it

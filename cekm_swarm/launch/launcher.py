@@ -85,6 +85,7 @@ class LaunchConfig:
     max_log_size: int | None = None  # split the world's log into a set (bytes per file)
     max_log_duration: float | None = None  # ... or sim s per file
     record: str = "full"  # full, or lean (world.recorder)
+    world_grace: float = 0.0  # robots-only host: s to wait for a world whose token went without its end (a cut)
     alive_timeout: float = ALIVE_TIMEOUT  # s to wait for every node of every robot to be alive
     plant: str | None = None  # "ros2": the robots live in ROS 2, no world is simulated (launch.plant_host)
     plant_domain: int = 0  # ... its ROS_DOMAIN_ID

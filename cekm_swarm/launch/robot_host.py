@@ -67,7 +67,7 @@ class RobotHost:
                 event = await watcher.next_event(timeout=1.0)
             except asyncio.TimeoutError:
                 if seen and not session.info.routers_zid():
-                    if await self._router_back(watcher, world_key, session):
+                    if await self._router_back(watcher, world_key, session) or await self._world_back(watcher, world_key):
                         continue
                     self.say("the world server has ended (its host's Zenoh router is gone)")
                     return
@@ -81,7 +81,8 @@ class RobotHost:
                 self.say("the world server is up")
                 seen = True
             elif not event.alive:
-                if ended_key not in watcher.alive and await self._router_back(watcher, world_key, session):
+                if ended_key not in watcher.alive and (await self._router_back(watcher, world_key, session)
+                                                       or await self._world_back(watcher, world_key)):
                     continue
                 self.say("the world server has ended")
                 return
@@ -94,13 +95,35 @@ class RobotHost:
         when this host serves its own router."""
         if not self.c.connect or not await self._router_lost(session):
             return False
-        self.say(f"lost the Zenoh router; waiting up to {ROUTER_GRACE:.0f} s for it and the world server to come back")
+        return await self._await_world(
+            watcher, world_key, ROUTER_GRACE,
+            f"lost the Zenoh router; waiting up to {ROUTER_GRACE:.0f} s for it and the world server to come back",
+            "reconnected: the world server is up again after")
+
+    async def _world_back(self, watcher: LivelinessWatcher, world_key: str) -> bool:
+        """The world's token went without its end (``world/alive/ended``): a cut link looks
+        the same as a dead world from here. With ``--world-grace S`` wait up to S s for the
+        token to come back (the link returned; Zenoh reconnects and re-declares by itself):
+        True if it did. False at once without it (ending at once, as before)."""
+        grace = self.c.world_grace
+        if grace <= 0 or self.stopping:
+            return False
+        return await self._await_world(
+            watcher, world_key, grace,
+            f"the world server's token went without its end (a cut link?); waiting up to {grace:g} s for it",
+            "the world server is back after")
+
+    async def _await_world(self, watcher: LivelinessWatcher, world_key: str, limit: float, waiting: str,
+                           back: str) -> bool:
+        """Say ``waiting``, then wait up to ``limit`` s for the world's token: True (saying
+        ``back`` and how long it took) if it came back."""
+        self.say(waiting)
         t0 = time.monotonic()
         try:
-            await watcher.wait_for(world_key, True, ROUTER_GRACE)
+            await watcher.wait_for(world_key, True, limit)
         except asyncio.TimeoutError:
             return False
-        self.say(f"reconnected: the world server is up again after {time.monotonic() - t0:.1f} s")
+        self.say(f"{back} {time.monotonic() - t0:.1f} s")
         return True
 
     @staticmethod

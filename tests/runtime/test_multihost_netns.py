@@ -18,12 +18,8 @@ from __future__ import annotations
 
 import json
 import os
-import queue
-import shutil
-import signal
 import subprocess
 import sys
-import threading
 import time
 from pathlib import Path
 
@@ -31,6 +27,7 @@ import pytest
 
 from cekm_swarm.experiments.default_model import default_model
 from cekm_swarm.experiments.navigation_run import run_scenario
+from cekm_swarm.runtime.netns import Hosts, namespaces_unavailable
 from world import load_scenario
 
 pytestmark = pytest.mark.slow  # starts real processes (tests/process_guard.py)
@@ -84,145 +81,18 @@ radius = 0.05
 """
 
 
-def ip(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run(["ip", *args], capture_output=True, text=True, timeout=30)
-
-
-def namespaces_unavailable() -> str | None:
-    """Why this machine cannot run the test, or None."""
-    if sys.platform != "linux":
-        return "network namespaces are Linux only"
-    if os.geteuid() != 0:
-        return "creating network namespaces needs root"
-    if shutil.which("ip") is None:
-        return "the 'ip' command (iproute2) is not installed"
-    if shutil.which("openssl") is None:
-        return "openssl is not installed (deploy/make-certs.sh needs it)"
-    probe = f"cekm-probe-{os.getpid()}"
-    made = ip("netns", "add", probe)
-    if made.returncode != 0:
-        return f"'ip netns add' is not allowed here: {made.stderr.strip()}"
-    ip("netns", "del", probe)
-    return None
-
-
-class NsProcess:
-    """A command run in a namespace (``ip netns exec``), its output read by a thread so
-    every wait has a timeout."""
-
-    def __init__(self, ns: str, argv: list[str], env: dict[str, str], cwd: Path, stdin: bool = False) -> None:
-        self.proc = subprocess.Popen(["ip", "netns", "exec", ns, *argv], cwd=cwd, env=env, text=True,
-                                     stdin=subprocess.PIPE if stdin else subprocess.DEVNULL,
-                                     stdout=subprocess.PIPE, stderr=subprocess.STDOUT, start_new_session=True)
-        self.lines: list[str] = []
-        self._q: queue.Queue[str | None] = queue.Queue()
-        threading.Thread(target=self._read, daemon=True).start()
-
-    def _read(self) -> None:
-        assert self.proc.stdout is not None
-        for line in self.proc.stdout:
-            self._q.put(line.rstrip("\n"))
-        self._q.put(None)
-
-    def wait_line(self, needle: str, timeout: float) -> str:
-        deadline = time.monotonic() + timeout
-        while True:
-            try:
-                line = self._q.get(timeout=max(0.0, deadline - time.monotonic()))
-            except queue.Empty:
-                raise AssertionError(f"no line with {needle!r} in {timeout} s:\n" + "\n".join(self.lines[-30:])) from None
-            if line is None:
-                raise AssertionError(f"ended without {needle!r}:\n" + "\n".join(self.lines[-40:]))
-            self.lines.append(line)
-            if needle in line:
-                return line
-
-    def finish(self, timeout: float) -> int:
-        deadline = time.monotonic() + timeout
-        while True:
-            try:
-                line = self._q.get(timeout=max(0.0, deadline - time.monotonic()))
-            except queue.Empty:
-                raise AssertionError("did not end in time:\n" + "\n".join(self.lines[-40:])) from None
-            if line is None:
-                return self.proc.wait(timeout=max(1.0, deadline - time.monotonic()))
-            self.lines.append(line)
-
-
-class Hosts:
-    """Three namespaces (world, r1, r2) and two veth links, named after this process so
-    parallel runs never meet; :meth:`remove` undoes everything."""
-
-    def __init__(self) -> None:
-        tag = f"{os.getpid() % 100000}"
-        self.ns = {h: f"cekm{tag}-{h}" for h in ("world", *ROBOTS)}
-        self.procs: list[NsProcess] = []
-        self.ifs = {r: f"ck{tag}{r}" for r in ROBOTS}
-        for ns in self.ns.values():
-            self._ok(ip("netns", "add", ns))
-            self._ok(ip("-n", ns, "link", "set", "lo", "up"))
-        for r in ROBOTS:  # veth pair created straight inside the two namespaces
-            w_if, r_if = f"ck{tag}w{r}", f"ck{tag}{r}"
-            self._ok(ip("link", "add", w_if, "netns", self.ns["world"], "type", "veth", "peer", "name", r_if,
-                        "netns", self.ns[r]))
-            self._ok(ip("-n", self.ns["world"], "addr", "add", f"{WORLD_ADDR[r]}/24", "dev", w_if))
-            self._ok(ip("-n", self.ns[r], "addr", "add", f"{ROBOT_ADDR[r]}/24", "dev", r_if))
-            self._ok(ip("-n", self.ns["world"], "link", "set", w_if, "up"))
-            self._ok(ip("-n", self.ns[r], "link", "set", r_if, "up"))
-
-    @staticmethod
-    def _ok(done: subprocess.CompletedProcess) -> None:
-        if done.returncode != 0:
-            raise RuntimeError(f"{' '.join(done.args)}: {done.stderr.strip()}")
-
-    def link(self, robot: str, up: bool) -> None:
-        """Bring robot's end of its link down or up (as a pulled cable)."""
-        self._ok(ip("-n", self.ns[robot], "link", "set", self.ifs[robot], "up" if up else "down"))
-
-    def start(self, host: str, argv: list[str], env: dict[str, str], cwd: Path, stdin: bool = False) -> NsProcess:
-        p = NsProcess(self.ns[host], argv, env, cwd, stdin)
-        self.procs.append(p)
-        return p
-
-    def remove(self) -> None:
-        """Stop what runs in the namespaces (every process in them was started here) and
-        delete them; their veth ends go with them."""
-        for p in self.procs:
-            if p.proc.poll() is None:
-                p.proc.send_signal(signal.SIGTERM)
-        for p in self.procs:
-            try:
-                p.proc.wait(10)
-            except subprocess.TimeoutExpired:
-                p.proc.kill()
-        for ns in self.ns.values():
-            pids = ip("netns", "pids", ns).stdout.split()
-            for pid in pids:
-                try:
-                    os.kill(int(pid), signal.SIGKILL)
-                except (ProcessLookupError, ValueError):
-                    pass
-            ip("netns", "del", ns)
-
-
 @pytest.fixture
 def hosts():
-    reason = namespaces_unavailable()
+    reason = namespaces_unavailable(need_openssl=True)
     if reason:
         pytest.skip(reason)
-    h = None
+    h = Hosts(ROBOTS)
+    assert h.world_addr == WORLD_ADDR and h.robot_addr == ROBOT_ADDR
     try:
-        h = Hosts()
         yield h
     finally:
-        if h is not None:
-            h.remove()
-        else:  # construction failed half-way: remove what exists
-            tag = f"{os.getpid() % 100000}"
-            for host in ("world", *ROBOTS):
-                ip("netns", "del", f"cekm{tag}-{host}")
-    listed = ip("netns", "list").stdout
-    assert f"cekm{os.getpid() % 100000}-" not in listed, listed
+        h.remove()
+    assert not h.left_over()
 
 
 ROUTER = ("import sys; from cekm_swarm.runtime.config import load_config, open_session; "
