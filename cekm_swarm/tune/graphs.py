@@ -40,3 +40,16 @@ def fields_graph(fields: str, task: str, policy: Path | str | None = None) -> tu
         return check_graph(policy_graph(task)), ({"policy": str(policy)} if policy else {})
     checked = check_graph(str(graph_for("cekm", check_task(task))))
     return checked, ({"sigma_b_alpha": PAPER_SIGMA_B_ALPHA} if fields == "paper" else {})
+
+
+def with_fields(checked: CheckedGraph, fields: str | None, task: str) -> CheckedGraph:
+    """``cekm run --fields``: ``checked`` (the run's graph) unless FIELDS is given, then
+    the cooperative-EKM graph of :func:`fields_graph` with its parameters applied."""
+    if fields is None:
+        return checked
+    if checked.graph.controller != "cekm":
+        raise ParameterError(f"--fields goes with --controller cekm, not {checked.graph.controller!r}")
+    from ..experiments.graph_run import with_params
+
+    graph, params = fields_graph(fields, task)
+    return with_params(graph, params)
