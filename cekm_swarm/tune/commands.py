@@ -19,8 +19,8 @@ def tune_group() -> None:
 @click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), required=True,
               help="Directory of the training; run the same command again to resume it after a kill.")
 @click.option("--seed", type=int, default=1, show_default=True, help="CMA-ES seed.")
-@click.option("--generations", type=int, default=30, show_default=True)
-@click.option("--popsize", type=int, default=12, show_default=True, help="Candidates per generation.")
+@click.option("--generations", type=int, help="Generations (default 30 navigation, 15 tracking).")
+@click.option("--popsize", type=int, help="Candidates per generation (default 12 navigation, 8 tracking).")
 @click.option("--sigma0", type=float, default=0.5, show_default=True, help="CMA-ES initial step size.")
 @click.option("--batch", type=int, help="Training scenarios per candidate per generation "
                                         "(default 24 navigation, 6 tracking).")
@@ -37,7 +37,7 @@ def fields_cmd(task, out_dir, seed, generations, popsize, sigma0, batch, validat
 
     nav = task == "navigation"
     try:
-        config = TuneConfig(task, seed, generations, popsize, sigma0, batch or (24 if nav else 6),
+        config = TuneConfig(task, seed, generations or (30 if nav else 15), popsize or (12 if nav else 8), sigma0, batch or (24 if nav else 6),
                             validation or (48 if nav else 12), validate_every, max_time or (90.0 if nav else 30.0))
         meta = tune(config, out_dir, model_path, workers)
     except ParameterError as exc:
@@ -54,25 +54,35 @@ def fields_cmd(task, out_dir, seed, generations, popsize, sigma0, batch, validat
               help="The policy judged as `learned` (default: the one shipped for the task).")
 @click.option("--tests", type=int, default=100, show_default=True, help="Held-out generated scenarios.")
 @click.option("--concave", is_flag=True, help="Navigation: Fig. 9's sweep cells instead of generated scenarios.")
+@click.option("--suite", is_flag=True, help="Navigation: section 4.2's table (its five scenarios, --tests seeds "
+                                            "from 1) instead of generated scenarios.")
 @click.option("--only", help="Comma-separated variants to run (paper, tuned, learned; tracking also acmommt, "
                              "kmeans, kmeans-global).")
 @click.option("--max-time", type=float, help="Sim seconds per run (default 300 navigation, 120 tracking).")
 @click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True), help="A trained model (.npz).")
 @click.option("--workers", type=int, default=2, show_default=True)
-def evaluate_cmd(task, out_dir, policy, tests, concave, only, max_time, model_path, workers) -> None:
+def evaluate_cmd(task, out_dir, policy, tests, concave, suite, only, max_time, model_path, workers) -> None:
     """Judge the learned field policy against the paper's and today's constants on held-out scenarios."""
     from ..jsonfile import dumps
-    from .evaluate import evaluate, evaluate_concave, variants
+    from .evaluate import evaluate, evaluate_concave, evaluate_suite, variants
 
     chosen = None if not only else tuple(x.strip() for x in only.split(","))
     known = variants(task, policy)
     for v in chosen or ():
         if v not in known:
             raise click.UsageError(f"--only: unknown variant {v!r} (known: {', '.join(known)})")
-    if concave and task != "navigation":
-        raise click.UsageError("--concave goes with --task navigation")
+    if (concave or suite) and task != "navigation":
+        raise click.UsageError("--concave and --suite go with --task navigation")
     out_dir.mkdir(parents=True, exist_ok=True)
-    if concave:
+    if suite:
+        doc = evaluate_suite(tuple(range(1, tests + 1)), policy, model_path, workers, max_time=max_time or 300.0,
+                             only=chosen)
+        for v in known:
+            if v in doc:
+                click.echo(f"{v:8s} " + "; ".join(f"{sc} {x['success']['k']}/{x['success']['n']} "
+                                                  f"({x['collision_free']['k']} contact-free)"
+                                                  for sc, x in doc[v].items() if sc != "runs"))
+    elif concave:
         doc = evaluate_concave(policy, model_path, workers, only=chosen)
         for v in known:
             if v in doc:

@@ -4,7 +4,8 @@ held-out scenarios (docs/fields.md).
 Held out: generated scenarios with :data:`~.scenarios.SEED_BASE` ``["test"]`` seeds, which
 neither training nor validation draws; ``--concave``: Fig. 9's sweep cells (concave.toml
 with the sweep's widths, depths, ranges and world seeds, as ``cekm sweep concave`` runs
-them). Navigation reports goal-reached and contact-free rates with Wilson 95 % intervals,
+them); ``--suite``: section 4.2's table (``cekm experiment obstacles``' five scenarios and
+success rule, seeds 1-20). None of these geometries or seeds is trained or selected on. Navigation reports goal-reached and contact-free rates with Wilson 95 % intervals,
 overall and per geometry kind, and the paired wins/losses of learned against tuned;
 tracking reports Parker's A with t intervals and Welch p against every other controller.
 """
@@ -19,7 +20,7 @@ from ..experiments.concave_stats import cells_of, grid_of
 from ..experiments.metrics import welch_p
 from ..experiments.obstacle_stats import wilson_interval
 from ..experiments.tracking_stats import mean_ci95
-from .rollout import run_many
+from .rollout import _model, run_many
 from .scenarios import seed_of
 
 BASELINES = ("acmommt", "kmeans", "kmeans-global")
@@ -105,4 +106,49 @@ def evaluate_concave(policy: Path | None = None, model_path: str | None = None, 
                  "collisions": r["collisions"]} for c, r in zip(cells, flat[i * len(cells):(i + 1) * len(cells)])]
         out[v] = {"cells": cells_of(config, runs), "grid": grid_of(config, runs),
                   "negotiated_cells": sum(c["reached"] >= config.need for c in cells_of(config, runs))}
+    return out
+
+
+def suite_one(job: tuple) -> dict:
+    """One run of section 4.2's table (``cekm experiment obstacles``' scenarios, seeds and
+    success rule) with ``--fields`` ``what``."""
+    from world import load_scenario
+
+    from ..experiments.graph_run import with_params
+    from ..experiments.navigation_run import run_scenario
+    from ..experiments.obstacle_run import success
+    from .graphs import fields_graph
+
+    scenario, what, seed, max_time, model_path = job
+    checked, params = fields_graph(what[1], "navigation", what[2] if len(what) > 2 else None)
+    run = run_scenario(load_scenario(scenario), "cekm", _model(model_path), seed, max_time,
+                       graph=with_params(checked, params))
+    o = next(iter(run.outcome.values()))
+    ok = success(scenario, o, run.geometry)
+    return {"scenario": scenario, "seed": seed, "success": ok, "collision_free": ok and o["collisions"] == 0,
+            "collisions": o["collisions"], "reached": o["reached"]}
+
+
+def evaluate_suite(seeds: tuple[int, ...], policy: Path | None = None, model_path: str | None = None,
+                   workers: int = 2, progress: bool = True, max_time: float = 300.0,
+                   only: tuple[str, ...] | None = None) -> dict[str, Any]:
+    """Section 4.2's table (concave, doorway, rooms, checkpoints, lone obstacle) for every ``--fields``."""
+    from tqdm import tqdm
+
+    from ..experiments.obstacle_run import SUITE
+
+    vs = {k: v for k, v in variants("navigation", policy).items() if only is None or k in only}
+    cells = [(sc, s) for sc in SUITE for s in seeds]
+    jobs = [(sc, what, s, max_time, model_path) for what in vs.values() for sc, s in cells]
+    with tqdm(total=len(jobs), disable=not progress, desc="evaluate section 4.2", unit="run") as bar:
+        flat = run_many(jobs, workers, bar.update, fn=suite_one)
+    out: dict[str, Any] = {"experiment": "field-policy-4.2", "seeds": list(seeds), "max_time_s": max_time,
+                           "policy": str(policy) if policy else "shipped"}
+    for i, v in enumerate(vs):
+        rows = flat[i * len(cells):(i + 1) * len(cells)]
+        out[v] = {sc: {"success": _rate(sum(r["success"] for r in rows if r["scenario"] == sc), len(seeds)),
+                       "collision_free": _rate(sum(r["collision_free"] for r in rows if r["scenario"] == sc),
+                                               len(seeds)),
+                       "contacts": sum(r["collisions"] for r in rows if r["scenario"] == sc)} for sc in SUITE}
+        out[v]["runs"] = rows
     return out

@@ -85,18 +85,19 @@ def run_one(job: tuple) -> dict:
     return row
 
 
-def run_many(jobs: list[tuple], workers: int = 1, progress=None) -> list[dict]:
-    """Every job, in order (so the results do not depend on the workers); ``progress()``
-    after each."""
+def run_many(jobs: list[tuple], workers: int = 1, progress=None, fn=None) -> list[dict]:
+    """``fn`` (default :func:`run_one`) of every job, in order (so the results do not
+    depend on the workers); ``progress()`` after each."""
+    fn = fn or run_one
     out = []
     if workers <= 1:
         for j in jobs:
-            out.append(run_one(j))
+            out.append(fn(j))
             if progress:
                 progress()
         return out
     with ProcessPoolExecutor(max_workers=min(workers, os.cpu_count() or 1, len(jobs) or 1)) as ex:
-        for row in ex.map(run_one, jobs):
+        for row in ex.map(fn, jobs):
             out.append(row)
             if progress:
                 progress()
