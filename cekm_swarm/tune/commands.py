@@ -7,6 +7,8 @@ from pathlib import Path
 
 import click
 
+from ..cli_support import SEED, Finite
+
 
 @click.group("tune")
 def tune_group() -> None:
@@ -14,21 +16,21 @@ def tune_group() -> None:
 
 
 @tune_group.command("fields")
-@click.option("--task", type=click.Choice(["navigation", "tracking"]), required=True,
+@click.option("--task", type=click.Choice(["navigation", "tracking"]), default="navigation", show_default=True,
               help="Train the navigation policy (generated obstacle geometries) or the tracking one (grid cells).")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), required=True,
               help="Directory of the training; run the same command again to resume it after a kill.")
-@click.option("--seed", type=int, default=1, show_default=True, help="CMA-ES seed.")
-@click.option("--generations", type=int, help="Generations (default 30 navigation, 15 tracking).")
-@click.option("--popsize", type=int, help="Candidates per generation (default 12 navigation, 8 tracking).")
-@click.option("--sigma0", type=float, default=0.5, show_default=True, help="CMA-ES initial step size.")
-@click.option("--batch", type=int, help="Training scenarios per candidate per generation "
+@click.option("--seed", type=SEED, default=1, show_default=True, help="CMA-ES seed.")
+@click.option("--generations", type=click.IntRange(min=1), help="Generations (default 30 navigation, 15 tracking).")
+@click.option("--popsize", type=click.IntRange(min=1), help="Candidates per generation (default 12 navigation, 8 tracking).")
+@click.option("--sigma0", type=Finite(min=0.0, min_open=True), default=0.5, show_default=True, help="CMA-ES initial step size.")
+@click.option("--batch", type=click.IntRange(min=1), help="Training scenarios per candidate per generation "
                                         "(default 24 navigation, 6 tracking).")
-@click.option("--validation", type=int, help="Validation scenarios (default 48 navigation, 12 tracking).")
-@click.option("--validate-every", type=int, default=5, show_default=True, help="Generations between validations.")
-@click.option("--max-time", type=float, help="Sim seconds per run (default 90 navigation, 30 tracking).")
+@click.option("--validation", type=click.IntRange(min=1), help="Validation scenarios (default 48 navigation, 12 tracking).")
+@click.option("--validate-every", type=click.IntRange(min=1), default=5, show_default=True, help="Generations between validations.")
+@click.option("--max-time", type=Finite(min=0.2), help="Sim seconds per run (default 90 navigation, 30 tracking).")
 @click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True), help="A trained model (.npz).")
-@click.option("--workers", type=int, default=2, show_default=True, help="Worker processes.")
+@click.option("--workers", type=click.IntRange(min=1), default=2, show_default=True, help="Worker processes.")
 def fields_cmd(task, out_dir, seed, generations, popsize, sigma0, batch, validation, validate_every, max_time,
                model_path, workers) -> None:
     """Train a field policy by CMA-ES into OUT (policy.json), seeded and resumable."""
@@ -47,20 +49,20 @@ def fields_cmd(task, out_dir, seed, generations, popsize, sigma0, batch, validat
 
 
 @tune_group.command("evaluate")
-@click.option("--task", type=click.Choice(["navigation", "tracking"]), required=True)
+@click.option("--task", type=click.Choice(["navigation", "tracking"]), default="navigation", show_default=True)
 @click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), required=True,
               help="Directory for results.json.")
 @click.option("--policy", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               help="The policy judged as `learned` (default: the one shipped for the task).")
-@click.option("--tests", type=int, default=100, show_default=True, help="Held-out generated scenarios.")
+@click.option("--tests", type=click.IntRange(min=1), default=100, show_default=True, help="Held-out generated scenarios.")
 @click.option("--concave", is_flag=True, help="Navigation: Fig. 9's sweep cells instead of generated scenarios.")
 @click.option("--suite", is_flag=True, help="Navigation: section 4.2's table (its five scenarios, --tests seeds "
                                             "from 1) instead of generated scenarios.")
 @click.option("--only", help="Comma-separated variants to run (paper, tuned, learned; tracking also acmommt, "
                              "kmeans, kmeans-global).")
-@click.option("--max-time", type=float, help="Sim seconds per run (default 300 navigation, 120 tracking).")
+@click.option("--max-time", type=Finite(min=0.2), help="Sim seconds per run (default 300 navigation, 120 tracking).")
 @click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True), help="A trained model (.npz).")
-@click.option("--workers", type=int, default=2, show_default=True)
+@click.option("--workers", type=click.IntRange(min=1), default=2, show_default=True)
 def evaluate_cmd(task, out_dir, policy, tests, concave, suite, only, max_time, model_path, workers) -> None:
     """Judge the learned field policy against the paper's and today's constants on held-out scenarios."""
     from ..jsonfile import dumps
