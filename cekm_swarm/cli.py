@@ -322,9 +322,11 @@ def _model(path: Path | None):
 @click.option("--max-time", type=Finite(min=0.2),  # as cekm launch takes it, so every launch has its cekm run
               help="Sim seconds before a robot counts as trapped (default 600); for a tracking scenario, the "
                    "run's length (default 120).")
+@click.option("--fields", type=click.Choice(["paper", "tuned", "learned"]), help="cekm's field widths: the paper's, "
+              "today's hand-tuned (the default) or the learned field policy's (docs/fields.md).")
 @out_dir_options("Directory for outcome.json and trajectory.png.")
 def run_cmd(scenario: str, controller: str, graph_file: Path | None, model_path: Path | None, learn: bool,
-            seed: int | None, max_time: float | None, out_dir: Path, overwrite: bool) -> None:
+            seed: int | None, max_time: float | None, fields: str | None, out_dir: Path, overwrite: bool) -> None:
     """Run SCENARIO (a name under world/scenarios or a .toml path) in one process, no Zenoh:
     the controller's graph, every node in this process, by the rule a lockstep launch
     follows (so `cekm launch --mode lockstep` gives the same run).
@@ -334,6 +336,7 @@ def run_cmd(scenario: str, controller: str, graph_file: Path | None, model_path:
     from .experiments.graph_run import default_max_time, resolve_graph, with_params
     from .experiments.learning_run import learning_controller, learning_params
     from .graph.spec import GraphError
+    from .tune.graphs import with_fields
 
     sc = _load_scenario(scenario)
     task = _run_kind(sc)
@@ -341,6 +344,7 @@ def run_cmd(scenario: str, controller: str, graph_file: Path | None, model_path:
     controller = learning_controller(controller, graph_file) if learn else controller
     try:
         checked = resolve_graph(controller, None if graph_file is None else str(graph_file), task)
+        checked = with_fields(checked, fields, task)
         checked.plan([r.id for r in sc.robots], task)
     except GraphError as exc:
         raise FileRefused(str(exc)) from None
@@ -487,6 +491,9 @@ def _register_ros2_commands() -> None:
 
 
 _register_ros2_commands()
+from .tune.commands import tune_group  # noqa: E402  (cekm tune, docs/fields.md)
+
+main.add_command(tune_group)
 
 
 def run_cli_args(argv: list[str]) -> int:

@@ -103,69 +103,97 @@ def run_graph(scenario, controller: str | None = "cekm", *, graph: str | Graph |
     that tick (for a look at the fields, Fig. 4). ``progress(t)`` every simulated second.
     ``step_timeout``: wall seconds a step may run before the run fails naming it.
     ``observe(executor, k)`` after each tick (a learning experiment's scores, docs/learning.md)."""
-    from world import World
-    from world.episode import make_episode
-    from world.sense import SENDER, sense_messages
-    from world.tracking import run_kind
+    session = GraphSession(scenario, controller, graph=graph, model=model, seed=seed, max_time=max_time,
+                           checkpoints=checkpoints, params=params, codec=codec, keys=keys, step_timeout=step_timeout,
+                           observe=observe)
+    while not session.step(progress, stop_at):
+        pass
+    return session.result()
 
-    task = run_kind(scenario, checkpoints or {})
-    checked = with_params(resolve_graph(controller, graph, task), params)
-    if max_time is None:
-        max_time = default_max_time(task)
-    world = World(scenario, seed=seed)
-    team = tuple(world.robot_ids)
-    angles = world.sensor_angles
-    try:
-        plan = checked.plan(team, task, len(angles), keys)
-    except GraphError:
-        raise
-    if checked.uses_model and model is None:
-        from .default_model import default_model
 
-        model = default_model()
-    body = robot_body(world)
+class GraphSession:
+    """A :func:`run_graph` run one tick at a time (:meth:`step`), for a caller that acts
+    between ticks (the field-parameter environment, :mod:`cekm_swarm.tune.env`): the same
+    world, the same graph, the same order of messages, so stepping to the end is
+    :func:`run_graph`."""
 
-    def context(node) -> Context:
-        return Context(node.robot, node.decl.name, node.instance, team, body, "inprocess", model, "numba")
+    def __init__(self, scenario, controller: str | None = "cekm", *, graph: str | Graph | CheckedGraph | None = None,
+                 model=None, seed: int | None = None, max_time: float | None = None, checkpoints=None,
+                 params: dict[str, Any] | None = None, codec: bool = False, keys: KeySpace = DEFAULT_KEYS,
+                 step_timeout: float | None = STEP_TIMEOUT,
+                 observe: Callable[[GraphExecutor, int], None] | None = None) -> None:
+        from world import World
+        from world.episode import make_episode
+        from world.tracking import run_kind
 
-    executor = GraphExecutor(plan, checked, context, codec=codec, step_timeout=step_timeout)
-    max_ticks = int(math.ceil(max_time / TICK_S))
-    episode = make_episode(world, task, checkpoints, max_ticks)
-    reads = {r: set(plan.world_keys(r)) for r in team}
-    read_clock = any(n.clock_key is not None or any(s.key == keys.world_clock() for b in n.bindings for s in b.sources)
-                     for r in team for n in plan.nodes[r])
-    read_state = any(s.key == keys.world_state() for r in team for n in plan.nodes[r] for b in n.bindings
-                     for s in b.sources)
-    tpaths: dict[str, list[tuple[float, float]]] = {t: [] for t in getattr(world, "target_ids", [])}
-    while True:
+        task = run_kind(scenario, checkpoints or {})
+        checked = with_params(resolve_graph(controller, graph, task), params)
+        if max_time is None:
+            max_time = default_max_time(task)
+        world = World(scenario, seed=seed)
+        team = tuple(world.robot_ids)
+        plan = checked.plan(team, task, len(world.sensor_angles), keys)
+        if checked.uses_model and model is None:
+            from .default_model import default_model
+
+            model = default_model()
+        body = robot_body(world)
+
+        def context(node) -> Context:
+            return Context(node.robot, node.decl.name, node.instance, team, body, "inprocess", model, "numba")
+
+        self.task, self.world, self.plan, self.keys = task, world, plan, keys
+        self.executor = GraphExecutor(plan, checked, context, codec=codec, step_timeout=step_timeout)
+        self.max_ticks = int(math.ceil(max_time / TICK_S))
+        self.episode = make_episode(world, task, checkpoints, self.max_ticks)
+        self.reads = {r: set(plan.world_keys(r)) for r in team}
+        self.read_clock = any(n.clock_key is not None or any(s.key == keys.world_clock() for b in n.bindings
+                                                             for s in b.sources)
+                              for r in team for n in plan.nodes[r])
+        self.read_state = any(s.key == keys.world_state() for r in team for n in plan.nodes[r] for b in n.bindings
+                              for s in b.sources)
+        self.tpaths: dict[str, list[tuple[float, float]]] = {t: [] for t in getattr(world, "target_ids", [])}
+        self.observe = observe
+        self.finished = False
+
+    def step(self, progress: Callable[[float], None] | None = None, stop_at: int | None = None) -> bool:
+        """One tick: the world's messages, every node due, the wheels set, the world
+        advanced unless the run is over. True when it is over."""
+        from world.sense import SENDER, sense_messages
+
+        episode, world, executor, keys = self.episode, self.world, self.executor, self.keys
         k, t = episode.tick, episode.t
         if progress and k % 8 == 0:
             progress(t)
         readings = episode.readings()
-        if task == "tracking":
+        if self.task == "tracking":
             st = world.state()
             for tid, p in st["targets"].items():
-                tpaths.setdefault(tid, []).append((p["x"], p["y"]))
+                self.tpaths.setdefault(tid, []).append((p["x"], p["y"]))
         for rd in readings:
-            want = reads[rd.robot]
-            for key, msg in sense_messages(keys, rd, angles, world.body_radius):
+            want = self.reads[rd.robot]
+            for key, msg in sense_messages(keys, rd, world.sensor_angles, world.body_radius):
                 if key in want:
                     executor.put(key, k, msg)
             for rel, msg in episode.messages(rd.robot):  # tracking: the robot's pose and targets
                 executor.put(keys.node_key(rd.robot, rel), k, msg)
-        if read_clock:
+        if self.read_clock:
             executor.put(keys.world_clock(), k, Clock(t, SENDER, k))
-        if read_state:
+        if self.read_state:
             st = world.state()
             executor.put(keys.world_state(), k, WorldState(t, SENDER, st["robots"], st["targets"], st["obstacles"]))
         answers = executor.tick(k)
         episode.apply({r: (c.v_l, c.v_r) for r, c in answers.items()})
-        if observe is not None:
-            observe(executor, k)
-        if episode.done or episode.tick >= max_ticks or (stop_at is not None and k >= stop_at):
-            break
+        if self.observe is not None:
+            self.observe(executor, k)
+        if episode.done or episode.tick >= self.max_ticks or (stop_at is not None and k >= stop_at):
+            self.finished = True
+            return True
         episode.advance()
-    return GraphRun(world, episode, plan, executor, task, episode.tick, tpaths)
+        return False
+
+    def result(self) -> GraphRun:
+        return GraphRun(self.world, self.episode, self.plan, self.executor, self.task, self.episode.tick, self.tpaths)
 
 
 def controller_names() -> list[str]:

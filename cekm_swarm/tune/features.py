@@ -1,0 +1,67 @@
+"""What a robot's fields see, as a few numbers for the field policy (docs/fields.md).
+
+Everything is read off the winners the localization EKMs send (w_s = (alpha, d) of each
+obstacle field's and the target field's winner, Eqs. 2-4) and, for tracking, the
+teammate fields' sum: no raw sensor reading, no world state. Every feature lies in
+[0, 1] except the bias (1), so a linear policy over them is well conditioned.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+
+import numpy as np
+
+from ..angles import wrap_scalar
+
+FEATURES = ("bias", "front", "left", "right", "seen", "toward_target", "target_angle", "target_near", "teammates")
+"""Names of the feature vector's entries, in order."""
+
+N_FEATURES = len(FEATURES)
+FRONT = math.pi / 4  # |alpha| below: in front
+SIDE = 3 * math.pi / 4  # pi/4 <= |alpha| < 3 pi/4: beside
+TOWARD = math.pi / 6  # an obstacle within this of the target's direction stands toward it
+
+
+def proximity(d: float, d_max: float) -> float:
+    """1 at the robot's centre, 0 at the lattice's farthest distance."""
+    return min(max(1.0 - d / d_max, 0.0), 1.0)
+
+
+def field_features(w: np.ndarray, obstacle_winners: Iterable[int | None], target: tuple[float, float] | None,
+                   teammates: float = 0.0) -> np.ndarray:
+    """The feature vector (:data:`FEATURES`) of one tick.
+
+    ``w``: the map's input weights (alpha_i, d_i); ``obstacle_winners``: each distance
+    sensor's obstacle winner (None: it sees nothing); ``target``: the target input (alpha,
+    d) the target field localizes, None when there is none; ``teammates``: the largest
+    entry of the teammate fields' sum (tracking; 0 otherwise).
+    """
+    d_max = float(np.max(w[:, 1])) or 1.0
+    front = left = right = toward = 0.0
+    seen = 0
+    n = 0
+    t_alpha = None if target is None else target[0]
+    for s in obstacle_winners:
+        n += 1
+        if s is None:
+            continue
+        seen += 1
+        a, d = float(w[s, 0]), float(w[s, 1])
+        p = proximity(d, d_max)
+        if abs(a) < FRONT:
+            front = max(front, p)
+        elif abs(a) < SIDE:
+            if a > 0:
+                left = max(left, p)
+            else:
+                right = max(right, p)
+        if t_alpha is not None and abs(wrap_scalar(a - t_alpha)) < TOWARD:
+            toward = max(toward, p)
+    if target is None or not (math.isfinite(target[0]) and math.isfinite(target[1])):
+        t_angle, t_near = 0.0, 0.0
+    else:
+        t_angle, t_near = abs(wrap_scalar(target[0])) / math.pi, proximity(target[1], d_max)
+    return np.array([1.0, front, left, right, seen / n if n else 0.0, toward, t_angle, t_near,
+                     min(max(teammates, 0.0), 1.0)], dtype=np.float64)

@@ -1,0 +1,55 @@
+"""The graphs of ``--fields``: the shipped cooperative-EKM graph with its motor node's
+program swapped for the field-policy motor (:mod:`.motor`), built from the shipped file
+rather than a copy of it, so the two cannot drift apart."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..errors import ParameterError
+from ..graph.check import CheckedGraph, check_graph
+from ..graph.spec import Graph, graph_for, load_graph
+from ..models.params import PAPER_SIGMA_B_ALPHA
+from .policy import check_task
+
+FIELDS = ("paper", "tuned", "learned")
+"""``--fields``: the paper's constants, today's hand-tuned ones, or the learned policy."""
+
+PROGRAM = {"navigation": "cekm_swarm.tune.motor:FieldMotor", "tracking": "cekm_swarm.tune.motor:FieldTrackingMotor"}
+
+
+def policy_graph(task: str) -> Graph:
+    """The shipped ``cekm`` graph of ``task`` with the field-policy motor node."""
+    doc = load_graph(graph_for("cekm", check_task(task))).to_dict()
+    for n in doc["nodes"]:
+        if n["name"] == "motor":
+            n["program"] = PROGRAM[task]
+    doc["description"] += " (field widths chosen by a field policy, docs/fields.md)"
+    return Graph.from_dict(doc)
+
+
+def fields_graph(fields: str, task: str, policy: Path | str | None = None) -> tuple[CheckedGraph, dict]:
+    """The checked graph and parameter overrides of ``--fields FIELDS`` for ``task``.
+
+    ``paper``: the paper's obstacle width (sigma_b_alpha 0.495) in the shipped graph;
+    ``tuned``: the shipped graph as it is (today's default); ``learned``: the field-policy
+    motor with ``policy`` (default: the policy shipped for the task)."""
+    if fields not in FIELDS:
+        raise ParameterError(f"--fields must be one of {list(FIELDS)}, got {fields!r}")
+    if fields == "learned":
+        return check_graph(policy_graph(task)), ({"policy": str(policy)} if policy else {})
+    checked = check_graph(str(graph_for("cekm", check_task(task))))
+    return checked, ({"sigma_b_alpha": PAPER_SIGMA_B_ALPHA} if fields == "paper" else {})
+
+
+def with_fields(checked: CheckedGraph, fields: str | None, task: str) -> CheckedGraph:
+    """``cekm run --fields``: ``checked`` (the run's graph) unless FIELDS is given, then
+    the cooperative-EKM graph of :func:`fields_graph` with its parameters applied."""
+    if fields is None:
+        return checked
+    if checked.graph.controller != "cekm":
+        raise ParameterError(f"--fields goes with --controller cekm, not {checked.graph.controller!r}")
+    from ..experiments.graph_run import with_params
+
+    graph, params = fields_graph(fields, task)
+    return with_params(graph, params)

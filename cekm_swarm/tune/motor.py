@@ -1,0 +1,151 @@
+"""The motor nodes of cooperative EKMs with field parameters chosen per tick (docs/fields.md).
+
+They integrate exactly as :mod:`cekm_swarm.modules.motor_integration` and
+:mod:`cekm_swarm.modules.tracking_motor` do (Eqs. 9-11, the same code), with one
+difference: the obstacle fields b_j are Eq. 8 of each localization module's winner with
+the widths the field policy chooses from what the fields see (:mod:`.features`), and for
+tracking the teammate fields' sum is scaled by the policy's gain. A field is a pure
+function of its winner and its widths, so computing it here is exact, and the
+localization modules and the message protocol are unchanged: with the base widths this
+node's commands equal the shipped motor node's, bit for bit (tested).
+
+Why the motor node: it is the one node that sees every field of a tick at once, which
+the policy's input needs; a separate policy node would need a new message to every
+localization module for the same result.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from cekm_swarm.controller.cooperative import ObstacleActivity
+from cekm_swarm.models.fields import obstacle_field
+from cekm_swarm.models.params import FieldParams, TrackingParams
+from cekm_swarm.modules.ekm import cooperative_ekm
+from cekm_swarm.modules.motor_integration import target_activity
+from cekm_swarm.modules.tracking_localization import tracking_activity, tracking_ekm
+from cekm_swarm.node import In, Node, NodeError, Out
+from cekm_swarm.protocol import ObstacleField, TargetField, TrackingField, WheelCommand
+from cekm_swarm.protocol.checks import lattice_misfit
+from cekm_swarm.ticks import tick_of
+
+from .features import field_features
+from .policy import FieldChoice, FieldPolicy, shipped_policy
+
+ROWS_KEPT = 256
+"""Obstacle-field rows a node remembers for the current choice of widths."""
+
+
+class _PolicyFields:
+    """What both motor nodes share: the policy (or the environment's choice) and Eq. 8's rows."""
+
+    task = "navigation"
+
+    def _setup_policy(self) -> None:
+        p = self.params
+        try:
+            if p.weights:
+                self.policy = FieldPolicy(self.task, np.array(p.weights))
+            else:
+                self.policy = FieldPolicy.load(p.policy or shipped_policy(self.task))
+        except Exception as exc:  # a bad file or weight count: the node names it and stops
+            raise NodeError(f"{self.ctx.sender}: field policy: {exc}") from None
+        if self.policy.task != self.task:
+            raise NodeError(f"{self.ctx.sender}: field policy {p.policy!r} is for {self.policy.task}, not {self.task}")
+        self.override: FieldChoice | None = None  # set by the environment (cekm_swarm.tune.env)
+        self.last_features: np.ndarray | None = None
+        self.last_choice: FieldChoice | None = None
+        self._rows: dict[int, np.ndarray] = {}
+        self._rows_for: FieldParams | None = None
+
+    def _choose(self, features: np.ndarray) -> FieldChoice:
+        self.last_features = features
+        choice = self.override if self.override is not None else self.policy.choose(features)
+        self.last_choice = choice
+        return choice
+
+    def _obstacles(self, w: np.ndarray, fields, choice: FieldChoice) -> list[ObstacleActivity]:
+        """b_j of each winner with the chosen widths (Eq. 8), in sensor order."""
+        if choice.fields != self._rows_for or len(self._rows) > ROWS_KEPT:
+            self._rows, self._rows_for = {}, choice.fields
+        out = []
+        for f in fields:
+            b = None
+            if f.winner is not None:
+                b = self._rows.get(f.winner)
+                if b is None:
+                    b = self._rows[f.winner] = obstacle_field(w, f.winner, choice.fields)
+            out.append(ObstacleActivity(f.stamp, f.index, f.winner, b))
+        return out
+
+
+class FieldMotor(_PolicyFields, Node):
+    """Motor EKM with policy-chosen obstacle widths: target and obstacle fields -> wheel command."""
+
+    inputs = {"target": In(TargetField, doc="the target field (the latest target tick's)"),
+              "obstacles": In(ObstacleField, many=True, doc="every obstacle field of the tick (their winners)")}
+    outputs = {"command": Out(WheelCommand, doc="c = (v_l, v_r), clipped to c*")}
+    uses_model = True
+    warm_setup = True
+
+    @dataclass(frozen=True)
+    class Params:
+        allow_reverse: bool = False  # as the shipped motor node's
+        reverse_min_d: float = 0.02
+        policy: str = ""  # a field policy file (cekm tune fields); "" = the one shipped for navigation
+        weights: tuple[float, ...] = ()  # the policy's weights in place of a file (training)
+
+    def setup(self) -> None:
+        self.ekm = cooperative_ekm(self.ctx, None, self.params.allow_reverse, self.params.reverse_min_d)
+        self._setup_policy()
+
+    def check_input(self, port, msg):
+        return lattice_misfit(msg, self.ekm.n)
+
+    def step(self, t, inputs):
+        tf, fields = inputs["target"], list(inputs["obstacles"].values())
+        target = None if tf is None or tf.a is None else (tf.alpha, tf.d)
+        choice = self._choose(field_features(self.ekm.w, [f.winner for f in fields], target))
+        out = self.ekm.integrate(target_activity(tf), self._obstacles(self.ekm.w, fields, choice))  # Eqs. 9-11
+        return {"command": WheelCommand(t, self.ctx.sender, out.v_l, out.v_r, tick_of(t))}
+
+
+class FieldTrackingMotor(_PolicyFields, Node):
+    """The tracking motor module with policy-chosen obstacle widths and teammate gain."""
+
+    task = "tracking"
+    inputs = {"tracking": In(TrackingField, doc="the tracking fields of the latest target tick"),
+              "obstacles": In(ObstacleField, many=True, doc="every obstacle field of the tick (their winners)")}
+    outputs = {"command": Out(WheelCommand)}
+    uses_model = True
+    warm_setup = True
+
+    @dataclass(frozen=True)
+    class Params:
+        policy: str = ""  # a field policy file; "" = the one shipped for tracking
+        weights: tuple[float, ...] = ()
+
+    def setup(self) -> None:
+        self.tekm = tracking_ekm(self.ctx, TrackingParams())
+        self._setup_policy()
+
+    def check_input(self, port, msg):
+        return lattice_misfit(msg, self.tekm.ekm.n)
+
+    def step(self, t, inputs):
+        f, fields = inputs["tracking"], list(inputs["obstacles"].values())
+        act = None if f is None else tracking_activity(f)
+        w = self.tekm.ekm.w
+        target, team = None, 0.0
+        if act is not None:
+            if act.inputs:
+                _, alpha, d, _ = max(act.inputs, key=lambda x: x[3])
+                target = (alpha, d)
+            team = float(np.max(act.b_team)) if len(act.b_team) else 0.0
+        choice = self._choose(field_features(w, [o.winner for o in fields], target, team))
+        if act is not None and choice.teammate_gain != 1.0:
+            act = replace(act, b_team=choice.teammate_gain * act.b_team)
+        out = self.tekm.integrate(act, self._obstacles(w, fields, choice))  # Eqs. 9-11
+        return {"command": WheelCommand(t, self.ctx.sender, out.v_l, out.v_r, tick_of(t))}

@@ -1,0 +1,137 @@
+"""Generated scenarios for training and judging the field policy (docs/fields.md).
+
+Navigation: one robot, a goal behind an obstacle geometry drawn from a seed -- a U of any
+width and depth (Fig. 9's family, opening toward the robot), a doorway between two blocks
+with an offset goal, a corridor, or three rooms with doorways and circling movers
+(Fig. 11's family) -- with the distance sensors' range drawn too. Tracking: the tracking
+grid's cells and generator (:func:`cekm_swarm.experiments.grid_design.grid_scenario`).
+
+Seeds are kept apart by purpose (:data:`SEED_BASE`): training draws from one range,
+validation (the policy kept) from another, and the held-out evaluation from a third; none
+of them meets a seed any other experiment reports (1-40, 100-139).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from typing import Any
+
+import numpy as np
+
+from ..errors import ParameterError
+
+KINDS = ("u", "doorway", "corridor", "movers")
+SEED_BASE = {"train": 1_000_000, "validation": 2_000_000, "test": 3_000_000}
+"""Scenario seeds by purpose: purpose p's i-th scenario has seed SEED_BASE[p] + i."""
+
+
+def seed_of(purpose: str, i: int) -> int:
+    if purpose not in SEED_BASE:
+        raise ParameterError(f"unknown seed purpose {purpose!r}; expected one of {list(SEED_BASE)}")
+    return SEED_BASE[purpose] + int(i)
+
+
+def _r(x: float) -> float:
+    return round(float(x), 4)
+
+
+def u_raw(width: float, depth: float, sensor_range: float, seed: int, offset: float = 0.0,
+          facing: float = math.pi) -> dict[str, Any]:
+    """A U (Fig. 8/9's concave obstacle) ``width`` x ``depth`` inside, opening toward the
+    robot 0.5 m before it, the goal 0.36 m behind its back wall (as concave.toml)."""
+    return {"name": f"gen-u-w{width:.3f}-d{depth:.3f}", "seed": int(seed), "arena": {"bounds": [0.0, 0.0, 3.0, 3.0]},
+            "sensors": {"range": _r(sensor_range)},
+            "robots": [{"id": "r1", "start": [1.0, _r(1.5 + offset), 0.0], "goal": "goal"}],
+            "targets": [{"id": "goal", "position": [_r(1.5 + depth + 0.02 + 0.36), 1.5]}],
+            "obstacles": [{"id": "u", "shape": "concave", "center": [1.5, 1.5], "width": _r(width), "depth": _r(depth),
+                           "thickness": 0.02, "facing": _r(facing)}]}
+
+
+def navigation_raw(seed: int, kind: str | None = None) -> dict[str, Any]:
+    """The scenario document of generated navigation scenario ``seed`` (its kind drawn
+    from the seed unless given)."""
+    rng = np.random.default_rng([int(seed), 41])
+    kind = kind or KINDS[int(rng.integers(len(KINDS)))]
+    rs = float(rng.uniform(0.12, 0.25))
+    if kind == "u":
+        return u_raw(float(rng.uniform(0.10, 1.0)), float(rng.uniform(0.06, 0.30)), rs, seed,
+                     float(rng.uniform(-0.1, 0.1)), math.pi + float(rng.uniform(-0.3, 0.3)))
+    if kind == "doorway":
+        gap = float(rng.uniform(0.086, 0.2))
+        half = 0.125
+        off = float(rng.uniform(-0.4, 0.4))
+        return {"name": f"gen-doorway-{gap:.3f}", "seed": int(seed), "arena": {"bounds": [0.0, 0.0, 3.0, 2.0]},
+                "sensors": {"range": _r(rs)},
+                "robots": [{"id": "r1", "start": [1.0, _r(1.0 - off / 2), 0.0], "goal": "goal"}],
+                "targets": [{"id": "goal", "position": [2.0, _r(1.0 + off)]}],
+                "obstacles": [{"id": "block_n", "shape": "box", "center": [1.5, _r(1.0 + gap / 2 + half)],
+                               "size": [0.10, 2 * half]},
+                              {"id": "block_s", "shape": "box", "center": [1.5, _r(1.0 - gap / 2 - half)],
+                               "size": [0.10, 2 * half]}]}
+    if kind == "corridor":
+        gap = float(rng.uniform(0.13, 0.3))
+        length = float(rng.uniform(0.3, 0.9))
+        y0 = 1.0 + float(rng.uniform(-0.2, 0.2))
+        x0 = 1.2
+        return {"name": f"gen-corridor-{gap:.3f}-{length:.2f}", "seed": int(seed),
+                "arena": {"bounds": [0.0, 0.0, 3.0, 2.0]}, "sensors": {"range": _r(rs)},
+                "robots": [{"id": "r1", "start": [0.5, _r(1.0 + float(rng.uniform(-0.3, 0.3))), 0.0], "goal": "goal"}],
+                "targets": [{"id": "goal", "position": [_r(x0 + length + 0.4), _r(y0)]}],
+                "walls": [{"a": [x0, _r(y0 + gap / 2)], "b": [_r(x0 + length), _r(y0 + gap / 2)]},
+                          {"a": [x0, _r(y0 - gap / 2)], "b": [_r(x0 + length), _r(y0 - gap / 2)]}]}
+    if kind == "movers":
+        d1, d2 = float(rng.uniform(0.12, 0.2)), float(rng.uniform(0.12, 0.2))
+        y1, y2 = float(rng.uniform(0.2, 0.8 - d1)), float(rng.uniform(0.2, 0.8 - d2))
+        walls = [{"a": [1.0, 0.0], "b": [1.0, _r(y1)]}, {"a": [1.0, _r(y1 + d1)], "b": [1.0, 1.0]},
+                 {"a": [2.0, 0.0], "b": [2.0, _r(y2)]}, {"a": [2.0, _r(y2 + d2)], "b": [2.0, 1.0]}]
+        movers = []
+        for k in range(int(rng.integers(1, 4))):
+            movers.append({"id": f"m{k + 1}", "shape": "disc", "radius": 0.04,
+                           "motion": {"type": "circle", "center": [1.5, 0.5], "radius": _r(rng.uniform(0.15, 0.3)),
+                                      "angular_speed": _r(rng.uniform(0.2, 0.6)),
+                                      "phase": _r(rng.uniform(0, 2 * math.pi)),
+                                      "direction": "ccw" if rng.random() < 0.5 else "cw"}})
+        return {"name": f"gen-movers-{len(movers)}", "seed": int(seed), "arena": {"bounds": [0.0, 0.0, 3.0, 1.0],
+                                                                                   "wall_thickness": 0.02},
+                "sensors": {"range": _r(rs)},
+                "robots": [{"id": "r1", "start": [0.25, _r(rng.uniform(0.3, 0.7)), 0.0], "goal": "goal"}],
+                "targets": [{"id": "goal", "position": [2.75, _r(rng.uniform(0.3, 0.7))]}],
+                "walls": walls, "obstacles": movers}
+    raise ParameterError(f"unknown geometry kind {kind!r}; expected one of {list(KINDS)}")
+
+
+def navigation_scenario(seed: int, kind: str | None = None):
+    """The validated scenario of :func:`navigation_raw`."""
+    from world.scenario import parse_scenario
+
+    raw = navigation_raw(seed, kind)
+    return parse_scenario(raw, source=f"<generated {raw['name']}, seed {seed}>")
+
+
+@functools.lru_cache(maxsize=1)
+def grid_cells() -> tuple:
+    """The tracking grid's cells (its design is a seeded search: made once per process)."""
+    from ..experiments.grid_design import design
+
+    return tuple(design())
+
+
+def tracking_scenario(seed: int, cell=None):
+    """A tracking grid scenario: ``cell`` (default: a cell of the grid's design drawn from
+    the seed) with the grid's generator for ``seed``."""
+    from ..experiments.grid_design import grid_scenario
+
+    if cell is None:
+        cells = grid_cells()
+        cell = cells[int(np.random.default_rng([int(seed), 43]).integers(len(cells)))]
+    return grid_scenario(cell, seed)
+
+
+def scenario(task: str, seed: int):
+    """Generated scenario ``seed`` of ``task``."""
+    if task == "navigation":
+        return navigation_scenario(seed)
+    if task == "tracking":
+        return tracking_scenario(seed)
+    raise ParameterError(f"unknown task {task!r}; expected navigation or tracking")

@@ -1,0 +1,165 @@
+"""``cekm tune fields``: the field policy trained by CMA-ES, seeded and resumable (docs/fields.md).
+
+Why CMA-ES (the ``cma`` package): the policy has a few dozen weights and its objective is
+a whole run's outcome (reached without contact; Parker's A), noisy and not
+differentiable -- the setting evolution strategies are made for, with no value function
+to learn and nothing to tune but the population. ``cma`` is pure Python, seeded, and its
+ask/tell loop makes a resume exact: the strategy and numpy's global random state (which
+``cma`` samples from) are saved after every generation.
+
+Each generation every candidate runs the same ``batch`` training scenarios (seeds
+:data:`~.scenarios.SEED_BASE` ``["train"]`` + generation * batch + i: common random numbers,
+so candidates are compared on equal terms, and new scenarios every generation). Every
+``validate_every`` generations the strategy's mean runs the validation scenarios; the
+policy kept (``policy.json``) is the best on validation, today's constants (W = 0)
+included, so a training that finds nothing better keeps them. The held-out evaluation
+(``cekm tune evaluate``) uses a third seed range.
+
+DIR holds ``config.json`` (a resume must match it), ``state.pkl`` (the strategy after the
+last whole generation), ``history.jsonl`` (one line per generation) and ``policy.json``.
+"""
+
+from __future__ import annotations
+
+import json
+import pickle
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import ParameterError
+from .policy import FieldPolicy, check_task
+from .rollout import run_many
+from .scenarios import seed_of
+
+STATE_VERSION = 1
+
+
+@dataclass(frozen=True)
+class TuneConfig:
+    """A training's settings (every one is in config.json)."""
+
+    task: str = "navigation"
+    seed: int = 1
+    generations: int = 30
+    popsize: int = 12
+    sigma0: float = 0.5
+    batch: int = 24
+    validation: int = 48
+    validate_every: int = 5
+    max_time: float = 90.0
+
+    def __post_init__(self) -> None:
+        check_task(self.task)
+        for name in ("generations", "popsize", "batch", "validation", "validate_every"):
+            v = getattr(self, name)
+            if not isinstance(v, int) or v < 1:
+                raise ParameterError(f"--{name.replace('_', '-')}: must be a whole number >= 1, got {v!r}")
+        if self.popsize < 2:
+            raise ParameterError("--popsize: CMA-ES needs at least 2 candidates per generation")
+        if not (self.sigma0 > 0 and self.max_time > 0):
+            raise ParameterError("--sigma0 and --max-time must be positive")
+
+
+def command_of(config: TuneConfig) -> str:
+    """The command that makes this training (DIR for its directory, which does not change it)."""
+    c = config
+    return (f"cekm tune fields --task {c.task} --out DIR --seed {c.seed} --generations {c.generations} "
+            f"--popsize {c.popsize} --sigma0 {c.sigma0:g} --batch {c.batch} --validation {c.validation} "
+            f"--validate-every {c.validate_every} --max-time {c.max_time:g}")
+
+
+def _write_whole(path: Path, data: bytes) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_bytes(data)
+    tmp.replace(path)
+
+
+def _check_dir(out: Path, config: TuneConfig) -> dict | None:
+    """The saved state to resume from (None: a fresh start); a ParameterError when DIR
+    holds another training's state."""
+    cfg, state = out / "config.json", out / "state.pkl"
+    if cfg.is_file():
+        saved = json.loads(cfg.read_text())
+        mine = asdict(config)
+        for k in mine:
+            if saved.get(k) != mine[k]:
+                raise ParameterError(f"{cfg}: {out} holds a training with {k} = {saved.get(k)!r}, not {mine[k]!r}; "
+                                     f"give the same settings to resume it, or another --out")
+    if state.is_file():
+        try:
+            doc = pickle.loads(state.read_bytes())
+        except Exception as exc:
+            raise ParameterError(f"{state}: cannot read the saved training state ({exc}); remove it to start afresh") \
+                from None
+        if doc.get("version") != STATE_VERSION:
+            raise ParameterError(f"{state}: state version {doc.get('version')!r}, this code reads {STATE_VERSION}")
+        return doc
+    return None
+
+
+def validate(config: TuneConfig, weights: np.ndarray, model_path: str | None, workers: int) -> float:
+    """Mean score of ``weights`` on the validation scenarios."""
+    jobs = [(config.task, tuple(float(x) for x in weights), seed_of("validation", i), config.max_time, model_path)
+            for i in range(config.validation)]
+    rows = run_many(jobs, workers)
+    return float(np.mean([r["score"] for r in rows]))
+
+
+def tune(config: TuneConfig, out: Path, model_path: str | None = None, workers: int = 1,
+         progress: bool = True) -> dict[str, Any]:
+    """Train (or resume) the field policy in ``out``; returns the summary (also in policy.json's meta)."""
+    import cma
+    from tqdm import tqdm
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    state = _check_dir(out, config)
+    (out / "config.json").write_text(json.dumps(asdict(config), indent=1) + "\n")
+    n = FieldPolicy.size(config.task)
+    if state is None:
+        es = cma.CMAEvolutionStrategy(np.zeros(n), config.sigma0,
+                                      {"seed": config.seed, "popsize": config.popsize, "verbose": -9})
+        base = validate(config, np.zeros(n), model_path, workers)
+        state = {"version": STATE_VERSION, "generation": 0, "es": es, "rng": np.random.get_state(),
+                 "best": {"generation": 0, "score": base, "weights": np.zeros(n).tolist()}, "base_score": base}
+        _write_whole(out / "state.pkl", pickle.dumps(state))
+        (out / "history.jsonl").write_text("")
+    es = state["es"]
+    np.random.set_state(state["rng"])
+    total = (config.generations - state["generation"]) * config.popsize * config.batch
+    bar = tqdm(total=total, disable=not progress, desc=f"tune {config.task} fields", unit="run",
+               initial=0, postfix={"gen": state["generation"], "best": round(state["best"]["score"], 3)})
+    while state["generation"] < config.generations:
+        g = state["generation"]
+        candidates = es.ask()
+        seeds = [seed_of("train", g * config.batch + i) for i in range(config.batch)]
+        jobs = [(config.task, tuple(float(x) for x in c), s, config.max_time, model_path)
+                for c in candidates for s in seeds]
+        rows = run_many(jobs, workers, bar.update)
+        scores = np.array([r["score"] for r in rows]).reshape(len(candidates), config.batch).mean(axis=1)
+        es.tell(candidates, (-scores).tolist())  # cma minimizes
+        g += 1
+        line = {"generation": g, "mean_score": float(scores.mean()), "best_score": float(scores.max()),
+                "sigma": float(es.sigma)}
+        if g % config.validate_every == 0 or g == config.generations:
+            mean = np.asarray(es.mean, dtype=np.float64)
+            v = validate(config, mean, model_path, workers)
+            line["validation"] = v
+            if v > state["best"]["score"]:
+                state["best"] = {"generation": g, "score": v, "weights": mean.tolist()}
+        state.update(generation=g, es=es, rng=np.random.get_state())
+        _write_whole(out / "state.pkl", pickle.dumps(state))
+        with open(out / "history.jsonl", "a") as f:
+            f.write(json.dumps(line) + "\n")
+        bar.set_postfix({"gen": g, "best": round(state["best"]["score"], 3)})
+    bar.close()
+    best = state["best"]
+    meta = {"trained_by": "cekm tune fields", "command": command_of(config), "config": asdict(config),
+            "kept_generation": best["generation"], "validation_score": best["score"],
+            "validation_score_of_constants": state["base_score"]}
+    policy = FieldPolicy(config.task, np.array(best["weights"]), meta)
+    policy.save(out / "policy.json")
+    return meta

@@ -1,0 +1,74 @@
+"""``cekm tune fields``: its settings are checked, a directory resumes only its own
+training, and a training killed and resumed writes the uninterrupted run's policy, bit for bit."""
+
+from __future__ import annotations
+
+import json
+import os
+import pickle
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import asdict
+
+import pytest
+
+from cekm_swarm.errors import ParameterError
+from cekm_swarm.tune.train import TuneConfig, _check_dir
+
+TINY = ["--task", "navigation", "--seed", "7", "--generations", "4", "--popsize", "3", "--batch", "2",
+        "--validation", "2", "--validate-every", "1", "--max-time", "20", "--workers", "1"]
+
+
+def test_settings_are_checked():
+    with pytest.raises(ParameterError, match="--popsize"):
+        TuneConfig(popsize=0)
+    with pytest.raises(ParameterError, match="unknown task"):
+        TuneConfig(task="juggling")
+    with pytest.raises(ParameterError, match="--max-time"):
+        TuneConfig(max_time=0.0)
+
+
+def test_a_directory_resumes_only_its_own_training(tmp_path):
+    (tmp_path / "config.json").write_text(json.dumps(asdict(TuneConfig(seed=1))))
+    assert _check_dir(tmp_path, TuneConfig(seed=1)) is None
+    with pytest.raises(ParameterError, match="seed = 1, not 2"):
+        _check_dir(tmp_path, TuneConfig(seed=2))
+    (tmp_path / "state.pkl").write_bytes(b"junk")
+    with pytest.raises(ParameterError, match="state.pkl: cannot read"):
+        _check_dir(tmp_path, TuneConfig(seed=1))
+
+
+def _tune(out, **kw):
+    return subprocess.Popen([sys.executable, "-m", "cekm_swarm", "tune", "fields", "--out", str(out), *TINY],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, **kw)
+
+
+def _generation(out) -> int:
+    try:
+        return pickle.loads((out / "state.pkl").read_bytes())["generation"]
+    except (OSError, EOFError, pickle.UnpicklingError, KeyError):
+        return -1
+
+
+@pytest.mark.slow
+def test_killed_and_resumed_gives_the_same_policy_bit_for_bit(tmp_path):
+    whole = _tune(tmp_path / "whole")
+    assert whole.wait(timeout=300) == 0, whole.stdout.read().decode()
+    killed = _tune(tmp_path / "killed")
+    deadline = time.monotonic() + 300
+    while _generation(tmp_path / "killed") < 1:  # the first generation saved
+        assert killed.poll() is None and time.monotonic() < deadline, "no generation saved"
+        time.sleep(0.02)
+    os.kill(killed.pid, signal.SIGKILL)
+    killed.wait(timeout=60)
+    stopped_at = _generation(tmp_path / "killed")
+    assert 1 <= stopped_at < 4 and not (tmp_path / "killed" / "policy.json").exists()
+    resumed = _tune(tmp_path / "killed")
+    assert resumed.wait(timeout=300) == 0, resumed.stdout.read().decode()
+    a = (tmp_path / "whole" / "policy.json").read_bytes()
+    assert a == (tmp_path / "killed" / "policy.json").read_bytes()
+    assert json.loads(a)["meta"]["config"]["seed"] == 7
+    history = (tmp_path / "killed" / "history.jsonl").read_text().splitlines()
+    assert [json.loads(x)["generation"] for x in history] == [1, 2, 3, 4]
