@@ -36,7 +36,7 @@ class LearningConfig:
 def scenario_text(n: int) -> str:
     """A team of n robots in the arena, on a ring around its centre facing out, each with a target."""
     lines = ['name = "learning"', 'description = "section 4.1 arena, a team learning online"', "seed = 1",
-             "retarget = true", "",
+             "retarget = true", "explore = true", "",
              "[arena]", f"bounds = [{-ARENA}, {-ARENA}, {ARENA}, {ARENA}]", "boundary_walls = true",
              "wall_thickness = 0.02", ""]
     for i in range(n):

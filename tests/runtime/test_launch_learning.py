@@ -136,6 +136,7 @@ def test_a_generated_scenario_learns_the_same_in_lockstep_with_a_node_killed(tmp
 RETARGET = """name = "retarget"
 seed = 4
 retarget = true
+explore = true
 [arena]
 bounds = [-1.0, -1.0, 1.0, 1.0]
 [[robots]]
@@ -149,7 +150,8 @@ position = [0.06, 0.0]
 
 
 def test_section_4_1_training_through_the_world_server_equals_cekm_run(tmp_path):
-    """A retarget scenario: the world gives the robot a new target at each stop."""
+    """A retarget scenario: the world gives the robot a new target at each stop, with
+    training exploration noise on its executed wheel speeds (the learner learns from them)."""
     path = tmp_path / "retarget.toml"
     path.write_text(RETARGET)
     run = launched(tmp_path, str(path), 8, "--model", str(default_model_path()))
