@@ -155,6 +155,9 @@ class Learner(Node):
             if self.lost:
                 self.ctx.log.warning("%s: restarted from map version %d; %d steps (ticks %d-%d) were lost",
                                      self.ctx.sender, self.version, self.lost, self.last_tick + 1, odo.ticks[0] - 1)
+            else:  # said either way, so a log always tells how many a restart lost
+                self.ctx.log.warning("%s: restarted from map version %d; 0 steps were lost (the record still held "
+                                     "tick %d on)", self.ctx.sender, self.version, self.last_tick + 1)
         for i, k in enumerate(odo.ticks):
             if k <= self.last_tick:
                 continue

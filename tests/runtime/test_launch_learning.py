@@ -158,3 +158,41 @@ def test_section_4_1_training_through_the_world_server_equals_cekm_run(tmp_path)
     ref, history = in_process(str(path), default_model(progress=False), None, 8)
     assert run.outcome()["robots"]["r1"]["targets_reached"] >= 1
     assert_equal_runs(run, ref, history)
+
+
+def test_a_learner_sigkilled_in_real_time_goes_on_from_its_last_version_and_says_what_it_lost(tmp_path):
+    """Real time: the learner SIGKILLed once its version 2 is on disk; it restarts from the
+    version it kept (not from the run's model), its log says how many steps the restart
+    lost, and the map versions on the bus go on without a gap or a version made twice
+    (but the one it was killed before sending)."""
+    import re
+
+    snapshot = tmp_path / "run" / "maps" / "r1.npy"
+    run = LaunchProcess("lone_obstacle", tmp_path / "run", "--learn", "--mode", "realtime", "--max-time", "10",
+                        "--model", str(default_model_path()))
+    try:
+        run.wait_line("world started ticking", timeout=120)
+        deadline = time.monotonic() + 60
+        while not (snapshot.exists() and np.load(snapshot)[0] >= 2):  # version 2 made and kept (an event on disk)
+            assert time.monotonic() < deadline, "no map version 2 on disk"
+            time.sleep(0.01)
+        kept = int(np.load(snapshot)[0])
+        os.kill(run.pids()["r1/learner"], signal.SIGKILL)
+        code = run.finish(timeout=180)
+    finally:
+        run.kill()
+    assert code == 0, "\n".join(run.lines)
+    assert run.outcome()["launcher"]["restarts"] == {"r1/learner": 1}
+    log = (run.out / "logs" / "r1-learner.log").read_text()
+    resumed = re.search(r"restarted from map version (\d+) \(", log)
+    assert resumed and int(resumed.group(1)) >= kept, log  # from its snapshot, not from the model (version 0)
+    lost = re.search(r"restarted from map version \d+; (\d+) steps", log)
+    assert lost, log  # the log says how many steps were lost, 0 included
+    got = versions(run.out / "run.mcap")["r1"]
+    numbers = [v for v, _ in got]
+    assert numbers == sorted(set(numbers)) and numbers[-1] > kept  # none made twice
+    # none missing, but the one the learner kept on disk and was killed before sending (it is
+    # written before it is sent): its successor holds every step of it
+    missing = sorted(set(range(numbers[0], numbers[-1] + 1)) - set(numbers))
+    assert missing in ([], [int(resumed.group(1))]), (numbers, resumed.group(1))
+    print(f"kept version {kept}, resumed from {resumed.group(1)}, {lost.group(1)} steps lost, {numbers[-1]} versions")
