@@ -69,8 +69,37 @@ def assert_equal_runs(run, ref, history):
         assert got["end"] == block["end"] and got["start"] == block["start"]
 
 
-def test_a_team_of_three_untrained_robots_learns_the_same_in_lockstep_as_in_process(tmp_path):
-    """Team sharing: each learner also learns from its teammates' (v, c) of the tick before."""
+def replayed_maps(log, clients) -> list[tuple[str, bytes]]:
+    """The map messages a subscriber receives while ``cekm replay`` republishes ``log``."""
+    import threading
+
+    from cekm_swarm.runtime.bridge import Publishers
+    from cekm_swarm.runtime.mcap_read import read_messages
+    from cekm_swarm.runtime.replay import replay_log
+
+    want = [m.topic for m in read_messages(log) if m.topic.endswith("/model/update")]
+    got: list[tuple[str, bytes]] = []
+    done = threading.Event()
+
+    def on(sample) -> None:
+        got.append((str(sample.key_expr), sample.payload.to_bytes()))
+        if len(got) == len(want):
+            done.set()
+
+    sub = clients().declare_subscriber("cekm/**/model/update", on)
+    a = clients()
+    pubs = Publishers(a, block=True)
+    assert pubs.wait_matching(want[0], 30)  # the subscription known before the first message goes
+    replay_log(a, log, rate=None, publishers=pubs, key_expr="cekm/**/model/update")
+    assert done.wait(30), f"{len(got)} of {len(want)} map messages"
+    pubs.close()
+    sub.undeclare()
+    return got
+
+
+def test_a_team_of_three_untrained_robots_learns_the_same_in_lockstep_as_in_process(tmp_path, clients):
+    """Team sharing: each learner also learns from its teammates' (v, c) of the tick before.
+    ``cekm replay`` of its log gives every map message, so every version, bit for bit."""
     run = launched(tmp_path, "crossing", 4, "--model", "untrained", "--controller", "cekm-learning-team",
                    kill="r2/obstacle-3")
     ref, history = in_process("crossing", untrained_model(), "untrained", 4, "cekm-learning-team")
@@ -86,6 +115,15 @@ def test_a_team_of_three_untrained_robots_learns_the_same_in_lockstep_as_in_proc
     assert run_cli_args(["model", "extract", str(run.out / "run.mcap"), "--robot", "r3", "--out", str(out)]) == 0
     m = load_model(out)  # a model file cekm run --model takes
     assert map_digest(m.w, m.M) == history["r3"][-1][1]
+    from cekm_swarm.protocol import decode
+    from cekm_swarm.runtime.mcap_read import read_messages
+
+    recorded = [(m.topic, m.data) for m in read_messages(run.out / "run.mcap") if m.topic.endswith("/model/update")]
+    replayed = replayed_maps(run.out / "run.mcap", clients)
+    assert replayed == recorded  # every byte, in order
+    last = {key.split("/")[1]: decode(key, data) for key, data in replayed}
+    assert {r: msg.digest for r, msg in last.items()} == {r: h[-1][1] for r, h in history.items()}
+    assert all(map_digest(msg.w, msg.M) == msg.digest for msg in last.values())
 
 
 def test_one_trained_robot_learns_the_same_in_lockstep_as_in_process_its_learner_killed(tmp_path):
