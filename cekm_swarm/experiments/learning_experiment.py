@@ -59,6 +59,7 @@ class Curve:
     updates: list[int] = field(default_factory=list)  # every update of its map (own and teammates')
     E_mm: list[float] = field(default_factory=list)
     T_s_per_m: list[float] = field(default_factory=list)
+    D: list[float] = field(default_factory=list)
     targets_reached: int = 0
     collisions: int = 0
 
@@ -86,6 +87,7 @@ def run_one(team: int, share: bool, seed: int, config: LearningConfig, folder: P
             curve.updates.append(node.counts.learned)
             curve.E_mm.append(s["E_mm"])
             curve.T_s_per_m.append(s["T_s_per_m"])
+            curve.D.append(s["D"])
 
     run = run_graph(load_scenario(path), graph=checked, model=untrained_model(), seed=seed,
                     max_time=(config.ticks - 0.5) * 0.128, observe=observe)
@@ -128,7 +130,7 @@ def results_doc(config: LearningConfig, curves: list[Curve]) -> dict[str, Any]:
     for c in curves:
         key = f"{c.team}{'-shared' if c.share else ''}"
         row = summary.setdefault(key, {"team": c.team, "shared": c.share, "steps_to_E": [], "steps_to_T": [],
-                                       "final_E_mm": [], "final_T_s_per_m": [], "targets_reached": [],
+                                       "final_E_mm": [], "final_T_s_per_m": [], "final_D": [], "targets_reached": [],
                                        "collisions": []})
         row["steps_to_E"].append(steps_to(c, config.threshold_mm))
         row["steps_to_T"].append(steps_to(c, config.threshold_T, "T_s_per_m"))
@@ -136,6 +138,7 @@ def results_doc(config: LearningConfig, curves: list[Curve]) -> dict[str, Any]:
         row["collisions"].append(c.collisions)
         row["final_E_mm"].append(c.E_mm[-1])
         row["final_T_s_per_m"].append(c.T_s_per_m[-1])
+        row["final_D"].append(c.D[-1])
     return {"config": asdict(config), "summary": summary, "curves": [asdict(c) for c in curves]}
 
 
