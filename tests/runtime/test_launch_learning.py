@@ -129,22 +129,31 @@ def test_a_team_of_three_untrained_robots_learns_the_same_in_lockstep_as_in_proc
     assert all(map_digest(msg.w, msg.M) == msg.digest for msg in last.values())
 
 
-def test_one_trained_robot_learns_the_same_in_lockstep_as_in_process_its_learner_killed(tmp_path):
-    """The learner SIGKILLed once it has made a version: it goes on from its snapshot."""
+def learner_killed_at_version(tmp_path, mode: str, max_time: float, version: int) -> tuple[LaunchProcess, int]:
+    """A launch of lone_obstacle with the trained map whose learner is SIGKILLed once its
+    snapshot on disk holds ``version`` (waited for, bounded); the run, ended, and the
+    version the snapshot held at the kill."""
     snapshot = tmp_path / "run" / "maps" / "r1.npy"
-    run = LaunchProcess("lone_obstacle", tmp_path / "run", "--learn", "--mode", "lockstep", "--max-time", "6",
+    run = LaunchProcess("lone_obstacle", tmp_path / "run", "--learn", "--mode", mode, "--max-time", str(max_time),
                         "--model", str(default_model_path()))
     try:
         run.wait_line("world started ticking", timeout=120)
         deadline = time.monotonic() + 60
-        while not (snapshot.exists() and np.load(snapshot)[0] >= 1):  # version 1 made and kept
-            assert time.monotonic() < deadline, "no map version on disk"
+        while not (snapshot.exists() and np.load(snapshot)[0] >= version):  # the version made and kept
+            assert time.monotonic() < deadline, f"no map version {version} on disk"
             time.sleep(0.005)
+        kept = int(np.load(snapshot)[0])
         os.kill(run.pids()["r1/learner"], signal.SIGKILL)
         code = run.finish(timeout=180)
     finally:
         run.kill()
     assert code == 0, "\n".join(run.lines)
+    return run, kept
+
+
+def test_one_trained_robot_learns_the_same_in_lockstep_as_in_process_its_learner_killed(tmp_path):
+    """The learner SIGKILLed once it has made a version: it goes on from its snapshot."""
+    run, _ = learner_killed_at_version(tmp_path, "lockstep", 6, 1)
     ref, history = in_process("lone_obstacle", default_model(progress=False), None, 6)
     assert run.outcome()["launcher"]["restarts"] == {"r1/learner": 1}
     assert "restarted from map version" in (run.out / "logs" / "r1-learner.log").read_text()
@@ -209,21 +218,7 @@ def test_a_learner_sigkilled_in_real_time_goes_on_from_its_last_version_and_says
     (but the one it was killed before sending)."""
     import re
 
-    snapshot = tmp_path / "run" / "maps" / "r1.npy"
-    run = LaunchProcess("lone_obstacle", tmp_path / "run", "--learn", "--mode", "realtime", "--max-time", "10",
-                        "--model", str(default_model_path()))
-    try:
-        run.wait_line("world started ticking", timeout=120)
-        deadline = time.monotonic() + 60
-        while not (snapshot.exists() and np.load(snapshot)[0] >= 2):  # version 2 made and kept (an event on disk)
-            assert time.monotonic() < deadline, "no map version 2 on disk"
-            time.sleep(0.01)
-        kept = int(np.load(snapshot)[0])
-        os.kill(run.pids()["r1/learner"], signal.SIGKILL)
-        code = run.finish(timeout=180)
-    finally:
-        run.kill()
-    assert code == 0, "\n".join(run.lines)
+    run, kept = learner_killed_at_version(tmp_path, "realtime", 10, 2)
     assert run.outcome()["launcher"]["restarts"] == {"r1/learner": 1}
     log = (run.out / "logs" / "r1-learner.log").read_text()
     resumed = re.search(r"restarted from map version (\d+) \(", log)
