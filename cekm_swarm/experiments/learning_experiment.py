@@ -3,7 +3,8 @@
 Teams of robots start from untrained maps (R15, ``--model untrained``) in the 5 m x 5 m
 obstacle-free arena of section 4.1 and learn online while they reach targets drawn at
 random (a new one when a robot stops at its target, or after 100 steps of 1.024 s:
-:class:`world.training.TrainingEpisode`), every robot with the learning graph
+:class:`world.training.TrainingEpisode`) with section 4.1's training exploration noise on
+their executed wheel speeds (the scenario's ``explore``), every robot with the learning graph
 (``cekm-learning``) or the team-learning graph (``cekm-learning-team``, each learner also
 learns from its teammates' (v, c) pairs). At fixed ticks the first robot's map is
 scored on the section 4.1 test (E, T: :func:`.learning_run.test_score`), against the
@@ -34,7 +35,8 @@ class LearningConfig:
 
 
 def scenario_text(n: int) -> str:
-    """A team of n robots in the arena, on a ring around its centre facing out, each with a target."""
+    """A team of n robots in the arena, on a ring around its centre facing out, each with a
+    target (section 4.1's training: new targets, exploration noise)."""
     lines = ['name = "learning"', 'description = "section 4.1 arena, a team learning online"', "seed = 1",
              "retarget = true", "explore = true", "",
              "[arena]", f"bounds = [{-ARENA}, {-ARENA}, {ARENA}, {ARENA}]", "boundary_walls = true",
