@@ -120,6 +120,7 @@ class Scenario:
     speed_unit: float = DEFAULT_SPEED_UNIT  # [plant]: wheel speeds are whole multiples of it; 0 = continuous
     plan_checkpoints: bool = False  # plan checkpoints on the known walls and feed them as goals (Fig. 12)
     retarget: bool = False  # a new random target when a robot stops at its own (section 4.1's training; world.training)
+    explore: bool = False  # with retarget: exploration noise on the executed wheel speeds (world.training)
 
     @property
     def robot_ids(self) -> list[str]:

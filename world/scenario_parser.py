@@ -148,13 +148,15 @@ class Parser:
             dict(raw),
             "",
             ("arena", "robots"),
-            ("name", "description", "seed", "plan_checkpoints", "retarget", "sensors", "plant", "targets", "walls",
+            ("name", "description", "seed", "plan_checkpoints", "retarget", "explore", "sensors", "plant", "targets", "walls",
              "obstacles"),
         )
         name = self.string(doc.get("name", default_name), "name")
         description = self.string(doc.get("description", ""), "description")
         seed = self.integer(doc.get("seed", 0), "seed", ge=0)
-        plan, retarget = (self.boolean(doc.get(k, False), k) for k in ("plan_checkpoints", "retarget"))
+        plan, retarget, explore = (self.boolean(doc.get(k, False), k) for k in ("plan_checkpoints", "retarget", "explore"))
+        if explore and not retarget:
+            self.fail("explore", "training exploration noise needs retarget = true (section 4.1's training)")
 
         arena = self.table(doc["arena"], "arena", ("bounds",), ("boundary_walls", "wall_thickness"))
         bounds = self.vector(arena["bounds"], "arena.bounds", 4, "[xmin, ymin, xmax, ymax]")
@@ -262,7 +264,7 @@ class Parser:
             obstacles=tuple(obstacles),
             targets=tuple(targets),
             speed_unit=speed_unit,
-            plan_checkpoints=plan, retarget=retarget,
+            plan_checkpoints=plan, retarget=retarget, explore=explore,
         )
         self.check_outside(sc)
         self.check_overlaps(sc)

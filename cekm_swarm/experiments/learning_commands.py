@@ -73,7 +73,7 @@ def extract_cmd(log: Path, robot: str | None, at_time: float | None, base_model:
               help="The .mcap to write (replaced if it exists).")
 def lattice_cmd(log: Path, out_path: Path) -> None:
     """Write every map version of a learning run's LOG as a Foxglove view of its lattice
-    (``/view/lattice/<robot>``; a --learn launch writes OUT/lattice.mcap itself)."""
+    (``/view/lattice/<robot>``; a --learn launch writes them into its run.mcap itself)."""
     from ..runtime.lattice_view import write_lattice_log
 
     try:
@@ -124,9 +124,12 @@ def add_launch_learning(out_dir: Path, outcome: dict[str, Any], model_path) -> d
     from ..runtime import foxglove_view
 
     if foxglove_view.available():  # the maps as Foxglove views (docs/learning.md)
-        from ..runtime.lattice_view import write_lattice_log
+        from ..runtime.lattice_view import add_lattice_channel, write_lattice_log
 
-        write_lattice_log(log, Path(out_dir) / "lattice.mcap")
+        if log.is_file():  # a channel of the run's own log
+            add_lattice_channel(log)
+        else:  # a log set (a directory): a file of its own beside it
+            write_lattice_log(log, Path(out_dir) / "lattice.mcap")
     return block
 
 

@@ -3,7 +3,8 @@
 Teams of robots start from untrained maps (R15, ``--model untrained``) in the 5 m x 5 m
 obstacle-free arena of section 4.1 and learn online while they reach targets drawn at
 random (a new one when a robot stops at its target, or after 100 steps of 1.024 s:
-:class:`world.training.TrainingEpisode`), every robot with the learning graph
+:class:`world.training.TrainingEpisode`) with section 4.1's training exploration noise on
+their executed wheel speeds (the scenario's ``explore``), every robot with the learning graph
 (``cekm-learning``) or the team-learning graph (``cekm-learning-team``, each learner also
 learns from its teammates' (v, c) pairs). At fixed ticks the first robot's map is
 scored on the section 4.1 test (E, T: :func:`.learning_run.test_score`), against the
@@ -34,9 +35,10 @@ class LearningConfig:
 
 
 def scenario_text(n: int) -> str:
-    """A team of n robots in the arena, on a ring around its centre facing out, each with a target."""
+    """A team of n robots in the arena, on a ring around its centre facing out, each with a
+    target (section 4.1's training: new targets, exploration noise)."""
     lines = ['name = "learning"', 'description = "section 4.1 arena, a team learning online"', "seed = 1",
-             "retarget = true", "",
+             "retarget = true", "explore = true", "",
              "[arena]", f"bounds = [{-ARENA}, {-ARENA}, {ARENA}, {ARENA}]", "boundary_walls = true",
              "wall_thickness = 0.02", ""]
     for i in range(n):
@@ -59,6 +61,7 @@ class Curve:
     updates: list[int] = field(default_factory=list)  # every update of its map (own and teammates')
     E_mm: list[float] = field(default_factory=list)
     T_s_per_m: list[float] = field(default_factory=list)
+    D: list[float] = field(default_factory=list)
     targets_reached: int = 0
     collisions: int = 0
 
@@ -86,6 +89,7 @@ def run_one(team: int, share: bool, seed: int, config: LearningConfig, folder: P
             curve.updates.append(node.counts.learned)
             curve.E_mm.append(s["E_mm"])
             curve.T_s_per_m.append(s["T_s_per_m"])
+            curve.D.append(s["D"])
 
     run = run_graph(load_scenario(path), graph=checked, model=untrained_model(), seed=seed,
                     max_time=(config.ticks - 0.5) * 0.128, observe=observe)
@@ -128,7 +132,7 @@ def results_doc(config: LearningConfig, curves: list[Curve]) -> dict[str, Any]:
     for c in curves:
         key = f"{c.team}{'-shared' if c.share else ''}"
         row = summary.setdefault(key, {"team": c.team, "shared": c.share, "steps_to_E": [], "steps_to_T": [],
-                                       "final_E_mm": [], "final_T_s_per_m": [], "targets_reached": [],
+                                       "final_E_mm": [], "final_T_s_per_m": [], "final_D": [], "targets_reached": [],
                                        "collisions": []})
         row["steps_to_E"].append(steps_to(c, config.threshold_mm))
         row["steps_to_T"].append(steps_to(c, config.threshold_T, "T_s_per_m"))
@@ -136,6 +140,7 @@ def results_doc(config: LearningConfig, curves: list[Curve]) -> dict[str, Any]:
         row["collisions"].append(c.collisions)
         row["final_E_mm"].append(c.E_mm[-1])
         row["final_T_s_per_m"].append(c.T_s_per_m[-1])
+        row["final_D"].append(c.D[-1])
     return {"config": asdict(config), "summary": summary, "curves": [asdict(c) for c in curves]}
 
 

@@ -155,6 +155,9 @@ class Learner(Node):
             if self.lost:
                 self.ctx.log.warning("%s: restarted from map version %d; %d steps (ticks %d-%d) were lost",
                                      self.ctx.sender, self.version, self.lost, self.last_tick + 1, odo.ticks[0] - 1)
+            else:  # said either way, so a log always tells how many a restart lost
+                self.ctx.log.warning("%s: restarted from map version %d; 0 steps were lost (the record still held "
+                                     "tick %d on)", self.ctx.sender, self.version, self.last_tick + 1)
         for i, k in enumerate(odo.ticks):
             if k <= self.last_tick:
                 continue
@@ -310,6 +313,15 @@ def map_misfit(msg: MapVersion, version: int, n: int) -> str | None:
     return None
 
 
+def warm_winner(ekm) -> None:
+    """Load numba's competition (``models.fast.winner``, compiled and cached on disk) and
+    run it once, so that a map version's first winners cost no compilation."""
+    from cekm_swarm.models import fast
+
+    params = fast.pack_params(ekm.model.comp, ekm.model.learn_p, ekm.model.v_max, 1e-3)
+    fast.winner(0.0, 0.05, np.ascontiguousarray(ekm.model.w), params)
+
+
 class MapFollower:
     """What an EKM node of a learning robot adds: its ``map`` input, the learner's latest
     version before the tick, used from that tick on (``self.ekm`` rebuilt on a new version,
@@ -332,9 +344,16 @@ class MapFollower:
             return
         from dataclasses import replace
 
-        self.ekm = replace(self.ekm, model=model_of(self.ekm.model, msg), tabulate=False)
+        # numba winners: a new version empties the winner memo, and numpy's competition
+        # (tens of us) would then run again for every reading; numba's gives the same
+        # winners bit for bit (tested) in about 1 us (docs/learning.md, cost)
+        self.ekm = replace(self.ekm, model=model_of(self.ekm.model, msg), tabulate=False, backend="numba")
         self.version = msg.version
         self.digest = msg.digest
+
+    def setup(self) -> None:
+        super().setup()
+        warm_winner(self.ekm)  # in the launcher's fork server (warm_setup): its children find it compiled
 
     def check_input(self, port: str, msg) -> str | None:
         if port != "map":

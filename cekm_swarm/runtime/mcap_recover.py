@@ -3,6 +3,7 @@ record of it into a complete, indexed file."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -31,7 +32,8 @@ class RecoveryReport:
 
 
 def recover_log(path: str | Path, output: str | Path | None = None, *,
-                chunk_size: int = DEFAULT_CHUNK_SIZE) -> RecoveryReport:
+                chunk_size: int = DEFAULT_CHUNK_SIZE,
+                extra: Callable[[McapRecorder], object] | None = None) -> RecoveryReport:
     """Rewrite a (possibly truncated) log as a complete, indexed file.
 
     Reads the input's records in file order with the mcap library's stream reader (no
@@ -39,7 +41,9 @@ def recover_log(path: str | Path, output: str | Path | None = None, *,
     times and sequence, and every metadata and attachment record into ``output``
     (default ``<name>.recovered.mcap``). A record cut in the middle (the writer was
     killed while writing it, or its chunk was still in memory) ends the copy: what came
-    before is kept. The input is left untouched."""
+    before is kept. ``extra``, when given, then writes more into the output (channels of
+    views made from the log: :func:`~cekm_swarm.runtime.lattice_view.add_lattice_channel`).
+    The input is left untouched."""
     src = _open(path)
     out = Path(output) if output is not None else src.with_name(src.stem + ".recovered.mcap")
     if out.resolve() == src.resolve():
@@ -73,6 +77,8 @@ def recover_log(path: str | Path, output: str | Path | None = None, *,
                     footer = True
         except Exception as exc:  # the cut: EndOfFile, McapError (bad CRC), struct.error, zstd errors ...
             cut = _cut_reason(exc)
+        if extra is not None:
+            extra(rec)
         n_channels = len(rec.topics)
     if cut is None and not footer:
         cut = "no footer"

@@ -4,7 +4,10 @@ whatever graph runs: its target field a (a target module's ``TargetField``, or a
 module's ``TrackingField`` with its teammate fields), its obstacle fields b_j (every
 ``ObstacleField`` it sends, on whatever keys its graph gives them) and the motor-EKM
 activity e = a - sum b (Eq. 9) with the winners s (target) and k = argmax e (Eq. 10). A
-controller that sends no fields (command fusion, A-CMOMMT) shows none, and says so.
+controller that sends no fields (command fusion, A-CMOMMT) shows none, and says so. A
+learning robot (docs/learning.md) also shows its map learning: the version, the updates so
+far, the running error of its learner's last run, and the lattice's input weights as the
+displacements they stand for (Fig. 6), from its ``MapVersion`` messages.
 
 A new run (the world's token carries a new run id, or sim time jumps back: a replay
 started again) starts the view afresh: no path of one run is joined to the next.
@@ -26,6 +29,7 @@ from cekm_swarm.protocol import (
     DEFAULT_KEYS,
     DropCounter,
     KeySpace,
+    MapVersion,
     ObstacleField,
     TargetField,
     TrackingField,
@@ -65,6 +69,7 @@ class LiveView:
         self.paths: dict[str, list[list[float]]] = {}
         self.target_field: TargetField | TrackingField | None = None
         self.obstacle_fields: dict[str, ObstacleField] = {}  # by key
+        self.map: MapVersion | None = None  # the chosen robot's latest map version (a learning robot)
         self.run: str | None = None  # the run id of the world server, when known
         self.graph: str | None = None  # the run's graph (controller), when the world serves it
         self.ended = False  # the run's world server is gone: the page says the run has ended
@@ -79,6 +84,7 @@ class LiveView:
             self.time = math.nan
             self.poses, self.targets, self.obstacles, self.paths = {}, {}, {}, {}
             self.target_field, self.obstacle_fields = None, {}
+            self.map = None
             self.version += 1
             self.changed.notify_all()
 
@@ -137,6 +143,10 @@ class LiveView:
                     self.obstacle_fields[key] = msg
                 else:
                     self.target_field = msg
+            elif isinstance(msg, MapVersion):
+                if self.keys.parse(key).robot != self.robot or (self.map is not None and msg.version < self.map.version):
+                    return
+                self.map = msg
             else:
                 return
             self.version += 1
@@ -194,6 +204,20 @@ class LiveView:
                        k=int(np.argmax(e)))  # Eq. 10
         return out
 
+    def learning(self) -> dict[str, Any] | None:
+        """The chosen robot's map as it learns (None: no map version seen): version, updates
+        applied so far (own and teammates'), steps seen and skipped, the running error
+        (m/s, |c - M_s v| of the learner's last run, Eq. 13) and each neuron's input weight
+        as the displacement it stands for, (d cos alpha, d sin alpha), on a size x size lattice."""
+        m = self.map
+        if m is None:
+            return None
+        n = m.w.shape[0] // 2
+        w = m.w.reshape(n, 2)
+        return {"version": m.version, "stamp": _r(m.stamp, 3), "updates": m.applied, "steps": m.steps,
+                "skipped": m.skipped, "error": _r(m.error, 6), "size": math.isqrt(n),
+                "points": [[_r(d * math.cos(a), 5), _r(d * math.sin(a), 5)] for a, d in w.tolist()]}
+
     def lattice(self) -> list[list[float]] | None:
         """Neuron positions (alpha, d) from the model's w, or None (placed by index)."""
         return None if self.w is None else [[_r(a), _r(d)] for a, d in self.w]
@@ -214,7 +238,7 @@ class LiveView:
                 "arena": self.geometry.get("name"),
                 "time": None if math.isnan(self.time) else _r(self.time, 3),
                 "robots": dict(self.poses), "targets": self.targets, "obstacles": self.obstacles,
-                "fields": self.fields(), "dropped": self.drops.total}
+                "fields": self.fields(), "learning": self.learning(), "dropped": self.drops.total}
 
     def wait_change(self, version: int, timeout: float) -> bool:
         """Block until the version differs from ``version`` (True) or ``timeout`` s pass."""

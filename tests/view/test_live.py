@@ -180,3 +180,31 @@ def test_a_logs_arena_gives_the_same_sensing_circles_as_its_scenario(tmp_path):
         w.finish()
     from_log, from_scenario = _geometry(None, path, None)[1], _geometry("tracking", None, None)[1]
     assert from_log == from_scenario and len(from_log) == 2
+
+
+def test_a_learning_robots_map_shows_its_version_updates_error_and_lattice():
+    """The chosen robot's MapVersion: its version, updates so far, running error and each
+    neuron's input weight as the displacement it stands for (Fig. 6); another robot's, or an
+    older version, changes nothing."""
+    from cekm_swarm.models.learning import map_digest
+    from cekm_swarm.protocol import MapVersion
+
+    def version(robot, k, alpha):
+        w = np.array([alpha, 0.1, 0.0, 0.05, -alpha, 0.1, 3.0, 0.02])  # 2 x 2 neurons: (alpha_i, d_i)
+        M = np.arange(16, dtype=np.float64)
+        return K.root + f"/{robot}/model/update", encode(MapVersion(k * 1.024, f"{robot}/learner", k, 10 * k, 9 * k, k,
+                                                                     map_digest(w, M), w, M, 0.002 * k))
+
+    v = LiveView(GEOMETRY)
+    assert v.learning() is None and v.tick()["learning"] is None
+    v.observe(*version("r1", 2, 0.5))
+    v.observe(*version("r2", 3, 0.9))  # not the chosen robot
+    v.observe(*version("r1", 1, 0.7))  # older than the one it shows
+    got = v.tick()["learning"]
+    assert (got["version"], got["updates"], got["steps"], got["skipped"], got["error"], got["size"]) == (2, 18, 20, 2,
+                                                                                                       0.004, 2)
+    assert got["points"][0] == pytest.approx([0.1 * np.cos(0.5), 0.1 * np.sin(0.5)], abs=1e-5)
+    assert got["points"][2] == pytest.approx([0.1 * np.cos(0.5), -0.1 * np.sin(0.5)], abs=1e-5)
+    assert got["points"][3] == pytest.approx([0.02 * np.cos(3.0), 0.02 * np.sin(3.0)], abs=1e-5)
+    v.new_run("another")
+    assert v.learning() is None

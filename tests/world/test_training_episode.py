@@ -5,11 +5,14 @@ from __future__ import annotations
 
 import tomllib
 
+import numpy as np
+import pytest
+
 from cekm_swarm.experiments.learning_experiment import scenario_text
 from world import World
 from world.episode import make_episode
-from world.scenario import parse_scenario
-from world.training import TrainingEpisode
+from world.scenario import ScenarioError, parse_scenario
+from world.training import EXPLORE_ABS, EXPLORE_REL, TrainingEpisode, explore
 
 TEXT = scenario_text(1)  # one robot in section 4.1's arena, retarget = true
 
@@ -45,3 +48,31 @@ def test_a_new_target_at_a_stop_at_the_target_or_when_the_budget_runs_out():
     again.apply({"r1": (0.0, 0.0)})
     assert again.progress["r1"].checkpoints[0] == first  # seeded
     assert ep.outcome()["r1"]["targets_reached"] == 1
+
+
+def test_exploration_noise_is_on_the_executed_command_seeded_and_a_stop_stays_a_stop():
+    assert world().scenario.explore
+    ep, again = TrainingEpisode(world(), seed=3), TrainingEpisode(world(), seed=3)
+    for e in (ep, again):
+        e.readings()
+        e.apply({"r1": (0.05, 0.02)})
+    held = ep.world.wheel_command("r1")
+    assert held != (0.05, 0.02) and held == again.world.wheel_command("r1")  # executed: the noisy one, seeded
+    ep.advance()
+    ep.readings()
+    ep.apply({"r1": (0.0, 0.0)})
+    assert ep.world.wheel_command("r1") == (0.0, 0.0)
+    rng = np.random.default_rng(0)
+    z = np.array([explore((0.05, -0.02), rng) for _ in range(4000)]) - [0.05, -0.02]
+    assert z.std(axis=0) == pytest.approx([EXPLORE_REL * 0.05 + EXPLORE_ABS, EXPLORE_REL * 0.02 + EXPLORE_ABS], rel=0.05)
+    plain = TrainingEpisode(World(parse_scenario(tomllib.loads(TEXT.replace("explore = true", "")))), seed=3)
+    plain.readings()
+    plain.apply({"r1": (0.05, 0.02)})
+    direct = world()
+    direct.set_wheels("r1", 0.05, 0.02)
+    assert plain.world.wheel_command("r1") == direct.wheel_command("r1")  # without explore: the command as sent
+
+
+def test_explore_without_retarget_is_refused_naming_the_key():
+    with pytest.raises(ScenarioError, match="explore"):
+        parse_scenario(tomllib.loads(TEXT.replace("retarget = true", "")))
