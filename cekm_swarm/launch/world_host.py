@@ -62,6 +62,8 @@ def format_event(doc: dict[str, Any]) -> str:
     if what == "deadman":
         said = (f"{doc.get('robot')} silent for {doc.get('silent_s')} s (limit {doc.get('limit_s')} s), stopped "
                 f"until its commands come again")
+    elif what == "goal" and isinstance(doc.get("goal"), list) and len(doc["goal"]) == 2:  # a ROS 2 goal_pose
+        said = f"{doc.get('robot')}'s goal is now ({float(doc['goal'][0]):.2f}, {float(doc['goal'][1]):.2f})"
     elif what == "republish":
         said = f"waiting for {', '.join(map(str, doc.get('waiting') or [])) or 'nobody'}, the tick's readings sent again"
     else:

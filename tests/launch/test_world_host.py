@@ -27,3 +27,5 @@ def test_world_events_read_as_sentences_without_dicts_or_epoch_stamps():
     line = format_event({"event": "modules_missing", "t": 0.0, "after_s": 180, "missing": ["r1/motor"]})
     assert line == "world event at t=0.00 s: modules_missing: after_s 180, missing r1/motor"
     assert "{" not in line and "1764800000" not in line
+    assert format_event({"event": "goal", "t": 1.024, "robot": "r1", "goal": [1.7, 1.0], "wall": 1764800000.1}) == \
+        "world event at t=1.02 s: goal: r1's goal is now (1.70, 1.00)"

@@ -50,7 +50,7 @@ def test_cekm_drives_a_ros2_robot_past_the_disc_through_bad_input_and_a_killed_m
     launch.expect("", timeout=120, where=lambda s: "world started ticking" in s)
     sim.send("goal r1 1.7 1.0")  # Nav2's goal_pose: the goal moves 0.2 m further, behind the disc still
     sim.expect("GOAL", timeout=30)
-    launch.expect("", timeout=30, where=lambda s: ": goal {'robot': 'r1', 'goal': [1.7, 1.0]}" in s)
+    launch.expect("", timeout=30, where=lambda s: "goal: r1's goal is now (1.70, 1.00)" in s)
     sim.send("bad r1")  # NaN poses, an unknown frame, stale stamps, a short scan, 10,000 malformed payloads
     bad = json.loads(sim.expect("BAD", timeout=120).split(" ", 1)[1])
     launch.expect("", timeout=60, where=lambda s: " m to goal" in s and "t=   0.00" not in s)  # on its way
