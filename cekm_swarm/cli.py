@@ -20,6 +20,7 @@ from .cli_support import (
     run_cli,
 )
 from .errors import CekmError
+from .experiments.commands import engine_options
 
 MIN_SPEED_UNIT = 1e-6
 """The smallest positive wheel speed unit (m/s) a command takes for the plant."""
@@ -154,7 +155,7 @@ def circling(out_dir: Path, network: str, seed: int, trial: int, target: int | N
 @click.option("--max-time", default=300.0, show_default=True, type=Finite(min=1.0),
               help="Sim seconds before a robot counts as trapped.")
 @click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path))
-@click.option("--workers", type=click.IntRange(1), help="Parallel processes (default: one per core).")
+@engine_options
 @out_dir_options("Directory for outcomes.json and the figures.")
 def obstacles(seeds: str, speed_unit: float | None, max_time: float, model_path: Path | None, workers: int | None,
               out_dir: Path, overwrite: bool) -> None:
@@ -193,7 +194,7 @@ def obstacles(seeds: str, speed_unit: float | None, max_time: float, model_path:
 @click.option("--robots", default="2,4,8", show_default=True, help="Team sizes, comma-separated.")
 @click.option("--duration", type=Finite(min=1.0), help="Sim seconds per run (default 60; --grid --quick 8).")
 @click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path))
-@click.option("--workers", type=click.IntRange(1), help="Parallel processes (default: one per core).")
+@engine_options
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 @click.option("--grid", is_flag=True, help="The scenario grid instead (team size, targets per robot, target speed, "
               "sensing range, obstacles; docs/tracking.md): results.json, tables.md, grid.png.")
@@ -404,7 +405,7 @@ def sweep() -> None:
 @click.option("--need", default=2, show_default=True, type=click.IntRange(1), help="Successes a width needs.")
 @click.option("--max-time", default=300.0, show_default=True, type=Finite(min=1.0))
 @click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path))
-@click.option("--workers", type=click.IntRange(1), help="Parallel processes (default: one per core).")
+@engine_options
 @out_dir_options("Directory for fig9.json, fig9.png and fig9_grid.png.")
 def sweep_concave(depths: str, widths: str, ranges: str, seeds: str, need: int, max_time: float,
                   model_path: Path | None, workers: int | None, out_dir: Path, overwrite: bool) -> None:

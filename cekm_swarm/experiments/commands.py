@@ -9,6 +9,7 @@ import no click and no matplotlib at module level; this module talks to the term
 from __future__ import annotations
 
 import dataclasses
+import functools
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Sequence
@@ -20,6 +21,31 @@ from ..errors import ParameterError
 
 if TYPE_CHECKING:
     from .reaching_run import NetworkRun, TargetReachingConfig
+
+
+def engine_options(fn: Callable[..., Any]) -> Callable[..., Any]:
+    """A many-run experiment's ``--workers N`` (the local Dask cluster's processes; 1: in
+    this process) and ``--cluster tcp://HOST:PORT`` (a running Dask scheduler instead): the
+    command runs inside :func:`.engine.on_cluster` (:mod:`.engine`)."""
+    from .engine import ClusterAddressError, check_address, on_cluster
+
+    def address(ctx: click.Context, param: click.Parameter, value: str | None) -> str | None:
+        try:
+            return None if value is None else check_address(value)
+        except ClusterAddressError as exc:
+            raise click.BadParameter(str(exc)) from None
+
+    @click.option("--workers", type=click.IntRange(1),
+                  help="Local worker processes (default: one per core; 1: in this process).")
+    @click.option("--cluster", callback=address, metavar="tcp://HOST:PORT",
+                  help="Run on the Dask scheduler at this address instead of a local cluster "
+                       "(docs/performance.md, \"Experiments on a cluster\").")
+    @functools.wraps(fn)
+    def wrapper(*args: Any, cluster: str | None = None, **kwargs: Any) -> Any:
+        with on_cluster(cluster):
+            return fn(*args, **kwargs)
+
+    return wrapper
 
 
 def run_navigation_cmd(scenario, controller: str, model, seed: int | None, max_time: float, out_dir, graph) -> None:
