@@ -166,7 +166,8 @@ def served(n: int, sim: float, port: int, tmp: Path) -> dict:
     doc_line = {k: json.loads(line.split(" ", 1)[1]) for line in lines for k in ("START", "DONE")
                 if line.startswith(k + " ")}
     if "DONE" not in doc_line or not (out / "outcome.json").exists():
-        return {"robots": n, "error": "".join(lines)[-1500:]}
+        return {"robots": n, "error": f"no DONE line or outcome.json ({sorted(doc_line)}, exit {world.returncode}): "
+                + "".join(lines)[-1500:]}
     outcome = json.loads((out / "outcome.json").read_text())
     ticks = max(1, outcome["ticks"])
     cpu = doc_line["DONE"]["cpu_s"] - doc_line["START"]["cpu_s"]
