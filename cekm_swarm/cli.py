@@ -83,10 +83,11 @@ def experiment() -> None:
 @click.option("--target-resolution", type=Finite(min=0.0, max=0.1, max_open=True), default=0.001,
               show_default=True, help="The target sensor rounds distances to this (m); 0: not rounded.")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
+@engine_options
 def target_reaching(out_dir: Path, overwrite: bool, networks: str, trials: int, steps: int, test_interval: int,
                     test_targets: int, seed: int, master_seeds: int, stop_rule: str, train_stop: str,
                     motor_resolution: float,
-                    bfn_rule: str, speed_unit: float, target_resolution: float, quiet: bool) -> None:
+                    bfn_rule: str, speed_unit: float, target_resolution: float, quiet: bool, workers: int | None) -> None:
     """Reproduce section 4.1: Tables 1-4 and Figures 5-7 (obstacle-free target reaching)."""
     from .experiments.arena import Arena
     from .experiments.commands import run_and_report
@@ -108,7 +109,7 @@ def target_reaching(out_dir: Path, overwrite: bool, networks: str, trials: int, 
     except CekmError as exc:
         raise click.UsageError(str(exc)) from None
     prepare_out_dir(out_dir, overwrite)
-    run_and_report(config, out_dir, master_seeds, progress=not quiet, echo=click.echo)
+    run_and_report(config, out_dir, master_seeds, progress=not quiet, echo=click.echo, workers=workers)
 
 
 @experiment.command("circling")

@@ -36,7 +36,8 @@ def engine_options(fn: Callable[..., Any]) -> Callable[..., Any]:
             raise click.BadParameter(str(exc)) from None
 
     @click.option("--workers", type=click.IntRange(1),
-                  help="Local worker processes (default: one per core; 1: in this process).")
+                  help="Local worker processes (default: one per core; target-reaching: its seeds one after the "
+                       "other; 1: in this process).")
     @click.option("--cluster", callback=address, metavar="tcp://HOST:PORT",
                   help="Run on the Dask scheduler at this address instead of a local cluster "
                        "(docs/performance.md, \"Experiments on a cluster\").")
@@ -257,7 +258,7 @@ def seeds_of(text: str) -> Sequence[int]:
 
 
 def run_and_report(config: TargetReachingConfig, out_dir: Path, master_seeds: int = 1, progress: bool = True,
-                   echo: Callable[[str], None] = print) -> None:
+                   echo: Callable[[str], None] = print, workers: int | None = None) -> None:
     """``cekm experiment target-reaching``: one master seed into out_dir (with the trained
     models), or several, each into out_dir/seed-S, and their summary into out_dir."""
     from .reaching_report import write_seed, write_seeds_report
@@ -281,7 +282,7 @@ def run_and_report(config: TargetReachingConfig, out_dir: Path, master_seeds: in
         echo(f"master seed {seed}: {results['wall_seconds']:.1f} s, {holds} of {len(headline_orderings(results))} "
              f"headline orderings hold; wrote {out_dir / f'seed-{seed}'}")
 
-    summary, _ = run_master_seeds(config, master_seeds, progress, on_seed)
+    summary, _ = run_master_seeds(config, master_seeds, progress, on_seed, workers)
     written = write_seeds_report(summary, out_dir)
     echo("")
     echo(written[1].read_text().rstrip())

@@ -1,5 +1,6 @@
 """Where an experiment's many independent runs go: Dask (``distributed``). Every experiment
-that runs many runs (``tracking --grid``, ``tracking``'s seeds, ``obstacles``, ``sweep``)
+that runs many runs (``tracking --grid``, ``tracking``'s seeds, ``obstacles``, ``sweep``,
+``target-reaching --master-seeds``)
 hands its jobs to :func:`run_jobs`, which runs them
 
 * in this process, for one worker (``--workers 1``: no cluster to start);
@@ -45,6 +46,11 @@ def on_cluster(address: str | None) -> Iterator[None]:
 
 class ClusterAddressError(CekmError):
     """A ``--cluster`` address that is not ``tcp://HOST:PORT``."""
+
+
+def cluster_address() -> str | None:
+    """The Dask scheduler :func:`on_cluster` set for this block (None: none)."""
+    return _CLUSTER.get()
 
 
 def check_address(value: str) -> str:

@@ -122,3 +122,22 @@ def test_on_cluster_is_undone_after_its_block():
     with on_cluster("tcp://h:1"):
         assert engine._CLUSTER.get() == "tcp://h:1"
     assert engine._CLUSTER.get() is None
+
+
+def _seed_results(out, seeds) -> dict:
+    docs = {s: json.loads((out / f"seed-{s}" / "results.json").read_text()) for s in seeds}
+    for d in docs.values():  # the wall times aside
+        del d["wall_seconds"]
+        for net in d["networks"].values():
+            del net["seconds"]
+    return docs
+
+
+@pytest.mark.slow  # a local Dask cluster of two worker processes
+def test_target_reaching_master_seeds_side_by_side_equal_one_after_the_other(tmp_path):
+    args = ["experiment", "target-reaching", "--networks", "R9", "--trials", "2", "--steps", "400",
+            "--test-interval", "200", "--targets", "3", "--master-seeds", "2", "--seed", "11", "--quiet"]
+    for name, workers in (("one", "1"), ("two", "2")):
+        r = CliRunner().invoke(main, [*args, "--workers", workers, "--out", str(tmp_path / name)])
+        assert r.exit_code == 0, r.output
+    assert _seed_results(tmp_path / "two", (11, 12)) == _seed_results(tmp_path / "one", (11, 12))
