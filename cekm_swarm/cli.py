@@ -13,6 +13,7 @@ from .cli_support import (
     FileRefused,
     Finite,
     ScenarioFileError,
+    check_seeds,
     out_dir_options,
     prepare_figure_file,
     prepare_out_dir,
@@ -21,7 +22,9 @@ from .cli_support import (
     run_cli,
 )
 from .errors import CekmError
-from .experiments.learning_commands import MODEL_CHOICE, learning_experiment_cmd
+from .experiments.commands import engine_options
+from .experiments.learning_commands import MODEL_CHOICE, controller_model, learning_experiment_cmd
+from .experiments.sweep_commands import sweep
 
 MIN_SPEED_UNIT = 1e-6
 """The smallest positive wheel speed unit (m/s) a command takes for the plant."""
@@ -87,10 +90,11 @@ experiment.add_command(learning_experiment_cmd)  # docs/learning.md
 @click.option("--target-resolution", type=Finite(min=0.0, max=0.1, max_open=True), default=0.001,
               show_default=True, help="The target sensor rounds distances to this (m); 0: not rounded.")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
+@engine_options
 def target_reaching(out_dir: Path, overwrite: bool, networks: str, trials: int, steps: int, test_interval: int,
                     test_targets: int, seed: int, master_seeds: int, stop_rule: str, train_stop: str,
                     motor_resolution: float,
-                    bfn_rule: str, speed_unit: float, target_resolution: float, quiet: bool) -> None:
+                    bfn_rule: str, speed_unit: float, target_resolution: float, quiet: bool, workers: int | None) -> None:
     """Reproduce section 4.1: Tables 1-4 and Figures 5-7 (obstacle-free target reaching)."""
     from .experiments.arena import Arena
     from .experiments.commands import run_and_report
@@ -112,7 +116,7 @@ def target_reaching(out_dir: Path, overwrite: bool, networks: str, trials: int, 
     except CekmError as exc:
         raise click.UsageError(str(exc)) from None
     prepare_out_dir(out_dir, overwrite)
-    run_and_report(config, out_dir, master_seeds, progress=not quiet, echo=click.echo)
+    run_and_report(config, out_dir, master_seeds, progress=not quiet, echo=click.echo, workers=workers)
 
 
 @experiment.command("circling")
@@ -159,7 +163,7 @@ def circling(out_dir: Path, network: str, seed: int, trial: int, target: int | N
 @click.option("--max-time", default=300.0, show_default=True, type=Finite(min=1.0),
               help="Sim seconds before a robot counts as trapped.")
 @click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path))
-@click.option("--workers", type=click.IntRange(1), help="Parallel processes (default: one per core).")
+@engine_options
 @out_dir_options("Directory for outcomes.json and the figures.")
 def obstacles(seeds: str, speed_unit: float | None, max_time: float, model_path: Path | None, workers: int | None,
               out_dir: Path, overwrite: bool) -> None:
@@ -175,12 +179,12 @@ def obstacles(seeds: str, speed_unit: float | None, max_time: float, model_path:
         raise click.UsageError(str(exc)) from None
     if not seed_list:
         raise click.UsageError("--seeds: give at least one seed")
-    _check_seeds(seed_list)
+    check_seeds(seed_list)
     if speed_unit is not None and 0.0 < speed_unit < MIN_SPEED_UNIT:
         # the plant divides its top speed by the unit: a denormal unit overflowed in every worker
         raise click.BadParameter(f"{speed_unit!r}: give 0 (continuous) or at least {MIN_SPEED_UNIT} m/s",
                                  param_hint="'--speed-unit'")
-    _model(model_path)
+    controller_model(model_path)
     prepare_out_dir(out_dir, overwrite)
     if model_path is None:
         default_model()
@@ -198,7 +202,7 @@ def obstacles(seeds: str, speed_unit: float | None, max_time: float, model_path:
 @click.option("--robots", default="2,4,8", show_default=True, help="Team sizes, comma-separated.")
 @click.option("--duration", type=Finite(min=1.0), help="Sim seconds per run (default 60; --grid --quick 8).")
 @click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path))
-@click.option("--workers", type=click.IntRange(1), help="Parallel processes (default: one per core).")
+@engine_options
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 @click.option("--grid", is_flag=True, help="The scenario grid instead (team size, targets per robot, target speed, "
               "sensing range, obstacles; docs/tracking.md): results.json, tables.md, grid.png.")
@@ -217,7 +221,7 @@ def tracking_experiment(out_dir: Path, overwrite: bool, seeds: int | None, robot
         raise click.UsageError("--quick goes with --grid")
     if params and not grid:
         raise click.UsageError("--param goes with --grid")
-    _model(model_path)
+    controller_model(model_path)
     if grid:
         from .experiments.commands import parse_cekm_params, run_grid_cmd
         from .experiments.grid_report import DEFAULT_DURATION, DEFAULT_SEEDS
@@ -293,21 +297,6 @@ def _run_kind(scenario) -> str:
         raise ScenarioFileError(str(exc)) from None
 
 
-def _check_seeds(seeds) -> None:
-    bad = [s for s in seeds if not 0 <= s < 2**32]
-    if bad:
-        raise click.UsageError(f"--seeds: every seed must be in 0..{2**32 - 1} (got {bad[0]})")
-
-
-def _model(path: Path | None):
-    from .experiments.learning_run import model_of_choice
-
-    model = model_of_choice(path)  # a file, 'untrained' (docs/learning.md), or the default R15
-    if not model.kind.startswith("indirect"):
-        raise click.UsageError(f"{path}: the controller needs an indirect-mapping EKM (G or R), not {model.kind!r}")
-    return model
-
-
 @main.command("run")
 @click.argument("scenario")
 @click.option("--controller", default="cekm", show_default=True, metavar="NAME",
@@ -350,7 +339,7 @@ def run_cmd(scenario: str, controller: str, graph_file: Path | None, model_path:
         raise FileRefused(str(exc)) from None
     checked = with_params(checked, learning_params(model_path) if learn else None)
     controller = checked.graph.controller
-    model = _model(model_path) if checked.uses_model else None
+    model = controller_model(model_path) if checked.uses_model else None
     if task == "tracking":
         from .experiments.commands import run_tracking_cmd
 
@@ -392,7 +381,7 @@ def fields(scenario: str, at_time: float, model_path: Path | None, seed: int | N
         raise click.BadParameter(f"{sc.name} has no robot {robot!r} (robots: {', '.join(robots)})",
                                  param_hint="'--robot'")
     prepare_figure_file(out_path)  # before the model, which may first be trained
-    model = _model(model_path)
+    model = controller_model(model_path)
     f = fields_at(sc, model, at_time, seed, robot)
     plot_fields(f).savefig(out_path, dpi=110)
     x, y, th = f["pose"]
@@ -401,50 +390,6 @@ def fields(scenario: str, at_time: float, model_path: Path | None, seed: int | N
     click.echo(f"t = {f['time']:.3f} s, {f['robot']} at ({x:.3f}, {y:.3f}, {th:.2f} rad): target winner "
                f"{f['s']}, motor winner {motor}, command ({f['command'][0]:.3f}, {f['command'][1]:.3f}) m/s; "
                f"wrote {out_path}")
-
-
-@main.group()
-def sweep() -> None:
-    """Parameter sweeps of section 4.2."""
-
-
-@sweep.command("concave")
-@click.option("--depths", default="0.06,0.12,0.18,0.24,0.3", show_default=True, help="U depths (m), comma-separated.")
-@click.option("--widths", default="0.1,0.2,0.34,0.5,0.7,1.0,1.4,2.0", show_default=True, help="U widths (m) to try.")
-@click.option("--ranges", default="0.12,0.17,0.25", show_default=True, help="Sensing ranges (m).")
-@click.option("--seeds", default="1,2,3", show_default=True)
-@click.option("--need", default=2, show_default=True, type=click.IntRange(1), help="Successes a width needs.")
-@click.option("--max-time", default=300.0, show_default=True, type=Finite(min=1.0))
-@click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path))
-@click.option("--workers", type=click.IntRange(1), help="Parallel processes (default: one per core).")
-@out_dir_options("Directory for fig9.json, fig9.png and fig9_grid.png.")
-def sweep_concave(depths: str, widths: str, ranges: str, seeds: str, need: int, max_time: float,
-                  model_path: Path | None, workers: int | None, out_dir: Path, overwrite: bool) -> None:
-    """Find the widest concave obstacle negotiated, per depth and sensing range (Fig. 9)."""
-    from .experiments.commands import parse_floats, seeds_of
-    from .experiments.concave_report import write_sweep
-    from .experiments.concave_run import SweepConfig, run_sweep
-    from .experiments.default_model import default_model, default_model_path
-
-    try:
-        config = SweepConfig(depths=parse_floats(depths, "depths"), widths=tuple(sorted(parse_floats(widths, "widths"))),
-                             ranges=parse_floats(ranges, "ranges"), seeds=tuple(seeds_of(seeds)), need=need,
-                             max_time=max_time)
-        config.check_scenarios()
-    except CekmError as exc:
-        raise click.UsageError(str(exc)) from None
-    _check_seeds(config.seeds)
-    _model(model_path)
-    prepare_out_dir(out_dir, overwrite)
-    if model_path is None:
-        default_model()
-        model_path = default_model_path()
-    doc = run_sweep(config, model_path, workers)
-    paths = write_sweep(doc, out_dir)
-    for c in doc["grid"]:
-        w = "none" if c["max_width"] is None else f"{c['max_width']:.2f} m"
-        click.echo(f"range {c['range']:.2f} m, depth {c['depth']:.2f} m: widest negotiated {w}")
-    click.echo("wrote " + ", ".join(str(p) for p in paths))
 
 
 def _register_runtime_commands() -> None:
@@ -494,6 +439,7 @@ _register_ros2_commands()
 from .tune.commands import tune_group  # noqa: E402  (cekm tune, docs/fields.md)
 
 main.add_command(tune_group)
+main.add_command(sweep)  # cekm sweep concave (Fig. 9)
 
 
 def run_cli_args(argv: list[str]) -> int:

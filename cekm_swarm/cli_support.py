@@ -310,3 +310,10 @@ def run_cli(group: click.Group, argv: list[str] | None = None) -> int:
         os.close(devnull)
         return EXIT_OK
     return rv if isinstance(rv, int) else EXIT_OK
+
+
+def check_seeds(seeds) -> None:
+    """Every seed of ``--seeds`` fits the generators' 32-bit seeds, or a usage error naming the first that does not."""
+    bad = [s for s in seeds if not 0 <= s < 2**32]
+    if bad:
+        raise click.UsageError(f"--seeds: every seed must be in 0..{2**32 - 1} (got {bad[0]})")

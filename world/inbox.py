@@ -35,10 +35,12 @@ class CommandInbox:
         self.latencies = Samples()  # s from publishing a tick's readings to its answer (fixed memory)
         self._pending: collections.deque[tuple[str, float, float]] = collections.deque()
         self._seen: dict[tuple[str, float], float] = {}
+        self._answered: set[str] = set()  # robots heard for the tick at ``now`` (a count, checked when full)
         self.wake: Callable[[], None] = lambda: None  # set by the run: wakes the tick loop
 
     def opened(self, t: float) -> None:
         """The tick at sim time ``t`` is out: answers from here on may be for it."""
+        self._answered = set()  # before ``now`` moves: an answer taken meanwhile is checked again in answered()
         self.now = t
         self.sent_at[t] = time.monotonic()
         if len(self.sent_at) > SENT_KEPT:
@@ -66,6 +68,8 @@ class CommandInbox:
             self.late_commands += 1  # believable but superseded (a motor's repeat for a re-published tick)
             return
         self.latest[robot] = msg
+        if msg.stamp == self.now:
+            self._answered.add(robot)
         self.deadman.heard(robot, rec.at)
         sent = self.sent_at.get(msg.stamp)
         if sent is not None:
@@ -78,7 +82,12 @@ class CommandInbox:
         return [r for r in self.robots if (c := self.latest.get(r)) is None or c.stamp != t]
 
     def answered(self) -> bool:
-        """Every robot's latest command is for the current tick (on Zenoh's thread, per command)."""
+        """Every robot's latest command is for the current tick (on Zenoh's thread, per
+        command): a count of the robots heard for it, and the whole check only once the count
+        is full (an answer taken while the tick turned may be counted for the wrong one), so
+        a tick's answers cost O(robots), not O(robots^2)."""
+        if len(self._answered) < len(self.robots):
+            return False
         now, latest = self.now, self.latest
         return all((c := latest.get(r)) is not None and c.stamp == now for r in self.robots)
 

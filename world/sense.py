@@ -60,12 +60,22 @@ class SenseEncoder:
     def __call__(self, rd: TickReadings, leave_out: frozenset[str] | set[str] = frozenset()
                  ) -> list[tuple[str, bytes]]:
         """The readings' (key, bytes), but for the keys in ``leave_out``."""
-        t, radius, angles, keys, isfinite = rd.t, self.radius, self.angles, self.range_keys, math.isfinite
-        ranges = rd.ranges.tolist() if type(rd.ranges) is np.ndarray else [float(r) for r in rd.ranges]
-        out = [(keys[j], encode(SenseRange(t, SENDER, j, angles[j], r + radius if isfinite(r) else None)))
-               for j, r in enumerate(ranges) if keys[j] not in leave_out]
-        if rd.target is not None and self.target_key not in leave_out:
-            out.append((self.target_key, encode(target_message(t, rd.target))))
+        return self.encode(rd.t, self.contents(rd), leave_out)
+
+    def encode(self, t: float, contents: list[tuple[str, Any]], leave_out: frozenset[str] | set[str] = frozenset()
+               ) -> list[tuple[str, bytes]]:
+        """The (key, bytes) at sim time ``t`` of readings already taken apart by
+        :meth:`contents` (the world compares them for held readings, then sends them),
+        but for the keys in ``leave_out``."""
+        angles, n = self.angles, len(self.angles)
+        out = []
+        for j, (key, c) in enumerate(contents):
+            if key in leave_out:
+                continue
+            if j < n:
+                out.append((key, encode(SenseRange(t, SENDER, j, angles[j], c))))
+            else:  # the target: (alpha, d, visible), already as target_message sends it
+                out.append((key, encode(SenseTarget(t, SENDER, c[0], c[1], c[2]))))
         return out
 
     def contents(self, rd: TickReadings) -> list[tuple[str, Any]]:

@@ -9,6 +9,7 @@ import no click and no matplotlib at module level; this module talks to the term
 from __future__ import annotations
 
 import dataclasses
+import functools
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Sequence
@@ -20,6 +21,32 @@ from ..errors import ParameterError
 
 if TYPE_CHECKING:
     from .reaching_run import NetworkRun, TargetReachingConfig
+
+
+def engine_options(fn: Callable[..., Any]) -> Callable[..., Any]:
+    """A many-run experiment's ``--workers N`` (the local Dask cluster's processes; 1: in
+    this process) and ``--cluster tcp://HOST:PORT`` (a running Dask scheduler instead): the
+    command runs inside :func:`.engine.on_cluster` (:mod:`.engine`)."""
+    from .engine import ClusterAddressError, check_address, on_cluster
+
+    def address(ctx: click.Context, param: click.Parameter, value: str | None) -> str | None:
+        try:
+            return None if value is None else check_address(value)
+        except ClusterAddressError as exc:
+            raise click.BadParameter(str(exc)) from None
+
+    @click.option("--workers", type=click.IntRange(1),
+                  help="Local worker processes (default: one per core; target-reaching: its seeds one after the "
+                       "other; 1: in this process).")
+    @click.option("--cluster", callback=address, metavar="tcp://HOST:PORT",
+                  help="Run on the Dask scheduler at this address instead of a local cluster "
+                       "(docs/performance.md, \"Experiments on a cluster\").")
+    @functools.wraps(fn)
+    def wrapper(*args: Any, cluster: str | None = None, **kwargs: Any) -> Any:
+        with on_cluster(cluster):
+            return fn(*args, **kwargs)
+
+    return wrapper
 
 
 def run_navigation_cmd(scenario, controller: str, model, seed: int | None, max_time: float, out_dir, graph) -> None:
@@ -233,7 +260,7 @@ def seeds_of(text: str) -> Sequence[int]:
 
 
 def run_and_report(config: TargetReachingConfig, out_dir: Path, master_seeds: int = 1, progress: bool = True,
-                   echo: Callable[[str], None] = print) -> None:
+                   echo: Callable[[str], None] = print, workers: int | None = None) -> None:
     """``cekm experiment target-reaching``: one master seed into out_dir (with the trained
     models), or several, each into out_dir/seed-S, and their summary into out_dir."""
     from .reaching_report import write_seed, write_seeds_report
@@ -257,7 +284,7 @@ def run_and_report(config: TargetReachingConfig, out_dir: Path, master_seeds: in
         echo(f"master seed {seed}: {results['wall_seconds']:.1f} s, {holds} of {len(headline_orderings(results))} "
              f"headline orderings hold; wrote {out_dir / f'seed-{seed}'}")
 
-    summary, _ = run_master_seeds(config, master_seeds, progress, on_seed)
+    summary, _ = run_master_seeds(config, master_seeds, progress, on_seed, workers)
     written = write_seeds_report(summary, out_dir)
     echo("")
     echo(written[1].read_text().rstrip())

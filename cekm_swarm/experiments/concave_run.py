@@ -13,8 +13,6 @@ fig9_grid.png every cell (:mod:`.concave_figures`); :mod:`.concave_report` write
 from __future__ import annotations
 
 import math
-import os
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -80,13 +78,12 @@ def _one(args) -> dict:
 
 
 def run_sweep(config: SweepConfig, model_path: Path, workers: int | None = None, progress: bool = True) -> dict:
-    """All runs of the sweep, in parallel processes; returns the fig9.json document."""
-    from tqdm import tqdm
+    """All runs of the sweep, in parallel (on Dask: :mod:`.engine`); returns the fig9.json document."""
+    from .engine import default_workers, run_jobs
 
     jobs = [(config.scenario, w, d, r, s, config.max_time, str(model_path))
             for r in config.ranges for d in config.depths for w in config.widths for s in config.seeds]
-    workers = workers or min(len(jobs), os.cpu_count() or 1, 2)
-    with ProcessPoolExecutor(max_workers=workers) as ex:
-        runs = list(tqdm(ex.map(_one, jobs), total=len(jobs), disable=not progress, desc="concave sweep", unit="run"))
+    runs = run_jobs(_one, jobs, workers or default_workers(len(jobs), cap=2), desc="concave sweep",
+                    progress=progress)
     return {"experiment": "concave-sweep", "paper_figure": 9, "settings": asdict(config),
             "cells": cells_of(config, runs), "grid": grid_of(config, runs), "runs": runs}

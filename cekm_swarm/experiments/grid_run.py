@@ -1,11 +1,10 @@
 """Running the tracking grid (``cekm experiment tracking --grid``): every controller on
-every cell of the design for the same seeds, in parallel (one process per worker), with a
+every cell of the design for the same seeds, in parallel (on Dask: :mod:`.engine`), with a
 progress bar. The statistics are :mod:`.grid_stats`'s, the pictures :mod:`.grid_figures`',
 the files :mod:`.grid_report`'s and the command :mod:`.commands`'."""
 
 from __future__ import annotations
 
-import os
 from typing import Any
 
 from .grid_design import Cell, grid_scenario
@@ -53,26 +52,9 @@ def run_grid(cells: list[Cell], seeds: list[int], duration: float, model_path, w
              tparams=None) -> list[dict[str, Any]]:
     """Every controller on every cell for every seed; the rows in job order (the same for
     any number of workers). ``tparams``: cekm's TrackingParams (None: the defaults)."""
-    from concurrent.futures import ProcessPoolExecutor
+    from .engine import run_jobs
 
-    from tqdm import tqdm
-
-    # the largest teams first, so the pool does not end on one long run
+    # the largest teams first, so the workers do not end on one long run
     jobs = [(c, s, ctl, duration, str(model_path), tparams) for c in sorted(cells, key=lambda c: -c.robots * c.targets)
             for s in seeds for ctl in controllers]
-    workers = workers or max(1, min(len(jobs), os.cpu_count() or 1))
-    bar = tqdm(total=len(jobs), disable=not progress, desc="tracking grid", unit="run")
-    rows = []
-    try:
-        if workers == 1:
-            for job in jobs:
-                rows.append(run_one(job))
-                bar.update()
-        else:
-            with ProcessPoolExecutor(workers) as ex:
-                for row in ex.map(run_one, jobs, chunksize=1):
-                    rows.append(row)
-                    bar.update()
-    finally:
-        bar.close()
-    return rows
+    return run_jobs(run_one, jobs, workers, desc="tracking grid", progress=progress)

@@ -14,6 +14,17 @@ from ..cli_support import Finite, out_dir_options
 from .learning_run import UNTRAINED
 
 
+def controller_model(path: Path | None):
+    """The model a cooperative-EKM controller runs: a file, 'untrained' or the default R15,
+    refused unless it is an indirect-mapping EKM (Eq. 1)."""
+    from .learning_run import model_of_choice
+
+    model = model_of_choice(path)  # a file, 'untrained' (docs/learning.md), or the default R15
+    if not model.kind.startswith("indirect"):
+        raise click.UsageError(f"{path}: the controller needs an indirect-mapping EKM (G or R), not {model.kind!r}")
+    return model
+
+
 class ModelChoice(click.ParamType):
     """``--model``: a model file that exists, or the word ``untrained``."""
 

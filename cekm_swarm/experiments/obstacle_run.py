@@ -14,8 +14,6 @@ files :mod:`.obstacle_report`'s.
 
 from __future__ import annotations
 
-import os
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 from .obstacle_stats import summarize
@@ -70,14 +68,13 @@ def run_suite(seeds: tuple[int, ...], model_path: Path, max_time: float = 300.0,
 
     ``speed_unit``: the plant's wheel speed unit for every run (``[plant] speed_unit``;
     0 = continuous speeds); None keeps each scenario's own."""
-    from tqdm import tqdm
+    from .engine import default_workers, run_jobs
 
     scenarios = scenarios or SUITE
     jobs = [(s, c, seed, max_time, str(model_path), seed == seeds[0], speed_unit) for s, cs in scenarios.items()
             for c in cs for seed in seeds]
-    with ProcessPoolExecutor(max_workers=workers or min(len(jobs), os.cpu_count() or 1, 2)) as ex:
-        results = list(tqdm(ex.map(_one, jobs), total=len(jobs), disable=not progress, desc="obstacle runs",
-                            unit="run"))
+    results = run_jobs(_one, jobs, workers or default_workers(len(jobs), cap=2), desc="obstacle runs",
+                       progress=progress)
     rows = [r for r, _ in results]
     pictures = {(r["scenario"], r["controller"]): run for r, run in results if run is not None}
     doc = {"experiment": "obstacles", "paper_section": "4.2", "seeds": list(seeds), "max_time_s": max_time,

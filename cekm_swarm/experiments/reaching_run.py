@@ -136,16 +136,36 @@ def seeds_from(first: int, count: int) -> list[int]:
     return [first + i for i in range(count)]
 
 
+def _one_seed(config: TargetReachingConfig) -> tuple[dict, list[NetworkRun]]:
+    """One master seed's experiment on an engine's worker (no progress bar of its own)."""
+    return run_experiment(config, progress=False)
+
+
 def run_master_seeds(config: TargetReachingConfig, count: int, progress: bool = True,
-                     on_seed: Callable[[int, dict, list[NetworkRun]], None] | None = None) -> tuple[dict, dict[int, dict]]:
+                     on_seed: Callable[[int, dict, list[NetworkRun]], None] | None = None,
+                     workers: int | None = None) -> tuple[dict, dict[int, dict]]:
     """Run the experiment once per master seed (config.seed, config.seed + 1, ...).
 
     ``on_seed(seed, results, runs)`` is called after each seed (to write its report).
-    Returns (summary document, results document per seed).
+    Returns (summary document, results document per seed). In this process one seed after
+    the other by default (each already trains its trials on every core); with ``workers``
+    > 1 or a cluster (:mod:`.engine`) the seeds run side by side, then ``on_seed`` is
+    called for each in seed order.
     """
+    from .engine import cluster_address, run_jobs
+
+    seeds = seeds_from(config.seed, count)
     per_seed = {}
-    for s in seeds_from(config.seed, count):
-        results, runs = run_experiment(dataclasses.replace(config, seed=s), progress=progress)
+    if (workers or 1) == 1 and cluster_address() is None:
+        for s in seeds:
+            results, runs = run_experiment(dataclasses.replace(config, seed=s), progress=progress)
+            per_seed[s] = results
+            if on_seed:
+                on_seed(s, results, runs)
+        return summarize_seeds(per_seed), per_seed
+    done = run_jobs(_one_seed, [dataclasses.replace(config, seed=s) for s in seeds], workers, desc="master seeds",
+                    progress=progress)
+    for s, (results, runs) in zip(seeds, done):
         per_seed[s] = results
         if on_seed:
             on_seed(s, results, runs)

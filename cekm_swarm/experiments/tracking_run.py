@@ -143,23 +143,12 @@ def run_experiment(sizes: tuple[int, ...], seeds: int, duration: float, model_pa
                    progress: bool = True, first_seed: int = 1) -> tuple[dict[str, Any], dict[str, TrackingRun]]:
     """Every controller on the same seeds (first_seed .. first_seed + seeds - 1) for every
     team size; the pictures are the first seed's runs of the smallest team."""
-    import os
-    from concurrent.futures import ProcessPoolExecutor
-
-    from tqdm import tqdm
+    from .engine import run_jobs
 
     seed_list = list(range(first_seed, first_seed + seeds))
     jobs = [(n, s, c, duration, str(model_path), n == sizes[0] and s == first_seed)
             for n in sizes for s in seed_list for c in CONTROLLERS]
-    workers = workers or max(1, min(len(jobs), os.cpu_count() or 1))
-    rows = []
-    if workers == 1:  # in this process (no pool to start)
-        for job in tqdm(jobs, disable=not progress, desc="tracking runs"):
-            rows.append(_one(job))
-    else:
-        with ProcessPoolExecutor(workers) as ex:
-            for row in tqdm(ex.map(_one, jobs), total=len(jobs), disable=not progress, desc="tracking runs"):
-                rows.append(row)
+    rows = run_jobs(_one, jobs, workers, desc="tracking runs", progress=progress)
     pictures = {}
     for c in CONTROLLERS:  # the first team size's run of the first seed, per controller
         for r in rows:
