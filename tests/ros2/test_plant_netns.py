@@ -59,7 +59,7 @@ def hosts():
     reason = namespaces_unavailable()
     if reason:
         pytest.skip(reason)
-    h = Hosts()
+    h = Hosts(ROBOTS)
     try:
         yield h
     finally:
