@@ -53,6 +53,14 @@ def quantize_speed(c: float, unit: float, v_max: float) -> float:
 KHEPERA = Khepera()
 
 
+def centre_distance(surface_range: float, body_radius: float) -> float | None:
+    """A distance sensor's surface range as the obstacle input's d_j (section 3.1): the
+    distance from the robot's centre, range plus body radius; None when it sees nothing
+    (a range that is not finite). The one home of this conversion, for the world's sense
+    messages and the controller's readings alike."""
+    return surface_range + body_radius if math.isfinite(surface_range) else None
+
+
 @dataclass(frozen=True)
 class RobotBody:
     """What a robot's controller knows of its own body and sensors (a node's

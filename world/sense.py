@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from cekm_swarm.protocol import KeySpace, SenseRange, SenseTarget, encode
+from cekm_swarm.robot import centre_distance
 
 from .episode import TickReadings
 
@@ -38,8 +39,7 @@ def sense_messages(keys: KeySpace, rd: TickReadings, sensor_angles, body_radius:
     t = rd.t
     range_keys, target_key = _sense_keys(keys, rd.robot, len(rd.ranges))
     for j, r in enumerate(rd.ranges):
-        r = float(r)
-        d = None if not math.isfinite(r) else r + body_radius
+        d = centre_distance(float(r), body_radius)
         out.append((range_keys[j], SenseRange(t, SENDER, j, float(sensor_angles[j]), d)))
     if rd.target is not None:
         out.append((target_key, target_message(t, rd.target)))
@@ -81,10 +81,9 @@ class SenseEncoder:
     def contents(self, rd: TickReadings) -> list[tuple[str, Any]]:
         """Each reading's key and what it says but its stamp (a range's ``d``, the target's
         ``(alpha, d, visible)``): what "unchanged" compares."""
-        radius, isfinite = self.radius, math.isfinite
+        radius = self.radius
         ranges = rd.ranges.tolist() if type(rd.ranges) is np.ndarray else [float(r) for r in rd.ranges]
-        out: list[tuple[str, Any]] = [(self.range_keys[j], r + radius if isfinite(r) else None)
-                                      for j, r in enumerate(ranges)]
+        out: list[tuple[str, Any]] = [(self.range_keys[j], centre_distance(r, radius)) for j, r in enumerate(ranges)]
         if rd.target is not None:
             m = target_message(0.0, rd.target)
             out.append((self.target_key, (m.alpha, m.d, m.visible)))

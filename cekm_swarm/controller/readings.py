@@ -7,6 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from cekm_swarm.robot import centre_distance
+
 
 @dataclass(frozen=True)
 class TargetReading:
@@ -40,5 +42,5 @@ def range_readings(surface_ranges: np.ndarray, sensor_angles: np.ndarray, body_r
     """Sensor surface ranges (NaN = nothing seen) as obstacle inputs u_j = (alpha_j, d_j) from the centre."""
     out = []
     for j, (r, a) in enumerate(zip(surface_ranges, sensor_angles)):
-        out.append(RangeReading(j, float(a), None if not math.isfinite(r) else float(r) + body_radius))
+        out.append(RangeReading(j, float(a), centre_distance(float(r), body_radius)))
     return out

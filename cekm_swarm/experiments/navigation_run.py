@@ -145,13 +145,13 @@ def fields_at(scenario, model, at_time: float, controller_seed: int | None = Non
     """Run the cooperative EKM to sim time ``at_time`` and return the activities of Fig. 4:
     the target field, each obstacle field, the combined obstacle fields and the integrated
     activity, with the winners, the robot's pose and the input weights."""
-    from world.episode import TICK_S
+    from cekm_swarm.ticks import TICK_S, tick_of
 
     from ..controller.cooperative import CooperativeEKM
     from .graph_run import run_graph
 
     checkpoints = planned(scenario)[0] if scenario.plan_checkpoints else None
-    last = int(round(at_time / TICK_S))
+    last = tick_of(at_time)
     run = run_graph(scenario, "cekm", model=model, seed=controller_seed, checkpoints=checkpoints,
                     params=field_overrides(fields), stop_at=last, max_time=max(at_time, TICK_S) + 1.0)
     world, episode, ex = run.world, run.episode, run.executor

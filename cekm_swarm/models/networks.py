@@ -69,8 +69,22 @@ def at_goal(u: np.ndarray) -> bool:
     return u[1] == 0.0
 
 
+class TargetReaching:
+    """What the three networks share: :meth:`command` for target reaching, their output
+    but exactly c = 0 at the goal state (section 3.1)."""
+
+    def output(self, u: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def command(self, u: np.ndarray) -> np.ndarray:
+        """Obstacle-free target reaching: :meth:`output`, exactly 0 at the goal state."""
+        if at_goal(u):
+            return np.zeros(2)
+        return self.output(u)
+
+
 @dataclass
-class IndirectEKM:
+class IndirectEKM(TargetReaching):
     """Indirect-mapping EKM: input weights w_i and control parameters M_i per neuron.
 
     M is kept in the model's internal units (the input is (alpha, d_scale * d)); R^-1
@@ -127,12 +141,6 @@ class IndirectEKM:
         s = winner(u, self.w, self.comp)
         return self.control(u, s, s)
 
-    def command(self, u: np.ndarray) -> np.ndarray:
-        """Obstacle-free target reaching: :meth:`output`, exactly 0 at the goal state."""
-        if at_goal(u):
-            return np.zeros(2)
-        return self.output(u)
-
     def learn(self, v: np.ndarray, c: np.ndarray, t: float) -> None:
         """One step of self-organized learning: winner k for v, then Eqs. 15 or 16-17, then Eq. 12."""
         _, idx, g = updated_neighbourhood(v, self.w, self.lattice, self.comp, self.learn_p, t)
@@ -146,7 +154,7 @@ class IndirectEKM:
 
 
 @dataclass
-class DirectEKM:
+class DirectEKM(TargetReaching):
     """Direct-mapping EKM (D15): the winner s outputs its stored command c_s."""
 
     lattice: Lattice
@@ -168,12 +176,6 @@ class DirectEKM:
     def output(self, u: np.ndarray) -> np.ndarray:
         """The winner's stored command c_s (also at the goal state)."""
         return self.C[winner(u, self.w, self.comp)].copy()
-
-    def command(self, u: np.ndarray) -> np.ndarray:
-        """Target reaching: :meth:`output`, except c = 0 at the goal state."""
-        if at_goal(u):
-            return np.zeros(2)
-        return self.output(u)
 
     def learn(self, v: np.ndarray, c: np.ndarray, t: float) -> None:
         """c_i += eta G(k, i) (c - c_i), then Eq. 12, k the winner for v."""
@@ -217,7 +219,7 @@ def nearest_centre_widths(w: np.ndarray, i: int, comp: CompetitionParams) -> np.
 
 
 @dataclass
-class BasisFunctionNetwork:
+class BasisFunctionNetwork(TargetReaching):
     """Basis-function network (B15): c = sum_i phi_i(u) W_i, phi_i a normalized Gaussian with per-axis widths.
 
     Section 4.1: centres trained like the EKM's input weights (Eq. 12: winner and lattice
@@ -284,12 +286,6 @@ class BasisFunctionNetwork:
     def output(self, u: np.ndarray) -> np.ndarray:
         """The weighted sum of the output weights (also at the goal state)."""
         return self.activations(u) @ self.W
-
-    def command(self, u: np.ndarray) -> np.ndarray:
-        """Target reaching: :meth:`output`, except c = 0 at the goal state."""
-        if at_goal(u):
-            return np.zeros(2)
-        return self.output(u)
 
     def learn(self, v: np.ndarray, c: np.ndarray, t: float) -> None:
         """Output weights by gradient descent, widths toward the nearest-centre distance, centres by Eq. 12."""

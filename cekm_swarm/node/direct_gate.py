@@ -9,10 +9,11 @@ from typing import Any
 
 from cekm_swarm.graph.plan import NodePlan
 from cekm_swarm.protocol import Nothing
+from cekm_swarm.ticks import tick_of
 
 from .api import Inputs
 from .runner import Runner
-from .timing import RESEND_RUNS, Drop, tick_of
+from .timing import RESEND_RUNS, Drop
 
 
 class DirectGate:

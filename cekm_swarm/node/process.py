@@ -40,13 +40,14 @@ from cekm_swarm.graph.plan import NodePlan, RunPlan
 from cekm_swarm.graph.runspec import RunSpec
 from cekm_swarm.protocol import DropCounter, KeyKind, Nothing, expect_of
 from cekm_swarm.protocol.stamps import ANY_STAMP, StampWindow
+from cekm_swarm.ticks import tick_of
 
 from .api import Context, NodeError, cannot_start, make_params, raised_at, start_node, traceback_text
 from .direct_gate import DirectGate
 from .live_params import LiveParams
 from .runner import Runner
 from .timer_gate import Timer, TimerGate
-from .timing import LockstepGate, RealtimeGate, tick_of
+from .timing import LockstepGate, RealtimeGate
 from .wire import Decoder, Encoder
 
 EXIT_CANNOT_START = 78

@@ -494,4 +494,4 @@ def _max_age(stale_s: float) -> int | float:
     return n
 
 
-__all__ = ["gather", "lost_on_restart", "LockstepGate", "RealtimeGate", "KEEP_TICKS", "RESEND_RUNS", "tick_of"]
+__all__ = ["gather", "lost_on_restart", "LockstepGate", "RealtimeGate", "KEEP_TICKS", "RESEND_RUNS"]

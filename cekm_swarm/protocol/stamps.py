@@ -21,7 +21,7 @@ from __future__ import annotations
 import math
 import time
 
-from cekm_swarm.ticks import TICK_S
+from cekm_swarm.ticks import TICK_S, tick_of, tick_time
 
 MAX_STAMP_S = 1e7
 """No run lasts 116 days of sim time; a stamp beyond this is bogus whatever the clock says."""
@@ -47,8 +47,7 @@ _GRID_TOL = 1e-9  # stamps are round(k * 0.128, 9)
 
 def on_grid(stamp: float) -> bool:
     """True when ``stamp`` is a tick's sim time."""
-    k = round(stamp / TICK_S)
-    return abs(stamp - round(k * TICK_S, 9)) <= _GRID_TOL
+    return abs(stamp - tick_time(tick_of(stamp))) <= _GRID_TOL
 
 
 def stamp_problem(stamp: object, now: float | None, past: float = PAST_S, future: float = FUTURE_S,
@@ -59,7 +58,7 @@ def stamp_problem(stamp: object, now: float | None, past: float = PAST_S, future
             and (now is None or now - past - _GRID_TOL <= stamp <= now + future + _GRID_TOL)):
         if not grid:
             return None
-        k = round(stamp / TICK_S)
+        k = round(stamp / TICK_S)  # tick_of and tick_time written out: every message takes this path
         if abs(stamp - round(k * TICK_S, 9)) <= _GRID_TOL:
             return None
     if type(stamp) is not float and type(stamp) is not int:

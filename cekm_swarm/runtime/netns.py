@@ -14,14 +14,14 @@ kills every process left in the namespaces and deletes them (their veth ends go 
 from __future__ import annotations
 
 import os
-import queue
 import shutil
 import signal
 import subprocess
 import sys
-import threading
 import time
 from pathlib import Path
+
+from .lines import LineReader
 
 
 def ip(*args: str) -> subprocess.CompletedProcess:
@@ -54,15 +54,9 @@ class NsProcess:
         self.proc = subprocess.Popen(["ip", "netns", "exec", ns, *argv], cwd=cwd, env=env, text=True,
                                      stdin=subprocess.PIPE if stdin else subprocess.DEVNULL,
                                      stdout=subprocess.PIPE, stderr=subprocess.STDOUT, start_new_session=True)
-        self.lines: list[str] = []
-        self._q: queue.Queue[str | None] = queue.Queue()
-        threading.Thread(target=self._read, daemon=True).start()
-
-    def _read(self) -> None:
         assert self.proc.stdout is not None
-        for line in self.proc.stdout:
-            self._q.put(line.rstrip("\n"))
-        self._q.put(None)
+        self.reader = LineReader(self.proc.stdout)
+        self.lines = self.reader.seen
 
     def send(self, line: str) -> None:
         assert self.proc.stdin is not None
@@ -70,28 +64,13 @@ class NsProcess:
         self.proc.stdin.flush()
 
     def wait_line(self, needle: str, timeout: float) -> str:
-        deadline = time.monotonic() + timeout
-        while True:
-            try:
-                line = self._q.get(timeout=max(0.0, deadline - time.monotonic()))
-            except queue.Empty:
-                raise AssertionError(f"no line with {needle!r} in {timeout} s:\n" + "\n".join(self.lines[-30:])) from None
-            if line is None:
-                raise AssertionError(f"ended without {needle!r}:\n" + "\n".join(self.lines[-40:]))
-            self.lines.append(line)
-            if needle in line:
-                return line
+        return self.reader.wait_line(needle, timeout)
 
     def finish(self, timeout: float) -> int:
+        """Read the output to the end and wait for the exit code."""
         deadline = time.monotonic() + timeout
-        while True:
-            try:
-                line = self._q.get(timeout=max(0.0, deadline - time.monotonic()))
-            except queue.Empty:
-                raise AssertionError("did not end in time:\n" + "\n".join(self.lines[-40:])) from None
-            if line is None:
-                return self.proc.wait(timeout=max(1.0, deadline - time.monotonic()))
-            self.lines.append(line)
+        self.reader.rest(timeout)
+        return self.proc.wait(timeout=max(1.0, deadline - time.monotonic()))
 
 
 class Hosts:

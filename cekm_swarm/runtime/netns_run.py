@@ -144,7 +144,7 @@ def world_log_gaps(log: Path, outcome: dict[str, Any], robots: list[str]) -> dic
     none; and ``recorded`` the messages the world says it recorded that are not in the log.
     All zero for a whole log."""
     from cekm_swarm.protocol import DEFAULT_KEYS as K
-    from cekm_swarm.ticks import TICK_S
+    from cekm_swarm.ticks import tick_of
 
     from .mcap_log import read_messages
 
@@ -156,7 +156,7 @@ def world_log_gaps(log: Path, outcome: dict[str, Any], robots: list[str]) -> dic
             continue
         recorded += 1
         name = m.topic if m.topic in (K.world_state(), K.world_clock()) else m.topic.split("/sense/")[0]
-        stamps.setdefault(name, set()).add(round(m.log_time / 1e9 / TICK_S))
+        stamps.setdefault(name, set()).add(tick_of(m.log_time / 1e9))
     gaps = {"recorded": outcome["recorded_messages"] - recorded}
     for name in (K.world_state(), K.world_clock(), *(f"{K.root}/{r}" for r in robots)):
         gaps[name] = len(ticks - stamps.get(name, set()))

@@ -6,16 +6,12 @@ its tick; ``cekm run``'s side is tests/node/test_node_start_and_outputs.py."""
 
 from __future__ import annotations
 
-import sys
 import textwrap
-from pathlib import Path
 
 import pytest
 
 from cekm_swarm.experiments.default_model import default_model_path
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "runtime"))
-from test_launch_support import LaunchProcess  # noqa: E402
+from helpers.launch import LaunchProcess
 
 pytestmark = pytest.mark.slow
 

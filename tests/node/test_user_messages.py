@@ -143,8 +143,7 @@ def cekm(*args: str, cwd: Path) -> subprocess.CompletedProcess:
 
 @pytest.mark.slow
 def test_two_user_nodes_with_a_typed_message_in_lockstep_equal_cekm_run_and_are_decoded_in_the_log(example, tmp_path):
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "runtime"))
-    from test_launch_support import LaunchProcess
+    from helpers.launch import LaunchProcess
 
     ref = cekm("run", "near.toml", "--graph", str(example), "--max-time", "8", "--out", str(tmp_path / "run"),
                cwd=example.parent)
@@ -213,8 +212,7 @@ def foxglove_channel(port: int, topic: str) -> dict:
     """The channel ``topic`` as the Foxglove server on ``port`` advertises it."""
     import time
 
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "view"))
-    from test_foxglove_live import WsClient
+    from helpers.foxglove import WsClient
 
     ws, deadline = WsClient(port), time.monotonic() + 60
     while time.monotonic() < deadline:
@@ -230,12 +228,10 @@ def test_two_user_nodes_with_a_typed_message_in_real_time_are_decoded_by_topic_e
     """And a third node on a timer of its own (``timer = 0.3``): it runs at its timer's
     rate, at most once a tick, whatever rate its input comes at; and `cekm view --foxglove`
     serves the typed messages under their JSON Schema, taken from the run spec."""
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "runtime"))
-    from test_launch_support import LaunchProcess, interrupt
-
     from cekm_swarm.protocol import decode
     from cekm_swarm.runtime.config import free_port
     from cekm_swarm.runtime.mcap_log import read_messages
+    from helpers.launch import LaunchProcess, interrupt
 
     add_beat(example)
     port = free_port()  # a view with its Foxglove server attached from the start (the type's schema)
@@ -281,10 +277,8 @@ def test_a_parameter_changed_while_a_lockstep_run_goes_is_applied_at_its_tick_an
     import math
     import os
 
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "runtime"))
-    from test_launch_support import LaunchProcess
-
     from cekm_swarm.runtime.mcap_log import read_messages
+    from helpers.launch import LaunchProcess
 
     run = LaunchProcess("near.toml", tmp_path / "ls", "--graph", str(example), "--mode", "lockstep",
                         "--max-time", "20", "--no-plot", cwd=example.parent)

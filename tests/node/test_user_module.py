@@ -16,9 +16,7 @@ import pytest
 from cekm_swarm.experiments.default_model import default_model_path
 from cekm_swarm.protocol import ObstacleField, decode
 from cekm_swarm.runtime.mcap_log import read_messages
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "runtime"))
-from test_launch_support import LaunchProcess  # noqa: E402
+from helpers.launch import LaunchProcess
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "docs" / "examples"
 

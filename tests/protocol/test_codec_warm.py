@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 import textwrap
@@ -18,8 +19,7 @@ def test_warm_makes_everything_a_message_of_any_kind_needs():
     """In a fresh interpreter: after ``warm()``, encoding and decoding a message of every
     kind (and every record inside one) makes no decoder, head or check any more."""
     script = textwrap.dedent("""
-        import json, sys
-        sys.path.insert(0, sys.argv[1])
+        import json
         from cekm_swarm.protocol import codec, schema
         from test_wire_format import samples
         made = codec.warm()
@@ -29,8 +29,8 @@ def test_warm_makes_everything_a_message_of_any_kind_needs():
         after = (len(codec._CODECS), len(codec._HEADS), len(schema._CHECKS))
         print(json.dumps({"made": made, "before": before, "after": after, "again": codec.warm()}))
     """)
-    out = subprocess.run([sys.executable, "-c", script, str(Path(__file__).parent)], capture_output=True,
-                         text=True, check=True)
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(Path(__file__).parent), os.environ.get("PYTHONPATH", "")]))
+    out = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, check=True)
     doc = json.loads(out.stdout)
     kinds = len(MESSAGE_TYPES)
     assert doc["before"][:2] == [kinds, kinds]

@@ -6,16 +6,13 @@ from __future__ import annotations
 
 import json
 import os
-import queue
 import subprocess
 import sys
-import threading
-import time
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from cekm_swarm.ros2.interfaces import MESSAGE_TYPES, interfaces
+from helpers.processes import Process
 
 REPO = Path(__file__).resolve().parents[2]
 PEER = Path(__file__).with_name("ros2_peer.py")
@@ -48,51 +45,12 @@ def cekm(*args: str, timeout: float = 600) -> subprocess.CompletedProcess:
                           timeout=timeout, env=env, cwd=REPO)
 
 
-class Lines:
-    """A process whose stdout lines are read by a thread into a queue; :meth:`expect`
-    waits for a line with a timeout, :meth:`send` writes a line to its stdin."""
+class Lines(Process):
+    """A process started in the repository (stdin open): :meth:`expect` waits for a line
+    with a timeout, :meth:`send` writes a line to its stdin."""
 
     def __init__(self, argv: list[str], env: dict[str, str] | None = None) -> None:
-        self.proc = subprocess.Popen(argv, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                     text=True, env=env, cwd=REPO)
-        self._lines: queue.Queue[str | None] = queue.Queue()
-        self.seen: list[str] = []
-        self._reader = threading.Thread(target=self._read, daemon=True)
-        self._reader.start()
-
-    def _read(self) -> None:
-        assert self.proc.stdout is not None
-        for line in self.proc.stdout:
-            self._lines.put(line.rstrip("\n"))
-        self._lines.put(None)
-
-    def expect(self, prefix: str, timeout: float = 30.0, where: Callable[[str], bool] | None = None) -> str:
-        """The next stdout line starting with ``prefix`` (and passing ``where``)."""
-        deadline = time.monotonic() + timeout
-        while True:
-            try:
-                line = self._lines.get(timeout=max(0.0, deadline - time.monotonic()))
-            except queue.Empty:
-                raise AssertionError(f"{self.proc.args[:4]}: no line {prefix!r} within {timeout} s") from None
-            if line is None:
-                err = self.proc.stderr.read() if self.proc.stderr else ""
-                raise AssertionError(f"{self.proc.args[:4]} ended without {prefix!r}; stderr: {err[-3000:]}")
-            self.seen.append(line)
-            if line.startswith(prefix) and (where is None or where(line)):
-                return line
-
-    def send(self, line: str) -> None:
-        assert self.proc.stdin is not None
-        self.proc.stdin.write(line + "\n")
-        self.proc.stdin.flush()
-
-    def stop(self) -> None:
-        if self.proc.poll() is None:
-            self.proc.kill()
-        self.proc.wait(timeout=10)
-        for f in (self.proc.stdin, self.proc.stdout, self.proc.stderr):
-            if f is not None:
-                f.close()
+        super().__init__(argv, env=env, cwd=REPO, stdin=True)
 
 
 def peer_argv(endpoint: str, msg_dir: Path, domain: int = 0) -> list[str]:

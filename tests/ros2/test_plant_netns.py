@@ -18,8 +18,8 @@ from pathlib import Path
 
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "runtime"))
-from test_multihost_netns import ROBOTS, WORLD_ADDR, Hosts, namespaces_unavailable  # noqa: E402
+from cekm_swarm.runtime.netns import Hosts, namespaces_unavailable
+from helpers.netns_hosts import ROBOTS, WORLD_ADDR
 
 pytestmark = pytest.mark.slow  # starts real processes (tests/process_guard.py)
 

@@ -3,12 +3,8 @@ scouting off), client sessions, and helper processes."""
 
 from __future__ import annotations
 
-import queue
 import shutil
-import subprocess
 import sys
-import threading
-import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
@@ -16,6 +12,7 @@ import pytest
 import zenoh
 
 from cekm_swarm.runtime.config import free_port, load_config, open_client, open_embedded_router, open_session
+from helpers.processes import Process
 
 HELPER = Path(__file__).with_name("zenoh_helper.py")
 
@@ -63,57 +60,19 @@ def clients(router: str) -> Iterator[Callable[[], zenoh.Session]]:
         s.close()
 
 
-class Helper:
-    """A helper process (tests/runtime/zenoh_helper.py); its stdout lines are read by a
-    thread into a queue so every wait has a timeout."""
+class Helper(Process):
+    """A helper process (tests/runtime/zenoh_helper.py) whose stdout lines are waited on with a timeout."""
 
     def __init__(self, *args: str) -> None:
-        self.proc = subprocess.Popen([sys.executable, str(HELPER), *args], stdout=subprocess.PIPE,
-                                     stderr=subprocess.PIPE, text=True)
-        self._lines: queue.Queue[str | None] = queue.Queue()
-        self._reader = threading.Thread(target=self._read, daemon=True)
-        self._reader.start()
+        super().__init__([sys.executable, str(HELPER), *args])
 
-    def _read(self) -> None:
-        assert self.proc.stdout is not None
-        for line in self.proc.stdout:
-            self._lines.put(line.rstrip("\n"))
-        self._lines.put(None)
-
-    def _next(self, deadline: float, waiting_for: str) -> str:
-        try:
-            line = self._lines.get(timeout=max(0.0, deadline - time.monotonic()))
-        except queue.Empty:
-            raise AssertionError(f"helper {self.proc.args[2:]}: no {waiting_for!r} in time") from None
-        if line is None:
-            err = self.proc.stderr.read() if self.proc.stderr else ""
-            raise AssertionError(f"helper {self.proc.args[2:]} ended without {waiting_for!r}; stderr: {err}")
-        return line
-
-    def expect(self, prefix: str, timeout: float = 20.0) -> str:
+    def expect(self, prefix: str, timeout: float = 20.0, where=None) -> str:
         """The first stdout line starting with ``prefix``."""
-        deadline = time.monotonic() + timeout
-        while True:
-            line = self._next(deadline, prefix)
-            if line.startswith(prefix):
-                return line
+        return super().expect(prefix, timeout, where)
 
     def lines_until(self, marker: str, timeout: float = 20.0) -> list[str]:
         """stdout lines up to (not including) the line ``marker``."""
-        deadline = time.monotonic() + timeout
-        out = []
-        while (line := self._next(deadline, marker)) != marker:
-            out.append(line)
-        return out
-
-    def stop(self) -> None:
-        if self.proc.poll() is None:
-            self.proc.kill()
-        self.proc.wait(timeout=10)
-        self._reader.join(timeout=5)
-        for f in (self.proc.stdout, self.proc.stderr):
-            if f is not None:
-                f.close()
+        return self.reader.until(marker, timeout)
 
 
 @pytest.fixture

@@ -27,7 +27,6 @@ import numpy as np
 import pytest
 import zenoh
 from fuzz_corpus import OVER_LIMIT_SIZES, Fuzz, make_corpus
-from test_launch_support import LaunchProcess
 
 from cekm_swarm.experiments.default_model import default_model, default_model_path
 from cekm_swarm.experiments.navigation_run import run_scenario
@@ -36,6 +35,7 @@ from cekm_swarm.protocol import Clock, MessageError, SenseRange, decode, encode
 from cekm_swarm.protocol.drops import MAX_SOURCES
 from cekm_swarm.runtime.config import open_client
 from cekm_swarm.ticks import TICK_S, tick_time
+from helpers.launch import LaunchProcess
 from world import load_scenario
 from world.publisher import HOLD_TICKS
 

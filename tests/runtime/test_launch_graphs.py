@@ -13,11 +13,11 @@ import signal
 
 import pytest
 from scenario_gen import generated_scenario
-from test_launch_support import LaunchProcess
 
 from cekm_swarm.experiments.default_model import default_model, default_model_path
 from cekm_swarm.experiments.graph_run import run_graph
 from cekm_swarm.experiments.navigation_run import plan_all
+from helpers.launch import LaunchProcess
 from world import World, load_scenario
 
 pytestmark = pytest.mark.slow  # starts real processes (tests/process_guard.py)

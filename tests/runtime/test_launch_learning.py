@@ -15,7 +15,6 @@ import time
 import numpy as np
 import pytest
 from scenario_gen import generated_scenario
-from test_launch_support import LaunchProcess
 
 from cekm_swarm.experiments.default_model import default_model, default_model_path
 from cekm_swarm.experiments.graph_run import resolve_graph, with_params
@@ -24,6 +23,7 @@ from cekm_swarm.experiments.navigation_run import run_scenario
 from cekm_swarm.models.io import load_model
 from cekm_swarm.models.learning import map_digest
 from cekm_swarm.runtime.map_log import versions
+from helpers.launch import LaunchProcess
 from world import load_scenario
 
 pytestmark = pytest.mark.slow  # starts real processes (tests/process_guard.py)

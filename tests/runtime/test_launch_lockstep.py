@@ -14,12 +14,12 @@ import subprocess
 import sys
 
 import pytest
-from test_launch_support import LaunchProcess
 
 from cekm_swarm.experiments.default_model import default_model, default_model_path
 from cekm_swarm.experiments.navigation_run import run_scenario
 from cekm_swarm.protocol import DEFAULT_KEYS as K
 from cekm_swarm.protocol import decode
+from helpers.launch import LaunchProcess
 from world import load_scenario
 
 pytestmark = pytest.mark.slow  # starts real processes (tests/process_guard.py)

@@ -13,9 +13,9 @@ import sys
 from pathlib import Path
 
 import pytest
-from test_launch_support import LaunchProcess
 
 from cekm_swarm.experiments.default_model import default_model, default_model_path
+from helpers.launch import LaunchProcess
 
 pytestmark = pytest.mark.slow  # launches and child processes
 

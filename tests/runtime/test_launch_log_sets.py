@@ -6,10 +6,10 @@ from __future__ import annotations
 import json
 
 import pytest
-from test_launch_support import LaunchProcess
 
 from cekm_swarm.experiments.default_model import default_model, default_model_path
 from cekm_swarm.runtime.mcap_log import MSGPACK, log_info, read_messages
+from helpers.launch import LaunchProcess
 
 
 def _launch(out, *args):

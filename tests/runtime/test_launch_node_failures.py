@@ -17,9 +17,7 @@ from pathlib import Path
 import pytest
 
 from cekm_swarm.experiments.default_model import default_model_path
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from test_launch_support import LaunchProcess  # noqa: E402
+from helpers.launch import LaunchProcess
 
 pytestmark = pytest.mark.slow
 

@@ -15,10 +15,10 @@ import time
 from pathlib import Path
 
 import pytest
-from test_launch_support import LaunchProcess
 
 from cekm_swarm.experiments.default_model import default_model, default_model_path
 from cekm_swarm.protocol import DEFAULT_KEYS as K
+from helpers.launch import LaunchProcess
 
 pytestmark = pytest.mark.slow  # starts real processes (tests/process_guard.py)
 

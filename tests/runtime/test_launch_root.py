@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import pytest
 from mcap.reader import make_reader
-from test_launch_support import LaunchProcess
 
 from cekm_swarm.cli import main
 from cekm_swarm.cli_support import run_cli
+from helpers.launch import LaunchProcess
 
 pytestmark = pytest.mark.slow
 

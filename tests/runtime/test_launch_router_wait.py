@@ -7,9 +7,9 @@ from __future__ import annotations
 import signal
 
 import pytest
-from test_launch_support import LaunchProcess
 
 from cekm_swarm.runtime.config import free_port
+from helpers.launch import LaunchProcess
 
 
 @pytest.mark.slow

@@ -23,11 +23,11 @@ import signal
 import time
 
 import pytest
-from test_launch_support import LaunchProcess
 
 from cekm_swarm.experiments.default_model import default_model, default_model_path
 from cekm_swarm.experiments.tracking_run import outcome_doc, run_tracking
 from cekm_swarm.protocol import DEFAULT_KEYS as K
+from helpers.launch import LaunchProcess
 from world import load_scenario
 
 pytestmark = pytest.mark.slow  # starts real processes (tests/process_guard.py)

@@ -28,6 +28,7 @@ import pytest
 from cekm_swarm.experiments.default_model import default_model
 from cekm_swarm.experiments.navigation_run import run_scenario
 from cekm_swarm.runtime.netns import Hosts, namespaces_unavailable
+from helpers.netns_hosts import ROBOT_ADDR, ROBOTS, WORLD_ADDR
 from world import load_scenario
 
 pytestmark = pytest.mark.slow  # starts real processes (tests/process_guard.py)
@@ -37,9 +38,6 @@ DEPLOY = REPO / "deploy"
 SEED = 2
 MAX_TIME = 30.0
 OUTAGE = 2.0
-ROBOTS = ("r1", "r2")
-WORLD_ADDR = {"r1": "10.199.1.1", "r2": "10.199.2.1"}
-ROBOT_ADDR = {"r1": "10.199.1.2", "r2": "10.199.2.2"}
 
 SCENARIO = """\
 name = "two_hosts"

@@ -4,13 +4,11 @@ stops on SIGTERM as on Ctrl-C: a complete file and its summary."""
 from __future__ import annotations
 
 import os
-import queue
 import shlex
 import signal
 import subprocess
 import sys
 import threading
-import time
 
 import click
 import msgpack
@@ -23,6 +21,7 @@ from cekm_swarm.protocol import stamps as stamps_mod
 from cekm_swarm.protocol.stamps import StampWindow
 from cekm_swarm.runtime.bridge import Publishers
 from cekm_swarm.runtime.commands import COMMANDS
+from cekm_swarm.runtime.lines import LineReader
 from cekm_swarm.runtime.mcap_log import McapRecorder, log_info, read_messages
 from cekm_swarm.runtime.record import Recording, record_problem
 
@@ -166,38 +165,14 @@ def test_record_force_over_a_set_leaves_only_the_new_recording(router, clients, 
 # --------------------------------------------------------------------------- SIGTERM
 
 
-class Lines:
-    """A stream's lines, read by a thread, so every wait has a timeout."""
+class Lines(LineReader):
+    """A stream's lines, read by a thread, so every wait has a timeout (``T`` unless told)."""
 
-    def __init__(self, stream) -> None:
-        self.q: queue.Queue[str | None] = queue.Queue()
-        self.seen: list[str] = []
-        threading.Thread(target=self._read, args=(stream,), daemon=True).start()
-
-    def _read(self, stream) -> None:
-        for line in stream:
-            self.q.put(line.rstrip("\n"))
-        self.q.put(None)
-
-    def expect(self, prefix: str, timeout: float = T) -> str:
-        deadline = time.monotonic() + timeout
-        while True:
-            try:
-                line = self.q.get(timeout=max(0.0, deadline - time.monotonic()))
-            except queue.Empty:
-                raise AssertionError(f"no {prefix!r} in time; seen: {self.seen}") from None
-            if line is None:
-                raise AssertionError(f"ended without {prefix!r}; seen: {self.seen}")
-            self.seen.append(line)
-            if line.startswith(prefix):
-                return line
+    def expect(self, prefix: str, timeout: float = T, where=None) -> str:
+        return super().expect(prefix, timeout, where)
 
     def rest(self, timeout: float = T) -> list[str]:
-        out = []
-        deadline = time.monotonic() + timeout
-        while (line := self.q.get(timeout=max(0.0, deadline - time.monotonic()))) is not None:
-            out.append(line)
-        return out
+        return super().rest(timeout)
 
 
 def start_record(*args: str) -> subprocess.Popen:

@@ -34,8 +34,7 @@ from pathlib import Path
 
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from test_launch_support import LaunchProcess  # noqa: E402
+from helpers.launch import LaunchProcess
 
 MODULES = '''
 import math

@@ -21,11 +21,11 @@ import re
 import signal
 
 import pytest
-from test_launch_support import LaunchProcess
 
 from cekm_swarm.experiments.default_model import default_model, default_model_path
 from cekm_swarm.runtime.config import free_port
 from cekm_swarm.runtime.mcap_log import is_complete, read_messages
+from helpers.launch import LaunchProcess
 
 pytestmark = pytest.mark.slow  # starts real processes (tests/process_guard.py)
 

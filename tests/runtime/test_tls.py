@@ -18,7 +18,6 @@ from pathlib import Path
 
 import pytest
 import zenoh
-from test_launch_support import LaunchProcess
 
 from cekm_swarm.experiments.default_model import default_model, default_model_path
 from cekm_swarm.experiments.navigation_run import run_scenario
@@ -27,6 +26,7 @@ from cekm_swarm.runtime.bridge import Publishers
 from cekm_swarm.runtime.config import free_port, load_config, open_session
 from cekm_swarm.runtime.errors import RuntimeTransportError
 from cekm_swarm.runtime.mcap_log import read_messages
+from helpers.launch import LaunchProcess
 from world import load_scenario
 
 pytestmark = pytest.mark.slow  # starts real processes (tests/process_guard.py)

@@ -10,16 +10,13 @@ import os
 import subprocess
 import sys
 import urllib.request
-from pathlib import Path
 
 import pytest
+from test_view_browser import Stream
 
-sys.path.insert(0, str(Path(__file__).parents[1] / "runtime"))
-from test_launch_support import LaunchProcess  # noqa: E402
-from test_view_browser import Stream  # noqa: E402
-
-from cekm_swarm.experiments.default_model import default_model_path  # noqa: E402
-from cekm_swarm.runtime.config import free_port  # noqa: E402
+from cekm_swarm.experiments.default_model import default_model_path
+from cekm_swarm.runtime.config import free_port
+from helpers.launch import LaunchProcess
 
 pytestmark = pytest.mark.slow  # starts a launch and a view (tests/process_guard.py)
 

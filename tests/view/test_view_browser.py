@@ -25,13 +25,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).parents[1] / "runtime"))
-from test_foxglove_live import WsClient  # noqa: E402
-from test_launch_support import LaunchProcess  # noqa: E402
-
-from cekm_swarm.experiments.default_model import default_model_path  # noqa: E402
-from cekm_swarm.launch.plot import plot_log, read_run  # noqa: E402
-from cekm_swarm.runtime.config import free_port  # noqa: E402
+from cekm_swarm.experiments.default_model import default_model_path
+from cekm_swarm.launch.plot import plot_log, read_run
+from cekm_swarm.runtime.config import free_port
+from helpers.foxglove import WsClient
+from helpers.launch import LaunchProcess
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser") or shutil.which("google-chrome")
 pytestmark = [pytest.mark.skipif(CHROMIUM is None, reason="needs headless Chromium (.ci/run installs Debian's chromium)"),

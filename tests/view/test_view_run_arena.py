@@ -4,20 +4,15 @@
 from __future__ import annotations
 
 import json
-import queue
 import subprocess
 import sys
-import threading
-import time
 import urllib.request
-from pathlib import Path
 
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "runtime"))
-from test_launch_support import LaunchProcess, interrupt  # noqa: E402
-
-from cekm_swarm.runtime.config import free_port  # noqa: E402
+from cekm_swarm.runtime.config import free_port
+from cekm_swarm.runtime.lines import LineReader
+from helpers.launch import LaunchProcess, interrupt
 
 pytestmark = pytest.mark.slow  # starts real processes (tests/process_guard.py)
 
@@ -27,19 +22,13 @@ def test_a_view_given_another_scenario_draws_the_runs_arena_with_a_warning(tmp_p
     view = subprocess.Popen([sys.executable, "-m", "cekm_swarm", "view", "crossing", "--http", "0",
                              "--connect", f"tcp/127.0.0.1:{port}"],
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=True)
-    lines: queue.Queue[str] = queue.Queue()
-    threading.Thread(target=lambda: [lines.put(line) for line in view.stderr], daemon=True).start()
+    lines = LineReader(view.stderr)
     run = LaunchProcess("lone_obstacle", tmp_path / "run", "--mode", "lockstep", "--max-time", "1", "--no-plot",
                         port=port)
-    said: list[str] = []
+    said = lines.seen
 
     def wait_for(text: str) -> str:
-        deadline = time.monotonic() + 120
-        while True:
-            line = lines.get(timeout=max(0.1, deadline - time.monotonic()))
-            said.append(line)
-            if text in line:
-                return line
+        return lines.wait_line(text, 120)
 
     try:
         url = wait_for("live view on http://").split()[3]

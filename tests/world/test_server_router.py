@@ -10,7 +10,7 @@ import queue
 import signal
 import subprocess
 import sys
-import threading
+import time
 from pathlib import Path
 
 import pytest
@@ -18,39 +18,29 @@ import pytest
 from cekm_swarm.protocol import DEFAULT_KEYS as K
 from cekm_swarm.runtime.config import free_port, open_client
 from cekm_swarm.runtime.rungraph import default_nodes
+from helpers.processes import Process
 
 pytestmark = pytest.mark.slow  # starts real processes (tests/process_guard.py)
 
 
-class WorldProcess:
+class WorldProcess(Process):
     """``python -m world.server lone_obstacle --listen ...`` (or ``how="--connect"``) with
     its stdout lines read by a thread."""
 
     def __init__(self, out: Path, *args: str, how: str = "--listen") -> None:
         self.port = free_port()
         self.endpoint = f"tcp/127.0.0.1:{self.port}"
-        self.proc = subprocess.Popen([sys.executable, "-m", "world.server", "lone_obstacle", how, self.endpoint,
-                                      "--out", str(out), *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                     text=True)
-        self.lines: queue.Queue[str | None] = queue.Queue()
-        threading.Thread(target=self._read, daemon=True).start()
-
-    def _read(self) -> None:
-        for line in self.proc.stdout:
-            self.lines.put(line.rstrip("\n"))
-        self.lines.put(None)
+        super().__init__([sys.executable, "-m", "world.server", "lone_obstacle", how, self.endpoint,
+                          "--out", str(out), *args])
 
     def next_kind(self, timeout: float = 30) -> tuple[str, dict]:
-        line = self.lines.get(timeout=timeout)
-        assert line is not None, f"world server ended: {self.proc.stderr.read()[-2000:]}"
+        line = self.reader.next(time.monotonic() + timeout, "a world server line")
+        assert line is not None, f"world server ended: {self._stderr()}"
         kind, _, body = line.partition(" ")
         return kind, json.loads(body)
 
     def rest(self, timeout: float = 30) -> list[str]:
-        kinds = []
-        while (line := self.lines.get(timeout=timeout)) is not None:
-            kinds.append(line.partition(" ")[0])
-        return kinds
+        return [line.partition(" ")[0] for line in self.reader.rest(timeout)]
 
     def close(self) -> None:
         if self.proc.poll() is None:

@@ -5,16 +5,13 @@ failing"), saying so; a wait that runs out ends in one clear line; a signal ends
 from __future__ import annotations
 
 import signal
-import sys
 import time
 from pathlib import Path
 
 import pytest
+from test_server_router import WorldProcess
 
 from cekm_swarm.runtime.config import open_embedded_router
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from test_server_router import WorldProcess  # noqa: E402
 
 pytestmark = pytest.mark.slow  # starts real processes (tests/process_guard.py)
 
@@ -26,12 +23,7 @@ class JoiningWorld(WorldProcess):
         super().__init__(out, *args, how="--connect")
 
     def wait_line(self, prefix: str, timeout: float = 30) -> str:
-        deadline = time.monotonic() + timeout
-        while True:
-            line = self.lines.get(timeout=max(0.01, deadline - time.monotonic()))
-            assert line is not None, f"world server ended: {self.proc.stderr.read()[-2000:]}"
-            if line.startswith(prefix):
-                return line
+        return self.expect(prefix, timeout)
 
 
 @pytest.fixture

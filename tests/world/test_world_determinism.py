@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -71,10 +72,11 @@ def test_reading_sensors_does_not_change_the_physics():
 @pytest.mark.slow
 def test_bit_identical_across_processes():
     code = (
-        "import hashlib, sys; sys.path.insert(0, 'tests/world');"
+        "import hashlib;"
         "from test_world_determinism import run;"
         "print(hashlib.sha256(run('tracking', 11, steps=150)).hexdigest())"
     )
-    a = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, check=True).stdout
-    b = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, check=True).stdout
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(Path(__file__).parent), os.environ.get("PYTHONPATH", "")]))
+    a = subprocess.run([sys.executable, "-c", code], cwd=REPO, env=env, capture_output=True, text=True, check=True).stdout
+    b = subprocess.run([sys.executable, "-c", code], cwd=REPO, env=env, capture_output=True, text=True, check=True).stdout
     assert a == b and len(a.strip()) == 64

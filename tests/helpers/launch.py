@@ -6,15 +6,14 @@ from __future__ import annotations
 
 import json
 import os
-import queue
 import signal
 import subprocess
 import sys
-import threading
 import time
 from pathlib import Path
 
 from cekm_swarm.runtime.config import free_port
+from cekm_swarm.runtime.lines import LineReader
 
 
 class LaunchProcess:
@@ -26,43 +25,22 @@ class LaunchProcess:
                                       "--port", str(self.port), *args],
                                      stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env,
                                      start_new_session=True, cwd=cwd)
-        self.lines: list[str] = []
-        self._q: queue.Queue[str | None] = queue.Queue()
-        threading.Thread(target=self._read, daemon=True).start()
-
-    def _read(self) -> None:
         assert self.proc.stdout is not None
-        for line in self.proc.stdout:
-            self._q.put(line.rstrip("\n"))
-        self._q.put(None)
+        self.reader = LineReader(self.proc.stdout)
+        self.lines = self.reader.seen
 
     def wait_line(self, needle: str, timeout: float) -> str:
         """The first (new) output line containing ``needle``."""
-        deadline = time.monotonic() + timeout
-        while True:
-            try:
-                line = self._q.get(timeout=max(0.0, deadline - time.monotonic()))
-            except queue.Empty:
-                raise AssertionError(f"no line with {needle!r} in {timeout} s; output so far:\n" +
-                                     "\n".join(self.lines[-30:])) from None
-            if line is None:
-                raise AssertionError(f"launch ended without {needle!r}; output:\n" + "\n".join(self.lines[-40:]))
-            self.lines.append(line)
-            if needle in line:
-                return line
+        return self.reader.wait_line(needle, timeout)
 
     def finish(self, timeout: float) -> int:
-        """Read the output to the end and wait for the exit code."""
+        """Read the output to the end and wait for the exit code (killed if it does not end in time)."""
         deadline = time.monotonic() + timeout
-        while True:
-            try:
-                line = self._q.get(timeout=max(0.0, deadline - time.monotonic()))
-            except queue.Empty:
-                self.kill()
-                raise AssertionError("launch did not end in time; output:\n" + "\n".join(self.lines[-40:])) from None
-            if line is None:
-                break
-            self.lines.append(line)
+        try:
+            self.reader.rest(timeout)
+        except AssertionError:
+            self.kill()
+            raise
         return self.proc.wait(timeout=max(1.0, deadline - time.monotonic()))
 
     def pids(self) -> dict[str, int]:
