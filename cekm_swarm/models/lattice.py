@@ -30,9 +30,15 @@ class Lattice:
         return self.size * self.size
 
     def positions(self) -> np.ndarray:
-        """r_i as an (n, 2) float array of (row, col)."""
-        rows, cols = np.divmod(np.arange(self.n), self.size)
-        return np.stack([rows, cols], axis=1).astype(np.float64)
+        """r_i as an (n, 2) float array of (row, col); read-only, made once per lattice
+        (every learning step asks for it)."""
+        r = self.__dict__.get("_positions")
+        if r is None:
+            rows, cols = np.divmod(np.arange(self.n), self.size)
+            r = np.stack([rows, cols], axis=1).astype(np.float64)
+            r.flags.writeable = False
+            self.__dict__["_positions"] = r  # a cache, not a field: the frozen lattice's value stays its size
+        return r
 
     def initial_weights(self) -> np.ndarray:
         """w_i = (alpha_i, d_i): alpha on [-pi, pi) (no duplicate column at +-pi), d on [0, 0.16] m."""

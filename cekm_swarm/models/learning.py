@@ -93,5 +93,5 @@ def map_digest(w: np.ndarray, M: np.ndarray) -> str:
     the robot uses; R^-1 is the learner's own)."""
     h = hashlib.sha256()
     for a in (w, M):
-        h.update(np.ascontiguousarray(a, dtype="<f8").tobytes())
+        h.update(np.ascontiguousarray(a, dtype="<f8").data)  # the array's own bytes, no copy when already so laid out
     return h.hexdigest()[:16]

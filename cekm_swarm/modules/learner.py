@@ -79,6 +79,18 @@ def copy_model(model: IndirectEKM, w: np.ndarray | None = None, M: np.ndarray | 
                        None if model.converged is None else model.converged.copy())
 
 
+def winner_of(net: IndirectEKM, v: np.ndarray) -> int:
+    """The winner for v (Eqs. 2-4) by numba's competition (``models.fast.winner``: the same
+    winner as the models' numpy one bit for bit, tested; a few us instead of tens)."""
+    from cekm_swarm.models import fast
+
+    params = getattr(net, "_fast_params", None)
+    if params is None:
+        params = fast.pack_params(net.comp, net.learn_p, net.v_max, 1e-3)
+        net._fast_params = params  # the parameters do not change while it learns (only w, M, R^-1 do)
+    return int(fast.winner(float(v[0]), float(v[1]), net.w, params))
+
+
 def learn_step(net: IndirectEKM, left: float, right: float, dt: float, blocked: bool, c: tuple[float, float],
                t_learn: float, axle: float, counts: LearnerCounts) -> np.ndarray | None:
     """One learning step of section 3.5 from one tick of odometry (each wheel's travel over
@@ -93,7 +105,8 @@ def learn_step(net: IndirectEKM, left: float, right: float, dt: float, blocked: 
         counts.blocked += 1
         return None
     v = wheel_displacement(left, right, dt, axle, STEP_S)
-    counts.error = float(np.hypot(*(c_exec - net.output(v))))  # how far the map was from c (Eq. 13), before
+    s = winner_of(net, v)  # the rule's winner for v (Eqs. 2-4), as net.output finds it
+    counts.error = float(np.hypot(*(c_exec - net.control(v, s, s))))  # how far the map was from c (Eq. 13), before
     net.learn(v, c_exec, t_learn)  # winner for v, Eq. 15 or Eqs. 16-17, Eq. 12
     counts.applied += 1
     return v
@@ -116,6 +129,7 @@ class Learner(Node):
         if self.params.start_step < 0:
             raise NodeError(f"{self.ctx.sender}: start_step must be >= 0")
         self.net = copy_model(indirect_model(self.ctx))
+        winner_of(self.net, np.zeros(2))  # numba's competition loaded (and compiled once, cached) before the run
         size = 8 * 6 * self.net.lattice.n
         if size > MAX_MAP_BYTES:
             raise NodeError(f"{self.ctx.sender}: a {self.net.lattice.size}x{self.net.lattice.size} map is {size} bytes, "
@@ -295,9 +309,17 @@ def resume(learner: Learner, path: Path) -> bool:
     return True
 
 
-def model_of(base: IndirectEKM, msg: MapVersion) -> IndirectEKM:
-    """The map a version message holds, on ``base``'s lattice and parameters."""
-    return copy_model(base, msg.w, msg.M)
+def model_of(base: IndirectEKM, msg: MapVersion, reader: bool = False) -> IndirectEKM:
+    """The map a version message holds, on ``base``'s lattice and parameters: a private
+    copy, or for an EKM node (``reader``) the least a version costs it: M the message's own
+    read-only array (a reader never learns, and a write would raise), w a copy (numba's
+    competition is compiled for writable arrays: a read-only one would compile it again),
+    R^-1 and ``converged`` ``base``'s (a reader computes with neither)."""
+    if not reader:
+        return copy_model(base, msg.w, msg.M)
+    n = base.lattice.n
+    return IndirectEKM(base.lattice, base.rule, np.array(msg.w).reshape(n, 2), msg.M.reshape(n, 2, 2), base.Rinv,
+                       base.comp, base.learn_p, base.v_max, base.converged)
 
 
 def map_misfit(msg: MapVersion, version: int, n: int) -> str | None:
@@ -347,7 +369,7 @@ class MapFollower:
         # numba winners: a new version empties the winner memo, and numpy's competition
         # (tens of us) would then run again for every reading; numba's gives the same
         # winners bit for bit (tested) in about 1 us (docs/learning.md, cost)
-        self.ekm = replace(self.ekm, model=model_of(self.ekm.model, msg), tabulate=False, backend="numba")
+        self.ekm = replace(self.ekm, model=model_of(self.ekm.model, msg, reader=True), tabulate=False, backend="numba")
         self.version = msg.version
         self.digest = msg.digest
 

@@ -20,6 +20,7 @@ from cekm_swarm.modules.learner import (
     experience_pairs,
     learn_step,
     map_misfit,
+    model_of,
 )
 from cekm_swarm.modules.learning_nodes import LearningObstacleLocalization
 from cekm_swarm.node.api import Context, Inputs, start_node
@@ -59,7 +60,9 @@ def test_a_learning_step_is_the_models_own_rule(base):
     c = (0.05, 0.0625)
     counts = LearnerCounts()
     v = learn_step(net, 0.006, 0.008, TICK_S, False, c, 7.0, KHEPERA.axle, counts)
-    ref.learn(wheel_displacement(0.006, 0.008, TICK_S, KHEPERA.axle, STEP_S), np.array(c), 7.0)
+    v_ref = wheel_displacement(0.006, 0.008, TICK_S, KHEPERA.axle, STEP_S)
+    assert counts.error == float(np.hypot(*(np.array(c) - ref.output(v_ref))))  # Eq. 13 before, numpy's winner
+    ref.learn(v_ref, np.array(c), 7.0)
     assert v is not None and counts.applied == 1
     assert np.array_equal(net.w, ref.w) and np.array_equal(net.M, ref.M) and np.array_equal(net.Rinv, ref.Rinv)
     assert not np.array_equal(net.w, base.w)  # it learned, on its own copy
@@ -195,3 +198,21 @@ def test_a_team_learner_that_joins_late_starts_from_the_teammate_map_that_learne
     assert again.version == 1  # once only
     first = start_node(TeamLearner, team_ctx, TeamLearner.Params(start_step=0))  # a run's tick 0: nobody has run
     assert first.step(0.0, Inputs({"odometry": odometry([]), "team": {}, "maps": {}}))["map"].version == 0
+
+
+def test_a_readers_version_is_the_messages_map_sharing_its_m(base):
+    """An EKM node's model of a version (``model_of(reader=True)``): the map a private copy
+    holds, M the message's own read-only array (not copied), w a writable copy; the EKM built
+    on it gives the same winners, fields and commands as one built on the copy."""
+    from cekm_swarm.controller.cooperative import CooperativeEKM
+
+    msg = run_learner(start_node(Learner, ctx(base), Learner.Params(start_step=0)), 3)[-1]
+    reader, copy = model_of(base, msg, reader=True), model_of(base, msg)
+    assert np.array_equal(reader.w, copy.w) and np.array_equal(reader.M, copy.M)
+    assert np.shares_memory(reader.M, msg.M) and not reader.M.flags.writeable and reader.w.flags.writeable
+    fast, ref = CooperativeEKM(reader, tabulate=False, backend="numba"), CooperativeEKM(copy, backend="numpy")
+    for alpha, d in ((0.3, 0.05), (-2.0, 0.12), (3.1, 0.01)):
+        s = fast.winner(alpha, d)
+        assert s == ref.winner(alpha, d)
+        assert np.array_equal(fast.obstacle_activity(s), ref.obstacle_activity(s))
+        assert np.array_equal(fast.target_activity(s), ref.target_activity(s))
