@@ -33,6 +33,17 @@ class WsClient:
         while len(self.buf) < n:
             self._more()
 
+    def frame_within(self, seconds: float) -> tuple[int, bytes] | None:
+        """The next frame, or None when none is whole within ``seconds`` (a partial one stays
+        buffered for the next call): for a test that must send again until an answer comes."""
+        self.s.settimeout(seconds)
+        try:
+            return self.frame()
+        except TimeoutError:
+            return None
+        finally:
+            self.s.settimeout(20)
+
     def frame(self) -> tuple[int, bytes]:
         self._need(2)
         op, n, i = self.buf[0] & 15, self.buf[1] & 127, 2
