@@ -161,7 +161,7 @@ def learning_experiment_cmd(teams: str, seeds: str, ticks: int, workers: int | N
     from ..cli_support import prepare_out_dir
     from ..errors import CekmError
     from .commands import parse_team_sizes, seeds_of
-    from .learning_experiment import LearningConfig, plot_curves, results_doc, run_experiment
+    from .learning_experiment import LearningConfig, plot_curves, results_doc, run_experiment, summary_table
 
     try:
         config = LearningConfig(teams=parse_team_sizes(teams), seeds=tuple(seeds_of(seeds)), ticks=ticks,
@@ -179,8 +179,6 @@ def learning_experiment_cmd(teams: str, seeds: str, ticks: int, workers: int | N
     doc["wall_seconds"] = round(time.perf_counter() - t0, 1)
     (out_dir / "results.json").write_text(jsonfile.dumps(doc))
     plot_curves(config, curves).savefig(out_dir / "learning.png", dpi=120)
-    for key, row in doc["summary"].items():
-        click.echo(f"{key:>10}: steps of r1 to E < {config.threshold_mm} mm {row['steps_to_E']}, to T < "
-                   f"{config.threshold_T} s/m {row['steps_to_T']}; final E {row['final_E_mm']} mm, T "
-                   f"{row['final_T_s_per_m']} s/m")
+    for line in summary_table(doc):
+        click.echo(line)
     click.echo(f"wrote {out_dir / 'results.json'}, {out_dir / 'learning.png'} ({doc['wall_seconds']} s)")

@@ -141,7 +141,70 @@ def results_doc(config: LearningConfig, curves: list[Curve]) -> dict[str, Any]:
         row["final_E_mm"].append(c.E_mm[-1])
         row["final_T_s_per_m"].append(c.T_s_per_m[-1])
         row["final_D"].append(c.D[-1])
-    return {"config": asdict(config), "summary": summary, "curves": [asdict(c) for c in curves]}
+    for row in summary.values():
+        row["stats"] = {k: seed_interval(row[k]) for k in STATS_OF}
+    sharing = {str(n): {k: paired_difference(summary[str(n)][k], summary[f"{n}-shared"][k]) for k in STATS_OF}
+               for n in config.teams if str(n) in summary and f"{n}-shared" in summary}
+    return {"config": asdict(config), "summary": summary, "sharing": sharing, "curves": [asdict(c) for c in curves]}
+
+
+STATS_OF = ("steps_to_E", "steps_to_T", "final_E_mm", "final_T_s_per_m", "final_D")  # summarized over seeds
+
+
+def seed_interval(values: list[float | None]) -> dict[str, Any]:
+    """{"mean", "lo", "hi", "n", "of"} over the seeds with a value (a None: the threshold never
+    reached, counted in "of" but not in the mean): the mean and its Student-t 95 % interval
+    (lo = hi = None with one seed)."""
+    from .reaching_stats import interval95
+
+    out = interval95(values) | {"of": len(values)}
+    if out["n"] < 2:
+        out["lo"] = out["hi"] = None
+    return out
+
+
+def paired_difference(alone: list[float | None], shared: list[float | None]) -> dict[str, Any]:
+    """Sharing minus not sharing on the same seeds (both lists in seed order; seeds where
+    either is None are left out): the mean difference, its 95 % t interval, and the paired
+    t-test's two-sided p (None with fewer than two pairs)."""
+    from .metrics import paired_p
+
+    pairs = [(a, b) for a, b in zip(alone, shared) if a is not None and b is not None]
+    diff = seed_interval([b - a for a, b in pairs])
+    return {"mean_diff": diff["mean"], "lo": diff["lo"], "hi": diff["hi"], "n": diff["n"],
+            "p": paired_p([b for _, b in pairs], [a for a, _ in pairs]) if pairs else None}
+
+
+def summary_table(doc: dict[str, Any]) -> list[str]:
+    """The summary as text lines: per team and sharing, mean [95 % interval] over seeds; per
+    team, sharing minus not sharing (paired on seeds) with its p."""
+
+    def fmt(s: dict[str, Any], digits: int) -> str:
+        if s["mean"] is None:
+            return "never"
+        ci = "" if s["lo"] is None else f" [{s['lo']:.{digits}f}, {s['hi']:.{digits}f}]"
+        miss = "" if s["n"] == s["of"] else f" ({s['of'] - s['n']} of {s['of']} never)"
+        return f"{s['mean']:.{digits}f}{ci}{miss}"
+
+    c = doc["config"]
+    lines = [f"mean [95 % interval] over {len(c['seeds'])} seeds; steps of r1 to E < {c['threshold_mm']} mm, "
+             f"to T < {c['threshold_T']} s/m; final E (mm), T (s/m), D"]
+    for key, row in doc["summary"].items():
+        st = row["stats"]
+        lines.append(f"{key:>10}: to E {fmt(st['steps_to_E'], 0)}; to T {fmt(st['steps_to_T'], 0)}; final E "
+                     f"{fmt(st['final_E_mm'], 2)}, T {fmt(st['final_T_s_per_m'], 1)}, D {fmt(st['final_D'], 2)}")
+    for n, d in doc.get("sharing", {}).items():
+        parts = []
+        for k, digits in (("steps_to_E", 0), ("steps_to_T", 0), ("final_E_mm", 2)):
+            s = d[k]
+            if s["mean_diff"] is None:
+                parts.append(f"{k} n/a")
+                continue
+            ci = "" if s["lo"] is None else f" [{s['lo']:.{digits}f}, {s['hi']:.{digits}f}]"
+            p = "" if s["p"] is None else f", p = {s['p']:.3f}"
+            parts.append(f"{k} {s['mean_diff']:+.{digits}f}{ci} (n = {s['n']}{p})")
+        lines.append(f"{n:>3} robots, sharing - not: " + "; ".join(parts))
+    return lines
 
 
 def plot_curves(config: LearningConfig, curves: list[Curve]):
