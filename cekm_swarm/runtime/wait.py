@@ -74,6 +74,12 @@ def _unreachable(exc: BaseException) -> bool:
         "Unable to connect" in text and "refused" not in text and "authentication failed" not in text)
 
 
+def _refused_session(exc: BaseException) -> bool:
+    """True when the endpoint accepted a TCP connection but Zenoh's session was refused
+    without credentials (:func:`~cekm_swarm.runtime.config.open_session`'s wording)."""
+    return "accepts connections but refused a Zenoh session" in str(exc)
+
+
 def open_when_ready(make_config: Callable[[], zenoh.Config], endpoint: str, *, timeout: float = DEFAULT_WAIT,
                     say: Callable[[str], None] | None = None, stop: threading.Event | None = None,
                     what: str = "client session") -> zenoh.Session:
@@ -83,13 +89,19 @@ def open_when_ready(make_config: Callable[[], zenoh.Config], endpoint: str, *, t
 
     Raises :class:`RuntimeTransportError` naming the endpoint and the time waited."""
     t0 = time.monotonic()
-    said = False
+    said = refused = False
     while True:
         try:
             return open_session(make_config(), what)
         except RuntimeTransportError as exc:
             if not _unreachable(exc):
-                raise
+                # a router that came up between Zenoh's attempt and the TCP probe that explains it
+                # looks like one refusing the session: while waiting, ask once more before saying so
+                if refused or timeout <= 0 or not _refused_session(exc):
+                    raise
+                refused = True
+                time.sleep(0.2)
+                continue
             waited = time.monotonic() - t0
             if waited >= timeout or (stop is not None and stop.is_set()):
                 if timeout <= 0:

@@ -142,3 +142,30 @@ def test_launch_takes_its_endpoint_from_cekm_connect_and_refuses_a_bad_one(tmp_p
                              env={ENV_CONNECT: "localhost:7447"})
     assert res.exit_code == 2 and f"{ENV_CONNECT}: endpoint 'localhost:7447'" in res.output
     assert not (tmp_path / "out").exists()
+
+
+def test_a_router_that_came_up_during_the_probe_is_asked_once_more_and_a_refusing_one_is_named(monkeypatch):
+    """Zenoh fails while the router starts, the TCP probe that explains it then finds the port
+    open: that reads as a refused session. Waiting, the tool asks once more; a router that
+    refuses again is named at once (no wait for the timeout)."""
+    import cekm_swarm.runtime.wait as wait
+
+    refused = RuntimeTransportError("cannot open client session (client, endpoints ['tcp/127.0.0.1:1']): "
+                                    "tcp/127.0.0.1:1 accepts connections but refused a Zenoh session: ...")
+    answers = [refused, "session"]
+
+    def fake_open(config, what):
+        got = answers.pop(0)
+        if isinstance(got, BaseException):
+            raise got
+        return got
+
+    monkeypatch.setattr(wait, "open_session", fake_open)
+    assert open_when_ready(lambda: None, "tcp/127.0.0.1:1", timeout=30) == "session"
+    answers[:] = [refused, refused, "never reached"]
+    with pytest.raises(RuntimeTransportError, match="refused a Zenoh session"):
+        open_when_ready(lambda: None, "tcp/127.0.0.1:1", timeout=30)
+    assert answers == ["never reached"]
+    answers[:] = [refused, "never reached"]  # not waiting (timeout 0): one attempt, said as it is
+    with pytest.raises(RuntimeTransportError, match="refused a Zenoh session"):
+        open_when_ready(lambda: None, "tcp/127.0.0.1:1", timeout=0)
