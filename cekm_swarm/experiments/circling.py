@@ -25,7 +25,8 @@ from .. import jsonfile
 from ..errors import ParameterError
 from ..robot import KHEPERA, STEP_S
 from .arena import Arena
-from .reaching_run import TargetReachingConfig, run_network
+from .reaching_config import TargetReachingConfig
+from .reaching_run import run_network
 from .stopping import StopRule
 from .streams import Schedule, TrialStreams
 from .training import convergence_mask
@@ -249,15 +250,3 @@ def run_circling(out: Path, network: str = "R15", seed: int = 2005, trial: int =
     (out / f"{stem}.json").write_text(jsonfile.dumps(summary))
     return CirclingEpisode(summary, png, out / f"{stem}.json", title)
 
-
-def main(argv: list[str] | None = None) -> int:
-    """``python -m cekm_swarm.experiments.circling ARGS`` is ``cekm experiment circling ARGS``."""
-    import sys
-
-    from ..cli import run_cli_args
-
-    return run_cli_args(["experiment", "circling", *(sys.argv[1:] if argv is None else argv)])
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -17,10 +17,13 @@ from typing import TYPE_CHECKING, Any, Callable, Sequence
 import click
 
 from .. import jsonfile
+from ..cli_support import F, ScenarioFileError
+from ..controller.planner import PlanningError
 from ..errors import ParameterError
+from .navigation_run import planned_checkpoints
 
 if TYPE_CHECKING:
-    from .reaching_run import NetworkRun, TargetReachingConfig
+    from .reaching_config import NetworkRun, TargetReachingConfig
 
 
 def engine_options(fn: Callable[..., Any]) -> Callable[..., Any]:
@@ -47,6 +50,45 @@ def engine_options(fn: Callable[..., Any]) -> Callable[..., Any]:
             return fn(*args, **kwargs)
 
     return wrapper
+
+
+def load_scenario_file(name: str) -> Any:
+    """The scenario ``name`` (a name under world/scenarios or a .toml path); a bad file
+    refused in one line naming it (exit 2)."""
+    from world import ScenarioError, load_scenario  # noqa: PLC0415 -- lazy: pymunk, not at cekm --help
+
+    try:
+        return load_scenario(name)
+    except ScenarioError as exc:
+        raise ScenarioFileError(str(exc)) from None
+
+
+def scenario_kind(scenario: Any) -> str:
+    """``"tracking"`` or ``"navigation"``; a bad scenario file for one that is neither."""
+    from world import ScenarioError  # noqa: PLC0415 -- lazy: pymunk, not at cekm --help
+    from world.tracking import run_kind  # noqa: PLC0415 -- lazy: pymunk, not at cekm --help
+
+    try:
+        return run_kind(scenario)
+    except ScenarioError as exc:
+        raise ScenarioFileError(str(exc)) from None
+
+
+def refuse_unplannable(scenario) -> None:
+    """A ``plan_checkpoints`` scenario whose known walls leave a robot no path: refused in
+    one line naming the file and the robot, before anything is written or started."""
+    if not scenario.plan_checkpoints:
+        return
+    try:
+        planned_checkpoints(scenario)
+    except PlanningError as exc:
+        raise ScenarioFileError(str(exc)) from None
+
+
+def seeds_option(default: str) -> Callable[[F], F]:
+    """``--seeds``: seeds as a list and/or ranges (read by :func:`seeds_of`)."""
+    return click.option("--seeds", default=default, show_default=True,
+                        help="Seeds: a list and/or ranges, e.g. 1-20 or 1,2,7.")
 
 
 def run_navigation_cmd(scenario, controller: str, model, seed: int | None, max_time: float, out_dir, graph) -> None:

@@ -4,13 +4,15 @@ its ``outcome.json`` from its log."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import click
 
 from .. import jsonfile
-from ..cli_support import Finite, out_dir_options
+from ..cli_support import F, Finite, out_dir_options
+from .commands import parse_team_sizes, seeds_of, seeds_option
 from .learning_run import UNTRAINED
 
 
@@ -40,6 +42,19 @@ class ModelChoice(click.ParamType):
 
 
 MODEL_CHOICE = ModelChoice()
+
+MODEL_HELP = "A trained model (.npz from `cekm train`); default: R15 trained and cached on first use."
+MODEL_OR_UNTRAINED_HELP = ("A trained model (.npz from `cekm train`), or 'untrained' (docs/learning.md); default: "
+                           "R15 trained and cached on first use.")
+
+
+def model_option(untrained: bool = False) -> Callable[[F], F]:
+    """``--model`` (as ``model_path``): a model file that exists, or with ``untrained`` also
+    the word 'untrained' (:data:`MODEL_CHOICE`); none given, the default R15."""
+    if untrained:
+        return click.option("--model", "model_path", type=MODEL_CHOICE, help=MODEL_OR_UNTRAINED_HELP)
+    return click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path),
+                        help=MODEL_HELP)
 
 
 @click.group("model")
@@ -146,7 +161,7 @@ def add_launch_learning(out_dir: Path, outcome: dict[str, Any], model_path) -> d
 
 @click.command("learning")
 @click.option("--teams", default="1,2,4,8", show_default=True, help="Team sizes, comma-separated.")
-@click.option("--seeds", default="1,2", show_default=True, help="Seeds: a list and/or ranges, e.g. 1-5.")
+@seeds_option("1,2")
 @click.option("--ticks", default=1600, show_default=True, type=click.IntRange(16, 100_000),
               help="Ticks of 0.128 s per run (about one learning step each per robot).")
 @click.option("--workers", type=click.IntRange(1), help="Parallel processes (default: one per core).")
@@ -160,7 +175,6 @@ def learning_experiment_cmd(teams: str, seeds: str, ticks: int, workers: int | N
 
     from ..cli_support import prepare_out_dir
     from ..errors import CekmError
-    from .commands import parse_team_sizes, seeds_of
     from .learning_experiment import LearningConfig, plot_curves, results_doc, run_experiment, summary_table
 
     try:

@@ -11,7 +11,7 @@ from .. import jsonfile
 from .reaching_figures import plot_all
 
 if TYPE_CHECKING:
-    from .reaching_run import NetworkRun, TargetReachingConfig
+    from .reaching_config import NetworkRun, TargetReachingConfig
 
 # The paper's published numbers (Low, Leow & Ang 2005, Tables 1-4), for side-by-side tables.
 PAPER_TABLE1 = {  # E (mm), T (s/m), D: mean, std

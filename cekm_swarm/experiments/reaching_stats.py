@@ -20,7 +20,7 @@ from ..models.networks import parameter_count, parse_network_name
 from .metrics import mean_std, welch_p
 
 if TYPE_CHECKING:
-    from .reaching_run import NetworkRun, TargetReachingConfig
+    from .reaching_config import NetworkRun, TargetReachingConfig
 
 INDICES = ("E_mm", "T_s_per_m", "D", "P5", "T5_s_per_m", "D5")
 SUMMARY_INDICES = INDICES + ("ended_by_budget", "goal_stops")

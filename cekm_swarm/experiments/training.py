@@ -7,7 +7,8 @@ import math
 import numpy as np
 
 from .arena import Arena, displacement, drive
-from .reaching_run import TargetReachingConfig, run_network
+from .reaching_config import TargetReachingConfig
+from .reaching_run import run_network
 from .stopping import GOAL_STOP
 from .streams import Schedule
 

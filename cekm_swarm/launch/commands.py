@@ -14,7 +14,6 @@ from cekm_swarm.cli_support import (
     ENDPOINT,
     ROOT,
     RUN_ID,
-    SEED,
     SIZE,
     FileRefused,
     Finite,
@@ -23,12 +22,14 @@ from cekm_swarm.cli_support import (
     RunFailed,
     ScenarioFileError,
     out_dir_options,
+    out_file_option,
     prepare_figure_file,
     prepare_out_dir,
-    refuse_unplannable,
+    seed_option,
 )
 from cekm_swarm.errors import CekmError
-from cekm_swarm.experiments.learning_commands import MODEL_CHOICE, model_group
+from cekm_swarm.experiments.commands import refuse_unplannable
+from cekm_swarm.experiments.learning_commands import model_option
 from cekm_swarm.experiments.learning_run import UNTRAINED, model_file_for_launch
 from cekm_swarm.runtime.config import DEFAULT_ENDPOINT, DEFAULT_PORT
 from cekm_swarm.runtime.log_commands import LOG_HELP
@@ -50,15 +51,14 @@ def _env_endpoint() -> str | None:
 @click.argument("scenario")
 @click.option("--mode", type=click.Choice(["realtime", "lockstep"]), default="realtime", show_default=True,
               help="realtime: wall clock; lockstep: the world waits for every robot's command (reproducible).")
-@click.option("--seed", type=SEED, help="World seed (default: the scenario's).")
+@seed_option()
 @out_dir_options("Directory for outcome.json, run.mcap, trajectory.png and the processes' logs.")
 @click.option("--connect", type=ENDPOINT, help="Join this Zenoh endpoint (e.g. tcp/10.0.0.1:7447) instead of "
                                                "opening an embedded router [default: $CEKM_CONNECT unless "
                                                "--port is given].")
 @click.option("--port", default=DEFAULT_PORT, show_default=True, type=click.IntRange(1, 65535),
               help="Port of the embedded router on 127.0.0.1 (without --connect).")
-@click.option("--model", "model_path", type=MODEL_CHOICE,
-              help="A trained model (.npz), or 'untrained' (with --learn); default: R15 trained and cached on first use.")
+@model_option(untrained=True)
 @click.option("--learn", is_flag=True, help="The robots' maps learn online as they move (docs/learning.md).")
 @click.option("--max-time", type=Finite(min=0.2),
               help="Sim seconds before the run ends (default: as cekm run, 600 for navigation, 120 for tracking).")
@@ -310,8 +310,7 @@ def outcome_summary(outcome: dict) -> list[str]:
 
 @click.command("plot", epilog=LOG_HELP)
 @click.argument("log", metavar="LOG", type=click.Path(exists=True, path_type=Path))
-@click.option("--out", "out_path", type=click.Path(dir_okay=False, path_type=Path), required=True,
-              help="The PNG to write (replaced if it exists).")
+@out_file_option("The PNG to write (replaced if it exists).")
 @click.option("--title", help="Figure title.")
 def plot_cmd(log: Path, out_path: Path, title: str | None) -> None:
     """Draw the run recorded in LOG (an MCAP log of `cekm launch`): arena and robot paths."""
@@ -338,6 +337,3 @@ def plot_cmd(log: Path, out_path: Path, title: str | None) -> None:
         raise RunFailed(str(exc)) from None
     fig.savefig(out_path, dpi=130)
     click.echo(f"wrote {out_path}")
-
-
-COMMANDS = [launch_cmd, plot_cmd, model_group]  # cekm model extract|lattice (docs/learning.md)

@@ -15,7 +15,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from ..experiments.concave_run import SweepConfig
+from ..experiments.concave_config import SweepConfig
 from ..experiments.concave_stats import cells_of, grid_of
 from ..experiments.metrics import welch_p
 from ..experiments.obstacle_stats import wilson_interval
