@@ -7,6 +7,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from world import ScenarioError, load_scenario
+
 from ..errors import ParameterError
 
 
@@ -35,8 +37,6 @@ class SweepConfig:
         """Load the scenario with every (width, depth, range) the sweep will run, so that a
         value the scenario refuses is a :class:`ParameterError` naming its option before any
         worker starts (it was a ScenarioError traceback from a worker)."""
-        from world import ScenarioError, load_scenario
-
         options = {"obstacles[0].width": "--widths", "obstacles[0].depth": "--depths", "sensors.range": "--ranges"}
         for r in self.ranges:
             for d in self.depths:

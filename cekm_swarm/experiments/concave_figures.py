@@ -6,6 +6,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 
 def plot_sweep(doc: dict, path: Path) -> Path:
     """The paper's Fig. 9: the widest negotiated width against depth, one curve per range."""
@@ -37,7 +39,6 @@ def plot_grid(doc: dict, path: Path) -> Path:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    import numpy as np
 
     st = doc["settings"]
     widths, depths, ranges = st["widths"], st["depths"], st["ranges"]

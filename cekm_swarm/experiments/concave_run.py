@@ -15,17 +15,18 @@ from __future__ import annotations
 from dataclasses import asdict
 from pathlib import Path
 
+from world import load_scenario
+
+from ..models.io import load_model
 from .concave_config import SweepConfig
 from .concave_stats import cells_of, grid_of
+from .engine import default_workers, run_jobs
+from .navigation_run import run_scenario
 
 
 def _one(args) -> dict:
     """One run (in a worker process): does the cooperative EKM reach the goal?"""
     scenario, width, depth, rng, seed, max_time, model_path = args
-    from world import load_scenario
-
-    from ..models.io import load_model
-    from .navigation_run import run_scenario
 
     sc = load_scenario(scenario, overrides={"obstacles[0].width": width, "obstacles[0].depth": depth,
                                             "sensors.range": rng})
@@ -37,8 +38,6 @@ def _one(args) -> dict:
 
 def run_sweep(config: SweepConfig, model_path: Path, workers: int | None = None, progress: bool = True) -> dict:
     """All runs of the sweep, in parallel (on Dask: :mod:`.engine`); returns the fig9.json document."""
-    from .engine import default_workers, run_jobs
-
     jobs = [(config.scenario, w, d, r, s, config.max_time, str(model_path))
             for r in config.ranges for d in config.depths for w in config.widths for s in config.seeds]
     runs = run_jobs(_one, jobs, workers or default_workers(len(jobs), cap=2), desc="concave sweep",

@@ -26,6 +26,8 @@ from typing import Any
 
 import numpy as np
 
+from world.scenario import parse_scenario
+
 from ..robot import KHEPERA
 
 TEAM_SIZES = (2, 3, 4, 6, 8, 12, 16)
@@ -172,6 +174,4 @@ def grid_raw(cell: Cell, seed: int) -> dict[str, Any]:
 
 def grid_scenario(cell: Cell, seed: int):
     """The validated scenario of ``cell`` for ``seed`` (world.scenario.parse_scenario)."""
-    from world.scenario import parse_scenario
-
     return parse_scenario(grid_raw(cell, seed), source=f"<grid {cell.label}, seed {seed}>")

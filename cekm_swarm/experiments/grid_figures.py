@@ -6,6 +6,8 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
+
 NAMES = {"robots": "robots n", "targets_per_robot": "targets per robot m/n", "speed": "target speed",
          "target_range": "sensing range R (m)", "obstacles": "obstacles"}
 
@@ -24,7 +26,6 @@ def heatmaps(pairs: list[dict[str, Any]], title: str):
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    import numpy as np
 
     cols = 5
     rows = (len(pairs) + cols - 1) // cols

@@ -5,11 +5,13 @@ them is :func:`.commands.run_grid_cmd`."""
 from __future__ import annotations
 
 import subprocess
+import time
 from pathlib import Path
 from typing import Any
 
 from .. import jsonfile
 from .grid_design import LEVELS, QUICK, design
+from .grid_figures import heatmaps, over_the_run
 from .grid_run import BASELINES, GRID_CONTROLLERS, run_grid
 from .grid_stats import by_axis, by_pair, by_part, cell_stats
 
@@ -41,8 +43,6 @@ def git_commit(ignore: Path | None = None, where: Path | None = None) -> dict[st
 def grid_doc(quick: bool, seeds: list[int], duration: float, model_path, workers, progress: bool,
              tparams=None, out_dir: Path | None = None) -> dict[str, Any]:
     """Run the grid and summarize it."""
-    import time
-
     cells = design(QUICK) if quick else design()
     checkout = git_commit(ignore=out_dir)  # the code that runs: taken before, not after
     t0 = time.perf_counter()
@@ -125,8 +125,6 @@ def write_grid(doc: dict[str, Any], out_dir) -> list[Path]:
     """results.json, tables.md, grid.png and parts.png (A over the run)."""
 
     import matplotlib.pyplot as plt
-
-    from .grid_figures import heatmaps, over_the_run
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

@@ -4,6 +4,8 @@ its ``outcome.json`` from its log."""
 
 from __future__ import annotations
 
+import os
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -11,16 +13,20 @@ from typing import Any
 import click
 
 from .. import jsonfile
-from ..cli_support import F, Finite, out_dir_options
+from ..cli_support import F, Finite, out_dir_options, prepare_out_dir
+from ..errors import CekmError
+from ..models.io import load_model, save_model
+from ..modules.learner import model_of
+from ..runtime import foxglove_view
+from ..runtime.lattice_view import add_lattice_channel, write_lattice_log
+from ..runtime.map_log import map_at, versions
 from .commands import parse_team_sizes, seeds_of, seeds_option
-from .learning_run import UNTRAINED
+from .learning_run import UNTRAINED, model_of_choice, test_score
 
 
 def controller_model(path: Path | None):
     """The model a cooperative-EKM controller runs: a file, 'untrained' or the default R15,
     refused unless it is an indirect-mapping EKM (Eq. 1)."""
-    from .learning_run import model_of_choice
-
     model = model_of_choice(path)  # a file, 'untrained' (docs/learning.md), or the default R15
     if not model.kind.startswith("indirect"):
         raise click.UsageError(f"{path}: the controller needs an indirect-mapping EKM (G or R), not {model.kind!r}")
@@ -73,10 +79,6 @@ def model_group() -> None:
               help="The .npz to write (replaced if it exists).")
 def extract_cmd(log: Path, robot: str | None, at_time: float | None, base_model: Path | None, out_path: Path) -> None:
     """Write ROBOT's map from a learning run's LOG (run.mcap) as a model file."""
-    from ..models.io import save_model
-    from ..modules.learner import model_of
-    from ..runtime.map_log import map_at, versions
-
     if robot is None:
         robots = sorted(versions(log))
         if not robots:
@@ -100,8 +102,6 @@ def extract_cmd(log: Path, robot: str | None, at_time: float | None, base_model:
 def lattice_cmd(log: Path, out_path: Path) -> None:
     """Write every map version of a learning run's LOG as a Foxglove view of its lattice
     (``/view/lattice/<robot>``; a --learn launch writes them into its run.mcap itself)."""
-    from ..runtime.lattice_view import write_lattice_log
-
     try:
         n = write_lattice_log(log, out_path)
     except ImportError as exc:
@@ -110,8 +110,7 @@ def lattice_cmd(log: Path, out_path: Path) -> None:
 
 
 def _base_model(log: Path, base: Path | None):
-    from ..models.io import load_model
-    from .default_model import default_model
+    from .default_model import default_model  # noqa: PLC0415 -- lazy: numba, scipy, tqdm
 
     beside = Path(log).parent / "untrained-R15.npz"
     if base is not None:
@@ -122,11 +121,7 @@ def _base_model(log: Path, base: Path | None):
 def add_launch_learning(out_dir: Path, outcome: dict[str, Any], model_path) -> dict[str, Any]:
     """A launch's ``learning`` block from its log (each robot's last map version), written
     into ``outcome.json``; {} when the run had no learner."""
-    from ..models.io import load_model
-    from ..modules.learner import model_of
-    from ..runtime.map_log import map_at, versions
-    from .default_model import default_model
-    from .learning_run import test_score
+    from .default_model import default_model  # noqa: PLC0415 -- lazy: numba, scipy, tqdm
 
     log = Path(out_dir) / "run.mcap"
     if not log.exists():
@@ -147,10 +142,8 @@ def add_launch_learning(out_dir: Path, outcome: dict[str, Any], model_path) -> d
                         "start": start, "end": test_score(model_of(base, msg))}
     outcome["learning"] = block
     (Path(out_dir) / "outcome.json").write_text(jsonfile.dumps(outcome))
-    from ..runtime import foxglove_view
 
     if foxglove_view.available():  # the maps as Foxglove views (docs/learning.md)
-        from ..runtime.lattice_view import add_lattice_channel, write_lattice_log
 
         if log.is_file():  # a channel of the run's own log
             add_lattice_channel(log)
@@ -170,12 +163,7 @@ def learning_experiment_cmd(teams: str, seeds: str, ticks: int, workers: int | N
                             overwrite: bool) -> None:
     """Learning curves through the graph: untrained R15 maps learning online in section 4.1's
     arena, teams of 1-8 robots with and without sharing their (v, c) pairs (docs/learning.md)."""
-    import os
-    import time
-
-    from ..cli_support import prepare_out_dir
-    from ..errors import CekmError
-    from .learning_experiment import LearningConfig, plot_curves, results_doc, run_experiment, summary_table
+    from .learning_experiment import LearningConfig, plot_curves, results_doc, run_experiment, summary_table  # noqa: PLC0415 -- lazy: pymunk, world
 
     try:
         config = LearningConfig(teams=parse_team_sizes(teams), seeds=tuple(seeds_of(seeds)), ticks=ticks,

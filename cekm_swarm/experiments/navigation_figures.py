@@ -19,7 +19,7 @@ def plot_run(run: NavigationRun, ax=None, title: str | None = None):
     import matplotlib.pyplot as plt
     from matplotlib.patches import Circle
 
-    from world.draw import draw_paths, draw_world, figure_size, fit_bounds, legend_outside, robot_colours
+    from world.draw import draw_paths, draw_world, figure_size, fit_bounds, legend_outside, robot_colours  # noqa: PLC0415 -- lazy: matplotlib, pymunk, world
 
     own = ax is None
     if own:
@@ -82,7 +82,7 @@ def plot_fields(f: dict, sensors: tuple[int, int, int] | None = None):
         ax.set_xlabel("alpha (rad)")
         ax.set_ylabel("d (m)")
         fig.colorbar(sc, ax=ax, fraction=0.046)
-    from world.draw import draw_world
+    from world.draw import draw_world  # noqa: PLC0415 -- lazy: matplotlib, pymunk, world
 
     for ax in (axes[0, 3], axes[1, 3]):
         ax.remove()

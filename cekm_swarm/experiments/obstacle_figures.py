@@ -4,6 +4,7 @@ matplotlib is imported inside the function (Agg)."""
 
 from __future__ import annotations
 
+from .navigation_figures import plot_run
 from .obstacle_run import FIGURE
 
 
@@ -13,8 +14,6 @@ def suite_figure(s: str, runs: list):
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from .navigation_figures import plot_run
 
     xmin, ymin, xmax, ymax = runs[0].geometry["bounds"]
     aspect = (ymax - ymin) / (xmax - xmin)

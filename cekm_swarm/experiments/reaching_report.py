@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from .. import jsonfile
+from ..models.io import save_model
 from .reaching_figures import plot_all
 
 if TYPE_CHECKING:
@@ -210,8 +211,6 @@ def write_seed(config: TargetReachingConfig, results: dict, runs: list[NetworkRu
                 models: bool) -> list[Path]:
     """One seed's report: with models, also the trained models and the figures (a single-seed
     run); without (one seed of several), results.json and tables.md only."""
-    from ..models.io import save_model
-
     if not models:
         out_dir.mkdir(parents=True, exist_ok=True)
         (out_dir / "results.json").write_text(jsonfile.dumps(results))

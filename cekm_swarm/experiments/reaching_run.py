@@ -17,12 +17,14 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
+from tqdm import tqdm
 
 from ..models import fast
 from ..models.networks import BFN_WIDTH_FLOOR, make_network, parse_network_name
+from .engine import cluster_address, run_jobs
 from .metrics import score
 from .reaching_config import NetworkRun, TargetReachingConfig
 from .reaching_stats import summarize, summarize_seeds
@@ -48,8 +50,6 @@ def run_network(name: str, config: TargetReachingConfig, on_progress: Callable[[
 
 def run_experiment(config: TargetReachingConfig, progress: bool = True) -> tuple[dict, list[NetworkRun]]:
     """Run every network; returns (results document, runs)."""
-    from tqdm import tqdm
-
     total = len(config.networks) * config.trials * config.schedule.steps
     runs = []
     t0 = time.perf_counter()
@@ -84,8 +84,6 @@ def run_master_seeds(config: TargetReachingConfig, count: int, progress: bool = 
     > 1 or a cluster (:mod:`.engine`) the seeds run side by side, then ``on_seed`` is
     called for each in seed order.
     """
-    from .engine import cluster_address, run_jobs
-
     seeds = seeds_from(config.seed, count)
     per_seed = {}
     if (workers or 1) == 1 and cluster_address() is None:

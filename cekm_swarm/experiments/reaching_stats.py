@@ -12,7 +12,8 @@ from __future__ import annotations
 import itertools
 import math
 import warnings
-from typing import TYPE_CHECKING, Sequence
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -82,13 +83,10 @@ def summarize(runs: Sequence[NetworkRun], config: TargetReachingConfig) -> dict:
 
 def _stack_mean_std(rows: list[np.ndarray]) -> dict:
     m = np.array(rows, dtype=np.float64)
-    with np.errstate(all="ignore"):
-        import warnings
-
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            mean = np.nanmean(m, axis=0)
-            std = np.nanstd(m, axis=0, ddof=1) if len(m) > 1 else np.zeros(m.shape[1])
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        mean = np.nanmean(m, axis=0)
+        std = np.nanstd(m, axis=0, ddof=1) if len(m) > 1 else np.zeros(m.shape[1])
     return {"mean": [None if not np.isfinite(x) else float(x) for x in mean],
             "std": [None if not np.isfinite(x) else float(x) for x in std]}
 

@@ -9,7 +9,8 @@ import click
 
 from ..cli_support import Finite, check_seeds, out_dir_options, prepare_out_dir
 from ..errors import CekmError
-from .commands import engine_options, seeds_option
+from .commands import engine_options, parse_floats, seeds_of, seeds_option
+from .concave_report import write_sweep
 from .learning_commands import controller_model, model_option
 
 
@@ -31,11 +32,9 @@ def sweep() -> None:
 def sweep_concave(depths: str, widths: str, ranges: str, seeds: str, need: int, max_time: float,
                   model_path: Path | None, workers: int | None, out_dir: Path, overwrite: bool) -> None:
     """Find the widest concave obstacle negotiated, per depth and sensing range (Fig. 9)."""
-    from .commands import parse_floats, seeds_of
-    from .concave_config import SweepConfig
-    from .concave_report import write_sweep
-    from .concave_run import run_sweep
-    from .default_model import default_model, default_model_path
+    from .concave_config import SweepConfig  # noqa: PLC0415 -- lazy: pymunk, world
+    from .concave_run import run_sweep  # noqa: PLC0415 -- lazy: pymunk, world
+    from .default_model import default_model, default_model_path  # noqa: PLC0415 -- lazy: numba, scipy, tqdm
 
     try:
         config = SweepConfig(depths=parse_floats(depths, "depths"), widths=tuple(sorted(parse_floats(widths, "widths"))),

@@ -20,8 +20,8 @@ speed is ``command`` at that motor resolution.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 from numba import njit, prange
@@ -50,7 +50,7 @@ class TestOutcome:
     at_goal: np.ndarray | None = None  # bool: stopped with the sensed distance 0 (the goal state)
 
     @classmethod
-    def empty(cls, m: int, n_eps: int) -> "TestOutcome":
+    def empty(cls, m: int, n_eps: int) -> TestOutcome:
         return cls(np.zeros(m), np.zeros(m, dtype=np.bool_), np.zeros(m, dtype=np.int64), np.zeros(m), np.zeros(m),
                    np.full((m, n_eps), np.nan), np.full((m, n_eps), np.nan), np.zeros(m, dtype=np.bool_))
 

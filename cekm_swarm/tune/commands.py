@@ -8,7 +8,9 @@ from pathlib import Path
 import click
 
 from ..cli_support import Finite, seed_option
+from ..errors import ParameterError
 from ..experiments.learning_commands import model_option
+from ..jsonfile import dumps
 
 
 def _text(path: Path | None) -> str | None:
@@ -40,8 +42,7 @@ def tune_group() -> None:
 def fields_cmd(task, out_dir, seed, generations, popsize, sigma0, batch, validation, validate_every, max_time,
                model_path, workers) -> None:
     """Train a field policy by CMA-ES into OUT (policy.json), seeded and resumable."""
-    from ..errors import ParameterError
-    from .train import TuneConfig, tune
+    from .train import TuneConfig, tune  # noqa: PLC0415 -- lazy: pymunk, tqdm, world
 
     nav = task == "navigation"
     try:
@@ -71,8 +72,7 @@ def fields_cmd(task, out_dir, seed, generations, popsize, sigma0, batch, validat
 @click.option("--workers", type=click.IntRange(min=1), default=2, show_default=True)
 def evaluate_cmd(task, out_dir, policy, tests, concave, suite, only, max_time, model_path, workers) -> None:
     """Judge the learned field policy against the paper's and today's constants on held-out scenarios."""
-    from ..jsonfile import dumps
-    from .evaluate import evaluate, evaluate_concave, evaluate_suite, variants
+    from .evaluate import evaluate, evaluate_concave, evaluate_suite, variants  # noqa: PLC0415 -- lazy: numba, pymunk, scipy, tqdm, world
 
     chosen = None if not only else tuple(x.strip() for x in only.split(","))
     known = variants(task, policy)

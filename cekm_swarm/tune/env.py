@@ -23,7 +23,7 @@ from __future__ import annotations
 
 from typing import Any
 
-import gymnasium as gym
+import gymnasium as gym  # noqa: TID253 -- the environment subclasses gym.Env; only `cekm tune` imports it
 import numpy as np
 
 from ..experiments.graph_run import GraphSession
@@ -54,7 +54,7 @@ class FieldEnv(gym.Env):
         self.purpose = purpose
         seed_of(purpose, 0)  # checks the purpose
         if model is None:
-            from ..experiments.default_model import default_model
+            from ..experiments.default_model import default_model  # noqa: PLC0415 -- lazy: scipy
 
             model = default_model()
         self.model = model
@@ -90,10 +90,8 @@ class FieldEnv(gym.Env):
         return float(sum(self.session.episode.meter.fraction))
 
     def _run(self, ticks: int) -> bool:
-        for _ in range(ticks):
-            if self.session.step():
-                return True
-        return False
+        """Up to ``ticks`` ticks; True as soon as the session ends (the rest are not run)."""
+        return any(self.session.step() for _ in range(ticks))
 
     # ------------------------------------------------------------------ Gymnasium API
     def reset(self, *, seed: int | None = None, options: dict | None = None):

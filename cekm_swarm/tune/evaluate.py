@@ -15,11 +15,19 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from tqdm import tqdm
+
+from world import load_scenario
+
 from ..experiments.concave_config import SweepConfig
 from ..experiments.concave_stats import cells_of, grid_of
+from ..experiments.graph_run import with_params
 from ..experiments.metrics import welch_p
+from ..experiments.navigation_run import run_scenario
+from ..experiments.obstacle_run import SUITE, success
 from ..experiments.obstacle_stats import wilson_interval
 from ..experiments.tracking_stats import mean_ci95
+from .graphs import fields_graph
 from .rollout import _model, run_many
 from .scenarios import seed_of
 
@@ -72,8 +80,6 @@ def evaluate(task: str, tests: int, policy: Path | None = None, max_time: float 
              model_path: str | None = None, workers: int = 2, progress: bool = True,
              only: tuple[str, ...] | None = None) -> dict[str, Any]:
     """Every variant on the ``tests`` held-out generated scenarios; the results document."""
-    from tqdm import tqdm
-
     max_time = max_time or (300.0 if task == "navigation" else 120.0)
     vs = {k: v for k, v in variants(task, policy).items() if only is None or k in only}
     wheres = [seed_of("test", i) for i in range(tests)]
@@ -91,8 +97,6 @@ def evaluate_concave(policy: Path | None = None, model_path: str | None = None, 
                      progress: bool = True, config: SweepConfig | None = None,
                      only: tuple[str, ...] | None = None) -> dict[str, Any]:
     """Fig. 9's sweep for every ``--fields``: the widest U negotiated per (range, depth)."""
-    from tqdm import tqdm
-
     config = config or SweepConfig()
     vs = {k: v for k, v in variants("navigation", policy).items() if only is None or k in only}
     cells = [("concave", w, d, r, s) for r in config.ranges for d in config.depths for w in config.widths
@@ -112,12 +116,6 @@ def evaluate_concave(policy: Path | None = None, model_path: str | None = None, 
 def suite_one(job: tuple) -> dict:
     """One run of section 4.2's table (``cekm experiment obstacles``' scenarios, seeds and
     success rule) with ``--fields`` ``what``."""
-    from world import load_scenario
-
-    from ..experiments.graph_run import with_params
-    from ..experiments.navigation_run import run_scenario
-    from ..experiments.obstacle_run import success
-    from .graphs import fields_graph
 
     scenario, what, seed, max_time, model_path = job
     checked, params = fields_graph(what[1], "navigation", what[2] if len(what) > 2 else None)
@@ -133,9 +131,6 @@ def evaluate_suite(seeds: tuple[int, ...], policy: Path | None = None, model_pat
                    workers: int = 2, progress: bool = True, max_time: float = 300.0,
                    only: tuple[str, ...] | None = None) -> dict[str, Any]:
     """Section 4.2's table (concave, doorway, rooms, checkpoints, lone obstacle) for every ``--fields``."""
-    from tqdm import tqdm
-
-    from ..experiments.obstacle_run import SUITE
 
     vs = {k: v for k, v in variants("navigation", policy).items() if only is None or k in only}
     cells = [(sc, s) for sc in SUITE for s in seeds]

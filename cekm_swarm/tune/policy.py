@@ -114,7 +114,7 @@ class FieldPolicy:
         tmp.replace(path)
 
     @classmethod
-    def load(cls, path: Path | str) -> "FieldPolicy":
+    def load(cls, path: Path | str) -> FieldPolicy:
         """A policy file, or a ParameterError naming the file and what is wrong."""
         path = Path(path)
         try:
