@@ -208,7 +208,8 @@ def parse_cekm_params(items: tuple[str, ...]) -> dict[str, Any]:
         if not sep or not name or not text:
             raise ParameterError(f"--param {item!r}: expected NAME=VALUE, e.g. assign_lead_s=0.5")
         if name not in hints:
-            raise ParameterError(f"--param {name!r}: cekm's TrackingParams has no such field; one of {', '.join(names)}")
+            raise ParameterError(f"--param {name!r}: cekm's TrackingParams has no such field; "
+                                 f"one of {', '.join(names)}")
         kind = hints[name]
         try:
             if kind is bool:
@@ -283,7 +284,8 @@ def seeds_of(text: str) -> Sequence[int]:
         try:
             lo, hi = int(a), int(b if dash else a)
         except ValueError:
-            raise ParameterError(f"--seeds: expected comma-separated integers or ranges like 1-20, got {text!r}") from None
+            raise ParameterError(f"--seeds: expected comma-separated integers or ranges like 1-20, "
+                                 f"got {text!r}") from None
         if hi < lo:
             raise ParameterError(f"--seeds: range {part!r} runs backwards")
         out.extend(range(lo, hi + 1))

@@ -43,7 +43,7 @@ def plot_grid(doc: dict, path: Path) -> Path:
     st = doc["settings"]
     widths, depths, ranges = st["widths"], st["depths"], st["ranges"]
     fig, axes = plt.subplots(1, len(ranges), figsize=(4.2 * len(ranges) + 1.0, 3.6), squeeze=False)
-    for ax, r in zip(axes[0], ranges):
+    for ax, r in zip(axes[0], ranges, strict=True):
         z = np.full((len(depths), len(widths)), np.nan)
         for c in doc["cells"]:
             if c["range"] == r and c["rate"] is not None:

@@ -22,7 +22,8 @@ from .training import train_network
 DEFAULT_NETWORK = "R15"
 DEFAULT_STEPS = 100_000
 DEFAULT_SEED = 2005
-TRAINING_CODE_VERSION = 3  # bump when the training loop changes what it produces (2: convergence mask; 3: stop = c executes as 0)
+# bump when the training loop changes what it produces (2: convergence mask; 3: stop = c executes as 0)
+TRAINING_CODE_VERSION = 3
 
 
 def cache_dir() -> Path:

@@ -143,7 +143,8 @@ def grid_raw(cell: Cell, seed: int) -> dict[str, Any]:
                 else:
                     w, h = float(rng.uniform(0.1, 0.4)), float(rng.uniform(0.06, 0.12))
                     r = math.hypot(w, h) / 2
-                    shape = {"shape": "box", "size": [round(w, 3), round(h, 3)], "angle": round(float(rng.uniform(0, math.pi)), 3)}
+                    shape = {"shape": "box", "size": [round(w, 3), round(h, 3)],
+                             "angle": round(float(rng.uniform(0, math.pi)), 3)}
                 c = (float(rng.uniform(0.35 + r, side - 0.35 - r)), float(rng.uniform(0.35 + r, side - 0.35 - r)))
                 if _free(c, taken, 0.3):
                     taken.append((c[0], c[1], r))
@@ -167,7 +168,8 @@ def grid_raw(cell: Cell, seed: int) -> dict[str, Any]:
         targets.append({"id": f"t{k + 1}", "position": [round(p[0], 4), round(p[1], 4)],
                         "motion": {"type": "random_walk", "speed": round(speed, 5), "turn_noise": 1.0,
                                    "heading": round(float(rng.uniform(-math.pi, math.pi)), 4)}})
-    return {"name": f"grid-{cell.label}", "seed": int(seed), "arena": {"bounds": [0.0, 0.0, round(side, 4), round(side, 4)]},
+    return {"name": f"grid-{cell.label}", "seed": int(seed),
+            "arena": {"bounds": [0.0, 0.0, round(side, 4), round(side, 4)]},
             "sensors": {"target_range": cell.target_range}, "robots": robots, "targets": targets,
             "obstacles": obstacles}
 

@@ -32,7 +32,7 @@ def heatmaps(pairs: list[dict[str, Any]], title: str):
     fig, axes = plt.subplots(rows, cols, figsize=(3.4 * cols, 3.0 * rows + 0.6), squeeze=False)
     lim = max([abs(c["diff"]) for p in pairs for c in p["cells"]] + [0.05])
     im = None
-    for ax, pair in zip(axes.flat, pairs):
+    for ax, pair in zip(axes.flat, pairs, strict=False):
         a, b = pair["axes"]
         la, lb = pair["levels"]
         z = np.full((len(lb), len(la)), np.nan)

@@ -105,7 +105,7 @@ def run_one(team: int, share: bool, seed: int, config: LearningConfig, folder: P
 
 def steps_to(curve: Curve, threshold: float, index: str = "E_mm") -> int | None:
     """The first robot's own steps until its map's E (or T) fell below the threshold (None: never)."""
-    return next((s for s, e in zip(curve.steps, getattr(curve, index)) if e < threshold), None)
+    return next((s for s, e in zip(curve.steps, getattr(curve, index), strict=True) if e < threshold), None)
 
 
 def run_experiment(config: LearningConfig, out: Path, workers: int = 1,
@@ -173,7 +173,7 @@ def paired_difference(alone: list[float | None], shared: list[float | None]) -> 
     t-test's two-sided p (None with fewer than two pairs)."""
     from .metrics import paired_p  # noqa: PLC0415 -- lazy: scipy
 
-    pairs = [(a, b) for a, b in zip(alone, shared) if a is not None and b is not None]
+    pairs = [(a, b) for a, b in zip(alone, shared, strict=True) if a is not None and b is not None]
     diff = seed_interval([b - a for a, b in pairs])
     return {"mean_diff": diff["mean"], "lo": diff["lo"], "hi": diff["hi"], "n": diff["n"],
             "p": paired_p([b for _, b in pairs], [a for a, _ in pairs]) if pairs else None}
@@ -225,7 +225,7 @@ def plot_curves(config: LearningConfig, curves: list[Curve]):
     for (team, share), cs in sorted(groups.items()):
         label = f"{team} robot{'s' if team > 1 else ''}{', sharing' if share else ''}"
         steps = np.mean([c.steps for c in cs], axis=0)
-        for ax, name in zip(axes, ("E_mm", "T_s_per_m")):
+        for ax, name in zip(axes, ("E_mm", "T_s_per_m"), strict=True):
             ax.plot(steps, np.mean([getattr(c, name) for c in cs], axis=0), "-" if share or team == 1 else "--",
                     marker="o", ms=3, label=label)
     axes[0].set_ylabel("E (mm)")

@@ -83,7 +83,7 @@ def run_scenario(scenario, controller: str = "cekm", model=None, seed: int | Non
     world, episode = run.world, run.episode
     logs = {}
     for r, p in episode.progress.items():
-        t, x, y, th = (list(col) for col in zip(*p.path))
+        t, x, y, th = (list(col) for col in zip(*p.path, strict=True))
         logs[r] = RobotLog(r, t, x, y, th, [c[0] for c in p.commands], [c[1] for c in p.commands],
                            list(p.checkpoints), list(p.checkpoint_times), p.reached, p.reached_time)
 

@@ -177,7 +177,8 @@ def seeds_markdown(summary: dict) -> str:
            f"Master seeds {', '.join(map(str, seeds))}; each: {s['trials']} trials x {sch['steps']:,} steps, "
            f"tested on {sch['test_targets']} targets. Ours: the mean over seeds of each seed's trial "
            "mean, with its 95 % interval (Student t, "
-           f"{len(seeds) - 1} degrees of freedom); the paper's: mean ± std over its 5 trials. " + protocol_sentence(s), ""]
+           f"{len(seeds) - 1} degrees of freedom); the paper's: mean ± std over its 5 trials. "
+           + protocol_sentence(s), ""]
     out += _seeds_table(summary, ("E_mm", "T_s_per_m", "D"), PAPER_TABLE1, "Table 1: performance after training")
     out += ["", "Targets ended by the step budget (of the test's targets, per trial, mean over seeds): " + ", ".join(
         f"{n} {_ci(e.get('ended_by_budget'), 1)}" for n, e in summary["networks"].items()) + ". Ended by a stop at "

@@ -32,14 +32,16 @@ from .streams import TrialStreams
 from .trial import NetworkBatch, run_batch
 
 
-def run_network(name: str, config: TargetReachingConfig, on_progress: Callable[[int], None] | None = None) -> NetworkRun:
+def run_network(name: str, config: TargetReachingConfig,
+                on_progress: Callable[[int], None] | None = None) -> NetworkRun:
     """Train and test one network over all trials."""
     streams = [TrialStreams(config.seed, t, config.arena, config.schedule) for t in range(config.trials)]
     nets = [make_network(name, s.init_rng(), config.comp, config.learn_p, config.bfn_rule) for s in streams]
     arrays = [fast.network_arrays(n) for n in nets]
     kind, size = parse_network_name(name)
     params = fast.pack_params(config.comp, config.learn_p, config.arena.v_max, BFN_WIDTH_FLOOR, config.bfn_rule)
-    batch = NetworkBatch(kind, size, *(np.ascontiguousarray(np.stack([a[q] for a in arrays])) for q in range(3)), params)
+    stacked = (np.ascontiguousarray(np.stack([a[q] for a in arrays])) for q in range(3))
+    batch = NetworkBatch(kind, size, *stacked, params)
     eps = np.array(config.eps_mm) / 1000.0
     t0 = time.perf_counter()
     outcomes = run_batch(batch, streams, eps, on_progress, config.stop, config.train_stop)
@@ -95,7 +97,7 @@ def run_master_seeds(config: TargetReachingConfig, count: int, progress: bool = 
         return summarize_seeds(per_seed), per_seed
     done = run_jobs(_one_seed, [dataclasses.replace(config, seed=s) for s in seeds], workers, desc="master seeds",
                     progress=progress)
-    for s, (results, runs) in zip(seeds, done):
+    for s, (results, runs) in zip(seeds, done, strict=True):
         per_seed[s] = results
         if on_seed:
             on_seed(s, results, runs)

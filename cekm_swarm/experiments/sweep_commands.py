@@ -37,7 +37,8 @@ def sweep_concave(depths: str, widths: str, ranges: str, seeds: str, need: int, 
     from .default_model import default_model, default_model_path  # noqa: PLC0415 -- lazy: numba, scipy, tqdm
 
     try:
-        config = SweepConfig(depths=parse_floats(depths, "depths"), widths=tuple(sorted(parse_floats(widths, "widths"))),
+        config = SweepConfig(depths=parse_floats(depths, "depths"),
+                             widths=tuple(sorted(parse_floats(widths, "widths"))),
                              ranges=parse_floats(ranges, "ranges"), seeds=tuple(seeds_of(seeds)), need=need,
                              max_time=max_time)
         config.check_scenarios()

@@ -63,5 +63,5 @@ def _versus(cekm: list[float], other: list[float]) -> str:
     from .metrics import welch_p  # noqa: PLC0415 -- lazy: scipy
 
     p = welch_p(cekm, other)
-    higher = sum(1 for a, b in zip(cekm, other) if a > b)
+    higher = sum(1 for a, b in zip(cekm, other, strict=False) if a > b)
     return f"p = {'n/a' if p is None else f'{p:.2g}'}; {higher} of {min(len(cekm), len(other))}"

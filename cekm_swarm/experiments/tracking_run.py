@@ -93,7 +93,8 @@ def outcome_doc(run: TrackingRun) -> dict[str, Any]:
 # --------------------------------------------------------------------------- team sizes
 
 
-def team_scenario(robots: int, seed: int, targets_per_robot: float = 1.5, side_per_sqrt_robot: float = 2.0 / math.sqrt(2),
+def team_scenario(robots: int, seed: int, targets_per_robot: float = 1.5,
+                  side_per_sqrt_robot: float = 2.0 / math.sqrt(2),
                   target_range: float = 0.5, speed: float = 0.05, turn_noise: float = 1.0):
     """A tracking scenario for a team of ``robots``: a square walled arena whose area grows
     with the team (side = side_per_sqrt_robot * sqrt(robots): 2 m for 2 robots, as

@@ -296,8 +296,8 @@ def test_batch(batch: NetworkBatch, streams: list[TrialStreams], eps: np.ndarray
          np.zeros((B, m)), np.full((B, m, len(eps)), np.nan), np.full((B, m, len(eps)), np.nan),
          np.zeros((B, m), dtype=np.bool_)]
     cx, cy = arena.centre
-    _test_batch(batch.code, batch.W, batch.P, batch.R, batch.params, arena.vector(), cx, cy, arena.step_s, targets, wheel,
-                sense, np.ascontiguousarray(eps, dtype=np.float64), stop.code, *o)
+    _test_batch(batch.code, batch.W, batch.P, batch.R, batch.params, arena.vector(), cx, cy, arena.step_s, targets,
+                wheel, sense, np.ascontiguousarray(eps, dtype=np.float64), stop.code, *o)
     return [TestOutcome(*(a[b] for a in o)) for b in range(B)]
 
 
@@ -319,7 +319,7 @@ def run_batch(batch: NetworkBatch, streams: list[TrialStreams], eps: np.ndarray,
         wheel, sense, explore = batch_train_chunk(streams, chunk, s.test_interval)
         _train_batch(batch.code, batch.size, batch.W, batch.P, batch.R, batch.params, arena.vector(), poses, cursors,
                      targets, t0, wheel, sense, explore, s.train_budget, train_stop.code)
-        for r, o in zip(results, test_batch(batch, streams, eps, stop)):
+        for r, o in zip(results, test_batch(batch, streams, eps, stop), strict=True):
             r.append(o)
         if on_progress:
             on_progress(s.test_interval)

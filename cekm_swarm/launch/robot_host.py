@@ -6,6 +6,7 @@ for it and the world to come back."""
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import time
 from typing import Any
 
@@ -45,10 +46,8 @@ class RobotHost:
                                       f"give --run-id")
                 if runs:
                     return runs[0]
-                try:
+                with contextlib.suppress(asyncio.TimeoutError):
                     await watcher.next_event(timeout=1.0)
-                except asyncio.TimeoutError:
-                    pass
         return None
 
 
@@ -65,9 +64,10 @@ class RobotHost:
         while not self.stopping:
             try:
                 event = await watcher.next_event(timeout=1.0)
-            except asyncio.TimeoutError:
+            except TimeoutError:
                 if seen and not session.info.routers_zid():
-                    if await self._router_back(watcher, world_key, session) or await self._world_back(watcher, world_key):
+                    if (await self._router_back(watcher, world_key, session)
+                            or await self._world_back(watcher, world_key)):
                         continue
                     self.say("the world server has ended (its host's Zenoh router is gone)")
                     return
@@ -121,7 +121,7 @@ class RobotHost:
         t0 = time.monotonic()
         try:
             await watcher.wait_for(world_key, True, limit)
-        except asyncio.TimeoutError:
+        except TimeoutError:
             return False
         self.say(f"{back} {time.monotonic() - t0:.1f} s")
         return True

@@ -30,12 +30,16 @@ def tune_group() -> None:
               help="Directory of the training; run the same command again to resume it after a kill.")
 @seed_option(1, "CMA-ES seed.")
 @click.option("--generations", type=click.IntRange(min=1), help="Generations (default 30 navigation, 15 tracking).")
-@click.option("--popsize", type=click.IntRange(min=1), help="Candidates per generation (default 12 navigation, 8 tracking).")
-@click.option("--sigma0", type=Finite(min=0.0, min_open=True), default=0.5, show_default=True, help="CMA-ES initial step size.")
+@click.option("--popsize", type=click.IntRange(min=1),
+              help="Candidates per generation (default 12 navigation, 8 tracking).")
+@click.option("--sigma0", type=Finite(min=0.0, min_open=True), default=0.5, show_default=True,
+              help="CMA-ES initial step size.")
 @click.option("--batch", type=click.IntRange(min=1), help="Training scenarios per candidate per generation "
                                         "(default 24 navigation, 6 tracking).")
-@click.option("--validation", type=click.IntRange(min=1), help="Validation scenarios (default 48 navigation, 12 tracking).")
-@click.option("--validate-every", type=click.IntRange(min=1), default=5, show_default=True, help="Generations between validations.")
+@click.option("--validation", type=click.IntRange(min=1),
+              help="Validation scenarios (default 48 navigation, 12 tracking).")
+@click.option("--validate-every", type=click.IntRange(min=1), default=5, show_default=True,
+              help="Generations between validations.")
 @click.option("--max-time", type=Finite(min=0.2), help="Sim seconds per run (default 90 navigation, 30 tracking).")
 @model_option()
 @click.option("--workers", type=click.IntRange(min=1), default=2, show_default=True, help="Worker processes.")
@@ -46,8 +50,9 @@ def fields_cmd(task, out_dir, seed, generations, popsize, sigma0, batch, validat
 
     nav = task == "navigation"
     try:
-        config = TuneConfig(task, seed, generations or (30 if nav else 15), popsize or (12 if nav else 8), sigma0, batch or (24 if nav else 6),
-                            validation or (48 if nav else 12), validate_every, max_time or (90.0 if nav else 30.0))
+        config = TuneConfig(task, seed, generations or (30 if nav else 15), popsize or (12 if nav else 8), sigma0,
+                            batch or (24 if nav else 6), validation or (48 if nav else 12), validate_every,
+                            max_time or (90.0 if nav else 30.0))
         meta = tune(config, out_dir, _text(model_path), workers)
     except ParameterError as exc:
         raise click.UsageError(str(exc)) from None
@@ -61,7 +66,8 @@ def fields_cmd(task, out_dir, seed, generations, popsize, sigma0, batch, validat
               help="Directory for results.json.")
 @click.option("--policy", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               help="The policy judged as `learned` (default: the one shipped for the task).")
-@click.option("--tests", type=click.IntRange(min=1), default=100, show_default=True, help="Held-out generated scenarios.")
+@click.option("--tests", type=click.IntRange(min=1), default=100, show_default=True,
+              help="Held-out generated scenarios.")
 @click.option("--concave", is_flag=True, help="Navigation: Fig. 9's sweep cells instead of generated scenarios.")
 @click.option("--suite", is_flag=True, help="Navigation: section 4.2's table (its five scenarios, --tests seeds "
                                             "from 1) instead of generated scenarios.")

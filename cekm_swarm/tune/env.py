@@ -141,7 +141,7 @@ class FieldEnv(gym.Env):
         return {"t": self.session.episode.t, "tick": self.session.episode.tick, "scenario_seed": self.scenario_seed,
                 "fields": dict(zip(self.policy.outputs, (
                     self.choice.fields.sigma_b_alpha, self.choice.fields.sigma_b_d_beyond,
-                    self.choice.fields.sigma_b_d_near, self.choice.teammate_gain)))}
+                    self.choice.fields.sigma_b_d_near, self.choice.teammate_gain), strict=False))}
 
     def outcome(self) -> dict[str, dict]:
         """The run's outcome as ``cekm run`` reports it (per robot)."""

@@ -5,8 +5,9 @@ Held out: generated scenarios with :data:`~.scenarios.SEED_BASE` ``["test"]`` se
 neither training nor validation draws; ``--concave``: Fig. 9's sweep cells (concave.toml
 with the sweep's widths, depths, ranges and world seeds, as ``cekm sweep concave`` runs
 them); ``--suite``: section 4.2's table (``cekm experiment obstacles``' five scenarios and
-success rule, seeds 1-20). None of these geometries or seeds is trained or selected on. Navigation reports goal-reached and contact-free rates with Wilson 95 % intervals,
-overall and per geometry kind, and the paired wins/losses of learned against tuned;
+success rule, seeds 1-20). None of these geometries or seeds is trained or selected on.
+Navigation reports goal-reached and contact-free rates with Wilson 95 % intervals, overall
+and per geometry kind, and the paired wins/losses of learned against tuned;
 tracking reports Parker's A with t intervals and Welch p against every other controller.
 """
 
@@ -61,8 +62,9 @@ def navigation_summary(rows: dict[str, list[dict]]) -> dict[str, Any]:
                   "by_kind": {k: _rate(sum(r["contact_free"] for r in rs if _kind(r["scenario"]) == k),
                                        sum(_kind(r["scenario"]) == k for r in rs)) for k in kinds}}
     if "learned" in rows and "tuned" in rows:
-        pairs = list(zip(rows["learned"], rows["tuned"]))
-        out["learned_vs_tuned"] = {"contact_free_wins": sum(a["contact_free"] and not b["contact_free"] for a, b in pairs),
+        pairs = list(zip(rows["learned"], rows["tuned"], strict=True))
+        out["learned_vs_tuned"] = {"contact_free_wins": sum(a["contact_free"] and not b["contact_free"]
+                                                            for a, b in pairs),
                                    "contact_free_losses": sum(b["contact_free"] and not a["contact_free"]
                                                               for a, b in pairs)}
     return out
@@ -106,8 +108,9 @@ def evaluate_concave(policy: Path | None = None, model_path: str | None = None, 
         flat = run_many(jobs, workers, bar.update)
     out: dict[str, Any] = {"experiment": "field-policy-concave", "policy": str(policy) if policy else "shipped"}
     for i, v in enumerate(vs):
+        mine = flat[i * len(cells):(i + 1) * len(cells)]
         runs = [{"width": c[1], "depth": c[2], "range": c[3], "seed": c[4], "reached": r["reached"],
-                 "collisions": r["collisions"]} for c, r in zip(cells, flat[i * len(cells):(i + 1) * len(cells)])]
+                 "collisions": r["collisions"]} for c, r in zip(cells, mine, strict=True)]
         out[v] = {"cells": cells_of(config, runs), "grid": grid_of(config, runs),
                   "negotiated_cells": sum(c["reached"] >= config.need for c in cells_of(config, runs))}
     return out
