@@ -69,11 +69,11 @@ def summarize_episode(ep: dict, net, budget: int) -> dict:
     and how far the network's command was from the kinematically exact one."""
     winners, counts = np.unique(ep["winner"], return_counts=True)
     order = np.argsort(-counts)
-    kin = []
+    kin_rows = []
     for a, d, cl, cr in zip(ep["alpha"], ep["d"], ep["c_l"], ep["c_r"], strict=True):
         back = (cl + cr) < 0.0
-        kin.append(kinematic_command(a, d, back))
-    kin = np.array(kin)
+        kin_rows.append(kinematic_command(a, d, back))
+    kin = np.array(kin_rows)
     c = np.stack([ep["c_l"], ep["c_r"]], axis=1)
     converged = convergence_mask(net) if hasattr(net, "M") else None
     rows = []

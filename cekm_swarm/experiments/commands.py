@@ -290,7 +290,6 @@ def seeds_of(text: str) -> Sequence[int]:
             raise ParameterError(f"--seeds: range {part!r} runs backwards")
         out.extend(range(lo, hi + 1))
     if len(set(out)) < len(out):
-
         twice = sorted(s for s, n in Counter(out).items() if n > 1)
         shown = ", ".join(map(str, twice[:5])) + (", ..." if len(twice) > 5 else "")
         raise ParameterError(f"--seeds: {'seed' if len(twice) == 1 else 'seeds'} {shown} given twice in {text!r} "

@@ -114,6 +114,7 @@ def design(levels: dict[str, tuple] | None = None, restarts: int = 8, swaps: int
                 cols[k][i], cols[k][j] = cols[k][j], cols[k][i]
         if cost < best_cost:
             best, best_cost = cells_of(cols), cost
+    assert best is not None  # restarts >= 1: the first always beats an infinite cost
     return [Cell(int(n), float(m), str(s), float(r), bool(o)) for n, m, s, r, o in best]
 
 

@@ -106,8 +106,8 @@ def by_part(rows: list[dict[str, Any]], controllers: tuple[str, ...], duration: 
         return {"parts": [], "controllers": {}, "cekm_minus": {}}
     span = duration / PARTS
     per = {c: [[r["A_parts"][k] for r in have if r["controller"] == c] for k in range(PARTS)] for c in controllers}
-    out = {"parts": [[round(k * span, 3), round((k + 1) * span, 3)] for k in range(PARTS)],
-           "controllers": {c: [mean_ci95(v) for v in per[c]] for c in controllers if per[c][0]}}
+    out: dict[str, Any] = {"parts": [[round(k * span, 3), round((k + 1) * span, 3)] for k in range(PARTS)],
+                           "controllers": {c: [mean_ci95(v) for v in per[c]] for c in controllers if per[c][0]}}
     if "cekm" in out["controllers"]:
         out["cekm_minus"] = {c: [{"diff": float(np.mean(per["cekm"][k]) - np.mean(per[c][k])),
                                   "p": welch_p(per["cekm"][k], per[c][k])} for k in range(PARTS)]

@@ -135,6 +135,7 @@ def add_launch_learning(out_dir: Path, outcome: dict[str, Any], model_path) -> d
     block = {}
     for robot in sorted(seen):
         msg = map_at(log, robot)
+        assert msg is not None  # the robot has versions in the log (seen)
         block[robot] = {"versions": msg.version, "steps": msg.steps, "updates_applied": msg.applied,
                         "skipped": msg.skipped, "final_digest": msg.digest,
                         "messages_dropped_by_nodes": sum(int(s.get("dropped") or 0) for label, s in nodes.items()

@@ -49,7 +49,7 @@ def plot_run(run: NavigationRun, ax=None, title: str | None = None):
     return ax
 
 
-def plot_fields(f: dict, sensors: tuple[int, int, int] | None = None):
+def plot_fields(f: dict, sensors: tuple[int, ...] | None = None):
     """The six panels of Fig. 4 (plus the robot's situation): darker = stronger activity."""
     import matplotlib
 

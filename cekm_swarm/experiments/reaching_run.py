@@ -40,8 +40,8 @@ def run_network(name: str, config: TargetReachingConfig,
     arrays = [fast.network_arrays(n) for n in nets]
     kind, size = parse_network_name(name)
     params = fast.pack_params(config.comp, config.learn_p, config.arena.v_max, BFN_WIDTH_FLOOR, config.bfn_rule)
-    stacked = (np.ascontiguousarray(np.stack([a[q] for a in arrays])) for q in range(3))
-    batch = NetworkBatch(kind, size, *stacked, params)
+    W, P, R = (np.ascontiguousarray(np.stack([a[q] for a in arrays])) for q in range(3))
+    batch = NetworkBatch(kind, size, W, P, R, params)
     eps = np.array(config.eps_mm) / 1000.0
     t0 = time.perf_counter()
     outcomes = run_batch(batch, streams, eps, on_progress, config.stop, config.train_stop)

@@ -13,7 +13,7 @@ import itertools
 import math
 import warnings
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -52,7 +52,7 @@ def summarize(runs: Sequence[NetworkRun], config: TargetReachingConfig) -> dict:
         entry = {"kind": kind, "lattice": size, "parameters": parameter_count(kind, size)}
         entry.update({k: mean_std(v) for k, v in per_trial[r.name].items()})
         entry["per_trial"] = per_trial[r.name]
-        curves = {"steps": config.schedule.test_points}
+        curves: dict[str, Any] = {"steps": config.schedule.test_points}
         pick = {"E_mm": lambda s: s.E_mm, "T_s_per_m": lambda s: s.T_s_per_m, "D": lambda s: s.D,
                 "P5": lambda s: float(s.P[i5]), "T5_s_per_m": lambda s: float(s.T_eps[i5])}
         for key, get in pick.items():

@@ -93,4 +93,5 @@ def batch_train_chunk(streams: list[TrialStreams], chunk: int,
     (numpy's generators release the GIL), each trial from its own stream as before."""
     with ThreadPoolExecutor(max_workers=min(len(streams), os.cpu_count() or 1)) as ex:
         parts = list(ex.map(lambda st: st.train_chunk(chunk, nsteps), streams))
-    return tuple(np.stack([p[q] for p in parts]) for q in range(3))
+    wheel, sense, explore = (np.stack([p[q] for p in parts]) for q in range(3))
+    return wheel, sense, explore

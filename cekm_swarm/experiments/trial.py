@@ -87,7 +87,8 @@ def train_reference(net, pose: np.ndarray, cursor: list[int], streams: TrialStre
             cursor[1] = 0
         u = np.array([alpha, d])
         c_net = command(u)
-        if stopped(c_net[0], c_net[1], *executed_command(c_net[0], c_net[1], av), stop.code):  # next target, next step
+        q_net = executed_command(c_net[0], c_net[1], av)
+        if stopped(c_net[0], c_net[1], q_net[0], q_net[1], stop.code):  # next target, next step
             cursor[0] += 1
             cursor[1] = 0
             continue
@@ -109,6 +110,8 @@ def test_reference(command: Callable[[np.ndarray], np.ndarray], streams: TrialSt
     av = arena.vector()
     targets, wheel, sense = streams.test_set
     out = TestOutcome.empty(len(targets), len(eps))
+    at_goal = out.at_goal
+    assert at_goal is not None  # empty() makes every column
     pose = np.array([*arena.centre, 0.0])
     for i, (tx, ty) in enumerate(targets):
         out.straight[i] = math.hypot(tx - pose[0], ty - pose[1])
@@ -119,7 +122,7 @@ def test_reference(command: Callable[[np.ndarray], np.ndarray], streams: TrialSt
             c = command(u)
             q = executed_command(c[0], c[1], av)
             if stopped(c[0], c[1], q[0], q[1], stop.code):  # the robot has come to a stop
-                out.stopped[i], out.at_goal[i], steps = True, u[1] == 0.0, j
+                out.stopped[i], at_goal[i], steps = True, u[1] == 0.0, j
                 break
             ds, _, _ = drive(pose, q[0], q[1], wheel[i, j], av, tx, ty, eps, t_eps, path_eps, j * arena.step_s, path)
             path += ds

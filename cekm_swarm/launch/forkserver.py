@@ -113,7 +113,8 @@ class Server:
         self.wake = (wake_r, wake_w)
         while True:
             try:
-                ready, _, _ = select.select([self.sock, wake_r], [], [])
+                readers: list[Any] = [self.sock, wake_r]
+                ready, _, _ = select.select(readers, [], [])
             except InterruptedError:  # pragma: no cover - PEP 475 retries
                 continue
             if wake_r in ready:

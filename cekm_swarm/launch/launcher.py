@@ -38,7 +38,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO
 
 from cekm_swarm.experiments.graph_run import default_max_time
 from cekm_swarm.experiments.navigation_run import planned_checkpoints
@@ -100,6 +100,12 @@ class LaunchConfig:
     step_timeout: float | None = STEP_TIMEOUT  # lockstep: s a tick may wait on a hung step before the run fails
 
 
+def _close(thing: Any) -> None:
+    """``thing.close()``, for a part of the launch that may not have been made."""
+    if thing is not None:
+        thing.close()
+
+
 class Launcher(Supervision, WorldHost, RobotHost):
     """A launch: its steps here, the supervision of its nodes (:mod:`.supervision`), its
     world server (:mod:`.world_host`) and a robots-only host's side (:mod:`.robot_host`)."""
@@ -113,7 +119,7 @@ class Launcher(Supervision, WorldHost, RobotHost):
         self.world_proc: asyncio.subprocess.Process | None = None
         self.interrupted = False
         self._stop_waiting = threading.Event()  # set by Ctrl-C: a wait for the router ends at once
-        self._log = None
+        self._log: TextIO | None = None
         self.startup_s: float | None = None
         self.run_id: str | None = None
         self.all_robots: list[str] = []
@@ -217,7 +223,6 @@ class Launcher(Supervision, WorldHost, RobotHost):
         for w in self.plan.warnings:
             self.say(f"warning: {w}")
         if c.max_time is None:
-
             c.max_time = default_max_time(self.task)
 
     def _preflight(self, model) -> None:
@@ -290,7 +295,7 @@ class Launcher(Supervision, WorldHost, RobotHost):
     def _local_host(self) -> str:
         return DEFAULT_HOST if self.c.listen_host in ("0.0.0.0", "::") else self.c.listen_host
 
-    async def _bring_up(self, scenario, robots: list[str], model: Path | str, checkpoints: Path | None,
+    async def _bring_up(self, scenario, robots: list[str], model: Path | str | None, checkpoints: Path | None,
                         endpoint: str) -> None:
         """Start everything, wait for the modules, then follow the run to its end."""
         c = self.c
@@ -304,6 +309,7 @@ class Launcher(Supervision, WorldHost, RobotHost):
                                     hosts_router=self._world_hosts_router, checkpoints=checkpoints)
             if self.interrupted:
                 return
+            assert self.world_proc is not None and self.world_proc.stdout is not None  # _start_world started it
             self.world_reader = asyncio.ensure_future(self._read_world(self.world_proc.stdout))
             if self._world_hosts_router:
                 also = "" if self._local_host == c.listen_host else f" (listening on tcp/{c.listen_host}:{c.port})"
@@ -339,6 +345,7 @@ class Launcher(Supervision, WorldHost, RobotHost):
             return
         if expected <= self.watcher.alive:
             self.say(f"all {len(expected)} modules alive after {self.startup_s:.1f} s; the world starts")
+        assert self.world_reader is not None and self.world_proc is not None  # a world host's, started above
         await self.world_reader
         code = await self.world_proc.wait()
         if code not in (0, 3, 4):  # 4: the log's disk filled, the world closed the log and ended the run
@@ -366,18 +373,20 @@ class Launcher(Supervision, WorldHost, RobotHost):
         t0 = loop.time()
         deadline = t0 + timeout + (5.0 if self.c.world else 0.0)
         next_report = loop.time() + self.wait_report_every
-        while not expected <= self.watcher.alive and not self.stopping and not self._world_ended():
+        watcher = self.watcher
+        assert watcher is not None  # made before the modules are spawned
+        while not expected <= watcher.alive and not self.stopping and not self._world_ended():
             try:
-                await self.watcher.next_event(timeout=max(0.1, min(1.0, deadline - loop.time())))
+                await watcher.next_event(timeout=max(0.1, min(1.0, deadline - loop.time())))
             except TimeoutError:
                 if loop.time() > deadline:
                     break
-            if loop.time() >= next_report and not expected <= self.watcher.alive:
-                self.say(f"waiting for {missing_by_robot(self.keys, self.plan, expected - self.watcher.alive)} ...")
+            if loop.time() >= next_report and not expected <= watcher.alive:
+                self.say(f"waiting for {missing_by_robot(self.keys, self.plan, expected - watcher.alive)} ...")
                 next_report = loop.time() + self.wait_report_every
-        missing = expected - self.watcher.alive
+        missing = expected - watcher.alive
         if missing and not self.stopping and loop.time() - t0 >= timeout - 0.5:  # (not a world that crashed)
-            if self._world_ended():
+            if self._world_ended() and self.world_reader is not None:
                 await self.world_reader  # its last lines (the missing nodes, its outcome) come first
             raise LaunchError(f"not alive after {timeout:.0f} s: {missing_by_robot(self.keys, self.plan, missing)}; "
                               f"is every robot host started (cekm launch --no-world --robots ...)?")
@@ -393,8 +402,8 @@ class Launcher(Supervision, WorldHost, RobotHost):
             ("stop the modules", self._stop_children),
             ("cancel the supervisors", lambda: [t.cancel() for t in self.supervisors]),
             ("stop reading the world", lambda: self.world_reader is not None and self.world_reader.cancel()),
-            ("close the liveliness watcher", lambda: self.watcher is not None and self.watcher.close()),
-            ("close the model server", lambda: self.model_server is not None and self.model_server.close()),
+            ("close the liveliness watcher", lambda: _close(self.watcher)),
+            ("close the model server", lambda: _close(self.model_server)),
             ("close the Zenoh session", lambda: self.session is not None and self.session.close()),
             ("close the embedded router", lambda: self.router is not None and self.router.close()),
         ]

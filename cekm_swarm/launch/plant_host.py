@@ -41,7 +41,8 @@ def plant_description(scenario: Any, description: Path | None, trained: RobotBod
 def goals_of(scenario: Any) -> tuple[dict[str, list[float] | None], dict[str, str]]:
     """Each robot's goal (x, y) from the scenario (None: it takes one from ``goal_pose``) and its target id."""
     targets = {t.id: t for t in scenario.targets}
-    goals, ids = {}, {}
+    goals: dict[str, list[float] | None] = {}
+    ids: dict[str, str] = {}
     for r in scenario.robots:
         if r.goal is None:
             goals[r.id] = None

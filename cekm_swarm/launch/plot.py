@@ -7,11 +7,11 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 from mcap.reader import make_reader
 
-from cekm_swarm.protocol import DEFAULT_ROOT, KeyKind, KeySpace, MessageError, decode
+from cekm_swarm.protocol import DEFAULT_ROOT, KeyKind, KeySpace, MessageError, WorldState, decode
 from cekm_swarm.runtime.mcap_log import log_root, read_messages, without_resends
 from cekm_swarm.runtime.mcap_sets import log_files
 
@@ -34,7 +34,6 @@ def read_run(path: str | Path, keys: KeySpace | None = None) -> dict[str, Any]:
     """Per robot the poses (t, x, y, theta) and per target the positions (x, y) from
     ``world/state``, and the last state; ``keys``: default, the log's own root."""
     if keys is None:
-
         keys = KeySpace(log_root(path) or DEFAULT_ROOT)
     paths: dict[str, list[tuple[float, float, float, float]]] = {}
     target_paths: dict[str, list[tuple[float, float]]] = {}
@@ -42,7 +41,7 @@ def read_run(path: str | Path, keys: KeySpace | None = None) -> dict[str, Any]:
     state_key = keys.world_state()
     for m in without_resends(read_messages(path, topics=[state_key])):  # one state a tick
         try:
-            msg = decode(KeyKind.WORLD_STATE, m.data, keys=keys)
+            msg = cast(WorldState, decode(KeyKind.WORLD_STATE, m.data, keys=keys))
         except MessageError:
             continue
         for rid, r in msg.robots.items():

@@ -73,7 +73,8 @@ def preflight(checked: CheckedGraph, plan: RunPlan, body: RobotBody, model: Any)
 
 def run_spec(checked: CheckedGraph, team: tuple[str, ...], task: str, body: RobotBody, **settings: Any) -> RunSpec:
     """The run spec of a launch (see :mod:`cekm_swarm.graph.runspec`)."""
-    types = [p.type for cls in checked.classes.values() for p in (*cls.inputs.values(), *cls.outputs.values())]
+    types = [t for cls in checked.classes.values()
+             for t in (*(p.type for p in cls.inputs.values()), *(p.type for p in cls.outputs.values()))]
     return RunSpec(checked.graph, dict(checked.ports), {k: dict(v) for k, v in checked.params.items()}, tuple(team),
                    task, body, **settings, schemas=user_schemas(types))
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import time
+from collections.abc import Callable
 from typing import Any
 
 from cekm_swarm.runtime.bridge import LivelinessWatcher
@@ -25,6 +26,10 @@ class RobotHost:
     keys: Any
     session: Any
     stopping: bool
+    # what it shares with the rest of the launcher (declared here, set and defined there)
+    say: Callable[[str], None]
+    _choose_run_id: Callable[[], None]
+    startup_s: float | None
 
     async def _join_run_id(self) -> None:
         """A robots-only host: the run id given, or the one the world server's token carries."""

@@ -119,9 +119,9 @@ class ForkServer:
                         else:
                             fut.set_exception(OSError(doc.get("error", "the fork server refused")))
                 elif "pid" in doc:
-                    child = self.children.pop(int(doc["pid"]), None)
-                    if child is not None:
-                        child._ended(int(doc["code"]))
+                    pid = int(doc["pid"])
+                    if pid in self.children:
+                        self.children.pop(pid)._ended(int(doc["code"]))
         finally:
             await self._orphaned()
 

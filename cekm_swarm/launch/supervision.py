@@ -20,7 +20,7 @@ import signal
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import zenoh
 
@@ -34,7 +34,7 @@ from cekm_swarm.node.process import (
     STEP_FAILED,
 )
 from cekm_swarm.node.timing import lost_on_restart
-from cekm_swarm.protocol import KeyKind, decode
+from cekm_swarm.protocol import Clock, KeyKind, decode
 from cekm_swarm.runtime.bridge import AsyncSubscription
 from cekm_swarm.runtime.lifetime import child_env
 from cekm_swarm.ticks import tick_time
@@ -93,7 +93,7 @@ class Supervision:
     supervisors: list[asyncio.Future]
     plan: Any
     checked: Any
-    spec_path: Path
+    spec_path: Path | None
     run_id: str | None
     wait_report_every: float
     fork_server: ForkServer | None = None
@@ -158,7 +158,7 @@ class Supervision:
         child.started = time.monotonic()
         self._write_pids()
 
-    async def _spawn_modules(self, scenario, robots: list[str], model: Path | str, endpoint: str) -> None:
+    async def _spawn_modules(self, scenario, robots: list[str], model: Path | str | None, endpoint: str) -> None:
         """Start every node process of ``robots`` (the graph's node instances), each under a supervisor."""
         c = self.c
         for r in robots:
@@ -289,7 +289,7 @@ class Supervision:
         try:
             with AsyncSubscription(self.session, self.keys.world_clock(), maxsize=1) as sub:
                 rec = await sub.get(timeout=2 * self.c.republish + 1.0)
-            return int(decode(KeyKind.WORLD_CLOCK, rec.payload).tick)
+            return int(cast(Clock, decode(KeyKind.WORLD_CLOCK, rec.payload)).tick)
         except (TimeoutError, CekmError, ValueError, zenoh.ZError):
             return None
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -14,7 +15,7 @@ from cekm_swarm.runtime.mcap_log import recover_log
 from cekm_swarm.runtime.mcap_read import file_complete
 from cekm_swarm.runtime.mcap_sets import log_files
 
-from .cpu import snapshot
+from .cpu import CpuSnapshot, snapshot
 from .errors import LaunchError
 from .processes import child_env, server_argv
 
@@ -84,6 +85,16 @@ class WorldHost:
     _stall: tuple[float, int] = (-1.0, 0)  # (the stalled tick's time, how many re-publishings of it)
 
     failure: str | None
+    log_full: str | None
+    # what it shares with the rest of the launcher (declared here, set and defined there)
+    say: Callable[[str], None]
+    _pids: Callable[[], dict[str, int]]
+    _write_pids: Callable[[], None]
+    spec_path: Path | None
+    run_id: str | None
+    interrupted: bool
+    _cpu_start: CpuSnapshot | None
+    _cpu_end: CpuSnapshot | None
 
     def _name_stalled(self, robots: list[str], t: float, end: bool = False) -> Any:  # pragma: no cover - the launcher's
         raise NotImplementedError

@@ -17,7 +17,7 @@ from ..models.io import load_model
 from .graphs import fields_graph, policy_graph
 from .scenarios import scenario as generated
 
-_MODEL: dict[str, Any] = {}
+_MODEL: dict[str | None, Any] = {}
 
 
 def _model(path: str | None):
@@ -27,7 +27,6 @@ def _model(path: str | None):
 
             _MODEL[path] = default_model(progress=False)
         else:
-
             _MODEL[path] = load_model(path)
     return _MODEL[path]
 
@@ -47,7 +46,6 @@ def scenario_of(task: str, where):
     seed), or ("concave", width, depth, sensor range, world seed), Fig. 9's sweep cell
     (concave.toml with those overrides, as ``cekm sweep concave`` builds it)."""
     if isinstance(where, tuple) and where and where[0] == "concave":
-
         _, width, depth, rng, seed = where
         return load_scenario("concave", overrides={"obstacles[0].width": width, "obstacles[0].depth": depth,
                                                    "sensors.range": rng}), seed
