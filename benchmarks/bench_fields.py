@@ -80,7 +80,8 @@ def main() -> None:
     (base_s, base_ticks), (env_s, env_ticks), (pol_s, pol_ticks) = res["plain"], res["env"], res["policy"]
     print(f"scenario {args.scenario} ({task}), best of {args.repeat}")
     print(f"  cekm run (baseline)         {base_ticks:6d} ticks  {base_ticks / base_s:9.0f} ticks/s")
-    print(f"  environment, {args.ticks_per_action} ticks/step   {env_ticks:6d} ticks  {env_ticks / env_s:9.0f} ticks/s  "
+    print(f"  environment, {args.ticks_per_action} ticks/step   {env_ticks:6d} ticks  {env_ticks / env_s:9.0f} ticks/s "
+          " "
           f"{steps['n'] / env_s:8.1f} steps/s  ratio {base_s / base_ticks / (env_s / env_ticks):.2f} of baseline")
     print(f"  training run (a policy)     {pol_ticks:6d} ticks  {pol_ticks / pol_s:9.0f} ticks/s  "
           f"ratio {base_s / base_ticks / (pol_s / pol_ticks):.2f} of baseline")
@@ -88,7 +89,7 @@ def main() -> None:
         print(f"  host load: {f.read().strip()}")
     try:
         vm = subprocess.run(["vmstat", "1", "3"], capture_output=True, text=True, timeout=10).stdout.splitlines()
-        print(f"  vmstat 1 3, last line: {dict(zip(vm[1].split()[-5:], vm[-1].split()[-5:]))}")
+        print(f"  vmstat 1 3, last line: {dict(zip(vm[1].split()[-5:], vm[-1].split()[-5:], strict=False))}")
     except (OSError, subprocess.SubprocessError, IndexError):
         pass
 

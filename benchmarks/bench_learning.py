@@ -45,8 +45,12 @@ def _batch(name: str, trials: int, steps: int, seed: int = 1):
     streams = [TrialStreams(seed, t, arena, Schedule(steps=steps, test_interval=steps)) for t in range(trials)]
     nets = [make_network(name, s.init_rng(), bfn_rule="paper") for s in streams]  # the default run's B15
     arrays = [fast.network_arrays(n) for n in nets]
-    batch = trial.NetworkBatch(nets[0].kind, nets[0].lattice.size, *(np.stack([a[q] for a in arrays]) for q in range(3)),
-                               fast.pack_params(nets[0].comp, nets[0].learn_p, arena.v_max, BFN_WIDTH_FLOOR, "paper"))
+    batch = trial.NetworkBatch(
+        nets[0].kind,
+        nets[0].lattice.size,
+        *(np.stack([a[q] for a in arrays]) for q in range(3)),
+        fast.pack_params(nets[0].comp, nets[0].learn_p, arena.v_max, BFN_WIDTH_FLOOR, "paper"),
+    )
     return batch, streams, nets
 
 
@@ -113,7 +117,8 @@ def main() -> None:
         rates[name] = train_rate_fast(name)
         print(f"{name:8} {one:>14,.0f} {rates[name]:>14,.0f} {rates[name] / ref:>10.0f}x")
     ekm = np.mean([rates[n] for n in ("G9", "G12", "G15", "R15")])
-    print(f"indirect EKMs, mean: {ekm:,.0f} robot-steps/s (goal {GOAL_RATE:,}: {'met' if ekm >= GOAL_RATE else 'NOT met'})")
+    print(f"indirect EKMs, mean: {ekm:,.0f} robot-steps/s (goal {GOAL_RATE:,}: "
+          f"{'met' if ekm >= GOAL_RATE else 'NOT met'})")
     if args.skip_full:
         return
     cache = Path(__import__("cekm_swarm").__file__).parent
@@ -125,7 +130,8 @@ def main() -> None:
             wall, mem = full_run(Path(tmp) / label.replace(" ", "-"), args.master_seeds)
             goal = GOAL_FULL_S * args.master_seeds
             ok = wall < goal and mem < GOAL_MEM_GB
-            print(f"full default run, {args.master_seeds} master seed(s) ({label}): {wall:.1f} s, peak RSS {mem:.2f} GB "
+            print(f"full default run, {args.master_seeds} master seed(s) ({label}): {wall:.1f} s, peak RSS {mem:.2f} "
+                  "GB "
                   f"(goals < {goal:.0f} s, < {GOAL_MEM_GB:.0f} GB: {'met' if ok else 'NOT met'}); "
                   f"x baseline: the reference would need ~{3.0e6 / ref / 3600:.1f} h for the training alone")
         shutil.rmtree(tmp, ignore_errors=True)

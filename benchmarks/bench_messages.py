@@ -63,8 +63,16 @@ def measure(n: int) -> dict[str, float]:
     of = ObstacleField(t, "r1/obstacle-3", 3, 17, rows[17])
     tf = TargetField(t, "r1/target", 17, rows[17], 0.3, 0.5)
     payloads = {
-        "decode range reading": (K.sense_range("r1", 3), KeyKind.SENSE_RANGE, encode(SenseRange(t, "world", 3, 0.5, 0.1))),
-        "decode target reading": (K.sense_target("r1"), KeyKind.SENSE_TARGET, encode(SenseTarget(t, "world", 0.5, 0.1, True))),
+        "decode range reading": (
+            K.sense_range("r1", 3),
+            KeyKind.SENSE_RANGE,
+            encode(SenseRange(t, "world", 3, 0.5, 0.1)),
+        ),
+        "decode target reading": (
+            K.sense_target("r1"),
+            KeyKind.SENSE_TARGET,
+            encode(SenseTarget(t, "world", 0.5, 0.1, True)),
+        ),
         "decode obstacle field": (K.field_obstacle("r1", 3), KeyKind.FIELD_OBSTACLE, encode(of)),
         "decode target field": (K.field_target("r1"), KeyKind.FIELD_TARGET, encode(tf)),
     }
@@ -76,7 +84,9 @@ def measure(n: int) -> dict[str, float]:
     per_tick = len(sense(readings))
     dec, enc = Decoder(K, DropCounter("bench")), Encoder()
     filt = RecordFilter(K, ["r1"], DropCounter("bench"))
-    cases = {name: (lambda key=key, kind=kind, p=p: dec.decode(key, kind, p)) for name, (key, kind, p) in payloads.items()}
+    cases = {
+        name: (lambda key=key, kind=kind, p=p: dec.decode(key, kind, p)) for name, (key, kind, p) in payloads.items()
+    }
     cases["build obstacle field"] = lambda: ObstacleField(t, "r1/obstacle-3", 3, 17, rows[17])
     cases["encode obstacle field"] = lambda: enc(of)
     cases["encode target field"] = lambda: enc(tf)

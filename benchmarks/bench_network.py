@@ -109,7 +109,7 @@ def one_row(work: Path, scenario: str, max_time: float, delay_ms: float, loss: f
            "unlogged": gaps["recorded"],
            "latency_p50_ms": (out.get("sense_to_command_ms") or {}).get("p50"),
            "command_age_ticks": out.get("command_age_ticks"),
-           "steal": steal_since(before), "load": float(open("/proc/loadavg").read().split()[0])}
+           "steal": steal_since(before), "load": float(Path("/proc/loadavg").read_text().split()[0])}
     if "tracking" in out:
         row["A"] = out["tracking"]["A"]
     else:
@@ -157,11 +157,13 @@ def lockstep_speed(work: Path, delays: list[float], loss: float, max_time: float
         steal = steal_since(before)
         per_tick = 1000 * wall / out["ticks"]
         ratio = f"{per_tick / (2 * d):.2f} x the round trip" if d else "no delay"
-        print(f"lockstep crossing {d:4.0f} ms {100 * loss:3.0f} %: {out['ticks']} ticks, {per_tick:6.1f} ms per tick "
-              f"({ratio}), "
-              f"republished {out['republished']}, equals cekm run: {equal} | load "
-              f"{open('/proc/loadavg').read().split()[0]} steal {'?' if steal is None else f'{100 * steal:.1f} %'}",
-              flush=True)
+        print(
+            f"lockstep crossing {d:4.0f} ms {100 * loss:3.0f} %: {out['ticks']} ticks, {per_tick:6.1f} ms per tick "
+            f"({ratio}), "
+            f"republished {out['republished']}, equals cekm run: {equal} | load "
+            f"{Path('/proc/loadavg').read_text().split()[0]} steal {'?' if steal is None else f'{100 * steal:.1f} %'}",
+            flush=True,
+        )
 
 
 def fmt(row: dict, base_a: float | None) -> str:
@@ -215,7 +217,7 @@ def rss_by_process(hosts_dirs: list[Path]) -> dict[str, int]:
             continue
         for label, pid in pids.items():
             try:
-                for line in open(f"/proc/{pid}/status"):
+                for line in Path(f"/proc/{pid}/status").read_text().splitlines():
                     if line.startswith("VmRSS:"):
                         out[label] = int(line.split()[1])
             except OSError:
@@ -266,9 +268,12 @@ def soak(args, work: Path) -> None:
     walls = [e["wall"] for e in stops]
     outside = [w for w in walls if not any(a <= w <= b + 1.0 for a, b in cuts)]
     print(f"\nbad-link soak: {minutes} min, tracking (2 robots) behind 50 ms + 1 % loss, r1 cut {PARTITION_S:.0f} s "
-          f"every {args.cut_every / 60:.0f} min ({len(cuts)} cuts); load {open('/proc/loadavg').read().split()[0]}, steal "
+          f"every {args.cut_every / 60:.0f} min ({len(cuts)} cuts); load "
+          f"{Path('/proc/loadavg').read_text().split()[0]}, "
+          "steal "
           f"{'?' if steal is None else f'{100 * steal:.1f} %'}")
-    print(f"ticks {out['ticks']}, deadline misses {out['deadline_misses']} of {out['ticks'] * len(robots)} robot-ticks; "
+    print(f"ticks {out['ticks']}, deadline misses {out['deadline_misses']} of {out['ticks'] * len(robots)} "
+          "robot-ticks; "
           f"dead-man stops {len(stops)} ({len(outside)} outside a partition)")
     # sim time of a wall instant: real time runs on the wall clock (any event carries both)
     offset = statistics.median([e["wall"] - e["t"] for e in out["events"] if "wall" in e] or [0.0])
@@ -286,7 +291,8 @@ def soak(args, work: Path) -> None:
     for label, g in growth.items():
         by_kind.setdefault(kind_of(label), []).append(g)
     for kind, gs in sorted(by_kind.items()):
-        print(f"  memory {kind:12s} minute 1 -> end: max {100 * max(gs):+.1f} %, median {100 * statistics.median(gs):+.1f} %"
+        print(f"  memory {kind:12s} minute 1 -> end: max {100 * max(gs):+.1f} %, median "
+              f"{100 * statistics.median(gs):+.1f} %"
               f" ({len(gs)} processes)")
     print(f"log set: {len(files)} files, {sum(f.stat().st_size for f in files) / 1e6:.1f} MB; gaps {gaps}")
     print(info.stdout[-3000:] or info.stderr[-2000:])

@@ -110,7 +110,7 @@ def main() -> None:
     every = [round(d["launcher"]["cpu"]["ms_per_robot_tick"], 2) for d in plains + learns]
     print(f"CPU per robot-tick, every launch (cekm x{a.pairs}, then cekm-learning x{a.pairs}): {every}")
     pairs = [round(lr["launcher"]["cpu"]["ms_per_robot_tick"] / pr["launcher"]["cpu"]["ms_per_robot_tick"], 2)
-             for pr, lr in zip(plains, learns)]
+             for pr, lr in zip(plains, learns, strict=True)]
     ticks = sorted({d["launcher"]["cpu"]["ticks"] for d in plains + learns})
     print(f"each pair's ratio (launched one after the other): {pairs}; ticks measured: {ticks}"
           + ("" if len(ticks) == 1 else " - NOT the same stretch of the run: a robot reached its goal early"))
@@ -118,7 +118,8 @@ def main() -> None:
         med = [float(np.median([d["launcher"]["cpu"]["ms_per_tick"].get(kind, 0.0) for d in ds]))
                for ds in (plains, learns)]
         print(f"  {kind}: {med[0]:.3f} -> {med[1]:.3f} ms per tick (medians)")
-    print(f"CPU per robot-tick, lockstep, concave seed 1, {a.sim_seconds:g} s, medians: cekm {cp['ms_per_robot_tick']:.2f} ms "
+    print(f"CPU per robot-tick, lockstep, concave seed 1, {a.sim_seconds:g} s, medians: cekm "
+          f"{cp['ms_per_robot_tick']:.2f} ms "
           f"{cp['ms_per_tick']}, cekm-learning {cl['ms_per_robot_tick']:.2f} ms {cl['ms_per_tick']}: "
           f"{ratio:.2f}x (goal <= {GOAL_RATIO}x: {'met' if ratio <= GOAL_RATIO else 'NOT met'}); steal "
           f"{cp['host']} / {cl['host']}")

@@ -67,7 +67,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=3)
     args = ap.parse_args()
-    print(f"load average before: {open('/proc/loadavg').read().split()[:3]}")
+    print(f"load average before: {Path('/proc/loadavg').read_text().split()[:3]}")
     rows = []
     with tempfile.TemporaryDirectory() as d:
         tmp = Path(d)
@@ -86,7 +86,7 @@ def main() -> None:
         for q in ("p50", "p99"):
             ratios = [r[k][q] / r[0][q] for r in rows if r[0][q] and r[k][q]]
             print(f"{what} {q} / world sense-to-command {q}: " + ", ".join(f"{x:.2f}" for x in ratios))
-    print(f"load average after: {open('/proc/loadavg').read().split()[:3]}; cpus {os.cpu_count()}")
+    print(f"load average after: {Path('/proc/loadavg').read_text().split()[:3]}; cpus {os.cpu_count()}")
 
 
 if __name__ == "__main__":

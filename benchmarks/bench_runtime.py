@@ -139,7 +139,7 @@ def graph_run(session, ticks: int, paced: bool, first_tick: int = 0) -> tuple[li
             pubs.put(key, payload)
         t = rd.t
         with cv:
-            if not cv.wait_for(lambda: t in got, timeout=10):
+            if not cv.wait_for(lambda t=t: t in got, timeout=10):
                 raise RuntimeError(f"no command for tick {k}")
         lat.append((got[t] - t0) * 1000)
         c = cmds[t]
@@ -209,16 +209,25 @@ def main() -> None:
     raw = bench_zenoh.latency("asyncio", 2, 1000, 0.002)
     raw_cb = bench_zenoh.latency("callback", 2, 1000, 0.002)
     result = {
-        "machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}",
+        "machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, Python "
+        f"{platform.python_version()}",
         "module_startup_s_14_processes": round(startup, 2),
-        "sense_to_command_ms_paced": {"p50": round(pct(paced_lat, 50), 3), "p99": round(pct(paced_lat, 99), 3),
-                                      "n": len(paced_lat)},
+        "sense_to_command_ms_paced": {
+            "p50": round(pct(paced_lat, 50), 3),
+            "p99": round(pct(paced_lat, 99), 3),
+            "n": len(paced_lat),
+        },
         "sense_to_command_ms_flat_out": {"p50": round(pct(fast_lat, 50), 3), "p99": round(pct(fast_lat, 99), 3)},
-        "raw_one_way_1_hop_ms": {"callback_p50": round(pct(raw1, 50) / 1000, 3),
-                                 "callback_p99": round(pct(raw1, 99) / 1000, 3)},
-        "raw_one_way_2_hops_ms": {"asyncio_p50": round(pct(raw, 50) / 1000, 3), "asyncio_p99": round(pct(raw, 99) / 1000, 3),
-                                  "callback_p50": round(pct(raw_cb, 50) / 1000, 3),
-                                  "callback_p99": round(pct(raw_cb, 99) / 1000, 3)},
+        "raw_one_way_1_hop_ms": {
+            "callback_p50": round(pct(raw1, 50) / 1000, 3),
+            "callback_p99": round(pct(raw1, 99) / 1000, 3),
+        },
+        "raw_one_way_2_hops_ms": {
+            "asyncio_p50": round(pct(raw, 50) / 1000, 3),
+            "asyncio_p99": round(pct(raw, 99) / 1000, 3),
+            "callback_p50": round(pct(raw_cb, 50) / 1000, 3),
+            "callback_p99": round(pct(raw_cb, 99) / 1000, 3),
+        },
         "module_cpu_ms_per_paced_tick": round(1000 * (sum(cpu1) - sum(cpu0)) / len(paced_lat), 2),
         "host_stolen_share_paced": host_shares(host0, host1).get("steal"),
         "lockstep_bare_loop": {"ticks": n, "wall_s": round(wall, 3), "speedup": round(n * TICK_S / wall, 1)},

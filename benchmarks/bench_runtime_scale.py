@@ -120,7 +120,8 @@ def main() -> None:
               f"{cpu.get('total_ms_per_tick', math.nan):>12} {per:>10} {ratio:>9.2f} {steal:>7}  {split}")
     if not args.no_floor:
         print()
-        print("CPU per process per tick (ms) by kind, against the floor's (a bare process woken by one message per tick)")
+        print("CPU per process per tick (ms) by kind, against the floor's (a bare process woken by one message per "
+              "tick)")
         print(f"{'robots':>6} {'floor':>7} {'stolen':>7} " + " ".join(f"{k:>16}" for k in KINDS))
         for r in rows:
             if "error" in r or "ms_per_process_tick" not in r.get("floor", {}):

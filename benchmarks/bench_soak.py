@@ -131,7 +131,7 @@ def main() -> None:
     if args.max_log_size:
         cmd += ["--max-log-size", args.max_log_size]
     env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    launch_log = open(work / "soak-launch.out", "w")
+    launch_log = open(work / "soak-launch.out", "w")  # noqa: SIM115 -- the launch's output, closed once it ended
     proc = subprocess.Popen(cmd, stdout=launch_log, stderr=subprocess.STDOUT, cwd=ROOT, env=env,
                             start_new_session=True)
     samples: list[dict] = []

@@ -53,7 +53,9 @@ def setups(tmp: Path) -> dict[str, tuple[zenoh.Config, Callable[[], zenoh.Config
     return out
 
 
-def measure(router_config: zenoh.Config, client: Callable[[], zenoh.Config], opens: int, pings: int) -> tuple[float, float, float]:
+def measure(
+    router_config: zenoh.Config, client: Callable[[], zenoh.Config], opens: int, pings: int
+) -> tuple[float, float, float]:
     """Median session-open time (ms), median and 99th-percentile round trip (us)."""
     router = open_session(router_config, "router")
     try:

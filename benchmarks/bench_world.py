@@ -50,7 +50,13 @@ def scenario(n: int, spacing: float = 0.5) -> dict:
         {"shape": "disc", "center": [0.35, size - 0.35], "radius": 0.05},
         {"shape": "box", "center": [size - 0.35, 0.35], "size": [0.1, 0.1]},
     ]
-    return {"seed": 1, "arena": {"bounds": [0.0, 0.0, size, size]}, "robots": robots, "walls": walls, "obstacles": obstacles}
+    return {
+        "seed": 1,
+        "arena": {"bounds": [0.0, 0.0, size, size]},
+        "robots": robots,
+        "walls": walls,
+        "obstacles": obstacles,
+    }
 
 
 def bench_world(n: int, steps: int, dense: bool = False) -> tuple[float, float, float]:
@@ -121,9 +127,10 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=5, help="best of this many runs per size")
     args = ap.parse_args()
     print(f"python {platform.python_version()}, pymunk {pymunk.version}, {os.cpu_count()} cpu(s), {platform.machine()}")
-    print("us per robot-step (best of %d); goal <= %.0f us at 100 robots" % (args.repeat, GOAL_US))
+    print(f"us per robot-step (best of {args.repeat}); goal <= {GOAL_US:.0f} us at 100 robots")
     print(
-        f"{'layout':>7} {'robots':>6} {'world':>8} {'step':>8} {'12 reads':>9} {'baseline':>9} {'ratio':>6} {'base x4':>8}"
+        f"{'layout':>7} {'robots':>6} {'world':>8} {'step':>8} {'12 reads':>9} {'baseline':>9} {'ratio':>6} "
+        f"{'base x4':>8}"
     )
     for dense in (False, True):
         for n in (1, 10, 100):
@@ -138,8 +145,10 @@ def main() -> None:
             )
     print("world = step (noise, kinematics, 4 pymunk steps, contacts, path, clearance) + 12 range reads per robot")
     print("open: 0.5 m apart, reads mostly skip the rays (nothing within range); dense: 0.15 m apart, all rays cast")
-    print("baseline = one bare pymunk step (0.032 s) of the same bodies and joints, no sensors; ratio = world / baseline")
-    print(f"base x4 = the same bare space stepped {PHYSICS_STEPS} x {0.032 / PHYSICS_STEPS * 1000:.0f} ms, as the world does")
+    print("baseline = one bare pymunk step (0.032 s) of the same bodies and joints, no sensors; ratio = world / "
+          "baseline")
+    print(f"base x4 = the same bare space stepped {PHYSICS_STEPS} x {0.032 / PHYSICS_STEPS * 1000:.0f} ms, as the "
+          "world does")
 
 
 if __name__ == "__main__":

@@ -175,11 +175,19 @@ def served(n: int, sim: float, port: int, tmp: Path) -> dict:
     ticks = max(1, outcome["ticks"])
     cpu = doc_line["DONE"]["cpu_s"] - doc_line["START"]["cpu_s"]
     log_bytes = sum(p.stat().st_size for p in out.glob("run*.mcap"))
-    return {"robots": n, "ticks": ticks, "world_cpu_ms_per_tick": 1000 * cpu / ticks,
-            "deadline_misses": outcome["deadline_misses"], "latency_ms": outcome["sense_to_command_ms"],
-            "world_peak_mb": None if peak is None else peak / 1024, "log_bytes_per_s": log_bytes / max(outcome["sim_seconds"], TICK_S),
-            "fleet_cpu_ms_per_tick": 1000 * fleet_cpu / ticks, "steal": host.get("steal"),
-            "left_out": outcome.get("readings_left_out"), "dropped": outcome.get("dropped_messages")}
+    return {
+        "robots": n,
+        "ticks": ticks,
+        "world_cpu_ms_per_tick": 1000 * cpu / ticks,
+        "deadline_misses": outcome["deadline_misses"],
+        "latency_ms": outcome["sense_to_command_ms"],
+        "world_peak_mb": None if peak is None else peak / 1024,
+        "log_bytes_per_s": log_bytes / max(outcome["sim_seconds"], TICK_S),
+        "fleet_cpu_ms_per_tick": 1000 * fleet_cpu / ticks,
+        "steal": host.get("steal"),
+        "left_out": outcome.get("readings_left_out"),
+        "dropped": outcome.get("dropped_messages"),
+    }
 
 
 def in_process(n: int, ticks: int, tmp: Path) -> float:
@@ -222,8 +230,10 @@ def main() -> None:
             print(f"  {n} robots done", file=sys.stderr, flush=True)
     print(f"load average {os.getloadavg()[0]:.1f}; the world server against a FAKE FLEET (one process answering "
           f"every robot's command); {args.sim:g} s of real time per row; a tick is {1000 * TICK_S:g} ms")
-    print("| robots | world CPU ms/tick | per robot-tick ms | one core | in-process ms/tick | x in-process "
-          "| misses / robot-ticks | latency p50 / p99 ms | world peak MB | log KB/s | fake fleet CPU ms/tick | stolen |")
+    print(
+        "| robots | world CPU ms/tick | per robot-tick ms | one core | in-process ms/tick | x in-process "
+        "| misses / robot-ticks | latency p50 / p99 ms | world peak MB | log KB/s | fake fleet CPU ms/tick | stolen |"
+    )
     print("|---:|---:|---:|---:|---:|---:|---|---|---:|---:|---:|---:|")
     for r in rows:
         if "error" in r:
@@ -234,7 +244,8 @@ def main() -> None:
         steal = "?" if r["steal"] is None else f"{100 * r['steal']:.0f} %"
         print(f"| {r['robots']} | {w:.1f} | {w / r['robots']:.3f} | {100 * w / (1000 * TICK_S):.0f} % | {ip:.1f} | "
               f"{w / ip:.1f}x | {r['deadline_misses']} / {r['robots'] * r['ticks']} | {lat.get('p50', math.nan)} / "
-              f"{lat.get('p99', math.nan)} | {r['world_peak_mb'] or math.nan:.0f} | {r['log_bytes_per_s'] / 1024:.0f} | "
+              f"{lat.get('p99', math.nan)} | {r['world_peak_mb'] or math.nan:.0f} | {r['log_bytes_per_s'] / 1024:.0f} "
+              "| "
               f"{r['fleet_cpu_ms_per_tick']:.1f} | {steal} |")
     print(json.dumps(rows))
 

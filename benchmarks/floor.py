@@ -224,18 +224,12 @@ def _motor_loop(session: zenoh.Session, ticks: Any, reply: Any, index: int, mode
     on.undeclare()
 
 
-def measure(processes: int, seconds: float = 10.0, tick_s: float = 0.128, mode: str = "fifo") -> dict:
-    """Run ``processes`` floor processes for ``seconds`` of real time; CPU ms per process per tick."""
-    if mode != "fifo":  # imported before forking, as the launcher's fork server has
-        import cekm_swarm.node.process  # noqa: F401
-        from cekm_swarm.protocol import codec
-
-        codec.warm()
-    port = free_port()
-    endpoint = f"tcp/127.0.0.1:{port}"
+def _fork_floor_processes(processes: int, endpoint: str, mode: str) -> tuple[list[int], int]:
+    """Fork the floor processes (before any Zenoh session exists in this process); each
+    waits for a byte on the returned pipe's write end before it joins ``endpoint``."""
     go_r, go_w = os.pipe()
     pids = []
-    for i in range(processes):  # fork before any Zenoh session exists in this process
+    for i in range(processes):
         pid = os.fork()
         if pid == 0:
             code = 0
@@ -251,29 +245,79 @@ def measure(processes: int, seconds: float = 10.0, tick_s: float = 0.128, mode: 
                 os._exit(code)
         pids.append(pid)
     os.close(go_r)
+    return pids, go_w
+
+
+class _Replies:
+    """The floor processes' replies: who announced itself ready, and how many answers came."""
+
+    def __init__(self, processes: int) -> None:
+        self.processes = processes
+        self.ready: set[int] = set()
+        self.count = 0
+        self.lock = threading.Lock()
+        self.all_ready = threading.Event()
+
+    def on_reply(self, sample: zenoh.Sample) -> None:
+        i = int(str(sample.key_expr).split("/")[1])
+        with self.lock:
+            if sample.payload.to_bytes() == b"ready":
+                self.ready.add(i)
+                if len(self.ready) == self.processes:
+                    self.all_ready.set()
+            else:
+                self.count += 1
+
+    def reset(self) -> None:
+        with self.lock:
+            self.count = 0
+
+
+def _send_tick(router: Any, pubs: list[Any], pattern: list[Any] | None, k: int) -> None:
+    """Tick ``k``: one message per process (fifo, callback, ...), or the motor pattern's
+    messages on floor/<i>/in/<kind>/<more|last>."""
+    if pattern is None:
+        for p in pubs:
+            p.put(PAYLOAD)
+        return
+    tick = pattern[k % len(pattern)]
+    for i in range(len(pubs)):
+        for j, (kind, payload) in enumerate(tick):
+            router.put(f"floor/{i}/in/{kind}/{'last' if j == len(tick) - 1 else 'more'}", payload)
+
+
+def _reap(pids: list[int]) -> None:
+    """Wait up to 10 s for the floor processes to end; kill the rest."""
+    deadline = time.monotonic() + 10
+    for pid in pids:
+        while time.monotonic() < deadline:
+            done, _ = os.waitpid(pid, os.WNOHANG)
+            if done:
+                break
+            time.sleep(0.02)
+        else:
+            os.kill(pid, signal.SIGKILL)
+            os.waitpid(pid, 0)
+
+
+def measure(processes: int, seconds: float = 10.0, tick_s: float = 0.128, mode: str = "fifo") -> dict:
+    """Run ``processes`` floor processes for ``seconds`` of real time; CPU ms per process per tick."""
+    if mode != "fifo":  # imported before forking, as the launcher's fork server has
+        import cekm_swarm.node.process  # noqa: F401
+        from cekm_swarm.protocol import codec
+
+        codec.warm()
+    port = free_port()
+    pids, go_w = _fork_floor_processes(processes, f"tcp/127.0.0.1:{port}", mode)
     os.environ["ZENOH_RUNTIME"] = ROUTER_RUNTIME  # as the world server's embedded router runs
     with open_embedded_router(port) as router:
-        ready: set[int] = set()
-        replies = [0]
-        lock = threading.Lock()
-        all_ready = threading.Event()
-
-        def on_reply(sample: zenoh.Sample) -> None:
-            i = int(str(sample.key_expr).split("/")[1])
-            with lock:
-                if sample.payload.to_bytes() == b"ready":
-                    ready.add(i)
-                    if len(ready) == processes:
-                        all_ready.set()
-                else:
-                    replies[0] += 1
-
-        sub = router.declare_subscriber("floor/*/reply", on_reply)
+        replies = _Replies(processes)
+        sub = router.declare_subscriber("floor/*/reply", replies.on_reply)
         os.write(go_w, b"g" * processes)
         os.close(go_w)
         try:
-            if not all_ready.wait(60 + processes * 0.2):
-                raise RuntimeError(f"only {len(ready)} of {processes} floor processes came up")
+            if not replies.all_ready.wait(60 + processes * 0.2):
+                raise RuntimeError(f"only {len(replies.ready)} of {processes} floor processes came up")
             pubs = [router.declare_publisher(f"floor/{i}/tick") for i in range(processes)]
             for p in pubs:
                 p.put(PAYLOAD)  # the first tick ends the announcing
@@ -284,21 +328,13 @@ def measure(processes: int, seconds: float = 10.0, tick_s: float = 0.128, mode: 
                     for kind, payload in pattern[0]:
                         router.put(f"floor/{i}/in/{kind}/more", payload)  # a tracking field before the first tick
             time.sleep(0.5)
-            with lock:
-                replies[0] = 0
+            replies.reset()
             cpu0 = {pid: cpu_seconds(pid) for pid in pids}
             host0 = host_times()
             n = max(1, round(seconds / tick_s))
             start = time.perf_counter()
             for k in range(n):
-                if pattern is None:
-                    for p in pubs:
-                        p.put(PAYLOAD)
-                else:
-                    tick = pattern[k % len(pattern)]
-                    for i in range(processes):
-                        for j, (kind, payload) in enumerate(tick):
-                            router.put(f"floor/{i}/in/{kind}/{'last' if j == len(tick) - 1 else 'more'}", payload)
+                _send_tick(router, pubs, pattern, k)
                 delay = start + (k + 1) * tick_s - time.perf_counter()
                 if delay > 0:
                     time.sleep(delay)
@@ -310,21 +346,12 @@ def measure(processes: int, seconds: float = 10.0, tick_s: float = 0.128, mode: 
                 if pattern is not None:
                     router.put(f"floor/{i}/in/stop", b"")
         finally:
-            deadline = time.monotonic() + 10
-            for pid in pids:
-                while time.monotonic() < deadline:
-                    done, _ = os.waitpid(pid, os.WNOHANG)
-                    if done:
-                        break
-                    time.sleep(0.02)
-                else:
-                    os.kill(pid, signal.SIGKILL)
-                    os.waitpid(pid, 0)
+            _reap(pids)
             sub.undeclare()
     used = [cpu1[p] - cpu0[p] for p in pids if cpu0.get(p) is not None and cpu1.get(p) is not None]
     per = 1000.0 * sum(used) / max(1, len(used)) / n
     return {"processes": processes, "mode": mode, "ticks": n, "ms_per_process_tick": round(per, 4),
-            "replies": replies[0], "expected_replies": n * processes, "host": host_shares(host0, host1)}
+            "replies": replies.count, "expected_replies": n * processes, "host": host_shares(host0, host1)}
 
 
 def main() -> None:
@@ -362,7 +389,7 @@ def main() -> None:
                   f"{got['expected_replies']}  stolen {got['host'].get('steal', 0.0):.0%}", file=sys.stderr, flush=True)
     print(f"{'mode':15s} {'ms per process per tick':>24s}  {'x the floor (fifo), same round':>31s}")
     for m in modes:
-        ratios = [v / f for v, f in zip(seen[m], seen["fifo"])]
+        ratios = [v / f for v, f in zip(seen[m], seen["fifo"], strict=True)]
         print(f"{m:15s} {min(seen[m]):10.3f} - {max(seen[m]):.3f} ms {min(ratios):18.2f} - {max(ratios):.2f}x")
 
 

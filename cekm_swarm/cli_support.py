@@ -10,20 +10,22 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import shutil
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import click
 
 from .errors import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, CekmError, OutputDirError
+from .protocol import KeySpaceError, validate_robot_id, validate_root, validate_run_id
 
 # ---------------------------------------------------------------------------- types
 
 
-class _Checked(click.ParamType):
+class _Checked(click.ParamType[Any]):
     """A text option checked by ``check`` (a function raising CekmError or ValueError)."""
 
     def __init__(self, name: str, check: Callable[[str], Any]) -> None:
@@ -45,23 +47,9 @@ def _endpoint(text: str) -> str:
     return check_endpoint(text)
 
 
-def _root(text: str) -> str:
-    from .protocol import validate_root
-
-    return validate_root(text)
-
-
-def _run_id(text: str) -> str:
-    from .protocol import validate_run_id
-
-    return validate_run_id(text)
-
-
 def parse_size(text: str) -> int:
     """Bytes from ``500M``, ``2G``, ``64k``, ``1.5GB`` or ``1048576`` (k, M, G, T: powers of 1000;
     with ``i``, as in ``MiB``, of 1024); > 0."""
-    import re
-
     m = re.fullmatch(r"\s*(\d+(?:\.\d+)?)\s*(?:([kKmMgGtT])(i?)[bB]?|[bB]?)\s*", text)
     if m is None:
         raise ValueError(f"{text!r} is not a size (e.g. 500M, 2G, 64k or 1048576 bytes)")
@@ -89,7 +77,7 @@ class Finite(click.FloatRange):
         return "" if self.min is None and self.max is None else super()._describe_range()
 
 
-class RobotIds(click.ParamType):
+class RobotIds(click.ParamType[Any]):
     """Robot ids, comma-separated (``r1,r2``): at least one, each a valid robot id
     (:func:`cekm_swarm.protocol.keys.validate_robot_id`), none twice. ``none_word``: the
     word alone that means no robot (a tuple of none); ``count``: a plain number N means
@@ -104,8 +92,6 @@ class RobotIds(click.ParamType):
     def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
         if not isinstance(value, str):
             return value
-        from .protocol import KeySpaceError, validate_robot_id
-
         text = value.strip()
         if self._none is not None and text == self._none:
             return ()
@@ -131,8 +117,8 @@ class RobotIds(click.ParamType):
 SEED = click.IntRange(0, 2**32 - 1)
 """A seed: 0 .. 2^32 - 1 (what every random generator of the package accepts)."""
 ENDPOINT = _Checked("endpoint", _endpoint)
-ROOT = _Checked("root", _root)
-RUN_ID = _Checked("run id", _run_id)
+ROOT = _Checked("root", validate_root)
+RUN_ID = _Checked("run id", validate_run_id)
 SIZE = _Checked("size", parse_size)
 """A size in bytes, written 500M, 2G, 64k or 1048576 (:func:`parse_size`)."""
 
@@ -140,16 +126,41 @@ SIZE = _Checked("size", parse_size)
 # ---------------------------------------------------------------------------- output directories
 
 
-def out_dir_options(help_text: str) -> Callable[[Callable], Callable]:
+F = TypeVar("F", bound=Callable[..., Any])
+"""A command function, as a click decorator takes and returns it."""
+
+
+def out_dir_options(help_text: str) -> Callable[[F], F]:
     """``--out DIR`` (required) and ``--overwrite`` for a command that writes a directory."""
 
-    def decorate(f: Callable) -> Callable:
+    def decorate(f: F) -> F:
         f = click.option("--overwrite", is_flag=True,
                          help="Clear a non-empty --out directory first (without it, one is refused).")(f)
         return click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), required=True,
                             help=help_text)(f)
 
     return decorate
+
+
+def out_file_option(help_text: str) -> Callable[[F], F]:
+    """``--out FILE`` (required, as ``out_path``) for a command that writes one file (check it
+    with :func:`prepare_out_file` or :func:`prepare_figure_file` before any work)."""
+    return click.option("--out", "out_path", type=click.Path(dir_okay=False, path_type=Path), required=True,
+                        help=help_text)
+
+
+# ---------------------------------------------------------------------------- options every group shares
+
+WORLD_SEED_HELP = "World seed (default: the scenario's)."
+
+
+def seed_option(default: int | None = None, help_text: str = WORLD_SEED_HELP) -> Callable[[F], F]:
+    """``--seed``: a :data:`SEED`; by default the world's (none given: the scenario's own)."""
+    return click.option("--seed", type=SEED, default=default, show_default=default is not None, help=help_text)
+
+
+quiet_option = click.option("--quiet", is_flag=True, help="No progress bar.")
+"""``--quiet``: no progress bar."""
 
 
 def prepare_out_dir(path: Path, overwrite: bool) -> Path:
@@ -250,20 +261,6 @@ class ScenarioFileError(FileRefused):
     """A scenario file refused (exit 2)."""
 
 
-def refuse_unplannable(scenario: Any) -> None:
-    """A ``plan_checkpoints`` scenario whose known walls leave a robot no path: refused in
-    one line naming the file and the robot, before anything is written or started."""
-    if not scenario.plan_checkpoints:
-        return
-    from .controller.planner import PlanningError
-    from .experiments.navigation_run import planned_checkpoints
-
-    try:
-        planned_checkpoints(scenario)
-    except PlanningError as exc:
-        raise ScenarioFileError(str(exc)) from None
-
-
 class Interrupted(click.ClickException):
     """The user stopped the command (Ctrl-C): exit 130, after what it could save was saved."""
 
@@ -312,7 +309,7 @@ def run_cli(group: click.Group, argv: list[str] | None = None) -> int:
     return rv if isinstance(rv, int) else EXIT_OK
 
 
-def check_seeds(seeds) -> None:
+def check_seeds(seeds: Iterable[int]) -> None:
     """Every seed of ``--seeds`` fits the generators' 32-bit seeds, or a usage error naming the first that does not."""
     bad = [s for s in seeds if not 0 <= s < 2**32]
     if bad:

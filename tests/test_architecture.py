@@ -39,12 +39,23 @@ def test_the_controller_takes_plain_values_never_messages():
         assert not bad, (path, bad)
 
 
-WORLD_MAY_IMPORT = ("cekm_swarm.protocol", "cekm_swarm.angles", "cekm_swarm.ticks", "cekm_swarm.errors",
-                    "cekm_swarm.jsonfile", "cekm_swarm.cli_support", "cekm_swarm.runtime", "cekm_swarm.robot", "cekm_swarm.graph.spec",
-                    "cekm_swarm.graph.plan", "cekm_swarm.graph.resolve", "cekm_swarm.graph.runspec")
+WORLD_MAY_IMPORT = (
+    "cekm_swarm.protocol",
+    "cekm_swarm.angles",
+    "cekm_swarm.ticks",
+    "cekm_swarm.errors",
+    "cekm_swarm.jsonfile",
+    "cekm_swarm.cli_support",
+    "cekm_swarm.runtime",
+    "cekm_swarm.robot",
+    "cekm_swarm.graph.spec",
+    "cekm_swarm.graph.plan",
+    "cekm_swarm.graph.resolve",
+    "cekm_swarm.graph.runspec",
+)
 """What the world may import: the protocol, the transport, the two conventions, the robot's
-body, strict JSON for its files, the command line's option types, and a graph as plain data (the run spec) -- never node,
-controller or model code."""
+body, strict JSON for its files, the command line's option types, and a graph as plain data
+(the run spec) -- never node, controller or model code."""
 
 
 def test_world_never_imports_controller_code():

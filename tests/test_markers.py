@@ -8,7 +8,12 @@ import pytest
 
 pytest_plugins = ["pytester"]
 
-INNER_ARGS = ("-p", "no:cacheprovider", "-p", "no:hypothesispytest")  # (hypothesis, if installed, ends a session in 2 s)
+INNER_ARGS = (
+    "-p",
+    "no:cacheprovider",
+    "-p",
+    "no:hypothesispytest",
+)  # (hypothesis, if installed, ends a session in 2 s)
 INNER_CONFTEST = "from process_guard import pytest_configure, pytest_runtest_makereport, pytest_runtest_protocol\n"
 
 
@@ -38,7 +43,8 @@ def test_an_unmarked_test_that_starts_a_process_errors_and_a_slow_one_passes(pyt
         test_mixed=start + (
             "def test_unmarked():\n    start(['python', '-m', 'world.server', 'concave'])\n\n"
             "@pytest.mark.slow\ndef test_marked():\n    start(['python'])\n\n"
-            "class TestGroup:\n    pytestmark = pytest.mark.slow\n    def test_in_class(self):\n        start(['x'])\n\n"
+            "class TestGroup:\n    pytestmark = pytest.mark.slow\n    def test_in_class(self):\n        "
+            "start(['x'])\n\n"
             "def test_plain():\n    assert True\n"),
         test_module=start + "pytestmark = pytest.mark.slow\n\ndef test_in_module():\n    start(['y'])\n")
     result = pytester.runpytest_inprocess(*INNER_ARGS)

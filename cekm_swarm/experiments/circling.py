@@ -25,7 +25,8 @@ from .. import jsonfile
 from ..errors import ParameterError
 from ..robot import KHEPERA, STEP_S
 from .arena import Arena
-from .reaching_run import TargetReachingConfig, run_network
+from .reaching_config import TargetReachingConfig
+from .reaching_run import run_network
 from .stopping import StopRule
 from .streams import Schedule, TrialStreams
 from .training import convergence_mask
@@ -68,33 +69,38 @@ def summarize_episode(ep: dict, net, budget: int) -> dict:
     and how far the network's command was from the kinematically exact one."""
     winners, counts = np.unique(ep["winner"], return_counts=True)
     order = np.argsort(-counts)
-    kin = []
-    for a, d, cl, cr in zip(ep["alpha"], ep["d"], ep["c_l"], ep["c_r"]):
+    kin_rows = []
+    for a, d, cl, cr in zip(ep["alpha"], ep["d"], ep["c_l"], ep["c_r"], strict=True):
         back = (cl + cr) < 0.0
-        kin.append(kinematic_command(a, d, back))
-    kin = np.array(kin)
+        kin_rows.append(kinematic_command(a, d, back))
+    kin = np.array(kin_rows)
     c = np.stack([ep["c_l"], ep["c_r"]], axis=1)
     converged = convergence_mask(net) if hasattr(net, "M") else None
     rows = []
     for k in order[:8]:
         s = int(winners[k])
         sel = ep["winner"] == s
-        row = {"neuron": s, "steps": int(counts[k]), "w_alpha_rad": float(net.w[s, 0]), "w_d_mm": float(net.w[s, 1] * 1000),
-               "sensed_alpha_rad_mean": float(ep["alpha"][sel].mean()), "sensed_d_mm_mean": float(ep["d"][sel].mean() * 1000),
+        executed = np.stack([ep["executed_l"][sel], ep["executed_r"][sel]], 1)
+        row = {"neuron": s, "steps": int(counts[k]),
+               "w_alpha_rad": float(net.w[s, 0]), "w_d_mm": float(net.w[s, 1] * 1000),
+               "sensed_alpha_rad_mean": float(ep["alpha"][sel].mean()),
+               "sensed_d_mm_mean": float(ep["d"][sel].mean() * 1000),
                "command_mm_s_mean": (c[sel].mean(axis=0) * 1000).round(2).tolist(),
                "kinematic_mm_s_mean": (kin[sel].mean(axis=0) * 1000).round(2).tolist(),
-               "executed_mm_s_mean": (np.stack([ep["executed_l"][sel], ep["executed_r"][sel]], 1).mean(0) * 1000).round(2).tolist()}
+               "executed_mm_s_mean": (executed.mean(0) * 1000).round(2).tolist()}
         if converged is not None:  # M_s w_s moves the robot by w_s (section 3.5's converged state)
             row["M"] = np.asarray(net.M[s]).round(5).tolist()
-            row["own_command_mm_s"] = (net.M[s] @ [net.w[s, 0], net.learn_p.d_scale * net.w[s, 1]] * 1000).round(2).tolist()
+            own = net.M[s] @ [net.w[s, 0], net.learn_p.d_scale * net.w[s, 1]]
+            row["own_command_mm_s"] = (own * 1000).round(2).tolist()
             row["converged"] = bool(converged[s])
         rows.append(row)
     late = slice(len(ep["d"]) // 2, None)
     near = (ep["true_d"] < 0.005) & (ep["d"] > 0.0)
     alpha_err = np.abs(np.angle(np.exp(1j * (ep["alpha"][near] - ep["true_alpha"][near]))))
     return {"steps": int(len(ep["d"])), "ended_by_budget": bool(len(ep["d"]) >= budget),
-            "sensed_alpha_error_rad_within_5_mm": ({"median": float(np.median(alpha_err)), "max": float(alpha_err.max()),
-                                                    "steps": int(near.sum())} if near.any() else None),
+            "sensed_alpha_error_rad_within_5_mm": ({"median": float(np.median(alpha_err)),
+                                                    "max": float(alpha_err.max()), "steps": int(near.sum())}
+                                                   if near.any() else None),
             "final_distance_mm": float(ep["true_d"][-1] * 1000),
             "closest_mm": float(ep["true_d"].min() * 1000),
             "second_half_distance_mm": [float(ep["true_d"][late].min() * 1000), float(ep["true_d"][late].max() * 1000)],
@@ -150,7 +156,7 @@ def draw_episode(ep: dict, net, target: np.ndarray, title: str, stop: StopRule, 
 
     ax = axes[1, 0]
     kin = np.array([kinematic_command(a, d, (cl + cr) < 0) for a, d, cl, cr in
-                    zip(ep["alpha"][j0:j1], ep["d"][j0:j1], ep["c_l"][j0:j1], ep["c_r"][j0:j1])])
+                    zip(ep["alpha"][j0:j1], ep["d"][j0:j1], ep["c_l"][j0:j1], ep["c_r"][j0:j1], strict=True)])
     for k, (name, colour) in enumerate((("left", "tab:green"), ("right", "tab:red"))):
         ax.plot(steps, ep[f"c_{name[0]}"][j0:j1] * 1000, "-o", ms=3, color=colour, label=f"network c_{name[0]}")
         ax.plot(steps, kin[:, k] * 1000, "--", color=colour, alpha=0.6, label=f"kinematic c_{name[0]}")
@@ -249,15 +255,3 @@ def run_circling(out: Path, network: str = "R15", seed: int = 2005, trial: int =
     (out / f"{stem}.json").write_text(jsonfile.dumps(summary))
     return CirclingEpisode(summary, png, out / f"{stem}.json", title)
 
-
-def main(argv: list[str] | None = None) -> int:
-    """``python -m cekm_swarm.experiments.circling ARGS`` is ``cekm experiment circling ARGS``."""
-    import sys
-
-    from ..cli import run_cli_args
-
-    return run_cli_args(["experiment", "circling", *(sys.argv[1:] if argv is None else argv)])
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

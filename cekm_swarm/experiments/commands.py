@@ -10,25 +10,35 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import json
 import time
+import typing
+from collections import Counter
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable, Sequence
+from typing import TYPE_CHECKING, Any
 
 import click
 
 from .. import jsonfile
-from ..errors import ParameterError
+from ..cli_support import F, ScenarioFileError
+from ..controller.planner import PlanningError
+from ..errors import ParameterError, ResultsFileError
+from ..models.io import load_model
+from ..models.params import TrackingParams
+from .engine import ClusterAddressError, check_address, on_cluster
+from .navigation_figures import plot_run
+from .navigation_run import planned_checkpoints, run_scenario
+from .reaching_report import write_seed, write_seeds_report
 
 if TYPE_CHECKING:
-    from .reaching_run import NetworkRun, TargetReachingConfig
+    from .reaching_config import NetworkRun, TargetReachingConfig
 
 
 def engine_options(fn: Callable[..., Any]) -> Callable[..., Any]:
     """A many-run experiment's ``--workers N`` (the local Dask cluster's processes; 1: in
     this process) and ``--cluster tcp://HOST:PORT`` (a running Dask scheduler instead): the
     command runs inside :func:`.engine.on_cluster` (:mod:`.engine`)."""
-    from .engine import ClusterAddressError, check_address, on_cluster
-
     def address(ctx: click.Context, param: click.Parameter, value: str | None) -> str | None:
         try:
             return None if value is None else check_address(value)
@@ -49,12 +59,48 @@ def engine_options(fn: Callable[..., Any]) -> Callable[..., Any]:
     return wrapper
 
 
+def load_scenario_file(name: str) -> Any:
+    """The scenario ``name`` (a name under world/scenarios or a .toml path); a bad file
+    refused in one line naming it (exit 2)."""
+    from world import ScenarioError, load_scenario  # noqa: PLC0415 -- lazy: pymunk, not at cekm --help
+
+    try:
+        return load_scenario(name)
+    except ScenarioError as exc:
+        raise ScenarioFileError(str(exc)) from None
+
+
+def scenario_kind(scenario: Any) -> str:
+    """``"tracking"`` or ``"navigation"``; a bad scenario file for one that is neither."""
+    from world import ScenarioError  # noqa: PLC0415 -- lazy: pymunk, not at cekm --help
+    from world.tracking import run_kind  # noqa: PLC0415 -- lazy: pymunk, not at cekm --help
+
+    try:
+        return run_kind(scenario)
+    except ScenarioError as exc:
+        raise ScenarioFileError(str(exc)) from None
+
+
+def refuse_unplannable(scenario) -> None:
+    """A ``plan_checkpoints`` scenario whose known walls leave a robot no path: refused in
+    one line naming the file and the robot, before anything is written or started."""
+    if not scenario.plan_checkpoints:
+        return
+    try:
+        planned_checkpoints(scenario)
+    except PlanningError as exc:
+        raise ScenarioFileError(str(exc)) from None
+
+
+def seeds_option(default: str) -> Callable[[F], F]:
+    """``--seeds``: seeds as a list and/or ranges (read by :func:`seeds_of`)."""
+    return click.option("--seeds", default=default, show_default=True,
+                        help="Seeds: a list and/or ranges, e.g. 1-20 or 1,2,7.")
+
+
 def run_navigation_cmd(scenario, controller: str, model, seed: int | None, max_time: float, out_dir, graph) -> None:
     """``cekm run`` on a navigation scenario: outcome.json and trajectory.png, and each robot's outcome."""
-    from world.episode import pushed_out_note
-
-    from .navigation_figures import plot_run
-    from .navigation_run import run_scenario
+    from world.episode import pushed_out_note  # noqa: PLC0415 -- lazy: pymunk, world
 
     t0 = time.perf_counter()
     run = run_scenario(scenario, controller, model, seed, max_time, graph=graph)
@@ -79,12 +125,11 @@ def run_navigation_cmd(scenario, controller: str, model, seed: int | None, max_t
 def run_tracking_cmd(scenario, controller: str, model_path, seed: int | None, duration: float | None, out_dir,
                      graph=None, model=None) -> None:
     """``cekm run`` on a tracking scenario: outcome.json (with ``tracking``) and trajectory.png."""
-    from .tracking_figures import plot_tracking
-    from .tracking_run import DEFAULT_DURATION, outcome_doc, run_tracking
+    from .tracking_figures import plot_tracking  # noqa: PLC0415 -- lazy: pymunk, world
+    from .tracking_run import DEFAULT_DURATION, outcome_doc, run_tracking  # noqa: PLC0415 -- lazy: pymunk, world
 
     if model is None and controller == "cekm" and graph is None:
-        from ..models.io import load_model
-        from .default_model import default_model
+        from .default_model import default_model  # noqa: PLC0415 -- lazy: numba, scipy, tqdm
 
         model = load_model(model_path) if model_path else default_model()
     t0 = time.perf_counter()
@@ -99,7 +144,7 @@ def run_tracking_cmd(scenario, controller: str, model_path, seed: int | None, du
     fig = plot_tracking(run)
     fig.savefig(out / "trajectory.png", dpi=130)
     plt.close(fig)
-    from world.tracking import tracking_summary
+    from world.tracking import tracking_summary  # noqa: PLC0415 -- lazy: pymunk, world
 
     click.echo(tracking_summary(run.tracking, sum(run.collisions.values())))
     click.echo(f"wrote {out / 'outcome.json'}, {out / 'trajectory.png'}")
@@ -127,7 +172,7 @@ def _trained_model_path(model_path):
     the experiments' worker processes load the model from a file."""
     if model_path is not None:
         return model_path
-    from .default_model import default_model, default_model_path
+    from .default_model import default_model, default_model_path  # noqa: PLC0415 -- lazy: numba, scipy, tqdm
 
     default_model()
     return default_model_path()
@@ -136,8 +181,8 @@ def _trained_model_path(model_path):
 def run_tracking_experiment_cmd(out_dir, seeds: int, sizes: tuple[int, ...], duration: float, model_path, workers,
                                 quiet: bool, first_seed: int = 1) -> None:
     """``cekm experiment tracking`` once its options are checked."""
-    from .tracking_report import table_markdown, write_experiment
-    from .tracking_run import run_experiment
+    from .tracking_report import table_markdown, write_experiment  # noqa: PLC0415 -- lazy: pymunk, world
+    from .tracking_run import run_experiment  # noqa: PLC0415 -- lazy: pymunk, world
 
     model_path = _trained_model_path(model_path)
     t0 = time.perf_counter()
@@ -153,9 +198,6 @@ def parse_cekm_params(items: tuple[str, ...]) -> dict[str, Any]:
     """``--param NAME=VALUE`` (repeatable): overrides of cekm's TrackingParams, typed by the
     field (a number, an integer, or true/false) and checked by TrackingParams itself; a
     ParameterError names the option and the field."""
-    import typing
-
-    from ..models.params import TrackingParams
 
     hints = typing.get_type_hints(TrackingParams)
     names = [f.name for f in dataclasses.fields(TrackingParams)]
@@ -166,7 +208,8 @@ def parse_cekm_params(items: tuple[str, ...]) -> dict[str, Any]:
         if not sep or not name or not text:
             raise ParameterError(f"--param {item!r}: expected NAME=VALUE, e.g. assign_lead_s=0.5")
         if name not in hints:
-            raise ParameterError(f"--param {name!r}: cekm's TrackingParams has no such field; one of {', '.join(names)}")
+            raise ParameterError(f"--param {name!r}: cekm's TrackingParams has no such field; "
+                                 f"one of {', '.join(names)}")
         kind = hints[name]
         try:
             if kind is bool:
@@ -194,8 +237,7 @@ def run_grid_cmd(out_dir, quick: bool, seeds: list[int], duration: float, model_
                  cekm_params: dict[str, Any] | None = None) -> None:
     """``cekm experiment tracking --grid`` once its options are checked; ``cekm_params``:
     overrides of cekm's TrackingParams (``--param``), recorded in results.json."""
-    from ..models.params import TrackingParams
-    from .grid_report import grid_doc, summary, tables_markdown, write_grid
+    from .grid_report import grid_doc, summary, tables_markdown, write_grid  # noqa: PLC0415 -- lazy: numba, pymunk, scipy, world
 
     model_path = _trained_model_path(model_path)
     tparams = TrackingParams(**cekm_params) if cekm_params else None
@@ -208,10 +250,7 @@ def run_grid_cmd(out_dir, quick: bool, seeds: list[int], duration: float, model_
 
 def run_tracking_power_cmd(results: Path, seeds: tuple[int, ...], reps: int) -> None:
     """``cekm experiment tracking-power``: the bootstrap of a grid's results.json, printed."""
-    import json
-
-    from ..errors import ResultsFileError
-    from .grid_power import power_markdown, seeds_power
+    from .grid_power import power_markdown, seeds_power  # noqa: PLC0415 -- lazy: pymunk, world
 
     try:
         doc = json.loads(Path(results).read_text())
@@ -245,13 +284,12 @@ def seeds_of(text: str) -> Sequence[int]:
         try:
             lo, hi = int(a), int(b if dash else a)
         except ValueError:
-            raise ParameterError(f"--seeds: expected comma-separated integers or ranges like 1-20, got {text!r}") from None
+            raise ParameterError(f"--seeds: expected comma-separated integers or ranges like 1-20, "
+                                 f"got {text!r}") from None
         if hi < lo:
             raise ParameterError(f"--seeds: range {part!r} runs backwards")
         out.extend(range(lo, hi + 1))
     if len(set(out)) < len(out):
-        from collections import Counter
-
         twice = sorted(s for s, n in Counter(out).items() if n > 1)
         shown = ", ".join(map(str, twice[:5])) + (", ..." if len(twice) > 5 else "")
         raise ParameterError(f"--seeds: {'seed' if len(twice) == 1 else 'seeds'} {shown} given twice in {text!r} "
@@ -263,9 +301,8 @@ def run_and_report(config: TargetReachingConfig, out_dir: Path, master_seeds: in
                    echo: Callable[[str], None] = print, workers: int | None = None) -> None:
     """``cekm experiment target-reaching``: one master seed into out_dir (with the trained
     models), or several, each into out_dir/seed-S, and their summary into out_dir."""
-    from .reaching_report import write_seed, write_seeds_report
-    from .reaching_run import run_experiment, run_master_seeds
-    from .reaching_stats import headline_orderings
+    from .reaching_run import run_experiment, run_master_seeds  # noqa: PLC0415 -- lazy: numba, scipy, tqdm
+    from .reaching_stats import headline_orderings  # noqa: PLC0415 -- lazy: numba, scipy
 
     out_dir = Path(out_dir)
     if master_seeds == 1:
@@ -293,8 +330,8 @@ def run_and_report(config: TargetReachingConfig, out_dir: Path, master_seeds: in
 
 def run_circling_cmd(out_dir: Path, **settings) -> None:
     """``cekm experiment circling``: one episode drawn, and what drove it printed."""
-    from .circling import run_circling
-    from .streams import Schedule
+    from .circling import run_circling  # noqa: PLC0415 -- lazy: numba, scipy, tqdm
+    from .streams import Schedule  # noqa: PLC0415 -- lazy: numba, scipy
 
     schedule = Schedule()  # circling trains and tests by the paper's schedule but for its steps
     target, steps = settings.get("target"), settings.get("steps", schedule.steps)

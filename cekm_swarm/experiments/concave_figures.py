@@ -6,6 +6,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 
 def plot_sweep(doc: dict, path: Path) -> Path:
     """The paper's Fig. 9: the widest negotiated width against depth, one curve per range."""
@@ -37,12 +39,11 @@ def plot_grid(doc: dict, path: Path) -> Path:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    import numpy as np
 
     st = doc["settings"]
     widths, depths, ranges = st["widths"], st["depths"], st["ranges"]
     fig, axes = plt.subplots(1, len(ranges), figsize=(4.2 * len(ranges) + 1.0, 3.6), squeeze=False)
-    for ax, r in zip(axes[0], ranges):
+    for ax, r in zip(axes[0], ranges, strict=True):
         z = np.full((len(depths), len(widths)), np.nan)
         for c in doc["cells"]:
             if c["range"] == r and c["rate"] is not None:

@@ -3,10 +3,7 @@ width) cell's success rate over the seeds, and per (range, depth) the widths neg
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
-if TYPE_CHECKING:
-    from .concave_run import SweepConfig
+from .concave_config import SweepConfig
 
 
 def cells_of(config: SweepConfig, runs: list[dict]) -> list[dict]:

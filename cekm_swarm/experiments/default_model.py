@@ -17,11 +17,13 @@ from pathlib import Path
 from ..models.io import FORMAT_VERSION, load_model, save_model
 from ..models.params import CompetitionParams, LearningParams, params_to_dict
 from .arena import Arena
+from .training import train_network
 
 DEFAULT_NETWORK = "R15"
 DEFAULT_STEPS = 100_000
 DEFAULT_SEED = 2005
-TRAINING_CODE_VERSION = 3  # bump when the training loop changes what it produces (2: convergence mask; 3: stop = c executes as 0)
+# bump when the training loop changes what it produces (2: convergence mask; 3: stop = c executes as 0)
+TRAINING_CODE_VERSION = 3
 
 
 def cache_dir() -> Path:
@@ -47,7 +49,6 @@ def default_model(progress: bool = True, network: str = DEFAULT_NETWORK, steps: 
     path = default_model_path(network, steps, seed)
     if path.is_file():
         return load_model(path)
-    from .training import train_network
 
     if progress:
         print(f"training the default model ({network}, {steps:,} steps, seed {seed}); cached at {path}")

@@ -74,7 +74,7 @@ def run_jobs(fn: Callable[[T], R], jobs: Sequence[T], workers: int | None = None
     """``fn(job)`` for every job, in job order (see the module's docstring for where they
     run). ``fn`` must be a module-level function (the workers import it by name); ``cluster``
     overrides :func:`on_cluster`'s address."""
-    from tqdm import tqdm
+    from tqdm import tqdm  # noqa: PLC0415 -- lazy: tqdm
 
     address = cluster or _CLUSTER.get()
     workers = workers or default_workers(len(jobs))

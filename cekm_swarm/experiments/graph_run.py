@@ -18,8 +18,8 @@ from typing import Any
 
 from ..errors import ParameterError
 from ..graph.check import CheckedGraph, check_graph
-from ..graph.spec import Graph, GraphError, graph_for
-from ..node.api import Context
+from ..graph.spec import Graph, GraphError, graph_for, shipped_graphs
+from ..node.api import Context, param_fields
 from ..node.inprocess import GraphExecutor
 from ..protocol import DEFAULT_KEYS, Clock, KeySpace, WorldState
 from ..robot import RobotBody
@@ -49,7 +49,6 @@ def with_params(checked: CheckedGraph, overrides: dict[str, Any] | None) -> Chec
     overrides say ``lenient = True`` (a whole parameter set handed to any graph)."""
     if not overrides:
         return checked
-    from ..node.api import param_fields
 
     overrides = dict(overrides)
     lenient = overrides.pop("lenient", False)
@@ -122,9 +121,9 @@ class GraphSession:
                  params: dict[str, Any] | None = None, codec: bool = False, keys: KeySpace = DEFAULT_KEYS,
                  step_timeout: float | None = STEP_TIMEOUT,
                  observe: Callable[[GraphExecutor, int], None] | None = None) -> None:
-        from world import World
-        from world.episode import make_episode
-        from world.tracking import run_kind
+        from world import World  # noqa: PLC0415 -- lazy: pymunk, world
+        from world.episode import make_episode  # noqa: PLC0415 -- lazy: pymunk, world
+        from world.tracking import run_kind  # noqa: PLC0415 -- lazy: pymunk, world
 
         task = run_kind(scenario, checkpoints or {})
         checked = with_params(resolve_graph(controller, graph, task), params)
@@ -134,7 +133,7 @@ class GraphSession:
         team = tuple(world.robot_ids)
         plan = checked.plan(team, task, len(world.sensor_angles), keys)
         if checked.uses_model and model is None:
-            from .default_model import default_model
+            from .default_model import default_model  # noqa: PLC0415 -- lazy: numba, scipy, tqdm
 
             model = default_model()
         body = robot_body(world)
@@ -159,7 +158,7 @@ class GraphSession:
     def step(self, progress: Callable[[float], None] | None = None, stop_at: int | None = None) -> bool:
         """One tick: the world's messages, every node due, the wheels set, the world
         advanced unless the run is over. True when it is over."""
-        from world.sense import SENDER, sense_messages
+        from world.sense import SENDER, sense_messages  # noqa: PLC0415 -- lazy: pymunk, world
 
         episode, world, executor, keys = self.episode, self.world, self.executor, self.keys
         k, t = episode.tick, episode.t
@@ -198,8 +197,6 @@ class GraphSession:
 
 def controller_names() -> list[str]:
     """Every controller that has a shipped graph."""
-    from ..graph.spec import shipped_graphs
-
     return sorted({n.rsplit("-", 1)[0] if n.endswith(("-navigation", "-tracking")) else n for n in shipped_graphs()})
 
 

@@ -26,6 +26,8 @@ from typing import Any
 
 import numpy as np
 
+from world.scenario import parse_scenario
+
 from ..robot import KHEPERA
 
 TEAM_SIZES = (2, 3, 4, 6, 8, 12, 16)
@@ -112,6 +114,7 @@ def design(levels: dict[str, tuple] | None = None, restarts: int = 8, swaps: int
                 cols[k][i], cols[k][j] = cols[k][j], cols[k][i]
         if cost < best_cost:
             best, best_cost = cells_of(cols), cost
+    assert best is not None  # restarts >= 1: the first always beats an infinite cost
     return [Cell(int(n), float(m), str(s), float(r), bool(o)) for n, m, s, r, o in best]
 
 
@@ -141,7 +144,8 @@ def grid_raw(cell: Cell, seed: int) -> dict[str, Any]:
                 else:
                     w, h = float(rng.uniform(0.1, 0.4)), float(rng.uniform(0.06, 0.12))
                     r = math.hypot(w, h) / 2
-                    shape = {"shape": "box", "size": [round(w, 3), round(h, 3)], "angle": round(float(rng.uniform(0, math.pi)), 3)}
+                    shape = {"shape": "box", "size": [round(w, 3), round(h, 3)],
+                             "angle": round(float(rng.uniform(0, math.pi)), 3)}
                 c = (float(rng.uniform(0.35 + r, side - 0.35 - r)), float(rng.uniform(0.35 + r, side - 0.35 - r)))
                 if _free(c, taken, 0.3):
                     taken.append((c[0], c[1], r))
@@ -165,13 +169,12 @@ def grid_raw(cell: Cell, seed: int) -> dict[str, Any]:
         targets.append({"id": f"t{k + 1}", "position": [round(p[0], 4), round(p[1], 4)],
                         "motion": {"type": "random_walk", "speed": round(speed, 5), "turn_noise": 1.0,
                                    "heading": round(float(rng.uniform(-math.pi, math.pi)), 4)}})
-    return {"name": f"grid-{cell.label}", "seed": int(seed), "arena": {"bounds": [0.0, 0.0, round(side, 4), round(side, 4)]},
+    return {"name": f"grid-{cell.label}", "seed": int(seed),
+            "arena": {"bounds": [0.0, 0.0, round(side, 4), round(side, 4)]},
             "sensors": {"target_range": cell.target_range}, "robots": robots, "targets": targets,
             "obstacles": obstacles}
 
 
 def grid_scenario(cell: Cell, seed: int):
     """The validated scenario of ``cell`` for ``seed`` (world.scenario.parse_scenario)."""
-    from world.scenario import parse_scenario
-
     return parse_scenario(grid_raw(cell, seed), source=f"<grid {cell.label}, seed {seed}>")

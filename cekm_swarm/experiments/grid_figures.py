@@ -6,6 +6,8 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
+
 NAMES = {"robots": "robots n", "targets_per_robot": "targets per robot m/n", "speed": "target speed",
          "target_range": "sensing range R (m)", "obstacles": "obstacles"}
 
@@ -24,14 +26,13 @@ def heatmaps(pairs: list[dict[str, Any]], title: str):
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    import numpy as np
 
     cols = 5
     rows = (len(pairs) + cols - 1) // cols
     fig, axes = plt.subplots(rows, cols, figsize=(3.4 * cols, 3.0 * rows + 0.6), squeeze=False)
     lim = max([abs(c["diff"]) for p in pairs for c in p["cells"]] + [0.05])
     im = None
-    for ax, pair in zip(axes.flat, pairs):
+    for ax, pair in zip(axes.flat, pairs, strict=False):
         a, b = pair["axes"]
         la, lb = pair["levels"]
         z = np.full((len(lb), len(la)), np.nan)

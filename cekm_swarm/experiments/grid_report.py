@@ -5,11 +5,13 @@ them is :func:`.commands.run_grid_cmd`."""
 from __future__ import annotations
 
 import subprocess
+import time
 from pathlib import Path
 from typing import Any
 
 from .. import jsonfile
 from .grid_design import LEVELS, QUICK, design
+from .grid_figures import heatmaps, over_the_run
 from .grid_run import BASELINES, GRID_CONTROLLERS, run_grid
 from .grid_stats import by_axis, by_pair, by_part, cell_stats
 
@@ -29,7 +31,8 @@ def git_commit(ignore: Path | None = None, where: Path | None = None) -> dict[st
 
         sha = git("rev-parse", "HEAD").strip()
         top = Path(git("rev-parse", "--show-toplevel").strip())
-        changed = [line[3:].split(" -> ")[-1] for line in git("status", "--porcelain", "--untracked-files=no").splitlines()]
+        status = git("status", "--porcelain", "--untracked-files=no")
+        changed = [line[3:].split(" -> ")[-1] for line in status.splitlines()]
     except (OSError, subprocess.CalledProcessError):
         return {"commit": None, "dirty": None}
     if ignore is not None:
@@ -41,8 +44,6 @@ def git_commit(ignore: Path | None = None, where: Path | None = None) -> dict[st
 def grid_doc(quick: bool, seeds: list[int], duration: float, model_path, workers, progress: bool,
              tparams=None, out_dir: Path | None = None) -> dict[str, Any]:
     """Run the grid and summarize it."""
-    import time
-
     cells = design(QUICK) if quick else design()
     checkout = git_commit(ignore=out_dir)  # the code that runs: taken before, not after
     t0 = time.perf_counter()
@@ -54,7 +55,8 @@ def grid_doc(quick: bool, seeds: list[int], duration: float, model_path, workers
             "seeds": seeds, "duration_s": duration, "controllers": list(GRID_CONTROLLERS), "baselines": list(BASELINES),
             "scenario_rule": "square walled arena of side 2 m * sqrt(n / 2); round(m/n * n) random-walk targets "
                              "(speed a fraction of v* = 0.15625 m/s, turn noise 1 rad/sqrt(s)) and n robots at uniform "
-                             "starts; with obstacles round(n / 2) discs and boxes (cekm_swarm/experiments/grid_design.py)",
+                             "starts; with obstacles round(n / 2) discs and boxes "
+                             "(cekm_swarm/experiments/grid_design.py)",
             "wall_seconds": round(wall, 1), "workers": workers, **checkout,
             "cells": per_cell, "by_axis": by_axis(per_cell, GRID_CONTROLLERS),
             "by_pair": by_pair(per_cell, GRID_CONTROLLERS), "by_part": by_part(rows, GRID_CONTROLLERS, duration)}
@@ -77,7 +79,8 @@ def summary(doc: dict[str, Any]) -> str:
     return (f"cekm above both baselines in {len(cells_above(doc))} of {n} cells, significantly (Welch p < 0.05 "
             f"against each) in {len(cells_above(doc, test='p_each'))}, by a paired test in "
             f"{len(cells_above(doc, test='p_paired_each'))}; by the same bar global K-means is above both in "
-            f"{len(cells_above(doc, 'global_vs_best'))}, significantly in {len(cells_above(doc, 'global_vs_best', 'p_each'))}")
+            f"{len(cells_above(doc, 'global_vs_best'))}, "
+            f"significantly in {len(cells_above(doc, 'global_vs_best', 'p_each'))}")
 
 
 def _ci(a: dict[str, Any]) -> str:
@@ -105,8 +108,9 @@ def tables_markdown(doc: dict[str, Any]) -> str:
                   + " | " + " | ".join(f"cekm - {c}" for c in parts["cekm_minus"]) + " |",
                   "|---|" + "---:|" * (len(parts["controllers"]) + len(parts["cekm_minus"]))]
         for k, (lo, hi) in enumerate(parts["parts"]):
+            diffs = (f"{v[k]['diff']:+.3f} (p = {v[k]['p']:.2g})" for v in parts["cekm_minus"].values())
             lines.append(f"| {lo:g}-{hi:g} | " + " | ".join(_ci(v[k]) for v in parts["controllers"].values()) + " | "
-                         + " | ".join(f"{v[k]['diff']:+.3f} (p = {v[k]['p']:.2g})" for v in parts["cekm_minus"].values()) + " |")
+                         + " | ".join(diffs) + " |")
         lines.append("")
     lines += ["| cell | " + " | ".join(f"A {c}" for c in ctl)
               + " | cekm - best baseline (Welch p; paired p) | cekm - kmeans-global (p) |",
@@ -126,15 +130,13 @@ def write_grid(doc: dict[str, Any], out_dir) -> list[Path]:
 
     import matplotlib.pyplot as plt
 
-    from .grid_figures import heatmaps, over_the_run
-
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     (out / "results.json").write_text(jsonfile.dumps(doc))
     (out / "tables.md").write_text(tables_markdown(doc))
     n = len(doc["seeds"])
-    fig = heatmaps(doc["by_pair"], f"cekm's A minus the best of A-CMOMMT and local K-means, pooled over the cells at each "
-                                   f"level pair ({n} seeds per cell; * Welch p < 0.05)")
+    fig = heatmaps(doc["by_pair"], f"cekm's A minus the best of A-CMOMMT and local K-means, pooled over the cells "
+                                   f"at each level pair ({n} seeds per cell; * Welch p < 0.05)")
     fig.savefig(out / "grid.png", dpi=110)
     plt.close(fig)
     paths = [out / "results.json", out / "tables.md", out / "grid.png"]

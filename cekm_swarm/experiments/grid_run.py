@@ -7,7 +7,12 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
+
+from ..models.io import load_model
+from .engine import run_jobs
 from .grid_design import Cell, grid_scenario
+from .tracking_run import run_tracking
 
 GRID_CONTROLLERS = ("cekm", "acmommt", "kmeans", "kmeans-global")
 PARTS = 6
@@ -24,8 +29,6 @@ _MODELS: dict[str, Any] = {}
 def run_one(job: tuple) -> dict[str, Any]:
     """One run of the grid: (cell, seed, controller, duration, model path, params) -> its row."""
     cell, seed, controller, duration, model_path, tparams = job
-    from ..models.io import load_model
-    from .tracking_run import run_tracking
 
     model = None
     if controller == "cekm":  # one load per process
@@ -40,8 +43,6 @@ def a_parts(per_tick: list[float], parts: int = PARTS) -> list[float] | None:
     """Parker's A over each of ``parts`` equal runs of consecutive ticks (the first parts
     one tick longer when the ticks do not divide evenly); None for a run of fewer ticks
     than parts."""
-    import numpy as np
-
     if len(per_tick) < parts:
         return None
     return [float(np.mean(chunk)) for chunk in np.array_split(np.asarray(per_tick, dtype=float), parts)]
@@ -52,8 +53,6 @@ def run_grid(cells: list[Cell], seeds: list[int], duration: float, model_path, w
              tparams=None) -> list[dict[str, Any]]:
     """Every controller on every cell for every seed; the rows in job order (the same for
     any number of workers). ``tparams``: cekm's TrackingParams (None: the defaults)."""
-    from .engine import run_jobs
-
     # the largest teams first, so the workers do not end on one long run
     jobs = [(c, s, ctl, duration, str(model_path), tparams) for c in sorted(cells, key=lambda c: -c.robots * c.targets)
             for s in seeds for ctl in controllers]

@@ -72,13 +72,19 @@ def by_axis(cells: list[dict[str, Any]], controllers: tuple[str, ...]) -> dict[s
     return out
 
 
+def _levels(axis: str, cells: list[dict[str, Any]]) -> list[Any]:
+    """The levels of ``axis`` that occur in ``cells``, in order (speeds slow to fast)."""
+    known = ("slow", "medium", "fast") if axis == "speed" else sorted({d[axis] for d in cells})
+    return [v for v in known if any(d[axis] == v for d in cells)]
+
+
 def by_pair(cells: list[dict[str, Any]], controllers: tuple[str, ...]) -> list[dict[str, Any]]:
     """Per pair of axes, per level pair that occurs: cekm's A minus the best baseline's,
     pooled over the cells there, with Welch's p (the heatmaps)."""
     out = []
     for a, b in itertools.combinations(AXES, 2):
-        la = [v for v in (("slow", "medium", "fast") if a == "speed" else sorted({d[a] for d in cells})) if any(d[a] == v for d in cells)]
-        lb = [v for v in (("slow", "medium", "fast") if b == "speed" else sorted({d[b] for d in cells})) if any(d[b] == v for d in cells)]
+        la = _levels(a, cells)
+        lb = _levels(b, cells)
         grid = []
         for va, vb in itertools.product(la, lb):
             sub = [d for d in cells if d[a] == va and d[b] == vb]
@@ -100,8 +106,8 @@ def by_part(rows: list[dict[str, Any]], controllers: tuple[str, ...], duration: 
         return {"parts": [], "controllers": {}, "cekm_minus": {}}
     span = duration / PARTS
     per = {c: [[r["A_parts"][k] for r in have if r["controller"] == c] for k in range(PARTS)] for c in controllers}
-    out = {"parts": [[round(k * span, 3), round((k + 1) * span, 3)] for k in range(PARTS)],
-           "controllers": {c: [mean_ci95(v) for v in per[c]] for c in controllers if per[c][0]}}
+    out: dict[str, Any] = {"parts": [[round(k * span, 3), round((k + 1) * span, 3)] for k in range(PARTS)],
+                           "controllers": {c: [mean_ci95(v) for v in per[c]] for c in controllers if per[c][0]}}
     if "cekm" in out["controllers"]:
         out["cekm_minus"] = {c: [{"diff": float(np.mean(per["cekm"][k]) - np.mean(per[c][k])),
                                   "p": welch_p(per["cekm"][k], per[c][k])} for k in range(PARTS)]

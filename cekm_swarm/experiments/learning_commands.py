@@ -4,21 +4,29 @@ its ``outcome.json`` from its log."""
 
 from __future__ import annotations
 
+import os
+import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import click
 
 from .. import jsonfile
-from ..cli_support import Finite, out_dir_options
-from .learning_run import UNTRAINED
+from ..cli_support import F, Finite, out_dir_options, prepare_out_dir
+from ..errors import CekmError
+from ..models.io import load_model, save_model
+from ..modules.learner import model_of
+from ..runtime import foxglove_view
+from ..runtime.lattice_view import add_lattice_channel, write_lattice_log
+from ..runtime.map_log import map_at, versions
+from .commands import parse_team_sizes, seeds_of, seeds_option
+from .learning_run import UNTRAINED, model_of_choice, test_score
 
 
 def controller_model(path: Path | None):
     """The model a cooperative-EKM controller runs: a file, 'untrained' or the default R15,
     refused unless it is an indirect-mapping EKM (Eq. 1)."""
-    from .learning_run import model_of_choice
-
     model = model_of_choice(path)  # a file, 'untrained' (docs/learning.md), or the default R15
     if not model.kind.startswith("indirect"):
         raise click.UsageError(f"{path}: the controller needs an indirect-mapping EKM (G or R), not {model.kind!r}")
@@ -41,6 +49,19 @@ class ModelChoice(click.ParamType):
 
 MODEL_CHOICE = ModelChoice()
 
+MODEL_HELP = "A trained model (.npz from `cekm train`); default: R15 trained and cached on first use."
+MODEL_OR_UNTRAINED_HELP = ("A trained model (.npz from `cekm train`), or 'untrained' (docs/learning.md); default: "
+                           "R15 trained and cached on first use.")
+
+
+def model_option(untrained: bool = False) -> Callable[[F], F]:
+    """``--model`` (as ``model_path``): a model file that exists, or with ``untrained`` also
+    the word 'untrained' (:data:`MODEL_CHOICE`); none given, the default R15."""
+    if untrained:
+        return click.option("--model", "model_path", type=MODEL_CHOICE, help=MODEL_OR_UNTRAINED_HELP)
+    return click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path),
+                        help=MODEL_HELP)
+
 
 @click.group("model")
 def model_group() -> None:
@@ -58,10 +79,6 @@ def model_group() -> None:
               help="The .npz to write (replaced if it exists).")
 def extract_cmd(log: Path, robot: str | None, at_time: float | None, base_model: Path | None, out_path: Path) -> None:
     """Write ROBOT's map from a learning run's LOG (run.mcap) as a model file."""
-    from ..models.io import save_model
-    from ..modules.learner import model_of
-    from ..runtime.map_log import map_at, versions
-
     if robot is None:
         robots = sorted(versions(log))
         if not robots:
@@ -85,8 +102,6 @@ def extract_cmd(log: Path, robot: str | None, at_time: float | None, base_model:
 def lattice_cmd(log: Path, out_path: Path) -> None:
     """Write every map version of a learning run's LOG as a Foxglove view of its lattice
     (``/view/lattice/<robot>``; a --learn launch writes them into its run.mcap itself)."""
-    from ..runtime.lattice_view import write_lattice_log
-
     try:
         n = write_lattice_log(log, out_path)
     except ImportError as exc:
@@ -95,8 +110,7 @@ def lattice_cmd(log: Path, out_path: Path) -> None:
 
 
 def _base_model(log: Path, base: Path | None):
-    from ..models.io import load_model
-    from .default_model import default_model
+    from .default_model import default_model  # noqa: PLC0415 -- lazy: numba, scipy, tqdm
 
     beside = Path(log).parent / "untrained-R15.npz"
     if base is not None:
@@ -107,11 +121,7 @@ def _base_model(log: Path, base: Path | None):
 def add_launch_learning(out_dir: Path, outcome: dict[str, Any], model_path) -> dict[str, Any]:
     """A launch's ``learning`` block from its log (each robot's last map version), written
     into ``outcome.json``; {} when the run had no learner."""
-    from ..models.io import load_model
-    from ..modules.learner import model_of
-    from ..runtime.map_log import map_at, versions
-    from .default_model import default_model
-    from .learning_run import test_score
+    from .default_model import default_model  # noqa: PLC0415 -- lazy: numba, scipy, tqdm
 
     log = Path(out_dir) / "run.mcap"
     if not log.exists():
@@ -125,6 +135,7 @@ def add_launch_learning(out_dir: Path, outcome: dict[str, Any], model_path) -> d
     block = {}
     for robot in sorted(seen):
         msg = map_at(log, robot)
+        assert msg is not None  # the robot has versions in the log (seen)
         block[robot] = {"versions": msg.version, "steps": msg.steps, "updates_applied": msg.applied,
                         "skipped": msg.skipped, "final_digest": msg.digest,
                         "messages_dropped_by_nodes": sum(int(s.get("dropped") or 0) for label, s in nodes.items()
@@ -132,10 +143,8 @@ def add_launch_learning(out_dir: Path, outcome: dict[str, Any], model_path) -> d
                         "start": start, "end": test_score(model_of(base, msg))}
     outcome["learning"] = block
     (Path(out_dir) / "outcome.json").write_text(jsonfile.dumps(outcome))
-    from ..runtime import foxglove_view
 
     if foxglove_view.available():  # the maps as Foxglove views (docs/learning.md)
-        from ..runtime.lattice_view import add_lattice_channel, write_lattice_log
 
         if log.is_file():  # a channel of the run's own log
             add_lattice_channel(log)
@@ -146,7 +155,7 @@ def add_launch_learning(out_dir: Path, outcome: dict[str, Any], model_path) -> d
 
 @click.command("learning")
 @click.option("--teams", default="1,2,4,8", show_default=True, help="Team sizes, comma-separated.")
-@click.option("--seeds", default="1,2", show_default=True, help="Seeds: a list and/or ranges, e.g. 1-5.")
+@seeds_option("1,2")
 @click.option("--ticks", default=1600, show_default=True, type=click.IntRange(16, 100_000),
               help="Ticks of 0.128 s per run (about one learning step each per robot).")
 @click.option("--workers", type=click.IntRange(1), help="Parallel processes (default: one per core).")
@@ -155,13 +164,7 @@ def learning_experiment_cmd(teams: str, seeds: str, ticks: int, workers: int | N
                             overwrite: bool) -> None:
     """Learning curves through the graph: untrained R15 maps learning online in section 4.1's
     arena, teams of 1-8 robots with and without sharing their (v, c) pairs (docs/learning.md)."""
-    import os
-    import time
-
-    from ..cli_support import prepare_out_dir
-    from ..errors import CekmError
-    from .commands import parse_team_sizes, seeds_of
-    from .learning_experiment import LearningConfig, plot_curves, results_doc, run_experiment, summary_table
+    from .learning_experiment import LearningConfig, plot_curves, results_doc, run_experiment, summary_table  # noqa: PLC0415 -- lazy: pymunk, world
 
     try:
         config = LearningConfig(teams=parse_team_sizes(teams), seeds=tuple(seeds_of(seeds)), ticks=ticks,

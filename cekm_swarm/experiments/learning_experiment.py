@@ -15,9 +15,19 @@ with any number of workers.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
+
+import numpy as np
+
+from world import load_scenario
+
+from ..modules.learner import copy_model
+from .graph_run import resolve_graph, run_graph, with_params
+from .learning_run import LEARNER, learning_params, test_score, untrained_model
 
 ARENA = 2.5  # m: half the side of section 4.1's 5 m x 5 m arena
 
@@ -68,11 +78,6 @@ class Curve:
 
 def run_one(team: int, share: bool, seed: int, config: LearningConfig, folder: Path) -> Curve:
     """One seeded run of a team, scored as it learns."""
-    from world import load_scenario
-
-    from ..modules.learner import copy_model
-    from .graph_run import resolve_graph, run_graph, with_params
-    from .learning_run import LEARNER, learning_params, test_score, untrained_model
 
     path = folder / f"learning-{team}.toml"
     if not path.exists():
@@ -100,7 +105,7 @@ def run_one(team: int, share: bool, seed: int, config: LearningConfig, folder: P
 
 def steps_to(curve: Curve, threshold: float, index: str = "E_mm") -> int | None:
     """The first robot's own steps until its map's E (or T) fell below the threshold (None: never)."""
-    return next((s for s, e in zip(curve.steps, getattr(curve, index)) if e < threshold), None)
+    return next((s for s, e in zip(curve.steps, getattr(curve, index), strict=True) if e < threshold), None)
 
 
 def run_experiment(config: LearningConfig, out: Path, workers: int = 1,
@@ -115,7 +120,6 @@ def run_experiment(config: LearningConfig, out: Path, workers: int = 1,
             if done:
                 done(curves[-1])
         return curves
-    from concurrent.futures import ProcessPoolExecutor
 
     with ProcessPoolExecutor(workers) as pool:
         futures = [pool.submit(run_one, n, share, seed, config, out) for n, share, seed in jobs]
@@ -155,7 +159,7 @@ def seed_interval(values: list[float | None]) -> dict[str, Any]:
     """{"mean", "lo", "hi", "n", "of"} over the seeds with a value (a None: the threshold never
     reached, counted in "of" but not in the mean): the mean and its Student-t 95 % interval
     (lo = hi = None with one seed)."""
-    from .reaching_stats import interval95
+    from .reaching_stats import interval95  # noqa: PLC0415 -- lazy: scipy
 
     out = interval95(values) | {"of": len(values)}
     if out["n"] < 2:
@@ -167,9 +171,9 @@ def paired_difference(alone: list[float | None], shared: list[float | None]) -> 
     """Sharing minus not sharing on the same seeds (both lists in seed order; seeds where
     either is None are left out): the mean difference, its 95 % t interval, and the paired
     t-test's two-sided p (None with fewer than two pairs)."""
-    from .metrics import paired_p
+    from .metrics import paired_p  # noqa: PLC0415 -- lazy: scipy
 
-    pairs = [(a, b) for a, b in zip(alone, shared) if a is not None and b is not None]
+    pairs = [(a, b) for a, b in zip(alone, shared, strict=True) if a is not None and b is not None]
     diff = seed_interval([b - a for a, b in pairs])
     return {"mean_diff": diff["mean"], "lo": diff["lo"], "hi": diff["hi"], "n": diff["n"],
             "p": paired_p([b for _, b in pairs], [a for a, _ in pairs]) if pairs else None}
@@ -213,7 +217,6 @@ def plot_curves(config: LearningConfig, curves: list[Curve]):
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    import numpy as np
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
     groups: dict[tuple[int, bool], list[Curve]] = {}
@@ -222,7 +225,7 @@ def plot_curves(config: LearningConfig, curves: list[Curve]):
     for (team, share), cs in sorted(groups.items()):
         label = f"{team} robot{'s' if team > 1 else ''}{', sharing' if share else ''}"
         steps = np.mean([c.steps for c in cs], axis=0)
-        for ax, name in zip(axes, ("E_mm", "T_s_per_m")):
+        for ax, name in zip(axes, ("E_mm", "T_s_per_m"), strict=True):
             ax.plot(steps, np.mean([getattr(c, name) for c in cs], axis=0), "-" if share or team == 1 else "--",
                     marker="o", ms=3, label=label)
     axes[0].set_ylabel("E (mm)")

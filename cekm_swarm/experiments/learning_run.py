@@ -9,7 +9,13 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from ..errors import ParameterError
+from ..graph.spec import shipped_graphs
+from ..models.io import load_model, save_model
+from ..models.networks import make_network
+from ..modules.learner import MapFollower, copy_model
 
 UNTRAINED = "untrained"
 """``--model untrained``: R15 with regular input weights and uninformed random M_i
@@ -24,17 +30,13 @@ TEST_SEED = 2005
 
 def untrained_model():
     """The untrained map ``--model untrained`` gives (the same in ``cekm run`` and ``cekm launch``)."""
-    import numpy as np
-
-    from ..models.networks import make_network
 
     return make_network(UNTRAINED_NAME, np.random.default_rng(UNTRAINED_SEED))
 
 
 def model_of_choice(choice):
     """The model of ``--model``: a file, ``untrained`` maps, or (None) the default R15."""
-    from ..models.io import load_model
-    from .default_model import default_model
+    from .default_model import default_model  # noqa: PLC0415 -- lazy: numba, scipy, tqdm
 
     return untrained_model() if choice == UNTRAINED else load_model(choice) if choice else default_model()
 
@@ -45,7 +47,6 @@ def learning_controller(controller: str, graph_file) -> str:
         raise ParameterError("--learn runs a controller's learning graph; with --graph, give a graph with a "
                              "learner node instead (docs/learning.md)")
     name = controller if controller.endswith(("-learning", "-learning-team")) else f"{controller}-learning"
-    from ..graph.spec import shipped_graphs
 
     learning = sorted({g.rsplit("-", 1)[0] for g in shipped_graphs() if "-learning" in g})
     if name not in learning:
@@ -64,7 +65,6 @@ def model_file_for_launch(model_choice, out_dir: Path) -> Path | None:
     """A model file the launched nodes can read: ``untrained`` is written into ``out_dir``."""
     if model_choice != UNTRAINED:
         return model_choice
-    from ..models.io import save_model
 
     return save_model(Path(out_dir) / "untrained-R15.npz", untrained_model(),
                       {"untrained": True, "seed": UNTRAINED_SEED})
@@ -73,13 +73,11 @@ def model_file_for_launch(model_choice, out_dir: Path) -> Path | None:
 def test_score(model) -> dict[str, float]:
     """The map's E (mm), T (s/m) and D on the section 4.1 test targets (50, from the arena's
     centre, no learning; :func:`cekm_swarm.experiments.trial.test_reference`)."""
-    import numpy as np
-
-    from .arena import Arena
-    from .metrics import score
-    from .stopping import GOAL_STOP
-    from .streams import Schedule, TrialStreams
-    from .trial import network_command, test_reference
+    from .arena import Arena  # noqa: PLC0415 -- lazy: numba, scipy
+    from .metrics import score  # noqa: PLC0415 -- lazy: numba, scipy
+    from .stopping import GOAL_STOP  # noqa: PLC0415 -- lazy: numba, scipy
+    from .streams import Schedule, TrialStreams  # noqa: PLC0415 -- lazy: numba, scipy
+    from .trial import network_command, test_reference  # noqa: PLC0415 -- lazy: numba, scipy
 
     arena = Arena()
     streams = TrialStreams(TEST_SEED, 0, arena, Schedule(steps=10, test_interval=10))
@@ -91,8 +89,6 @@ def test_score(model) -> dict[str, float]:
 def learner_summary(learner, dropped: int = 0, start=None) -> dict[str, Any]:
     """One robot's ``learning`` block from its learner node (and the start map's score): the
     map of its last version (steps learned since are in no version yet)."""
-    from ..modules.learner import copy_model
-
     c = learner.counts
     out = {"versions": learner.version, "steps": c.steps, "updates_applied": c.learned, "own_steps": c.applied,
            "team_steps": c.team, "skipped_stopped": c.stopped,
@@ -112,7 +108,6 @@ def learning_outcome(executor, team, base_model) -> dict[str, dict]:
             continue
         if start is None:
             start = test_score(base_model)
-        from ..modules.learner import MapFollower
 
         dropped = sum(r.node.dropped for r in executor.runners
                       if r.plan.robot == robot and isinstance(r.node, MapFollower))  # versions its nodes dropped

@@ -11,6 +11,7 @@ T(eps) and D(eps) average over the targets reached.
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -76,7 +77,6 @@ def welch_p(a, b) -> float | None:
         return None
     if np.ptp(a) == 0 and np.ptp(b) == 0:
         return 1.0 if a[0] == b[0] else 0.0
-    import warnings
 
     with warnings.catch_warnings():  # near-identical samples: scipy warns, the p-value is still right
         warnings.simplefilter("ignore", RuntimeWarning)

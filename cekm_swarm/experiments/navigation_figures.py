@@ -19,7 +19,7 @@ def plot_run(run: NavigationRun, ax=None, title: str | None = None):
     import matplotlib.pyplot as plt
     from matplotlib.patches import Circle
 
-    from world.draw import draw_paths, draw_world, figure_size, fit_bounds, legend_outside, robot_colours
+    from world.draw import draw_paths, draw_world, figure_size, fit_bounds, legend_outside, robot_colours  # noqa: PLC0415 -- lazy: matplotlib, pymunk, world
 
     own = ax is None
     if own:
@@ -31,12 +31,12 @@ def plot_run(run: NavigationRun, ax=None, title: str | None = None):
     for r, log in run.logs.items():
         col = colours[r]
         n = max(1, len(log.x) // 40)
-        for x, y in zip(log.x[::n], log.y[::n]):
+        for x, y in zip(log.x[::n], log.y[::n], strict=True):
             ax.add_patch(Circle((x, y), 0.03, fill=False, edgecolor=col, lw=0.4, alpha=0.5))
         cps = log.checkpoints
         if len(cps) > 1:
             ax.plot([c[0] for c in cps[:-1]], [c[1] for c in cps[:-1]], "o", color="k", ms=4, label="checkpoints")
-    points = [p for log in run.logs.values() for p in zip(log.x, log.y)] + [c for log in run.logs.values()
+    points = [p for log in run.logs.values() for p in zip(log.x, log.y, strict=True)] + [c for log in run.logs.values()
                                                                           for c in log.checkpoints]
     x0, x1, y0, y1 = fit_bounds(ax, run.geometry, points)
     ax.set_title(title or f"{run.scenario}: {run.controller}, seed {run.seed}")
@@ -49,7 +49,7 @@ def plot_run(run: NavigationRun, ax=None, title: str | None = None):
     return ax
 
 
-def plot_fields(f: dict, sensors: tuple[int, int, int] | None = None):
+def plot_fields(f: dict, sensors: tuple[int, ...] | None = None):
     """The six panels of Fig. 4 (plus the robot's situation): darker = stronger activity."""
     import matplotlib
 
@@ -59,16 +59,17 @@ def plot_fields(f: dict, sensors: tuple[int, int, int] | None = None):
     w = f["w"]
     angles = f["sensor_angles"]
     if sensors is None:  # the sensors at -pi/6, 0, pi/6, as in the paper
-        sensors = tuple(int(np.argmin(np.abs(np.angle(np.exp(1j * (angles - a)))))) for a in (-np.pi / 6, 0.0, np.pi / 6))
+        sensors = tuple(int(np.argmin(np.abs(np.angle(np.exp(1j * (angles - a))))))
+                        for a in (-np.pi / 6, 0.0, np.pi / 6))
     panels = [("(A) target localization EKM", f["a"], f["s"])]
-    for letter, j in zip("BCD", sensors):
+    for letter, j in zip("BCD", sensors, strict=False):
         b = f["obstacle"].get(j, np.zeros(len(w)))
         panels.append((f"({letter}) obstacle EKM, sensor at {angles[j]:+.2f} rad", b, f["obstacle_winners"].get(j)))
     panels.append(("(E) obstacle EKMs combined", f["combined"], None))
     panels.append(("(F) integrated (motor EKM)", f["e"], f["k"]))
     fig, axes = plt.subplots(2, 4, figsize=(17, 7.5), gridspec_kw={"width_ratios": [1, 1, 1, 1.1]})
     flat = [axes[0, 0], axes[0, 1], axes[0, 2], axes[1, 0], axes[1, 1], axes[1, 2]]
-    for ax, (title, act, win) in zip(flat, panels):
+    for ax, (title, act, win) in zip(flat, panels, strict=False):
         sc = ax.scatter(w[:, 0], w[:, 1], c=act, cmap="Greys", s=18, edgecolors="0.6", linewidths=0.3)
         if title.startswith("(F)") and "eligible" in f and not f["eligible"].all():
             out = ~f["eligible"]
@@ -82,7 +83,7 @@ def plot_fields(f: dict, sensors: tuple[int, int, int] | None = None):
         ax.set_xlabel("alpha (rad)")
         ax.set_ylabel("d (m)")
         fig.colorbar(sc, ax=ax, fraction=0.046)
-    from world.draw import draw_world
+    from world.draw import draw_world  # noqa: PLC0415 -- lazy: matplotlib, pymunk, world
 
     for ax in (axes[0, 3], axes[1, 3]):
         ax.remove()

@@ -8,13 +8,19 @@ from __future__ import annotations
 
 import copy
 import functools
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from cekm_swarm.ticks import TICK_S, tick_of
+
+from ..controller.cooperative import CooperativeEKM
 from ..controller.planner import PlanningError, plan_checkpoints
 from ..errors import ParameterError
 from ..models.params import FieldParams
+from ..modules.motor_integration import target_activity
+from .graph_run import run_graph
+from .learning_run import learning_outcome
 
 CONTROLLERS = ("cekm", "fusion")
 DEFAULT_MAX_TIME = 600.0  # s of sim time before a robot counts as trapped
@@ -63,12 +69,10 @@ def run_scenario(scenario, controller: str = "cekm", model=None, seed: int | Non
     ``progress(t)`` is called every simulated second.
     """
 
-    from .graph_run import run_graph
-
     if graph is None and controller not in CONTROLLERS:
         raise ParameterError(f"unknown controller {controller!r}; expected one of {list(CONTROLLERS)}")
     if model is None:
-        from .default_model import default_model
+        from .default_model import default_model  # noqa: PLC0415 -- lazy: numba, scipy, tqdm
 
         model = default_model()
     if use_checkpoints is None:
@@ -79,10 +83,9 @@ def run_scenario(scenario, controller: str = "cekm", model=None, seed: int | Non
     world, episode = run.world, run.episode
     logs = {}
     for r, p in episode.progress.items():
-        t, x, y, th = (list(col) for col in zip(*p.path))
+        t, x, y, th = (list(col) for col in zip(*p.path, strict=True))
         logs[r] = RobotLog(r, t, x, y, th, [c[0] for c in p.commands], [c[1] for c in p.commands],
                            list(p.checkpoints), list(p.checkpoint_times), p.reached, p.reached_time)
-    from .learning_run import learning_outcome
 
     return NavigationRun(scenario.name, controller, world_seed(world, seed, scenario), logs, episode.outcome(),
                          world.static_geometry(), world.state(), plan_paths,
@@ -94,7 +97,6 @@ def field_overrides(fields: FieldParams | None) -> dict | None:
     command fusion's, ignores them)."""
     if fields is None:
         return None
-    from dataclasses import asdict
 
     return {"lenient": True, **asdict(fields)}
 
@@ -124,7 +126,7 @@ def planned(scenario) -> tuple[dict, dict]:
 
 @functools.lru_cache(maxsize=4)
 def _planned(scenario) -> tuple[dict, dict]:
-    from world import World
+    from world import World  # noqa: PLC0415 -- lazy: pymunk, world
 
     world = World(scenario)
     return plan_all(world, world.static_geometry(), scenario.source)
@@ -145,10 +147,6 @@ def fields_at(scenario, model, at_time: float, controller_seed: int | None = Non
     """Run the cooperative EKM to sim time ``at_time`` and return the activities of Fig. 4:
     the target field, each obstacle field, the combined obstacle fields and the integrated
     activity, with the winners, the robot's pose and the input weights."""
-    from cekm_swarm.ticks import TICK_S, tick_of
-
-    from ..controller.cooperative import CooperativeEKM
-    from .graph_run import run_graph
 
     checkpoints = planned(scenario)[0] if scenario.plan_checkpoints else None
     last = tick_of(at_time)
@@ -165,7 +163,6 @@ def fields_at(scenario, model, at_time: float, controller_seed: int | None = Non
     combined = np.sum(list(obstacle.values()), axis=0) if obstacle else np.zeros(n)
     e = a - combined
     ekm: CooperativeEKM = ex.node(robot, "motor").ekm
-    from ..modules.motor_integration import target_activity
 
     decision = ekm.integrate(target_activity(target), [f for f in obs_fields.values() if f is not None])
     return {"time": episode.t, "robot": robot, "pose": world.pose(robot), "w": model.w.copy(),

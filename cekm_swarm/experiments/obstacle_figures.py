@@ -4,6 +4,7 @@ matplotlib is imported inside the function (Agg)."""
 
 from __future__ import annotations
 
+from .navigation_figures import plot_run
 from .obstacle_run import FIGURE
 
 
@@ -14,12 +15,10 @@ def suite_figure(s: str, runs: list):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .navigation_figures import plot_run
-
     xmin, ymin, xmax, ymax = runs[0].geometry["bounds"]
     aspect = (ymax - ymin) / (xmax - xmin)
     fig, axes = plt.subplots(1, len(runs), figsize=(6.5 * len(runs), max(3.0, 6.5 * aspect) + 0.6), squeeze=False)
-    for ax, run, letter in zip(axes[0], runs, "AB"):
+    for ax, run, letter in zip(axes[0], runs, "AB", strict=False):
         name = "command fusion" if run.controller == "fusion" else "cooperative EKMs"
         plot_run(run, ax=ax, title=f"({letter}) {name}, seed {run.seed}")
     fig_no = FIGURE[s]

@@ -7,6 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from .. import jsonfile
+from .obstacle_figures import suite_figure
 from .obstacle_run import FIGURE
 
 
@@ -55,8 +56,6 @@ def write_suite(doc: dict, pictures: dict, out_dir: Path) -> list[Path]:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from .obstacle_figures import suite_figure
 
     out_dir.mkdir(parents=True, exist_ok=True)
     written = [out_dir / "outcomes.json", out_dir / "table.md"]

@@ -16,6 +16,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..models.io import load_model
+from .engine import default_workers, run_jobs
+from .navigation_run import run_scenario
 from .obstacle_stats import summarize
 
 SUITE: dict[str, tuple[str, ...]] = {
@@ -43,10 +46,7 @@ def success(scenario: str, outcome: dict, geometry: dict) -> bool:
 
 def _one(args):
     scenario, controller, seed, max_time, model_path, keep, speed_unit = args
-    from world import load_scenario
-
-    from ..models.io import load_model
-    from .navigation_run import run_scenario
+    from world import load_scenario  # noqa: PLC0415 -- lazy: pymunk, world
 
     overrides = None if speed_unit is None else {"plant.speed_unit": speed_unit}
     run = run_scenario(load_scenario(scenario, overrides=overrides), controller, load_model(model_path), seed,
@@ -68,8 +68,6 @@ def run_suite(seeds: tuple[int, ...], model_path: Path, max_time: float = 300.0,
 
     ``speed_unit``: the plant's wheel speed unit for every run (``[plant] speed_unit``;
     0 = continuous speeds); None keeps each scenario's own."""
-    from .engine import default_workers, run_jobs
-
     scenarios = scenarios or SUITE
     jobs = [(s, c, seed, max_time, str(model_path), seed == seeds[0], speed_unit) for s, cs in scenarios.items()
             for c in cs for seed in seeds]

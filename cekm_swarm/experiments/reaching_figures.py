@@ -26,13 +26,13 @@ def plot_all(results: dict, trained: dict, out_dir: Path) -> list[Path]:
     for name, e in nets.items():
         c = e["learning_curves"]
         steps = np.array(c["steps"]) / 1000.0
-        for ax, key in zip(axes, ("E_mm", "T_s_per_m")):
+        for ax, key in zip(axes, ("E_mm", "T_s_per_m"), strict=True):
             per_trial = np.array(c[key]["per_trial"])
             ax.plot(steps, per_trial.mean(axis=0), "-o", ms=3, label=name, color=colours.get(name))
             ax.fill_between(steps, per_trial.min(axis=0), per_trial.max(axis=0), alpha=0.12, color=colours.get(name))
     axes[0].set_ylabel("mean positioning error E (mm)")
     axes[1].set_ylabel("normalized time-to-target T (s/m)")
-    for ax, letter in zip(axes, "AB"):
+    for ax, letter in zip(axes, "AB", strict=True):
         ax.set_yscale("log")
         ax.set_xlabel("training steps (thousands)")
         ax.set_title(f"({letter})", loc="left")
@@ -44,11 +44,12 @@ def plot_all(results: dict, trained: dict, out_dir: Path) -> list[Path]:
     fig.savefig(paths[-1], dpi=120)
     plt.close(fig)
 
-    order = [n for n in ("G9", "G12", "G15", "R15", "D15", "B15") if n in trained] + [n for n in trained if n not in ("G9", "G12", "G15", "R15", "D15", "B15")]
+    paper = ("G9", "G12", "G15", "R15", "D15", "B15")
+    order = [n for n in paper if n in trained] + [n for n in trained if n not in paper]
     cols = 3
     rows = int(np.ceil(len(order) / cols))
     fig, axes = plt.subplots(rows, cols, figsize=(4 * cols, 3.3 * rows), squeeze=False)
-    for ax, name, letter in zip(axes.flat, order, "ABCDEFGHIJKL"):
+    for ax, name, letter in zip(axes.flat, order, "ABCDEFGHIJKL", strict=False):
         w = trained[name].w
         ax.scatter(w[:, 0], w[:, 1], s=6, color="k")
         ax.set_xlim(-np.pi, np.pi)
@@ -69,11 +70,11 @@ def plot_all(results: dict, trained: dict, out_dir: Path) -> list[Path]:
     for name, e in nets.items():
         ec = e["eps_curves"]
         eps = np.array(ec["eps_mm"])
-        for ax, key in zip(axes, ("P", "T_s_per_m", "D")):
+        for ax, key in zip(axes, ("P", "T_s_per_m", "D"), strict=True):
             mean = np.array([np.nan if v is None else v for v in ec[key]["mean"]], dtype=float)
             ax.plot(eps, mean, label=name, color=colours.get(name))
     for ax, label, letter in zip(axes, ("target reaching probability P(eps)", "normalized time-to-target T(eps) (s/m)",
-                                        "mean deviation D(eps)"), "ABC"):
+                                        "mean deviation D(eps)"), "ABC", strict=True):
         ax.set_xlabel("eps (mm)")
         ax.set_ylabel(label)
         ax.set_title(f"({letter})", loc="left")

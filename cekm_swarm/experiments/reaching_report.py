@@ -8,10 +8,11 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from .. import jsonfile
+from ..models.io import save_model
 from .reaching_figures import plot_all
 
 if TYPE_CHECKING:
-    from .reaching_run import NetworkRun, TargetReachingConfig
+    from .reaching_config import NetworkRun, TargetReachingConfig
 
 # The paper's published numbers (Low, Leow & Ang 2005, Tables 1-4), for side-by-side tables.
 PAPER_TABLE1 = {  # E (mm), T (s/m), D: mean, std
@@ -176,7 +177,8 @@ def seeds_markdown(summary: dict) -> str:
            f"Master seeds {', '.join(map(str, seeds))}; each: {s['trials']} trials x {sch['steps']:,} steps, "
            f"tested on {sch['test_targets']} targets. Ours: the mean over seeds of each seed's trial "
            "mean, with its 95 % interval (Student t, "
-           f"{len(seeds) - 1} degrees of freedom); the paper's: mean ± std over its 5 trials. " + protocol_sentence(s), ""]
+           f"{len(seeds) - 1} degrees of freedom); the paper's: mean ± std over its 5 trials. "
+           + protocol_sentence(s), ""]
     out += _seeds_table(summary, ("E_mm", "T_s_per_m", "D"), PAPER_TABLE1, "Table 1: performance after training")
     out += ["", "Targets ended by the step budget (of the test's targets, per trial, mean over seeds): " + ", ".join(
         f"{n} {_ci(e.get('ended_by_budget'), 1)}" for n, e in summary["networks"].items()) + ". Ended by a stop at "
@@ -210,8 +212,6 @@ def write_seed(config: TargetReachingConfig, results: dict, runs: list[NetworkRu
                 models: bool) -> list[Path]:
     """One seed's report: with models, also the trained models and the figures (a single-seed
     run); without (one seed of several), results.json and tables.md only."""
-    from ..models.io import save_model
-
     if not models:
         out_dir.mkdir(parents=True, exist_ok=True)
         (out_dir / "results.json").write_text(jsonfile.dumps(results))

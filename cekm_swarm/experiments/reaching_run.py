@@ -17,95 +17,31 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from dataclasses import asdict, dataclass, field
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
+from tqdm import tqdm
 
-from ..errors import ParameterError
 from ..models import fast
-from ..models.networks import BFN_RULES, BFN_WIDTH_FLOOR, make_network, parse_network_name
-from ..models.params import CompetitionParams, LearningParams, params_to_dict
-from .arena import Arena
-from .metrics import TestScore, score
+from ..models.networks import BFN_WIDTH_FLOOR, make_network, parse_network_name
+from .engine import cluster_address, run_jobs
+from .metrics import score
+from .reaching_config import NetworkRun, TargetReachingConfig
 from .reaching_stats import summarize, summarize_seeds
-from .stopping import GOAL_STOP, PAPER_STOP, StopRule
-from .streams import Schedule, TrialStreams
+from .streams import TrialStreams
 from .trial import NetworkBatch, run_batch
 
-PAPER_NETWORKS = ("B15", "D15", "G9", "G12", "G15", "R15")
-DEFAULT_EPS_MM = tuple(float(e) for e in range(1, 31))  # Fig. 7's range, 1 mm steps
 
-
-@dataclass(frozen=True)
-class TargetReachingConfig:
-    """Everything that defines a run; the same config and seed give the same numbers.
-
-    ``stop``: the test's stop rule (the paper's, ``command``, by default). ``train_stop``:
-    training's (the goal state by default, so that every network is trained as before and
-    only the test differs between the rules). ``bfn_rule``: the basis-function network's
-    rule (:data:`BFN_RULES`).
-    """
-
-    networks: tuple[str, ...] = PAPER_NETWORKS
-    trials: int = 5
-    schedule: Schedule = field(default_factory=Schedule)
-    seed: int = 2005
-    eps_mm: tuple[float, ...] = DEFAULT_EPS_MM
-    comp: CompetitionParams = field(default_factory=CompetitionParams)
-    learn_p: LearningParams = field(default_factory=LearningParams)
-    arena: Arena = field(default_factory=Arena)
-    stop: StopRule = PAPER_STOP
-    train_stop: StopRule = GOAL_STOP
-    bfn_rule: str = "paper"
-
-    def __post_init__(self) -> None:
-        if self.bfn_rule not in BFN_RULES:
-            raise ParameterError(f"bfn_rule must be one of {', '.join(BFN_RULES)}, got {self.bfn_rule!r}")
-        for name in self.networks:
-            parse_network_name(name)
-        if len(set(self.networks)) != len(self.networks):
-            raise ParameterError(f"networks must be distinct, got {list(self.networks)}")
-        if not isinstance(self.trials, int) or self.trials < 1:
-            raise ParameterError(f"trials must be a positive integer, got {self.trials!r}")
-        if 5.0 not in self.eps_mm:
-            raise ParameterError("eps_mm must include 5 (Tables 3-4 are at eps = 5 mm)")
-        if list(self.eps_mm) != sorted(self.eps_mm) or self.eps_mm[0] <= 0:
-            raise ParameterError("eps_mm must be positive and ascending")
-
-    def settings(self) -> dict:
-        return {
-            "networks": list(self.networks), "trials": self.trials, "seed": self.seed, "eps_mm": list(self.eps_mm),
-            "schedule": asdict(self.schedule), "arena": asdict(self.arena), "stop": asdict(self.stop),
-            "train_stop": asdict(self.train_stop),
-            "bfn_rule": self.bfn_rule, "params": params_to_dict(self.comp, self.learn_p),
-        }
-
-
-@dataclass
-class NetworkRun:
-    """One network's trained batch and its test scores: scores[trial][test point]."""
-
-    name: str
-    batch: NetworkBatch
-    scores: list[list[TestScore]]
-    seconds: float
-
-    def trained(self, trial: int, config: TargetReachingConfig):
-        """The trained network of one trial as a reference object (for saving and plotting)."""
-        net = make_network(self.name, np.random.default_rng(0), config.comp, config.learn_p, config.bfn_rule)
-        fast.load_arrays(net, self.batch.W[trial], self.batch.P[trial], self.batch.R[trial])
-        return net
-
-
-def run_network(name: str, config: TargetReachingConfig, on_progress: Callable[[int], None] | None = None) -> NetworkRun:
+def run_network(name: str, config: TargetReachingConfig,
+                on_progress: Callable[[int], None] | None = None) -> NetworkRun:
     """Train and test one network over all trials."""
     streams = [TrialStreams(config.seed, t, config.arena, config.schedule) for t in range(config.trials)]
     nets = [make_network(name, s.init_rng(), config.comp, config.learn_p, config.bfn_rule) for s in streams]
     arrays = [fast.network_arrays(n) for n in nets]
     kind, size = parse_network_name(name)
     params = fast.pack_params(config.comp, config.learn_p, config.arena.v_max, BFN_WIDTH_FLOOR, config.bfn_rule)
-    batch = NetworkBatch(kind, size, *(np.ascontiguousarray(np.stack([a[q] for a in arrays])) for q in range(3)), params)
+    W, P, R = (np.ascontiguousarray(np.stack([a[q] for a in arrays])) for q in range(3))
+    batch = NetworkBatch(kind, size, W, P, R, params)
     eps = np.array(config.eps_mm) / 1000.0
     t0 = time.perf_counter()
     outcomes = run_batch(batch, streams, eps, on_progress, config.stop, config.train_stop)
@@ -116,8 +52,6 @@ def run_network(name: str, config: TargetReachingConfig, on_progress: Callable[[
 
 def run_experiment(config: TargetReachingConfig, progress: bool = True) -> tuple[dict, list[NetworkRun]]:
     """Run every network; returns (results document, runs)."""
-    from tqdm import tqdm
-
     total = len(config.networks) * config.trials * config.schedule.steps
     runs = []
     t0 = time.perf_counter()
@@ -152,8 +86,6 @@ def run_master_seeds(config: TargetReachingConfig, count: int, progress: bool = 
     > 1 or a cluster (:mod:`.engine`) the seeds run side by side, then ``on_seed`` is
     called for each in seed order.
     """
-    from .engine import cluster_address, run_jobs
-
     seeds = seeds_from(config.seed, count)
     per_seed = {}
     if (workers or 1) == 1 and cluster_address() is None:
@@ -165,7 +97,7 @@ def run_master_seeds(config: TargetReachingConfig, count: int, progress: bool = 
         return summarize_seeds(per_seed), per_seed
     done = run_jobs(_one_seed, [dataclasses.replace(config, seed=s) for s in seeds], workers, desc="master seeds",
                     progress=progress)
-    for s, (results, runs) in zip(seeds, done):
+    for s, (results, runs) in zip(seeds, done, strict=True):
         per_seed[s] = results
         if on_seed:
             on_seed(s, results, runs)

@@ -12,7 +12,8 @@ from __future__ import annotations
 import itertools
 import math
 import warnings
-from typing import TYPE_CHECKING, Sequence
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -20,7 +21,7 @@ from ..models.networks import parameter_count, parse_network_name
 from .metrics import mean_std, welch_p
 
 if TYPE_CHECKING:
-    from .reaching_run import NetworkRun, TargetReachingConfig
+    from .reaching_config import NetworkRun, TargetReachingConfig
 
 INDICES = ("E_mm", "T_s_per_m", "D", "P5", "T5_s_per_m", "D5")
 SUMMARY_INDICES = INDICES + ("ended_by_budget", "goal_stops")
@@ -51,7 +52,7 @@ def summarize(runs: Sequence[NetworkRun], config: TargetReachingConfig) -> dict:
         entry = {"kind": kind, "lattice": size, "parameters": parameter_count(kind, size)}
         entry.update({k: mean_std(v) for k, v in per_trial[r.name].items()})
         entry["per_trial"] = per_trial[r.name]
-        curves = {"steps": config.schedule.test_points}
+        curves: dict[str, Any] = {"steps": config.schedule.test_points}
         pick = {"E_mm": lambda s: s.E_mm, "T_s_per_m": lambda s: s.T_s_per_m, "D": lambda s: s.D,
                 "P5": lambda s: float(s.P[i5]), "T5_s_per_m": lambda s: float(s.T_eps[i5])}
         for key, get in pick.items():
@@ -82,13 +83,10 @@ def summarize(runs: Sequence[NetworkRun], config: TargetReachingConfig) -> dict:
 
 def _stack_mean_std(rows: list[np.ndarray]) -> dict:
     m = np.array(rows, dtype=np.float64)
-    with np.errstate(all="ignore"):
-        import warnings
-
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            mean = np.nanmean(m, axis=0)
-            std = np.nanstd(m, axis=0, ddof=1) if len(m) > 1 else np.zeros(m.shape[1])
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        mean = np.nanmean(m, axis=0)
+        std = np.nanstd(m, axis=0, ddof=1) if len(m) > 1 else np.zeros(m.shape[1])
     return {"mean": [None if not np.isfinite(x) else float(x) for x in mean],
             "std": [None if not np.isfinite(x) else float(x) for x in std]}
 

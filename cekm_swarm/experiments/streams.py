@@ -38,7 +38,8 @@ class Schedule:
             if not isinstance(value, (int, np.integer)) or value <= 0:
                 raise ParameterError(f"Schedule.{name} must be a positive integer, got {value!r}")
         if self.steps % self.test_interval:
-            raise ParameterError(f"Schedule.steps ({self.steps}) must be a multiple of test_interval ({self.test_interval})")
+            raise ParameterError(f"Schedule.steps ({self.steps}) must be a multiple of test_interval "
+                                 f"({self.test_interval})")
 
     @property
     def test_points(self) -> list[int]:
@@ -75,7 +76,8 @@ class TrialStreams:
 
     @cached_property
     def test_set(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The fixed testing procedure: (targets (m, 2), wheel noise (m, budget, substeps, 2), sensor noise (m, budget, 2))."""
+        """The fixed testing procedure: (targets (m, 2), wheel noise (m, budget, substeps, 2),
+        sensor noise (m, budget, 2))."""
         g = self.rng(_TEST)
         s = self.schedule
         wn, sn = KHEPERA.wheel_noise, KHEPERA.sensor_noise
@@ -85,9 +87,11 @@ class TrialStreams:
         return targets, wheel, sense
 
 
-def batch_train_chunk(streams: list[TrialStreams], chunk: int, nsteps: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def batch_train_chunk(streams: list[TrialStreams], chunk: int,
+                      nsteps: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Every trial's training noise for one chunk, stacked (B, ...); drawn in threads
     (numpy's generators release the GIL), each trial from its own stream as before."""
     with ThreadPoolExecutor(max_workers=min(len(streams), os.cpu_count() or 1)) as ex:
         parts = list(ex.map(lambda st: st.train_chunk(chunk, nsteps), streams))
-    return tuple(np.stack([p[q] for p in parts]) for q in range(3))
+    wheel, sense, explore = (np.stack([p[q] for p in parts]) for q in range(3))
+    return wheel, sense, explore

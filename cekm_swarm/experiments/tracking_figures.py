@@ -19,7 +19,7 @@ def plot_tracking(run: TrackingRun, ax=None, title: str | None = None, instants:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from world.draw import draw_paths, draw_tracking, draw_world, legend_outside, robot_colours, widen_to
+    from world.draw import draw_paths, draw_tracking, draw_world, legend_outside, robot_colours, widen_to  # noqa: PLC0415 -- lazy: matplotlib
 
     own = ax is None
     if own:

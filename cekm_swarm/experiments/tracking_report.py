@@ -3,22 +3,20 @@
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 from .. import jsonfile
+from .tracking_figures import plot_team_sizes, plot_tracking
 from .tracking_run import CONTROLLERS, TrackingRun
 
 
 def write_experiment(doc: dict[str, Any], pictures: dict[str, TrackingRun], out_dir) -> list:
     """results.json, tables.md, tracking.png, one Fig.-13 picture per controller."""
-    from pathlib import Path
-
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from .tracking_figures import plot_team_sizes, plot_tracking
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -62,8 +60,8 @@ def table_markdown(doc: dict[str, Any]) -> str:
 
 
 def _versus(cekm: list[float], other: list[float]) -> str:
-    from .metrics import welch_p
+    from .metrics import welch_p  # noqa: PLC0415 -- lazy: scipy
 
     p = welch_p(cekm, other)
-    higher = sum(1 for a, b in zip(cekm, other) if a > b)
+    higher = sum(1 for a, b in zip(cekm, other, strict=False) if a > b)
     return f"p = {'n/a' if p is None else f'{p:.2g}'}; {higher} of {min(len(cekm), len(other))}"

@@ -14,13 +14,19 @@ The experiment's statistics are :mod:`.tracking_stats`'s, its pictures
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
 
+from world.scenario import parse_scenario
+from world.tracking import is_tracking
+
 from ..errors import ParameterError
+from ..models.io import load_model
 from ..models.params import ACMOMMTParams, TrackingParams
+from .engine import run_jobs
+from .graph_run import run_graph
 from .tracking_stats import team_stats
 
 CONTROLLERS = ("cekm", "acmommt", "kmeans", "kmeans-global", "stay")
@@ -53,11 +59,6 @@ def run_tracking(scenario, controller: str = "cekm", model=None, seed: int | Non
     """Run a tracking scenario for ``duration`` s of sim time with the controller's graph
     in one process (:func:`.graph_run.run_graph`; a distributed lockstep run computes the
     same, bit for bit). ``tparams``/``aparams``: the tracking controllers' parameters."""
-    from dataclasses import asdict
-
-    from world.tracking import is_tracking
-
-    from .graph_run import run_graph
 
     if graph is None and controller not in CONTROLLERS:
         raise ParameterError(f"unknown tracking controller {controller!r}; expected one of {list(CONTROLLERS)}")
@@ -92,15 +93,14 @@ def outcome_doc(run: TrackingRun) -> dict[str, Any]:
 # --------------------------------------------------------------------------- team sizes
 
 
-def team_scenario(robots: int, seed: int, targets_per_robot: float = 1.5, side_per_sqrt_robot: float = 2.0 / math.sqrt(2),
+def team_scenario(robots: int, seed: int, targets_per_robot: float = 1.5,
+                  side_per_sqrt_robot: float = 2.0 / math.sqrt(2),
                   target_range: float = 0.5, speed: float = 0.05, turn_noise: float = 1.0):
     """A tracking scenario for a team of ``robots``: a square walled arena whose area grows
     with the team (side = side_per_sqrt_robot * sqrt(robots): 2 m for 2 robots, as
     tracking.toml), round(targets_per_robot * robots) random-walk targets at uniform
     starts, robots in a ring around the centre. Densities of robots and targets are the
     same for every size, so A compares across sizes. ``seed`` draws the starts and the world."""
-    from world.scenario import parse_scenario
-
     rng = np.random.default_rng([seed, robots, 13])
     side = side_per_sqrt_robot * math.sqrt(robots)
     m = max(1, round(targets_per_robot * robots))
@@ -128,7 +128,6 @@ _MODELS: dict[str, Any] = {}
 
 def _one(args) -> dict[str, Any]:
     robots, seed, controller, duration, model_path, keep_run = args
-    from ..models.io import load_model
 
     model = None
     if controller == "cekm":  # one load per process
@@ -143,8 +142,6 @@ def run_experiment(sizes: tuple[int, ...], seeds: int, duration: float, model_pa
                    progress: bool = True, first_seed: int = 1) -> tuple[dict[str, Any], dict[str, TrackingRun]]:
     """Every controller on the same seeds (first_seed .. first_seed + seeds - 1) for every
     team size; the pictures are the first seed's runs of the smallest team."""
-    from .engine import run_jobs
-
     seed_list = list(range(first_seed, first_seed + seeds))
     jobs = [(n, s, c, duration, str(model_path), n == sizes[0] and s == first_seed)
             for n in sizes for s in seed_list for c in CONTROLLERS]

@@ -24,7 +24,8 @@ def mean_ci95(xs: list[float]) -> dict[str, Any]:
     return {"mean": m, "ci95": [max(0.0, m - h), min(1.0, m + h)], "n": len(a)}
 
 
-def team_stats(rows: list[dict[str, Any]], sizes: tuple[int, ...], controllers: tuple[str, ...]) -> list[dict[str, Any]]:
+def team_stats(rows: list[dict[str, Any]], sizes: tuple[int, ...],
+               controllers: tuple[str, ...]) -> list[dict[str, Any]]:
     """Per team size (in ``sizes``' order): its targets and, per controller, A's mean and
     95 % interval over the seeds with the value of every seed."""
     configs = []

@@ -5,9 +5,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from tqdm import tqdm
 
 from .arena import Arena, displacement, drive
-from .reaching_run import TargetReachingConfig, run_network
+from .reaching_config import TargetReachingConfig
+from .reaching_run import run_network
 from .stopping import GOAL_STOP
 from .streams import Schedule
 
@@ -44,8 +46,6 @@ def train_network(name: str, steps: int, seed: int, progress: bool = True):
 
     Returns (trained network, its scores on the fixed test after training).
     """
-    from tqdm import tqdm
-
     interval = 10_000 if steps % 10_000 == 0 else steps
     config = TargetReachingConfig(networks=(name,), trials=1, seed=seed, stop=GOAL_STOP, train_stop=GOAL_STOP,
                                   bfn_rule="trained-units",

@@ -20,8 +20,8 @@ speed is ``command`` at that motor resolution.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 from numba import njit, prange
@@ -50,7 +50,7 @@ class TestOutcome:
     at_goal: np.ndarray | None = None  # bool: stopped with the sensed distance 0 (the goal state)
 
     @classmethod
-    def empty(cls, m: int, n_eps: int) -> "TestOutcome":
+    def empty(cls, m: int, n_eps: int) -> TestOutcome:
         return cls(np.zeros(m), np.zeros(m, dtype=np.bool_), np.zeros(m, dtype=np.int64), np.zeros(m), np.zeros(m),
                    np.full((m, n_eps), np.nan), np.full((m, n_eps), np.nan), np.zeros(m, dtype=np.bool_))
 
@@ -87,7 +87,8 @@ def train_reference(net, pose: np.ndarray, cursor: list[int], streams: TrialStre
             cursor[1] = 0
         u = np.array([alpha, d])
         c_net = command(u)
-        if stopped(c_net[0], c_net[1], *executed_command(c_net[0], c_net[1], av), stop.code):  # next target, next step
+        q_net = executed_command(c_net[0], c_net[1], av)
+        if stopped(c_net[0], c_net[1], q_net[0], q_net[1], stop.code):  # next target, next step
             cursor[0] += 1
             cursor[1] = 0
             continue
@@ -109,6 +110,8 @@ def test_reference(command: Callable[[np.ndarray], np.ndarray], streams: TrialSt
     av = arena.vector()
     targets, wheel, sense = streams.test_set
     out = TestOutcome.empty(len(targets), len(eps))
+    at_goal = out.at_goal
+    assert at_goal is not None  # empty() makes every column
     pose = np.array([*arena.centre, 0.0])
     for i, (tx, ty) in enumerate(targets):
         out.straight[i] = math.hypot(tx - pose[0], ty - pose[1])
@@ -119,7 +122,7 @@ def test_reference(command: Callable[[np.ndarray], np.ndarray], streams: TrialSt
             c = command(u)
             q = executed_command(c[0], c[1], av)
             if stopped(c[0], c[1], q[0], q[1], stop.code):  # the robot has come to a stop
-                out.stopped[i], out.at_goal[i], steps = True, u[1] == 0.0, j
+                out.stopped[i], at_goal[i], steps = True, u[1] == 0.0, j
                 break
             ds, _, _ = drive(pose, q[0], q[1], wheel[i, j], av, tx, ty, eps, t_eps, path_eps, j * arena.step_s, path)
             path += ds
@@ -296,8 +299,8 @@ def test_batch(batch: NetworkBatch, streams: list[TrialStreams], eps: np.ndarray
          np.zeros((B, m)), np.full((B, m, len(eps)), np.nan), np.full((B, m, len(eps)), np.nan),
          np.zeros((B, m), dtype=np.bool_)]
     cx, cy = arena.centre
-    _test_batch(batch.code, batch.W, batch.P, batch.R, batch.params, arena.vector(), cx, cy, arena.step_s, targets, wheel,
-                sense, np.ascontiguousarray(eps, dtype=np.float64), stop.code, *o)
+    _test_batch(batch.code, batch.W, batch.P, batch.R, batch.params, arena.vector(), cx, cy, arena.step_s, targets,
+                wheel, sense, np.ascontiguousarray(eps, dtype=np.float64), stop.code, *o)
     return [TestOutcome(*(a[b] for a in o)) for b in range(B)]
 
 
@@ -319,7 +322,7 @@ def run_batch(batch: NetworkBatch, streams: list[TrialStreams], eps: np.ndarray,
         wheel, sense, explore = batch_train_chunk(streams, chunk, s.test_interval)
         _train_batch(batch.code, batch.size, batch.W, batch.P, batch.R, batch.params, arena.vector(), poses, cursors,
                      targets, t0, wheel, sense, explore, s.train_budget, train_stop.code)
-        for r, o in zip(results, test_batch(batch, streams, eps, stop)):
+        for r, o in zip(results, test_batch(batch, streams, eps, stop), strict=True):
             r.append(o)
         if on_progress:
             on_progress(s.test_interval)

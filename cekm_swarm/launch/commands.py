@@ -6,6 +6,7 @@ import ipaddress
 import json
 import os
 from pathlib import Path
+from typing import Any
 
 import click
 from click.core import ParameterSource
@@ -14,31 +15,37 @@ from cekm_swarm.cli_support import (
     ENDPOINT,
     ROOT,
     RUN_ID,
-    SEED,
     SIZE,
     FileRefused,
     Finite,
     Interrupted,
     RobotIds,
     RunFailed,
-    ScenarioFileError,
     out_dir_options,
+    out_file_option,
     prepare_figure_file,
     prepare_out_dir,
-    refuse_unplannable,
+    seed_option,
 )
 from cekm_swarm.errors import CekmError
-from cekm_swarm.experiments.learning_commands import MODEL_CHOICE, model_group
-from cekm_swarm.experiments.learning_run import UNTRAINED, model_file_for_launch
-from cekm_swarm.runtime.config import DEFAULT_ENDPOINT, DEFAULT_PORT
+from cekm_swarm.experiments.commands import load_scenario_file, refuse_unplannable, scenario_kind
+from cekm_swarm.experiments.learning_commands import add_launch_learning, model_option
+from cekm_swarm.experiments.learning_run import UNTRAINED, learning_controller, learning_params, model_file_for_launch
+from cekm_swarm.graph.check import CheckedGraph
+from cekm_swarm.graph.spec import GraphError
+from cekm_swarm.runtime.config import DEFAULT_ENDPOINT, DEFAULT_PORT, client_config_from_file
+from cekm_swarm.runtime.errors import RuntimeTransportError
 from cekm_swarm.runtime.log_commands import LOG_HELP
+from cekm_swarm.runtime.mcap_sets import log_files
+from cekm_swarm.runtime.wait import resolve_endpoint
 from cekm_swarm.ticks import STEP_TIMEOUT
+
+from .errors import NodeCannotStart, NodeFailed
+from .plot import plot_log
+from .prepare import PreflightError, body_of, plan_of, port_taken, preflight, resolve
 
 
 def _env_endpoint() -> str | None:
-    from cekm_swarm.errors import CekmError
-    from cekm_swarm.runtime.wait import resolve_endpoint
-
     try:
         ep = resolve_endpoint(None)
     except CekmError as exc:
@@ -50,15 +57,14 @@ def _env_endpoint() -> str | None:
 @click.argument("scenario")
 @click.option("--mode", type=click.Choice(["realtime", "lockstep"]), default="realtime", show_default=True,
               help="realtime: wall clock; lockstep: the world waits for every robot's command (reproducible).")
-@click.option("--seed", type=SEED, help="World seed (default: the scenario's).")
+@seed_option()
 @out_dir_options("Directory for outcome.json, run.mcap, trajectory.png and the processes' logs.")
 @click.option("--connect", type=ENDPOINT, help="Join this Zenoh endpoint (e.g. tcp/10.0.0.1:7447) instead of "
                                                "opening an embedded router [default: $CEKM_CONNECT unless "
                                                "--port is given].")
 @click.option("--port", default=DEFAULT_PORT, show_default=True, type=click.IntRange(1, 65535),
               help="Port of the embedded router on 127.0.0.1 (without --connect).")
-@click.option("--model", "model_path", type=MODEL_CHOICE,
-              help="A trained model (.npz), or 'untrained' (with --learn); default: R15 trained and cached on first use.")
+@model_option(untrained=True)
 @click.option("--learn", is_flag=True, help="The robots' maps learn online as they move (docs/learning.md).")
 @click.option("--max-time", type=Finite(min=0.2),
               help="Sim seconds before the run ends (default: as cekm run, 600 for navigation, 120 for tracking).")
@@ -126,23 +132,58 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwr
     """Run SCENARIO through the distributed runtime: the world server and, per robot, every
     node of the controller's graph as its own process on Zenoh (cekm: 1 + 12 + 1),
     supervised (restarted when they die)."""
-    from world import ScenarioError, load_scenario
+    from cekm_swarm.modules.learner import SNAPSHOT_DIR  # noqa: PLC0415 -- lazy: not at cekm --help
 
-    from .launcher import LaunchConfig, Launcher
+    from .launcher import LaunchConfig, Launcher  # noqa: PLC0415 -- lazy: not at cekm --help
 
     if connect is None and click.get_current_context().get_parameter_source("port") is not ParameterSource.COMMANDLINE:
         connect = _env_endpoint()  # --connect > CEKM_CONNECT > the embedded router (an explicit --port hosts it)
-    from world.tracking import run_kind
-
-    try:
-        sc = load_scenario(scenario)
-        run_kind(sc)  # a tracking or a navigation scenario, or refused here
-    except ScenarioError as exc:
-        raise ScenarioFileError(str(exc)) from None
+    # every check before anything is written or started
+    sc = load_scenario_file(scenario)
+    scenario_kind(sc)  # a tracking or a navigation scenario, or refused here
     refuse_unplannable(sc)
-    # a tracking scenario (docs/tracking.md) runs the tracking target module per robot, controller cekm
     known = [r.id for r in sc.robots]
     only = robots  # None: every robot; (): none ('none', a world-only host)
+    _check_hosts(scenario, known, only, no_world, listen_host)
+    _check_zenoh_config(zenoh_config, connect)
+    params = None
+    if learn:
+        controller, params = learning_controller(controller, graph_file), learning_params(model_path)
+    checked, task = _checked_graph(sc, controller, graph_file, params)
+    _check_plant(sc, checked, task, mode, plant, robot_description)
+    if model_path not in (None, UNTRAINED) and checked.uses_model:  # refused before --overwrite clears --out
+        body = body_of(sc)
+        preflight(checked, plan_of(checked, tuple(known), task, body, root), body, str(model_path))
+    if connect is None:  # a taken port is refused before --out is touched: the retry with --port needs no --overwrite
+        _check_port(listen_host, port)
+    prepare_out_dir(out_dir, overwrite)
+    model_path = model_file_for_launch(model_path, out_dir)  # untrained maps: a file the nodes read
+    config = LaunchConfig(scenario, out_dir, mode=mode, seed=seed, connect=connect, port=port, model=model_path,
+                          max_time=max_time, controller=controller, graph=graph_file, root=root, plot=not no_plot,
+                          robots=only, world=not no_world, listen_host=listen_host, zenoh_config=zenoh_config,
+                          model_from_zenoh=model_from_zenoh, run_id=run_id, warm_start=not cold_start,
+                          hold_readings=not send_every_reading and plant is None, max_log_size=max_log_size,
+                          max_log_duration=max_log_duration, record=record, step_timeout=step_timeout, plant=plant,
+                          plant_domain=plant_domain, plant_distro=plant_distro, robot_description=robot_description,
+                          params=params, deadman=deadman, republish=republish, world_grace=world_grace)
+    os.environ[SNAPSHOT_DIR] = str((out_dir / "maps").resolve())  # a learner's state: a restart goes on from it
+    launcher = Launcher(config, echo=lambda s: click.echo(s))
+    outcome = _launched(launcher)
+    if learn and not no_world:
+        add_launch_learning(out_dir, outcome, model_path)
+    if no_world:
+        click.echo(f"modules of {', '.join(only) if only else 'every robot'} stopped; "
+                   f"the world host writes the outcome")
+        if launcher.interrupted:
+            raise Interrupted()
+        return
+    _report(launcher, outcome, out_dir)
+
+
+def _check_hosts(scenario: str, known: list[str], only: tuple[str, ...] | None, no_world: bool,
+                 listen_host: str) -> None:
+    """``--robots`` names robots of the scenario, a ``--no-world`` host starts something, and
+    ``--listen`` is an IP address (or localhost)."""
     unknown = [r for r in only or () if r not in known]
     if unknown:
         raise click.BadParameter(f"{scenario} has no robot {', '.join(unknown)} (robots: {', '.join(known)})",
@@ -155,63 +196,55 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwr
         if listen_host != "localhost":
             raise click.BadParameter(f"{listen_host!r} is not an IP address (e.g. 127.0.0.1, or 0.0.0.0 to serve "
                                      f"other hosts)", param_hint="'--listen'") from None
-    if zenoh_config is not None:  # refuse a bad config file before any process starts
-        from cekm_swarm.runtime.config import client_config_from_file
-        from cekm_swarm.runtime.errors import RuntimeTransportError
 
-        try:
-            client_config_from_file(zenoh_config, connect or DEFAULT_ENDPOINT)
-        except RuntimeTransportError as exc:
-            raise click.UsageError(str(exc)) from None
-    from cekm_swarm.graph.spec import GraphError
 
-    from .errors import NodeCannotStart, NodeFailed
-    from .prepare import PreflightError, resolve
+def _check_zenoh_config(zenoh_config: Path | None, connect: str | None) -> None:
+    """A bad ``--config`` file is refused before any process starts."""
+    if zenoh_config is None:
+        return
+    try:
+        client_config_from_file(zenoh_config, connect or DEFAULT_ENDPOINT)
+    except RuntimeTransportError as exc:
+        raise click.UsageError(str(exc)) from None
 
-    params = None
-    if learn:
-        from cekm_swarm.experiments.learning_run import learning_controller, learning_params
 
-        controller, params = learning_controller(controller, graph_file), learning_params(model_path)
-    try:  # the graph, checked before anything is written or started
+def _checked_graph(sc: Any, controller: str, graph_file: Path | None,
+                   params: dict[str, Any] | None) -> tuple[CheckedGraph, str]:
+    """The controller's graph for the scenario and its task, checked and planned for its
+    robots; a bad graph refused naming its file."""
+    try:
         checked, task = resolve(sc, controller, graph_file, params)
         checked.plan([r.id for r in sc.robots], task)
     except GraphError as exc:
         raise FileRefused(str(exc)) from None
-    if plant is not None:  # a body the model does not fit, a lockstep run: refused before anything starts
-        from .plant_host import refuse_plant
+    return checked, task
+
+
+def _check_plant(sc: Any, checked: CheckedGraph, task: str, mode: str, plant: str | None,
+                 robot_description: Path | None) -> None:
+    """A ROS 2 plant's body the model does not fit, or a lockstep run on one, refused before
+    anything starts; ``--robot-description`` only with ``--plant ros2``."""
+    if plant is not None:
+        from .plant_host import refuse_plant  # noqa: PLC0415 -- lazy: the ROS 2 plant, only with --plant
 
         refuse_plant(sc, checked, task, mode, robot_description)
     elif robot_description is not None:
         raise click.UsageError("--robot-description describes a ROS 2 robot: use it with --plant ros2")
-    if model_path not in (None, UNTRAINED) and checked.uses_model:  # a bad model is refused before --overwrite clears --out
-        from .prepare import body_of, plan_of, preflight
 
-        body = body_of(sc)
-        preflight(checked, plan_of(checked, tuple(known), task, body, root), body, str(model_path))
-    if connect is None:  # a taken port is refused before --out is touched, so the retry with --port needs no --overwrite
-        from .prepare import port_taken
 
-        why = port_taken(listen_host, port)
-        if why is not None:
-            raise RunFailed(f"cannot open the Zenoh router on {listen_host}:{port}: {why}; port {port} is taken "
-                            f"(another run or program listens there): choose another with --port")
-    prepare_out_dir(out_dir, overwrite)
-    model_path = model_file_for_launch(model_path, out_dir)  # untrained maps: a file the nodes read
-    config = LaunchConfig(scenario, out_dir, mode=mode, seed=seed, connect=connect, port=port, model=model_path,
-                          max_time=max_time, controller=controller, graph=graph_file, root=root, plot=not no_plot,
-                          robots=only, world=not no_world, listen_host=listen_host, zenoh_config=zenoh_config,
-                          model_from_zenoh=model_from_zenoh, run_id=run_id, warm_start=not cold_start,
-                          hold_readings=not send_every_reading and plant is None, max_log_size=max_log_size,
-                          max_log_duration=max_log_duration, record=record, step_timeout=step_timeout, plant=plant,
-                          plant_domain=plant_domain, plant_distro=plant_distro, robot_description=robot_description,
-                          params=params, deadman=deadman, republish=republish, world_grace=world_grace)
-    from cekm_swarm.modules.learner import SNAPSHOT_DIR
+def _check_port(listen_host: str, port: int) -> None:
+    """The embedded router's port is free, or the run failed naming it."""
+    why = port_taken(listen_host, port)
+    if why is not None:
+        raise RunFailed(f"cannot open the Zenoh router on {listen_host}:{port}: {why}; port {port} is taken "
+                        f"(another run or program listens there): choose another with --port")
 
-    os.environ[SNAPSHOT_DIR] = str((out_dir / "maps").resolve())  # a learner's state: a restart goes on from it
-    launcher = Launcher(config, echo=lambda s: click.echo(s))
+
+def _launched(launcher: Any) -> dict[str, Any]:
+    """The launch run to its end, its outcome; each way it can fail as the one line and exit
+    code of its kind (bad input 2, a failed run 1)."""
     try:
-        outcome = launcher.launch()
+        return launcher.launch()
     except ValueError as exc:
         raise click.UsageError(str(exc)) from None
     except (GraphError, PreflightError, NodeCannotStart):  # bad input: cekm: error: <the one line>
@@ -220,15 +253,11 @@ def launch_cmd(scenario: str, mode: str, seed: int | None, out_dir: Path, overwr
         raise RunFailed(str(exc)) from None
     except CekmError as exc:  # the world server or the embedded router did not come up: say why, no traceback
         raise RunFailed(str(exc)) from None
-    if learn and not no_world:
-        from cekm_swarm.experiments.learning_commands import add_launch_learning
 
-        add_launch_learning(out_dir, outcome, model_path)
-    if no_world:
-        click.echo(f"modules of {', '.join(only) if only else 'every robot'} stopped; the world host writes the outcome")
-        if launcher.interrupted:
-            raise Interrupted()
-        return
+
+def _report(launcher: Any, outcome: dict[str, Any], out_dir: Path) -> None:
+    """What a world host's finished launch prints, and the exit it ends with (a full disk, no
+    outcome or an interruption)."""
     if launcher.log_full is not None:  # the log's disk filled: the run ended there, the log is closed
         for line in outcome_summary(outcome) if outcome.get("robots") else ():
             click.echo(line)
@@ -255,23 +284,24 @@ def outcome_summary(outcome: dict) -> list[str]:
     """The lines a finished launch prints: each robot, tracking's A, latency, in real time
     the deadline misses and the ticks they fell on, where a tick's CPU went and how much of
     the machine's time the host stole meanwhile, restarts."""
-    from world.outcome import MISSED_TICKS_KEPT
+    from world.episode import pushed_out_note  # noqa: PLC0415 -- lazy: the world's modules, not at cekm --help
+    from world.outcome import MISSED_TICKS_KEPT  # noqa: PLC0415 -- lazy: the world's modules
+    from world.tracking import tracking_summary  # noqa: PLC0415 -- lazy: the world's modules
 
     lines = []
     tracking = "tracking" in outcome  # docs/tracking.md
-    from world.episode import pushed_out_note
 
     for r, o in outcome["robots"].items():
         left = pushed_out_note(o)
         if tracking:
             lines.append(f"{r}: path {o['path_length_m']:.2f} m, {o['collisions']} collisions{left}")
         else:
-            hits = "collisions not known (a ROS 2 robot)" if o["collisions"] is None else f"{o['collisions']} collisions"
-            state = "" if o["reached"] is None else f"{'reached' if o['reached'] else 'NOT reached'} in {o['time_s']:.1f} s, "
+            hits = ("collisions not known (a ROS 2 robot)" if o["collisions"] is None
+                    else f"{o['collisions']} collisions")
+            state = ("" if o["reached"] is None
+                     else f"{'reached' if o['reached'] else 'NOT reached'} in {o['time_s']:.1f} s, ")
             lines.append(f"{r}: {state}path {o['path_length_m']:.2f} m, {hits}{left}")  # (None: a ROS 2 tracking robot)
     if tracking:
-        from world.tracking import tracking_summary
-
         lines.append(tracking_summary(outcome["tracking"], sum(o["collisions"] for o in outcome["robots"].values())))
     lat = outcome.get("sense_to_command_ms", {})
     if lat.get("n"):
@@ -310,15 +340,10 @@ def outcome_summary(outcome: dict) -> list[str]:
 
 @click.command("plot", epilog=LOG_HELP)
 @click.argument("log", metavar="LOG", type=click.Path(exists=True, path_type=Path))
-@click.option("--out", "out_path", type=click.Path(dir_okay=False, path_type=Path), required=True,
-              help="The PNG to write (replaced if it exists).")
+@out_file_option("The PNG to write (replaced if it exists).")
 @click.option("--title", help="Figure title.")
 def plot_cmd(log: Path, out_path: Path, title: str | None) -> None:
     """Draw the run recorded in LOG (an MCAP log of `cekm launch`): arena and robot paths."""
-    from cekm_swarm.runtime.mcap_sets import log_files
-
-    from .plot import plot_log
-
     prepare_figure_file(out_path)
     try:
         log_files(log)  # a directory with no log, or with several, is named before any work
@@ -338,6 +363,3 @@ def plot_cmd(log: Path, out_path: Path, title: str | None) -> None:
         raise RunFailed(str(exc)) from None
     fig.savefig(out_path, dpi=130)
     click.echo(f"wrote {out_path}")
-
-
-COMMANDS = [launch_cmd, plot_cmd, model_group]  # cekm model extract|lattice (docs/learning.md)

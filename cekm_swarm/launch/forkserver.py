@@ -29,9 +29,11 @@ launcher closes its end, the fork server exits.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import gc
 import json
 import os
+import runpy
 import select
 import signal
 import socket
@@ -54,17 +56,18 @@ def preload(spec_paths: Sequence[str]) -> list[str]:
     declares ``warm_setup`` (so a child finds all of it made); the names of what it
     loaded. What fails here is skipped: the nodes meet the error themselves and say it in
     their logs (a node that cannot start exits with its one line, as when exec'd)."""
-    import zenoh  # noqa: F401 - imported, never opened here
+    # importing is this function's job (the launcher imports this module for its name only)
+    import zenoh  # noqa: F401, PLC0415 -- preload: imported, never opened here
 
-    import cekm_swarm.node.process  # noqa: F401 - the node shell and what it imports
-    import cekm_swarm.runtime.bridge  # noqa: F401
-    import cekm_swarm.runtime.config  # noqa: F401
-    import cekm_swarm.runtime.gc_tuning  # noqa: F401
-    from cekm_swarm.errors import CekmError
-    from cekm_swarm.graph.check import node_class
-    from cekm_swarm.graph.runspec import RunSpec
-    from cekm_swarm.node.process import build_node
-    from cekm_swarm.protocol.codec import warm
+    import cekm_swarm.node.process  # noqa: F401, PLC0415 -- preload: the node shell and what it imports
+    import cekm_swarm.runtime.bridge  # noqa: F401, PLC0415 -- preload
+    import cekm_swarm.runtime.config  # noqa: F401, PLC0415 -- preload
+    import cekm_swarm.runtime.gc_tuning  # noqa: F401, PLC0415 -- preload
+    from cekm_swarm.errors import CekmError  # noqa: PLC0415 -- preload
+    from cekm_swarm.graph.check import node_class  # noqa: PLC0415 -- preload
+    from cekm_swarm.graph.runspec import RunSpec  # noqa: PLC0415 -- preload
+    from cekm_swarm.node.process import build_node  # noqa: PLC0415 -- preload
+    from cekm_swarm.protocol.codec import warm  # noqa: PLC0415 -- preload
 
     warm()  # every message kind's decoder and check, made once for every child
     loaded = ["cekm_swarm.node"]
@@ -79,8 +82,8 @@ def preload(spec_paths: Sequence[str]) -> list[str]:
             try:
                 cls = node_class(decl.program, spec.graph.source, decl.where)
                 loaded.append(decl.program)
-                first = next(((r, n.name) for r in plan.team for n in plan.nodes.get(r, ()) if n.decl.name == decl.name),
-                             None)
+                first = next(((r, n.name) for r in plan.team for n in plan.nodes.get(r, ())
+                              if n.decl.name == decl.name), None)
                 model_here = isinstance(spec.model, str) and spec.model != "zenoh"
                 if cls.warm_setup and first is not None and (model_here or not cls.uses_model):
                     _, runner = build_node(spec, plan, first[0], first[1], "numpy", spec.model)
@@ -110,14 +113,13 @@ class Server:
         self.wake = (wake_r, wake_w)
         while True:
             try:
-                ready, _, _ = select.select([self.sock, wake_r], [], [])
+                readers: list[Any] = [self.sock, wake_r]
+                ready, _, _ = select.select(readers, [], [])
             except InterruptedError:  # pragma: no cover - PEP 475 retries
                 continue
             if wake_r in ready:
-                try:
+                with contextlib.suppress(BlockingIOError):
                     os.read(wake_r, 4096)
-                except BlockingIOError:
-                    pass
                 self.reap()
             if self.sock in ready:
                 data = self.sock.recv(1 << 16)
@@ -179,8 +181,6 @@ def run_child(argv: list[str], log: str, env: dict[str, str] | None, close: Sequ
             os.environ.clear()
             os.environ.update(env)
         os.environ[PARENT_ENV] = str(os.getppid())  # dies with the fork server (lifetime)
-        import runpy
-
         sys.argv = [argv[2], *argv[3:]]
         try:
             runpy.run_module(argv[2], run_name="__main__", alter_sys=True)
@@ -203,7 +203,7 @@ def run_child(argv: list[str], log: str, env: dict[str, str] | None, close: Sequ
 def _set_title(argv: Sequence[str]) -> None:
     """The command line ``ps`` shows: the one the process would have had when exec'd."""
     try:
-        import setproctitle
+        import setproctitle  # noqa: PLC0415 -- optional at run time: without it ps shows the fork server
     except ImportError:  # pragma: no cover - a declared dependency; ps then shows the fork server's
         return
     setproctitle.setproctitle(" ".join(argv))

@@ -22,13 +22,15 @@ Warm start: the nodes are forked from a fork server that has imported them
 (:mod:`.forkserver`), each still its own process; ``--cold-start`` execs each afresh.
 
 Each child's output goes to ``OUT/logs/<robot>-<module>.log`` (``world.log`` for the
-world server, ``forkserver.log`` for the fork server); ``OUT/pids.json`` holds the live process ids; ``OUT/launch.log`` the
-launcher's own record; ``outcome.json`` gets the run id and the launcher's record.
+world server, ``forkserver.log`` for the fork server); ``OUT/pids.json`` holds the live process
+ids; ``OUT/launch.log`` the launcher's own record; ``outcome.json`` gets the run id and the
+launcher's record.
 """
 
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import json
 import signal
 import threading
@@ -36,8 +38,10 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO
 
+from cekm_swarm.experiments.graph_run import default_max_time
+from cekm_swarm.experiments.navigation_run import planned_checkpoints
 from cekm_swarm.protocol import DEFAULT_ROOT, KeySpace
 from cekm_swarm.runtime.bridge import LivelinessWatcher
 from cekm_swarm.runtime.config import DEFAULT_HOST, DEFAULT_PORT, open_embedded_router
@@ -45,10 +49,12 @@ from cekm_swarm.runtime.errors import RuntimeTransportError
 from cekm_swarm.runtime.model_service import ZENOH_MODEL, ModelServer
 from cekm_swarm.runtime.wait import open_client_when_ready
 from cekm_swarm.ticks import STEP_TIMEOUT, tick_of
+from world import load_scenario
 
 from .cpu import CpuSnapshot, cpu_per_tick
 from .errors import LaunchError, NodeCannotStart, NodeFailed
 from .plot import draw_trajectory
+from .prepare import PreflightError, body_of, plan_of, preflight, resolve, run_spec
 from .processes import new_run_id
 from .reports import missing_by_robot, node_summary, notable, read_reports, reproducible, summary_lines
 from .robot_host import RobotHost
@@ -94,6 +100,12 @@ class LaunchConfig:
     step_timeout: float | None = STEP_TIMEOUT  # lockstep: s a tick may wait on a hung step before the run fails
 
 
+def _close(thing: Any) -> None:
+    """``thing.close()``, for a part of the launch that may not have been made."""
+    if thing is not None:
+        thing.close()
+
+
 class Launcher(Supervision, WorldHost, RobotHost):
     """A launch: its steps here, the supervision of its nodes (:mod:`.supervision`), its
     world server (:mod:`.world_host`) and a robots-only host's side (:mod:`.robot_host`)."""
@@ -107,7 +119,7 @@ class Launcher(Supervision, WorldHost, RobotHost):
         self.world_proc: asyncio.subprocess.Process | None = None
         self.interrupted = False
         self._stop_waiting = threading.Event()  # set by Ctrl-C: a wait for the router ends at once
-        self._log = None
+        self._log: TextIO | None = None
         self.startup_s: float | None = None
         self.run_id: str | None = None
         self.all_robots: list[str] = []
@@ -169,10 +181,8 @@ class Launcher(Supervision, WorldHost, RobotHost):
         finally:
             if self._log is not None:
                 log, self._log = self._log, None  # a signal handled after this writes to the terminal only
-                try:
+                with contextlib.suppress(OSError):
                     log.close()
-                except OSError:
-                    pass
 
     # ------------------------------------------------------------------ steps
 
@@ -180,20 +190,16 @@ class Launcher(Supervision, WorldHost, RobotHost):
         """The output directory, its ``logs/`` and the launcher's own record."""
         self.c.out.mkdir(parents=True, exist_ok=True)
         (self.c.out / "logs").mkdir(exist_ok=True)
-        self._log = open(self.c.out / "launch.log", "a")
+        self._log = open(self.c.out / "launch.log", "a")  # noqa: SIM115 -- open for the launch, closed in launch()
 
     def _catch_signals(self) -> None:
         loop = asyncio.get_running_loop()
         for sig in (signal.SIGTERM, signal.SIGINT):
-            try:
+            with contextlib.suppress(NotImplementedError, RuntimeError):  # pragma: no cover - not on Linux
                 loop.add_signal_handler(sig, self._interrupt)
-            except (NotImplementedError, RuntimeError):  # pragma: no cover
-                pass
 
     def _resolve_robots(self) -> tuple[Any, list[str]]:
         """The scenario, and the robots whose modules start here (ValueError: an unknown one)."""
-        from world import load_scenario
-
         c = self.c
         scenario = load_scenario(c.scenario)
         self.all_robots = [r.id for r in scenario.robots]
@@ -204,13 +210,11 @@ class Launcher(Supervision, WorldHost, RobotHost):
 
     def _resolve_graph(self, scenario) -> None:
         """The controller's graph, checked and resolved for the team (GraphError: refused now)."""
-        from .prepare import body_of, plan_of, resolve
-
         c = self.c
         self.checked, self.task = resolve(scenario, c.controller, c.graph, c.params)
         self.body = body_of(scenario)
         if c.plant:  # a ROS 2 robot: its declared body, refused when the model was trained for another
-            from .plant_host import plant_description
+            from .plant_host import plant_description  # noqa: PLC0415 -- lazy: rosbags
 
             self.plant_desc = plant_description(scenario, c.robot_description, self.body, self.checked.uses_model,
                                                 self.task)
@@ -219,15 +223,11 @@ class Launcher(Supervision, WorldHost, RobotHost):
         for w in self.plan.warnings:
             self.say(f"warning: {w}")
         if c.max_time is None:
-            from cekm_swarm.experiments.graph_run import default_max_time
-
             c.max_time = default_max_time(self.task)
 
     def _preflight(self, model) -> None:
         """One node of every kind built here: a bad model or parameter is refused before
         any process starts (a robot host fetching the model checks it when it has it)."""
-        from .prepare import PreflightError, preflight
-
         if model == ZENOH_MODEL:
             return
         try:
@@ -240,11 +240,10 @@ class Launcher(Supervision, WorldHost, RobotHost):
 
     def _write_spec(self, model, endpoint: str) -> Path:
         """``OUT/run-spec.json``: what every process of this launch reads."""
-        from .prepare import run_spec
-
         c = self.c
+        zenoh_config = None if c.zenoh_config is None else str(c.zenoh_config)
         spec = run_spec(self.checked, tuple(self.all_robots), self.task, self.body, root=c.root, run_id=self.run_id,
-                        mode=c.mode, connect=endpoint, zenoh_config=None if c.zenoh_config is None else str(c.zenoh_config),
+                        mode=c.mode, connect=endpoint, zenoh_config=zenoh_config,
                         model=None if model is None else str(model), hold_readings=c.hold_readings)
         self.spec_path = spec.write(c.out / "run-spec.json")
         return self.spec_path
@@ -259,7 +258,7 @@ class Launcher(Supervision, WorldHost, RobotHost):
             return c.model
         if c.model_from_zenoh and not c.world:
             return ZENOH_MODEL  # a robot host: the world host's launcher serves the model
-        from cekm_swarm.experiments.default_model import default_model, default_model_path
+        from cekm_swarm.experiments.default_model import default_model, default_model_path  # noqa: PLC0415 -- lazy: scipy
 
         default_model()
         return default_model_path()
@@ -268,7 +267,6 @@ class Launcher(Supervision, WorldHost, RobotHost):
         """Checkpoints on the known walls (Fig. 12) for a ``plan_checkpoints`` scenario, as a file."""
         if not scenario.plan_checkpoints:
             return None
-        from cekm_swarm.experiments.navigation_run import planned_checkpoints
 
         path = self.c.out / "checkpoints.json"
         path.write_text(json.dumps(planned_checkpoints(scenario)))
@@ -297,7 +295,7 @@ class Launcher(Supervision, WorldHost, RobotHost):
     def _local_host(self) -> str:
         return DEFAULT_HOST if self.c.listen_host in ("0.0.0.0", "::") else self.c.listen_host
 
-    async def _bring_up(self, scenario, robots: list[str], model: Path | str, checkpoints: Path | None,
+    async def _bring_up(self, scenario, robots: list[str], model: Path | str | None, checkpoints: Path | None,
                         endpoint: str) -> None:
         """Start everything, wait for the modules, then follow the run to its end."""
         c = self.c
@@ -311,6 +309,7 @@ class Launcher(Supervision, WorldHost, RobotHost):
                                     hosts_router=self._world_hosts_router, checkpoints=checkpoints)
             if self.interrupted:
                 return
+            assert self.world_proc is not None and self.world_proc.stdout is not None  # _start_world started it
             self.world_reader = asyncio.ensure_future(self._read_world(self.world_proc.stdout))
             if self._world_hosts_router:
                 also = "" if self._local_host == c.listen_host else f" (listening on tcp/{c.listen_host}:{c.port})"
@@ -346,6 +345,7 @@ class Launcher(Supervision, WorldHost, RobotHost):
             return
         if expected <= self.watcher.alive:
             self.say(f"all {len(expected)} modules alive after {self.startup_s:.1f} s; the world starts")
+        assert self.world_reader is not None and self.world_proc is not None  # a world host's, started above
         await self.world_reader
         code = await self.world_proc.wait()
         if code not in (0, 3, 4):  # 4: the log's disk filled, the world closed the log and ended the run
@@ -373,21 +373,23 @@ class Launcher(Supervision, WorldHost, RobotHost):
         t0 = loop.time()
         deadline = t0 + timeout + (5.0 if self.c.world else 0.0)
         next_report = loop.time() + self.wait_report_every
-        while not expected <= self.watcher.alive and not self.stopping and not self._world_ended():
+        watcher = self.watcher
+        assert watcher is not None  # made before the modules are spawned
+        while not expected <= watcher.alive and not self.stopping and not self._world_ended():
             try:
-                await self.watcher.next_event(timeout=max(0.1, min(1.0, deadline - loop.time())))
-            except asyncio.TimeoutError:
+                await watcher.next_event(timeout=max(0.1, min(1.0, deadline - loop.time())))
+            except TimeoutError:
                 if loop.time() > deadline:
                     break
-            if loop.time() >= next_report and not expected <= self.watcher.alive:
-                self.say(f"waiting for {missing_by_robot(self.keys, self.plan, expected - self.watcher.alive)} ...")
+            if loop.time() >= next_report and not expected <= watcher.alive:
+                self.say(f"waiting for {missing_by_robot(self.keys, self.plan, expected - watcher.alive)} ...")
                 next_report = loop.time() + self.wait_report_every
-        missing = expected - self.watcher.alive
+        missing = expected - watcher.alive
         if missing and not self.stopping and loop.time() - t0 >= timeout - 0.5:  # (not a world that crashed)
-            if self._world_ended():
+            if self._world_ended() and self.world_reader is not None:
                 await self.world_reader  # its last lines (the missing nodes, its outcome) come first
-            raise LaunchError(f"not alive after {timeout:.0f} s: {missing_by_robot(self.keys, self.plan, missing)}; is every robot host "
-                              f"started (cekm launch --no-world --robots ...)?")
+            raise LaunchError(f"not alive after {timeout:.0f} s: {missing_by_robot(self.keys, self.plan, missing)}; "
+                              f"is every robot host started (cekm launch --no-world --robots ...)?")
         return not self.stopping
 
     async def _teardown(self) -> None:
@@ -400,8 +402,8 @@ class Launcher(Supervision, WorldHost, RobotHost):
             ("stop the modules", self._stop_children),
             ("cancel the supervisors", lambda: [t.cancel() for t in self.supervisors]),
             ("stop reading the world", lambda: self.world_reader is not None and self.world_reader.cancel()),
-            ("close the liveliness watcher", lambda: self.watcher is not None and self.watcher.close()),
-            ("close the model server", lambda: self.model_server is not None and self.model_server.close()),
+            ("close the liveliness watcher", lambda: _close(self.watcher)),
+            ("close the model server", lambda: _close(self.model_server)),
             ("close the Zenoh session", lambda: self.session is not None and self.session.close()),
             ("close the embedded router", lambda: self.router is not None and self.router.close()),
         ]
@@ -419,7 +421,7 @@ class Launcher(Supervision, WorldHost, RobotHost):
             self.world_proc.send_signal(signal.SIGTERM)
             try:
                 await asyncio.wait_for(self.world_proc.wait(), 15.0)
-            except asyncio.TimeoutError:
+            except TimeoutError:
                 self.world_proc.kill()
 
     def _finish_outcome(self, failure: str | None = None) -> dict[str, Any]:

@@ -14,9 +14,15 @@ import sys
 from pathlib import Path
 from typing import Any
 
+import click
+
 from cekm_swarm.errors import CekmError
 from cekm_swarm.robot import RobotBody
 from cekm_swarm.ros2.plant import RobotDescription, check_body, load_description
+from cekm_swarm.ros2.plant_server import PlantConfig
+from world import World, load_scenario
+
+from .prepare import body_of
 
 PLANTS = ("ros2",)
 
@@ -35,7 +41,8 @@ def plant_description(scenario: Any, description: Path | None, trained: RobotBod
 def goals_of(scenario: Any) -> tuple[dict[str, list[float] | None], dict[str, str]]:
     """Each robot's goal (x, y) from the scenario (None: it takes one from ``goal_pose``) and its target id."""
     targets = {t.id: t for t in scenario.targets}
-    goals, ids = {}, {}
+    goals: dict[str, list[float] | None] = {}
+    ids: dict[str, str] = {}
     for r in scenario.robots:
         if r.goal is None:
             goals[r.id] = None
@@ -47,9 +54,6 @@ def goals_of(scenario: Any) -> tuple[dict[str, list[float] | None], dict[str, st
 
 def plant_argv(launcher: Any, where: str, hosts_router: bool) -> list[str]:
     """Write ``OUT/plant.json`` for ``launcher``'s run and return the plant's command line."""
-    from cekm_swarm.ros2.plant_server import PlantConfig
-    from world import World, load_scenario
-
     c = launcher.c
     sc = load_scenario(c.scenario)
     goals, ids = goals_of(sc)
@@ -68,9 +72,6 @@ def plant_argv(launcher: Any, where: str, hosts_router: bool) -> list[str]:
 def refuse_plant(scenario: Any, checked: Any, task: str, mode: str, description: Path | None) -> None:
     """``cekm launch --plant ros2``'s checks before anything is written or started, each a
     one-line usage error: a real-time run, a readable description whose body fits the model."""
-    import click
-
-    from .prepare import body_of
 
     if mode != "realtime":
         raise click.UsageError("--plant ros2 runs in real time (a robot does not wait for lockstep ticks): "

@@ -7,18 +7,18 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
-from cekm_swarm.protocol import DEFAULT_ROOT, KeyKind, KeySpace, MessageError, decode
-from cekm_swarm.runtime.mcap_log import read_messages, without_resends
+from mcap.reader import make_reader
+
+from cekm_swarm.protocol import DEFAULT_ROOT, KeyKind, KeySpace, MessageError, WorldState, decode
+from cekm_swarm.runtime.mcap_log import log_root, read_messages, without_resends
+from cekm_swarm.runtime.mcap_sets import log_files
 
 
 def read_geometry(path: str | Path) -> dict[str, Any] | None:
     """The geometry the world server recorded (metadata ``geometry``), None if absent.
     ``path``: a file, or a log set (its directory or first file), whose every file holds it."""
-    from mcap.reader import make_reader
-
-    from cekm_swarm.runtime.mcap_sets import log_files
 
     try:
         with open(log_files(path)[0], "rb") as f:
@@ -34,8 +34,6 @@ def read_run(path: str | Path, keys: KeySpace | None = None) -> dict[str, Any]:
     """Per robot the poses (t, x, y, theta) and per target the positions (x, y) from
     ``world/state``, and the last state; ``keys``: default, the log's own root."""
     if keys is None:
-        from cekm_swarm.runtime.mcap_log import log_root
-
         keys = KeySpace(log_root(path) or DEFAULT_ROOT)
     paths: dict[str, list[tuple[float, float, float, float]]] = {}
     target_paths: dict[str, list[tuple[float, float]]] = {}
@@ -43,7 +41,7 @@ def read_run(path: str | Path, keys: KeySpace | None = None) -> dict[str, Any]:
     state_key = keys.world_state()
     for m in without_resends(read_messages(path, topics=[state_key])):  # one state a tick
         try:
-            msg = decode(KeyKind.WORLD_STATE, m.data, keys=keys)
+            msg = cast(WorldState, decode(KeyKind.WORLD_STATE, m.data, keys=keys))
         except MessageError:
             continue
         for rid, r in msg.robots.items():
@@ -66,7 +64,7 @@ def plot_log(path: str | Path, title: str | None = None, outcome: dict[str, Any]
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from world.draw import draw_paths, draw_tracking, draw_world, figure_size, fit_bounds, legend_outside, robot_colours
+    from world.draw import draw_paths, draw_tracking, draw_world, figure_size, fit_bounds, legend_outside, robot_colours  # noqa: PLC0415 -- lazy: matplotlib, pymunk, world
 
     run = read_run(path)
     geometry = run["geometry"]
@@ -83,7 +81,7 @@ def plot_log(path: str | Path, title: str | None = None, outcome: dict[str, Any]
         ax.set_ylabel("y (m)")
     paths = {rid: ([p[0] for p in ps], [p[1] for p in ps], [p[2] for p in ps]) for rid, ps in run["paths"].items()}
     step = draw_paths(ax, paths, colours, labels)
-    points = [(x, y) for _, xs, ys in paths.values() for x, y in zip(xs, ys)]
+    points = [(x, y) for _, xs, ys in paths.values() for x, y in zip(xs, ys, strict=True)]
     goals = {r["goal"] for r in (geometry or {}).get("robots", []) if r.get("goal")}
     tracked = {tid: ps for tid, ps in run["target_paths"].items() if tid not in goals}
     if tracked:  # a tracking run: the targets are followed, not reached

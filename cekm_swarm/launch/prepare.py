@@ -7,16 +7,19 @@ run spec every process of the launch reads (``OUT/run-spec.json``)."""
 from __future__ import annotations
 
 import logging
+import socket
 from pathlib import Path
 from typing import Any
 
 from cekm_swarm.errors import CekmError
+from cekm_swarm.experiments.graph_run import resolve_graph, robot_body, with_params
 from cekm_swarm.graph.check import CheckedGraph
 from cekm_swarm.graph.plan import RunPlan
 from cekm_swarm.graph.runspec import RunSpec
 from cekm_swarm.graph.spec import GraphError
 from cekm_swarm.node.api import Context, cannot_start, traceback_text
 from cekm_swarm.protocol import KeySpace
+from cekm_swarm.protocol.user import user_schemas
 from cekm_swarm.robot import RobotBody
 
 
@@ -32,8 +35,7 @@ class PreflightError(CekmError):
 def resolve(scenario: Any, controller: str | None, graph: str | Path | None,
             params: dict[str, Any] | None = None) -> tuple[CheckedGraph, str]:
     """The checked graph of ``--controller``/``--graph`` for the scenario, and the task."""
-    from cekm_swarm.experiments.graph_run import resolve_graph, with_params
-    from world.tracking import run_kind
+    from world.tracking import run_kind  # noqa: PLC0415 -- lazy: pymunk, world
 
     task = run_kind(scenario)
     return with_params(resolve_graph(controller, None if graph is None else str(graph), task), params), task
@@ -41,8 +43,7 @@ def resolve(scenario: Any, controller: str | None, graph: str | Path | None,
 
 def body_of(scenario: Any) -> RobotBody:
     """What a robot's nodes know of their body and sensors, from the scenario's world."""
-    from cekm_swarm.experiments.graph_run import robot_body
-    from world import World
+    from world import World  # noqa: PLC0415 -- lazy: pymunk, world
 
     return robot_body(World(scenario))
 
@@ -72,9 +73,8 @@ def preflight(checked: CheckedGraph, plan: RunPlan, body: RobotBody, model: Any)
 
 def run_spec(checked: CheckedGraph, team: tuple[str, ...], task: str, body: RobotBody, **settings: Any) -> RunSpec:
     """The run spec of a launch (see :mod:`cekm_swarm.graph.runspec`)."""
-    from cekm_swarm.protocol.user import user_schemas
-
-    types = [p.type for cls in checked.classes.values() for p in (*cls.inputs.values(), *cls.outputs.values())]
+    types = [t for cls in checked.classes.values()
+             for t in (*(p.type for p in cls.inputs.values()), *(p.type for p in cls.outputs.values()))]
     return RunSpec(checked.graph, dict(checked.ports), {k: dict(v) for k, v in checked.params.items()}, tuple(team),
                    task, body, **settings, schemas=user_schemas(types))
 
@@ -91,8 +91,6 @@ def port_taken(host: str, port: int) -> str | None:
     """Why the embedded router could not listen on ``host:port`` (the OS's words, say
     "Address already in use"), None when it could: probed by binding it a moment, as the
     router would (a race with another program remains, and the launch then says so)."""
-    import socket
-
     family = socket.AF_INET6 if ":" in host.strip("[]") else socket.AF_INET
     with socket.socket(family, socket.SOCK_STREAM) as s:
         s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)

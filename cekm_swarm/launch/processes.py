@@ -19,6 +19,7 @@ from typing import Any
 
 from cekm_swarm.node.process import node_argv
 from cekm_swarm.runtime.lifetime import child_env
+from world.server import server_argv as world_argv
 
 __all__ = ["child_env", "new_run_id", "node_argv", "server_argv"]
 
@@ -30,6 +31,4 @@ def new_run_id() -> str:
 
 def server_argv(**values: Any) -> list[str]:
     """The world server's command line (its declared parameters, ``world.server.WORLD_PARAMS``)."""
-    from world.server import server_argv as world_argv
-
     return world_argv(**values)

@@ -6,7 +6,9 @@ for it and the world to come back."""
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import time
+from collections.abc import Callable
 from typing import Any
 
 from cekm_swarm.runtime.bridge import LivelinessWatcher
@@ -24,6 +26,10 @@ class RobotHost:
     keys: Any
     session: Any
     stopping: bool
+    # what it shares with the rest of the launcher (declared here, set and defined there)
+    say: Callable[[str], None]
+    _choose_run_id: Callable[[], None]
+    startup_s: float | None
 
     async def _join_run_id(self) -> None:
         """A robots-only host: the run id given, or the one the world server's token carries."""
@@ -45,10 +51,8 @@ class RobotHost:
                                       f"give --run-id")
                 if runs:
                     return runs[0]
-                try:
+                with contextlib.suppress(asyncio.TimeoutError):
                     await watcher.next_event(timeout=1.0)
-                except asyncio.TimeoutError:
-                    pass
         return None
 
 
@@ -65,9 +69,10 @@ class RobotHost:
         while not self.stopping:
             try:
                 event = await watcher.next_event(timeout=1.0)
-            except asyncio.TimeoutError:
+            except TimeoutError:
                 if seen and not session.info.routers_zid():
-                    if await self._router_back(watcher, world_key, session) or await self._world_back(watcher, world_key):
+                    if (await self._router_back(watcher, world_key, session)
+                            or await self._world_back(watcher, world_key)):
                         continue
                     self.say("the world server has ended (its host's Zenoh router is gone)")
                     return
@@ -121,7 +126,7 @@ class RobotHost:
         t0 = time.monotonic()
         try:
             await watcher.wait_for(world_key, True, limit)
-        except asyncio.TimeoutError:
+        except TimeoutError:
             return False
         self.say(f"{back} {time.monotonic() - t0:.1f} s")
         return True

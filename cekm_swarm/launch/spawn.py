@@ -7,6 +7,7 @@ fork server is not there). Both give a handle with what supervision uses of
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import json
 import os
 import signal
@@ -73,7 +74,7 @@ class ForkServer:
         return self.proc.returncode is None and not self.reading.done()
 
     @classmethod
-    async def start(cls, specs: list[Path], log_path: Path, run_id: str | None = None) -> "ForkServer":
+    async def start(cls, specs: list[Path], log_path: Path, run_id: str | None = None) -> ForkServer:
         """Start the fork server (preloading ``specs``) and wait until it is ready."""
         ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_STREAM)
         argv = [sys.executable, "-m", FORK_SERVER_MODULE, "--fd", str(theirs.fileno())]
@@ -118,9 +119,9 @@ class ForkServer:
                         else:
                             fut.set_exception(OSError(doc.get("error", "the fork server refused")))
                 elif "pid" in doc:
-                    child = self.children.pop(int(doc["pid"]), None)
-                    if child is not None:
-                        child._ended(int(doc["code"]))
+                    pid = int(doc["pid"])
+                    if pid in self.children:
+                        self.children.pop(pid)._ended(int(doc["code"]))
         finally:
             await self._orphaned()
 
@@ -153,13 +154,11 @@ class ForkServer:
 
     async def close(self) -> None:
         """Close our end: the server exits (any child still alive dies with it)."""
-        try:
+        with contextlib.suppress(Exception):  # closing twice or after its end
             self.writer.close()
-        except Exception:  # noqa: BLE001 - closing twice or after its end
-            pass
         try:
             await asyncio.wait_for(self.proc.wait(), 5.0)
-        except asyncio.TimeoutError:
+        except TimeoutError:
             self.proc.kill()
             await self.proc.wait()
         self.reading.cancel()

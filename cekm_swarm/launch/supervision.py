@@ -1,7 +1,8 @@
 """The launcher's supervision of its node processes: start each with its log (forked warm
-from the fork server, :mod:`.spawn`), restart one that dies with back-off (0.25 s, doubling while it keeps dying within 5 s of starting, at
-most 5 s; logged), end the launch at once when one cannot start (its own line), stop them
-all (SIGTERM, SIGKILL after 5 s), and keep ``OUT/pids.json`` current.
+from the fork server, :mod:`.spawn`), restart one that dies with back-off (0.25 s, doubling
+while it keeps dying within 5 s of starting, at most 5 s; logged), end the launch at once
+when one cannot start (its own line), stop them all (SIGTERM, SIGKILL after 5 s), and keep
+``OUT/pids.json`` current.
 
 In lockstep a node that dies at the same tick every time (a crash in a C extension, an
 ``os._exit`` in its step) would be restarted forever, the world waiting at that tick: the
@@ -13,12 +14,15 @@ Real time goes on restarting."""
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import json
 import signal
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
+
+import zenoh
 
 from cekm_swarm.errors import CekmError
 from cekm_swarm.node.process import (
@@ -30,6 +34,8 @@ from cekm_swarm.node.process import (
     STEP_FAILED,
 )
 from cekm_swarm.node.timing import lost_on_restart
+from cekm_swarm.protocol import Clock, KeyKind, decode
+from cekm_swarm.runtime.bridge import AsyncSubscription
 from cekm_swarm.runtime.lifetime import child_env
 from cekm_swarm.ticks import tick_time
 
@@ -87,7 +93,7 @@ class Supervision:
     supervisors: list[asyncio.Future]
     plan: Any
     checked: Any
-    spec_path: Path
+    spec_path: Path | None
     run_id: str | None
     wait_report_every: float
     fork_server: ForkServer | None = None
@@ -152,7 +158,7 @@ class Supervision:
         child.started = time.monotonic()
         self._write_pids()
 
-    async def _spawn_modules(self, scenario, robots: list[str], model: Path | str, endpoint: str) -> None:
+    async def _spawn_modules(self, scenario, robots: list[str], model: Path | str | None, endpoint: str) -> None:
         """Start every node process of ``robots`` (the graph's node instances), each under a supervisor."""
         c = self.c
         for r in robots:
@@ -161,8 +167,8 @@ class Supervision:
                 child = Child(r, node.name, argv, c.out / "logs" / f"{r}-{node.name}.log",
                               stateful=node.stateful or bool(lost_on_restart(node)))
                 self.children[child.label] = child
-        self.say(f"{scenario.name}: {self.checked.graph.name} ({self.checked.graph.controller}), {len(robots)} robot(s), "
-                 f"starting {len(self.children)} node processes ({c.mode})")
+        self.say(f"{scenario.name}: {self.checked.graph.name} ({self.checked.graph.controller}), "
+                 f"{len(robots)} robot(s), starting {len(self.children)} node processes ({c.mode})")
         if len(self.children) > MEASURED_PROCESSES:
             self.say(f"note: {len(self.children)} node processes is more than this runtime has been measured with "
                      f"({MEASURED_PROCESSES}: 32 robots on 2 cores, docs/performance.md); starting and stopping them "
@@ -279,16 +285,12 @@ class Supervision:
     async def _world_tick(self) -> int | None:
         """The tick of the world's next clock message (None when none comes in time: the
         world ended, or its messages do not reach this launcher)."""
-        import zenoh
-
-        from cekm_swarm.protocol import KeyKind, decode
-        from cekm_swarm.runtime.bridge import AsyncSubscription
 
         try:
             with AsyncSubscription(self.session, self.keys.world_clock(), maxsize=1) as sub:
                 rec = await sub.get(timeout=2 * self.c.republish + 1.0)
-            return int(decode(KeyKind.WORLD_CLOCK, rec.payload).tick)
-        except (asyncio.TimeoutError, CekmError, ValueError, zenoh.ZError):
+            return int(cast(Clock, decode(KeyKind.WORLD_CLOCK, rec.payload)).tick)
+        except (TimeoutError, CekmError, ValueError, zenoh.ZError):
             return None
 
     @staticmethod
@@ -315,28 +317,22 @@ class Supervision:
     async def _stop_children(self) -> None:
         procs = [c.proc for c in self.children.values() if c.proc is not None and c.proc.returncode is None]
         for p in procs:
-            try:
+            with contextlib.suppress(ProcessLookupError):
                 p.send_signal(signal.SIGTERM)
-            except ProcessLookupError:
-                pass
         if procs:
             _, pending = await asyncio.wait([asyncio.ensure_future(p.wait()) for p in procs], timeout=STOP_GRACE)
             for p in procs:
                 if p.returncode is None:
-                    try:
+                    with contextlib.suppress(ProcessLookupError):
                         p.kill()
-                    except ProcessLookupError:
-                        pass
             if pending:
                 await asyncio.wait(pending, timeout=STOP_GRACE)
         await self._close_fork_server()
 
     async def _close_fork_server(self) -> None:
         if self.fork_server_start is not None:  # still starting: let it finish, then close it
-            try:
+            with contextlib.suppress(OSError):
                 self.fork_server = await self.fork_server_start
-            except OSError:
-                pass
             self.fork_server_start = None
         if self.fork_server is not None:
             await self.fork_server.close()

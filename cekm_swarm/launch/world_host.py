@@ -6,12 +6,16 @@ from __future__ import annotations
 
 import asyncio
 import json
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from cekm_swarm.errors import CekmError
+from cekm_swarm.runtime.mcap_log import recover_log
+from cekm_swarm.runtime.mcap_read import file_complete
+from cekm_swarm.runtime.mcap_sets import log_files
 
-from .cpu import snapshot
+from .cpu import CpuSnapshot, snapshot
 from .errors import LaunchError
 from .processes import child_env, server_argv
 
@@ -65,7 +69,8 @@ def format_event(doc: dict[str, Any]) -> str:
     elif what == "goal" and isinstance(doc.get("goal"), list) and len(doc["goal"]) == 2:  # a ROS 2 goal_pose
         said = f"{doc.get('robot')}'s goal is now ({float(doc['goal'][0]):.2f}, {float(doc['goal'][1]):.2f})"
     elif what == "republish":
-        said = f"waiting for {', '.join(map(str, doc.get('waiting') or [])) or 'nobody'}, the tick's readings sent again"
+        waiting = ", ".join(map(str, doc.get("waiting") or [])) or "nobody"
+        said = f"waiting for {waiting}, the tick's readings sent again"
     else:
         said = ", ".join(f"{k} {', '.join(map(str, v)) if isinstance(v, list) else v}" for k, v in doc.items()
                          if k not in ("event", "t", "wall"))
@@ -80,6 +85,16 @@ class WorldHost:
     _stall: tuple[float, int] = (-1.0, 0)  # (the stalled tick's time, how many re-publishings of it)
 
     failure: str | None
+    log_full: str | None
+    # what it shares with the rest of the launcher (declared here, set and defined there)
+    say: Callable[[str], None]
+    _pids: Callable[[], dict[str, int]]
+    _write_pids: Callable[[], None]
+    spec_path: Path | None
+    run_id: str | None
+    interrupted: bool
+    _cpu_start: CpuSnapshot | None
+    _cpu_end: CpuSnapshot | None
 
     def _name_stalled(self, robots: list[str], t: float, end: bool = False) -> Any:  # pragma: no cover - the launcher's
         raise NotImplementedError
@@ -122,7 +137,8 @@ class WorldHost:
             elif kind == "DONE" and doc is not None:
                 if self._cpu_start is not None and self._cpu_end is None:
                     self._cpu_end = snapshot(self._pids(), self._world_cpu(doc))
-                self.say(f"world done at t={doc['sim_seconds']:.2f} s of sim time, {doc['wall_seconds']:.1f} s of wall time")
+                self.say(f"world done at t={doc['sim_seconds']:.2f} s of sim time, "
+                         f"{doc['wall_seconds']:.1f} s of wall time")
             elif text:
                 self.say(f"world: {text}")
 
@@ -142,7 +158,7 @@ class WorldHost:
         session is open, so modules can join. Returns early if interrupted meanwhile."""
         c = self.c
         if c.plant:  # robots in ROS 2: the plant process in the world's place (launch.plant_host)
-            from .plant_host import plant_argv
+            from .plant_host import plant_argv  # noqa: PLC0415 -- lazy: rosbags
         world_argv = plant_argv(self, where, hosts_router) if c.plant else server_argv(
             scenario=c.scenario, spec=self.spec_path, listen=where if hosts_router else None,
             connect=None if hosts_router else where,
@@ -176,13 +192,9 @@ class WorldHost:
         """The world server ended abnormally (killed, crashed): say so, and make ``run.mcap``
         a complete, indexed log again if the world could not close it (the cut file is kept
         as ``run.truncated.mcap``). The run ends: nothing else can tick the world."""
-        from cekm_swarm.runtime.mcap_log import recover_log
-        from cekm_swarm.runtime.mcap_read import file_complete
-
         c = self.c
         why = f"was killed by signal {-code}" if code < 0 else f"ended with exit code {code}"
         self.say(f"the world server {why}; the run ends (see {c.out / 'logs' / 'world.log'})")
-        from cekm_swarm.runtime.mcap_sets import log_files
 
         try:  # run.mcap, or each file of a log set (run_0.mcap, ...): the world had one open
             paths = log_files(c.out / "run.mcap") if (c.out / "run.mcap").is_file() else \

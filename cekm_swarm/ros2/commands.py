@@ -141,6 +141,3 @@ def bridge_cmd(endpoint: str | None, config_file: Path | None, wait_s: float, do
         click.echo(f"ros2 bridge: {report['received']} run messages ({report['dropped']} malformed dropped), "
                    f"{report['published']} ROS 2 messages on {report['topics']} topics{teleop_text}")
 
-
-COMMANDS: list[click.Command] = [ros2_group]
-"""Commands for the ``cekm`` group; ``export_cmd`` goes into the ``log`` group."""

@@ -7,7 +7,15 @@ from pathlib import Path
 
 import click
 
-from ..cli_support import SEED, Finite
+from ..cli_support import Finite, seed_option
+from ..errors import ParameterError
+from ..experiments.learning_commands import model_option
+from ..jsonfile import dumps
+
+
+def _text(path: Path | None) -> str | None:
+    """A model path as the rollouts' jobs carry it (text, the key of their model cache)."""
+    return None if path is None else str(path)
 
 
 @click.group("tune")
@@ -20,28 +28,32 @@ def tune_group() -> None:
               help="Train the navigation policy (generated obstacle geometries) or the tracking one (grid cells).")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), required=True,
               help="Directory of the training; run the same command again to resume it after a kill.")
-@click.option("--seed", type=SEED, default=1, show_default=True, help="CMA-ES seed.")
+@seed_option(1, "CMA-ES seed.")
 @click.option("--generations", type=click.IntRange(min=1), help="Generations (default 30 navigation, 15 tracking).")
-@click.option("--popsize", type=click.IntRange(min=1), help="Candidates per generation (default 12 navigation, 8 tracking).")
-@click.option("--sigma0", type=Finite(min=0.0, min_open=True), default=0.5, show_default=True, help="CMA-ES initial step size.")
+@click.option("--popsize", type=click.IntRange(min=1),
+              help="Candidates per generation (default 12 navigation, 8 tracking).")
+@click.option("--sigma0", type=Finite(min=0.0, min_open=True), default=0.5, show_default=True,
+              help="CMA-ES initial step size.")
 @click.option("--batch", type=click.IntRange(min=1), help="Training scenarios per candidate per generation "
                                         "(default 24 navigation, 6 tracking).")
-@click.option("--validation", type=click.IntRange(min=1), help="Validation scenarios (default 48 navigation, 12 tracking).")
-@click.option("--validate-every", type=click.IntRange(min=1), default=5, show_default=True, help="Generations between validations.")
+@click.option("--validation", type=click.IntRange(min=1),
+              help="Validation scenarios (default 48 navigation, 12 tracking).")
+@click.option("--validate-every", type=click.IntRange(min=1), default=5, show_default=True,
+              help="Generations between validations.")
 @click.option("--max-time", type=Finite(min=0.2), help="Sim seconds per run (default 90 navigation, 30 tracking).")
-@click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True), help="A trained model (.npz).")
+@model_option()
 @click.option("--workers", type=click.IntRange(min=1), default=2, show_default=True, help="Worker processes.")
 def fields_cmd(task, out_dir, seed, generations, popsize, sigma0, batch, validation, validate_every, max_time,
                model_path, workers) -> None:
     """Train a field policy by CMA-ES into OUT (policy.json), seeded and resumable."""
-    from ..errors import ParameterError
-    from .train import TuneConfig, tune
+    from .train import TuneConfig, tune  # noqa: PLC0415 -- lazy: pymunk, tqdm, world
 
     nav = task == "navigation"
     try:
-        config = TuneConfig(task, seed, generations or (30 if nav else 15), popsize or (12 if nav else 8), sigma0, batch or (24 if nav else 6),
-                            validation or (48 if nav else 12), validate_every, max_time or (90.0 if nav else 30.0))
-        meta = tune(config, out_dir, model_path, workers)
+        config = TuneConfig(task, seed, generations or (30 if nav else 15), popsize or (12 if nav else 8), sigma0,
+                            batch or (24 if nav else 6), validation or (48 if nav else 12), validate_every,
+                            max_time or (90.0 if nav else 30.0))
+        meta = tune(config, out_dir, _text(model_path), workers)
     except ParameterError as exc:
         raise click.UsageError(str(exc)) from None
     click.echo(f"kept generation {meta['kept_generation']}: validation score {meta['validation_score']:.3f} "
@@ -54,19 +66,19 @@ def fields_cmd(task, out_dir, seed, generations, popsize, sigma0, batch, validat
               help="Directory for results.json.")
 @click.option("--policy", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               help="The policy judged as `learned` (default: the one shipped for the task).")
-@click.option("--tests", type=click.IntRange(min=1), default=100, show_default=True, help="Held-out generated scenarios.")
+@click.option("--tests", type=click.IntRange(min=1), default=100, show_default=True,
+              help="Held-out generated scenarios.")
 @click.option("--concave", is_flag=True, help="Navigation: Fig. 9's sweep cells instead of generated scenarios.")
 @click.option("--suite", is_flag=True, help="Navigation: section 4.2's table (its five scenarios, --tests seeds "
                                             "from 1) instead of generated scenarios.")
 @click.option("--only", help="Comma-separated variants to run (paper, tuned, learned; tracking also acmommt, "
                              "kmeans, kmeans-global).")
 @click.option("--max-time", type=Finite(min=0.2), help="Sim seconds per run (default 300 navigation, 120 tracking).")
-@click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True), help="A trained model (.npz).")
+@model_option()
 @click.option("--workers", type=click.IntRange(min=1), default=2, show_default=True)
 def evaluate_cmd(task, out_dir, policy, tests, concave, suite, only, max_time, model_path, workers) -> None:
     """Judge the learned field policy against the paper's and today's constants on held-out scenarios."""
-    from ..jsonfile import dumps
-    from .evaluate import evaluate, evaluate_concave, evaluate_suite, variants
+    from .evaluate import evaluate, evaluate_concave, evaluate_suite, variants  # noqa: PLC0415 -- lazy: numba, pymunk, scipy, tqdm, world
 
     chosen = None if not only else tuple(x.strip() for x in only.split(","))
     known = variants(task, policy)
@@ -77,7 +89,7 @@ def evaluate_cmd(task, out_dir, policy, tests, concave, suite, only, max_time, m
         raise click.UsageError("--concave and --suite go with --task navigation")
     out_dir.mkdir(parents=True, exist_ok=True)
     if suite:
-        doc = evaluate_suite(tuple(range(1, tests + 1)), policy, model_path, workers, max_time=max_time or 300.0,
+        doc = evaluate_suite(tuple(range(1, tests + 1)), policy, _text(model_path), workers, max_time=max_time or 300.0,
                              only=chosen)
         for v in known:
             if v in doc:
@@ -85,13 +97,13 @@ def evaluate_cmd(task, out_dir, policy, tests, concave, suite, only, max_time, m
                                                   f"({x['collision_free']['k']} contact-free)"
                                                   for sc, x in doc[v].items() if sc != "runs"))
     elif concave:
-        doc = evaluate_concave(policy, model_path, workers, only=chosen)
+        doc = evaluate_concave(policy, _text(model_path), workers, only=chosen)
         for v in known:
             if v in doc:
                 widths = ", ".join("-" if g["max_width"] is None else f"{g['max_width']:.2f}" for g in doc[v]["grid"])
                 click.echo(f"{v:8s} negotiated cells {doc[v]['negotiated_cells']}; widest per (range, depth): {widths}")
     else:
-        doc = evaluate(task, tests, policy, max_time, model_path, workers, only=chosen)
+        doc = evaluate(task, tests, policy, max_time, _text(model_path), workers, only=chosen)
         for v, s in doc["summary"].items():
             if task == "navigation" and "contact_free" in s:
                 c, r = s["contact_free"], s["reached"]

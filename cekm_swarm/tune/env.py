@@ -23,7 +23,7 @@ from __future__ import annotations
 
 from typing import Any
 
-import gymnasium as gym
+import gymnasium as gym  # noqa: TID253 -- the environment subclasses gym.Env; only `cekm tune` imports it
 import numpy as np
 
 from ..experiments.graph_run import GraphSession
@@ -54,7 +54,7 @@ class FieldEnv(gym.Env):
         self.purpose = purpose
         seed_of(purpose, 0)  # checks the purpose
         if model is None:
-            from ..experiments.default_model import default_model
+            from ..experiments.default_model import default_model  # noqa: PLC0415 -- lazy: scipy
 
             model = default_model()
         self.model = model
@@ -73,27 +73,31 @@ class FieldEnv(gym.Env):
         self.scenario_seed = seed_of(self.purpose, int(self.np_random.integers(SCENARIOS_PER_PURPOSE)))
         return generated(self.task, self.scenario_seed)
 
+    @property
+    def _live(self) -> Any:
+        """The episode's session (made by :meth:`reset`)."""
+        assert self.session is not None, "reset() first"
+        return self.session
+
     def _observation(self) -> np.ndarray:
         feats = [m.last_features for m in self.motors if m.last_features is not None]
         f = np.mean(feats, axis=0) if feats else np.zeros(N_FEATURES)
         return np.clip(f, 0.0, 1.0).astype(np.float32)
 
     def _distance(self) -> float:
-        ep = self.session.episode
+        ep = self._live.episode
         return sum(float(ep.to_goal(r)) for r in self.robots)
 
     def _contacts(self) -> int:
-        w = self.session.world
+        w = self._live.world
         return sum(int(w.stats(r)["collisions"]) for r in self.robots)
 
     def _observed(self) -> float:
-        return float(sum(self.session.episode.meter.fraction))
+        return float(sum(self._live.episode.meter.fraction))
 
     def _run(self, ticks: int) -> bool:
-        for _ in range(ticks):
-            if self.session.step():
-                return True
-        return False
+        """Up to ``ticks`` ticks; True as soon as the session ends (the rest are not run)."""
+        return any(self._live.step() for _ in range(ticks))
 
     # ------------------------------------------------------------------ Gymnasium API
     def reset(self, *, seed: int | None = None, options: dict | None = None):
@@ -140,14 +144,14 @@ class FieldEnv(gym.Env):
         return self._observation(), float(reward), terminated, truncated, self._info()
 
     def _info(self) -> dict[str, Any]:
-        return {"t": self.session.episode.t, "tick": self.session.episode.tick, "scenario_seed": self.scenario_seed,
+        return {"t": self._live.episode.t, "tick": self._live.episode.tick, "scenario_seed": self.scenario_seed,
                 "fields": dict(zip(self.policy.outputs, (
                     self.choice.fields.sigma_b_alpha, self.choice.fields.sigma_b_d_beyond,
-                    self.choice.fields.sigma_b_d_near, self.choice.teammate_gain)))}
+                    self.choice.fields.sigma_b_d_near, self.choice.teammate_gain), strict=False))}
 
     def outcome(self) -> dict[str, dict]:
         """The run's outcome as ``cekm run`` reports it (per robot)."""
-        return self.session.episode.outcome()
+        return self._live.episode.outcome()
 
     def close(self) -> None:
         if self.session is not None:

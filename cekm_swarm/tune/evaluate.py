@@ -5,8 +5,9 @@ Held out: generated scenarios with :data:`~.scenarios.SEED_BASE` ``["test"]`` se
 neither training nor validation draws; ``--concave``: Fig. 9's sweep cells (concave.toml
 with the sweep's widths, depths, ranges and world seeds, as ``cekm sweep concave`` runs
 them); ``--suite``: section 4.2's table (``cekm experiment obstacles``' five scenarios and
-success rule, seeds 1-20). None of these geometries or seeds is trained or selected on. Navigation reports goal-reached and contact-free rates with Wilson 95 % intervals,
-overall and per geometry kind, and the paired wins/losses of learned against tuned;
+success rule, seeds 1-20). None of these geometries or seeds is trained or selected on.
+Navigation reports goal-reached and contact-free rates with Wilson 95 % intervals, overall
+and per geometry kind, and the paired wins/losses of learned against tuned;
 tracking reports Parker's A with t intervals and Welch p against every other controller.
 """
 
@@ -15,11 +16,19 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from ..experiments.concave_run import SweepConfig
+from tqdm import tqdm
+
+from world import load_scenario
+
+from ..experiments.concave_config import SweepConfig
 from ..experiments.concave_stats import cells_of, grid_of
+from ..experiments.graph_run import with_params
 from ..experiments.metrics import welch_p
+from ..experiments.navigation_run import run_scenario
+from ..experiments.obstacle_run import SUITE, success
 from ..experiments.obstacle_stats import wilson_interval
 from ..experiments.tracking_stats import mean_ci95
+from .graphs import fields_graph
 from .rollout import _model, run_many
 from .scenarios import seed_of
 
@@ -53,8 +62,9 @@ def navigation_summary(rows: dict[str, list[dict]]) -> dict[str, Any]:
                   "by_kind": {k: _rate(sum(r["contact_free"] for r in rs if _kind(r["scenario"]) == k),
                                        sum(_kind(r["scenario"]) == k for r in rs)) for k in kinds}}
     if "learned" in rows and "tuned" in rows:
-        pairs = list(zip(rows["learned"], rows["tuned"]))
-        out["learned_vs_tuned"] = {"contact_free_wins": sum(a["contact_free"] and not b["contact_free"] for a, b in pairs),
+        pairs = list(zip(rows["learned"], rows["tuned"], strict=True))
+        out["learned_vs_tuned"] = {"contact_free_wins": sum(a["contact_free"] and not b["contact_free"]
+                                                            for a, b in pairs),
                                    "contact_free_losses": sum(b["contact_free"] and not a["contact_free"]
                                                               for a, b in pairs)}
     return out
@@ -72,8 +82,6 @@ def evaluate(task: str, tests: int, policy: Path | None = None, max_time: float 
              model_path: str | None = None, workers: int = 2, progress: bool = True,
              only: tuple[str, ...] | None = None) -> dict[str, Any]:
     """Every variant on the ``tests`` held-out generated scenarios; the results document."""
-    from tqdm import tqdm
-
     max_time = max_time or (300.0 if task == "navigation" else 120.0)
     vs = {k: v for k, v in variants(task, policy).items() if only is None or k in only}
     wheres = [seed_of("test", i) for i in range(tests)]
@@ -91,8 +99,6 @@ def evaluate_concave(policy: Path | None = None, model_path: str | None = None, 
                      progress: bool = True, config: SweepConfig | None = None,
                      only: tuple[str, ...] | None = None) -> dict[str, Any]:
     """Fig. 9's sweep for every ``--fields``: the widest U negotiated per (range, depth)."""
-    from tqdm import tqdm
-
     config = config or SweepConfig()
     vs = {k: v for k, v in variants("navigation", policy).items() if only is None or k in only}
     cells = [("concave", w, d, r, s) for r in config.ranges for d in config.depths for w in config.widths
@@ -102,8 +108,9 @@ def evaluate_concave(policy: Path | None = None, model_path: str | None = None, 
         flat = run_many(jobs, workers, bar.update)
     out: dict[str, Any] = {"experiment": "field-policy-concave", "policy": str(policy) if policy else "shipped"}
     for i, v in enumerate(vs):
+        mine = flat[i * len(cells):(i + 1) * len(cells)]
         runs = [{"width": c[1], "depth": c[2], "range": c[3], "seed": c[4], "reached": r["reached"],
-                 "collisions": r["collisions"]} for c, r in zip(cells, flat[i * len(cells):(i + 1) * len(cells)])]
+                 "collisions": r["collisions"]} for c, r in zip(cells, mine, strict=True)]
         out[v] = {"cells": cells_of(config, runs), "grid": grid_of(config, runs),
                   "negotiated_cells": sum(c["reached"] >= config.need for c in cells_of(config, runs))}
     return out
@@ -112,12 +119,6 @@ def evaluate_concave(policy: Path | None = None, model_path: str | None = None, 
 def suite_one(job: tuple) -> dict:
     """One run of section 4.2's table (``cekm experiment obstacles``' scenarios, seeds and
     success rule) with ``--fields`` ``what``."""
-    from world import load_scenario
-
-    from ..experiments.graph_run import with_params
-    from ..experiments.navigation_run import run_scenario
-    from ..experiments.obstacle_run import success
-    from .graphs import fields_graph
 
     scenario, what, seed, max_time, model_path = job
     checked, params = fields_graph(what[1], "navigation", what[2] if len(what) > 2 else None)
@@ -133,9 +134,6 @@ def evaluate_suite(seeds: tuple[int, ...], policy: Path | None = None, model_pat
                    workers: int = 2, progress: bool = True, max_time: float = 300.0,
                    only: tuple[str, ...] | None = None) -> dict[str, Any]:
     """Section 4.2's table (concave, doorway, rooms, checkpoints, lone obstacle) for every ``--fields``."""
-    from tqdm import tqdm
-
-    from ..experiments.obstacle_run import SUITE
 
     vs = {k: v for k, v in variants("navigation", policy).items() if only is None or k in only}
     cells = [(sc, s) for sc in SUITE for s in seeds]

@@ -7,6 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..errors import ParameterError
+from ..experiments.graph_run import with_params
 from ..graph.check import CheckedGraph, check_graph
 from ..graph.spec import Graph, graph_for, load_graph
 from ..models.params import PAPER_SIGMA_B_ALPHA
@@ -49,7 +50,6 @@ def with_fields(checked: CheckedGraph, fields: str | None, task: str) -> Checked
         return checked
     if checked.graph.controller != "cekm":
         raise ParameterError(f"--fields goes with --controller cekm, not {checked.graph.controller!r}")
-    from ..experiments.graph_run import with_params
 
     graph, params = fields_graph(fields, task)
     return with_params(graph, params)

@@ -17,6 +17,7 @@ localization module for the same result.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
@@ -42,6 +43,8 @@ class _PolicyFields:
     """What both motor nodes share: the policy (or the environment's choice) and Eq. 8's rows."""
 
     task = "navigation"
+    params: Any  # the node's (cekm_swarm.node.api.Node)
+    ctx: Any
 
     def _setup_policy(self) -> None:
         p = self.params

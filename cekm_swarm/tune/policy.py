@@ -84,7 +84,7 @@ class FieldPolicy:
     def values(self, action: np.ndarray) -> dict[str, float]:
         """The parameters of an action in [-1, 1]^outputs: base * exp(span * action)."""
         a = np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0)
-        return dict(zip(self.outputs, (self.base * np.exp(self.span * a)).tolist()))
+        return dict(zip(self.outputs, (self.base * np.exp(self.span * a)).tolist(), strict=True))
 
     def choice(self, action: np.ndarray) -> FieldChoice:
         """The field parameters of an action (see :meth:`values`)."""
@@ -114,7 +114,7 @@ class FieldPolicy:
         tmp.replace(path)
 
     @classmethod
-    def load(cls, path: Path | str) -> "FieldPolicy":
+    def load(cls, path: Path | str) -> FieldPolicy:
         """A policy file, or a ParameterError naming the file and what is wrong."""
         path = Path(path)
         try:

@@ -9,22 +9,24 @@ import os
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any
 
+from world import load_scenario
+
+from ..experiments.graph_run import run_graph
 from ..graph.check import check_graph
+from ..models.io import load_model
 from .graphs import fields_graph, policy_graph
 from .scenarios import scenario as generated
 
-_MODEL: dict[str, Any] = {}
+_MODEL: dict[str | None, Any] = {}
 
 
 def _model(path: str | None):
     if path not in _MODEL:
         if path is None:
-            from ..experiments.default_model import default_model
+            from ..experiments.default_model import default_model  # noqa: PLC0415 -- lazy: scipy
 
             _MODEL[path] = default_model(progress=False)
         else:
-            from ..models.io import load_model
-
             _MODEL[path] = load_model(path)
     return _MODEL[path]
 
@@ -44,8 +46,6 @@ def scenario_of(task: str, where):
     seed), or ("concave", width, depth, sensor range, world seed), Fig. 9's sweep cell
     (concave.toml with those overrides, as ``cekm sweep concave`` builds it)."""
     if isinstance(where, tuple) and where and where[0] == "concave":
-        from world import load_scenario
-
         _, width, depth, rng, seed = where
         return load_scenario("concave", overrides={"obstacles[0].width": width, "obstacles[0].depth": depth,
                                                    "sensors.range": rng}), seed
@@ -57,8 +57,6 @@ def run_one(job: tuple) -> dict:
     takes it, ``what`` a weight
     tuple (the field-policy graph), ``("fields", name[, policy file])`` (--fields) or
     ``("controller", name)`` (a shipped controller's graph). Returns its row."""
-    from ..experiments.graph_run import run_graph
-
     task, what, where, max_time, model_path = job
     sc, seed = scenario_of(task, where)
     model = _model(model_path)

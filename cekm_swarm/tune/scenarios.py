@@ -19,7 +19,10 @@ from typing import Any
 
 import numpy as np
 
+from world.scenario import parse_scenario
+
 from ..errors import ParameterError
+from ..experiments.grid_design import design, grid_scenario
 
 KINDS = ("u", "doorway", "corridor", "movers")
 SEED_BASE = {"train": 1_000_000, "validation": 2_000_000, "test": 3_000_000}
@@ -103,8 +106,6 @@ def navigation_raw(seed: int, kind: str | None = None) -> dict[str, Any]:
 
 def navigation_scenario(seed: int, kind: str | None = None):
     """The validated scenario of :func:`navigation_raw`."""
-    from world.scenario import parse_scenario
-
     raw = navigation_raw(seed, kind)
     return parse_scenario(raw, source=f"<generated {raw['name']}, seed {seed}>")
 
@@ -112,16 +113,12 @@ def navigation_scenario(seed: int, kind: str | None = None):
 @functools.lru_cache(maxsize=1)
 def grid_cells() -> tuple:
     """The tracking grid's cells (its design is a seeded search: made once per process)."""
-    from ..experiments.grid_design import design
-
     return tuple(design())
 
 
 def tracking_scenario(seed: int, cell=None):
     """A tracking grid scenario: ``cell`` (default: a cell of the grid's design drawn from
     the seed) with the grid's generator for ``seed``."""
-    from ..experiments.grid_design import grid_scenario
-
     if cell is None:
         cells = grid_cells()
         cell = cells[int(np.random.default_rng([int(seed), 43]).integers(len(cells)))]

@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from tqdm import tqdm
 
 from ..errors import ParameterError
 from .policy import FieldPolicy, check_task
@@ -112,7 +113,6 @@ def tune(config: TuneConfig, out: Path, model_path: str | None = None, workers: 
          progress: bool = True) -> dict[str, Any]:
     """Train (or resume) the field policy in ``out``; returns the summary (also in policy.json's meta)."""
     import cma
-    from tqdm import tqdm
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)

@@ -10,7 +10,7 @@ from typing import Any
 
 import click
 
-from cekm_swarm.cli_support import SEED
+from cekm_swarm.cli_support import seed_option
 from cekm_swarm.errors import CekmError
 from cekm_swarm.runtime.tool_session import _connect_options, _session
 
@@ -74,7 +74,7 @@ def _lattice(session, model_path: Path | None, root: str, timeout: float):
 @click.argument("scenario", required=False)
 @click.option("--log", "log", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               help="Take the arena from this run's MCAP log (e.g. for `cekm replay`) instead of a scenario.")
-@click.option("--seed", type=SEED, help="World seed of the scenario (default: the scenario's).")
+@seed_option()
 @click.option("--robot", help="Robot whose fields are drawn (default: the first).")
 @click.option("--model", "model_path", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               help="Model file for the lattice (default: ask the run's model queryable).")

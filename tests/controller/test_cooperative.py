@@ -46,7 +46,7 @@ def test_batched_obstacle_modules_equal_the_single_ones_exactly(ekm):
     readings = range_readings(np.array([0.05, np.nan, 0.1, 0.0, np.nan, 0.17, 0.02, 0.11, np.nan, 0.08, 0.13, 0.04]),
                               np.linspace(-np.pi, np.pi, 12, endpoint=False), 0.03)
     batch = ekm.localize_obstacles(readings, 2.0)
-    for r, b in zip(readings, batch):
+    for r, b in zip(readings, batch, strict=True):
         one = ekm.localize_obstacle(r, 2.0)
         assert one.winner == b.winner and one.index == b.index
         if one.b is None:

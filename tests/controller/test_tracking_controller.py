@@ -25,7 +25,7 @@ def test_target_weight_falls_as_more_teammates_observe():
     p = TrackingParams()
     w = [target_weight(n, p) for n in range(5)]
     assert w[0] == 1.0
-    assert all(a > b for a, b in zip(w, w[1:])) and w[-1] >= 0.0
+    assert all(a > b for a, b in zip(w, w[1:], strict=False)) and w[-1] >= 0.0
 
 
 def test_weights_in_the_controller_count_nearer_observers(model):
@@ -39,7 +39,7 @@ def test_weights_in_the_controller_count_nearer_observers(model):
         for k in range(n):  # teammates at 0.1 m from the target, reporting it
             view.receive(f"q{k}", TeammateShare(0.0, (1.3, 1.1 + 0.01 * k, 0.0), {"a": (1.3, 1.0)}))
         weights.append(ctl.localize(0.256, pose, sensed, view).weights["a"])
-    assert weights[0] == 1.0 and all(a > b for a, b in zip(weights, weights[1:]))
+    assert weights[0] == 1.0 and all(a > b for a, b in zip(weights, weights[1:], strict=False))
     # a teammate farther from the target than this robot does not lower its weight
     view = TeamView("r1")
     view.receive("q", TeammateShare(0.0, (1.7, 1.0, 0.0), {"a": (1.3, 1.0)}))
@@ -162,7 +162,9 @@ def test_the_stand_off_shrinks_with_the_targets_speed():
     assert standoff_distance(None, 0.5, p) == pytest.approx(0.35)  # no track yet: the stand-off
     assert standoff_distance(0.05, 0.5, p) == pytest.approx(0.25)
     assert standoff_distance(0.5, 0.5, p) == 0.0  # never below 0
-    assert standoff_distance(0.05, 0.5, TrackingParams(standoff=0.7, standoff_speed_s=0.0)) == pytest.approx(0.35)  # off
+    assert standoff_distance(0.05, 0.5, TrackingParams(standoff=0.7, standoff_speed_s=0.0)) == pytest.approx(
+        0.35
+    )  # off
 
 
 def test_a_fast_target_inside_the_stand_off_is_followed_from_nearer(model):

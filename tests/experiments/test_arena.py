@@ -90,7 +90,9 @@ def test_a_command_under_half_a_unit_stops_the_robot():
 
     schedule = Schedule(steps=10, test_interval=10, test_targets=3, test_budget=20)
     creep = lambda u: np.array([0.0039, -0.0035])  # noqa: E731
-    quantized = test_reference(creep, TrialStreams(1, 0, Arena(speed_unit=KHEPERA.speed_unit), schedule), np.array([0.005]))
+    quantized = test_reference(
+        creep, TrialStreams(1, 0, Arena(speed_unit=KHEPERA.speed_unit), schedule), np.array([0.005])
+    )
     assert quantized.stopped.all() and (quantized.steps == 0).all() and (quantized.path == 0).all()
     continuous = test_reference(creep, TrialStreams(1, 0, Arena(speed_unit=0.0), schedule), np.array([0.005]))
     assert not continuous.stopped.any() and (continuous.path > 0).all()

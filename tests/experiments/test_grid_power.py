@@ -35,7 +35,7 @@ def test_the_rowwise_welch_test_equals_the_grids():
     a[1], b[1] = 0.4, 0.4  # neither varies, equal
     a[2], b[2] = 0.4, 0.6  # neither varies, apart
     got = welch_p_rows(a, b)
-    want = np.array([welch_p(x, y) for x, y in zip(a, b)])
+    want = np.array([welch_p(x, y) for x, y in zip(a, b, strict=True)])
     assert np.allclose(got, want, rtol=1e-9, atol=1e-12)
     assert got[1] == 1.0 and got[2] == 0.0
 
@@ -66,16 +66,37 @@ def test_the_bootstrap_is_seeded():
     assert seeds_power(doc, seeds=(8,), reps=30) != seeds_power(doc, seeds=(8,), reps=30, rng_seed=1)
 
 
-@pytest.mark.parametrize("doc, words", [
-    ({}, ["grid.json", "'cells'"]),
-    ({"cells": [{"label": "n2", "controllers": {"cekm": {"per_seed": [0.5]}}}]}, ["cell n2", "cekm.per_seed"]),
-    ({"cells": [{"label": "n3", "controllers": {"cekm": {"per_seed": [0.5, 0.6]},
-                                                 "acmommt": {"per_seed": [0.5, 0.6, 0.7]},
-                                                 "kmeans": {"per_seed": [0.5, 0.6]}}}]}, ["cell n3", "numbers of seeds"]),
-    ({"cells": [{"label": "n4"}]}, ["cell n4", "'controllers'"]),
-    ({"cells": [{"label": "n5", "controllers": {"cekm": {"per_seed": [0.5, "x"]}}}]}, ["cell n5", "finite numbers"]),
-    ({"cells": [{"label": "n6", "controllers": {"cekm": {"per_seed": [0.5, None]}}}]}, ["cell n6", "cekm.per_seed"]),
-])
+@pytest.mark.parametrize(
+    "doc, words",
+    [
+        ({}, ["grid.json", "'cells'"]),
+        ({"cells": [{"label": "n2", "controllers": {"cekm": {"per_seed": [0.5]}}}]}, ["cell n2", "cekm.per_seed"]),
+        (
+            {
+                "cells": [
+                    {
+                        "label": "n3",
+                        "controllers": {
+                            "cekm": {"per_seed": [0.5, 0.6]},
+                            "acmommt": {"per_seed": [0.5, 0.6, 0.7]},
+                            "kmeans": {"per_seed": [0.5, 0.6]},
+                        },
+                    }
+                ]
+            },
+            ["cell n3", "numbers of seeds"],
+        ),
+        ({"cells": [{"label": "n4"}]}, ["cell n4", "'controllers'"]),
+        (
+            {"cells": [{"label": "n5", "controllers": {"cekm": {"per_seed": [0.5, "x"]}}}]},
+            ["cell n5", "finite numbers"],
+        ),
+        (
+            {"cells": [{"label": "n6", "controllers": {"cekm": {"per_seed": [0.5, None]}}}]},
+            ["cell n6", "cekm.per_seed"],
+        ),
+    ],
+)
 def test_a_results_file_without_what_the_bootstrap_needs_is_refused_by_name(doc, words):
     with pytest.raises(ResultsFileError) as e:
         per_seed_table(doc, "grid.json")

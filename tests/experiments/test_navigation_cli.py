@@ -73,14 +73,21 @@ def test_sweep_writes_grid(tmp_path, model):
 
 def test_bad_scenario_and_model_are_refused(tmp_path, model):
     bad = tmp_path / "bad.toml"
-    bad.write_text('name = "x"\nseed = 1\n[arena]\nbounds = [0, 0, 1]\n[[robots]]\nid = "r1"\nstart = [0.5, 0.5, 0.0]\n')
+    bad.write_text(
+        'name = "x"\nseed = 1\n[arena]\nbounds = [0, 0, 1]\n[[robots]]\nid = "r1"\nstart = [0.5, 0.5, 0.0]\n'
+    )
     r = CliRunner().invoke(main, ["run", str(bad), "--out", str(tmp_path / "o")])
     assert r.exit_code != 0 and "bad.toml" in r.output and "bounds" in r.output
     assert not (tmp_path / "o").exists()  # refused before anything starts
     r = CliRunner().invoke(main, ["run", "no-such-scenario", "--out", str(tmp_path / "o")])
     assert r.exit_code != 0 and "no-such-scenario" in r.output
     d15 = tmp_path / "d.npz"
-    assert CliRunner().invoke(main, ["train", "--network", "D9", "--steps", "1000", "--out", str(d15), "--quiet"]).exit_code == 0
+    assert (
+        CliRunner()
+        .invoke(main, ["train", "--network", "D9", "--steps", "1000", "--out", str(d15), "--quiet"])
+        .exit_code
+        == 0
+    )
     r = CliRunner().invoke(main, ["run", "concave", "--model", str(d15), "--out", str(tmp_path / "o")])
     assert r.exit_code != 0 and "indirect-mapping" in r.output
     r = CliRunner().invoke(main, ["sweep", "concave", "--depths", "x", "--out", str(tmp_path / "s")])

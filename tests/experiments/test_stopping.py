@@ -116,7 +116,7 @@ def test_reference_and_fast_paths_agree_under_each_rule(name, rule):
                                fast.pack_params(net.comp, net.learn_p, arena.v_max, BFN_WIDTH_FLOOR, "paper"))
     fast_out = trial.run_batch(batch, streams, EPS, stop=rule, train_stop=rule)[0]
     ref_out = trial.run_reference(net, streams[0], EPS, stop=rule, train_stop=rule)
-    for r, f in zip(ref_out, fast_out):
+    for r, f in zip(ref_out, fast_out, strict=True):
         np.testing.assert_array_equal(r.stopped, f.stopped)
         np.testing.assert_array_equal(r.steps, f.steps)
         np.testing.assert_allclose(r.final_dist, f.final_dist, rtol=1e-6, atol=1e-8)
@@ -141,8 +141,10 @@ def test_trace_is_the_measured_test_path():
     targets = streams.test_set[0]
     last = traces[np.arange(4), lengths - 1]
     stopped_rows = out.stopped
-    np.testing.assert_array_equal(np.hypot(targets[stopped_rows, 0] - last[stopped_rows, 0],
-                                           targets[stopped_rows, 1] - last[stopped_rows, 1]), out.final_dist[stopped_rows])
+    np.testing.assert_array_equal(
+        np.hypot(targets[stopped_rows, 0] - last[stopped_rows, 0], targets[stopped_rows, 1] - last[stopped_rows, 1]),
+        out.final_dist[stopped_rows],
+    )
 
 
 # ---------------------------------------------------------------- the circling

@@ -74,8 +74,15 @@ def test_cli_writes_every_output(tmp_path):
                                        "--trials", "2", "--steps", "2000", "--test-interval", "1000", "--targets", "5",
                                        "--quiet"])
     assert result.exit_code == 0, result.output
-    for name in ("results.json", "tables.md", "fig5_learning_curves.png", "fig6_input_weights.png", "fig7_eps_curves.png",
-                 "models/R9-trial1.npz", "models/D9-trial2.npz"):
+    for name in (
+        "results.json",
+        "tables.md",
+        "fig5_learning_curves.png",
+        "fig6_input_weights.png",
+        "fig7_eps_curves.png",
+        "models/R9-trial1.npz",
+        "models/D9-trial2.npz",
+    ):
         assert (out / name).is_file(), name
     assert (out / "fig5_learning_curves.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     doc = json.loads((out / "results.json").read_text())

@@ -43,7 +43,9 @@ def test_a_generated_scenario_is_valid_for_its_seed_and_the_same_every_time():
 
 
 def test_the_arena_grows_so_the_robot_density_is_the_same():
-    area = lambda n: arena_side(n) ** 2
+    def area(n: int) -> float:
+        return arena_side(n) ** 2
+
     assert math.isclose(area(16) / 16, area(2) / 2) and arena_side(2) == 2.0
 
 
@@ -92,7 +94,7 @@ def test_cekm_experiment_tracking_grid_quick_writes_every_cell_and_the_heatmaps(
     assert r.exit_code == 0, r.output
     doc2 = json.loads((out2 / "results.json").read_text())
     assert doc2["cekm_params"] == {"assign_radius": 0.0, "search_weight": 2.0}
-    pairs = list(zip(doc["cells"], doc2["cells"]))
+    pairs = list(zip(doc["cells"], doc2["cells"], strict=True))
     assert any(a["controllers"]["cekm"]["per_seed"] != b["controllers"]["cekm"]["per_seed"] for a, b in pairs)
     assert all(a["controllers"][k]["per_seed"] == b["controllers"][k]["per_seed"]
                for a, b in pairs for k in ("acmommt", "kmeans", "kmeans-global"))
@@ -171,18 +173,38 @@ def test_the_summary_counts_cells_above_both_baselines_and_holds_global_kmeans_t
     from cekm_swarm.experiments.grid_report import cells_above, summary
 
     def versus(above, p_a, p_k, key="cekm_above_all"):
-        return {key: above, "p_each": {"acmommt": p_a, "kmeans": p_k}, "p_paired_each": {"acmommt": p_a / 2, "kmeans": p_k / 2}}
+        return {
+            key: above,
+            "p_each": {"acmommt": p_a, "kmeans": p_k},
+            "p_paired_each": {"acmommt": p_a / 2, "kmeans": p_k / 2},
+        }
 
-    doc = {"cells": [
-        {"label": "a", "cekm_vs_best": versus(True, 0.01, 0.02), "global_vs_best": versus(True, 0.2, 0.01, "above_all")},
-        {"label": "b", "cekm_vs_best": versus(True, 0.01, 0.08), "global_vs_best": versus(True, 0.01, 0.01, "above_all")},
-        {"label": "c", "cekm_vs_best": versus(False, 0.01, 0.01), "global_vs_best": versus(False, 0.01, 0.01, "above_all")},
-    ]}
+    doc = {
+        "cells": [
+            {
+                "label": "a",
+                "cekm_vs_best": versus(True, 0.01, 0.02),
+                "global_vs_best": versus(True, 0.2, 0.01, "above_all"),
+            },
+            {
+                "label": "b",
+                "cekm_vs_best": versus(True, 0.01, 0.08),
+                "global_vs_best": versus(True, 0.01, 0.01, "above_all"),
+            },
+            {
+                "label": "c",
+                "cekm_vs_best": versus(False, 0.01, 0.01),
+                "global_vs_best": versus(False, 0.01, 0.01, "above_all"),
+            },
+        ]
+    }
     assert cells_above(doc) == ["a", "b"] and cells_above(doc, test="p_each") == ["a"]
     assert cells_above(doc, test="p_paired_each") == ["a", "b"]  # 0.04 paired in b
     assert cells_above(doc, "global_vs_best", "p_each") == ["b"]
-    assert summary(doc) == ("cekm above both baselines in 2 of 3 cells, significantly (Welch p < 0.05 against each) in 1, "
-                            "by a paired test in 2; by the same bar global K-means is above both in 2, significantly in 1")
+    assert summary(doc) == ("cekm above both baselines in 2 of 3 cells, significantly (Welch p < 0.05 against each) in "
+                            "1, "
+                            "by a paired test in 2; by the same bar global K-means is above both in 2, significantly "
+                            "in 1")
 
 
 _HASH_PROBE = """

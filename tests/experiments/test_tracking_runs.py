@@ -48,7 +48,9 @@ def test_same_seed_same_run(model):
 def test_team_scenarios_grow_with_the_team():
     s2, s8 = team_scenario(2, 1), team_scenario(8, 1)
     assert (len(s2.robots), len(s2.targets)) == (2, 3) and (len(s8.robots), len(s8.targets)) == (8, 12)
-    area = lambda s: (s.bounds[2] - s.bounds[0]) * (s.bounds[3] - s.bounds[1])
+    def area(s) -> float:
+        return (s.bounds[2] - s.bounds[0]) * (s.bounds[3] - s.bounds[1])
+
     assert area(s8) / 8 == pytest.approx(area(s2) / 2)
 
 

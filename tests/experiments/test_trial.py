@@ -21,17 +21,21 @@ def test_reference_and_fast_paths_are_equal(name):
     streams = [TrialStreams(11, t, arena, SCHEDULE) for t in range(2)]
     nets = [make_network(name, s.init_rng()) for s in streams]
     arrays = [fast.network_arrays(n) for n in nets]
-    batch = trial.NetworkBatch(nets[0].kind, nets[0].lattice.size, *(np.stack([a[q] for a in arrays]) for q in range(3)),
-                               fast.pack_params(nets[0].comp, nets[0].learn_p, arena.v_max, BFN_WIDTH_FLOOR))
+    batch = trial.NetworkBatch(
+        nets[0].kind,
+        nets[0].lattice.size,
+        *(np.stack([a[q] for a in arrays]) for q in range(3)),
+        fast.pack_params(nets[0].comp, nets[0].learn_p, arena.v_max, BFN_WIDTH_FLOOR),
+    )
     fast_out = trial.run_batch(batch, streams, EPS)
-    for b, (net, st) in enumerate(zip(nets, streams)):
+    for b, (net, st) in enumerate(zip(nets, streams, strict=True)):
         ref_out = trial.run_reference(net, st, EPS)
         w, P, R = fast.network_arrays(net)
         np.testing.assert_allclose(batch.W[b], w, rtol=1e-7, atol=1e-9)
         np.testing.assert_allclose(batch.P[b], P, rtol=1e-7, atol=1e-9)
         np.testing.assert_allclose(batch.R[b], R, rtol=1e-7, atol=1e-9)
         assert len(ref_out) == len(fast_out[b]) == 3
-        for r, f in zip(ref_out, fast_out[b]):
+        for r, f in zip(ref_out, fast_out[b], strict=True):
             np.testing.assert_array_equal(r.stopped, f.stopped)
             np.testing.assert_array_equal(r.steps, f.steps)
             np.testing.assert_allclose(r.final_dist, f.final_dist, rtol=1e-6, atol=1e-8)
@@ -84,7 +88,21 @@ def test_fast_rules_equal_reference_rules_step_by_step(name, bfn_rule):
         v = np.array([rng.uniform(-np.pi, np.pi), rng.uniform(0, 0.17)])
         cmd = rng.uniform(-0.15, 0.15, 2)
         net.learn(v, cmd, float(t * 50))
-        fast.learn(fast.KIND_CODE[net.kind], v[0], v[1], cmd[0], cmd[1], float(t * 50), w, P, R, net.lattice.size, params, idx, g)
+        fast.learn(
+            fast.KIND_CODE[net.kind],
+            v[0],
+            v[1],
+            cmd[0],
+            cmd[1],
+            float(t * 50),
+            w,
+            P,
+            R,
+            net.lattice.size,
+            params,
+            idx,
+            g,
+        )
         rw, rP, rR = fast.network_arrays(net)
         np.testing.assert_allclose(w, rw, rtol=1e-12, atol=1e-14)
         np.testing.assert_allclose(P, rP, rtol=1e-10, atol=1e-14)

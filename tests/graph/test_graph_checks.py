@@ -85,7 +85,8 @@ def write(tmp_path, monkeypatch):
 
 P = "graph_test_programs"
 HEAD = '[graph]\ncontroller = "mine"\ntask = "navigation"\n'
-WHEELS = f'\n[[node]]\nname = "wheels"\nprogram = "{P}:Wheels"\ninputs = {{ x = "mine/y" }}\noutputs = {{ command = "cmd/wheels" }}\n'
+WHEELS = (f'\n[[node]]\nname = "wheels"\nprogram = "{P}:Wheels"\ninputs = {{ x = "mine/y" }}\n'
+          'outputs = { command = "cmd/wheels" }\n')
 SOURCE = f'\n[[node]]\nname = "source"\nprogram = "{P}:Source"\nevery = 1\noutputs = {{ y = "mine/y" }}\n'
 
 
@@ -116,13 +117,16 @@ def test_an_unknown_program_is_refused(write):
 
 
 def test_an_unknown_key_is_refused(write):
-    refused(write(HEAD + SOURCE + f'\n[[node]]\nname = "wheels"\nprogram = "{P}:Wheels"\ninputs = {{ x = "mine/typo" }}\n'
+    refused(write(HEAD + SOURCE + f'\n[[node]]\nname = "wheels"\nprogram = "{P}:Wheels"\ninputs = '
+                                  f'{{ x = "mine/typo" }}\n'
                   'outputs = { command = "cmd/wheels" }\n'), "node 'wheels'.inputs.x", "unknown key 'mine/typo'")
 
 
 def test_a_cycle_with_no_delay_is_refused_and_a_delay_breaks_it(write):
-    loop = (HEAD + f'\n[[node]]\nname = "a"\nprogram = "{P}:Relay"\ninputs = {{ x = "mine/b" }}\noutputs = {{ y = "mine/a" }}\n'
-            f'\n[[node]]\nname = "b"\nprogram = "{P}:Relay"\ninputs = {{ x = "mine/a" }}\noutputs = {{ y = "mine/b" }}\n'
+    loop = (HEAD + f'\n[[node]]\nname = "a"\nprogram = "{P}:Relay"\ninputs = {{ x = "mine/b" }}\noutputs = '
+                   f'{{ y = "mine/a" }}\n'
+            f'\n[[node]]\nname = "b"\nprogram = "{P}:Relay"\ninputs = {{ x = "mine/a" }}\noutputs = '
+            f'{{ y = "mine/b" }}\n'
             f'\n[[node]]\nname = "wheels"\nprogram = "{P}:Wheels"\ninputs = {{ x = "mine/a" }}\n'
             'outputs = { command = "cmd/wheels" }\n')
     text = refused(write(loop), "form a cycle", "delay = 1")
@@ -140,14 +144,24 @@ def test_a_duplicate_name_is_refused(write):
 def test_a_parameter_the_node_does_not_declare_is_refused(write):
     refused(write(HEAD + SOURCE + WHEELS.replace('outputs = { command', 'params = { speed = 2 }\noutputs = { command')),
             "node 'wheels'.params", "parameter 'speed' is not declared", "Wheels")
-    refused(write(HEAD + SOURCE + WHEELS + f'\n[[node]]\nname = "r"\nprogram = "{P}:Relay"\ninputs = {{ x = "mine/y" }}\n'
-                  'outputs = { y = "mine/r" }\nparams = { gain = "fast" }\n'), "node 'r'.params.gain", "expected a number")
+    refused(
+        write(
+            HEAD + SOURCE + WHEELS + f'\n[[node]]\nname = "r"\nprogram = "{P}:Relay"\ninputs = '
+            f'{{ x = "mine/y" }}\n'
+            'outputs = { y = "mine/r" }\nparams = { gain = "fast" }\n'
+        ),
+        "node 'r'.params.gain",
+        "expected a number",
+    )
     refused(write("[params]\nwidth = 3\n" + HEAD + SOURCE + WHEELS), "[params].width", "no node of the graph declares")
 
 
 def test_ports_bound_wrong_are_refused(write):
-    refused(write(HEAD + SOURCE + WHEELS.replace('inputs = { x = "mine/y" }', 'inputs = { x = "mine/y", z = "mine/y" }')),
-            "node 'wheels'.inputs.z", "no input port 'z'")
+    refused(
+        write(HEAD + SOURCE + WHEELS.replace('inputs = { x = "mine/y" }', 'inputs = { x = "mine/y", z = "mine/y" }')),
+        "node 'wheels'.inputs.z",
+        "no input port 'z'",
+    )
     refused(write(HEAD + SOURCE + WHEELS.replace('inputs = { x = "mine/y" }\n', '')),
             "node 'wheels'.inputs", "input port 'x' of its program is not given a key")
     refused(write(HEAD + SOURCE + WHEELS + f'\n[[node]]\nname = "o"\nprogram = "{P}:OneRange"\n'
@@ -174,8 +188,11 @@ def test_a_misspelled_port_is_named_with_the_programs_ports(write):
 
 
 def test_no_rate_a_bad_answer_and_the_wrong_task_are_refused(write):
-    refused(write(HEAD + f'\n[[node]]\nname = "source"\nprogram = "{P}:Source"\noutputs = {{ y = "mine/y" }}\n' + WHEELS),
-            "node 'source'.every", "no rate")
+    refused(
+        write(HEAD + f'\n[[node]]\nname = "source"\nprogram = "{P}:Source"\noutputs = {{ y = "mine/y" }}\n' + WHEELS),
+        "node 'source'.every",
+        "no rate",
+    )
     refused(write(HEAD.replace('task = "navigation"\n', 'task = "navigation"\nanswer = "mine/y"\n') + SOURCE + WHEELS),
             "[graph].answer", "carries data messages")
     refused(write(HEAD + SOURCE.replace("every = 1", "every = 2") + WHEELS), "[graph].answer", "every 2 ticks")
@@ -205,7 +222,8 @@ def test_malformed_files_name_the_field(write):
     with pytest.raises(GraphError, match=r"node 'x'.every: .*whole number of ticks"):
         load_graph(write(HEAD + '[[node]]\nname = "x"\nprogram = "p"\nevery = 0.5\n'))
     with pytest.raises(GraphError, match="delay = 1"):
-        load_graph(write(HEAD + '[[node]]\nname = "x"\nprogram = "p"\ninputs = { s = { key = "share", from = "teammates", delay = 0 } }\n'))
+        load_graph(write(HEAD + '[[node]]\nname = "x"\nprogram = "p"\ninputs = '
+                                '{ s = { key = "share", from = "teammates", delay = 0 } }\n'))
     with pytest.raises(GraphError, match="uses {i} but the node has no instances"):
         load_graph(write(HEAD + '[[node]]\nname = "x"\nprogram = "p"\noutputs = { y = "out/{i}" }\n'))
     with pytest.raises(GraphError, match="no shipped graph of that name"):

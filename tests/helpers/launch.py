@@ -4,6 +4,7 @@ every wait has a timeout."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
@@ -60,10 +61,8 @@ class LaunchProcess:
                 self.proc.kill()
         try:
             for pid in self.pids().values():
-                try:
+                with contextlib.suppress(ProcessLookupError):
                     os.kill(pid, signal.SIGKILL)
-                except ProcessLookupError:
-                    pass
         except (OSError, ValueError):
             pass
 

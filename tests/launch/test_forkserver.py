@@ -87,7 +87,9 @@ def test_signals_reach_the_child_and_its_end_is_reported_like_subprocess(tmp_pat
     async def go():
         server = await start(tmp_path)
         try:
-            proc = await server.spawn([sys.executable, "-m", child_module, "sleep"], tmp_path / "c.log", dict(os.environ))
+            proc = await server.spawn(
+                [sys.executable, "-m", child_module, "sleep"], tmp_path / "c.log", dict(os.environ)
+            )
             while not started(tmp_path / "c.log"):
                 await asyncio.sleep(0.01)
             proc.send_signal(signal.SIGTERM)

@@ -46,5 +46,7 @@ def test_a_plant_run_that_cannot_work_is_refused_before_anything_starts(capsys, 
 def test_a_description_without_the_plant_is_refused(capsys, tmp_path):
     bot = tmp_path / "bot.toml"
     bot.write_text("")
-    assert run_cli(main, ["launch", "lone_obstacle", "--robot-description", str(bot), "--out", str(tmp_path / "r")]) == 2
+    assert (
+        run_cli(main, ["launch", "lone_obstacle", "--robot-description", str(bot), "--out", str(tmp_path / "r")]) == 2
+    )
     assert "use it with --plant ros2" in capsys.readouterr().err

@@ -25,7 +25,7 @@ def _log(path, scenario: str = "crossing") -> dict:
     geometry = w.static_geometry()
     rec = McapRecorder(path)
     rec.add_metadata("geometry", {"json": json.dumps(geometry)})
-    for rid, (vl, vr) in zip(w.robot_ids, [(0.05, 0.06), (0.06, 0.05), (0.05, 0.05)]):
+    for rid, (vl, vr) in zip(w.robot_ids, [(0.05, 0.06), (0.06, 0.05), (0.05, 0.05)], strict=False):
         w.set_wheels(rid, vl, vr)
     for _ in range(60):  # 6 s
         st = w.state()

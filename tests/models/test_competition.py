@@ -39,7 +39,9 @@ def test_wrap_around_at_pi():
 def test_fast_winner_equals_reference():
     rng = np.random.default_rng(3)
     p = CompetitionParams()
-    pv = fast.pack_params(p, __import__("cekm_swarm.models.params", fromlist=["LearningParams"]).LearningParams(), 0.15625, 1e-3)
+    pv = fast.pack_params(
+        p, __import__("cekm_swarm.models.params", fromlist=["LearningParams"]).LearningParams(), 0.15625, 1e-3
+    )
     w = np.stack([rng.uniform(-np.pi, np.pi, 225), rng.uniform(0, 0.16, 225)], axis=1)
     for _ in range(500):
         u = np.array([rng.uniform(-4, 4), rng.uniform(0, 0.3)])

@@ -47,8 +47,18 @@ def _valid_fields():
     import json
 
     from cekm_swarm.models.params import params_to_dict
-    return {"format": "cekm-model", "format_version": 1, "kind": "indirect-rls", "lattice_size": 9, "w": net.w,
-            "M": net.M, "Rinv": net.Rinv, "params": json.dumps(params_to_dict(net.comp, net.learn_p)), "provenance": "{}"}
+
+    return {
+        "format": "cekm-model",
+        "format_version": 1,
+        "kind": "indirect-rls",
+        "lattice_size": 9,
+        "w": net.w,
+        "M": net.M,
+        "Rinv": net.Rinv,
+        "params": json.dumps(params_to_dict(net.comp, net.learn_p)),
+        "provenance": "{}",
+    }
 
 
 @pytest.mark.parametrize("change,field,message", [

@@ -19,7 +19,7 @@ def test_rls_with_lambda_one_equals_regularized_batch_least_squares():
     M0 = rng.uniform(-0.1, 0.1, (2, 2))
     M, Rinv = M0[None].copy(), np.eye(2)[None].copy()
     idx, g = np.array([0]), np.array([1.0])
-    for v, c in zip(V, C):
+    for v, c in zip(V, C, strict=True):
         learning.recursive_least_squares(M, Rinv, v[None], c, idx, g, forgetting=1.0, trace_cap=1e300)
     expected = (C.T @ V + M0) @ np.linalg.inv(V.T @ V + np.eye(2))
     np.testing.assert_allclose(M[0], expected, rtol=1e-10, atol=1e-12)
@@ -30,7 +30,7 @@ def test_rls_with_lambda_one_equals_batch_least_squares_from_a_vague_prior():
     rng = np.random.default_rng(1)
     V, C = _data(rng)
     M, Rinv = np.zeros((1, 2, 2)), (1e8 * np.eye(2))[None].copy()
-    for v, c in zip(V, C):
+    for v, c in zip(V, C, strict=True):
         learning.recursive_least_squares(M, Rinv, v[None], c, np.array([0]), np.array([1.0]), 1.0, 1e300)
     lstsq = np.linalg.lstsq(V, C, rcond=None)[0].T
     np.testing.assert_allclose(M[0], lstsq, rtol=1e-6, atol=1e-8)
@@ -51,7 +51,9 @@ def test_rls_gain_form_eq17_matches_textbook_gain():
 def test_rls_trace_cap_bounds_covariance():
     M, R = np.zeros((1, 2, 2)), np.eye(2)[None].copy()
     for _ in range(5000):  # forgetting without information winds R^-1 up
-        learning.recursive_least_squares(M, R, np.array([[1e-6, 0.0]]), np.zeros(2), np.array([0]), np.array([1.0]), 0.99, 50.0)
+        learning.recursive_least_squares(
+            M, R, np.array([[1e-6, 0.0]]), np.zeros(2), np.array([0]), np.array([1.0]), 0.99, 50.0
+        )
     assert np.trace(R[0]) <= 50.0 + 1e-9
 
 

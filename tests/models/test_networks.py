@@ -38,7 +38,9 @@ def test_indirect_command_is_eq11_with_k_equal_s():
     s = winner(u, net.w, net.comp)
     x = np.array([net.w[s, 0] + ((u[0] - net.w[s, 0] + np.pi) % (2 * np.pi) - np.pi), net.learn_p.d_scale * u[1]])
     full = net.M[s] @ x
-    expected = full if np.all(np.abs(full) <= net.v_max) else net.M[s] @ [net.w[s, 0], net.learn_p.d_scale * net.w[s, 1]]
+    expected = (
+        full if np.all(np.abs(full) <= net.v_max) else net.M[s] @ [net.w[s, 0], net.learn_p.d_scale * net.w[s, 1]]
+    )
     np.testing.assert_allclose(c, expected)
 
 
@@ -78,8 +80,9 @@ def test_bfn_command_matches_hand_computed_values():
     net = _small_bfn()
     phi0, phi1 = 0.2689414213699951, 0.7310585786300049
     np.testing.assert_allclose(net.activations(np.array([0.5, 0.04])), [phi0, phi1, 0.0, 0.0], rtol=1e-12)
-    np.testing.assert_allclose(net.command(np.array([0.5, 0.04])), [phi0 * 0.01 + phi1 * 0.03, phi0 * 0.02 + phi1 * 0.04],
-                               rtol=1e-12)
+    np.testing.assert_allclose(
+        net.command(np.array([0.5, 0.04])), [phi0 * 0.01 + phi1 * 0.03, phi0 * 0.02 + phi1 * 0.04], rtol=1e-12
+    )
 
 
 def test_bfn_learning_step_matches_hand_computed_values():

@@ -100,13 +100,18 @@ def test_each_run_learns_each_new_tick_once_and_makes_a_version_holding_its_dige
     assert [h[0] for h in node.history] == [0, 1, 2, 3]
     ref = copy_model(base)  # the same steps, by hand
     for i in range(24):
-        ref.learn(wheel_displacement(0.05 * TICK_S, 0.06 * TICK_S, TICK_S, KHEPERA.axle, STEP_S), np.array([0.05, 0.06]),
-                  float(i))
+        ref.learn(
+            wheel_displacement(0.05 * TICK_S, 0.06 * TICK_S, TICK_S, KHEPERA.axle, STEP_S),
+            np.array([0.05, 0.06]),
+            float(i),
+        )
     assert np.array_equal(node.net.w, ref.w) and np.array_equal(node.net.M, ref.M)
 
 
 def follower(base, instance=3):
-    return start_node(LearningObstacleLocalization, ctx(base, "obstacle", instance), LearningObstacleLocalization.Params())
+    return start_node(
+        LearningObstacleLocalization, ctx(base, "obstacle", instance), LearningObstacleLocalization.Params()
+    )
 
 
 def test_stale_malformed_and_misfit_map_messages_are_refused(base):

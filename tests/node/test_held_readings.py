@@ -219,8 +219,11 @@ def test_the_unchanged_message_names_readings_sent_before_it():
     m = Unchanged(1.28, "world", ("sense/range/3", "sense/target"), (0.128, 0.0))
     assert decode(K.sense_unchanged("r1"), encode(m)) == m
     assert K.parse(K.sense_unchanged("r1")).kind is KeyKind.SENSE_UNCHANGED
-    for keys, since, why in [(("sense/range/3",), (1.28,), "not before"), (("sense/range/3",), (0.0, 0.1), "values for"),
-                             (("sense/range/3", "sense/range/3"), (0.0, 0.1), "named twice"),
-                             (("field/obstacle/3",), (0.0,), "not matching")]:
+    for keys, since, why in [
+        (("sense/range/3",), (1.28,), "not before"),
+        (("sense/range/3",), (0.0, 0.1), "values for"),
+        (("sense/range/3", "sense/range/3"), (0.0, 0.1), "named twice"),
+        (("field/obstacle/3",), (0.0,), "not matching"),
+    ]:
         with pytest.raises(MessageError, match=why):
             Unchanged(1.28, "world", keys, since)

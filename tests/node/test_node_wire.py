@@ -27,11 +27,15 @@ ROWS = tuple(TABLE[s] for s in range(5))
 
 
 def samples(n: int):
-    for k in range(n):
+    for _ in range(n):
         t = tick_time(int(RNG.integers(0, 500)))
         j = int(RNG.integers(0, 12))
         s = int(RNG.integers(0, 5))
-        yield K.sense_range("r1", j), KeyKind.SENSE_RANGE, encode(SenseRange(t, "world", j, 0.5, None if s == 0 else 0.1 * s))
+        yield (
+            K.sense_range("r1", j),
+            KeyKind.SENSE_RANGE,
+            encode(SenseRange(t, "world", j, 0.5, None if s == 0 else 0.1 * s)),
+        )
         yield K.field_obstacle("r1", j), KeyKind.FIELD_OBSTACLE, encode(
             ObstacleField(t, f"r1/obstacle-{j}", j, None if s == 0 else s, None if s == 0 else ROWS[s]))
         yield K.field_target("r1"), KeyKind.FIELD_TARGET, encode(TargetField(t, "r1/target", s, ROWS[s], -0.3, 0.2))

@@ -58,7 +58,9 @@ def motor_gate(gate_cls=LockstepGate, drops=None):
     from cekm_swarm.modules.motor_integration import MotorIntegration
 
     runner = Runner(node, Recorder(MotorIntegration.outputs, calls))
-    gate = gate_cls(runner, drop=(lambda key, why: drops.append((key, why))) if drops is not None else (lambda k, w: None))
+    gate = gate_cls(
+        runner, drop=(lambda key, why: drops.append((key, why))) if drops is not None else (lambda k, w: None)
+    )
     return gate, calls
 
 

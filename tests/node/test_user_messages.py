@@ -320,8 +320,20 @@ def test_a_parameter_changed_while_a_lockstep_run_goes_is_applied_at_its_tick_an
     cat = cekm("log", "cat", log, "--json", "--topics", "cekm/*/param/*", cwd=tmp_path)
     records = [json.loads(line) for line in cat.stdout.splitlines()]
     assert [(r["topic"], r["message"]) for r in records] == [
-        ("cekm/r1/param/motor", {"kind": "data", "type": "cekm.ParamChange", "stamp": t_at, "sender": "r1/motor",
-                                 "node": "motor", "name": "speed", "value": 0.08, "was": 0.05})], cat.stdout + cat.stderr
+        (
+            "cekm/r1/param/motor",
+            {
+                "kind": "data",
+                "type": "cekm.ParamChange",
+                "stamp": t_at,
+                "sender": "r1/motor",
+                "node": "motor",
+                "name": "speed",
+                "value": 0.08,
+                "was": 0.05,
+            },
+        )
+    ], cat.stdout + cat.stderr
     info = cekm("log", "info", log, cwd=tmp_path)
     assert any("cekm/r1/param/motor" in line and "cekm.data:cekm.ParamChange" in line
                for line in info.stdout.splitlines()), info.stdout
@@ -348,7 +360,12 @@ def test_a_change_for_a_tick_the_node_has_run_is_refused_and_one_to_come_waits_f
         live.set("speed", 0.1, 1.28)
     with pytest.raises(ValueError, match="expected a number"):
         live.set("speed", "fast", None)
-    assert live.set("speed", 0.1, None) == {"node": "r1/motor", "name": "speed", "value": 0.1, "t": 1.536}  # 2 periods on
+    assert live.set("speed", 0.1, None) == {
+        "node": "r1/motor",
+        "name": "speed",
+        "value": 0.1,
+        "t": 1.536,
+    }  # 2 periods on
     live.apply_due(11)
     assert runner.node.params.speed == 0.05 and live.changes == []
     live.apply_due(12)

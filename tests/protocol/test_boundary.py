@@ -40,4 +40,7 @@ def test_importing_the_protocol_loads_no_other_project_module():
             "print(sorted(m for m in sys.modules if m.startswith(('cekm_swarm', 'world'))))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     loaded = eval(out)
-    assert all(m in ("cekm_swarm", "cekm_swarm.errors", "cekm_swarm.ticks") or m.startswith("cekm_swarm.protocol") for m in loaded), loaded
+    assert all(
+        m in ("cekm_swarm", "cekm_swarm.errors", "cekm_swarm.ticks") or m.startswith("cekm_swarm.protocol")
+        for m in loaded
+    ), loaded

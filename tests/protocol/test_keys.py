@@ -133,7 +133,8 @@ def test_a_bad_run_id_is_refused_by_name(bad):
 
 
 def test_a_graphs_own_keys_parse_as_node_keys_under_the_robot():
-    """A graph may give its nodes keys of their own below the robot; sense/ and alive/ stay the world's and the tokens'."""
+    """A graph may give its nodes keys of their own below the robot; sense/ and alive/ stay
+    the world's and the tokens'."""
     ks = KeySpace()
     for path in ("fusion/avoid", "cmd/wheels/extra", "my_node/out.1"):
         p = ks.parse(f"cekm/r1/{path}")

@@ -243,7 +243,8 @@ def test_truncated_and_garbage_bytes():
     for cut in (1, 10, len(data) // 2, len(data) - 1):
         raises(MessageFormatError, FKEY, data[:cut], None, "not valid msgpack")
     raises(MessageFormatError, FKEY, b"", None)
-    raises(MessageFormatError, FKEY, data + b"\x00", None, re.escape("trailing bytes after the msgpack map (1 more byte)"))
+    raises(MessageFormatError, FKEY, data + b"\x00", None, re.escape("trailing bytes after the msgpack map (1 more "
+                                                                     "byte)"))
     raises(MessageFormatError, FKEY, pack([1, 2, 3]), None, "not a msgpack map: a msgpack array")
     # garbage whose first byte is a whole msgpack object: not a map, whatever follows
     for junk, what in ((b"\x00\xff\x13\x37", "a msgpack integer followed by 3 more bytes"),

@@ -47,7 +47,9 @@ def samples() -> list[tuple[str, object]]:
         out.append((K.sense_target("r1"), SenseTarget(t, "world", float(rng.uniform(-math.pi, math.pi)), 0.5, True)))
         out.append((K.sense_target("r1"), SenseTarget(t, "world", 0.0, 0.0, False)))
         for j in (0, 5, 11):
-            out.append((K.sense_range("r1", j), SenseRange(t, "world", j, -math.pi + j * 0.5, None if j == 5 else 0.0851)))
+            out.append(
+                (K.sense_range("r1", j), SenseRange(t, "world", j, -math.pi + j * 0.5, None if j == 5 else 0.0851))
+            )
         out.append((K.field_target("r2"), TargetField(t, "r2/target", 112, a, 0.3, 1.2)))
         out.append((K.field_target("r2"), TargetField(t, "r2/target", 0, a[:9])))
         out.append((K.field_target("r2"), TargetField(t, "r2/target", None, None, -1.0, 0.0, at_goal=True)))
@@ -79,7 +81,7 @@ def test_every_message_encodes_to_the_bytes_written_before():
     pairs = msgpack.unpackb(FIXTURE.read_bytes(), raw=False)
     now = samples()
     assert len(pairs) == len(now)
-    for (key, payload), (k, msg) in zip(pairs, now):
+    for (key, payload), (k, msg) in zip(pairs, now, strict=True):
         assert key == k
         assert encode(msg) == payload, (key, msg)
 

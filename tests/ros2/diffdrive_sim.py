@@ -173,7 +173,7 @@ def bad(r: Robot) -> None:
                                       orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0))
     zero = T["geometry_msgs/msg/Twist"](linear=T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0),
                                         angular=T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0))
-    for i in range(5):
+    for _ in range(5):
         r.odom.publish(header=header(now, "odom"), child_frame_id="base_link",
                        pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=nan, covariance=np.zeros(36)),
                        twist=T["geometry_msgs/msg/TwistWithCovariance"](twist=zero, covariance=np.zeros(36)))
@@ -187,7 +187,12 @@ def bad(r: Robot) -> None:
                            ranges=np.ones(n, dtype=np.float32), intensities=np.zeros(0, dtype=np.float32))
     rng = np.random.default_rng(7)
     for i in range(10_000):
-        raw(r.scan, rng.bytes(int(rng.integers(0, 200))) if i % 2 else b"\x00\x01\x00\x00" + rng.bytes(int(rng.integers(0, 60))))
+        raw(
+            r.scan,
+            rng.bytes(int(rng.integers(0, 200)))
+            if i % 2
+            else b"\x00\x01\x00\x00" + rng.bytes(int(rng.integers(0, 60))),
+        )
     say("BAD", json.dumps(counts))
 
 

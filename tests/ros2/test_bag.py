@@ -63,7 +63,9 @@ def test_the_bag_is_a_rosbag2_mcap_bag_with_the_jazzy_hashes(bag):
             assert c.digest == JAZZY_TYPE_HASHES[c.msgtype]
             assert c.ext.serialization_format == "cdr"
             latched = c.topic == "/tf_static"
-            assert [q.durability.name for q in c.ext.offered_qos_profiles] == ["TRANSIENT_LOCAL" if latched else "VOLATILE"]
+            assert [q.durability.name for q in c.ext.offered_qos_profiles] == [
+                "TRANSIENT_LOCAL" if latched else "VOLATILE"
+            ]
     with open(bag / "bag.mcap", "rb") as f:
         reader = make_reader(f, decoder_factories=[DecoderFactory()])
         assert reader.get_header().profile == "ros2"
@@ -91,7 +93,9 @@ def test_every_robots_last_pose_is_the_runs_final_pose(bag_messages, crossing_ru
         assert 2 * math.atan2(p.orientation.z, p.orientation.w) == pytest.approx(tr["theta"][-1], abs=1e-12)
         gx, gy = outcome["robots"][rid]["checkpoints"][-1]
         assert math.hypot(gx - p.position.x, gy - p.position.y) == outcome["robots"][rid]["final_distance_m"]
-        assert [(m.pose.pose.position.x, m.pose.pose.position.y) for _, m in odom] == list(zip(tr["x"], tr["y"]))
+        assert [(m.pose.pose.position.x, m.pose.pose.position.y) for _, m in odom] == list(
+            zip(tr["x"], tr["y"], strict=True)
+        )
 
 
 def held_readings(log, rid: str, j: int) -> list[SenseRange]:
@@ -117,7 +121,7 @@ def test_every_range_sensor_has_one_message_per_obstacle_tick_with_the_logged_re
             readings = held_readings(log, rid, j)
             ranges = bag_messages[f"/{rid}/range_{j}"]
             assert len(ranges) == len(readings) == outcome["ticks"] + 1
-            for (t, r), m in zip(ranges, readings):
+            for (t, r), m in zip(ranges, readings, strict=True):
                 assert t == round(m.stamp * 1e9) and r.header.frame_id == f"{rid}/range_{j}"
                 expected = math.inf if m.d is None else np.float32(m.d - radius)
                 assert r.range == expected and r.max_range == np.float32(0.17)
@@ -135,7 +139,7 @@ def test_wheel_commands_and_fields_are_the_logs(bag_messages, log):
         speeds = bag_messages[f"/{rid}/wheel_speeds"]
         twists = bag_messages[f"/{rid}/cmd_vel_out"]
         assert len(speeds) == len(twists) == len(cmds) > 100
-        for (t, s), (_, tw), c in zip(speeds, twists, cmds):
+        for (t, s), (_, tw), c in zip(speeds, twists, cmds, strict=True):
             assert t == round(c.stamp * 1e9) and list(s.data) == [c.v_l, c.v_r]  # raw wheel speeds, exactly
             assert tw.linear.x == (c.v_l + c.v_r) / 2 and tw.angular.z == (c.v_r - c.v_l) / KHEPERA.axle
         assert len(bag_messages[f"/{rid}/ekm/motor_activity"]) == len(cmds)
@@ -147,7 +151,7 @@ def test_wheel_commands_and_fields_are_the_logs(bag_messages, log):
                 fields.append(fields[-1])
         arrays = bag_messages[f"/{rid}/ekm/target_field"]
         assert len(arrays) == len(fields)
-        for (_, arr), f in zip(arrays, fields):
+        for (_, arr), f in zip(arrays, fields, strict=True):
             assert (f.a is None and len(arr.data) == 0) or np.array_equal(arr.data, f.a)
     names = {row.name.format(robot=r, j=j) for row in TOPICS for r in ("r1", "r2", "r3") for j in range(12)}
     assert set(bag_messages) <= names  # every exported topic is a row of the documented mapping
@@ -155,7 +159,9 @@ def test_wheel_commands_and_fields_are_the_logs(bag_messages, log):
 
 def test_export_reports_progress_and_refuses_bad_input_in_one_line(crossing_run, tmp_path):
     calls = []
-    report = export_ros2(crossing_run / "run.mcap", tmp_path / "b", progress=lambda done, total: calls.append((done, total)))
+    report = export_ros2(
+        crossing_run / "run.mcap", tmp_path / "b", progress=lambda done, total: calls.append((done, total))
+    )
     assert calls[-1] == (report.read, report.read) and len(calls) >= report.read // 2000
     assert all(total == report.read for _, total in calls) and [d for d, _ in calls] == sorted(d for d, _ in calls)
     not_mcap = tmp_path / "notes.mcap"
@@ -185,7 +191,10 @@ def test_the_scene_comes_from_the_logs_geometry_also_when_the_log_was_cut(crossi
     with Reader(tmp_path / "b") as r:
         assert r.message_count == report.written
         first = next(raw for c, _, raw in r.messages() if c.topic == "/world/markers")
-    assert {m.ns for m in interfaces().from_cdr(first, "visualization_msgs/msg/MarkerArray").markers} == {"walls", "discs"}
+    assert {m.ns for m in interfaces().from_cdr(first, "visualization_msgs/msg/MarkerArray").markers} == {
+        "walls",
+        "discs",
+    }
 
 
 def test_a_log_under_another_key_root_exports_as_the_same_bag(crossing_run, bag, tmp_path):

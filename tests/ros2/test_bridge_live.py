@@ -88,8 +88,10 @@ def test_teleop_in_a_real_time_run_and_hostile_twists(processes, msg_dir, tmp_pa
 
     # the scene: the bridge fetched the run's geometry from the world (the walls), and the robots
     peer.send("sub /world/markers visualization_msgs/msg/MarkerArray")
-    peer.expect("MSG /world/markers", 30, where=lambda l: {m["ns"] for m in payload(l)["markers"]} == {"walls", "discs"})
-    peer.expect("MSG /world/markers", 30, where=lambda l: "robots" in {m["ns"] for m in payload(l)["markers"]})
+    peer.expect(
+        "MSG /world/markers", 30, where=lambda line: {m["ns"] for m in payload(line)["markers"]} == {"walls", "discs"}
+    )
+    peer.expect("MSG /world/markers", 30, where=lambda line: "robots" in {m["ns"] for m in payload(line)["markers"]})
 
     # hostile Twists, from the same publisher as the good ones below (so they arrive first)
     peer.send("pub /r1/cmd_vel geometry_msgs/msg/Twist")
@@ -134,9 +136,9 @@ def test_teleop_in_a_real_time_run_and_hostile_twists(processes, msg_dir, tmp_pa
 
     event = json.loads(world.expect("EVENT", 10, where=stopped_after_drive).split(" ", 1)[1])
     assert event["limit_s"] == 0.5
-    after = payload(peer.expect("MSG /r1/odom", 10, where=lambda l: stamp(payload(l)) > event["t"]
-                                and payload(l)["twist"]["twist"]["linear"]["x"] == 0.0))
-    later = payload(peer.expect("MSG /r1/odom", 10, where=lambda l: stamp(payload(l)) > stamp(after) + 0.25))
+    after = payload(peer.expect("MSG /r1/odom", 10, where=lambda line: stamp(payload(line)) > event["t"]
+                                and payload(line)["twist"]["twist"]["linear"]["x"] == 0.0))
+    later = payload(peer.expect("MSG /r1/odom", 10, where=lambda line: stamp(payload(line)) > stamp(after) + 0.25))
     assert later["pose"]["pose"] == after["pose"]["pose"] and later["twist"]["twist"]["linear"]["x"] == 0.0
 
     report = json.loads(stop(bridge))
@@ -147,7 +149,10 @@ def test_teleop_in_a_real_time_run_and_hostile_twists(processes, msg_dir, tmp_pa
     done_line = json.loads(stop(world, signal.SIGTERM, "DONE").split(" ", 1)[1])
     traj = json.loads((tmp_path / "run" / "trajectory.json").read_text())
     r1 = traj["r1"]
-    assert set(zip(r1["v_l"], r1["v_r"])) == {(0.0, 0.0), (0.1, 0.1)}  # nothing hostile ever reached the wheels
+    assert set(zip(r1["v_l"], r1["v_r"], strict=True)) == {
+        (0.0, 0.0),
+        (0.1, 0.1),
+    }  # nothing hostile ever reached the wheels
     assert max(r1["x"]) >= x0 + 0.05
     still = [i for i, t in enumerate(r1["t"][:len(r1["v_l"])]) if stamp(after) - 1e-6 <= t < stamp(later)]
     assert len(still) >= 2 and all(r1["v_l"][i] == r1["v_r"][i] == 0.0 for i in still)  # stopped for good
@@ -275,7 +280,9 @@ def test_access_control_keeps_a_refused_publishers_twists_out(processes, tmp_pat
 
         def twist(v: float) -> bytes:
             vec = lambda x: IFC.make("geometry_msgs/msg/Vector3", x=x, y=0.0, z=0.0)  # noqa: E731
-            return IFC.cdr(IFC.make("geometry_msgs/msg/Twist", linear=vec(v), angular=vec(0.0)), "geometry_msgs/msg/Twist")
+            return IFC.cdr(
+                IFC.make("geometry_msgs/msg/Twist", linear=vec(v), angular=vec(0.0)), "geometry_msgs/msg/Twist"
+            )
 
         intruder = sessions["intruder"].declare_publisher(key)
         teleop = sessions["teleop"].declare_publisher(key)

@@ -30,7 +30,9 @@ GEOMETRY = {"body_radius": 0.03, "sensor_range": 0.25, "target_range": 0.5,
 
 
 def state(t=0.256, **robots):
-    rb = {rid: {"x": x, "y": y, "theta": th, "v_l_exec": vl, "v_r_exec": vr} for rid, (x, y, th, vl, vr) in robots.items()}
+    rb = {
+        rid: {"x": x, "y": y, "theta": th, "v_l_exec": vl, "v_r_exec": vr} for rid, (x, y, th, vl, vr) in robots.items()
+    }
     return WorldState(t, "world", rb, {"g1": {"x": 1.0, "y": 1.5}}, {"m1": {"x": 0.2, "y": 0.3, "theta": 0.1}})
 
 
@@ -43,10 +45,15 @@ def test_world_state_gives_odometry_tf_and_markers():
     outs = m.feed("cekm/world/state", state(r1=(0.3, 1.0, 0.5, 0.1, 0.12), **{"r-2": (1.7, 1.3, -3.0, 0.0, 0.0)}))
     t = by_topic(outs)
     odom = t["/r1/odom"].msg
-    assert t["/r1/odom"].stamp_ns == 256_000_000 and (odom.header.stamp.sec, odom.header.stamp.nanosec) == (0, 256_000_000)
+    assert t["/r1/odom"].stamp_ns == 256_000_000 and (odom.header.stamp.sec, odom.header.stamp.nanosec) == (
+        0,
+        256_000_000,
+    )
     assert (odom.header.frame_id, odom.child_frame_id) == ("map", "r1/base_link")
     p = odom.pose.pose
-    assert (p.position.x, p.position.y) == (0.3, 1.0) and 2 * math.atan2(p.orientation.z, p.orientation.w) == pytest.approx(0.5)
+    assert (p.position.x, p.position.y) == (0.3, 1.0) and 2 * math.atan2(
+        p.orientation.z, p.orientation.w
+    ) == pytest.approx(0.5)
     assert odom.twist.twist.linear.x == pytest.approx(0.11)
     assert odom.twist.twist.angular.z == pytest.approx(0.02 / KHEPERA.axle)
     assert "/r_2/odom" in t  # a '-' cannot be in a ROS name
@@ -96,7 +103,9 @@ def test_range_readings_become_ranges_from_the_surface_and_static_frames():
     assert (rng.min_range, rng.max_range, rng.range) == (0.0, 0.25, 0.1 - 0.03)
     (tr,) = t["/tf_static"].msg.transforms
     assert (tr.header.frame_id, tr.child_frame_id) == ("r1/base_link", "r1/range_1")
-    assert (tr.transform.translation.x, tr.transform.translation.y) == pytest.approx((0.03 * math.cos(a), 0.03 * math.sin(a)))
+    assert (tr.transform.translation.x, tr.transform.translation.y) == pytest.approx(
+        (0.03 * math.cos(a), 0.03 * math.sin(a))
+    )
     assert t["/tf_static"].qos.transient_local
     blind = by_topic(m.feed("cekm/r1/sense/range/1", SenseRange(0.256, "world", 1, a, None)))
     assert blind["/r1/range_1"].msg.range == math.inf and "/tf_static" not in blind  # the frame is known already
@@ -114,7 +123,9 @@ def test_fields_and_the_wheel_command_give_arrays_motor_activity_and_winners():
     b3 = np.full(n, 0.25)
     b5 = np.zeros(n)
     b5[8] = 2.0
-    assert m.feed("cekm/r1/cmd/wheels", WheelCommand(0.0, "r1/motor", 0.0, 0.0, 1))[-1].topic == "/r1/wheel_speeds"  # no field yet
+    assert (
+        m.feed("cekm/r1/cmd/wheels", WheelCommand(0.0, "r1/motor", 0.0, 0.0, 1))[-1].topic == "/r1/wheel_speeds"
+    )  # no field yet
     tf = by_topic(m.feed("cekm/r1/field/target", TargetField(0.256, "r1/target", 8, a, 0.1, 0.2)))
     arr = tf["/r1/ekm/target_field"].msg
     assert [(d.label, d.size, d.stride) for d in arr.layout.dim] == [("row", 3, 9), ("col", 3, 3)]
@@ -123,7 +134,9 @@ def test_fields_and_the_wheel_command_give_arrays_motor_activity_and_winners():
     m.feed("cekm/r1/field/obstacle/5", ObstacleField(0.256, "r1/obstacle-5", 5, 8, b5))
     m.feed("cekm/r1/field/obstacle/7", ObstacleField(0.128, "r1/obstacle-7", 7, 1, b3))  # an older tick: not summed
     empty = by_topic(m.feed("cekm/r1/field/obstacle/6", ObstacleField(0.256, "r1/obstacle-6", 6, None, None)))
-    assert len(empty["/r1/ekm/obstacle_field_6"].msg.data) == 0 and empty["/r1/ekm/obstacle_field_6"].msg.layout.dim == []
+    assert (
+        len(empty["/r1/ekm/obstacle_field_6"].msg.data) == 0 and empty["/r1/ekm/obstacle_field_6"].msg.layout.dim == []
+    )
     t = by_topic(m.feed("cekm/r1/cmd/wheels", WheelCommand(0.256, "r1/motor", 0.1, 0.12, 2)))
     twist = t["/r1/cmd_vel_out"].msg
     assert twist.linear.x == pytest.approx(0.11) and twist.angular.z == pytest.approx(0.02 / KHEPERA.axle)

@@ -131,7 +131,9 @@ def test_goal_pose_and_clock():
                     orientation=IFC.make("geometry_msgs/msg/Quaternion", w=1.0))
     goal = IFC.cdr(IFC.make(P.POSE_STAMPED, header=header("map"), pose=pose), P.POSE_STAMPED)
     assert P.decode_goal(IFC, goal, DESC, "r1") == (1.5, -0.5)
-    clock = IFC.cdr(IFC.make(P.CLOCK, clock=IFC.make("builtin_interfaces/msg/Time", sec=12, nanosec=500_000_000)), P.CLOCK)
+    clock = IFC.cdr(
+        IFC.make(P.CLOCK, clock=IFC.make("builtin_interfaces/msg/Time", sec=12, nanosec=500_000_000)), P.CLOCK
+    )
     assert P.decode_clock(IFC, clock) == 12.5
 
 

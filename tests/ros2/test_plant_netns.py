@@ -108,4 +108,5 @@ def test_command_fusion_drives_two_ros2_robots_each_on_its_own_host_to_their_goa
     dropped = outcome["ros_dropped"]
     assert all(set(by) == {"stale stamp"} for by in dropped.values()), dropped
     assert outcome["launcher"]["modules"] == 0
-    print(f"two hosts, fusion: contacts {[done[r]['contacts'] for r in ROBOTS]}; sense-to-command {outcome['sense_to_command_ms']}, scan-to-Twist {outcome['scan_to_twist_ms']}")
+    print(f"two hosts, fusion: contacts {[done[r]['contacts'] for r in ROBOTS]}; sense-to-command "
+          f"{outcome['sense_to_command_ms']}, scan-to-Twist {outcome['scan_to_twist_ms']}")

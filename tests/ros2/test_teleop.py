@@ -72,7 +72,12 @@ def test_commands_are_stamped_with_the_world_clock_once_per_tick():
     assert info.value.reason == NO_CLOCK
     assert t.on_clock(tick_time(5), wall=0.0) is None  # nothing waiting
     first = t.on_twist(0.1, 0.12, wall=0.01)
-    assert isinstance(first, WheelCommand) and (first.stamp, first.v_l, first.v_r, first.seq) == (tick_time(5), 0.1, 0.12, 1)
+    assert isinstance(first, WheelCommand) and (first.stamp, first.v_l, first.v_r, first.seq) == (
+        tick_time(5),
+        0.1,
+        0.12,
+        1,
+    )
     assert decode("cekm/r1/cmd/wheels", encode(first)) == first
     assert t.on_twist(0.05, 0.05, wall=0.02) is None and t.on_twist(0.07, 0.07, wall=0.03) is None  # same tick: held
     nxt = t.on_clock(tick_time(6), wall=0.13)

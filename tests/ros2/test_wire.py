@@ -71,5 +71,9 @@ def test_gid_is_the_xxh3_128_of_the_token_low_half_first():
     token = "@ros2_lv/0/abc/0/1/MP/%/%/cekm_bridge/%r1%odom/nav_msgs::msg::dds_::Odometry_/RIHS01_x/::,10:,:,:,,"
     h = xxhash.xxh3_128_intdigest(token.encode())
     g = gid(token)
-    assert len(g) == 16 and int.from_bytes(g[:8], "little") == h & (2**64 - 1) and int.from_bytes(g[8:], "little") == h >> 64
+    assert (
+        len(g) == 16
+        and int.from_bytes(g[:8], "little") == h & (2**64 - 1)
+        and int.from_bytes(g[8:], "little") == h >> 64
+    )
     assert gid(token + "x") != g

@@ -37,7 +37,8 @@ def scenario_text(seed: int, robots: int | None = None, task: str | None = None)
             starts.append(p)
     goals: list[tuple[float, float]] = []
     for i, (x, y) in enumerate(starts):
-        lines += ["", "[[robots]]", f'id = "r{i + 1}"', f"start = [{x:.3f}, {y:.3f}, {float(rng.uniform(-3.1, 3.1)):.3f}]"]
+        lines += ["", "[[robots]]", f'id = "r{i + 1}"', f"start = [{x:.3f}, {y:.3f}, "
+                                                        f"{float(rng.uniform(-3.1, 3.1)):.3f}]"]
         if task == "navigation":
             while True:
                 g = (float(rng.uniform(0.1, side - 0.1)), float(rng.uniform(0.1, side - 0.1)))
@@ -51,7 +52,8 @@ def scenario_text(seed: int, robots: int | None = None, task: str | None = None)
     if task == "tracking":
         for i in range(n + int(rng.integers(0, n + 1))):
             lines += ["", "[[targets]]", f'id = "t{i + 1}"',
-                      f"position = [{float(rng.uniform(0.2, side - 0.2)):.3f}, {float(rng.uniform(0.2, side - 0.2)):.3f}]",
+                      f"position = [{float(rng.uniform(0.2, side - 0.2)):.3f}, "
+                      f"{float(rng.uniform(0.2, side - 0.2)):.3f}]",
                       "[targets.motion]", 'type = "random_walk"', f"speed = {float(rng.uniform(0.02, 0.08)):.3f}",
                       "turn_noise = 1.0", f"heading = {float(rng.uniform(-3.1, 3.1)):.3f}"]
     for i, (x, y, r) in enumerate(discs):

@@ -3,13 +3,14 @@ two robot hosts in their own network namespaces, robot r1 behind a fault link
 (``cekm_swarm.runtime.faultlink``), every process a real one:
 
 - real time, r1's link cut for 3 s (each robot host with its own router, joined to the
-  world's: the recommended shape for a slow or flaky link, docs/faults.md): the world's dead-man stops r1 within its limit, r1
-  drives on once the link is back, r2 is never stopped, the run completes, and the
-  world's log holds every tick's world messages;
+  world's: the recommended shape for a slow or flaky link, docs/faults.md): the world's
+  dead-man stops r1 within its limit, r1 drives on once the link is back, r2 is never
+  stopped, the run completes, and the world's log holds every tick's world messages;
 - lockstep, 100 ms one-way delay and 5 % loss on r1's link (TCP: a lost segment comes a
   retransmission timeout late), host routers: the outcome equals ``cekm run``'s bit for bit;
-- real time, the world host's router (an outside one, every process its client) SIGKILLed and started again while r1's link is
-  cut: every process reconnects by itself, no module restarts, both robots drive on.
+- real time, the world host's router (an outside one, every process its client) SIGKILLed
+  and started again while r1's link is cut: every process reconnects by itself, no module
+  restarts, both robots drive on.
 
 Each run is a few seconds of sim time. Needs root and iproute2; skipped with the reason
 where the machine cannot make network namespaces."""

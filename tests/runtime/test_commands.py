@@ -149,9 +149,15 @@ def test_unreachable_endpoint_is_a_clean_error():
 def test_topic_hz_says_why_a_key_has_no_rate_instead_of_nan():
     from cekm_swarm.runtime.topics import format_hz, hz_stats
 
-    table = format_hz([hz_stats("cekm/r1/sense/range/3", [1.0], 2.5), hz_stats("cekm/r1/cmd/wheels", [1.0, 1.128, 1.256], 2.5),
-                       hz_stats("cekm/r1/mine/x", [2.0], 2.5)]).splitlines()
+    table = format_hz(
+        [
+            hz_stats("cekm/r1/sense/range/3", [1.0], 2.5),
+            hz_stats("cekm/r1/cmd/wheels", [1.0, 1.128, 1.256], 2.5),
+            hz_stats("cekm/r1/mine/x", [2.0], 2.5),
+        ]
+    ).splitlines()
     assert "nan" not in "\n".join(table)
-    assert table[1].split()[:3] == ["cekm/r1/sense/range/3", "1", "-"] and table[1].endswith("held (sent when it changes)")
+    assert table[1].split()[:3] == ["cekm/r1/sense/range/3", "1", "-"] and table[1].endswith("held (sent when it "
+                                                                                             "changes)")
     assert table[2].split()[2] == "7.81"
     assert table[3].endswith("fewer than 2 messages in the window")

@@ -43,8 +43,14 @@ def test_every_config_loads_and_says_what_it_should():
     users = {u for s in acl["subjects"] for u in s["usernames"]}
     creds = {line.split(":")[0] for line in (DEPLOY / "credentials.example.txt").read_text().split()}
     assert users == creds == {"world", "r1", "r2", "r3", "r4", "monitor", "operator"}
-    for name, user in [("world", "world"), ("robot-r1", "r1"), ("robot-r2", "r2"), ("robot-r3", "r3"), ("monitor", "monitor"),
-                       ("operator", "operator")]:
+    for name, user in [
+        ("world", "world"),
+        ("robot-r1", "r1"),
+        ("robot-r2", "r2"),
+        ("robot-r3", "r3"),
+        ("monitor", "monitor"),
+        ("operator", "operator"),
+    ]:
         c = zenoh.Config.from_file(str(DEPLOY / f"{name}.json5"))
         assert get(c, "mode") == "client" and get(c, "scouting/multicast/enabled") is False
         assert get(c, "transport/auth/usrpwd/user") == user
@@ -80,7 +86,11 @@ class Inbox:
 
     def __init__(self, session: zenoh.Session, key_expr: str, liveliness: bool = False) -> None:
         self.q: queue.SimpleQueue[str] = queue.SimpleQueue()
-        cb = (lambda s: self.q.put(f"{_kind(s)}:{s.key_expr}")) if liveliness else (lambda s: self.q.put(str(s.key_expr)))
+        cb = (
+            (lambda s: self.q.put(f"{_kind(s)}:{s.key_expr}"))
+            if liveliness
+            else (lambda s: self.q.put(str(s.key_expr)))
+        )
         self.sub = (session.liveliness().declare_subscriber(key_expr, cb, history=True) if liveliness
                     else session.declare_subscriber(key_expr, cb))
 
@@ -196,8 +206,11 @@ def test_the_shipped_router_configs_are_the_generators_output_for_every_shipped_
     assert (DEPLOY / "router.json5").read_text() == shipped()
     assert (DEPLOY / "tls" / "router.json5").read_text() == shipped(tls=True)
     head = (DEPLOY / "router.json5").read_text().splitlines()[1]
-    assert "cekm graph acl acmommt-tracking cekm-learning-navigation cekm-learning-team-navigation cekm-navigation cekm-tracking fusion-navigation kmeans-global-tracking kmeans-tracking stay --robots r1,r2,r3,r4" \
+    assert (
+        "cekm graph acl acmommt-tracking cekm-learning-navigation cekm-learning-team-navigation cekm-navigation "
+        "cekm-tracking fusion-navigation kmeans-global-tracking kmeans-tracking stay --robots r1,r2,r3,r4"
         in head
+    )
 
 
 def test_a_graphs_own_keys_are_its_robots_only(acl_router):

@@ -112,6 +112,8 @@ def test_path_message_and_trail_draw_the_whole_path_at_every_tick():
         assert trail[0] == sent[-1] and trail[-1] == (x, y)
         drawn = sent + trail[1:]  # the robot's pose ends the trail: twice if it is the path's last
         assert [p for i, p in enumerate(drawn) if i == 0 or p != drawn[i - 1]] == path
-    gaps = [b - a for a, b in zip(sink.paths, sink.paths[1:])]  # due after PATH_EVERY_S, sent at the next step
+    gaps = [
+        b - a for a, b in zip(sink.paths, sink.paths[1:], strict=False)
+    ]  # due after PATH_EVERY_S, sent at the next step
     assert sink.paths[0] == 0.0 and len(gaps) >= 20
     assert all(fv.PATH_EVERY_S <= g <= fv.PATH_EVERY_S + 2 * 0.128 for g in gaps)

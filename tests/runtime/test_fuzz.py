@@ -312,7 +312,7 @@ def test_realtime_fuzz_stops_no_robot_and_every_message_is_counted(realtime_fuzz
     assert last_tick < len(traj["t"]) - 1, "the run ended before the fuzz did"
     assert not [e for e in outcome["events"] if e["event"] == "deadman"], outcome["events"]
     # the robot drove on through the fuzz: a far-future stamp made every field stale before
-    moving = [(vl, vr) != (0.0, 0.0) for vl, vr in zip(traj["v_l"][START_TICK:], traj["v_r"][START_TICK:])]
+    moving = [(vl, vr) != (0.0, 0.0) for vl, vr in zip(traj["v_l"][START_TICK:], traj["v_r"][START_TICK:], strict=True)]
     assert all(moving), moving.index(False)
     counts = check_accounting(run, sent)
     print("real-time fuzz:", len(sent), "messages;", counts)
@@ -350,7 +350,9 @@ def test_a_burst_of_well_formed_readings_stalls_no_lockstep_module(tmp_path):
     from mcap.reader import make_reader
 
     with open(run.out / "run.mcap", "rb") as f:  # the readings the world sent it (unchanged ones are held)
-        from_world = sum(1 for _, ch, m in make_reader(f).iter_messages(topics=[key]) if decode(key, m.data).sender == "world")
+        from_world = sum(
+            1 for _, ch, m in make_reader(f).iter_messages(topics=[key]) if decode(key, m.data).sender == "world"
+        )
     # a held reading is sent at least every HOLD_TICKS + 1 ticks (and again on a stalled tick)
     assert from_world >= -(-outcome["ticks"] // (HOLD_TICKS + 1)), (from_world, outcome["ticks"])
     assert doc["dropped"] == {} and doc["handled"] == bursts * burst + from_world, doc  # the bursts and the world's

@@ -60,8 +60,10 @@ def assert_equals_cekm_run(run: LaunchProcess, scenario: str, controller: str, m
     assert set(traj) == set(ref.episode.progress)
     for r, p in ref.episode.progress.items():
         t = traj[r]
-        assert list(zip(t["t"], t["x"], t["y"], t["theta"])) == [tuple(q) for q in p.path], r  # every path sample
-        assert list(zip(t["v_l"], t["v_r"])) == [tuple(c) for c in p.commands], r  # every wheel command
+        assert list(zip(t["t"], t["x"], t["y"], t["theta"], strict=True)) == [tuple(q) for q in p.path], (
+            r
+        )  # every path sample
+        assert list(zip(t["v_l"], t["v_r"], strict=True)) == [tuple(c) for c in p.commands], r  # every wheel command
     assert outcome["robots"] == json.loads(json.dumps(ref.episode.outcome()))
     assert outcome["ticks"] == ref.ticks and outcome["controller"] == controller
     if ref.task == "tracking":  # Parker's A, per target, and every per-tick series

@@ -1,8 +1,8 @@
 """`cekm launch` in lockstep, end to end, on the paper's concave obstacle (Fig. 8): a real
-embedded router on a free loopback port, the world server and 14 module processes; the trajectory equals the in-process run bit
-for bit, even though an obstacle module and the motor module are SIGKILLed as soon as
-the world starts ticking (the launcher restarts them; the world re-publishes the waiting
-tick's readings until the restarted modules answer)."""
+embedded router on a free loopback port, the world server and 14 module processes; the
+trajectory equals the in-process run bit for bit, even though an obstacle module and the
+motor module are SIGKILLed as soon as the world starts ticking (the launcher restarts them;
+the world re-publishes the waiting tick's readings until the restarted modules answer)."""
 
 from __future__ import annotations
 

@@ -88,7 +88,8 @@ def test_lockstep_ends_with_the_failing_nodes_line(tmp_path):
     run, code = launch(tmp_path, graph(tmp_path, "Failing"), "lockstep", "20", "ls")
     assert code == 1, "\n".join(run.lines[-20:])  # the run failed (not bad input)
     last = run.lines[-1]
-    assert last.startswith("cekm: failed: r1/motor: its step at t=0.512 s failed: RuntimeError: boom in the user's step at t=0.512 "
+    assert last.startswith("cekm: failed: r1/motor: its step at t=0.512 s failed: RuntimeError: boom in the user's "
+                           "step at t=0.512 "
                            "(mine.py:"), last
     assert "lockstep the run cannot go on" in last
     assert not any("republish" in line for line in run.lines), "the world waited for the failed node"

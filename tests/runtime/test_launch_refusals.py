@@ -80,8 +80,9 @@ def test_a_node_that_cannot_start_ends_the_launch_with_its_own_line(tmp_path):
     r = cekm("launch", "lone_obstacle", "--graph", str(graph), "--mode", "lockstep", "--out", str(tmp_path / "out"),
              "--port", str(free_port()), "--model", str(default_model_path()))
     assert r.returncode == 2, (r.stdout, r.stderr)
-    assert r.stderr == "cekm: error: r1/wheels: cannot start: ZeroDivisionError: division by zero (device_node.py:11)\n", \
-        r.stderr  # its type, file and line
+    assert (
+        r.stderr == "cekm: error: r1/wheels: cannot start: ZeroDivisionError: division by zero (device_node.py:11)\n"
+    ), r.stderr  # its type, file and line
     assert "restarted" not in r.stdout and "cannot start" in r.stdout
     log = (tmp_path / "out" / "logs" / "r1-wheels.log").read_text()
     assert "Traceback (most recent call last)" in log and 'device_node.py", line 11, in setup' in log, log

@@ -32,8 +32,13 @@ def acl_router(tmp_path):
     creds = tmp_path / "credentials.txt"
     shutil.copy(DEPLOY / "credentials.example.txt", creds)
     port = free_port()
-    router = open_session(load_config(DEPLOY / "router.json5", {
-        "listen/endpoints": [f"tcp/127.0.0.1:{port}"], "transport/auth/usrpwd/dictionary_file": str(creds)}), "ACL router")
+    router = open_session(
+        load_config(
+            DEPLOY / "router.json5",
+            {"listen/endpoints": [f"tcp/127.0.0.1:{port}"], "transport/auth/usrpwd/dictionary_file": str(creds)},
+        ),
+        "ACL router",
+    )
     yield f"tcp/127.0.0.1:{port}"
     router.close()
 

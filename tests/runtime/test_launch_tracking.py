@@ -101,7 +101,7 @@ def test_lockstep_tracking_log_through_the_monitor_gives_the_runs_a(lockstep_run
 
     run, _ = lockstep_run
     series = run.outcome()["tracking"]["series"]
-    want = {round(t, 6): a for t, a in zip(series["t"], series["A"])}
+    want = {round(t, 6): a for t, a in zip(series["t"], series["A"], strict=True)}
     st = MonitorState()
     got = {}
     msgs = [m for m in read_messages(run.out / "run.mcap") if m.topic.startswith("cekm/")]

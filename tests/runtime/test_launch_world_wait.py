@@ -25,7 +25,7 @@ class ScriptedWatcher:
         if self.events:
             return self.events.pop(0)
         await asyncio.sleep(0)
-        raise asyncio.TimeoutError
+        raise TimeoutError
 
 
 def session_with_routers(*zids: str) -> SimpleNamespace:

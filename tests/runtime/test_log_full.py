@@ -52,8 +52,14 @@ CHILD = textwrap.dedent("""
 
 def _fill(tmp_path: Path, limit: int, chunk: int = 8 * 1024) -> tuple[dict, Path]:
     path = tmp_path / "run.mcap"
-    out = subprocess.run([sys.executable, "-c", CHILD, str(limit), str(path), str(chunk)], capture_output=True, text=True,
-                         timeout=120, cwd=ROOT, env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin"})
+    out = subprocess.run(
+        [sys.executable, "-c", CHILD, str(limit), str(path), str(chunk)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=ROOT,
+        env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin"},
+    )
     assert out.returncode == 0, out.stderr
     return json.loads(out.stdout.strip().splitlines()[-1]), path
 

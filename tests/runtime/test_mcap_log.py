@@ -9,6 +9,7 @@ import signal
 
 import numpy as np
 import pytest
+from mcap.exceptions import McapError
 from mcap.reader import make_reader
 from runtime_samples import sample_traffic, write_log
 
@@ -51,7 +52,7 @@ def test_channels_schemas_and_times_with_the_mcap_reader(tmp_path):
                for _, ch, msg in reader.iter_messages(log_time_order=True)]
     assert sorted(got, key=lambda g: g[2]) == got
     assert [(k, d) for k, d, _ in traffic] == [(k, d) for k, d, _, _ in got]  # stable order within a tick
-    assert all(lt == pt == sim_ns(t) for (_, _, t), (_, _, lt, pt) in zip(traffic, got))
+    assert all(lt == pt == sim_ns(t) for (_, _, t), (_, _, lt, pt) in zip(traffic, got, strict=True))
     ours = list(read_messages(path))
     assert [(m.topic, m.data) for m in ours] == [(k, d) for k, d, _ in traffic]
     assert all(decode(m.topic, m.data) is not None for m in ours)
@@ -83,7 +84,7 @@ def test_truncated_file_streams_to_the_cut_and_recovers(tmp_path):
     cut = tmp_path / "cut.mcap"
     cut.write_bytes(data[: int(len(data) * 0.6)])
     assert not is_complete(cut)
-    with open(cut, "rb") as f, pytest.raises(Exception):
+    with open(cut, "rb") as f, pytest.raises(McapError):
         make_reader(f).get_summary()  # the seeking reader needs the footer
     streamed = list(read_messages(cut))
     assert 0 < len(streamed) < len(traffic)

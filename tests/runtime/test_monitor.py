@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import subprocess
 import sys
@@ -250,10 +251,8 @@ def test_monitor_command_attaches_to_a_live_run(router, clients):
         t += 0.128
         pub.put(K.world_state(), encode(world_state(t, 0.1 + t / 100)))
         pub.put(K.cmd_wheels("r1"), encode(WheelCommand(t, "r1/motor", 0.05, 0.06, int(t / 0.128))))
-        try:
+        with contextlib.suppress(subprocess.TimeoutExpired):
             proc.wait(timeout=0.02)
-        except subprocess.TimeoutExpired:
-            pass
     out, err = proc.communicate(timeout=10)
     assert proc.returncode == 0, err
     assert out.startswith("cekm monitor running") and max(len(line) for line in out.splitlines()) <= 80

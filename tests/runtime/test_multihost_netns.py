@@ -131,7 +131,7 @@ def test_world_host_and_two_robot_hosts_in_network_namespaces_over_mutual_tls(ho
     t_up = time.monotonic()
     assert world.finish(timeout=240) == 0, "\n".join(world.lines)
     wall = time.monotonic() - t0
-    for r, p in robots.items():
+    for p in robots.values():
         assert p.finish(timeout=60) == 0, "\n".join(p.lines)
         assert any("the world server has ended" in line for line in p.lines), "\n".join(p.lines[-20:])
     outcome = json.loads((run / "world-host" / "outcome.json").read_text())

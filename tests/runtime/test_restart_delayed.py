@@ -357,7 +357,8 @@ def kill_mid_run(tmp_path: Path, name: str, node: str, at_tick: int = 20, *also:
 
         session = open_client(f"tcp/127.0.0.1:{run.port}")
         sub = session.declare_subscriber(K.cmd_wheels("r1"), on_command)
-        assert killed.wait(60), "no command of tick %d in 60 s:\n%s" % (at_tick, "\n".join(run.lines[-20:]))
+        last = "\n".join(run.lines[-20:])
+        assert killed.wait(60), f"no command of tick {at_tick} in 60 s:\n{last}"
         sub.undeclare()
         for n in (node, *also):  # in any order: a line already read while waiting for another is in run.lines
             if not any(f"module {n} restarted" in line for line in run.lines):

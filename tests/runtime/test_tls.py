@@ -122,8 +122,11 @@ def test_make_certs_names_the_router_and_each_host(tmp_path):
     subject = subprocess.run(["openssl", "x509", "-in", str(c / "r1.pem"), "-noout", "-subject"], capture_output=True,
                              text=True, check=True).stdout
     assert subject.strip().replace(" ", "") == "subject=CN=r1"
-    verify = subprocess.run(["openssl", "verify", "-CAfile", str(c / "ca.pem"), str(c / "r1.pem"), str(c / "router.pem")],
-                            capture_output=True, text=True)
+    verify = subprocess.run(
+        ["openssl", "verify", "-CAfile", str(c / "ca.pem"), str(c / "r1.pem"), str(c / "router.pem")],
+        capture_output=True,
+        text=True,
+    )
     assert verify.returncode == 0, verify.stdout + verify.stderr
     # A second run keeps what exists (no silent re-keying) and adds what is missing.
     before = (c / "r1.pem").read_bytes()

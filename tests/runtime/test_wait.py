@@ -37,7 +37,9 @@ def test_connect_option_beats_the_environment_which_beats_the_default():
 def test_a_port_that_cannot_exist_is_refused_at_once(port):
     """It was accepted and waited for as 'no router' (--wait 60: a minute for a typo)."""
     endpoint = f"tcp/127.0.0.1:{port}"
-    with pytest.raises(RuntimeTransportError, match=f"^--connect: endpoint '{endpoint}': port {port} is not in 1..65535"):
+    with pytest.raises(
+        RuntimeTransportError, match=f"^--connect: endpoint '{endpoint}': port {port} is not in 1..65535"
+    ):
         resolve_endpoint(endpoint, {})
     with pytest.raises(RuntimeTransportError, match=f"^{ENV_CONNECT}: endpoint '{endpoint}': port {port} is not in"):
         resolve_endpoint(None, {ENV_CONNECT: endpoint})

@@ -42,7 +42,7 @@ def test_same_seed_same_episode_other_seed_other_scenario():
     seed_a = env.scenario_seed
     b = _episode(env, 7, lambda: iter(acts))
     assert env.scenario_seed == seed_a
-    assert all(np.array_equal(x, y) for x, y in zip(a[0], b[0])) and len(a[0]) == len(b[0])
+    assert all(np.array_equal(x, y) for x, y in zip(a[0], b[0], strict=True)) and len(a[0]) == len(b[0])
     assert a[1] == b[1] and a[2] == b[2]
     _episode(env, 8, lambda: iter(acts))
     assert env.scenario_seed != seed_a

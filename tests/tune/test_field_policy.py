@@ -54,7 +54,7 @@ def test_save_load_round_trip_and_bad_files(tmp_path):
 
 def test_features_see_an_obstacle_ahead_and_the_target():
     w = np.array([[0.0, 0.02], [0.0, 0.16], [math.pi / 2, 0.08], [-math.pi / 2, 0.08], [math.pi, 0.16]])
-    f = dict(zip(FEATURES, field_features(w, [0, None, 2, None], (0.0, 0.16))))
+    f = dict(zip(FEATURES, field_features(w, [0, None, 2, None], (0.0, 0.16)), strict=True))
     assert f["bias"] == 1.0 and f["front"] == pytest.approx(1 - 0.02 / 0.16) and f["left"] == pytest.approx(0.5)
     assert f["right"] == 0.0 and f["seen"] == 0.5 and f["toward_target"] == f["front"]
     assert f["target_angle"] == 0.0 and f["target_near"] == 0.0 and f["teammates"] == 0.0

@@ -34,7 +34,9 @@ def test_fields_of_the_chosen_robot_combine_as_eq_9():
     b3[0] = 0.7
     b5 = np.zeros(9)
     b5[1] = 0.4
-    v.observe(K.field_target("r1"), encode(TargetField(0.25, "r1/target", 0, a, 0.0, 1.0)))  # the target sensor is slower
+    v.observe(
+        K.field_target("r1"), encode(TargetField(0.25, "r1/target", 0, a, 0.0, 1.0))
+    )  # the target sensor is slower
     v.observe(K.field_obstacle("r1", 3), encode(ObstacleField(0.5, "r1/obstacle-3", 3, 0, b3)))
     v.observe(K.field_obstacle("r1", 5), encode(ObstacleField(0.5, "r1/obstacle-5", 5, 1, b5)))
     v.observe(K.field_obstacle("r1", 7), encode(ObstacleField(0.5, "r1/obstacle-7", 7, None, None)))  # sees nothing

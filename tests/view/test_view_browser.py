@@ -32,8 +32,10 @@ from helpers.foxglove import WsClient
 from helpers.launch import LaunchProcess
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser") or shutil.which("google-chrome")
-pytestmark = [pytest.mark.skipif(CHROMIUM is None, reason="needs headless Chromium (.ci/run installs Debian's chromium)"),
-              pytest.mark.slow]  # starts a launch and a browser (tests/process_guard.py)
+pytestmark = [
+    pytest.mark.skipif(CHROMIUM is None, reason="needs headless Chromium (.ci/run installs Debian's chromium)"),
+    pytest.mark.slow,
+]  # starts a launch and a browser (tests/process_guard.py)
 R1 = (0x1F, 0x77, 0xB4)  # world.draw.ROBOT_COLOURS[0], r1's colour on the page
 
 
@@ -147,7 +149,7 @@ def test_live_view_in_headless_chromium(tmp_path):
             state = json.loads(urllib.request.urlopen(url + "state.json", timeout=30).read())
             while True:  # the world may finish the tick it had begun: wait until the view has it
                 try:  # (a held world republishes its last tick's state: same time, not news)
-                    stream.wait(lambda t: t["time"] != state["time"], 1.5, "a new time")
+                    stream.wait(lambda t, state=state: t["time"] != state["time"], 1.5, "a new time")
                     state = json.loads(urllib.request.urlopen(url + "state.json", timeout=30).read())
                 except AssertionError:
                     return state

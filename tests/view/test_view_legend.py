@@ -19,8 +19,10 @@ from cekm_swarm.view.server import ViewServer
 from world.draw import robot_colours
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser") or shutil.which("google-chrome")
-pytestmark = [pytest.mark.skipif(CHROMIUM is None, reason="needs headless Chromium (.ci/run installs Debian's chromium)"),
-              pytest.mark.slow]  # starts a browser (tests/process_guard.py)
+pytestmark = [
+    pytest.mark.skipif(CHROMIUM is None, reason="needs headless Chromium (.ci/run installs Debian's chromium)"),
+    pytest.mark.slow,
+]  # starts a browser (tests/process_guard.py)
 BANNER = (0xC0, 0x00, 0x00)  # the end notice's background
 LABEL = (0x70, 0x30, 0xA0)  # targets and their labels
 

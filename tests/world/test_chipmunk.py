@@ -52,7 +52,7 @@ def test_a_c_step_equals_a_public_step():
     def run(c_step: bool) -> list[tuple[float, float]]:
         space, rng = scene()
         bodies = []
-        for k in range(6):
+        for _ in range(6):
             b = pymunk.Body(0.08, pymunk.moment_for_circle(0.08, 0, 0.03))
             b.position = tuple(rng.uniform(0.3, 1.7, 2))
             b.velocity = tuple(rng.uniform(-0.2, 0.2, 2))

@@ -19,7 +19,9 @@ from world.draw import draw_paths, figure_size, fit_bounds, legend_outside, nice
 
 
 def _by_gid(ax, prefix):
-    return {a.get_gid().split(":", 1)[1]: a for a in ax.get_children() + ax.lines if (a.get_gid() or "").startswith(prefix)}
+    return {
+        a.get_gid().split(":", 1)[1]: a for a in ax.get_children() + ax.lines if (a.get_gid() or "").startswith(prefix)
+    }
 
 
 @pytest.fixture(scope="module")
@@ -52,7 +54,9 @@ def test_time_marks_lie_on_the_path_at_the_same_instants_for_every_robot(crossin
     for rid, log in run.logs.items():
         xs, ys = marks[rid].get_data()
         assert len(xs) >= 3
-        for n, (x, y) in enumerate(zip(xs, ys), start=1):  # the pose at the first tick at or after n * step
+        for n, (x, y) in enumerate(
+            zip(xs, ys, strict=True), start=1
+        ):  # the pose at the first tick at or after n * step
             i = next(i for i, t in enumerate(log.t) if t >= n * step)
             assert (x, y) == (log.x[i], log.y[i])
 

@@ -40,8 +40,16 @@ def test_edge_readings_encode_as_the_general_path_or_fail_as_it_does():
     ranges = np.full(12, np.nan)
     ranges[3] = 0.0
     ranges[4] = 0.25
-    for target in (None, (0.0, 0.0, True), (math.pi, 1.0, True), (-math.pi, 1e-9, True), (0.3, 1.0, False),
-                   (math.nan, 1.0, True), (np.float64(0.5), np.float64(2.0), np.bool_(True)), (math.pi + 5e-10, 1.0, True)):
+    for target in (
+        None,
+        (0.0, 0.0, True),
+        (math.pi, 1.0, True),
+        (-math.pi, 1e-9, True),
+        (0.3, 1.0, False),
+        (math.nan, 1.0, True),
+        (np.float64(0.5), np.float64(2.0), np.bool_(True)),
+        (math.pi + 5e-10, 1.0, True),
+    ):
         rd = TickReadings("r1", 1.536, ranges, target)
         assert enc(rd) == general(world, rd), target
     bad = ranges.copy()

@@ -64,7 +64,9 @@ def test_exploration_noise_is_on_the_executed_command_seeded_and_a_stop_stays_a_
     assert ep.world.wheel_command("r1") == (0.0, 0.0)
     rng = np.random.default_rng(0)
     z = np.array([explore((0.05, -0.02), rng) for _ in range(4000)]) - [0.05, -0.02]
-    assert z.std(axis=0) == pytest.approx([EXPLORE_REL * 0.05 + EXPLORE_ABS, EXPLORE_REL * 0.02 + EXPLORE_ABS], rel=0.05)
+    assert z.std(axis=0) == pytest.approx(
+        [EXPLORE_REL * 0.05 + EXPLORE_ABS, EXPLORE_REL * 0.02 + EXPLORE_ABS], rel=0.05
+    )
     plain = TrainingEpisode(World(parse_scenario(tomllib.loads(TEXT.replace("explore = true", "")))), seed=3)
     plain.readings()
     plain.apply({"r1": (0.05, 0.02)})

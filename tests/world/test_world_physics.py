@@ -185,7 +185,12 @@ def test_line_obstacle_pushes_a_robot():
     w = make(
         [{"id": "r1", "start": [1.0, 1.0, 0.0]}],
         obstacles=[
-            {"id": "pusher", "shape": "box", "size": [0.1, 0.1], "motion": {"type": "line", "a": [0.5, 1.0], "b": [1.5, 1.0], "speed": 0.1}}
+            {
+                "id": "pusher",
+                "shape": "box",
+                "size": [0.1, 0.1],
+                "motion": {"type": "line", "a": [0.5, 1.0], "b": [1.5, 1.0], "speed": 0.1},
+            }
         ],
     )
     for _ in range(220):  # 7 s: the box travels 0.70 m, to x = 1.2

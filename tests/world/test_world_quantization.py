@@ -54,7 +54,7 @@ def test_executed_speeds_are_whole_units_times_the_slip_noise():
         vl, vr = rng.uniform(-1.2 * V_MAX, 1.2 * V_MAX, size=2)
         w.set_wheels("r1", vl, vr)
         held = w.wheel_command("r1")
-        for v, cmd in zip(held, (vl, vr)):
+        for v, cmd in zip(held, (vl, vr), strict=True):
             n = v / UNIT
             assert abs(n - round(n)) < 1e-9  # a whole number of units
             assert abs(v) <= V_MAX

@@ -54,7 +54,9 @@ def _gap_between(p, q):
     def seg_dist(pt, a, b):
         ax, ay = a
         bx, by = b
-        t = max(0.0, min(1.0, ((pt[0] - ax) * (bx - ax) + (pt[1] - ay) * (by - ay)) / ((bx - ax) ** 2 + (by - ay) ** 2)))
+        t = max(
+            0.0, min(1.0, ((pt[0] - ax) * (bx - ax) + (pt[1] - ay) * (by - ay)) / ((bx - ax) ** 2 + (by - ay) ** 2))
+        )
         return math.hypot(pt[0] - ax - t * (bx - ax), pt[1] - ay - t * (by - ay))
 
     best = math.inf
@@ -139,10 +141,12 @@ def test_lone_obstacle_and_tracking():
     assert all(t.motion.kind == "random_walk" for t in sc.targets)
     w = World(sc)
     w.advance(60.0)
-    for tid, t in w.state()["targets"].items():
+    for t in w.state()["targets"].values():
         b = sc.targets[0].motion.bounds
         assert b[0] <= t["x"] <= b[2] and b[1] <= t["y"] <= b[3]
-    moved = [math.dist((t["x"], t["y"]), s.position) for t, s in zip(w.state()["targets"].values(), sc.targets)]
+    moved = [
+        math.dist((t["x"], t["y"]), s.position) for t, s in zip(w.state()["targets"].values(), sc.targets, strict=True)
+    ]
     assert all(m > 0.1 for m in moved)
 
 
@@ -179,7 +183,9 @@ def test_world_never_imports_the_controller():
     node, controller, model or experiment code)."""
     code = "import sys, world, world.draw, world.episode; print([m for m in sys.modules if m.startswith('cekm_swarm')])"
     out = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, check=True)
-    assert set(eval(out.stdout)) <= {"cekm_swarm", "cekm_swarm.angles", "cekm_swarm.ticks", "cekm_swarm.robot"}, out.stdout
+    assert set(eval(out.stdout)) <= {"cekm_swarm", "cekm_swarm.angles", "cekm_swarm.ticks", "cekm_swarm.robot"}, (
+        out.stdout
+    )
     code = ("import sys, world.server; print(sorted({'.'.join(m.split('.')[1:3]) if m.startswith('cekm_swarm.graph') "
             "else m.split('.')[1] for m in sys.modules if m.startswith('cekm_swarm.')}))")
     out = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, check=True)
@@ -207,37 +213,82 @@ position = [1.5, 1.5]
 BAD = [
     ("missing arena", GOOD.replace("[arena]\nbounds = [0.0, 0.0, 2.0, 2.0]\n", ""), ["arena", "missing"]),
     ("unknown top key", GOOD + "\nseeed = 3\n", ["seeed", "unknown key"]),
-    ("unknown nested key", GOOD.replace("goal = \"g\"", "goal = \"g\"\nstrat = 1"), ["robots[0].strat", "unknown key"]),
-    ("wrong type", GOOD.replace("[0.5, 0.5, 0.0]", "[0.5, \"a\", 0.0]"), ["robots[0].start[1]", "must be a number"]),
-    ("bool is not a number", GOOD.replace("[0.5, 0.5, 0.0]", "[0.5, true, 0.0]"), ["robots[0].start[1]", "must be a number"]),
+    ("unknown nested key", GOOD.replace('goal = "g"', 'goal = "g"\nstrat = 1'), ["robots[0].strat", "unknown key"]),
+    ("wrong type", GOOD.replace("[0.5, 0.5, 0.0]", '[0.5, "a", 0.0]'), ["robots[0].start[1]", "must be a number"]),
+    (
+        "bool is not a number",
+        GOOD.replace("[0.5, 0.5, 0.0]", "[0.5, true, 0.0]"),
+        ["robots[0].start[1]", "must be a number"],
+    ),
     ("short vector", GOOD.replace("[0.5, 0.5, 0.0]", "[0.5, 0.5]"), ["robots[0].start", "3 numbers"]),
     ("bad bounds", GOOD.replace("[0.0, 0.0, 2.0, 2.0]", "[0.0, 0.0, -2.0, 2.0]"), ["arena.bounds", "xmin < xmax"]),
     ("negative seed", "seed = -1\n" + GOOD, ["seed", "out of range"]),
     ("unknown target id", GOOD.replace('goal = "g"', 'goal = "h"'), ["robots[0].goal", "unknown target id 'h'"]),
-    ("duplicate robot id", GOOD + '\n[[robots]]\nid = "r1"\nstart = [1.0, 0.5, 0.0]\n', ["robots[1].id", "duplicate id 'r1'"]),
-    ("duplicate across kinds", GOOD + '\n[[obstacles]]\nid = "g"\nshape = "disc"\ncenter = [1, 1]\nradius = 0.1\n', ["obstacles[0].id", "duplicate id 'g'"]),
+    (
+        "duplicate robot id",
+        GOOD + '\n[[robots]]\nid = "r1"\nstart = [1.0, 0.5, 0.0]\n',
+        ["robots[1].id", "duplicate id 'r1'"],
+    ),
+    (
+        "duplicate across kinds",
+        GOOD + '\n[[obstacles]]\nid = "g"\nshape = "disc"\ncenter = [1, 1]\nradius = 0.1\n',
+        ["obstacles[0].id", "duplicate id 'g'"],
+    ),
     ("bad id", GOOD.replace('id = "r1"', 'id = "r 1"'), ["robots[0].id", "invalid id"]),
-    ("start inside a wall", GOOD + '\n[[walls]]\na = [0.5, 0.0]\nb = [0.5, 1.0]\n', ["robots[0].start", "overlaps walls[0]"]),
-    ("start overlapping an obstacle", GOOD + '\n[[obstacles]]\nshape = "box"\ncenter = [0.55, 0.5]\nsize = [0.05, 0.05]\n', ["robots[0].start", "overlaps obstacles[0]"]),
-    ("start overlapping a robot", GOOD + '\n[[robots]]\nid = "r2"\nstart = [0.52, 0.5, 0.0]\n', ["robots[1].start", "overlaps robot 'r1'"]),
-    ("start outside arena", GOOD.replace("[0.5, 0.5, 0.0]", "[2.5, 0.5, 0.0]"), ["robots[0].start", "not inside arena.bounds"]),
-    ("start's body reaching outside the arena", GOOD.replace("[0.5, 0.5, 0.0]", "[0.029, 1.0, 0.0]"),
-     ["robots[0].start", "robot at (0.029, 1.0) with body radius 0.03 m reaches outside arena.bounds"]),
+    (
+        "start inside a wall",
+        GOOD + "\n[[walls]]\na = [0.5, 0.0]\nb = [0.5, 1.0]\n",
+        ["robots[0].start", "overlaps walls[0]"],
+    ),
+    (
+        "start overlapping an obstacle",
+        GOOD + '\n[[obstacles]]\nshape = "box"\ncenter = [0.55, 0.5]\nsize = [0.05, 0.05]\n',
+        ["robots[0].start", "overlaps obstacles[0]"],
+    ),
+    (
+        "start overlapping a robot",
+        GOOD + '\n[[robots]]\nid = "r2"\nstart = [0.52, 0.5, 0.0]\n',
+        ["robots[1].start", "overlaps robot 'r1'"],
+    ),
+    (
+        "start outside arena",
+        GOOD.replace("[0.5, 0.5, 0.0]", "[2.5, 0.5, 0.0]"),
+        ["robots[0].start", "not inside arena.bounds"],
+    ),
+    (
+        "start's body reaching outside the arena",
+        GOOD.replace("[0.5, 0.5, 0.0]", "[0.029, 1.0, 0.0]"),
+        ["robots[0].start", "robot at (0.029, 1.0) with body radius 0.03 m reaches outside arena.bounds"],
+    ),
     ("no robots", "robots = []\n" + GOOD.split("[[robots]]")[0], ["robots", "at least one robot"]),
-    ("target inside obstacle", GOOD + '\n[[obstacles]]\nshape = "disc"\ncenter = [1.5, 1.5]\nradius = 0.1\n', ["targets[0].position", "inside obstacles[0]"]),
+    (
+        "target inside obstacle",
+        GOOD + '\n[[obstacles]]\nshape = "disc"\ncenter = [1.5, 1.5]\nradius = 0.1\n',
+        ["targets[0].position", "inside obstacles[0]"],
+    ),
     ("unknown shape", GOOD + '\n[[obstacles]]\nshape = "star"\n', ["obstacles[0].shape", "unknown value 'star'"]),
-    ("missing shape field", GOOD + '\n[[obstacles]]\nshape = "disc"\ncenter = [1, 1]\n', ["obstacles[0].radius", "missing"]),
-    ("negative radius", GOOD + '\n[[obstacles]]\nshape = "disc"\ncenter = [1, 1]\nradius = -0.1\n', ["obstacles[0].radius", "out of range"]),
+    (
+        "missing shape field",
+        GOOD + '\n[[obstacles]]\nshape = "disc"\ncenter = [1, 1]\n',
+        ["obstacles[0].radius", "missing"],
+    ),
+    (
+        "negative radius",
+        GOOD + '\n[[obstacles]]\nshape = "disc"\ncenter = [1, 1]\nradius = -0.1\n',
+        ["obstacles[0].radius", "out of range"],
+    ),
     (
         "motion radius",
-        GOOD + '\n[[obstacles]]\nshape = "disc"\nradius = 0.05\n[obstacles.motion]\ntype = "circle"\ncenter = [1, 1]\nradius = 0\nangular_speed = 0.2\n',
+        GOOD + '\n[[obstacles]]\nshape = "disc"\nradius = 0.05\n[obstacles.motion]\ntype = "circle"\ncenter = [1, '
+        "1]\nradius = 0\nangular_speed = 0.2\n",
         ["obstacles[0].motion.radius", "out of range"],
     ),
     (
         "second obstacle's motion",
         GOOD
         + '\n[[obstacles]]\nshape = "disc"\ncenter = [1, 0.4]\nradius = 0.05\n'
-        + '\n[[obstacles]]\nshape = "disc"\nradius = 0.05\n[obstacles.motion]\ntype = "circle"\ncenter = [1, 1]\nradius = 0.2\nangular_speed = 0.2\ndirection = "left"\n',
+        + '\n[[obstacles]]\nshape = "disc"\nradius = 0.05\n[obstacles.motion]\ntype = "circle"\ncenter = [1, '
+        '1]\nradius = 0.2\nangular_speed = 0.2\ndirection = "left"\n',
         ["obstacles[1].motion.direction", "unknown value 'left'"],
     ),
     (
@@ -247,25 +298,51 @@ BAD = [
     ),
     (
         "moving concave",
-        GOOD + '\n[[obstacles]]\nshape = "concave"\ncenter = [1, 1]\nwidth = 0.3\ndepth = 0.1\n[obstacles.motion]\ntype = "line"\na = [1, 1]\nb = [1, 1.2]\nspeed = 0.1\n',
+        GOOD + '\n[[obstacles]]\nshape = "concave"\ncenter = [1, 1]\nwidth = 0.3\ndepth = '
+        '0.1\n[obstacles.motion]\ntype = "line"\na = [1, 1]\nb = [1, 1.2]\nspeed = 0.1\n',
         ["obstacles[0].motion", "cannot move"],
     ),
     (
         "moving obstacle with center",
-        GOOD + '\n[[obstacles]]\nshape = "disc"\nradius = 0.05\ncenter = [1, 1]\n[obstacles.motion]\ntype = "line"\na = [1, 1]\nb = [1, 1.2]\nspeed = 0.1\n',
+        GOOD + '\n[[obstacles]]\nshape = "disc"\nradius = 0.05\ncenter = [1, 1]\n[obstacles.motion]\ntype = "line"\na '
+        "= [1, 1]\nb = [1, 1.2]\nspeed = 0.1\n",
         ["obstacles[0].center", "must not be given"],
     ),
     (
         "line phase",
-        GOOD + '\n[[obstacles]]\nshape = "disc"\nradius = 0.05\n[obstacles.motion]\ntype = "line"\na = [1, 1]\nb = [1, 1.2]\nspeed = 0.1\nphase = 1.0\n',
+        GOOD + '\n[[obstacles]]\nshape = "disc"\nradius = 0.05\n[obstacles.motion]\ntype = "line"\na = [1, 1]\nb = [1, '
+        "1.2]\nspeed = 0.1\nphase = 1.0\n",
         ["obstacles[0].motion.phase", "out of range"],
     ),
-    ("self-intersecting polygon", GOOD + '\n[[obstacles]]\nshape = "polygon"\nvertices = [[1, 1], [1.2, 1.2], [1.2, 1], [1, 1.2]]\n', ["obstacles[0].vertices", "intersect"]),
-    ("zero-length wall", GOOD + '\n[[walls]]\na = [1, 1]\nb = [1, 1]\n', ["walls[0].b", "zero-length"]),
-    ("wall thickness", GOOD + '\n[[walls]]\na = [1, 1]\nb = [1, 1.5]\nthickness = 0\n', ["walls[0].thickness", "out of range"]),
-    ("known not bool", GOOD + '\n[[walls]]\na = [1, 1]\nb = [1, 1.5]\nknown = "yes"\n', ["walls[0].known", "true or false"]),
-    ("target position for circle", GOOD.replace('position = [1.5, 1.5]', 'position = [1.5, 1.5]\nmotion = {type = "circle", center = [1, 1], radius = 0.2, angular_speed = 0.1}'), ["targets[0].position", "must not be given"]),
-    ("random walk missing speed", GOOD.replace('position = [1.5, 1.5]', 'position = [1.5, 1.5]\nmotion = {type = "random_walk"}'), ["targets[0].motion.speed", "missing"]),
+    (
+        "self-intersecting polygon",
+        GOOD + '\n[[obstacles]]\nshape = "polygon"\nvertices = [[1, 1], [1.2, 1.2], [1.2, 1], [1, 1.2]]\n',
+        ["obstacles[0].vertices", "intersect"],
+    ),
+    ("zero-length wall", GOOD + "\n[[walls]]\na = [1, 1]\nb = [1, 1]\n", ["walls[0].b", "zero-length"]),
+    (
+        "wall thickness",
+        GOOD + "\n[[walls]]\na = [1, 1]\nb = [1, 1.5]\nthickness = 0\n",
+        ["walls[0].thickness", "out of range"],
+    ),
+    (
+        "known not bool",
+        GOOD + '\n[[walls]]\na = [1, 1]\nb = [1, 1.5]\nknown = "yes"\n',
+        ["walls[0].known", "true or false"],
+    ),
+    (
+        "target position for circle",
+        GOOD.replace(
+            "position = [1.5, 1.5]",
+            'position = [1.5, 1.5]\nmotion = {type = "circle", center = [1, 1], radius = 0.2, angular_speed = 0.1}',
+        ),
+        ["targets[0].position", "must not be given"],
+    ),
+    (
+        "random walk missing speed",
+        GOOD.replace("position = [1.5, 1.5]", 'position = [1.5, 1.5]\nmotion = {type = "random_walk"}'),
+        ["targets[0].motion.speed", "missing"],
+    ),
     ("sensor range", GOOD + "\n[sensors]\nrange = -1\n", ["sensors.range", "out of range"]),
     ("target range nan", GOOD + "\n[sensors]\ntarget_range = nan\n", ["sensors.target_range", "nan"]),
     ("robots not an array", 'robots = "r1"\n' + GOOD.split("[[robots]]")[0], ["robots", "array of tables"]),
@@ -275,15 +352,29 @@ BAD = [
     ("robot id world", GOOD.replace('id = "r1"', 'id = "world"'), ["robots[0].id", "'world' is reserved"]),
     ("robot id too long", GOOD.replace('id = "r1"', f'id = "{"r" * 65}"'), ["robots[0].id", "at most 64"]),
     ("target id too long", GOOD.replace('"g"', f'"{"g" * 65}"'), ["targets[0].id", "id of 65 characters: at most 64"]),
-    ("obstacle id too long", GOOD + f'\n[[obstacles]]\nid = "{"o" * 257}"\nshape = "disc"\ncenter = [1.0, 1.0]\n'
-     'radius = 0.1\n', ["obstacles[0].id", "id of 257 characters: at most 256"]),
-    ("wall wholly outside", GOOD + "\n[[walls]]\na = [5.0, 5.0]\nb = [6.0, 5.0]\n",
-     ["walls[0]", "lies wholly outside arena.bounds"]),
-    ("disc wholly outside", GOOD + '\n[[obstacles]]\nshape = "disc"\ncenter = [3.0, 1.0]\nradius = 0.1\n',
-     ["obstacles[0]", "lies wholly outside arena.bounds"]),
-    ("random walk leaving the arena", GOOD.replace('position = [1.5, 1.5]', 'position = [1.5, 1.5]\nmotion = '
-     '{type = "random_walk", speed = 0.1, bounds = [-5.0, -5.0, 5.0, 5.0]}'),
-     ["targets[0].motion.bounds", "reach outside arena.bounds"]),
+    (
+        "obstacle id too long",
+        GOOD + f'\n[[obstacles]]\nid = "{"o" * 257}"\nshape = "disc"\ncenter = [1.0, 1.0]\nradius = 0.1\n',
+        ["obstacles[0].id", "id of 257 characters: at most 256"],
+    ),
+    (
+        "wall wholly outside",
+        GOOD + "\n[[walls]]\na = [5.0, 5.0]\nb = [6.0, 5.0]\n",
+        ["walls[0]", "lies wholly outside arena.bounds"],
+    ),
+    (
+        "disc wholly outside",
+        GOOD + '\n[[obstacles]]\nshape = "disc"\ncenter = [3.0, 1.0]\nradius = 0.1\n',
+        ["obstacles[0]", "lies wholly outside arena.bounds"],
+    ),
+    (
+        "random walk leaving the arena",
+        GOOD.replace(
+            "position = [1.5, 1.5]",
+            'position = [1.5, 1.5]\nmotion = {type = "random_walk", speed = 0.1, bounds = [-5.0, -5.0, 5.0, 5.0]}',
+        ),
+        ["targets[0].motion.bounds", "reach outside arena.bounds"],
+    ),
     ("plan_checkpoints not a bool", "plan_checkpoints = 1\n" + GOOD, ["plan_checkpoints", "must be true or false"]),
 ]
 
@@ -328,20 +419,36 @@ def test_concave_polygons_are_split_exactly():
     parts = convex_parts(poly)
     assert all(is_convex(p) for p in parts)
     assert sum(signed_area(p) for p in parts) == pytest.approx(signed_area(poly))
-    star = [(math.cos(k * math.pi / 5) * (1 if k % 2 == 0 else 0.4), math.sin(k * math.pi / 5) * (1 if k % 2 == 0 else 0.4)) for k in range(10)]
+    star = [
+        (math.cos(k * math.pi / 5) * (1 if k % 2 == 0 else 0.4), math.sin(k * math.pi / 5) * (1 if k % 2 == 0 else 0.4))
+        for k in range(10)
+    ]
     parts = convex_parts(star)
     assert all(is_convex(p) for p in parts)
     assert sum(signed_area(p) for p in parts) == pytest.approx(signed_area(star))
 
 
 def test_concave_polygon_obstacle_in_a_world():
-    text = GOOD + '\n[[obstacles]]\nshape = "polygon"\nvertices = [[1.0, 0.3], [1.0, 0.7], [1.3, 0.7], [1.3, 0.65], [1.05, 0.65], [1.05, 0.35], [1.3, 0.35], [1.3, 0.3]]\n'
+    text = (
+        GOOD
+        + '\n[[obstacles]]\nshape = "polygon"\nvertices = [[1.0, 0.3], [1.0, 0.7], [1.3, 0.7], [1.3, 0.65], [1.05, '
+          '0.65], [1.05, 0.35], [1.3, 0.35], [1.3, 0.3]]\n'
+    )
     sc = world.parse_scenario(__import__("tomllib").loads(text), source="<poly>")
-    w = World(world.parse_scenario(__import__("tomllib").loads(text.replace("[0.5, 0.5, 0.0]", "[0.9, 0.5, 0.0]")), source="<poly>"))
+    w = World(
+        world.parse_scenario(
+            __import__("tomllib").loads(text.replace("[0.5, 0.5, 0.0]", "[0.9, 0.5, 0.0]")), source="<poly>"
+        )
+    )
     assert len(sc.obstacles[0].parts) >= 3
     assert w.true_ranges("r1")[0] == pytest.approx(1.0 - 0.9 - 0.03, abs=1e-9)
     # from inside the cavity, looking back at the inner face of the U's spine
-    w = World(world.parse_scenario(__import__("tomllib").loads(text.replace("[0.5, 0.5, 0.0]", "[1.2, 0.5, 3.141592653589793]")), source="<poly>"))
+    w = World(
+        world.parse_scenario(
+            __import__("tomllib").loads(text.replace("[0.5, 0.5, 0.0]", "[1.2, 0.5, 3.141592653589793]")),
+            source="<poly>",
+        )
+    )
     assert w.true_ranges("r1")[0] == pytest.approx(1.2 - 1.05 - 0.03, abs=1e-9)
     assert np.isnan(w.true_ranges("r1")[6])  # the mouth is open
 

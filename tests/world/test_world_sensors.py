@@ -100,7 +100,11 @@ def test_rays_see_static_and_moving_obstacles():
         [{"id": "r1", "start": [1.0, 1.0, math.pi / 2]}],
         obstacles=[
             {"shape": "disc", "center": [1.0, 1.2], "radius": 0.05},  # ahead (heading +y)
-            {"shape": "box", "size": [0.1, 0.1], "motion": {"type": "line", "a": [0.8, 1.0], "b": [0.5, 1.0], "speed": 0.01}},
+            {
+                "shape": "box",
+                "size": [0.1, 0.1],
+                "motion": {"type": "line", "a": [0.8, 1.0], "b": [0.5, 1.0], "speed": 0.01},
+            },
         ],
     )
     t = w.true_ranges("r1")
