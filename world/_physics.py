@@ -6,7 +6,7 @@ import math
 
 import pymunk
 
-from .scenario import ObstacleSpec, Scenario
+from .scenario_spec import ObstacleSpec, Scenario
 
 # Shape-filter categories (bits). Rays use their own category and see the rest.
 CAT_STATIC = 1 << 0  # walls and static obstacles

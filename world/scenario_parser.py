@@ -5,20 +5,22 @@ every refusal is a :class:`~world.scenario.ScenarioError` naming the file, the f
 from __future__ import annotations
 
 import math
-from typing import Any, Mapping, get_args
+from collections.abc import Mapping
+from typing import Any, get_args
 
 from cekm_swarm.protocol.errors import KeySpaceError
 from cekm_swarm.protocol.keys import validate_robot_id
 from cekm_swarm.protocol.schema import EntryId, TargetId
 
 from . import geometry as geo
+from ._physics import StaticIndex
 from .motion import CircleMotion, Fixed, LineMotion, Motion, RandomWalk, ScriptedMotion
-from .scenario import (
-    _ID_RE,
+from .scenario_spec import (
     BODY_RADIUS,
     DEFAULT_SENSOR_RANGE,
     DEFAULT_SPEED_UNIT,
     DEFAULT_WALL_THICKNESS,
+    ID_RE,
     RANDOM_WALK_INSET,
     ObstacleSpec,
     Point,
@@ -106,7 +108,7 @@ class Parser:
 
     def ident(self, v: Any, path: str, max_length: int | None = None) -> str:
         s = self.string(v, path)
-        if not _ID_RE.match(s):
+        if not ID_RE.match(s):
             self.fail(path, f"invalid id {s!r} (letters, digits, '_' and '-' only)")
         if max_length is not None and len(s) > max_length:
             self.fail(path, f"id of {len(s)} characters: at most {max_length} (it travels in the run's messages)")
@@ -433,8 +435,6 @@ class Parser:
                 self.fail(where, f"lies wholly outside arena.bounds {list(sc.bounds)}: it can meet nothing")
 
     def check_overlaps(self, sc: Scenario) -> None:
-        from ._physics import StaticIndex
-
         idx = StaticIndex(sc)
         r = BODY_RADIUS
         for i, rb in enumerate(sc.robots):

@@ -42,7 +42,7 @@ from . import _physics as ph
 from . import chipmunk as cp
 from . import geometry as geo
 from .motion import CircleMotion, Fixed, LineMotion, RandomWalk
-from .scenario import BODY_RADIUS, Scenario
+from .scenario_spec import BODY_RADIUS, Scenario
 from .sensors import RangeSensors, target_reading
 from .snapshot import static_geometry, world_state
 

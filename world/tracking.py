@@ -26,7 +26,7 @@ from typing import Any
 from cekm_swarm.protocol.messages import SensePose, SenseTargets
 
 from .rows import Rows
-from .scenario import ScenarioError
+from .scenario_spec import ScenarioError
 from .sense import SENDER
 from .sim import World
 
