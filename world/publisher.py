@@ -29,9 +29,9 @@ import zenoh
 from cekm_swarm.protocol import Clock, KeySpace, Unchanged, WorldState, encode, with_stamp
 from cekm_swarm.ticks import TICK_S
 
-from .episode import RunEpisode, TickReadings
 from .recorder import RECORD_QUEUE, RecordFilter
-from .sense import SENDER, SenseEncoder
+from .run_episode import RunEpisode
+from .sense import SENDER, SenseEncoder, TickReadings
 
 log = logging.getLogger("world.publisher")
 

@@ -7,6 +7,7 @@ builds them as messages; :class:`SenseEncoder` gives their wire bytes."""
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -14,7 +15,16 @@ import numpy as np
 from cekm_swarm.protocol import KeySpace, SenseRange, SenseTarget, encode
 from cekm_swarm.robot import centre_distance
 
-from .episode import TickReadings
+
+@dataclass
+class TickReadings:
+    """What one robot's modules receive at a tick."""
+
+    robot: str
+    t: float
+    ranges: np.ndarray  # (12,) surface ranges, NaN = nothing seen
+    target: tuple[float, float, bool] | None  # (alpha, d, visible), None when not due
+
 
 SENDER = "world"
 """The sender of every message the world publishes."""

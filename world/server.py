@@ -90,11 +90,11 @@ from .config import (
     world_options,
 )
 from .deadman import Deadman
-from .episode import make_episode
 from .inbox import CommandInbox
 from .outcome import RunStats, emit, latency_ms, progress_doc, write_outputs
 from .publisher import TickPublisher
 from .recorder import LEAN_VIEW_TICKS, RECORD_QUEUE, RecordFilter, open_run_log
+from .run_episode import make_episode
 from .scenario import ScenarioError, load_scenario
 from .sim import World
 from .tracking import run_kind

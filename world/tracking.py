@@ -24,10 +24,12 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from cekm_swarm.protocol.messages import SensePose, SenseTargets
+from cekm_swarm.ticks import TARGET_EVERY, TICK_S, tick_time
 
+from .progress import RobotProgress
 from .rows import Rows
 from .scenario_spec import ScenarioError
-from .sense import SENDER
+from .sense import SENDER, TickReadings
 from .sim import World
 
 
@@ -184,8 +186,6 @@ class TrackingEpisode:
     task = "tracking"
 
     def __init__(self, world: World, max_ticks: int) -> None:
-        from .episode import RobotProgress
-
         self.world = world
         self.max_ticks = max_ticks  # the last tick: sampled, but no path point (as the in-process runner)
         self.tick = 0
@@ -196,19 +196,13 @@ class TrackingEpisode:
 
     @property
     def t(self) -> float:
-        from .episode import TICK_S
-
-        return round(self.tick * TICK_S, 9)
+        return tick_time(self.tick)
 
     @property
     def target_due(self) -> bool:
-        from .episode import TARGET_EVERY
-
         return self.tick % TARGET_EVERY == 0
 
     def readings(self) -> list:
-        from .episode import TickReadings
-
         w, t = self.world, self.t
         self.observed_by = self.meter.sample(w, t)
         out = []
@@ -229,8 +223,6 @@ class TrackingEpisode:
             self.progress[r].commands.append((v_l, v_r))
 
     def advance(self) -> None:
-        from .episode import TICK_S
-
         self.world.advance(TICK_S)
         self.tick += 1
 

@@ -123,7 +123,7 @@ class GraphSession:
                  step_timeout: float | None = STEP_TIMEOUT,
                  observe: Callable[[GraphExecutor, int], None] | None = None) -> None:
         from world import World
-        from world.episode import make_episode
+        from world.run_episode import make_episode
         from world.tracking import run_kind
 
         task = run_kind(scenario, checkpoints or {})
