@@ -39,12 +39,6 @@ class _Checked(click.ParamType):
             self.fail(str(exc), param, ctx)
 
 
-def _endpoint(text: str) -> str:
-    from .runtime.config import check_endpoint
-
-    return check_endpoint(text)
-
-
 def _root(text: str) -> str:
     from .protocol import validate_root
 
@@ -130,7 +124,6 @@ class RobotIds(click.ParamType):
 
 SEED = click.IntRange(0, 2**32 - 1)
 """A seed: 0 .. 2^32 - 1 (what every random generator of the package accepts)."""
-ENDPOINT = _Checked("endpoint", _endpoint)
 ROOT = _Checked("root", _root)
 RUN_ID = _Checked("run id", _run_id)
 SIZE = _Checked("size", parse_size)

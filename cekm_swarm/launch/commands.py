@@ -11,7 +11,6 @@ import click
 from click.core import ParameterSource
 
 from cekm_swarm.cli_support import (
-    ENDPOINT,
     ROOT,
     RUN_ID,
     SEED,
@@ -32,6 +31,7 @@ from cekm_swarm.experiments.learning_commands import MODEL_CHOICE, model_group
 from cekm_swarm.experiments.learning_run import UNTRAINED, model_file_for_launch
 from cekm_swarm.runtime.config import DEFAULT_ENDPOINT, DEFAULT_PORT
 from cekm_swarm.runtime.log_commands import LOG_HELP
+from cekm_swarm.runtime.options import ENDPOINT
 from cekm_swarm.ticks import STEP_TIMEOUT
 
 

@@ -15,8 +15,9 @@ from typing import Any
 
 import click
 
-from cekm_swarm.cli_support import ENDPOINT, ROOT, Finite, Interrupted, RobotIds, prepare_out_dir
+from cekm_swarm.cli_support import ROOT, Finite, Interrupted, RobotIds, prepare_out_dir
 from cekm_swarm.errors import CekmError
+from cekm_swarm.runtime.options import ENDPOINT
 from cekm_swarm.runtime.wait import DEFAULT_WAIT, ENV_CONNECT
 
 from .interfaces import DEFAULT_DISTRO, DISTROS

@@ -19,9 +19,10 @@ from typing import Any
 
 import click
 
-from cekm_swarm.cli_support import ENDPOINT, Finite, Interrupted
+from cekm_swarm.cli_support import Finite, Interrupted
 from cekm_swarm.errors import CekmError
 
+from .options import ENDPOINT
 from .wait import DEFAULT_WAIT, ENV_CONNECT
 
 _ROOT_HELP = "Key-space root (docs/design.md section 6)."
