@@ -5,6 +5,7 @@
 from __future__ import annotations
 
 import heapq
+import json
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -105,6 +106,19 @@ def log_root(path: str | Path) -> str | None:
         for tail in _WORLD_KEYS:
             if t.endswith(tail) and valid(t[:-len(tail)]):
                 return t[:-len(tail)]
+    return None
+
+
+def read_geometry(path: str | Path) -> dict[str, Any] | None:
+    """The geometry the world server recorded (metadata ``geometry``), None if absent.
+    ``path``: a file, or a log set (its directory or first file), whose every file holds it."""
+    try:
+        with open(log_files(path)[0], "rb") as f:
+            for md in make_reader(f).iter_metadata():
+                if md.name == "geometry":
+                    return json.loads(md.metadata["json"])
+    except Exception:  # an unfinished log has no index; draw the paths alone
+        return None
     return None
 
 

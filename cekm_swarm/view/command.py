@@ -21,8 +21,8 @@ def _geometry(scenario: str | None, log: Path | None, seed: int | None):
     from world.sim import World
 
     if log is not None:
-        from cekm_swarm.launch.plot import read_geometry
         from cekm_swarm.runtime.mcap_log import is_complete
+        from cekm_swarm.runtime.mcap_read import read_geometry
 
         try:
             complete = is_complete(log)
