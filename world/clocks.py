@@ -58,7 +58,7 @@ class _Clock:
                 break
             try:
                 await asyncio.wait_for(self.arrived.wait(), max(0.0, until - loop.time()))
-            except asyncio.TimeoutError:
+            except TimeoutError:
                 pass
 
 
@@ -89,7 +89,7 @@ class LockstepClock(_Clock):
                 continue
             try:  # woken when the tick is answered, or by a stop (which sets both)
                 await asyncio.wait_for(self.arrived.wait(), timeout)
-            except asyncio.TimeoutError:
+            except TimeoutError:
                 pass
 
 
@@ -127,7 +127,7 @@ class RealtimeClock(_Clock):
         try:
             await asyncio.wait_for(self.stop.wait(), max(0.0, boundary - loop.time()))
             raise Stopped
-        except asyncio.TimeoutError:
+        except TimeoutError:
             pass
         now = time.monotonic()
         commands = {}

@@ -9,7 +9,8 @@ dashed; goals as stars, other targets as crosses.
 from __future__ import annotations
 
 import math
-from typing import Any, Mapping, Sequence
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 from matplotlib.axes import Axes
 from matplotlib.patches import Circle, Polygon, Rectangle

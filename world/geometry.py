@@ -8,7 +8,7 @@ scenario always produces the same shapes.
 from __future__ import annotations
 
 import math
-from typing import Sequence
+from collections.abc import Sequence
 
 from cekm_swarm.angles import wrap_scalar
 

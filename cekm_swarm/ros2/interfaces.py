@@ -123,7 +123,7 @@ class Interfaces:
         return self.store.deserialize_cdr(data, ros_type)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def interfaces(distro: str = DEFAULT_DISTRO) -> Interfaces:
     """The message types of ROS 2 ``distro`` (one of :data:`DISTROS`)."""
     if distro not in DISTROS:
@@ -131,7 +131,7 @@ def interfaces(distro: str = DEFAULT_DISTRO) -> Interfaces:
     return Interfaces(distro, get_typestore(Stores[f"ROS2_{distro.upper()}"]))
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _computed_hash(distro: str, ros_type: str) -> str:
     if ros_type not in JAZZY_TYPE_HASHES:
         raise InterfaceError(f"message type {ros_type!r} is not one the project uses ({', '.join(MESSAGE_TYPES)})")

@@ -103,7 +103,7 @@ class RobotDescription:
                 "base_frame": self.base_frame, "scan_frame": self.scan_frame}
 
     @classmethod
-    def from_dict(cls, doc: dict[str, Any]) -> "RobotDescription":
+    def from_dict(cls, doc: dict[str, Any]) -> RobotDescription:
         return cls(RobotBody.from_dict(doc["body"]), doc["sensors"], doc["odom_frame"], doc["base_frame"],
                    doc["scan_frame"])
 

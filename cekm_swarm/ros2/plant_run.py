@@ -55,7 +55,7 @@ class PlantConfig:
         return path
 
     @classmethod
-    def read(cls, path: str | Path) -> "PlantConfig":
+    def read(cls, path: str | Path) -> PlantConfig:
         return cls(**json.loads(Path(path).read_text()))
 
 

@@ -44,7 +44,7 @@ class Received:
     at: float
 
     @staticmethod
-    def from_sample(sample: zenoh.Sample) -> "Received":
+    def from_sample(sample: zenoh.Sample) -> Received:
         """Copy what matters out of a Zenoh sample (safe to call in a Zenoh callback)."""
         return Received(str(sample.key_expr), sample.payload.to_bytes(),
                         "put" if sample.kind == zenoh.SampleKind.PUT else "delete", str(sample.encoding),
@@ -123,7 +123,7 @@ class AsyncSubscription(_Subscriber):
         """Samples waiting in the queue."""
         return self._queue.qsize()
 
-    def __aiter__(self) -> "AsyncSubscription":
+    def __aiter__(self) -> AsyncSubscription:
         return self
 
     async def __anext__(self) -> Received:
@@ -298,7 +298,7 @@ class Publishers:
             pub.undeclare()
         self._pubs.clear()
 
-    def __enter__(self) -> "Publishers":
+    def __enter__(self) -> Publishers:
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -375,7 +375,7 @@ class LivelinessWatcher(_Subscriber):
         keys still missing then (empty when all came)."""
         try:
             await self._until(lambda: keys <= self._alive, timeout)
-        except asyncio.TimeoutError:
+        except TimeoutError:
             pass
         return frozenset(keys) - self._alive
 
@@ -383,7 +383,7 @@ class LivelinessWatcher(_Subscriber):
         """Wait until ``key``'s token is alive (or gone, ``alive=False``); TimeoutError after ``timeout``."""
         await self._until(lambda: (key in self._alive) == alive, timeout)
 
-    def __aiter__(self) -> "LivelinessWatcher":
+    def __aiter__(self) -> LivelinessWatcher:
         return self
 
     async def __anext__(self) -> LivelinessEvent:

@@ -136,7 +136,7 @@ class FoxgloveViews:
         self._fixed: _Fixed | None = None
         self._circles: dict[float, list[Any]] = {}  # sensing radius -> the circle's points about its centre
 
-    def _constants(self) -> "_Fixed":
+    def _constants(self) -> _Fixed:
         if self._fixed is None or self._fixed.robot_radius != self.robot_radius:
             self._fixed = _Fixed(self.robot_radius)
         return self._fixed
@@ -199,7 +199,7 @@ class FoxgloveViews:
         self._path_sent[rid] = t
         return True
 
-    def _robot(self, c: "_Fixed", ts: Any, t: float, rid: str, x: float, y: float, th: float) -> tuple[Any, Any]:
+    def _robot(self, c: _Fixed, ts: Any, t: float, rid: str, x: float, y: float, th: float) -> tuple[Any, Any]:
         """The robot's scene entity (body, heading, label, trail) and its transform; its path
         message when one is due."""
         r = self.robot_radius

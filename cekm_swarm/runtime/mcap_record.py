@@ -354,7 +354,7 @@ class McapRecorder:
                     pass
                 self._file = None
 
-    def __enter__(self) -> "McapRecorder":
+    def __enter__(self) -> McapRecorder:
         return self
 
     def __exit__(self, *exc: object) -> None:

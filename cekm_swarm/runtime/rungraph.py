@@ -25,7 +25,7 @@ class RunGraph:
     sent: dict[str, str]  # key below a robot -> message kind, for every output of the graph
 
     @classmethod
-    def from_spec(cls, doc: dict[str, Any]) -> "RunGraph":
+    def from_spec(cls, doc: dict[str, Any]) -> RunGraph:
         g = Graph.from_dict(doc["graph"])
         sensors = len(doc.get("body", {}).get("sensor_angles", [])) or 12
         sent: dict[str, str] = {}

@@ -124,7 +124,7 @@ class ArrivalLog:
             self._sub.undeclare()
             self._sub = None
 
-    def __enter__(self) -> "ArrivalLog":
+    def __enter__(self) -> ArrivalLog:
         return self
 
     def __exit__(self, *exc: object) -> None:
