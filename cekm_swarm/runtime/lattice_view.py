@@ -10,9 +10,11 @@ import math
 import os
 from pathlib import Path
 
+from .errors import McapLogError
 from .foxglove_view import _color, _need, _pose, _schema, _stamp
 from .map_log import map_messages
 from .mcap_log import McapRecorder
+from .mcap_recover import recover_log
 
 TOPIC = "/view/lattice/{robot}"
 FRAME = "lattice/{robot}"
@@ -48,9 +50,6 @@ def write_lattice_log(log: str | Path, out: str | Path) -> int:
 def add_lattice_channel(log: str | Path) -> int:
     """Every map version of ``log`` as a lattice view, written into ``log`` itself (the file
     rewritten whole with the views added, then put in its place); the number of views."""
-    from .errors import McapLogError
-    from .mcap_recover import recover_log
-
     log = Path(log)
     tmp = log.with_name(log.name + ".views.tmp")
     written: list[int] = []

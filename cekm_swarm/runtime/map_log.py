@@ -9,6 +9,8 @@ from pathlib import Path
 
 from cekm_swarm.protocol import DEFAULT_KEYS, KeyKind, MapVersion, decode
 
+from .mcap_read import read_messages
+
 MAP_KEY = "model/update"
 """The key below the robot a learning graph's learner sends its map versions on."""
 
@@ -16,8 +18,6 @@ MAP_KEY = "model/update"
 def map_messages(log: str | Path, robot: str | None = None, root: str = DEFAULT_KEYS.root
                  ) -> Iterator[tuple[str, MapVersion]]:
     """(robot, message) for every map message of the log in log-time order (one robot's with ``robot``)."""
-    from .mcap_read import read_messages
-
     tail = "/" + MAP_KEY
     head = f"{root}/"
     for m in read_messages(log):

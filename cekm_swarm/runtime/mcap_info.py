@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from .mcap_read import StreamResult, _open, stream_messages
+from .mcap_sets import log_files
 
 
 @dataclass(frozen=True, slots=True)
@@ -50,8 +51,6 @@ class LogInfo:
 def log_info(path: str | Path) -> LogInfo:
     """Summarise a log (complete or truncated; a file, or a log set as one log: see
     :mod:`.mcap_sets`) by streaming its messages once."""
-    from .mcap_sets import log_files
-
     files = [_open(p) for p in log_files(path)]
     stats: dict[str, list[Any]] = {}
     complete, cut = True, None

@@ -33,6 +33,7 @@ from mcap.records import DataEnd, Footer
 from cekm_swarm.protocol import DEFAULT_KEYS, KeySpace, KeySpaceError, peek
 from cekm_swarm.protocol.codec import peek_type
 
+from .bridge import AsyncSubscription
 from .errors import McapLogError
 from .mcap_writer import COMPRESSIONS, MAGIC, ChunkedWriter
 
@@ -368,8 +369,6 @@ async def record_zenoh(session: Any, recorder: McapRecorder, key_expr: str | Non
     Each message is filed at the sim time of its own ``stamp``; a message whose stamp
     cannot be read (malformed) is filed at the latest sim time seen, so nothing the
     network carried is left out. Returns the number of messages recorded."""
-    from .bridge import AsyncSubscription
-
     key_expr = key_expr or recorder.keys.everything()
     period = flush_every or recorder.flush_interval or DEFAULT_FLUSH_INTERVAL
     last_stamp = 0.0

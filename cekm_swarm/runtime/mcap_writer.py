@@ -28,6 +28,7 @@ import tempfile
 import zlib
 from typing import IO
 
+import zstandard
 from mcap.data_stream import RecordBuilder
 from mcap.opcode import Opcode
 from mcap.records import (
@@ -70,8 +71,6 @@ COMPRESSIONS = ("zstd", "none")
 def _compress(kind: str):
     """(name written in the chunk, function) of a chunk compression."""
     if kind == "zstd":
-        import zstandard
-
         return "zstd", zstandard.compress
     if kind == "none":
         return "", None

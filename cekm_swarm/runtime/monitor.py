@@ -24,9 +24,11 @@ import time
 from collections.abc import Callable
 
 import zenoh
+from rich.live import Live
 
 from cekm_swarm.protocol import KeySpace
 
+from .jsonout import json_line
 from .monitor_state import (
     FRESH,
     MAX_KEYS,
@@ -38,6 +40,7 @@ from .monitor_state import (
     RobotView,
 )
 from .monitor_view import MAX_TARGET_LINES, WIDTH, render, render_text, snapshot
+from .rungraph import fetch_run_graph
 
 __all__ = ["FRESH", "MAX_KEYS", "MAX_ROBOTS", "MAX_TARGET_LINES", "OBSERVATION_SPAN", "STALE_AFTER", "WIDTH",
            "MonitorState", "Observation", "RobotView", "render", "render_text", "run_monitor", "snapshot"]
@@ -81,8 +84,6 @@ def run_monitor(session: zenoh.Session, root: str = "cekm", refresh: float = 0.5
         run = state.world_run()
         if run is not None and run != seen_run[0]:
             seen_run[0] = run
-            from .rungraph import fetch_run_graph
-
             g = fetch_run_graph(session, keys.world_graph())
             state.expected, state.graph = (g.nodes, g.name) if g is not None else (None, None)
 
@@ -92,14 +93,10 @@ def run_monitor(session: zenoh.Session, root: str = "cekm", refresh: float = 0.5
             state.set_alive(current_tokens())
             learn_graph()
             if as_json:
-                from .jsonout import json_line
-
                 out(json_line(snapshot(state, time.monotonic(), robots=robots, key_filter=key_filter)))
             else:
                 out(render_text(state, time.monotonic(), **kw))
             return state
-        from rich.live import Live
-
         with Live(render(state, time.monotonic(), **kw), refresh_per_second=max(1, round(1 / refresh)),
                   screen=False, auto_refresh=False) as view:
             while not stop.is_set():

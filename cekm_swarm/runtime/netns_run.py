@@ -17,7 +17,12 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from cekm_swarm.protocol import DEFAULT_KEYS as K
+from cekm_swarm.ticks import tick_of
+
+from .config import RECONNECT_RETRY, _insert, embedded_router_config, open_session
 from .faultlink import LinkSettings
+from .mcap_log import read_messages
 from .netns import Hosts, NsProcess
 
 PORT = 7447
@@ -32,8 +37,6 @@ def open_router(port: int, host: str, connect: list[str]) -> Any:
     """A router listening on ``tcp/host:port`` (and ``udp/host:port``) that also joins the
     routers ``connect`` names (a robot host's own router joining the world's: its nodes'
     traffic to each other stays on the host), retrying a lost one as the clients do."""
-    from .config import RECONNECT_RETRY, _insert, embedded_router_config, open_session
-
     config = embedded_router_config(port, host)
     _insert(config, "listen/endpoints", [f"tcp/{host}:{port}", f"udp/{host}:{port}"])
     if connect:
@@ -143,11 +146,6 @@ def world_log_gaps(log: Path, outcome: dict[str, Any], robots: list[str]) -> dic
     since it was last sent being named in the tick's ``sense/unchanged``), the ticks with
     none; and ``recorded`` the messages the world says it recorded that are not in the log.
     All zero for a whole log."""
-    from cekm_swarm.protocol import DEFAULT_KEYS as K
-    from cekm_swarm.ticks import tick_of
-
-    from .mcap_log import read_messages
-
     ticks = set(range(outcome["ticks"] + 1))
     stamps: dict[str, set[int]] = {}
     recorded = 0

@@ -11,6 +11,7 @@ from typing import Any
 import click
 
 from cekm_swarm.cli_support import Finite, RunFailed
+from cekm_swarm.protocol import KeySpace
 
 from .tool_session import _connect_options, _session
 
@@ -47,8 +48,6 @@ def param_group() -> None:
 
 
 def _keys(root: str):
-    from cekm_swarm.protocol import KeySpace
-
     return KeySpace(root=root)
 
 

@@ -40,6 +40,7 @@ import zenoh
 from cekm_swarm.protocol import DEFAULT_KEYS, DropCounter, KeyKind, KeySpace, KeySpaceError, WorldState, peek
 from cekm_swarm.protocol.stamps import StampWindow
 
+from . import foxglove_view
 from .mcap_log import McapRecorder
 from .mcap_sets import open_recorder
 
@@ -128,15 +129,9 @@ class Recording:
         self.result = RecordResult()
         self._last = 0.0
         self._views = None
-        if views:
-            try:
-                from . import foxglove_view
-
-                if foxglove_view.available():
-                    self._views = foxglove_view.FoxgloveViews(recorder)
-                    self.result.views = True
-            except ImportError:  # pragma: no cover - foxglove-sdk missing
-                self._views = None
+        if views and foxglove_view.available():  # foxglove-sdk is installed
+            self._views = foxglove_view.FoxgloveViews(recorder)
+            self.result.views = True
 
     def add(self, key: str, payload: bytes) -> None:
         """Record one message received on ``key`` (or drop and count it: :func:`record_problem`)."""

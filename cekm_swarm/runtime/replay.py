@@ -33,10 +33,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import zenoh
+from mcap.reader import make_reader
 
 from ..protocol.stamps import QUIET_S
 from .bridge import Publishers
-from .mcap_log import MSGPACK, LoggedMessage, read_messages
+from .mcap_log import MSGPACK, LoggedMessage, is_complete, read_messages
+from .mcap_sets import log_files
 
 MAX_GAP_S = 60.0
 """Sim seconds between two consecutive published messages beyond which replay does not
@@ -110,11 +112,6 @@ class ReplayProgress:
 def log_span(path: str | Path) -> tuple[float, float] | None:
     """(first, last) log time in seconds from the log's summary statistics (every file of a
     log set); None when a file has none (a truncated log) or the log holds no message."""
-    from mcap.reader import make_reader
-
-    from .mcap_log import is_complete
-    from .mcap_sets import log_files
-
     if not is_complete(path):
         return None
     spans = []

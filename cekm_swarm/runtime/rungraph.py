@@ -8,7 +8,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from cekm_swarm.graph.spec import Graph, GraphError, load_graph
+from cekm_swarm.graph.spec import Graph, GraphError, graph_for, load_graph
 
 from .record import fetch_json
 
@@ -52,6 +52,4 @@ def fetch_run_graph(session: Any, key: str, timeout: float = 2.0) -> RunGraph | 
 def default_nodes(task: str = "navigation", sensors: int = 12) -> tuple[str, ...]:
     """The node instances of the default controller's graph (cekm) for ``task``: what a
     world started without a run spec waits for."""
-    from cekm_swarm.graph.spec import graph_for
-
     return tuple(load_graph(graph_for("cekm", task)).node_names(sensors))

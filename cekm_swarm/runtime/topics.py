@@ -20,9 +20,12 @@ from typing import Any
 import msgspec
 import zenoh
 
-from cekm_swarm.protocol import DEFAULT_KEYS, KeyKind, KeySpace, MessageError, decode, summary, to_plain
+from cekm_swarm.protocol import DEFAULT_KEYS, KeyKind, KeySpace, KeySpaceError, MessageError, decode, summary, to_plain
+from cekm_swarm.protocol.messages import MESSAGE_TYPES, encode
 
-from .bridge import Received
+from .bridge import Publishers, Received, wait_matching
+from .config import MAX_MESSAGE_BYTES
+from .jsonout import json_line
 
 
 @dataclass(frozen=True, slots=True)
@@ -158,8 +161,6 @@ def echo(session: zenoh.Session, key_expr: str, out: Callable[[str], None], *, c
     ``stop``. ``as_json``: one JSON object per message (:func:`echo_record`). If nothing
     arrives within ``waiting_after`` s, ``waiting("waiting for messages on KEYEXPR ...")``
     is called once. Returns how many messages arrived."""
-    from .jsonout import json_line
-
     q: queue.SimpleQueue[Received] = queue.SimpleQueue()
     sub = session.declare_subscriber(key_expr, lambda s: q.put(Received.from_sample(s)))
     n = 0
@@ -332,9 +333,6 @@ def build_message(key: str, fields_json: str, keys: KeySpace = DEFAULT_KEYS, *, 
     """The msgpack bytes of the message for ``key`` from a JSON map of its fields (e.g.
     ``{"v_l": 0.05, "v_r": 0.05, "seq": 0}`` for ``cekm/r1/cmd/wheels``), validated like a
     received message. ``stamp`` and ``sender`` may also be given in the map."""
-    from cekm_swarm.protocol import KeySpaceError
-    from cekm_swarm.protocol.messages import MESSAGE_TYPES, encode
-
     try:
         parsed = keys.parse(key)
     except KeySpaceError as exc:
@@ -374,8 +372,6 @@ def build_message(key: str, fields_json: str, keys: KeySpace = DEFAULT_KEYS, *, 
         raise MessageError(f"{key}: missing field(s) {', '.join(missing)}") from None
     data = encode(msg)
     decode(key, data, keys=keys, expect=kind)  # the checks a receiver makes (index matches the key, ...)
-    from .config import MAX_MESSAGE_BYTES
-
     if len(data) > MAX_MESSAGE_BYTES:  # every router and client drops it: refused here, not sent for nothing
         raise MessageError(f"{key}: the message is {len(data):,} bytes, over the {MAX_MESSAGE_BYTES // 1024} KB "
                            f"limit every router and client enforce ({MAX_MESSAGE_BYTES:,} bytes)")
@@ -402,8 +398,6 @@ def publish(session: zenoh.Session, key: str, payload: bytes, *, count: int = 1,
     it silently, so a shortfall is the one sign of that. ``wait_subscriber``: first wait up
     to that many seconds for a subscriber (saying so through ``waiting``), as ``ros2 topic
     pub`` does; published anyway after it, with ``matched`` False."""
-    from .bridge import Publishers
-
     stop = stop or threading.Event()
     result = PubResult()
     got = threading.Semaphore(0)
@@ -412,8 +406,6 @@ def publish(session: zenoh.Session, key: str, payload: bytes, *, count: int = 1,
         pub = pubs.publisher(key)
         result.matched = pub.matching_status.matching
         if not result.matched and wait_subscriber > 0:
-            from .bridge import wait_matching
-
             if waiting is not None:
                 waiting(f"waiting for a subscriber on {key} ...")
             result.matched = wait_matching(pub, wait_subscriber)

@@ -4,26 +4,28 @@ from __future__ import annotations
 
 import math
 import threading
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import click
+import zenoh
 
 from cekm_swarm.cli_support import SEED
 from cekm_swarm.errors import CekmError
+from cekm_swarm.protocol import KeySpace
+from cekm_swarm.runtime.mcap_log import is_complete
+from cekm_swarm.runtime.mcap_read import read_geometry
 from cekm_swarm.runtime.tool_session import _connect_options, _session
 
 
 def _geometry(scenario: str | None, log: Path | None, seed: int | None):
     """(static geometry, sensing radii) from a scenario or from a run's MCAP log."""
-    from world import ScenarioError, load_scenario
-    from world.sim import World
+    from world import ScenarioError, load_scenario  # noqa: PLC0415 -- lazy: cekm --help loads no world (pymunk)
+    from world.sim import World  # noqa: PLC0415 -- lazy: cekm --help loads no world (pymunk)
 
     if log is not None:
-        from cekm_swarm.runtime.mcap_log import is_complete
-        from cekm_swarm.runtime.mcap_read import read_geometry
-
         try:
             complete = is_complete(log)
         except CekmError as exc:  # a log it cannot read: a failure (exit 1), as in `cekm log info`
@@ -56,9 +58,8 @@ def sensing_radii(geometry: dict, sensor_range: float | None, target_range: floa
 def _lattice(session, model_path: Path | None, root: str, timeout: float):
     """The motor map's input weights w: from --model, else from the run's model queryable
     (None if nothing answers within ``timeout`` s: neurons are then placed by index)."""
-    from cekm_swarm.models.io import load_model, load_model_bytes
-    from cekm_swarm.protocol import KeySpace
-    from cekm_swarm.runtime.model_service import fetch_model_bytes
+    from cekm_swarm.models.io import load_model, load_model_bytes  # noqa: PLC0415 -- lazy: cekm --help loads no model code
+    from cekm_swarm.runtime.model_service import fetch_model_bytes  # noqa: PLC0415 -- lazy: cekm --help loads no hashlib
 
     if model_path is not None:
         return load_model(model_path).w
@@ -96,11 +97,10 @@ def view_cmd(scenario: str | None, log: Path | None, seed: int | None, robot: st
     The arena is the run's (the world server serves it): without SCENARIO the view waits
     for a run and draws its arena; a SCENARIO that is not the run's is drawn until the run
     is seen, then replaced by the run's, with a warning."""
-    from cekm_swarm.protocol import KeySpace
-    from world.draw import robot_colours
+    from world.draw import robot_colours  # noqa: PLC0415 -- lazy: cekm --help loads no world (pymunk)
 
-    from .live import LiveView
-    from .server import ViewServer
+    from .live import LiveView  # noqa: PLC0415 -- lazy: cekm --help loads no view server
+    from .server import ViewServer  # noqa: PLC0415 -- lazy: cekm --help loads no view server
 
     if scenario is not None and log is not None:
         raise click.UsageError("give a SCENARIO (name or TOML file) or --log RUN.mcap, not both")
@@ -132,7 +132,7 @@ def view_cmd(scenario: str | None, log: Path | None, seed: int | None, robot: st
         except OSError as exc:
             raise click.ClickException(f"--http {http_port}: cannot serve on {host}: {exc.strerror}") from None
         if foxglove_port is not None:
-            from .foxglove_live import FoxgloveLive
+            from .foxglove_live import FoxgloveLive  # noqa: PLC0415 -- lazy: cekm --help loads no foxglove server
 
             try:
                 fox = FoxgloveLive(view, host, foxglove_port)
@@ -151,8 +151,8 @@ def view_cmd(scenario: str | None, log: Path | None, seed: int | None, robot: st
             while True:
                 run = runs.changed(timeout=0.5)
                 if run is not None:  # the arena and the graph the new run runs
-                    from cekm_swarm.runtime.record import fetch_json
-                    from cekm_swarm.runtime.rungraph import fetch_run_graph
+                    from cekm_swarm.runtime.record import fetch_json  # noqa: PLC0415 -- lazy: cekm --help loads no recorder
+                    from cekm_swarm.runtime.rungraph import fetch_run_graph  # noqa: PLC0415 -- lazy: cekm --help loads no run-graph reader
 
                     g = None if log is not None else fetch_json(session, keys.world_geometry())
                     if g is not None and "bounds" in g and g.get("name") != view.geometry.get("name"):
@@ -179,9 +179,7 @@ def view_cmd(scenario: str | None, log: Path | None, seed: int | None, robot: st
 
 def _run_geometry(session, keys, wait_s: float) -> dict | None:
     """The arena the run's world server serves, waiting up to ``wait_s`` s for one."""
-    import time
-
-    from cekm_swarm.runtime.record import fetch_json
+    from cekm_swarm.runtime.record import fetch_json  # noqa: PLC0415 -- lazy: cekm --help loads no recorder
 
     end = time.monotonic() + wait_s
     while True:
@@ -200,8 +198,6 @@ class RunWatch:
 
     def __init__(self, session, keys, on_run: Callable[[str], None] | None = None,
                  on_end: Callable[[str], None] | None = None) -> None:
-        import zenoh
-
         self._lock = threading.Lock()
         self._event = threading.Event()
         self._current: str | None = None
