@@ -13,6 +13,7 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import time
 from typing import Any
 
@@ -56,10 +57,8 @@ class _Clock:
             self.arrived.clear()
             if inbox.answered():  # a command in between: its wake-up came before the clear
                 break
-            try:
+            with contextlib.suppress(TimeoutError):
                 await asyncio.wait_for(self.arrived.wait(), max(0.0, until - loop.time()))
-            except TimeoutError:
-                pass
 
 
 class LockstepClock(_Clock):
@@ -87,10 +86,8 @@ class LockstepClock(_Clock):
                 self.publisher.republish(readings, waiting)
                 next_republish = loop.time() + self.republish
                 continue
-            try:  # woken when the tick is answered, or by a stop (which sets both)
+            with contextlib.suppress(TimeoutError):  # woken when the tick is answered, or by a stop (sets both)
                 await asyncio.wait_for(self.arrived.wait(), timeout)
-            except TimeoutError:
-                pass
 
 
 class RealtimeClock(_Clock):

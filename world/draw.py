@@ -10,10 +10,10 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from matplotlib.axes import Axes
-from matplotlib.patches import Circle, Polygon, Rectangle
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
 
 KNOWN_FACE = "0.25"
 UNKNOWN_FACE = "#f4b183"
@@ -60,6 +60,8 @@ def draw_world(ax: Axes, geometry: Mapping[str, Any], state: Mapping[str, Any] |
     Each robot's goal and body take its colour from ``colours`` (default
     :func:`robot_colours` of the robots in id order). Sets equal aspect, the limits to
     the arena bounds (plus the walls) and the axes' labels in metres."""
+    from matplotlib.patches import Circle, Polygon, Rectangle
+
     ids = sorted({r["id"] for r in geometry.get("robots", [])} | set((state or {}).get("robots", {})))
     colours = dict(colours) if colours is not None else robot_colours(ids)
     xmin, ymin, xmax, ymax = geometry["bounds"]
@@ -186,7 +188,7 @@ def draw_paths(ax: Axes, paths: Mapping[str, tuple[Sequence[float], Sequence[flo
             mt.append(n * step)
         ax.plot(mx, my, "o", color=col, ms=3.5, markeredgecolor="white", markeredgewidth=0.4, zorder=5,
                 gid=f"time:{rid}")
-        for x, y, t in list(zip(mx, my, mt))[1::2]:
+        for x, y, t in list(zip(mx, my, mt, strict=True))[1::2]:
             if math.hypot(x - xs[-1], y - ys[-1]) < 0.02:
                 continue  # not on the final pose's goal star
             ax.annotate(f"{t:g}", (x, y), xytext=(3, 3), textcoords="offset points", fontsize=6, color=col, zorder=7)
@@ -212,6 +214,8 @@ def draw_tracking(ax: Axes, paths: Mapping[str, tuple[Sequence[float], Sequence[
     target's path (grey, a dot at its start, a black cross and its id at its end) and each
     robot's target-sensing circle of radius ``target_range`` at ``instants`` evenly spaced
     points of its path ``(xs, ys)`` (fainter earlier; none if the range is unknown)."""
+    from matplotlib.patches import Circle
+
     for tid, pts in target_paths.items():
         if not len(pts):
             continue

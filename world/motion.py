@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Union
+from typing import Any
 
 import numpy as np
 
@@ -124,5 +124,5 @@ class RandomWalk:
         }
 
 
-Motion = Union[Fixed, CircleMotion, LineMotion, RandomWalk]
-ScriptedMotion = Union[CircleMotion, LineMotion]
+Motion = Fixed | CircleMotion | LineMotion | RandomWalk
+ScriptedMotion = CircleMotion | LineMotion

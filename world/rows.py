@@ -37,7 +37,7 @@ class Rows:
             raise ValueError(f"a row of {self.width} floats expected")
         if len(buf) >= BUFFER_ROWS * self.width:
             if self._file is None:
-                self._file = tempfile.TemporaryFile()
+                self._file = tempfile.TemporaryFile()  # noqa: SIM115 -- the rows' spill, open as long as they are
             self._file.seek(0, 2)
             buf.tofile(self._file)
             self._spilled += len(buf) // self.width

@@ -471,7 +471,7 @@ def _boundary_walls(b: tuple[float, ...], t: float) -> list[WallSpec]:
     names = ("south", "east", "north", "west")
     return [
         WallSpec(a, bb, t, True, f"arena.boundary_walls ({n})", tuple(geo.wall_outline(a, bb, t)))
-        for (a, bb), n in zip(segs, names)
+        for (a, bb), n in zip(segs, names, strict=True)
     ]
 
 

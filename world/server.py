@@ -37,6 +37,7 @@ Imports only ``world``, the protocol, the transport, the robot's body and graphs
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import logging
 import math
 import signal
@@ -204,10 +205,8 @@ class WorldServer:
         cfg = self.config
         loop = asyncio.get_running_loop()
         for sig in (signal.SIGTERM, signal.SIGINT):
-            try:
+            with contextlib.suppress(NotImplementedError, RuntimeError):  # pragma: no cover
                 loop.add_signal_handler(sig, self._request_stop)
-            except (NotImplementedError, RuntimeError):  # pragma: no cover
-                pass
         self.inbox.wake = lambda: loop.call_soon_threadsafe(self.arrived.set)
         self.deadman.restart(time.monotonic())
         geometry = self.world.static_geometry()

@@ -24,6 +24,7 @@ teleop), one for the Twists; the caller's thread waits for the stop.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 import threading
@@ -355,10 +356,8 @@ def bridge_session(connect: str | None, config_file: str | Path | None = None, *
 
     endpoint = ep.endpoint
     if config_file is not None and not ep.explicit:
-        try:
+        with contextlib.suppress(Exception):  # the file's own endpoint cannot be read: say the default
             endpoint = ", ".join(json.loads(make().get_json("connect/endpoints"))) or ep.endpoint
-        except Exception:  # the file's own endpoint cannot be read: say the default
-            pass
     make()  # a bad config file fails here, before any waiting
     return open_when_ready(make, endpoint, timeout=timeout, say=say, stop=stop)
 

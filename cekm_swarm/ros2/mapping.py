@@ -430,14 +430,14 @@ class RosMapper:
         """Robots (cylinder and heading arrow), targets, moving obstacles, sensing circles."""
         out = []
         r = self.radius
-        for i, (rid, (x, y, th)) in enumerate(sorted(poses.items())):
+        for i, (_rid, (x, y, th)) in enumerate(sorted(poses.items())):
             out.append(self._marker(t, "robots", i, 3, self._pose(x, y, MARKER_HEIGHT / 2), (2 * r, 2 * r, MARKER_HEIGHT),
                                     (0.1, 0.55, 0.95, 1.0)))
             out.append(self._marker(t, "headings", i, 0, self._pose(x, y, MARKER_HEIGHT, th), (2 * r, 0.008, 0.008),
                                     (1.0, 1.0, 1.0, 1.0)))
             if math.isfinite(self.target_range):
                 out.append(self._circle(t, "sensing", i, x, y, self.target_range, (0.1, 0.55, 0.95, 0.5)))
-        for i, (tid, tg) in enumerate(sorted(msg.targets.items())):
+        for i, (_tid, tg) in enumerate(sorted(msg.targets.items())):
             x, y = tg.x, tg.y
             out.append(self._marker(t, "targets", i, 2, self._pose(x, y, 0.015), (0.03, 0.03, 0.03), (0.95, 0.6, 0.1, 1.0)))
         for i, (oid, ob) in enumerate(sorted(msg.obstacles.items())):

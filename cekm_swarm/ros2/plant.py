@@ -56,6 +56,8 @@ STALE_S = 0.5
 AHEAD_S = 0.5
 """... or this much ahead of the plant's clock (two hosts' clocks apart): refused too."""
 TARGET_RESOLUTION = KHEPERA.target_resolution
+DEFAULT_BODY = RobotBody()
+"""The body a robot description's missing keys come from by default (RobotBody's defaults: the Khepera)."""
 
 MALFORMED, NOT_FINITE, WRONG_LENGTH, STALE, AHEAD, UNKNOWN_FRAME, NOT_COVERED = (
     "malformed CDR", "not finite", "scan of the wrong length", "stale stamp", "stamp ahead of the clock",
@@ -113,7 +115,7 @@ _NUMBERS = {"body_radius": (0.001, 5.0), "axle": (0.001, 5.0), "max_wheel_speed"
 _KEYS = tuple(_NUMBERS) + ("sensor_angles_deg", "sensors", "odom_frame", "base_frame", "scan_frame", "target_range")
 
 
-def load_description(path: str | Path, default: RobotBody = RobotBody()) -> RobotDescription:
+def load_description(path: str | Path, default: RobotBody = DEFAULT_BODY) -> RobotDescription:
     """A robot description file (TOML; docs/ros2.md "Driving a ROS 2 robot"): every key
     optional, a missing one taken from ``default`` (the scenario's body). Raises
     :class:`DescriptionError` naming the file and key."""
@@ -127,7 +129,7 @@ def load_description(path: str | Path, default: RobotBody = RobotBody()) -> Robo
     return description_from(doc, str(path), default)
 
 
-def description_from(doc: dict[str, Any], where: str, default: RobotBody = RobotBody()) -> RobotDescription:
+def description_from(doc: dict[str, Any], where: str, default: RobotBody = DEFAULT_BODY) -> RobotDescription:
     """A robot description from its TOML table ``doc`` (``where`` names it in errors)."""
     unknown = sorted(set(doc) - set(_KEYS))
     if unknown:
@@ -179,7 +181,7 @@ def body_differences(body: RobotBody, trained: RobotBody, rel: float = 1e-6) -> 
             out.append(f"{what} {a:g} {unit} (the model's: {b:g} {unit})")
     if len(body.sensor_angles) != len(trained.sensor_angles):
         out.append(f"{len(body.sensor_angles)} distance sensors (the model's: {len(trained.sensor_angles)})")
-    elif not all(math.isclose(a, b, abs_tol=1e-6) for a, b in zip(body.sensor_angles, trained.sensor_angles)):
+    elif not all(math.isclose(a, b, abs_tol=1e-6) for a, b in zip(body.sensor_angles, trained.sensor_angles, strict=True)):
         deg = ", ".join(f"{math.degrees(a):.4g}" for a in body.sensor_angles)
         out.append(f"sensor directions [{deg}] deg differ from the model's")
     return out
@@ -356,7 +358,7 @@ def decode_targets(ifc: Interfaces, payload: bytes, desc: RobotDescription, ids:
     if not all(math.isfinite(v) for p in xy for v in p):
         raise Refused(NOT_FINITE, f"target positions {xy}")
     _stamp(m.header, now, "targets")
-    return dict(zip(ids, xy))
+    return dict(zip(ids, xy, strict=True))
 
 
 def targets_seen(odom: Odom, targets: dict[str, tuple[float, float]], target_range: float) -> dict[str, tuple[float, float]]:

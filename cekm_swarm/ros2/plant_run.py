@@ -164,7 +164,7 @@ def drop_doc(plant: Any) -> dict[str, Any]:
     """The robots' messages dropped: topic -> reason -> how many."""
     with plant.lock:
         out: dict[str, Any] = {}
-        for (r, topic, reason), n in sorted(plant.drops.items()):
+        for (_robot, topic, reason), n in sorted(plant.drops.items()):
             out.setdefault(topic, {})[reason] = n
         return out
 

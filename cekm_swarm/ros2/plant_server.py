@@ -368,7 +368,7 @@ class PlantServer:
                 port.tick_scan_at[t] = scan_at
                 if len(port.tick_scan_at) > 16:
                     port.tick_scan_at.pop(next(iter(port.tick_scan_at)))
-            for j, (a, d) in enumerate(zip(self.desc.body.sensor_angles, readings)):
+            for j, (a, d) in enumerate(zip(self.desc.body.sensor_angles, readings, strict=True)):
                 self.put(self.keys.sense_range(r, j), SenseRange(t, SENDER, j, float(a), d))
             if k % TARGET_EVERY == 0:
                 for key, msg in target_messages(self, r, odom, t):

@@ -15,6 +15,7 @@ order matters under one subscription (one key expression).
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import ctypes
 import logging
 import threading
@@ -57,7 +58,7 @@ def _handoff(loop: asyncio.AbstractEventLoop, fn: Callable[[Received], None]) ->
     def callback(sample: zenoh.Sample) -> None:
         keep_thread_state()
         rec = Received.from_sample(sample)
-        try:
+        try:  # noqa: SIM105 -- every sample: a try costs nothing, suppress() a context manager each
             loop.call_soon_threadsafe(fn, rec)
         except RuntimeError:  # loop closed while Zenoh still delivers: nothing left to receive it
             pass
@@ -373,10 +374,8 @@ class LivelinessWatcher(_Subscriber):
     async def wait_all(self, keys: set[str] | frozenset[str], timeout: float) -> frozenset[str]:
         """Wait until every token of ``keys`` is alive, at most ``timeout`` seconds; the
         keys still missing then (empty when all came)."""
-        try:
+        with contextlib.suppress(TimeoutError):
             await self._until(lambda: keys <= self._alive, timeout)
-        except TimeoutError:
-            pass
         return frozenset(keys) - self._alive
 
     async def wait_for(self, key: str, alive: bool = True, timeout: float | None = None) -> None:

@@ -36,13 +36,14 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import contextlib
 import dataclasses
 import json
 import random
 import sys
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import IO, Any
 
 CHUNK = 65536
 """Bytes read from a TCP socket at a time (a chunk is the unit of delay and loss)."""
@@ -262,10 +263,8 @@ class FaultLink:
 
     def _close(self, writer: asyncio.StreamWriter) -> None:
         self._conns.discard(writer)
-        try:
+        with contextlib.suppress(ConnectionError, OSError, RuntimeError):
             writer.close()
-        except (ConnectionError, OSError, RuntimeError):
-            pass
 
     # -- UDP ------------------------------------------------------------------------------
     async def add_udp(self, listen: tuple[str, int], target: tuple[str, int]) -> tuple[str, int]:
@@ -359,8 +358,15 @@ def parse_command(link: FaultLink, line: str) -> str:
 
 
 async def serve(args: argparse.Namespace) -> None:
-    log_file = open(args.log, "a") if args.log else None
+    """Run the link of ``args`` until stdin closes, appending setting changes to ``--log``."""
+    if not args.log:
+        await _serve(args, None)
+        return
+    with open(args.log, "a") as log_file:
+        await _serve(args, log_file)
 
+
+async def _serve(args: argparse.Namespace, log_file: IO[str] | None) -> None:
     def log(line: str) -> None:
         if log_file is not None:
             log_file.write(line + "\n")

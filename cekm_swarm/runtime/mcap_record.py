@@ -19,6 +19,7 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import io
 import json
 import os
@@ -136,7 +137,7 @@ class McapRecorder:
             raise McapLogError(str(path), f"compression {compression!r}: use {' or '.join(COMPRESSIONS)}")
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
-            self._file: IO[bytes] | None = open(self.path, "wb")
+            self._file: IO[bytes] | None = open(self.path, "wb")  # noqa: SIM115 -- open while recording, close()d
         except OSError as exc:
             raise McapLogError(str(path), f"cannot open for writing: {exc.strerror or exc}") from None
         self._writer = ChunkedWriter(self._file, chunk_size=chunk_size, compression=compression)
@@ -349,10 +350,8 @@ class McapRecorder:
             self._lost(exc)
         finally:
             if self._file is not None:
-                try:
+                with contextlib.suppress(OSError):
                     self._file.close()
-                except OSError:
-                    pass
                 self._file = None
 
     def __enter__(self) -> McapRecorder:

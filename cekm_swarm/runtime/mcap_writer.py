@@ -94,7 +94,8 @@ class ChunkedWriter:
         self._chunk_indexes: dict[int, list[tuple[int, int]]] = {}  # channel -> [(log time, offset in chunk)]
         self._schemas: dict[int, Schema] = {}
         self._channels: dict[int, Channel] = {}
-        self._index_spool = tempfile.SpooledTemporaryFile(max_size=INDEX_SPOOL)  # packed ChunkIndex records
+        self._index_spool = tempfile.SpooledTemporaryFile(  # noqa: SIM115 -- the writer's, closed by finish()
+            max_size=INDEX_SPOOL)  # packed ChunkIndex records
         self._attachment_indexes: list[AttachmentIndex] = []
         self._metadata_indexes: list[MetadataIndex] = []
         self._counts: dict[int, int] = {}  # channel -> messages in the chunks written out

@@ -239,7 +239,10 @@ class MonitorState:
             for tid in obs[rid].targets:
                 by.setdefault(tid, []).append(rid)
         observed = sum(1 for tid in targets if by[tid])
-        shown = (lambda r: robots is None or r in robots)
+
+        def shown(r: str) -> bool:
+            return robots is None or r in robots
+
         return {
             "targets": {tid: {"x": targets[tid][0] if tid in targets else None,
                               "y": targets[tid][1] if tid in targets else None,

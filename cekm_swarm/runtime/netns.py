@@ -13,6 +13,7 @@ kills every process left in the namespaces and deletes them (their veth ends go 
 
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
 import signal
@@ -131,10 +132,8 @@ class Hosts:
             if ns not in listed:
                 continue
             for pid in ip("netns", "pids", ns).stdout.split():
-                try:
+                with contextlib.suppress(ProcessLookupError, ValueError):
                     os.kill(int(pid), signal.SIGKILL)
-                except (ProcessLookupError, ValueError):
-                    pass
             ip("netns", "del", ns)
 
     def left_over(self) -> list[str]:

@@ -7,6 +7,7 @@ Zenoh's threads.
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 import queue
@@ -48,7 +49,7 @@ def hz_stats(key: str, times: Sequence[float], now: float) -> HzStats:
     age = now - times[-1] if n else math.inf
     if n < 2:
         return HzStats(key, n, 0.0, math.nan, math.nan, math.nan, math.nan, age)
-    periods = [b - a for a, b in zip(times, times[1:])]
+    periods = [b - a for a, b in itertools.pairwise(times)]
     mean = (times[-1] - times[0]) / (n - 1)
     var = sum((p - mean) ** 2 for p in periods) / len(periods)
     return HzStats(key, n, 1.0 / mean if mean > 0 else math.inf, mean, min(periods), max(periods), math.sqrt(var), age)
@@ -419,9 +420,8 @@ def publish(session: zenoh.Session, key: str, payload: bytes, *, count: int = 1,
             for i in range(count):
                 if stop.is_set():
                     break
-                if i and rate:
-                    if stop.wait(1.0 / rate):
-                        break
+                if i and rate and stop.wait(1.0 / rate):
+                    break
                 pub.put(payload)
                 result.sent += 1
             if probe_sub is not None:
