@@ -107,7 +107,8 @@ class RealtimeClock(_Clock):
         await self._await_answers(loop.time() + FIRST_TICK_WAIT_S)
         waiting = self.inbox.waiting(self.inbox.now)
         if waiting and not self.stop.is_set():
-            self.stats.event("first_tick_unanswered", self.episode.t, {"after_s": FIRST_TICK_WAIT_S, "waiting": waiting})
+            self.stats.event("first_tick_unanswered", self.episode.t,
+                             {"after_s": FIRST_TICK_WAIT_S, "waiting": waiting})
         sent = self.inbox.published_at(self.inbox.now)
         self.stats.first_tick_s = time.monotonic() - (time.monotonic() if sent is None else sent)
         return loop.time()

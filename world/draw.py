@@ -78,7 +78,8 @@ def draw_world(ax: Axes, geometry: Mapping[str, Any], state: Mapping[str, Any] |
         motion = m["motion"]
         if motion["type"] == "circle":
             ax.add_patch(
-                Circle(motion["center"], motion["radius"], fill=False, linestyle="--", edgecolor=MOVING_EDGE, linewidth=0.8, zorder=1)
+                Circle(motion["center"], motion["radius"], fill=False, linestyle="--", edgecolor=MOVING_EDGE,
+                       linewidth=0.8, zorder=1)
             )
             # a direction arrow on the path, a quarter turn ahead of the obstacle
             s = 1.0 if motion.get("direction", "ccw") == "ccw" else -1.0
@@ -94,7 +95,8 @@ def draw_world(ax: Axes, geometry: Mapping[str, Any], state: Mapping[str, Any] |
                 zorder=1,
             )
         else:
-            ax.plot([motion["a"][0], motion["b"][0]], [motion["a"][1], motion["b"][1]], "--", color=MOVING_EDGE, lw=0.8, zorder=1)
+            ax.plot([motion["a"][0], motion["b"][0]], [motion["a"][1], motion["b"][1]], "--", color=MOVING_EDGE,
+                    lw=0.8, zorder=1)
         if m["id"] in obs_state:
             ox, oy = obs_state[m["id"]]["x"], obs_state[m["id"]]["y"]
             th = obs_state[m["id"]].get("theta", 0.0)
@@ -140,7 +142,8 @@ def draw_world(ax: Axes, geometry: Mapping[str, Any], state: Mapping[str, Any] |
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
-    ax.add_patch(Rectangle((xmin, ymin), xmax - xmin, ymax - ymin, fill=False, edgecolor="0.8", linewidth=0.5, zorder=0))
+    ax.add_patch(Rectangle((xmin, ymin), xmax - xmin, ymax - ymin, fill=False, edgecolor="0.8", linewidth=0.5,
+                           zorder=0))
     return ax
 
 
@@ -274,7 +277,8 @@ def fit_bounds(ax: Axes, geometry: Mapping[str, Any] | None, points: Sequence[Se
         return x0, x1, y0, y1
     margin = max(margin, 0.03 * max(max(xs) - min(xs), max(ys) - min(ys)))  # a marker's size on a large map
     x0, x1, y0, y1 = min(xs) - margin, max(xs) + margin, min(ys) - margin, max(ys) + margin
-    if geometry is not None and points:  # the arena clips the content, never the paths (no boundary walls: robots leave)
+    # the arena clips the content, never the paths (no boundary walls: robots leave)
+    if geometry is not None and points:
         bx0, by0, bx1, by1 = geometry["bounds"]
         wall = max((w["thickness"] for w in geometry.get("walls", [])), default=0.0) + 0.02
         px = [float(p[0]) for p in points]

@@ -95,7 +95,8 @@ class RandomWalk:
     bounds: tuple[float, float, float, float]
     kind = "random_walk"
 
-    def step(self, x: float, y: float, heading: float, dt: float, rng: np.random.Generator) -> tuple[float, float, float]:
+    def step(self, x: float, y: float, heading: float, dt: float,
+             rng: np.random.Generator) -> tuple[float, float, float]:
         """One sub-step from (x, y, heading); returns the new (x, y, heading)."""
         heading += self.turn_noise * math.sqrt(dt) * float(rng.standard_normal())
         x += self.speed * dt * math.cos(heading)

@@ -150,13 +150,14 @@ class Parser:
             dict(raw),
             "",
             ("arena", "robots"),
-            ("name", "description", "seed", "plan_checkpoints", "retarget", "explore", "sensors", "plant", "targets", "walls",
-             "obstacles"),
+            ("name", "description", "seed", "plan_checkpoints", "retarget", "explore", "sensors", "plant", "targets",
+             "walls", "obstacles"),
         )
         name = self.string(doc.get("name", default_name), "name")
         description = self.string(doc.get("description", ""), "description")
         seed = self.integer(doc.get("seed", 0), "seed", ge=0)
-        plan, retarget, explore = (self.boolean(doc.get(k, False), k) for k in ("plan_checkpoints", "retarget", "explore"))
+        plan, retarget, explore = (self.boolean(doc.get(k, False), k)
+                                   for k in ("plan_checkpoints", "retarget", "explore"))
         if explore and not retarget:
             self.fail("explore", "training exploration noise needs retarget = true (section 4.1's training)")
 
@@ -165,7 +166,8 @@ class Parser:
         if not (bounds[0] < bounds[2] and bounds[1] < bounds[3]):
             self.fail("arena.bounds", f"must satisfy xmin < xmax and ymin < ymax, got {list(bounds)}")
         boundary = self.boolean(arena.get("boundary_walls", True), "arena.boundary_walls")
-        wall_t = self.number(arena.get("wall_thickness", DEFAULT_WALL_THICKNESS), "arena.wall_thickness", gt=0.0, le=1.0)
+        wall_t = self.number(arena.get("wall_thickness", DEFAULT_WALL_THICKNESS), "arena.wall_thickness",
+                             gt=0.0, le=1.0)
 
         sensors = self.table(doc.get("sensors", {}), "sensors", (), ("range", "target_range"))
         sensor_range = self.number(sensors.get("range", DEFAULT_SENSOR_RANGE), "sensors.range", gt=0.0, le=5.0)

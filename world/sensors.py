@@ -91,7 +91,8 @@ class RangeSensors:
         may exceed the range by up to the 10 % noise)."""
         lim, res, nan = self.range, RANGE_RESOLUTION, math.nan
         u = self._noise_draws(i)
-        return np.array([round(d * (1.0 + e) / res) * res if d <= lim else nan for d, e in zip(self.cast(i, x, y, th), u, strict=True)])
+        return np.array([round(d * (1.0 + e) / res) * res if d <= lim else nan
+                         for d, e in zip(self.cast(i, x, y, th), u, strict=True)])
 
 
 def target_reading(rng: np.random.Generator, pose: tuple[float, float, float], target: tuple[float, float],

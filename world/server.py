@@ -190,8 +190,9 @@ class WorldServer:
         out = []  # no run spec: every reading the world publishes for the task
         for rel, wk in WORLD_KEYS.items():
             if wk.per_robot and self.task in wk.tasks:
-                out += [f"{self.keys.root}/{robot}/{rel.replace('{j}', str(j))}" for j in range(self.keys.range_sensors)] \
-                    if "{j}" in rel else [f"{self.keys.root}/{robot}/{rel}"]
+                head = f"{self.keys.root}/{robot}/"
+                out += [head + rel.replace("{j}", str(j)) for j in range(self.keys.range_sensors)] \
+                    if "{j}" in rel else [head + rel]
         return out
 
     def _clock(self) -> LockstepClock | RealtimeClock:
@@ -239,10 +240,12 @@ class WorldServer:
         aborted = False
         try:
             pub.pubs = Publishers(session, block=True, express=False)
-            pub.record_sub = session.declare_subscriber(self.keys.everything(), zenoh.handlers.RingChannel(RECORD_QUEUE),
+            pub.record_sub = session.declare_subscriber(self.keys.everything(),
+                                                        zenoh.handlers.RingChannel(RECORD_QUEUE),
                                                         allowed_origin=zenoh.Locality.REMOTE)
             keys = self.inbox.answer_keys
-            on = ([self.keys.cmd_wheels_all()] if all(k == self.keys.cmd_wheels(r) for k, r in keys.items()) else list(keys))
+            every_robot = all(k == self.keys.cmd_wheels(r) for k, r in keys.items())
+            on = [self.keys.cmd_wheels_all()] if every_robot else list(keys)
             cmd_subs = [InlineSubscription(session, k, self.inbox.on_command) for k in on]
             token = declare_alive(session, self.keys.alive("world", "server"))
             served = [serve_geometry(session, self.keys.world_geometry(), geometry)]  # for `cekm record`

@@ -29,8 +29,8 @@ class TrainingEpisode(Episode):
         self.budget = budget_ticks
         self.since = {r: 0 for r in world.robot_ids}  # the tick the robot's current target was given
         self.reached_count = {r: 0 for r in world.robot_ids}
-        self.explore_rngs = ({r: np.random.default_rng([seed, i, EXPLORE_STREAM]) for i, r in enumerate(world.robot_ids)}
-                             if world.scenario.explore else None)
+        self.explore_rngs = ({r: np.random.default_rng([seed, i, EXPLORE_STREAM])
+                              for i, r in enumerate(world.robot_ids)} if world.scenario.explore else None)
 
     def apply(self, commands: dict[str, tuple[float, float]]) -> None:
         if self.explore_rngs is not None:

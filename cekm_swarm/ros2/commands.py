@@ -96,7 +96,8 @@ def ros2_group() -> None:
 @click.option("--root", default="cekm", show_default=True, type=ROOT, help="Key-space root of the run.")
 @click.option("--json", "as_json", is_flag=True, help="Print the final report as one JSON object.")
 def bridge_cmd(endpoint: str | None, config_file: Path | None, wait_s: float, domain: int,
-               robots: tuple[str, ...] | None, teleop: tuple[str, ...] | None, distro: str, root: str, as_json: bool) -> None:
+               robots: tuple[str, ...] | None, teleop: tuple[str, ...] | None, distro: str, root: str,
+               as_json: bool) -> None:
     """Publish a live run's topics as a ROS 2 node under rmw_zenoh, until Ctrl-C or SIGTERM."""
     from .bridge import BridgeConfig, bridge_session, run_bridge  # noqa: PLC0415 -- lazy: cekm --help loads no bridge
 

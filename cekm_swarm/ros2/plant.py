@@ -139,7 +139,8 @@ def description_from(doc: dict[str, Any], where: str, default: RobotBody = DEFAU
         if key in doc:
             v = doc[key]
             if type(v) not in (int, float) or not math.isfinite(v) or not lo <= v <= hi:
-                raise DescriptionError(f"{where}: {key} = {v!r}: expected a number of metres (per second) in [{lo:g}, {hi:g}]")
+                raise DescriptionError(f"{where}: {key} = {v!r}: expected a number of metres (per second) "
+                                       f"in [{lo:g}, {hi:g}]")
             values[key] = float(v)
     body = replace(default, **{("v_max" if k == "max_wheel_speed" else k): v for k, v in values.items()})
     if "sensor_angles_deg" in doc:
@@ -163,7 +164,8 @@ def description_from(doc: dict[str, Any], where: str, default: RobotBody = DEFAU
                 raise DescriptionError(f"{where}: {key} = {v!r}: expected a frame or source name")
             strings[key] = v
     if strings.get("sensors", "scan") not in SENSOR_SOURCES:
-        raise DescriptionError(f"{where}: sensors = {strings['sensors']!r}: expected one of {', '.join(SENSOR_SOURCES)}")
+        raise DescriptionError(f"{where}: sensors = {strings['sensors']!r}: "
+                               f"expected one of {', '.join(SENSOR_SOURCES)}")
     return RobotDescription(body, **strings)
 
 
@@ -181,7 +183,8 @@ def body_differences(body: RobotBody, trained: RobotBody, rel: float = 1e-6) -> 
             out.append(f"{what} {a:g} {unit} (the model's: {b:g} {unit})")
     if len(body.sensor_angles) != len(trained.sensor_angles):
         out.append(f"{len(body.sensor_angles)} distance sensors (the model's: {len(trained.sensor_angles)})")
-    elif not all(math.isclose(a, b, abs_tol=1e-6) for a, b in zip(body.sensor_angles, trained.sensor_angles, strict=True)):
+    elif not all(math.isclose(a, b, abs_tol=1e-6)
+                 for a, b in zip(body.sensor_angles, trained.sensor_angles, strict=True)):
         deg = ", ".join(f"{math.degrees(a):.4g}" for a in body.sensor_angles)
         out.append(f"sensor directions [{deg}] deg differ from the model's")
     return out
@@ -361,7 +364,8 @@ def decode_targets(ifc: Interfaces, payload: bytes, desc: RobotDescription, ids:
     return dict(zip(ids, xy, strict=True))
 
 
-def targets_seen(odom: Odom, targets: dict[str, tuple[float, float]], target_range: float) -> dict[str, tuple[float, float]]:
+def targets_seen(odom: Odom, targets: dict[str, tuple[float, float]],
+                 target_range: float) -> dict[str, tuple[float, float]]:
     """The targets within ``target_range`` of the robot, each as (alpha, d) in its frame (the
     target reading of :func:`target_reading`)."""
     out = {}

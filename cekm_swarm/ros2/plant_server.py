@@ -376,8 +376,8 @@ class PlantServer:
         self.put(self.keys.world_clock(), Clock(t, SENDER, k))
         targets = dict(self.targets) if self.cfg.task == "tracking" else {
             self.cfg.goal_ids.get(r, f"{r}-goal"): p.goal for r, p in self.ports.items() if p.goal}
-        self.put(self.keys.world_state(), WorldState(t, SENDER, robots, {i: TargetState(*xy) for i, xy in targets.items()},
-                                                     {}))
+        states = {i: TargetState(*xy) for i, xy in targets.items()}
+        self.put(self.keys.world_state(), WorldState(t, SENDER, robots, states, {}))
 
     def _wait_boundary(self, boundary: float) -> None:
         """Until the plant's clock reaches ``boundary``, stopping a robot on its dead-man
@@ -386,7 +386,8 @@ class PlantServer:
         while not self.stop.is_set():
             mono = time.monotonic()
             due = [r for r, p in self.ports.items()
-                   if not p.stopped and not p.reached and p.heard is not None and mono >= p.heard + limit - DEADMAN_MARGIN_S]
+                   if not p.stopped and not p.reached and p.heard is not None
+                   and mono >= p.heard + limit - DEADMAN_MARGIN_S]
             for r in due:
                 silent = mono - self.ports[r].heard
                 self.send_twist(r, 0.0, 0.0)
@@ -479,8 +480,8 @@ class PlantServer:
     def _outcome(self, ticks: int, aborted: bool, wall: float, loop_s: float) -> dict[str, Any]:
         doc = outcome_doc(self, ticks, aborted, wall, loop_s)
         (Path(self.cfg.out) / "outcome.json").write_text(json.dumps(doc, indent=1))
-        emit("DONE", {"cpu_s": time.process_time(), "sim_seconds": doc["sim_seconds"], "wall_seconds": doc["wall_seconds"],
-                      "aborted": aborted, "robots": doc["robots"]})
+        emit("DONE", {"cpu_s": time.process_time(), "sim_seconds": doc["sim_seconds"],
+                      "wall_seconds": doc["wall_seconds"], "aborted": aborted, "robots": doc["robots"]})
         return doc
 
 

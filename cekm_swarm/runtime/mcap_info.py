@@ -85,7 +85,8 @@ def format_log_info(info: LogInfo) -> str:
                         f"{Path(info.files[-1]).name}")
     if info.channels:
         w = max(len(c.topic) for c in info.channels)
-        lines.append(f"  {'topic':<{w}}  {'encoding':<9} {'count':>7} {'rate Hz':>9} {'first s':>9} {'last s':>9}  schema")
+        lines.append(f"  {'topic':<{w}}  {'encoding':<9} {'count':>7} {'rate Hz':>9} {'first s':>9} "
+                     f"{'last s':>9}  schema")
         for c in info.channels:
             lines.append(f"  {c.topic:<{w}}  {c.message_encoding:<9} {c.count:>7} {c.rate:>9.2f} {c.first:>9.3f} "
                          f"{c.last:>9.3f}  {c.schema_name or '-'}")

@@ -35,8 +35,8 @@ def _num(x: float, width: int, digits: int) -> str:
 
 
 _STATUS_STYLE = {"ended": "dim", "moving": "green", "reached": "bold cyan", "stopped": "yellow", "waiting": "dim"}
-_PHASE_STYLE = {"running": "bold green", "replay": "bold green", "run ended": "bold red", "waiting for the world": "bold yellow",
-                "waiting for the modules": "bold yellow"}
+_PHASE_STYLE = {"running": "bold green", "replay": "bold green", "run ended": "bold red",
+                "waiting for the world": "bold yellow", "waiting for the modules": "bold yellow"}
 _HEADER = (f"{_fit('robot', 6, '<')} {_fit('x', 6)} {_fit('y', 6)} {_fit('theta', 5)} {_fit('goal', 13)} "
            f"{_fit('status', 7, '<')} {_fit('v_l', 6)} {_fit('v_r', 6)} {_fit('mods', 5)} {_fit('lat ms', 11)}")
 

@@ -87,9 +87,9 @@ class NetRun:
             self.start_router()
         where = ["--connect", f"tcp/127.0.0.1:{PORT}"] if self.outside_router else \
             ["--listen", "0.0.0.0", "--port", str(PORT)]
-        self.world = self.hosts.start("world", ["cekm", "launch", self.scenario, "--mode", self.mode, "--robots", "none",
-                                                *where, "--out", str(self.world_out), "--no-plot", *self.opts],
-                                      self.env, self.work)
+        argv = ["cekm", "launch", self.scenario, "--mode", self.mode, "--robots", "none",
+                *where, "--out", str(self.world_out), "--no-plot", *self.opts]
+        self.world = self.hosts.start("world", argv, self.env, self.work)
         self.world.wait_line(WORLD_UP, timeout=120)
         for r in self.hosts.robots:
             addr = self.hosts.world_addr[r]
@@ -102,7 +102,8 @@ class NetRun:
                     argv += ["--rate", str(s.rate)]
                 self.links[r] = self.hosts.start("world", argv, self.env, self.work, stdin=True)
                 self.links[r].wait_line("READY", timeout=60)
-            upstream = f"{self.transport if r in self.faulty else 'tcp'}/{addr}:{LINK_PORT if r in self.faulty else PORT}"
+            faulty = r in self.faulty
+            upstream = f"{self.transport if faulty else 'tcp'}/{addr}:{LINK_PORT if faulty else PORT}"
             if self.host_routers:
                 self.hosts.start(r, [sys.executable, "-c", ROUTER, str(PORT), "127.0.0.1", upstream], self.env,
                                  self.work, stdin=True).wait_line("READY", timeout=60)

@@ -79,8 +79,8 @@ def param_get_cmd(node: str, name: str, endpoint: str | None, config_file: Path 
     with _session(endpoint, config_file, wait_s) as session:
         doc = _ask(session, _keys(root).param(robot, nm), {})
     if name not in doc["params"]:
-        raise click.BadParameter(f"{node} has no parameter {name!r} (its parameters: {', '.join(doc['params']) or 'none'})",
-                                 param_hint="NAME")
+        known = ", ".join(doc["params"]) or "none"
+        raise click.BadParameter(f"{node} has no parameter {name!r} (its parameters: {known})", param_hint="NAME")
     click.echo(json.dumps(doc["params"][name]["value"]))
 
 

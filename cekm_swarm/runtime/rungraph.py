@@ -35,7 +35,8 @@ class RunGraph:
             for o in n.outputs:
                 for i in range(count):
                     sent[o.key.replace("{i}", str(i))] = kinds.get(o.port, "")
-        return cls(g.name, g.controller, tuple(g.node_names(sensors)), tuple(doc.get("team", ())), doc.get("run_id"), sent)
+        return cls(g.name, g.controller, tuple(g.node_names(sensors)), tuple(doc.get("team", ())), doc.get("run_id"),
+                   sent)
 
 
 def fetch_run_graph(session: Any, key: str, timeout: float = 2.0) -> RunGraph | None:

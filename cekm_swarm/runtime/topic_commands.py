@@ -160,7 +160,8 @@ def topic_info_cmd(endpoint: str | None, config_file: Path | None, wait_s: float
 @click.argument("message", metavar="JSON")
 @click.option("--count", "-n", default=1, show_default=True, type=click.IntRange(1), help="Messages to publish.")
 @click.option("--rate", default=None, type=Finite(min=0.0, min_open=True), help="Messages per second.")
-@click.option("--stamp", default=None, type=Finite(), help="The messages' stamp, over the JSON's (default: the JSON's, else 0).")
+@click.option("--stamp", default=None, type=Finite(),
+              help="The messages' stamp, over the JSON's (default: the JSON's, else 0).")
 @click.option("--wait-subscriber", default=5.0, show_default=True, type=Finite(0.0),
               help="Seconds to wait for a subscriber before publishing anyway.")
 @click.option("--confirm-timeout", default=3.0, show_default=True, type=Finite(0.1),

@@ -144,7 +144,8 @@ class LiveView:
                 else:
                     self.target_field = msg
             elif isinstance(msg, MapVersion):
-                if self.keys.parse(key).robot != self.robot or (self.map is not None and msg.version < self.map.version):
+                if self.keys.parse(key).robot != self.robot or (
+                        self.map is not None and msg.version < self.map.version):
                     return
                 self.map = msg
             else:
