@@ -196,44 +196,12 @@ def replay_cmd(log_file: Path, endpoint: str | None, config_file: Path | None, w
     With no --connect (and no CEKM_CONNECT, no --config) the replay hosts the router itself
     on tcp/127.0.0.1:7447 (--port), where `cekm monitor` and `cekm topic` find it. On a
     terminal, space pauses and resumes, q stops."""
-    if not fast and rate <= 0:
-        raise click.BadParameter("must be > 0 (or use --fast)", param_hint="--rate")
-    if key_expr is not None:
-        _check_key_expr(key_expr, "--keys")
-    try:
-        ep = resolve_endpoint(endpoint)
-    except CekmError as exc:
-        raise click.BadParameter(str(exc), param_hint="--connect" if endpoint else ENV_CONNECT) from None
-    try:
-        span = log_span(log_file)
-    except CekmError as exc:  # a log it cannot read: a failure (exit 1), as in `cekm log info`
-        raise click.ClickException(str(exc)) from None
-    if span is not None and start > span[1] - span[0]:
-        raise click.BadParameter(f"{start:g} s is past the log's end ({span[1] - span[0]:.3f} s long)",
-                                 param_hint="--start")
-    if start_paused and not sys.stdin.isatty():
-        raise click.UsageError("--start-paused needs a terminal (space resumes the replay)")
-    host_router = not ep.explicit and config_file is None
-    if port is not None and not host_router:
-        raise click.UsageError(f"--port is for the router the replay hosts; it joins {ep.endpoint} ({ep.source})")
+    host_router = _check_replay(log_file, endpoint, config_file, port, rate, fast, start, key_expr, start_paused)
     stop = threading.Event()
     control = ReplayControl()
     if start_paused:
         control.pause()
-    if host_router:
-        p = DEFAULT_PORT if port is None else port
-        try:
-            session = open_embedded_router(p)
-        except CekmError as exc:
-            raise click.ClickException(f"{exc} (a run or another replay holds port {p}? --port P hosts elsewhere, "
-                                       f"--connect ENDPOINT joins that router)") from None
-        _say(f"replay: hosting the router on tcp/{DEFAULT_HOST}:{p} (attach: cekm monitor"
-             f"{'' if p == DEFAULT_PORT else f' --connect tcp/{DEFAULT_HOST}:{p}'})")
-    else:
-        try:
-            session = _open(endpoint, config_file, wait_s)
-        except KeyboardInterrupt:
-            raise Interrupted() from None
+    session = _host_router(port) if host_router else _replay_session(endpoint, config_file, wait_s)
     tty = sys.stderr.isatty() and not quiet
     width = [0]
 
@@ -261,6 +229,53 @@ def replay_cmd(log_file: Path, endpoint: str | None, config_file: Path | None, w
         _say(f"replay: did not wait across {result.jumped} gap(s) of more than {MAX_GAP_S:g} s of sim time "
              f"between two messages (log times no run reaches: stamps its recorder should not have kept)")
     if hit[0]:
+        raise Interrupted() from None
+
+
+def _check_replay(log_file: Path, endpoint: str | None, config_file: Path | None, port: int | None, rate: float,
+                  fast: bool, start: float, key_expr: str | None, start_paused: bool) -> bool:
+    """Refuse a replay's bad options before anything starts; whether it hosts the router."""
+    if not fast and rate <= 0:
+        raise click.BadParameter("must be > 0 (or use --fast)", param_hint="--rate")
+    if key_expr is not None:
+        _check_key_expr(key_expr, "--keys")
+    try:
+        ep = resolve_endpoint(endpoint)
+    except CekmError as exc:
+        raise click.BadParameter(str(exc), param_hint="--connect" if endpoint else ENV_CONNECT) from None
+    try:
+        span = log_span(log_file)
+    except CekmError as exc:  # a log it cannot read: a failure (exit 1), as in `cekm log info`
+        raise click.ClickException(str(exc)) from None
+    if span is not None and start > span[1] - span[0]:
+        raise click.BadParameter(f"{start:g} s is past the log's end ({span[1] - span[0]:.3f} s long)",
+                                 param_hint="--start")
+    if start_paused and not sys.stdin.isatty():
+        raise click.UsageError("--start-paused needs a terminal (space resumes the replay)")
+    host_router = not ep.explicit and config_file is None
+    if port is not None and not host_router:
+        raise click.UsageError(f"--port is for the router the replay hosts; it joins {ep.endpoint} ({ep.source})")
+    return host_router
+
+
+def _host_router(port: int | None) -> Any:
+    """The router a replay hosts on 127.0.0.1 (``--port``, default 7447), said on stderr."""
+    p = DEFAULT_PORT if port is None else port
+    try:
+        session = open_embedded_router(p)
+    except CekmError as exc:
+        raise click.ClickException(f"{exc} (a run or another replay holds port {p}? --port P hosts elsewhere, "
+                                   f"--connect ENDPOINT joins that router)") from None
+    _say(f"replay: hosting the router on tcp/{DEFAULT_HOST}:{p} (attach: cekm monitor"
+         f"{'' if p == DEFAULT_PORT else f' --connect tcp/{DEFAULT_HOST}:{p}'})")
+    return session
+
+
+def _replay_session(endpoint: str | None, config_file: Path | None, wait_s: float) -> Any:
+    """A session joining the router ``--connect`` (or the config file) names."""
+    try:
+        return _open(endpoint, config_file, wait_s)
+    except KeyboardInterrupt:
         raise Interrupted() from None
 
 
