@@ -267,6 +267,32 @@ def router_endpoints(session: zenoh.Session, key_expr: str, keys: KeySpace = DEF
     entries = _admin(session, "@/*/router/**", timeout)
     if not any("/router/" in k for k, _ in entries):
         return None
+    names = _session_names(entries, keys)
+
+    def who(doc: dict[str, Any], routers: bool) -> list[str]:
+        out = []
+        for zid in _zids(doc, "clients", "peers"):
+            if zid != me:
+                out.append(", ".join(sorted(names[zid])) if zid in names else f"zid {zid}")
+        if routers and _zids(doc, "routers"):
+            out.append("router")
+        return sorted(out)
+
+    pubs: dict[str, list[str]] = {}
+    subs: dict[str, list[str]] = {}
+    for k, doc in entries:
+        for marker, table, routers in (("/router/publisher/", pubs, True), ("/router/subscriber/", subs, False)):
+            _, _, declared = k.partition(marker)
+            if declared and _intersects(declared, target):
+                named = who(doc, routers)
+                if named:
+                    table.setdefault(declared, []).extend(named)
+    return Endpoints(pubs, subs)
+
+
+def _session_names(entries: list[tuple[str, Any]], keys: KeySpace) -> dict[str, list[str]]:
+    """{session zid: its names}: ``router`` for the router's own session, ``robot/module``
+    for each liveliness token a session holds (the token's key when it is not the key space's)."""
     names: dict[str, list[str]] = {}
     for k, _ in entries:
         parts = k.split("/")
@@ -283,32 +309,15 @@ def router_endpoints(session: zenoh.Session, key_expr: str, keys: KeySpace = DEF
             label = rest
         for zid in _zids(doc, "clients", "peers"):
             names.setdefault(zid, []).append(label)
+    return names
 
-    def who(doc: dict[str, Any], routers: bool) -> list[str]:
-        out = []
-        for zid in _zids(doc, "clients", "peers"):
-            if zid != me:
-                out.append(", ".join(sorted(names[zid])) if zid in names else f"zid {zid}")
-        if routers and _zids(doc, "routers"):
-            out.append("router")
-        return sorted(out)
 
-    pubs: dict[str, list[str]] = {}
-    subs: dict[str, list[str]] = {}
-    for k, doc in entries:
-        for marker, table, routers in (("/router/publisher/", pubs, True), ("/router/subscriber/", subs, False)):
-            _, _, declared = k.partition(marker)
-            if not declared:
-                continue
-            try:
-                hit = zenoh.KeyExpr(declared).intersects(target)
-            except Exception:
-                hit = False
-            if hit:
-                named = who(doc, routers)
-                if named:
-                    table.setdefault(declared, []).extend(named)
-    return Endpoints(pubs, subs)
+def _intersects(declared: str, target: zenoh.KeyExpr) -> bool:
+    """Whether a declared key expression meets ``target`` (False for one Zenoh refuses)."""
+    try:
+        return bool(zenoh.KeyExpr(declared).intersects(target))
+    except Exception:
+        return False
 
 
 def format_endpoints(ep: Endpoints | None, stats: Sequence[HzStats]) -> str:
