@@ -132,14 +132,7 @@ def view_cmd(scenario: str | None, log: Path | None, seed: int | None, robot: st
         except OSError as exc:
             raise click.ClickException(f"--http {http_port}: cannot serve on {host}: {exc.strerror}") from None
         if foxglove_port is not None:
-            from .foxglove_live import FoxgloveLive  # noqa: PLC0415 -- lazy: cekm --help loads no foxglove server
-
-            try:
-                fox = FoxgloveLive(view, host, foxglove_port)
-            except Exception as exc:  # noqa: BLE001 - foxglove's own error types; the page still serves
-                server.close()
-                raise click.ClickException(f"--foxglove {foxglove_port}: cannot serve on {host}: {exc}") from None
-            click.echo(f"foxglove WebSocket server on ws://{host}:{fox.port}", err=True)
+            fox = _foxglove(view, host, foxglove_port, server)
         click.echo(f"live view on {server.url} (Ctrl-C to stop)", err=True)
         # a new run starts the view afresh as soon as its world's token is seen (on Zenoh's
         # thread, before the run's first state), not after the graph is fetched: by then a
@@ -150,23 +143,8 @@ def view_cmd(scenario: str | None, log: Path | None, seed: int | None, robot: st
         try:
             while True:
                 run = runs.changed(timeout=0.5)
-                if run is not None:  # the arena and the graph the new run runs
-                    from cekm_swarm.runtime.record import fetch_json  # noqa: PLC0415 -- lazy: cekm --help loads no recorder
-                    from cekm_swarm.runtime.rungraph import fetch_run_graph  # noqa: PLC0415 -- lazy: cekm --help loads no run-graph reader
-
-                    g = None if log is not None else fetch_json(session, keys.world_geometry())
-                    if g is not None and "bounds" in g and g.get("name") != view.geometry.get("name"):
-                        given = view.geometry.get("name")
-                        gids = sorted(r["id"] for r in g.get("robots", []))
-                        view.set_geometry(g, sensing_radii(g, g.get("sensor_range"), g.get("target_range")),
-                                          robot_colours(gids))  # drawn before it is said
-                        click.echo(f"the run {run} is of arena {g.get('name')!r}, not {given!r}: drawing the run's",
-                                   err=True)
-
-                    g = fetch_run_graph(session, keys.world_graph())
-                    view.set_graph(None if g is None else f"{g.name} ({g.controller})")
-                    if fox is not None:
-                        fox.set_schemas((fetch_json(session, keys.world_graph()) or {}).get("schemas") or {})
+                if run is not None:
+                    _new_run(session, keys, view, fox, run, own_arena=log is None)
         except KeyboardInterrupt:
             pass
         finally:
@@ -175,6 +153,40 @@ def view_cmd(scenario: str | None, log: Path | None, seed: int | None, robot: st
                 fox.close()
             server.close()
             sub.undeclare()
+
+
+def _foxglove(view: Any, host: str, port: int, server: Any) -> Any:
+    """The live Foxglove WebSocket server of ``--foxglove PORT`` (the page's server closed
+    and a failure raised when it cannot serve)."""
+    from .foxglove_live import FoxgloveLive  # noqa: PLC0415 -- lazy: cekm --help loads no foxglove server
+
+    try:
+        fox = FoxgloveLive(view, host, port)
+    except Exception as exc:  # noqa: BLE001 - foxglove's own error types; the page still serves
+        server.close()
+        raise click.ClickException(f"--foxglove {port}: cannot serve on {host}: {exc}") from None
+    click.echo(f"foxglove WebSocket server on ws://{host}:{fox.port}", err=True)
+    return fox
+
+
+def _new_run(session: Any, keys: KeySpace, view: Any, fox: Any, run: str, own_arena: bool) -> None:
+    """A new run seen: the arena it runs in (unless the view draws a log's, ``own_arena``
+    False), the graph it runs, and its user messages' schemas for Foxglove."""
+    from cekm_swarm.runtime.record import fetch_json  # noqa: PLC0415 -- lazy: cekm --help loads no recorder
+    from cekm_swarm.runtime.rungraph import fetch_run_graph  # noqa: PLC0415 -- lazy: cekm --help loads no graph reader
+    from world.draw import robot_colours  # noqa: PLC0415 -- lazy: cekm --help loads no world (pymunk)
+
+    g = fetch_json(session, keys.world_geometry()) if own_arena else None
+    if g is not None and "bounds" in g and g.get("name") != view.geometry.get("name"):
+        given = view.geometry.get("name")
+        gids = sorted(r["id"] for r in g.get("robots", []))
+        view.set_geometry(g, sensing_radii(g, g.get("sensor_range"), g.get("target_range")),
+                          robot_colours(gids))  # drawn before it is said
+        click.echo(f"the run {run} is of arena {g.get('name')!r}, not {given!r}: drawing the run's", err=True)
+    graph = fetch_run_graph(session, keys.world_graph())
+    view.set_graph(None if graph is None else f"{graph.name} ({graph.controller})")
+    if fox is not None:
+        fox.set_schemas((fetch_json(session, keys.world_graph()) or {}).get("schemas") or {})
 
 
 def _run_geometry(session, keys, wait_s: float) -> dict | None:
