@@ -212,27 +212,10 @@ class WorldServer:
         self.deadman.restart(time.monotonic())
         geometry = self.world.static_geometry()
         pub = self.publisher
-        # first: a router that cannot start (a taken port), or none to join, leaves no log behind; the
-        # wait for an outside router runs in a thread, so a signal ends it at once
+        # first: a router that cannot start (a taken port), or none to join, leaves no log behind
+        session = await self._open_session()
         try:
-            session = await asyncio.to_thread(open_world_session, cfg, self.stop_waiting)
-        except RuntimeTransportError:
-            if self.stop_waiting.is_set():
-                raise StoppedWaiting(f"stopped while waiting for the router at {cfg.connect}") from None
-            if cfg.listen or cfg.wait_router <= 0:
-                raise
-            raise RuntimeTransportError(f"no Zenoh router at {cfg.connect} after waiting {cfg.wait_router:g} s "
-                                        f"(--wait-router): start the router first, or check --connect") from None
-        if self.stop.is_set():
-            session.close()
-            raise StoppedWaiting(f"stopped while waiting for the router at {cfg.connect}")
-        try:
-            pub.recorder, pub.views = open_run_log(self.out / "run.mcap", self.scenario.name, self.world.seed,
-                                                   cfg.mode, geometry, self.world.body_radius,
-                                                   max_bytes=cfg.max_log_size, max_seconds=cfg.max_log_duration,
-                                                   record=cfg.record, keys=self.keys, kinds=self.declared,
-                                                   schemas=None if self.spec is None else
-                                                   {**self.spec.schemas, **user_schemas([ParamChange])})
+            pub.recorder, pub.views = self._open_log(geometry)
         except BaseException:
             session.close()
             raise
@@ -256,12 +239,7 @@ class WorldServer:
                 self._request_stop()
             t_wall0 = time.perf_counter()
             rejoins = self._watch_rejoins(session) if pub.held else None
-            for r in self.robots:  # every node's subscription must be known before tick 0 is published
-                for k in self._world_keys(r):
-                    if self.stop.is_set():
-                        break
-                    if not await wait_matching_async(pub.pubs.publisher(k), cfg.match_timeout):
-                        log.warning("no subscriber on %s after %.0f s; starting anyway", k, cfg.match_timeout)
+            await self._wait_subscribers()
             start = loop.time()
             try:
                 aborted = not await self._ticks()
@@ -294,6 +272,43 @@ class WorldServer:
                 self._lost_log(exc, self.episode.t)
                 aborted = True
         return self._write_outputs(time.perf_counter() - t_wall0, aborted)
+
+    async def _open_session(self) -> zenoh.Session:
+        """The world's Zenoh session: the router it hosts, or one it joins (waiting for it in a
+        thread, so that a signal ends the wait at once)."""
+        cfg = self.config
+        try:
+            session = await asyncio.to_thread(open_world_session, cfg, self.stop_waiting)
+        except RuntimeTransportError:
+            if self.stop_waiting.is_set():
+                raise StoppedWaiting(f"stopped while waiting for the router at {cfg.connect}") from None
+            if cfg.listen or cfg.wait_router <= 0:
+                raise
+            raise RuntimeTransportError(f"no Zenoh router at {cfg.connect} after waiting {cfg.wait_router:g} s "
+                                        f"(--wait-router): start the router first, or check --connect") from None
+        if self.stop.is_set():
+            session.close()
+            raise StoppedWaiting(f"stopped while waiting for the router at {cfg.connect}")
+        return session
+
+    def _open_log(self, geometry: dict[str, Any]) -> tuple[Any, Any]:
+        """The run's log (``run.mcap`` or its set) and its Foxglove views."""
+        cfg = self.config
+        schemas = None if self.spec is None else {**self.spec.schemas, **user_schemas([ParamChange])}
+        return open_run_log(self.out / "run.mcap", self.scenario.name, self.world.seed, cfg.mode, geometry,
+                            self.world.body_radius, max_bytes=cfg.max_log_size, max_seconds=cfg.max_log_duration,
+                            record=cfg.record, keys=self.keys, kinds=self.declared, schemas=schemas)
+
+    async def _wait_subscribers(self) -> None:
+        """Every node's subscription known before tick 0 is published (at most ``--match-timeout``
+        s a key, then the run starts anyway, saying so)."""
+        timeout = self.config.match_timeout
+        for r in self.robots:
+            for k in self._world_keys(r):
+                if self.stop.is_set():
+                    break
+                if not await wait_matching_async(self.publisher.pubs.publisher(k), timeout):
+                    log.warning("no subscriber on %s after %.0f s; starting anyway", k, timeout)
 
     async def _ticks(self) -> bool:
         """The tick loop; False when it was stopped before the run's end."""
