@@ -238,12 +238,12 @@ def wait_matching(publisher: zenoh.Publisher, timeout: float) -> bool:
     """Wait until ``publisher`` has at least one matching subscriber; False on timeout.
 
     Blocks the calling thread (use :func:`wait_matching_async` in a coroutine)."""
-    if publisher.matching_status.matching:
+    if publisher.matching_status.matching:  # type: ignore[attr-defined]  # zenoh's stub says bool: a MatchingStatus
         return True
     ready = threading.Event()
     listener = publisher.declare_matching_listener(lambda status: ready.set() if status.matching else None)
     try:
-        return publisher.matching_status.matching or ready.wait(timeout)
+        return publisher.matching_status.matching or ready.wait(timeout)  # type: ignore[attr-defined]  # as above
     finally:
         listener.undeclare()
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from pathlib import Path
+from typing import cast
 
 from cekm_swarm.protocol import DEFAULT_KEYS, KeyKind, MapVersion, decode
 
@@ -26,7 +27,7 @@ def map_messages(log: str | Path, robot: str | None = None, root: str = DEFAULT_
         owner = m.topic[len(head):-len(tail)]
         if "/" in owner or (robot is not None and owner != robot):
             continue
-        yield owner, decode(m.topic, m.data, expect=KeyKind.MAP_VERSION)
+        yield owner, cast(MapVersion, decode(m.topic, m.data, expect=KeyKind.MAP_VERSION))
 
 
 def versions(log: str | Path, root: str = DEFAULT_KEYS.root) -> dict[str, list[tuple[int, str]]]:

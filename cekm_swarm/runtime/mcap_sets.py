@@ -94,8 +94,8 @@ class SplitRecorder:
         self.keys = keys
         self.max_ns = None if max_seconds is None else sim_ns(max_seconds)
         self.max_bytes = max_bytes
-        self._options = {"chunk_size": chunk_size, "flush_interval": flush_interval, "compression": compression,
-                         "keys": keys, "kinds": kinds, "schemas": schemas}
+        self._options: dict[str, Any] = {"chunk_size": chunk_size, "flush_interval": flush_interval,
+                                         "compression": compression, "keys": keys, "kinds": kinds, "schemas": schemas}
         self._metadata: list[tuple[str, dict[str, str]]] = []  # every file gets them all
         if metadata:
             self._metadata.append(("cekm", {str(k): str(v) for k, v in metadata.items()}))
@@ -116,8 +116,8 @@ class SplitRecorder:
         self.files.append(path)
         self._rec = rec
         self._first_ns = first_ns
-        for name, data in self._metadata:
-            rec.add_metadata(name, data)
+        for name, meta in self._metadata:
+            rec.add_metadata(name, meta)
         rec.add_metadata("log_set", {"name": self.base.name, "index": str(index),
                                      "first_log_time_ns": "" if first_ns is None else str(first_ns)})
         t = 0.0 if first_ns is None else first_ns / 1e9

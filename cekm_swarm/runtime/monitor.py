@@ -22,6 +22,7 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Callable
+from typing import Any
 
 import zenoh
 from rich.live import Live
@@ -76,7 +77,7 @@ def run_monitor(session: zenoh.Session, root: str = "cekm", refresh: float = 0.5
 
     sub = session.declare_subscriber(keys.everything(), on_sample)
     live = session.liveliness().declare_subscriber(keys.alive_all(), on_token, history=True)
-    kw = {"robots": robots, "key_filter": key_filter, "endpoint": endpoint}
+    kw: dict[str, Any] = {"robots": robots, "key_filter": key_filter, "endpoint": endpoint}
     seen_run: list[str | None] = [None]
 
     def learn_graph() -> None:

@@ -129,6 +129,7 @@ class NetRun:
             rc = p.finish(60)
             assert rc == 0, f"{r}'s host failed:\n" + "\n".join(p.lines[-40:])
         for p in self.links.values():
+            assert p.proc.stdin is not None  # started with stdin=True
             p.proc.stdin.close()  # the link prints its statistics and ends
             p.finish(30)
         return json.loads((self.world_out / "outcome.json").read_text())

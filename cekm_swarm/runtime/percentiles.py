@@ -7,10 +7,11 @@ from __future__ import annotations
 import math
 from array import array
 from collections.abc import Sequence
+from typing import Final
 
 import numpy as np
 
-METHOD = "linear"
+METHOD: Final = "linear"
 
 
 def percentile(values: Sequence[float], q: float) -> float:

@@ -42,7 +42,7 @@ from cekm_swarm.protocol.stamps import StampWindow
 
 from . import foxglove_view
 from .mcap_log import McapRecorder
-from .mcap_sets import open_recorder
+from .mcap_sets import SplitRecorder, open_recorder
 
 GEOMETRY_ENCODING = "application/json"
 
@@ -118,7 +118,7 @@ class RecordResult:
 class Recording:
     """The pure part: feed (key, payload) in arrival order; writes the log. One thread."""
 
-    def __init__(self, recorder: McapRecorder, keys: KeySpace = DEFAULT_KEYS, views: bool = True,
+    def __init__(self, recorder: McapRecorder | SplitRecorder, keys: KeySpace = DEFAULT_KEYS, views: bool = True,
                  geometry: Callable[[], dict[str, Any] | None] | None = None) -> None:
         self.recorder = recorder
         self._geometry = geometry  # asked once, at the first world state

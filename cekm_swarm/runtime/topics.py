@@ -85,7 +85,7 @@ class ArrivalLog:
         self._times: dict[str, deque[float]] = {}
         self._counts: dict[str, int] = {}
         self._bytes: dict[str, int] = {}
-        self._sub = session.declare_subscriber(key_expr, self._on_sample)
+        self._sub: zenoh.Subscriber[None] | None = session.declare_subscriber(key_expr, self._on_sample)
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
         now = time.monotonic()
@@ -231,7 +231,7 @@ class Endpoints:
 
 def _zids(doc: dict[str, Any], *fields: str) -> list[str]:
     """The session ids listed under ``fields`` of an admin-space entry (anything else ignored)."""
-    out = []
+    out: list[str] = []
     for f in fields:
         value = doc.get(f)
         if isinstance(value, list):
@@ -414,7 +414,7 @@ def publish(session: zenoh.Session, key: str, payload: bytes, *, count: int = 1,
     probe_sub = None
     with Publishers(session, block=True) as pubs:
         pub = pubs.publisher(key)
-        result.matched = pub.matching_status.matching
+        result.matched = pub.matching_status.matching  # type: ignore[attr-defined]  # zenoh's stub says bool
         if not result.matched and wait_subscriber > 0:
             if waiting is not None:
                 waiting(f"waiting for a subscriber on {key} ...")
