@@ -222,11 +222,11 @@ def draw_tracking(ax: Axes, paths: Mapping[str, tuple[Sequence[float], Sequence[
     for tid, pts in target_paths.items():
         if not len(pts):
             continue
-        xs, ys = [p[0] for p in pts], [p[1] for p in pts]
-        ax.plot(xs, ys, "-", color="0.45", lw=1.0, gid=f"target:{tid}")
-        ax.plot(xs[0], ys[0], "o", color="0.45", ms=3)
-        ax.plot(xs[-1], ys[-1], "X", color="k", ms=6)
-        ax.annotate(tid, (xs[-1], ys[-1]), fontsize=7, xytext=(3, 3), textcoords="offset points")
+        txs, tys = [p[0] for p in pts], [p[1] for p in pts]
+        ax.plot(txs, tys, "-", color="0.45", lw=1.0, gid=f"target:{tid}")
+        ax.plot(txs[0], tys[0], "o", color="0.45", ms=3)
+        ax.plot(txs[-1], tys[-1], "X", color="k", ms=6)
+        ax.annotate(tid, (txs[-1], tys[-1]), fontsize=7, xytext=(3, 3), textcoords="offset points")
     for rid, (xs, ys) in paths.items():
         n = len(xs)
         if not n:

@@ -43,10 +43,10 @@ class Episode:
         self.world = world
         self.radius = checkpoint_radius
         self.tick = 0
-        self.odometer = None  # the robots' odometry readings (world.odometry), made on first use
+        self.odometer: Odometer | None = None  # the robots' odometry readings (world.odometry), made on first use
         self.progress: dict[str, RobotProgress] = {}
         for r in world.robot_ids:
-            cps = [tuple(map(float, c)) for c in (checkpoints or {}).get(r, [])] or [world.goal_of(r)]
+            cps = [(float(x), float(y)) for x, y in (checkpoints or {}).get(r, [])] or [world.goal_of(r)]
             self.progress[r] = RobotProgress(cps)
             if checkpoints and r in checkpoints:
                 world.set_goal(r, cps[0])

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from typing import Any, get_args
+from typing import Any, NoReturn, get_args
 
 from cekm_swarm.protocol.errors import KeySpaceError
 from cekm_swarm.protocol.keys import validate_robot_id
@@ -46,7 +46,7 @@ class Parser:
         self.file = source
 
     # -- primitives -------------------------------------------------------------
-    def fail(self, path: str, msg: str) -> None:
+    def fail(self, path: str, msg: str) -> NoReturn:
         raise ScenarioError(f"{self.file}: {path}: {msg}")
 
     def table(self, v: Any, path: str, required: tuple[str, ...], optional: tuple[str, ...]) -> dict[str, Any]:

@@ -39,7 +39,7 @@ class RangeSensors:
         self._info, self._pinfo = cp.segment_info(), cp.point_info()
         self.clear = [math.inf] * n  # each robot's smallest clearance so far
         self.near = [True] * n  # something within sensor range now
-        self._noise = [[] for _ in range(n)]
+        self._noise: list[list[float]] = [[] for _ in range(n)]
         self._noise_at = [0] * n
 
     def update_clearance(self, px: list[float], py: list[float]) -> None:
@@ -66,7 +66,7 @@ class RangeSensors:
         q, sp, f, info = cp.segment_query_first, self._sp, self.filters[i], self._info
         start = cp.vect(x, y)
         r = self.radius
-        out = []
+        out: list[float] = []
         app = out.append
         for cj, sj in self.dirs:
             q(sp, start, (x + c * cj - s * sj, y + s * cj + c * sj), 0.0, f, info)

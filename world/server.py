@@ -139,8 +139,9 @@ class WorldServer:
         self.drops = DropCounter("world commands", keys=self.keys)
         self.record_drops = DropCounter("world recorder", keys=self.keys)
         plan = self.plan
-        declared = None if plan is None else {k: v for r in self.robots for k, v in plan.sent_keys(r).items()}
+        declared = None
         if plan is not None:  # each node's parameter changes (cekm param set), recorded as its messages are
+            declared = {k: v for r in self.robots for k, v in plan.sent_keys(r).items()}
             declared.update({self.keys.param(r, n.name): PARAM_CHANGE_KIND for r in self.robots for n in plan.nodes[r]})
         self.declared = declared
         answers = ({plan.answer_key(r): r for r in self.robots} if plan is not None
@@ -208,7 +209,10 @@ class WorldServer:
         for sig in (signal.SIGTERM, signal.SIGINT):
             with contextlib.suppress(NotImplementedError, RuntimeError):  # pragma: no cover
                 loop.add_signal_handler(sig, self._request_stop)
-        self.inbox.wake = lambda: loop.call_soon_threadsafe(self.arrived.set)
+        def wake() -> None:  # from Zenoh's thread: a command arrived
+            loop.call_soon_threadsafe(self.arrived.set)
+
+        self.inbox.wake = wake
         self.deadman.restart(time.monotonic())
         geometry = self.world.static_geometry()
         pub = self.publisher

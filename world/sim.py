@@ -470,7 +470,7 @@ class World:
                               self.scenario.target_range)
 
     # ------------------------------------------------------------------ records
-    def stats(self, robot_id: str) -> dict[str, float | int]:
+    def stats(self, robot_id: str) -> dict[str, Any]:
         """path_length_m (sum over sub-steps), collisions (new contacts with a wall, an obstacle
         or a robot: one per item touched; the same item again within 0.256 s counts once),
         collisions_with (those per item), min_clearance_m (smallest body-surface distance to any

@@ -85,6 +85,7 @@ def _path_length(path) -> float:
     def steps():
         nonlocal prev
         for b in rows:
+            assert prev is not None  # a path with a row after the first
             yield math.hypot(b[1] - prev[1], b[2] - prev[2])
             prev = b
 
