@@ -35,6 +35,7 @@ def _geometry(scenario: str | None, log: Path | None, seed: int | None):
             why = "" if complete else " (an unfinished log has no index: `cekm log recover` it first)"
             raise click.BadParameter(f"{log}: no geometry in the log's metadata{why}", param_hint="--log")
         return geometry, sensing_radii(geometry, geometry.get("sensor_range"), geometry.get("target_range"))
+    assert scenario is not None  # a scenario, or a log (above)
     try:
         sc = load_scenario(scenario)
     except ScenarioError as exc:

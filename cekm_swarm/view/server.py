@@ -58,7 +58,10 @@ class ViewServer:
 
         self.httpd = ThreadingHTTPServer((host, port), Handler)
         self.httpd.daemon_threads = True
-        self.host, self.port = self.httpd.server_address[:2]
+        address = self.httpd.server_address  # an IP socket's: (host, port, ...)
+        bound = address[0]
+        self.host: str = bound if isinstance(bound, str) else bytes(bound).decode()
+        self.port: int = int(address[1])
         self._thread = threading.Thread(target=self.httpd.serve_forever, name="view-http", daemon=True)
         self._thread.start()
 
