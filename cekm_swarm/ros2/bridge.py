@@ -25,6 +25,7 @@ teleop), one for the Twists; the caller's thread waits for the stop.
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import logging
 import threading
@@ -107,6 +108,7 @@ class _RosPublisher:
         self.gid = gid(self.token_key)
         self.key = topic_key(domain, out.topic, out.ros_type, type_hash)
         drop = zenoh.CongestionControl.DROP
+        self.pub: Any  # a Zenoh publisher, advanced (with a cache) or plain
         if out.qos.transient_local:  # as rmw_zenoh does: a publication cache a late subscriber queries
             self.pub = zenoh.ext.declare_advanced_publisher(
                 session, self.key, encoding=CDR, congestion_control=drop,
@@ -171,7 +173,7 @@ class Bridge:
         self.run_sub = s.declare_subscriber(self.keys.everything(), zenoh.handlers.RingChannel(RUN_RING))
         self._threads.append(threading.Thread(target=self._guard(self._run_loop), name="ros2-run", daemon=True))
         for robot, sub in self._twist_subs.items():
-            self._threads.append(threading.Thread(target=self._guard(lambda r=robot, q=sub: self._twist_loop(r, q)),
+            self._threads.append(threading.Thread(target=self._guard(functools.partial(self._twist_loop, robot, sub)),
                                                   name=f"ros2-teleop-{robot}", daemon=True))
         for t in self._threads:
             t.start()

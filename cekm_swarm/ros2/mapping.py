@@ -23,9 +23,9 @@ k = argmax e (Eq. 10) and each obstacle field's winner, -1 where there is none.
 from __future__ import annotations
 
 import math
-from collections.abc import Collection, Mapping
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -260,7 +260,7 @@ class RosMapper:
         dims = [("row", side, side * side), ("col", side, side)] if side * side == n else [("neuron", n, n)]
         if len(fields) > 1:
             dims = [("field", len(fields), len(fields) * n)] + dims
-        return self._array(np.concatenate(fields), dims)
+        return self._array(np.concatenate(cast("tuple[np.ndarray, ...]", fields)), dims)  # all given when the first is
 
     # ------------------------------------------------------------------ per key
 
@@ -312,13 +312,14 @@ class RosMapper:
         head = "sense/range/"
         for key in msg.keys:
             if key == "sense/target" and robot in self._target:  # the target field again
-                out.append(self._target_field(robot, with_stamp(self._target[robot], msg.stamp)))
+                field = cast("TargetField | TrackingField", with_stamp(self._target[robot], msg.stamp))
+                out.append(self._target_field(robot, field))
             if not key.startswith(head):
                 continue
             j = int(key[len(head):])
             last = self._ranges.get(robot, {}).get(j)
             if last is not None:
-                out += self._range(robot, with_stamp(last, msg.stamp))
+                out += self._range(robot, cast(SenseRange, with_stamp(last, msg.stamp)))
             held = self._obstacles.get(robot, {}).get(j)
             if held is not None:
                 t = f"/{ros_name(robot)}/ekm/obstacle_field_{j}"
@@ -392,24 +393,26 @@ class RosMapper:
         k = int(np.argmax(e)) if tf is not None and tf.a is not None else -1  # Eq. 10
         by_index = {f.index: f.winner for f in obstacles}
         sensors = max([len(self._sensors.get(robot, {})), self.keys.range_sensors])
-        winners = [s, k] + [(-1 if by_index.get(j) is None else int(by_index[j])) for j in range(sensors)]
+        winners = [s, k] + [(-1 if (w := by_index.get(j)) is None else int(w)) for j in range(sensors)]
         return e, winners
 
     # ------------------------------------------------------------------ markers
 
     def _marker(self, t: float, ns: str, mid: int, kind: int, pose: Any, scale: tuple[float, float, float],
-                color: tuple[float, float, float, float], points: list[tuple[float, float]] = ()) -> Any:
+                color: tuple[float, float, float, float], points: Sequence[tuple[float, float]] = ()) -> Any:
         return self.ifc.make(
             "visualization_msgs/msg/Marker", header=self._header(t, MAP_FRAME), ns=ns, id=mid, type=kind, action=0,
             pose=pose, scale=self._vector(*scale),
             color=self.ifc.make("std_msgs/msg/ColorRGBA", r=color[0], g=color[1], b=color[2], a=color[3]),
             points=[self._vector(x, y, 0.0, "Point") for x, y in points])
 
-    def _outline(self, t: float, ns: str, mid: int, vertices: list[Any], color: tuple[float, ...]) -> Any:
+    def _outline(self, t: float, ns: str, mid: int, vertices: list[Any],
+                 color: tuple[float, float, float, float]) -> Any:
         pts = [(float(v[0]), float(v[1])) for v in vertices]
         return self._marker(t, ns, mid, 4, self._pose(0.0, 0.0), (LINE_WIDTH, 0.0, 0.0), color, pts + pts[:1])
 
-    def _circle(self, t: float, ns: str, mid: int, cx: float, cy: float, r: float, color: tuple[float, ...]) -> Any:
+    def _circle(self, t: float, ns: str, mid: int, cx: float, cy: float, r: float,
+                color: tuple[float, float, float, float]) -> Any:
         pts = [(cx + r * math.cos(2 * math.pi * i / CIRCLE_POINTS), cy + r * math.sin(2 * math.pi * i / CIRCLE_POINTS))
                for i in range(CIRCLE_POINTS)]
         return self._marker(t, ns, mid, 4, self._pose(0.0, 0.0), (LINE_WIDTH, 0.0, 0.0), color, pts + pts[:1])

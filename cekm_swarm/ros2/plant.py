@@ -142,7 +142,8 @@ def description_from(doc: dict[str, Any], where: str, default: RobotBody = DEFAU
                 raise DescriptionError(f"{where}: {key} = {v!r}: expected a number of metres (per second) "
                                        f"in [{lo:g}, {hi:g}]")
             values[key] = float(v)
-    body = replace(default, **{("v_max" if k == "max_wheel_speed" else k): v for k, v in values.items()})
+    changes: dict[str, Any] = {("v_max" if k == "max_wheel_speed" else k): v for k, v in values.items()}
+    body = replace(default, **changes)
     if "sensor_angles_deg" in doc:
         a = doc["sensor_angles_deg"]
         if (not isinstance(a, list) or not 1 <= len(a) <= 64

@@ -118,9 +118,9 @@ class PlantServer:
         self.ended = False  # the run is over: commands are no longer taken
         self.targets: dict[str, tuple[float, float]] = {}  # a tracking run's targets (from /targets)
         self.targets_stamp = -math.inf
-        self.drops: Counter = Counter()  # (robot, topic, reason) -> n
+        self.drops: Counter[tuple[str, str, str]] = Counter()  # (robot, topic, reason) -> n
         self.cmd_drops = DropCounter("plant commands", keys=self.keys)
-        self.received = Counter()
+        self.received: Counter[str] = Counter()  # topic -> messages
         self.now_t = 0.0  # the sim time of the tick whose readings are out
         self.sent_at: dict[float, float] = {}
         self.sense_to_command = Samples()
@@ -175,38 +175,44 @@ class PlantServer:
         """One ROS message from a robot: checked, kept when believed, logged either way."""
         with self.lock:
             self.received[topic] += 1
-        port, now = self.ports.get(robot), self.now()
+        now = self.now()
         try:
             if kind == P.POSE_ARRAY:  # a tracking run's targets
                 targets = P.decode_targets(self.ifc, payload, self.desc, self.cfg.target_ids, now)
                 with self.lock:
                     self.targets, self.targets_stamp = targets, now
-            elif kind == P.ODOMETRY:
-                odom = P.decode_odometry(self.ifc, payload, self.desc, ros_name(robot), now)
-                with self.lock:
-                    port.odom = odom
-            elif kind == P.LASER_SCAN:
-                scan = P.decode_scan(self.ifc, payload, self.desc, ros_name(robot), now)
-                readings = P.scan_readings(scan, self.desc.body)
-                with self.lock:
-                    port.readings, port.scan_stamp, port.scan_at = readings, scan.stamp, at
-            elif kind == P.RANGE:
-                j = int(topic.rsplit("_", 1)[1])
-                stamp, d = P.decode_range(self.ifc, payload, self.desc, ros_name(robot), j, now)
-                with self.lock:
-                    port.ranges[j] = (stamp, d)
-                    if len(port.ranges) == self.desc.body.sensors:
-                        port.readings = [port.ranges[i][1] for i in range(self.desc.body.sensors)]
-                        port.scan_stamp, port.scan_at = min(s for s, _ in port.ranges.values()), at
-            elif kind == P.POSE_STAMPED:
-                goal = P.decode_goal(self.ifc, payload, self.desc, ros_name(robot))
-                with self.lock:
-                    port.goal, port.reached, port.reached_time = goal, False, None
-                emit("EVENT", {"event": "goal", "t": self.now_t, "robot": robot, "goal": list(goal)})
+            else:  # a robot's own topic (subscribed for the robots the plant drives only)
+                self._robot_reading(robot, self.ports[robot], topic, kind, payload, at, now)
         except P.Refused as exc:
             self._refused(robot, topic, exc)
             return
         self.ros_log.append((topic, kind, payload))  # the log holds what the plant believed
+
+    def _robot_reading(self, robot: str, port: RobotPort, topic: str, kind: str, payload: bytes, at: float,
+                       now: float) -> None:
+        """A robot's odometry, scan, range or goal, decoded (P.Refused when not believed) and kept."""
+        if kind == P.ODOMETRY:
+            odom = P.decode_odometry(self.ifc, payload, self.desc, ros_name(robot), now)
+            with self.lock:
+                port.odom = odom
+        elif kind == P.LASER_SCAN:
+            scan = P.decode_scan(self.ifc, payload, self.desc, ros_name(robot), now)
+            readings = P.scan_readings(scan, self.desc.body)
+            with self.lock:
+                port.readings, port.scan_stamp, port.scan_at = readings, scan.stamp, at
+        elif kind == P.RANGE:
+            j = int(topic.rsplit("_", 1)[1])
+            stamp, d = P.decode_range(self.ifc, payload, self.desc, ros_name(robot), j, now)
+            with self.lock:
+                port.ranges[j] = (stamp, d)
+                if len(port.ranges) == self.desc.body.sensors:
+                    port.readings = [port.ranges[i][1] for i in range(self.desc.body.sensors)]
+                    port.scan_stamp, port.scan_at = min(s for s, _ in port.ranges.values()), at
+        elif kind == P.POSE_STAMPED:
+            goal = P.decode_goal(self.ifc, payload, self.desc, ros_name(robot))
+            with self.lock:
+                port.goal, port.reached, port.reached_time = goal, False, None
+            emit("EVENT", {"event": "goal", "t": self.now_t, "robot": robot, "goal": list(goal)})
 
     def on_clock(self, payload: bytes) -> None:
         try:
@@ -316,14 +322,14 @@ class PlantServer:
         said = False
         while not self.stop.is_set():
             with self.lock:
-                missing = [r for r, p in self.ports.items() if p.odom is None or p.readings is None]
-            if not missing:
+                silent = [r for r, p in self.ports.items() if p.odom is None or p.readings is None]
+            if not silent:
                 break
             if not said:
-                emit("EVENT", {"event": "waiting_for_robots", "t": 0.0, "robots": missing})
+                emit("EVENT", {"event": "waiting_for_robots", "t": 0.0, "robots": silent})
                 said = True
             if time.monotonic() > deadline:
-                self.event("robots_silent", 0.0, {"robots": missing, "after_s": FIRST_INPUT_WAIT_S,
+                self.event("robots_silent", 0.0, {"robots": silent, "after_s": FIRST_INPUT_WAIT_S,
                                                  "drops": drop_doc(self)})
                 return False
             self.stop.wait(0.1)
@@ -364,6 +370,7 @@ class PlantServer:
                 if not port.stopped or port.reached:
                     self.send_twist(r, 0.0, 0.0)
                 continue
+            assert odom is not None and readings is not None  # fresh
             with self.lock:
                 port.tick_scan_at[t] = scan_at
                 if len(port.tick_scan_at) > 16:
@@ -385,11 +392,11 @@ class PlantServer:
         limit = self.cfg.deadman
         while not self.stop.is_set():
             mono = time.monotonic()
-            due = [r for r, p in self.ports.items()
+            due = [(r, p.heard) for r, p in self.ports.items()
                    if not p.stopped and not p.reached and p.heard is not None
                    and mono >= p.heard + limit - DEADMAN_MARGIN_S]
-            for r in due:
-                silent = mono - self.ports[r].heard
+            for r, heard in due:
+                silent = mono - heard
                 self.send_twist(r, 0.0, 0.0)
                 self.event("deadman", self.now_t, {"robot": r, "silent_s": round(silent, 4), "limit_s": limit,
                                                    "wall": time.time()})
@@ -406,12 +413,17 @@ class PlantServer:
 
     def run(self) -> dict[str, Any]:
         cfg = self.cfg
+        def on_signal(*_: Any) -> None:
+            self.stop.set()
+            self.wake.set()
+
         for sig in (signal.SIGTERM, signal.SIGINT):
-            signal.signal(sig, lambda *_: (self.stop.set(), self.wake.set()))
+            signal.signal(sig, on_signal)
         if cfg.listen:
             host, port = tcp_host_port(cfg.listen)
             self.session = open_embedded_router(port, host)
         else:
+            assert cfg.connect is not None  # the launcher gives the plant listen or connect
             self.session = open_client_when_ready(cfg.connect, cfg.zenoh_config, stop=self.stop)
         self._pubs = Publishers(self.session, block=True)  # the readings, as the world's (express: no)
         out = Path(cfg.out)
