@@ -15,28 +15,11 @@ from pathlib import Path
 from typing import Any
 
 from .scenario_parser import Parser
-from .scenario_spec import (
-    BODY_RADIUS,
-    DEFAULT_SENSOR_RANGE,
-    DEFAULT_SPEED_UNIT,
-    DEFAULT_WALL_THICKNESS,
-    ID_RE,
-    RANDOM_WALK_INSET,
-    WHEEL_SPEED_UNIT,
-    ObstacleSpec,
-    Point,
-    RobotSpec,
-    Scenario,
-    ScenarioError,
-    TargetSpec,
-    WallSpec,
-)
+from .scenario_spec import ID_RE, WHEEL_SPEED_UNIT, Scenario, ScenarioError
 
-__all__ = [
-    "BODY_RADIUS", "DEFAULT_SENSOR_RANGE", "DEFAULT_SPEED_UNIT", "DEFAULT_WALL_THICKNESS", "RANDOM_WALK_INSET",
-    "SCENARIO_DIR", "WHEEL_SPEED_UNIT", "ObstacleSpec", "Point", "RobotSpec", "Scenario", "ScenarioError",
-    "TargetSpec", "WallSpec", "load_scenario", "parse_scenario", "resolve_scenario_path", "scenario_names",
-]
+# the specs themselves (RobotSpec, ObstacleSpec, ...) are world.scenario_spec's
+__all__ = ["SCENARIO_DIR", "WHEEL_SPEED_UNIT", "Scenario", "ScenarioError", "load_scenario", "parse_scenario",
+           "resolve_scenario_path", "scenario_names"]
 
 SCENARIO_DIR = Path(__file__).resolve().parent / "scenarios"
 
