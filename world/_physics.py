@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import pymunk
 
@@ -96,7 +97,7 @@ class StaticIndex:
         return q.distance, self.keys[q.shape]
 
 
-def add_robots(space: pymunk.Space, scenario: Scenario, item_of: dict, mass: float, radius: float,
+def add_robots(space: pymunk.Space, scenario: Scenario, item_of: dict[Any, str], mass: float, radius: float,
                traction_force: float,
                traction_torque: float) -> tuple[list[pymunk.Body], list[pymunk.Circle], list[pymunk.Body]]:
     """Each robot a dynamic circle driven through a kinematic control body joined by a

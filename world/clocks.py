@@ -22,6 +22,7 @@ from cekm_swarm.ticks import TICK_S
 from .inbox import CommandInbox
 from .outcome import RunStats
 from .publisher import TickPublisher
+from .sense import TickReadings
 
 RECORD_BY = 0.75
 """Real time: the fraction of a tick by which the world writes the tick's log if some
@@ -69,7 +70,7 @@ class LockstepClock(_Clock):
     def opened(self) -> None:
         self.publisher.record_tick(self.inbox.now)  # the nodes compute now, and the log is written meanwhile
 
-    async def commands(self, readings: list) -> dict[str, tuple[float, float]]:
+    async def commands(self, readings: list[TickReadings]) -> dict[str, tuple[float, float]]:
         t = self.episode.t
         loop = asyncio.get_running_loop()
         next_republish = loop.time() + self.republish
@@ -113,7 +114,7 @@ class RealtimeClock(_Clock):
         self.stats.first_tick_s = time.monotonic() - (time.monotonic() if sent is None else sent)
         return loop.time()
 
-    async def commands(self, readings: list) -> dict[str, tuple[float, float]]:
+    async def commands(self, readings: list[TickReadings]) -> dict[str, tuple[float, float]]:
         loop = asyncio.get_running_loop()
         ep = self.episode
         if self.start is None:  # the wall clock starts once tick 0 is answered (or now, when

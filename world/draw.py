@@ -147,7 +147,7 @@ def draw_world(ax: Axes, geometry: Mapping[str, Any], state: Mapping[str, Any] |
     return ax
 
 
-def goal_marker(ax: Axes, xy: Sequence[float], colour: str, robot: str | None = None):
+def goal_marker(ax: Axes, xy: Sequence[float], colour: str, robot: str | None = None) -> Any:
     """A robot's goal: a star in the robot's colour with a black edge."""
     return ax.plot([xy[0]], [xy[1]], marker="*", markersize=14, color=colour, markeredgecolor="k", markeredgewidth=0.6,
                    zorder=6, linestyle="none", gid=f"goal:{robot}" if robot else None)[0]
@@ -300,7 +300,7 @@ def fit_bounds(ax: Axes, geometry: Mapping[str, Any] | None, points: Sequence[Se
     return x0, x1, y0, y1
 
 
-def legend_outside(ax: Axes, title: str | None = None, time_step: float | None = None):
+def legend_outside(ax: Axes, title: str | None = None, time_step: float | None = None) -> Any:
     """The legend to the right of the axes (never over the arena); with ``time_step`` an
     entry says what the dots mean."""
     handles, labels = ax.get_legend_handles_labels()

@@ -119,7 +119,7 @@ class Episode:
     def done(self) -> bool:
         return all(p.reached for p in self.progress.values())
 
-    def outcome(self) -> dict[str, dict]:
+    def outcome(self) -> dict[str, dict[str, Any]]:
         """Per robot: reached, time_s, path_length_m, collisions, min_clearance_m, final distance, checkpoints.
         ``min_clearance_m`` is None when nothing (wall, obstacle, robot) came within sensor
         range in the whole run: the world's ``stats`` say infinity, which JSON cannot hold."""

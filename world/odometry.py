@@ -29,7 +29,7 @@ class Odometer:
     def __init__(self, world: World) -> None:
         self.world = world
         self.last: dict[str, tuple[int, float, float, int]] = {}  # robot -> tick, left, right, contact steps
-        self.rows: dict[str, deque] = {}
+        self.rows: dict[str, deque[tuple[int, float, float, float, float, bool]]] = {}
         self.sent: dict[str, tuple[int, SenseOdometry]] = {}
 
     def reading(self, robot: str, tick: int, t: float) -> SenseOdometry:

@@ -43,7 +43,7 @@ class RunEpisode(Protocol):
     def done(self) -> bool:
         """The run is over before its max time."""
 
-    def outcome(self) -> dict[str, dict]:
+    def outcome(self) -> dict[str, dict[str, Any]]:
         """Per robot, what ``outcome.json`` says of it."""
 
     def summary(self) -> dict[str, Any]:
@@ -56,7 +56,8 @@ class RunEpisode(Protocol):
         """The task's own marks in the log's views (tracking: sensing circles)."""
 
 
-def make_episode(world: World, task: str, checkpoints: dict | None = None, max_ticks: int = 0) -> RunEpisode:
+def make_episode(world: World, task: str, checkpoints: dict[str, list[tuple[float, float]]] | None = None,
+                 max_ticks: int = 0) -> RunEpisode:
     """The episode of a run of ``task`` (``world.tracking.run_kind``)."""
     if task == "tracking":
         return TrackingEpisode(world, max_ticks)

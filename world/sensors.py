@@ -7,6 +7,7 @@ of its own, so reading a sensor more or less often never changes another stream.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -28,7 +29,7 @@ class RangeSensors:
     """The distance sensors of every robot of one space (a robot's own shape is skipped
     by its shape filter's group, i + 1)."""
 
-    def __init__(self, space, n: int, angles: np.ndarray, body_radius: float, sensor_range: float,
+    def __init__(self, space: Any, n: int, angles: np.ndarray, body_radius: float, sensor_range: float,
                  rngs: list[np.random.Generator], ray_category: int, seen_mask: int) -> None:
         self._sp = cp.cp_space(space)
         self.n, self.radius, self.range = n, body_radius, sensor_range

@@ -20,6 +20,7 @@ experiments may import the world.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -76,13 +77,13 @@ def tracking_sense(world: World, robot: str, stamp: float) -> tuple[SensePose, S
     return pose, SenseTargets(stamp, SENDER, seen)
 
 
-def _path_length(path) -> float:
+def _path_length(path: Rows) -> float:
     """Sum of the steps between consecutive (t, x, y, theta) rows, in order (``sum`` of a
     generator: the same additions as over a list)."""
     rows = iter(path)
     prev = next(rows, None)
 
-    def steps():
+    def steps() -> Iterator[float]:
         nonlocal prev
         for b in rows:
             assert prev is not None  # a path with a row after the first
@@ -203,7 +204,7 @@ class TrackingEpisode:
     def target_due(self) -> bool:
         return self.tick % TARGET_EVERY == 0
 
-    def readings(self) -> list:
+    def readings(self) -> list[TickReadings]:
         w, t = self.world, self.t
         self.observed_by = self.meter.sample(w, t)
         out = []
@@ -245,7 +246,7 @@ class TrackingEpisode:
     def draw(self, views: Any, t: float, state: dict[str, Any]) -> None:
         views.write_tracking(t, state, self.world.target_range, self.observed_by)
 
-    def outcome(self) -> dict[str, dict]:
+    def outcome(self) -> dict[str, dict[str, Any]]:
         """Per robot, as ``cekm run`` on a tracking scenario writes it: path length, collisions, final pose."""
         out = {}
         for r, p in self.progress.items():

@@ -5,6 +5,8 @@ no controller code here."""
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from .episode import Episode
@@ -50,7 +52,7 @@ class TrainingEpisode(Episode):
     def done(self) -> bool:
         return False  # training runs to its max time
 
-    def outcome(self) -> dict[str, dict]:
+    def outcome(self) -> dict[str, dict[str, Any]]:
         """:meth:`Episode.outcome` (of each robot's current target) and the targets it reached."""
         out = super().outcome()
         for r, o in out.items():

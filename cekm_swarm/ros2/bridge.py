@@ -84,10 +84,10 @@ class BridgeStats:
     topic, Twists received, refused by reason, and wheel commands sent."""
 
     received: int = 0
-    published: Counter = field(default_factory=Counter)
+    published: Counter[str] = field(default_factory=Counter)
     too_large: int = 0
     twists: int = 0
-    refused: Counter = field(default_factory=Counter)
+    refused: Counter[str] = field(default_factory=Counter)
     commands: int = 0
     errors: int = 0
 

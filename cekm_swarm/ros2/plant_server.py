@@ -128,11 +128,11 @@ class PlantServer:
         self.events: list[dict[str, Any]] = []
         self.ros_log: deque[tuple[str, str, bytes]] = deque(maxlen=ROS_LOG_QUEUE)
         self.answer = {self.plan.answer_key(r): r for r in self.robots}
-        self.misses: Counter = Counter()
+        self.misses: Counter[int] = Counter()
         self.recorded = 0
         self.pending_log: list[tuple[str, bytes, float]] = []
         self._schemas: dict[str, SchemaSpec] = {}
-        self.inbox: queue.SimpleQueue = queue.SimpleQueue()
+        self.inbox: queue.SimpleQueue[tuple[str, str, str, bytes, float] | None] = queue.SimpleQueue()
         self.input_thread = threading.Thread(target=self._input_loop, name="plant-input", daemon=True)
 
     # ------------------------------------------------------------------ time

@@ -225,7 +225,7 @@ class LatestValues(_Subscriber):
         return dirty
 
 
-def ring_subscriber(session: zenoh.Session, key_expr: str, capacity: int = 1) -> zenoh.Subscriber:
+def ring_subscriber(session: zenoh.Session, key_expr: str, capacity: int = 1) -> zenoh.Subscriber[Any]:
     """A Zenoh subscriber that keeps only the newest ``capacity`` samples (RingChannel);
     poll it with ``try_recv()`` (None when empty). For synchronous loops."""
     return session.declare_subscriber(key_expr, zenoh.handlers.RingChannel(capacity))

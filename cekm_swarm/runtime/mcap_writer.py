@@ -26,7 +26,8 @@ from __future__ import annotations
 import struct
 import tempfile
 import zlib
-from typing import IO
+from collections.abc import Callable
+from typing import IO, Any
 
 import zstandard
 from mcap.data_stream import RecordBuilder
@@ -68,7 +69,7 @@ COMPRESSIONS = ("zstd", "none")
 """The chunk compressions :class:`ChunkedWriter` writes."""
 
 
-def _compress(kind: str):
+def _compress(kind: str) -> tuple[str, Callable[[bytes], bytes] | None]:
     """(name written in the chunk, function) of a chunk compression."""
     if kind == "zstd":
         return "zstd", zstandard.compress
@@ -215,7 +216,7 @@ class ChunkedWriter:
         crc = 0
         written = 0  # summary bytes already streamed out (the chunk indexes)
 
-        def group(opcode: Opcode, records) -> None:
+        def group(opcode: Opcode, records: Any) -> None:
             begin = summary.count
             for record in records:
                 record.write(summary)
@@ -259,7 +260,7 @@ class ChunkedWriter:
 
     # ------------------------------------------------------------------ internals
 
-    def _in_chunk(self, record) -> None:
+    def _in_chunk(self, record: Any) -> None:
         builder = RecordBuilder()
         record.write(builder)
         self._chunk += builder.end()

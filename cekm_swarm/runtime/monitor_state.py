@@ -53,7 +53,7 @@ OBSERVATION_SPAN = 2.0
 state no longer counts as observing (a robot whose modules died stops observing)."""
 
 
-def natural_key(name: str) -> tuple:
+def natural_key(name: str) -> tuple[Any, ...]:
     """Sort key that orders ids as a person does: t1, t2, t10 (not t1, t10, t2)."""
     return tuple(int(part) if part.isdigit() else part for part in re.split(r"(\d+)", name))
 
@@ -69,8 +69,8 @@ class RobotView:
     command: tuple[float, float] | None = None
     command_stamp: float | None = None
     map: tuple[int, int, float] | None = None  # a learning robot's map: version, steps learned, error (m/s)
-    latencies: deque = field(default_factory=lambda: deque(maxlen=200))  # seconds
-    sense_first: dict = field(default_factory=dict)  # stamp -> wall time of the first sense message
+    latencies: deque[float] = field(default_factory=lambda: deque(maxlen=200))  # seconds
+    sense_first: dict[float, float] = field(default_factory=dict)  # stamp -> wall time of the first sense message
 
     @property
     def status(self) -> str:
@@ -105,7 +105,7 @@ class MonitorState:
         self.keys = keys
         self.window = window
         self.robots: dict[str, RobotView] = {}
-        self.arrivals: dict[str, deque] = {}
+        self.arrivals: dict[str, deque[float]] = {}
         self.last_stamp: dict[str, float] = {}
         self.alive: set[str] = set()
         self.sim_time = math.nan

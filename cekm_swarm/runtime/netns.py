@@ -25,7 +25,7 @@ from pathlib import Path
 from .lines import LineReader
 
 
-def ip(*args: str) -> subprocess.CompletedProcess:
+def ip(*args: str) -> subprocess.CompletedProcess[str]:
     return subprocess.run(["ip", *args], capture_output=True, text=True, timeout=30)
 
 
@@ -103,7 +103,7 @@ class Hosts:
             raise
 
     @staticmethod
-    def _ok(done: subprocess.CompletedProcess) -> None:
+    def _ok(done: subprocess.CompletedProcess[str]) -> None:
         if done.returncode != 0:
             raise RuntimeError(f"{' '.join(done.args)}: {done.stderr.strip()}")
 

@@ -47,7 +47,7 @@ def param_group() -> None:
     """A running node's parameters: list, get, set (docs/modules.md)."""
 
 
-def _keys(root: str):
+def _keys(root: str) -> KeySpace:
     return KeySpace(root=root)
 
 

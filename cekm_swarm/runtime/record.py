@@ -47,13 +47,13 @@ from .mcap_sets import SplitRecorder, open_recorder
 GEOMETRY_ENCODING = "application/json"
 
 
-def serve_geometry(session: zenoh.Session, key: str, geometry: dict[str, Any]) -> zenoh.Queryable:
+def serve_geometry(session: zenoh.Session, key: str, geometry: dict[str, Any]) -> zenoh.Queryable[None]:
     """Answer queries on ``key`` with ``geometry`` as JSON (the world server calls this);
     undeclare the returned queryable when done."""
     return serve_json(session, key, geometry)
 
 
-def serve_json(session: zenoh.Session, key: str, doc: dict[str, Any]) -> zenoh.Queryable:
+def serve_json(session: zenoh.Session, key: str, doc: dict[str, Any]) -> zenoh.Queryable[None]:
     """Answer queries on ``key`` with ``doc`` as JSON (the static scene, the run's graph)."""
     blob = json.dumps(doc).encode()
 

@@ -44,7 +44,8 @@ def _say(text: str) -> None:
     click.echo(text, err=True)
 
 
-def _open(endpoint: str | None, config_file: Path | None, wait_s: float, stop: threading.Event | None = None):
+def _open(endpoint: str | None, config_file: Path | None, wait_s: float,
+          stop: threading.Event | None = None) -> zenoh.Session:
     try:
         resolve_endpoint(endpoint)
     except CekmError as exc:
@@ -88,7 +89,7 @@ def _sigint_sets(stop: threading.Event) -> Iterator[list[bool]]:
         signal.signal(signal.SIGINT, old)
 
 
-def _keys(root: str):
+def _keys(root: str) -> KeySpace:
     try:
         return KeySpace(root)
     except CekmError as exc:

@@ -20,7 +20,7 @@ from cekm_swarm.runtime.mcap_read import read_geometry
 from cekm_swarm.runtime.tool_session import _connect_options, _session
 
 
-def _geometry(scenario: str | None, log: Path | None, seed: int | None):
+def _geometry(scenario: str | None, log: Path | None, seed: int | None) -> tuple[dict[str, Any], list[float]]:
     """(static geometry, sensing radii) from a scenario or from a run's MCAP log."""
     from world import ScenarioError, load_scenario  # noqa: PLC0415 -- lazy: cekm --help loads no world (pymunk)
     from world.sim import World  # noqa: PLC0415 -- lazy: cekm --help loads no world (pymunk)
@@ -44,7 +44,7 @@ def _geometry(scenario: str | None, log: Path | None, seed: int | None):
     return geometry, sensing_radii(geometry, sc.sensor_range, sc.target_range)
 
 
-def sensing_radii(geometry: dict, sensor_range: float | None, target_range: float | None) -> list[float]:
+def sensing_radii(geometry: dict[str, Any], sensor_range: float | None, target_range: float | None) -> list[float]:
     """The circles the view draws about each robot: the obstacle sensors' reach from the
     robot's centre and the target sensing range (each when known and finite)."""
     r = geometry.get("body_radius", 0.03)
@@ -56,7 +56,7 @@ def sensing_radii(geometry: dict, sensor_range: float | None, target_range: floa
     return out
 
 
-def _lattice(session, model_path: Path | None, root: str, timeout: float):
+def _lattice(session: Any, model_path: Path | None, root: str, timeout: float) -> Any:
     """The motor map's input weights w: from --model, else from the run's model queryable
     (None if nothing answers within ``timeout`` s: neurons are then placed by index)."""
     from cekm_swarm.models.io import load_model, load_model_bytes  # noqa: PLC0415 -- lazy: cekm --help loads no model code
@@ -190,7 +190,7 @@ def _new_run(session: Any, keys: KeySpace, view: Any, fox: Any, run: str, own_ar
         fox.set_schemas((fetch_json(session, keys.world_graph()) or {}).get("schemas") or {})
 
 
-def _run_geometry(session, keys, wait_s: float) -> dict | None:
+def _run_geometry(session: Any, keys: KeySpace, wait_s: float) -> dict[str, Any] | None:
     """The arena the run's world server serves, waiting up to ``wait_s`` s for one."""
     from cekm_swarm.runtime.record import fetch_json  # noqa: PLC0415 -- lazy: cekm --help loads no recorder
 
@@ -209,7 +209,7 @@ class RunWatch:
     (``<root>/world/alive/server/<run>``); :meth:`changed` returns a new one once, and
     ``on_run(run)`` is called on Zenoh's thread for every token seen."""
 
-    def __init__(self, session, keys, on_run: Callable[[str], None] | None = None,
+    def __init__(self, session: Any, keys: KeySpace, on_run: Callable[[str], None] | None = None,
                  on_end: Callable[[str], None] | None = None) -> None:
         self._lock = threading.Lock()
         self._event = threading.Event()
@@ -217,7 +217,7 @@ class RunWatch:
         self._seen: str | None = None
         any_run = keys.with_run(None)
 
-        def on_token(sample) -> None:  # Zenoh's thread: note it and return
+        def on_token(sample: Any) -> None:  # Zenoh's thread: note it and return
             try:
                 run = any_run.parse(str(sample.key_expr)).run
             except CekmError:

@@ -12,6 +12,7 @@ import threading
 import time
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from importlib import resources
+from typing import Any
 
 from .live import LiveView
 
@@ -34,7 +35,7 @@ class ViewServer:
         server = self
 
         class Handler(BaseHTTPRequestHandler):
-            def log_message(self, *args) -> None:  # quiet
+            def log_message(self, *args: Any) -> None:  # quiet
                 pass
 
             def _send(self, body: bytes, ctype: str) -> None:
