@@ -193,7 +193,7 @@ def served(n: int, sim: float, port: int, tmp: Path) -> dict:
 def in_process(n: int, ticks: int, tmp: Path) -> float:
     """CPU ms per tick of the same world stepped in this process with the same commands."""
     from world import World, load_scenario
-    from world.episode import make_episode
+    from world.run_episode import make_episode
     from world.tracking import run_kind
 
     sc = load_scenario(str(tmp / f"fleet{n}.toml"))

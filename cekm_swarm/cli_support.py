@@ -41,10 +41,6 @@ class _Checked(click.ParamType[Any]):
             self.fail(str(exc), param, ctx)
 
 
-def _endpoint(text: str) -> str:
-    from .runtime.config import check_endpoint
-
-    return check_endpoint(text)
 
 
 def parse_size(text: str) -> int:
@@ -116,7 +112,6 @@ class RobotIds(click.ParamType[Any]):
 
 SEED = click.IntRange(0, 2**32 - 1)
 """A seed: 0 .. 2^32 - 1 (what every random generator of the package accepts)."""
-ENDPOINT = _Checked("endpoint", _endpoint)
 ROOT = _Checked("root", validate_root)
 RUN_ID = _Checked("run id", validate_run_id)
 SIZE = _Checked("size", parse_size)

@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import pymunk
 
-from .scenario import ObstacleSpec, Scenario
+from .scenario_spec import ObstacleSpec, Scenario
 
 # Shape-filter categories (bits). Rays use their own category and see the rest.
 CAT_STATIC = 1 << 0  # walls and static obstacles
@@ -96,7 +97,8 @@ class StaticIndex:
         return q.distance, self.keys[q.shape]
 
 
-def add_robots(space: pymunk.Space, scenario: Scenario, item_of: dict, mass: float, radius: float, traction_force: float,
+def add_robots(space: pymunk.Space, scenario: Scenario, item_of: dict[Any, str], mass: float, radius: float,
+               traction_force: float,
                traction_torque: float) -> tuple[list[pymunk.Body], list[pymunk.Circle], list[pymunk.Body]]:
     """Each robot a dynamic circle driven through a kinematic control body joined by a
     ``PivotJoint`` (max_bias 0, finite max_force) and a ``GearJoint`` (pymunk's tank

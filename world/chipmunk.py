@@ -4,7 +4,17 @@ binding, for the hot loops (a ray cast 0.4 us instead of 3.0 us through
 robot-ticks; the space's step without the wrapper's checks). pymunk is pinned to the
 range this is tested with (``pyproject.toml``), and ``tests/world/test_chipmunk.py`` fails
 loudly, naming what changed, on a pymunk whose internals differ: the symbols, and the
-results equal to the public API's."""
+results equal to the public API's.
+
+Why the public API cannot do it: it gives the same answers (the test holds that), but
+each call pays for Python objects the hot loop never uses. ``Space.segment_query_first``
+allocates a new query-info struct, looks the hit shape's Python object up and returns a
+``SegmentQueryInfo`` with two ``Vec2d`` on every call (``point_query_nearest`` likewise),
+where the world needs one float; ``Space.step`` checks the bodies, locks the space and
+runs its add/remove-later and post-step bookkeeping in Python at every sub-step, for a
+space whose bodies and shapes never change once built. So the world makes its filters and
+info structs once and calls Chipmunk directly. ``pymunk.batch``, the public fast path,
+reads and writes the bodies' state (:mod:`world.sim` uses it) but has no queries."""
 
 from __future__ import annotations
 

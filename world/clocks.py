@@ -13,6 +13,7 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import time
 from typing import Any
 
@@ -21,6 +22,7 @@ from cekm_swarm.ticks import TICK_S
 from .inbox import CommandInbox
 from .outcome import RunStats
 from .publisher import TickPublisher
+from .sense import TickReadings
 
 RECORD_BY = 0.75
 """Real time: the fraction of a tick by which the world writes the tick's log if some
@@ -56,10 +58,8 @@ class _Clock:
             self.arrived.clear()
             if inbox.answered():  # a command in between: its wake-up came before the clear
                 break
-            try:
+            with contextlib.suppress(TimeoutError):
                 await asyncio.wait_for(self.arrived.wait(), max(0.0, until - loop.time()))
-            except asyncio.TimeoutError:
-                pass
 
 
 class LockstepClock(_Clock):
@@ -70,7 +70,7 @@ class LockstepClock(_Clock):
     def opened(self) -> None:
         self.publisher.record_tick(self.inbox.now)  # the nodes compute now, and the log is written meanwhile
 
-    async def commands(self, readings: list) -> dict[str, tuple[float, float]]:
+    async def commands(self, readings: list[TickReadings]) -> dict[str, tuple[float, float]]:
         t = self.episode.t
         loop = asyncio.get_running_loop()
         next_republish = loop.time() + self.republish
@@ -87,10 +87,8 @@ class LockstepClock(_Clock):
                 self.publisher.republish(readings, waiting)
                 next_republish = loop.time() + self.republish
                 continue
-            try:  # woken when the tick is answered, or by a stop (which sets both)
+            with contextlib.suppress(TimeoutError):  # woken when the tick is answered, or by a stop (sets both)
                 await asyncio.wait_for(self.arrived.wait(), timeout)
-            except asyncio.TimeoutError:
-                pass
 
 
 class RealtimeClock(_Clock):
@@ -110,12 +108,13 @@ class RealtimeClock(_Clock):
         await self._await_answers(loop.time() + FIRST_TICK_WAIT_S)
         waiting = self.inbox.waiting(self.inbox.now)
         if waiting and not self.stop.is_set():
-            self.stats.event("first_tick_unanswered", self.episode.t, {"after_s": FIRST_TICK_WAIT_S, "waiting": waiting})
+            self.stats.event("first_tick_unanswered", self.episode.t,
+                             {"after_s": FIRST_TICK_WAIT_S, "waiting": waiting})
         sent = self.inbox.published_at(self.inbox.now)
         self.stats.first_tick_s = time.monotonic() - (time.monotonic() if sent is None else sent)
         return loop.time()
 
-    async def commands(self, readings: list) -> dict[str, tuple[float, float]]:
+    async def commands(self, readings: list[TickReadings]) -> dict[str, tuple[float, float]]:
         loop = asyncio.get_running_loop()
         ep = self.episode
         if self.start is None:  # the wall clock starts once tick 0 is answered (or now, when
@@ -127,7 +126,7 @@ class RealtimeClock(_Clock):
         try:
             await asyncio.wait_for(self.stop.wait(), max(0.0, boundary - loop.time()))
             raise Stopped
-        except asyncio.TimeoutError:
+        except TimeoutError:
             pass
         now = time.monotonic()
         commands = {}

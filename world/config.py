@@ -88,7 +88,8 @@ WORLD_OPTIONS: tuple[tuple[str, dict[str, Any]], ...] = (
                       "world takes the nodes it waits for, the readings it publishes and the keys it records "
                       "(default: every reading of the scenario's task, commands on cmd/wheels)"}),
     ("connect", {"default": DEFAULT_ENDPOINT, "show_default": True, "help": "join this router as a client"}),
-    ("listen", {"metavar": "tcp/HOST:PORT", "help": "host the router here (the embedded default) instead of joining one"}),
+    ("listen", {"metavar": "tcp/HOST:PORT",
+                "help": "host the router here (the embedded default) instead of joining one"}),
     ("zenoh_config", {"help": "Zenoh client config file (credentials, TLS; see deploy/)"}),
     ("wait_router", {"type": Finite(0.0), "default": DEFAULT_WAIT, "show_default": True, "metavar": "S",
                      "help": "with --connect: while nothing accepts connections there, wait up to S s for the "
@@ -98,8 +99,9 @@ WORLD_OPTIONS: tuple[tuple[str, dict[str, Any]], ...] = (
     ("root", {"default": DEFAULT_ROOT, "show_default": True}),
     ("run_id", {"callback": _run_id, "help": "the launch's run id: the world's token carries it, and it waits only "
                                              "for nodes of this run"}),
-    ("out", {"required": True, "callback": _out, "help": "directory for run.mcap, outcome.json, trajectory.json (refused if it "
-                                       "already holds a run's: the launcher gives it a cleared one)"}),
+    ("out", {"required": True, "callback": _out,
+             "help": "directory for run.mcap, outcome.json, trajectory.json (refused if it "
+                     "already holds a run's: the launcher gives it a cleared one)"}),
     ("mode", {"type": click.Choice(["realtime", "lockstep"]), "default": "realtime", "show_default": True}),
     ("seed", {"type": SEED}),
     ("max_time", {"type": Finite(0.0, min_open=True), "default": DEFAULT_MAX_TIME, "show_default": True}),
@@ -109,7 +111,8 @@ WORLD_OPTIONS: tuple[tuple[str, dict[str, Any]], ...] = (
     ("republish", {"type": Finite(0.0, min_open=True), "default": REPUBLISH_S, "show_default": True,
                    "help": "lockstep: s before re-publishing a tick"}),
     ("match_timeout", {"type": Finite(0.0), "default": 20.0, "show_default": True}),
-    ("progress_every", {"type": Finite(0.0, min_open=True), "default": 1.0, "show_default": True, "help": "wall s between PROGRESS lines"}),
+    ("progress_every", {"type": Finite(0.0, min_open=True), "default": 1.0, "show_default": True,
+                        "help": "wall s between PROGRESS lines"}),
     ("log_level", {"type": click.Choice(["DEBUG", "INFO", "WARNING", "ERROR"], case_sensitive=False),
                    "default": "INFO", "show_default": True}),
     ("max_log_size", {"type": click.IntRange(1), "metavar": "BYTES",

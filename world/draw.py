@@ -9,10 +9,11 @@ dashed; goals as stars, other targets as crosses.
 from __future__ import annotations
 
 import math
-from typing import Any, Mapping, Sequence
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING, Any
 
-from matplotlib.axes import Axes
-from matplotlib.patches import Circle, Polygon, Rectangle
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
 
 KNOWN_FACE = "0.25"
 UNKNOWN_FACE = "#f4b183"
@@ -59,6 +60,8 @@ def draw_world(ax: Axes, geometry: Mapping[str, Any], state: Mapping[str, Any] |
     Each robot's goal and body take its colour from ``colours`` (default
     :func:`robot_colours` of the robots in id order). Sets equal aspect, the limits to
     the arena bounds (plus the walls) and the axes' labels in metres."""
+    from matplotlib.patches import Circle, Polygon, Rectangle
+
     ids = sorted({r["id"] for r in geometry.get("robots", [])} | set((state or {}).get("robots", {})))
     colours = dict(colours) if colours is not None else robot_colours(ids)
     xmin, ymin, xmax, ymax = geometry["bounds"]
@@ -75,7 +78,8 @@ def draw_world(ax: Axes, geometry: Mapping[str, Any], state: Mapping[str, Any] |
         motion = m["motion"]
         if motion["type"] == "circle":
             ax.add_patch(
-                Circle(motion["center"], motion["radius"], fill=False, linestyle="--", edgecolor=MOVING_EDGE, linewidth=0.8, zorder=1)
+                Circle(motion["center"], motion["radius"], fill=False, linestyle="--", edgecolor=MOVING_EDGE,
+                       linewidth=0.8, zorder=1)
             )
             # a direction arrow on the path, a quarter turn ahead of the obstacle
             s = 1.0 if motion.get("direction", "ccw") == "ccw" else -1.0
@@ -91,7 +95,8 @@ def draw_world(ax: Axes, geometry: Mapping[str, Any], state: Mapping[str, Any] |
                 zorder=1,
             )
         else:
-            ax.plot([motion["a"][0], motion["b"][0]], [motion["a"][1], motion["b"][1]], "--", color=MOVING_EDGE, lw=0.8, zorder=1)
+            ax.plot([motion["a"][0], motion["b"][0]], [motion["a"][1], motion["b"][1]], "--", color=MOVING_EDGE,
+                    lw=0.8, zorder=1)
         if m["id"] in obs_state:
             ox, oy = obs_state[m["id"]]["x"], obs_state[m["id"]]["y"]
             th = obs_state[m["id"]].get("theta", 0.0)
@@ -137,11 +142,12 @@ def draw_world(ax: Axes, geometry: Mapping[str, Any], state: Mapping[str, Any] |
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
-    ax.add_patch(Rectangle((xmin, ymin), xmax - xmin, ymax - ymin, fill=False, edgecolor="0.8", linewidth=0.5, zorder=0))
+    ax.add_patch(Rectangle((xmin, ymin), xmax - xmin, ymax - ymin, fill=False, edgecolor="0.8", linewidth=0.5,
+                           zorder=0))
     return ax
 
 
-def goal_marker(ax: Axes, xy: Sequence[float], colour: str, robot: str | None = None):
+def goal_marker(ax: Axes, xy: Sequence[float], colour: str, robot: str | None = None) -> Any:
     """A robot's goal: a star in the robot's colour with a black edge."""
     return ax.plot([xy[0]], [xy[1]], marker="*", markersize=14, color=colour, markeredgecolor="k", markeredgewidth=0.6,
                    zorder=6, linestyle="none", gid=f"goal:{robot}" if robot else None)[0]
@@ -185,7 +191,7 @@ def draw_paths(ax: Axes, paths: Mapping[str, tuple[Sequence[float], Sequence[flo
             mt.append(n * step)
         ax.plot(mx, my, "o", color=col, ms=3.5, markeredgecolor="white", markeredgewidth=0.4, zorder=5,
                 gid=f"time:{rid}")
-        for x, y, t in list(zip(mx, my, mt))[1::2]:
+        for x, y, t in list(zip(mx, my, mt, strict=True))[1::2]:
             if math.hypot(x - xs[-1], y - ys[-1]) < 0.02:
                 continue  # not on the final pose's goal star
             ax.annotate(f"{t:g}", (x, y), xytext=(3, 3), textcoords="offset points", fontsize=6, color=col, zorder=7)
@@ -211,14 +217,16 @@ def draw_tracking(ax: Axes, paths: Mapping[str, tuple[Sequence[float], Sequence[
     target's path (grey, a dot at its start, a black cross and its id at its end) and each
     robot's target-sensing circle of radius ``target_range`` at ``instants`` evenly spaced
     points of its path ``(xs, ys)`` (fainter earlier; none if the range is unknown)."""
+    from matplotlib.patches import Circle
+
     for tid, pts in target_paths.items():
         if not len(pts):
             continue
-        xs, ys = [p[0] for p in pts], [p[1] for p in pts]
-        ax.plot(xs, ys, "-", color="0.45", lw=1.0, gid=f"target:{tid}")
-        ax.plot(xs[0], ys[0], "o", color="0.45", ms=3)
-        ax.plot(xs[-1], ys[-1], "X", color="k", ms=6)
-        ax.annotate(tid, (xs[-1], ys[-1]), fontsize=7, xytext=(3, 3), textcoords="offset points")
+        txs, tys = [p[0] for p in pts], [p[1] for p in pts]
+        ax.plot(txs, tys, "-", color="0.45", lw=1.0, gid=f"target:{tid}")
+        ax.plot(txs[0], tys[0], "o", color="0.45", ms=3)
+        ax.plot(txs[-1], tys[-1], "X", color="k", ms=6)
+        ax.annotate(tid, (txs[-1], tys[-1]), fontsize=7, xytext=(3, 3), textcoords="offset points")
     for rid, (xs, ys) in paths.items():
         n = len(xs)
         if not n:
@@ -269,7 +277,8 @@ def fit_bounds(ax: Axes, geometry: Mapping[str, Any] | None, points: Sequence[Se
         return x0, x1, y0, y1
     margin = max(margin, 0.03 * max(max(xs) - min(xs), max(ys) - min(ys)))  # a marker's size on a large map
     x0, x1, y0, y1 = min(xs) - margin, max(xs) + margin, min(ys) - margin, max(ys) + margin
-    if geometry is not None and points:  # the arena clips the content, never the paths (no boundary walls: robots leave)
+    # the arena clips the content, never the paths (no boundary walls: robots leave)
+    if geometry is not None and points:
         bx0, by0, bx1, by1 = geometry["bounds"]
         wall = max((w["thickness"] for w in geometry.get("walls", [])), default=0.0) + 0.02
         px = [float(p[0]) for p in points]
@@ -291,7 +300,7 @@ def fit_bounds(ax: Axes, geometry: Mapping[str, Any] | None, points: Sequence[Se
     return x0, x1, y0, y1
 
 
-def legend_outside(ax: Axes, title: str | None = None, time_step: float | None = None):
+def legend_outside(ax: Axes, title: str | None = None, time_step: float | None = None) -> Any:
     """The legend to the right of the axes (never over the arena); with ``time_step`` an
     entry says what the dots mean."""
     handles, labels = ax.get_legend_handles_labels()

@@ -20,98 +20,17 @@ in, plain data out: no controller code here.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
-from typing import Any, Protocol
-
-import numpy as np
+from typing import Any
 
 from cekm_swarm.ticks import TARGET_EVERY, TICK_S, tick_time
 
-from .rows import Rows
+from .odometry import Odometer
+from .progress import RobotProgress
+from .sense import TickReadings
 from .sim import World
 
-__all__ = ["TICK_S", "TARGET_EVERY", "Episode", "RunEpisode", "TickReadings", "make_episode"]
+__all__ = ["CHECKPOINT_RADIUS", "TARGET_EVERY", "TICK_S", "Episode", "pushed_out_note"]
 CHECKPOINT_RADIUS = 0.03  # m (section 4.2: on to the next checkpoint once this close)
-
-
-@dataclass
-class TickReadings:
-    """What one robot's modules receive at a tick."""
-
-    robot: str
-    t: float
-    ranges: np.ndarray  # (12,) surface ranges, NaN = nothing seen
-    target: tuple[float, float, bool] | None  # (alpha, d, visible), None when not due
-
-
-@dataclass
-class RobotProgress:
-    checkpoints: list[tuple[float, float]]
-    next_index: int = 0
-    checkpoint_times: list[float] = field(default_factory=list)
-    reached: bool = False
-    reached_time: float | None = None
-    path: Rows = field(default_factory=lambda: Rows(4))  # t, x, y, theta per tick (flat memory: world.rows)
-    commands: Rows = field(default_factory=lambda: Rows(2))  # v_l, v_r per tick
-    last_d: float = math.inf  # the last sensed distance to the current goal
-
-    @property
-    def final(self) -> bool:
-        return self.next_index == len(self.checkpoints) - 1
-
-
-class RunEpisode(Protocol):
-    """What the world server and ``cekm run`` drive, tick by tick, whatever the task
-    (navigation: :class:`Episode`; tracking: :class:`world.tracking.TrackingEpisode`)."""
-
-    task: str
-    tick: int
-    progress: dict[str, RobotProgress]
-
-    @property
-    def t(self) -> float:
-        """Sim time of the current tick."""
-
-    def readings(self) -> list[TickReadings]:
-        """Step 1 of the tick: every robot's distance readings (and its target reading)."""
-
-    def messages(self, robot: str) -> list[tuple[str, Any]]:
-        """The tick's other readings of ``robot`` as (key below the robot, message)."""
-
-    def apply(self, commands: dict[str, tuple[float, float]]) -> None:
-        """Step 3: every robot's wheel command."""
-
-    def advance(self) -> None:
-        """On to the next tick."""
-
-    @property
-    def done(self) -> bool:
-        """The run is over before its max time."""
-
-    def outcome(self) -> dict[str, dict]:
-        """Per robot, what ``outcome.json`` says of it."""
-
-    def summary(self) -> dict[str, Any]:
-        """The task's own part of ``outcome.json`` (``tracking``: Parker's A ...)."""
-
-    def to_goal(self, robot: str) -> float | None:
-        """How far the robot is from its goal now (None: it has none)."""
-
-    def draw(self, views: Any, t: float, state: dict[str, Any]) -> None:
-        """The task's own marks in the log's views (tracking: sensing circles)."""
-
-
-def make_episode(world: World, task: str, checkpoints: dict | None = None, max_ticks: int = 0) -> RunEpisode:
-    """The episode of a run of ``task`` (``world.tracking.run_kind``)."""
-    if task == "tracking":
-        from .tracking import TrackingEpisode
-
-        return TrackingEpisode(world, max_ticks)
-    if world.scenario.retarget:  # section 4.1's training: a new target at each stop (docs/learning.md)
-        from .training import TrainingEpisode
-
-        return TrainingEpisode(world, world.seed)
-    return Episode(world, checkpoints)
 
 
 class Episode:
@@ -124,10 +43,10 @@ class Episode:
         self.world = world
         self.radius = checkpoint_radius
         self.tick = 0
-        self.odometer = None  # the robots' odometry readings (world.odometry), made on first use
+        self.odometer: Odometer | None = None  # the robots' odometry readings (world.odometry), made on first use
         self.progress: dict[str, RobotProgress] = {}
         for r in world.robot_ids:
-            cps = [tuple(map(float, c)) for c in (checkpoints or {}).get(r, [])] or [world.goal_of(r)]
+            cps = [(float(x), float(y)) for x, y in (checkpoints or {}).get(r, [])] or [world.goal_of(r)]
             self.progress[r] = RobotProgress(cps)
             if checkpoints and r in checkpoints:
                 world.set_goal(r, cps[0])
@@ -181,9 +100,7 @@ class Episode:
         self.tick += 1
 
     def messages(self, robot: str) -> list[tuple[str, Any]]:
-        if self.odometer is None:  # the protocol's messages, imported when a run publishes them
-            from .odometry import Odometer
-
+        if self.odometer is None:  # made when a run publishes them
             self.odometer = Odometer(self.world)
         return self.odometer.messages(robot, self.tick, self.t)  # the target reading is part of the readings
 
@@ -202,7 +119,7 @@ class Episode:
     def done(self) -> bool:
         return all(p.reached for p in self.progress.values())
 
-    def outcome(self) -> dict[str, dict]:
+    def outcome(self) -> dict[str, dict[str, Any]]:
         """Per robot: reached, time_s, path_length_m, collisions, min_clearance_m, final distance, checkpoints.
         ``min_clearance_m`` is None when nothing (wall, obstacle, robot) came within sensor
         range in the whole run: the world's ``stats`` say infinity, which JSON cannot hold."""

@@ -8,7 +8,7 @@ scenario always produces the same shapes.
 from __future__ import annotations
 
 import math
-from typing import Sequence
+from collections.abc import Sequence
 
 from cekm_swarm.angles import wrap_scalar
 
@@ -60,9 +60,7 @@ def _segments_intersect(p1: Point, p2: Point, q1: Point, q2: Point) -> bool:
         return True
     if d3 == 0 and on_seg(p1, p2, q1):
         return True
-    if d4 == 0 and on_seg(p1, p2, q2):
-        return True
-    return False
+    return d4 == 0 and on_seg(p1, p2, q2)
 
 
 def simple_polygon_problem(poly: Sequence[Point]) -> str | None:
@@ -89,10 +87,7 @@ def simple_polygon_problem(poly: Sequence[Point]) -> str | None:
 def is_convex(poly: Sequence[Point]) -> bool:
     """True if the CCW polygon is convex (collinear vertices allowed)."""
     n = len(poly)
-    for i in range(n):
-        if _cross(poly[i], poly[(i + 1) % n], poly[(i + 2) % n]) < -1e-15:
-            return False
-    return True
+    return all(_cross(poly[i], poly[(i + 1) % n], poly[(i + 2) % n]) >= -1e-15 for i in range(n))
 
 
 def _point_in_triangle(p: Point, a: Point, b: Point, c: Point) -> bool:

@@ -104,9 +104,9 @@ class CommandInbox:
             robot, stamp, lat = self._pending.popleft()
             seen[(robot, stamp)] = lat
         for r in self.robots:
-            lat = seen.pop((r, t), None)
-            if lat is not None and keep:
-                self.latencies.append(lat)
+            answered = seen.pop((r, t), None)
+            if answered is not None and keep:
+                self.latencies.append(answered)
         for k in [k for k in seen if k[1] <= t]:
             del seen[k]
 

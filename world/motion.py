@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Union
+from typing import Any
 
 import numpy as np
 
@@ -95,7 +95,8 @@ class RandomWalk:
     bounds: tuple[float, float, float, float]
     kind = "random_walk"
 
-    def step(self, x: float, y: float, heading: float, dt: float, rng: np.random.Generator) -> tuple[float, float, float]:
+    def step(self, x: float, y: float, heading: float, dt: float,
+             rng: np.random.Generator) -> tuple[float, float, float]:
         """One sub-step from (x, y, heading); returns the new (x, y, heading)."""
         heading += self.turn_noise * math.sqrt(dt) * float(rng.standard_normal())
         x += self.speed * dt * math.cos(heading)
@@ -124,5 +125,5 @@ class RandomWalk:
         }
 
 
-Motion = Union[Fixed, CircleMotion, LineMotion, RandomWalk]
-ScriptedMotion = Union[CircleMotion, LineMotion]
+Motion = Fixed | CircleMotion | LineMotion | RandomWalk
+ScriptedMotion = CircleMotion | LineMotion

@@ -29,7 +29,7 @@ class Odometer:
     def __init__(self, world: World) -> None:
         self.world = world
         self.last: dict[str, tuple[int, float, float, int]] = {}  # robot -> tick, left, right, contact steps
-        self.rows: dict[str, deque] = {}
+        self.rows: dict[str, deque[tuple[int, float, float, float, float, bool]]] = {}
         self.sent: dict[str, tuple[int, SenseOdometry]] = {}
 
     def reading(self, robot: str, tick: int, t: float) -> SenseOdometry:
@@ -47,8 +47,8 @@ class Odometer:
             set_l, set_r = w.wheel_command(robot)
             rows.append((tick, set_l, set_r, left - prev[1], right - prev[2], contact > prev[3]))
         self.last[robot] = (tick, left, right, contact)
-        cols = list(zip(*rows)) if rows else [()] * 6
-        msg = SenseOdometry(t, SENDER, *cols, TICK_S)
+        ticks, set_ls, set_rs, lefts, rights, blocked = zip(*rows, strict=True) if rows else [()] * 6
+        msg = SenseOdometry(t, SENDER, ticks, set_ls, set_rs, lefts, rights, blocked, TICK_S)
         self.sent[robot] = (tick, msg)
         return msg
 

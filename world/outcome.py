@@ -81,8 +81,8 @@ def latency_ms(latencies: Samples | list[float]) -> dict[str, Any]:
     if not isinstance(latencies, Samples):
         return {"p50": round(1000 * percentile(latencies, 0.5), 3),
                 "p99": round(1000 * percentile(latencies, 0.99), 3), "n": len(latencies)}
-    doc = {"p50": round(1000 * latencies.percentile(0.5), 3), "p99": round(1000 * latencies.percentile(0.99), 3),
-           "n": len(latencies)}
+    doc: dict[str, Any] = {"p50": round(1000 * latencies.percentile(0.5), 3),
+                           "p99": round(1000 * latencies.percentile(0.99), 3), "n": len(latencies)}
     if not latencies.exact:
         doc["histogram"] = f"beyond {latencies.exact_max} samples: bins {100 * latencies.resolution:g} % wide"
     return doc

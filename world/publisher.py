@@ -29,9 +29,9 @@ import zenoh
 from cekm_swarm.protocol import Clock, KeySpace, Unchanged, WorldState, encode, with_stamp
 from cekm_swarm.ticks import TICK_S
 
-from .episode import RunEpisode, TickReadings
 from .recorder import RECORD_QUEUE, RecordFilter
-from .sense import SENDER, SenseEncoder
+from .run_episode import RunEpisode
+from .sense import SENDER, SenseEncoder, TickReadings
 
 log = logging.getLogger("world.publisher")
 
@@ -144,7 +144,8 @@ class TickPublisher:
     def publish(self, readings: list[TickReadings]) -> dict[str, Any]:
         """The tick's readings, clock and state (in this order); returns the state."""
         ep = self.episode
-        for r, p in self.map_every.items():  # a map version starts: what sees something is sent again (docs/learning.md)
+        # a map version starts: what sees something is sent again (docs/learning.md)
+        for r, p in self.map_every.items():
             if ep.tick % p == 1 % p:
                 head = f"{self.keys.root}/{r}/"
                 for key in [k for k, (c, _) in self.last_sent.items() if k.startswith(head) and c is not None]:

@@ -17,6 +17,7 @@ from typing import Any
 
 from cekm_swarm.protocol import DropCounter, KeyKind, KeySpace, KeySpaceError, ParamChange, expect_of
 from cekm_swarm.protocol.stamps import PAST_S, stamp_problem
+from cekm_swarm.runtime import foxglove_view
 from cekm_swarm.runtime.mcap_sets import open_recorder
 
 RECORD_MODES = ("full", "lean")
@@ -134,14 +135,8 @@ def open_run_log(path: Path, scenario: str, seed: int, mode: str, geometry: dict
     recorder = open_recorder(path, max_bytes=max_bytes, max_seconds=max_seconds, metadata=metadata, **options)
     recorder.add_metadata("geometry", {"json": json.dumps(geometry)})
     views = None
-    try:
-        from cekm_swarm.runtime import foxglove_view
-
-        if foxglove_view.available():
-            views = foxglove_view.FoxgloveViews(recorder, robot_radius=robot_radius,
-                                                path_every=LEAN_PATH_S if record == "lean"
-                                                else foxglove_view.PATH_EVERY_S)
-            views.write_geometry(0.0, geometry)
-    except ImportError:  # pragma: no cover - foxglove-sdk missing
-        views = None
+    if foxglove_view.available():  # foxglove-sdk is installed
+        views = foxglove_view.FoxgloveViews(recorder, robot_radius=robot_radius,
+                                            path_every=LEAN_PATH_S if record == "lean" else foxglove_view.PATH_EVERY_S)
+        views.write_geometry(0.0, geometry)
     return recorder, views

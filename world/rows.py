@@ -37,7 +37,7 @@ class Rows:
             raise ValueError(f"a row of {self.width} floats expected")
         if len(buf) >= BUFFER_ROWS * self.width:
             if self._file is None:
-                self._file = tempfile.TemporaryFile()
+                self._file = tempfile.TemporaryFile()  # noqa: SIM115 -- the rows' spill, open as long as they are
             self._file.seek(0, 2)
             buf.tofile(self._file)
             self._spilled += len(buf) // self.width
@@ -49,7 +49,7 @@ class Rows:
     def __bool__(self) -> bool:
         return len(self) > 0
 
-    def _chunks(self) -> Iterator[array]:
+    def _chunks(self) -> Iterator[array[float]]:
         if self._file is not None and self._spilled:
             self._file.seek(0)
             left = self._spilled * self.width
@@ -94,7 +94,7 @@ class Rows:
     @overload
     def __getitem__(self, i: slice) -> list[tuple[float, ...]]: ...
 
-    def __getitem__(self, i):
+    def __getitem__(self, i: int | slice) -> tuple[float, ...] | list[tuple[float, ...]]:
         if isinstance(i, slice):
             return list(self)[i]
         return self._row(i)

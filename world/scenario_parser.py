@@ -5,20 +5,22 @@ every refusal is a :class:`~world.scenario.ScenarioError` naming the file, the f
 from __future__ import annotations
 
 import math
-from typing import Any, Mapping, get_args
+from collections.abc import Mapping
+from typing import Any, NoReturn, get_args
 
 from cekm_swarm.protocol.errors import KeySpaceError
 from cekm_swarm.protocol.keys import validate_robot_id
 from cekm_swarm.protocol.schema import EntryId, TargetId
 
 from . import geometry as geo
+from ._physics import StaticIndex
 from .motion import CircleMotion, Fixed, LineMotion, Motion, RandomWalk, ScriptedMotion
-from .scenario import (
-    _ID_RE,
+from .scenario_spec import (
     BODY_RADIUS,
     DEFAULT_SENSOR_RANGE,
     DEFAULT_SPEED_UNIT,
     DEFAULT_WALL_THICKNESS,
+    ID_RE,
     RANDOM_WALK_INSET,
     ObstacleSpec,
     Point,
@@ -44,7 +46,7 @@ class Parser:
         self.file = source
 
     # -- primitives -------------------------------------------------------------
-    def fail(self, path: str, msg: str) -> None:
+    def fail(self, path: str, msg: str) -> NoReturn:
         raise ScenarioError(f"{self.file}: {path}: {msg}")
 
     def table(self, v: Any, path: str, required: tuple[str, ...], optional: tuple[str, ...]) -> dict[str, Any]:
@@ -106,7 +108,7 @@ class Parser:
 
     def ident(self, v: Any, path: str, max_length: int | None = None) -> str:
         s = self.string(v, path)
-        if not _ID_RE.match(s):
+        if not ID_RE.match(s):
             self.fail(path, f"invalid id {s!r} (letters, digits, '_' and '-' only)")
         if max_length is not None and len(s) > max_length:
             self.fail(path, f"id of {len(s)} characters: at most {max_length} (it travels in the run's messages)")
@@ -148,22 +150,17 @@ class Parser:
             dict(raw),
             "",
             ("arena", "robots"),
-            ("name", "description", "seed", "plan_checkpoints", "retarget", "explore", "sensors", "plant", "targets", "walls",
-             "obstacles"),
+            ("name", "description", "seed", "plan_checkpoints", "retarget", "explore", "sensors", "plant", "targets",
+             "walls", "obstacles"),
         )
         name = self.string(doc.get("name", default_name), "name")
         description = self.string(doc.get("description", ""), "description")
         seed = self.integer(doc.get("seed", 0), "seed", ge=0)
-        plan, retarget, explore = (self.boolean(doc.get(k, False), k) for k in ("plan_checkpoints", "retarget", "explore"))
+        plan, retarget, explore = (self.boolean(doc.get(k, False), k)
+                                   for k in ("plan_checkpoints", "retarget", "explore"))
         if explore and not retarget:
             self.fail("explore", "training exploration noise needs retarget = true (section 4.1's training)")
-
-        arena = self.table(doc["arena"], "arena", ("bounds",), ("boundary_walls", "wall_thickness"))
-        bounds = self.vector(arena["bounds"], "arena.bounds", 4, "[xmin, ymin, xmax, ymax]")
-        if not (bounds[0] < bounds[2] and bounds[1] < bounds[3]):
-            self.fail("arena.bounds", f"must satisfy xmin < xmax and ymin < ymax, got {list(bounds)}")
-        boundary = self.boolean(arena.get("boundary_walls", True), "arena.boundary_walls")
-        wall_t = self.number(arena.get("wall_thickness", DEFAULT_WALL_THICKNESS), "arena.wall_thickness", gt=0.0, le=1.0)
+        bounds, boundary, wall_t = self.arena(doc["arena"])
 
         sensors = self.table(doc.get("sensors", {}), "sensors", (), ("range", "target_range"))
         sensor_range = self.number(sensors.get("range", DEFAULT_SENSOR_RANGE), "sensors.range", gt=0.0, le=5.0)
@@ -181,73 +178,17 @@ class Parser:
                 self.fail(path, f"duplicate id {ident!r} (already used by {ids[ident]})")
             ids[ident] = path.rsplit(".", 1)[0]
 
-        # robots
-        robots_raw = self.items(doc["robots"], "robots")
-        if not robots_raw:
-            self.fail("robots", "at least one robot is required")
-        robots: list[RobotSpec] = []
-        for i, r in enumerate(robots_raw):
-            p = f"robots[{i}]"
-            t = self.table(r, p, ("id", "start"), ("goal",))
-            rid = self.robot_id(t["id"], f"{p}.id")
-            claim(rid, f"{p}.id")
-            start = self.vector(t["start"], f"{p}.start", 3, "[x, y, theta]")
-            goal = self.ident(t["goal"], f"{p}.goal") if "goal" in t else None
-            if not _inside(bounds, start[0], start[1], 0.0):
-                self.fail(f"{p}.start", f"robot at ({start[0]}, {start[1]}) is not inside arena.bounds {list(bounds)}")
-            if not _inside(bounds, start[0], start[1], BODY_RADIUS):
-                self.fail(f"{p}.start", f"robot at ({start[0]}, {start[1]}) with body radius {BODY_RADIUS} m reaches "
-                          f"outside arena.bounds {list(bounds)} (its centre must be at least {BODY_RADIUS} m inside)")
-            robots.append(RobotSpec(rid, (start[0], start[1], start[2]), goal))
-
-        # targets
-        targets: list[TargetSpec] = []
-        for i, tr in enumerate(self.items(doc.get("targets", []), "targets")):
-            p = f"targets[{i}]"
-            t = self.table(tr, p, ("id",), ("position", "motion"))
-            tid = self.ident(t["id"], f"{p}.id", _max_length(TargetId))
-            claim(tid, f"{p}.id")
-            motion = self.motion(
-                t.get("motion", {"type": "fixed"}), f"{p}.motion", ("fixed", "circle", "line", "random_walk"), bounds
-            )
-            if isinstance(motion, (Fixed, RandomWalk)):
-                if "position" not in t:
-                    self.fail(f"{p}.position", f"missing (required for a {motion.kind} target)")
-                pos = self.point(t["position"], f"{p}.position")
-                if not _inside(bounds, pos[0], pos[1], 0.0):
-                    self.fail(f"{p}.position", f"{list(pos)} is not inside arena.bounds {list(bounds)}")
-                if isinstance(motion, RandomWalk) and not _inside(motion.bounds, pos[0], pos[1], 0.0):
-                    self.fail(f"{p}.position", f"{list(pos)} is not inside motion.bounds {list(motion.bounds)}")
-            else:
-                if "position" in t:
-                    self.fail(f"{p}.position", f"must not be given for a {motion.kind} target (the motion sets it)")
-                pos = motion.position(0.0)
-            targets.append(TargetSpec(tid, pos, motion, p))
-
+        robots = self.robots(doc["robots"], bounds, claim)
+        targets = [self.target(tr, f"targets[{i}]", bounds, claim)
+                   for i, tr in enumerate(self.items(doc.get("targets", []), "targets"))]
         for i, r in enumerate(robots):
             if r.goal is not None and not any(tg.id == r.goal for tg in targets):
                 known = ", ".join(tg.id for tg in targets) or "none"
                 self.fail(f"robots[{i}].goal", f"unknown target id {r.goal!r} (targets: {known})")
-
-        # walls
-        walls: list[WallSpec] = []
-        if boundary:
-            walls.extend(_boundary_walls(bounds, wall_t))
-        for i, w in enumerate(self.items(doc.get("walls", []), "walls")):
-            p = f"walls[{i}]"
-            t = self.table(w, p, ("a", "b"), ("thickness", "known"))
-            a = self.point(t["a"], f"{p}.a")
-            b = self.point(t["b"], f"{p}.b")
-            if math.hypot(b[0] - a[0], b[1] - a[1]) < 1e-6:
-                self.fail(f"{p}.b", "must differ from a (zero-length wall)")
-            th = self.number(t.get("thickness", wall_t), f"{p}.thickness", gt=0.0, le=1.0)
-            known = self.boolean(t.get("known", True), f"{p}.known")
-            walls.append(WallSpec(a, b, th, known, p, tuple(geo.wall_outline(a, b, th))))
-
-        # obstacles
-        obstacles: list[ObstacleSpec] = []
-        for i, o in enumerate(self.items(doc.get("obstacles", []), "obstacles")):
-            obstacles.append(self.obstacle(o, f"obstacles[{i}]", i, claim, bounds))
+        walls = _boundary_walls(bounds, wall_t) if boundary else []
+        walls += [self.wall(w, f"walls[{i}]", wall_t) for i, w in enumerate(self.items(doc.get("walls", []), "walls"))]
+        obstacles = [self.obstacle(o, f"obstacles[{i}]", i, claim, bounds)
+                     for i, o in enumerate(self.items(doc.get("obstacles", []), "obstacles"))]
 
         sc = Scenario(
             name=name,
@@ -270,25 +211,75 @@ class Parser:
         self.check_overlaps(sc)
         return sc
 
+    def arena(self, a: Any) -> tuple[tuple[float, ...], bool, float]:
+        """``[arena]``: its bounds, whether it has boundary walls, and their thickness."""
+        arena = self.table(a, "arena", ("bounds",), ("boundary_walls", "wall_thickness"))
+        bounds = self.vector(arena["bounds"], "arena.bounds", 4, "[xmin, ymin, xmax, ymax]")
+        if not (bounds[0] < bounds[2] and bounds[1] < bounds[3]):
+            self.fail("arena.bounds", f"must satisfy xmin < xmax and ymin < ymax, got {list(bounds)}")
+        boundary = self.boolean(arena.get("boundary_walls", True), "arena.boundary_walls")
+        wall_t = self.number(arena.get("wall_thickness", DEFAULT_WALL_THICKNESS), "arena.wall_thickness",
+                             gt=0.0, le=1.0)
+        return bounds, boundary, wall_t
+
+    def robots(self, raw: Any, bounds: tuple[float, ...], claim: Any) -> list[RobotSpec]:
+        """``[[robots]]``: at least one, each inside the arena with its whole body."""
+        robots_raw = self.items(raw, "robots")
+        if not robots_raw:
+            self.fail("robots", "at least one robot is required")
+        robots: list[RobotSpec] = []
+        for i, r in enumerate(robots_raw):
+            p = f"robots[{i}]"
+            t = self.table(r, p, ("id", "start"), ("goal",))
+            rid = self.robot_id(t["id"], f"{p}.id")
+            claim(rid, f"{p}.id")
+            start = self.vector(t["start"], f"{p}.start", 3, "[x, y, theta]")
+            goal = self.ident(t["goal"], f"{p}.goal") if "goal" in t else None
+            if not _inside(bounds, start[0], start[1], 0.0):
+                self.fail(f"{p}.start", f"robot at ({start[0]}, {start[1]}) is not inside arena.bounds {list(bounds)}")
+            if not _inside(bounds, start[0], start[1], BODY_RADIUS):
+                self.fail(f"{p}.start", f"robot at ({start[0]}, {start[1]}) with body radius {BODY_RADIUS} m reaches "
+                          f"outside arena.bounds {list(bounds)} (its centre must be at least {BODY_RADIUS} m inside)")
+            robots.append(RobotSpec(rid, (start[0], start[1], start[2]), goal))
+        return robots
+
+    def target(self, tr: Any, p: str, bounds: tuple[float, ...], claim: Any) -> TargetSpec:
+        """One ``[[targets]]``: a fixed or random-walk target at its ``position``, a circling
+        or line target where its motion puts it at t = 0."""
+        t = self.table(tr, p, ("id",), ("position", "motion"))
+        tid = self.ident(t["id"], f"{p}.id", _max_length(TargetId))
+        claim(tid, f"{p}.id")
+        motion = self.motion(
+            t.get("motion", {"type": "fixed"}), f"{p}.motion", ("fixed", "circle", "line", "random_walk"), bounds
+        )
+        if isinstance(motion, (Fixed, RandomWalk)):
+            if "position" not in t:
+                self.fail(f"{p}.position", f"missing (required for a {motion.kind} target)")
+            pos = self.point(t["position"], f"{p}.position")
+            if not _inside(bounds, pos[0], pos[1], 0.0):
+                self.fail(f"{p}.position", f"{list(pos)} is not inside arena.bounds {list(bounds)}")
+            if isinstance(motion, RandomWalk) and not _inside(motion.bounds, pos[0], pos[1], 0.0):
+                self.fail(f"{p}.position", f"{list(pos)} is not inside motion.bounds {list(motion.bounds)}")
+        else:
+            if "position" in t:
+                self.fail(f"{p}.position", f"must not be given for a {motion.kind} target (the motion sets it)")
+            pos = motion.position(0.0)
+        return TargetSpec(tid, pos, motion, p)
+
+    def wall(self, w: Any, p: str, wall_t: float) -> WallSpec:
+        """One ``[[walls]]``: a segment a-b of ``thickness`` (the arena's by default)."""
+        t = self.table(w, p, ("a", "b"), ("thickness", "known"))
+        a = self.point(t["a"], f"{p}.a")
+        b = self.point(t["b"], f"{p}.b")
+        if math.hypot(b[0] - a[0], b[1] - a[1]) < 1e-6:
+            self.fail(f"{p}.b", "must differ from a (zero-length wall)")
+        th = self.number(t.get("thickness", wall_t), f"{p}.thickness", gt=0.0, le=1.0)
+        known = self.boolean(t.get("known", True), f"{p}.known")
+        return WallSpec(a, b, th, known, p, tuple(geo.wall_outline(a, b, th)))
+
     def obstacle(self, o: Any, p: str, index: int, claim: Any, bounds: tuple[float, ...]) -> ObstacleSpec:
-        if not isinstance(o, dict):
-            self.fail(p, f"must be a table, got {_tname(o)}")
-        if "shape" not in o:
-            self.fail(f"{p}.shape", "missing (required; one of: disc, box, polygon, concave)")
-        shape = self.enum(o["shape"], f"{p}.shape", ("disc", "box", "polygon", "concave"))
-        moving = "motion" in o
-        common = ("shape", "id", "known", "motion")
-        fields = {
-            "disc": (("radius",), ("center",)),
-            "box": (("size",), ("center", "angle")),
-            "polygon": (("vertices",), ()),
-            "concave": (("center", "width", "depth"), ("thickness", "facing")),
-        }[shape]
-        req, opt = fields
-        if not moving and shape in ("disc", "box"):
-            req = req + ("center",)
-            opt = tuple(k for k in opt if k != "center")
-        t = self.table(o, p, req + ("shape",), opt + common)
+        shape, t = self.obstacle_table(o, p)
+        moving = "motion" in t
         oid = self.ident(t["id"], f"{p}.id", _max_length(EntryId)) if "id" in t else f"o{index + 1}"
         claim(oid, f"{p}.id")
         known = self.boolean(t.get("known", False), f"{p}.known")
@@ -314,40 +305,12 @@ class Parser:
             if not moving:
                 center = self.point(t["center"], f"{p}.center")
         elif shape == "box":
-            size = self.vector(t["size"], f"{p}.size", 2, "[width, height]")
-            for k, s in enumerate(size):
-                if not s > 0:
-                    self.fail(f"{p}.size[{k}]", f"out of range: {s} (must be > 0)")
-            angle = self.number(t.get("angle", 0.0), f"{p}.angle")
-            params.update(size=list(size), angle=angle)
-            local = geo.box_local(size[0], size[1])
-            if moving:
-                outline = geo.transform(local, (0.0, 0.0), angle)
-            else:
-                center = self.point(t["center"], f"{p}.center")
-                outline = geo.transform(local, center, angle)
+            center, outline = self.box(t, p, moving, params)
             parts = [outline]
         elif shape == "polygon":
-            vs = t["vertices"]
-            if not isinstance(vs, list):
-                self.fail(f"{p}.vertices", f"must be an array of [x, y] points, got {_tname(vs)}")
-            verts = [self.point(v, f"{p}.vertices[{k}]") for k, v in enumerate(vs)]
-            problem = geo.simple_polygon_problem(verts)
-            if problem:
-                self.fail(f"{p}.vertices", f"not a valid polygon: {problem}")
-            outline = geo.ccw(verts)
-            parts = geo.convex_parts(outline)
-            params["vertices"] = [list(v) for v in verts]
+            outline, parts = self.polygon(t, p, params)
         else:  # concave
-            center = self.point(t["center"], f"{p}.center")
-            width = self.number(t["width"], f"{p}.width", gt=0.0, le=50.0)
-            depth = self.number(t["depth"], f"{p}.depth", gt=0.0, le=50.0)
-            th = self.number(t.get("thickness", DEFAULT_WALL_THICKNESS), f"{p}.thickness", gt=0.0, le=1.0)
-            facing = self.number(t.get("facing", 0.0), f"{p}.facing")
-            params.update(width=width, depth=depth, thickness=th, facing=facing)
-            lo, lp = geo.concave_local(width, depth, th)
-            outline = geo.transform(lo, center, facing)
-            parts = [geo.ccw(geo.transform(q, center, facing)) for q in lp]
+            center, outline, parts = self.concave(t, p, params)
         if center is not None:
             params["center"] = list(center)
         return ObstacleSpec(
@@ -362,6 +325,65 @@ class Parser:
             parts=tuple(tuple(q) for q in parts),
             motion=motion,
         )
+
+    def obstacle_table(self, o: Any, p: str) -> tuple[str, dict[str, Any]]:
+        """An obstacle's shape and its table, with the keys that shape takes (a static disc
+        or box needs its ``center``; a moving one's motion sets it)."""
+        if not isinstance(o, dict):
+            self.fail(p, f"must be a table, got {_tname(o)}")
+        if "shape" not in o:
+            self.fail(f"{p}.shape", "missing (required; one of: disc, box, polygon, concave)")
+        shape = self.enum(o["shape"], f"{p}.shape", ("disc", "box", "polygon", "concave"))
+        common = ("shape", "id", "known", "motion")
+        req, opt = {
+            "disc": (("radius",), ("center",)),
+            "box": (("size",), ("center", "angle")),
+            "polygon": (("vertices",), ()),
+            "concave": (("center", "width", "depth"), ("thickness", "facing")),
+        }[shape]
+        if "motion" not in o and shape in ("disc", "box"):
+            req = req + ("center",)
+            opt = tuple(k for k in opt if k != "center")
+        return shape, self.table(o, p, req + ("shape",), opt + common)
+
+    def box(self, t: dict[str, Any], p: str, moving: bool, params: dict[str, Any]) -> tuple[Point | None, list[Point]]:
+        """A box's centre (None when it moves) and outline (local to its path when it moves)."""
+        size = self.vector(t["size"], f"{p}.size", 2, "[width, height]")
+        for k, s in enumerate(size):
+            if not s > 0:
+                self.fail(f"{p}.size[{k}]", f"out of range: {s} (must be > 0)")
+        angle = self.number(t.get("angle", 0.0), f"{p}.angle")
+        params.update(size=list(size), angle=angle)
+        local = geo.box_local(size[0], size[1])
+        if moving:
+            return None, geo.transform(local, (0.0, 0.0), angle)
+        center = self.point(t["center"], f"{p}.center")
+        return center, geo.transform(local, center, angle)
+
+    def polygon(self, t: dict[str, Any], p: str, params: dict[str, Any]) -> tuple[list[Point], list[list[Point]]]:
+        """A simple polygon's outline (counter-clockwise) and its convex parts."""
+        vs = t["vertices"]
+        if not isinstance(vs, list):
+            self.fail(f"{p}.vertices", f"must be an array of [x, y] points, got {_tname(vs)}")
+        verts = [self.point(v, f"{p}.vertices[{k}]") for k, v in enumerate(vs)]
+        problem = geo.simple_polygon_problem(verts)
+        if problem:
+            self.fail(f"{p}.vertices", f"not a valid polygon: {problem}")
+        outline = geo.ccw(verts)
+        params["vertices"] = [list(v) for v in verts]
+        return outline, geo.convex_parts(outline)
+
+    def concave(self, t: dict[str, Any], p: str,
+                params: dict[str, Any]) -> tuple[Point, list[Point], list[list[Point]]]:
+        """A U-shaped obstacle's centre, outline and convex parts."""
+        center = self.point(t["center"], f"{p}.center")
+        width = self.number(t["width"], f"{p}.width", gt=0.0, le=50.0)
+        depth = self.number(t["depth"], f"{p}.depth", gt=0.0, le=50.0)
+        th = self.number(t.get("thickness", DEFAULT_WALL_THICKNESS), f"{p}.thickness", gt=0.0, le=1.0)
+        facing = self.number(t.get("facing", 0.0), f"{p}.facing")
+        params.update(width=width, depth=depth, thickness=th, facing=facing)
+        lo, lp = geo.concave_local(width, depth, th)
+        return center, geo.transform(lo, center, facing), [geo.ccw(geo.transform(q, center, facing)) for q in lp]
 
     def motion(self, m: Any, p: str, kinds: tuple[str, ...], bounds: tuple[float, ...]) -> Motion:
         if not isinstance(m, dict):
@@ -433,8 +455,6 @@ class Parser:
                 self.fail(where, f"lies wholly outside arena.bounds {list(sc.bounds)}: it can meet nothing")
 
     def check_overlaps(self, sc: Scenario) -> None:
-        from ._physics import StaticIndex
-
         idx = StaticIndex(sc)
         r = BODY_RADIUS
         for i, rb in enumerate(sc.robots):
@@ -471,7 +491,7 @@ def _boundary_walls(b: tuple[float, ...], t: float) -> list[WallSpec]:
     names = ("south", "east", "north", "west")
     return [
         WallSpec(a, bb, t, True, f"arena.boundary_walls ({n})", tuple(geo.wall_outline(a, bb, t)))
-        for (a, bb), n in zip(segs, names)
+        for (a, bb), n in zip(segs, names, strict=True)
     ]
 
 

@@ -7,6 +7,8 @@ builds them as messages; :class:`SenseEncoder` gives their wire bytes."""
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -14,7 +16,16 @@ import numpy as np
 from cekm_swarm.protocol import KeySpace, SenseRange, SenseTarget, encode
 from cekm_swarm.robot import centre_distance
 
-from .episode import TickReadings
+
+@dataclass
+class TickReadings:
+    """What one robot's modules receive at a tick."""
+
+    robot: str
+    t: float
+    ranges: np.ndarray  # (12,) surface ranges, NaN = nothing seen
+    target: tuple[float, float, bool] | None  # (alpha, d, visible), None when not due
+
 
 SENDER = "world"
 """The sender of every message the world publishes."""
@@ -33,7 +44,8 @@ def _sense_keys(keys: KeySpace, robot: str, n: int) -> tuple[list[str], str]:
     return hit
 
 
-def sense_messages(keys: KeySpace, rd: TickReadings, sensor_angles, body_radius: float) -> list[tuple[str, Any]]:
+def sense_messages(keys: KeySpace, rd: TickReadings, sensor_angles: Sequence[float],
+                   body_radius: float) -> list[tuple[str, Any]]:
     """The sense messages of one robot's readings at one tick: 12 ranges (+ the target)."""
     out: list[tuple[str, Any]] = []
     t = rd.t
@@ -51,7 +63,7 @@ class SenseEncoder:
     encode(msg)) for key, msg in sense_messages(...)]`` (tested), with the robot's keys
     and sensor directions taken once."""
 
-    def __init__(self, keys: KeySpace, robot: str, sensor_angles, body_radius: float) -> None:
+    def __init__(self, keys: KeySpace, robot: str, sensor_angles: Sequence[float], body_radius: float) -> None:
         self.keys, self.radius = keys, body_radius
         self.angles = [float(a) for a in sensor_angles]
         self.range_keys = [keys.sense_range(robot, j) for j in range(len(self.angles))]

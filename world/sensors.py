@@ -7,6 +7,7 @@ of its own, so reading a sensor more or less often never changes another stream.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -28,7 +29,7 @@ class RangeSensors:
     """The distance sensors of every robot of one space (a robot's own shape is skipped
     by its shape filter's group, i + 1)."""
 
-    def __init__(self, space, n: int, angles: np.ndarray, body_radius: float, sensor_range: float,
+    def __init__(self, space: Any, n: int, angles: np.ndarray, body_radius: float, sensor_range: float,
                  rngs: list[np.random.Generator], ray_category: int, seen_mask: int) -> None:
         self._sp = cp.cp_space(space)
         self.n, self.radius, self.range = n, body_radius, sensor_range
@@ -39,7 +40,7 @@ class RangeSensors:
         self._info, self._pinfo = cp.segment_info(), cp.point_info()
         self.clear = [math.inf] * n  # each robot's smallest clearance so far
         self.near = [True] * n  # something within sensor range now
-        self._noise = [[] for _ in range(n)]
+        self._noise: list[list[float]] = [[] for _ in range(n)]
         self._noise_at = [0] * n
 
     def update_clearance(self, px: list[float], py: list[float]) -> None:
@@ -66,7 +67,7 @@ class RangeSensors:
         q, sp, f, info = cp.segment_query_first, self._sp, self.filters[i], self._info
         start = cp.vect(x, y)
         r = self.radius
-        out = []
+        out: list[float] = []
         app = out.append
         for cj, sj in self.dirs:
             q(sp, start, (x + c * cj - s * sj, y + s * cj + c * sj), 0.0, f, info)
@@ -91,7 +92,8 @@ class RangeSensors:
         may exceed the range by up to the 10 % noise)."""
         lim, res, nan = self.range, RANGE_RESOLUTION, math.nan
         u = self._noise_draws(i)
-        return np.array([round(d * (1.0 + e) / res) * res if d <= lim else nan for d, e in zip(self.cast(i, x, y, th), u)])
+        return np.array([round(d * (1.0 + e) / res) * res if d <= lim else nan
+                         for d, e in zip(self.cast(i, x, y, th), u, strict=True)])
 
 
 def target_reading(rng: np.random.Generator, pose: tuple[float, float, float], target: tuple[float, float],

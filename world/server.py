@@ -37,6 +37,7 @@ Imports only ``world``, the protocol, the transport, the robot's body and graphs
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import logging
 import math
 import signal
@@ -90,11 +91,11 @@ from .config import (
     world_options,
 )
 from .deadman import Deadman
-from .episode import make_episode
 from .inbox import CommandInbox
 from .outcome import RunStats, emit, latency_ms, progress_doc, write_outputs
 from .publisher import TickPublisher
 from .recorder import LEAN_VIEW_TICKS, RECORD_QUEUE, RecordFilter, open_run_log
+from .run_episode import make_episode
 from .scenario import ScenarioError, load_scenario
 from .sim import World
 from .tracking import run_kind
@@ -138,8 +139,9 @@ class WorldServer:
         self.drops = DropCounter("world commands", keys=self.keys)
         self.record_drops = DropCounter("world recorder", keys=self.keys)
         plan = self.plan
-        declared = None if plan is None else {k: v for r in self.robots for k, v in plan.sent_keys(r).items()}
+        declared = None
         if plan is not None:  # each node's parameter changes (cekm param set), recorded as its messages are
+            declared = {k: v for r in self.robots for k, v in plan.sent_keys(r).items()}
             declared.update({self.keys.param(r, n.name): PARAM_CHANGE_KIND for r in self.robots for n in plan.nodes[r]})
         self.declared = declared
         answers = ({plan.answer_key(r): r for r in self.robots} if plan is not None
@@ -189,8 +191,9 @@ class WorldServer:
         out = []  # no run spec: every reading the world publishes for the task
         for rel, wk in WORLD_KEYS.items():
             if wk.per_robot and self.task in wk.tasks:
-                out += [f"{self.keys.root}/{robot}/{rel.replace('{j}', str(j))}" for j in range(self.keys.range_sensors)] \
-                    if "{j}" in rel else [f"{self.keys.root}/{robot}/{rel}"]
+                head = f"{self.keys.root}/{robot}/"
+                out += [head + rel.replace("{j}", str(j)) for j in range(self.keys.range_sensors)] \
+                    if "{j}" in rel else [head + rel]
         return out
 
     def _clock(self) -> LockstepClock | RealtimeClock:
@@ -204,35 +207,19 @@ class WorldServer:
         cfg = self.config
         loop = asyncio.get_running_loop()
         for sig in (signal.SIGTERM, signal.SIGINT):
-            try:
+            with contextlib.suppress(NotImplementedError, RuntimeError):  # pragma: no cover
                 loop.add_signal_handler(sig, self._request_stop)
-            except (NotImplementedError, RuntimeError):  # pragma: no cover
-                pass
-        self.inbox.wake = lambda: loop.call_soon_threadsafe(self.arrived.set)
+        def wake() -> None:  # from Zenoh's thread: a command arrived
+            loop.call_soon_threadsafe(self.arrived.set)
+
+        self.inbox.wake = wake
         self.deadman.restart(time.monotonic())
         geometry = self.world.static_geometry()
         pub = self.publisher
-        # first: a router that cannot start (a taken port), or none to join, leaves no log behind; the
-        # wait for an outside router runs in a thread, so a signal ends it at once
+        # first: a router that cannot start (a taken port), or none to join, leaves no log behind
+        session = await self._open_session()
         try:
-            session = await asyncio.to_thread(open_world_session, cfg, self.stop_waiting)
-        except RuntimeTransportError:
-            if self.stop_waiting.is_set():
-                raise StoppedWaiting(f"stopped while waiting for the router at {cfg.connect}") from None
-            if cfg.listen or cfg.wait_router <= 0:
-                raise
-            raise RuntimeTransportError(f"no Zenoh router at {cfg.connect} after waiting {cfg.wait_router:g} s "
-                                        f"(--wait-router): start the router first, or check --connect") from None
-        if self.stop.is_set():
-            session.close()
-            raise StoppedWaiting(f"stopped while waiting for the router at {cfg.connect}")
-        try:
-            pub.recorder, pub.views = open_run_log(self.out / "run.mcap", self.scenario.name, self.world.seed,
-                                                   cfg.mode, geometry, self.world.body_radius,
-                                                   max_bytes=cfg.max_log_size, max_seconds=cfg.max_log_duration,
-                                                   record=cfg.record, keys=self.keys, kinds=self.declared,
-                                                   schemas=None if self.spec is None else
-                                                   {**self.spec.schemas, **user_schemas([ParamChange])})
+            pub.recorder, pub.views = self._open_log(geometry)
         except BaseException:
             session.close()
             raise
@@ -240,10 +227,12 @@ class WorldServer:
         aborted = False
         try:
             pub.pubs = Publishers(session, block=True, express=False)
-            pub.record_sub = session.declare_subscriber(self.keys.everything(), zenoh.handlers.RingChannel(RECORD_QUEUE),
+            pub.record_sub = session.declare_subscriber(self.keys.everything(),
+                                                        zenoh.handlers.RingChannel(RECORD_QUEUE),
                                                         allowed_origin=zenoh.Locality.REMOTE)
             keys = self.inbox.answer_keys
-            on = ([self.keys.cmd_wheels_all()] if all(k == self.keys.cmd_wheels(r) for k, r in keys.items()) else list(keys))
+            every_robot = all(k == self.keys.cmd_wheels(r) for k, r in keys.items())
+            on = [self.keys.cmd_wheels_all()] if every_robot else list(keys)
             cmd_subs = [InlineSubscription(session, k, self.inbox.on_command) for k in on]
             token = declare_alive(session, self.keys.alive("world", "server"))
             served = [serve_geometry(session, self.keys.world_geometry(), geometry)]  # for `cekm record`
@@ -254,12 +243,7 @@ class WorldServer:
                 self._request_stop()
             t_wall0 = time.perf_counter()
             rejoins = self._watch_rejoins(session) if pub.held else None
-            for r in self.robots:  # every node's subscription must be known before tick 0 is published
-                for k in self._world_keys(r):
-                    if self.stop.is_set():
-                        break
-                    if not await wait_matching_async(pub.pubs.publisher(k), cfg.match_timeout):
-                        log.warning("no subscriber on %s after %.0f s; starting anyway", k, cfg.match_timeout)
+            await self._wait_subscribers()
             start = loop.time()
             try:
                 aborted = not await self._ticks()
@@ -292,6 +276,43 @@ class WorldServer:
                 self._lost_log(exc, self.episode.t)
                 aborted = True
         return self._write_outputs(time.perf_counter() - t_wall0, aborted)
+
+    async def _open_session(self) -> zenoh.Session:
+        """The world's Zenoh session: the router it hosts, or one it joins (waiting for it in a
+        thread, so that a signal ends the wait at once)."""
+        cfg = self.config
+        try:
+            session = await asyncio.to_thread(open_world_session, cfg, self.stop_waiting)
+        except RuntimeTransportError:
+            if self.stop_waiting.is_set():
+                raise StoppedWaiting(f"stopped while waiting for the router at {cfg.connect}") from None
+            if cfg.listen or cfg.wait_router <= 0:
+                raise
+            raise RuntimeTransportError(f"no Zenoh router at {cfg.connect} after waiting {cfg.wait_router:g} s "
+                                        f"(--wait-router): start the router first, or check --connect") from None
+        if self.stop.is_set():
+            session.close()
+            raise StoppedWaiting(f"stopped while waiting for the router at {cfg.connect}")
+        return session
+
+    def _open_log(self, geometry: dict[str, Any]) -> tuple[Any, Any]:
+        """The run's log (``run.mcap`` or its set) and its Foxglove views."""
+        cfg = self.config
+        schemas = None if self.spec is None else {**self.spec.schemas, **user_schemas([ParamChange])}
+        return open_run_log(self.out / "run.mcap", self.scenario.name, self.world.seed, cfg.mode, geometry,
+                            self.world.body_radius, max_bytes=cfg.max_log_size, max_seconds=cfg.max_log_duration,
+                            record=cfg.record, keys=self.keys, kinds=self.declared, schemas=schemas)
+
+    async def _wait_subscribers(self) -> None:
+        """Every node's subscription known before tick 0 is published (at most ``--match-timeout``
+        s a key, then the run starts anyway, saying so)."""
+        timeout = self.config.match_timeout
+        for r in self.robots:
+            for k in self._world_keys(r):
+                if self.stop.is_set():
+                    break
+                if not await wait_matching_async(self.publisher.pubs.publisher(k), timeout):
+                    log.warning("no subscriber on %s after %.0f s; starting anyway", k, timeout)
 
     async def _ticks(self) -> bool:
         """The tick loop; False when it was stopped before the run's end."""

@@ -42,7 +42,7 @@ from . import _physics as ph
 from . import chipmunk as cp
 from . import geometry as geo
 from .motion import CircleMotion, Fixed, LineMotion, RandomWalk
-from .scenario import BODY_RADIUS, Scenario
+from .scenario_spec import BODY_RADIUS, Scenario
 from .sensors import RangeSensors, target_reading
 from .snapshot import static_geometry, world_state
 
@@ -169,12 +169,14 @@ class World:
         self._exec = np.zeros((n, 2))
         self._goal: list[tuple[str, Any] | None] = []
         tindex = {t.id: k for k, t in enumerate(scenario.targets)}
-        self._tindex, self._encoders = tindex, np.zeros((n, 2))  # wheel encoders: each wheel's travel (m) since t = 0
+        self._tindex = tindex
+        self._encoders = np.zeros((n, 2))  # wheel encoders: each wheel's travel (m) since t = 0
         for r in scenario.robots:
             self._goal.append(("target", tindex[r.goal]) if r.goal is not None else None)
         self._tpos = np.array([t.position for t in scenario.targets], dtype=float).reshape(-1, 2)
-        self._theading = np.array([t.motion.heading if isinstance(t.motion, RandomWalk) else 0.0
-                                   for t in scenario.targets], dtype=float)
+        self._theading = np.array(
+            [t.motion.heading if isinstance(t.motion, RandomWalk) else 0.0 for t in scenario.targets], dtype=float
+        )
         self._path = [0.0] * n
         self._contact_steps = [0] * n
         self._sensor_range = scenario.sensor_range
@@ -470,13 +472,14 @@ class World:
                               self.scenario.target_range)
 
     # ------------------------------------------------------------------ records
-    def stats(self, robot_id: str) -> dict[str, float | int]:
+    def stats(self, robot_id: str) -> dict[str, Any]:
         """path_length_m (sum over sub-steps), collisions (new contacts with a wall, an obstacle
-        or a robot: one per item touched; the same item again within 0.256 s counts once),
-        collisions_with (those per item), min_clearance_m (smallest body-surface distance to any
-        wall/obstacle/robot so far, negative when penetrating; inf if nothing else is there),
-        contact_s (time touching something, per sub-step ending in contact), left_arena_s (when
-        its centre first left the bounds of a walled arena, pushed through a wall; None: never)."""
+        or a robot: one per item touched; touching the same item again within 0.256 s counts
+        once), collisions_with (those counts per item touched), min_clearance_m (smallest
+        body-surface distance to any wall/obstacle/robot so far, negative when penetrating; inf
+        if the world has nothing else in it), contact_s (time spent touching something, counted
+        per sub-step that ends in contact), left_arena_s (when its centre first left the bounds
+        of a walled arena, pushed through a wall; None: never)."""
         i = self._i(robot_id)
         return {
             "path_length_m": self._path[i],

@@ -48,7 +48,8 @@ def static_geometry(sc: Any, body_radius: float, sensor_range: float) -> dict[st
                            "motion": o.motion.to_dict()})
         elif o.shape == "disc":
             assert o.center is not None
-            discs.append({"id": o.id, "center": list(o.center), "radius": o.radius, "known": o.known, "source": o.source})
+            discs.append({"id": o.id, "center": list(o.center), "radius": o.radius, "known": o.known,
+                          "source": o.source})
         else:
             assert o.outline is not None
             polygons.append({"id": o.id, "shape": o.shape, "vertices": [list(p) for p in o.outline],
@@ -57,5 +58,5 @@ def static_geometry(sc: Any, body_radius: float, sensor_range: float) -> dict[st
     targets = [{"id": t.id, "position": list(t.position), "motion": t.motion.to_dict()} for t in sc.targets]
     robots = [{"id": r.id, "start": list(r.start), "goal": r.goal} for r in sc.robots]
     return {"name": sc.name, "bounds": list(sc.bounds), "body_radius": body_radius, "target_range": sc.target_range,
-            "sensor_range": sensor_range, "walls": walls, "polygons": polygons, "discs": discs, "moving_obstacles": moving,
-            "targets": targets, "robots": robots}
+            "sensor_range": sensor_range, "walls": walls, "polygons": polygons, "discs": discs,
+            "moving_obstacles": moving, "targets": targets, "robots": robots}

@@ -20,14 +20,17 @@ experiments may import the world.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
 from cekm_swarm.protocol.messages import SensePose, SenseTargets
+from cekm_swarm.ticks import TARGET_EVERY, TICK_S, tick_time
 
+from .progress import RobotProgress
 from .rows import Rows
-from .scenario import ScenarioError
-from .sense import SENDER
+from .scenario_spec import ScenarioError
+from .sense import SENDER, TickReadings
 from .sim import World
 
 
@@ -74,15 +77,16 @@ def tracking_sense(world: World, robot: str, stamp: float) -> tuple[SensePose, S
     return pose, SenseTargets(stamp, SENDER, seen)
 
 
-def _path_length(path) -> float:
+def _path_length(path: Rows) -> float:
     """Sum of the steps between consecutive (t, x, y, theta) rows, in order (``sum`` of a
     generator: the same additions as over a list)."""
     rows = iter(path)
     prev = next(rows, None)
 
-    def steps():
+    def steps() -> Iterator[float]:
         nonlocal prev
         for b in rows:
+            assert prev is not None  # a path with a row after the first
             yield math.hypot(b[1] - prev[1], b[2] - prev[2])
             prev = b
 
@@ -184,8 +188,6 @@ class TrackingEpisode:
     task = "tracking"
 
     def __init__(self, world: World, max_ticks: int) -> None:
-        from .episode import RobotProgress
-
         self.world = world
         self.max_ticks = max_ticks  # the last tick: sampled, but no path point (as the in-process runner)
         self.tick = 0
@@ -196,19 +198,13 @@ class TrackingEpisode:
 
     @property
     def t(self) -> float:
-        from .episode import TICK_S
-
-        return round(self.tick * TICK_S, 9)
+        return tick_time(self.tick)
 
     @property
     def target_due(self) -> bool:
-        from .episode import TARGET_EVERY
-
         return self.tick % TARGET_EVERY == 0
 
-    def readings(self) -> list:
-        from .episode import TickReadings
-
+    def readings(self) -> list[TickReadings]:
         w, t = self.world, self.t
         self.observed_by = self.meter.sample(w, t)
         out = []
@@ -229,8 +225,6 @@ class TrackingEpisode:
             self.progress[r].commands.append((v_l, v_r))
 
     def advance(self) -> None:
-        from .episode import TICK_S
-
         self.world.advance(TICK_S)
         self.tick += 1
 
@@ -252,7 +246,7 @@ class TrackingEpisode:
     def draw(self, views: Any, t: float, state: dict[str, Any]) -> None:
         views.write_tracking(t, state, self.world.target_range, self.observed_by)
 
-    def outcome(self) -> dict[str, dict]:
+    def outcome(self) -> dict[str, dict[str, Any]]:
         """Per robot, as ``cekm run`` on a tracking scenario writes it: path length, collisions, final pose."""
         out = {}
         for r, p in self.progress.items():

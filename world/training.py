@@ -5,6 +5,8 @@ no controller code here."""
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from .episode import Episode
@@ -29,8 +31,8 @@ class TrainingEpisode(Episode):
         self.budget = budget_ticks
         self.since = {r: 0 for r in world.robot_ids}  # the tick the robot's current target was given
         self.reached_count = {r: 0 for r in world.robot_ids}
-        self.explore_rngs = ({r: np.random.default_rng([seed, i, EXPLORE_STREAM]) for i, r in enumerate(world.robot_ids)}
-                             if world.scenario.explore else None)
+        self.explore_rngs = ({r: np.random.default_rng([seed, i, EXPLORE_STREAM])
+                              for i, r in enumerate(world.robot_ids)} if world.scenario.explore else None)
 
     def apply(self, commands: dict[str, tuple[float, float]]) -> None:
         if self.explore_rngs is not None:
@@ -50,7 +52,7 @@ class TrainingEpisode(Episode):
     def done(self) -> bool:
         return False  # training runs to its max time
 
-    def outcome(self) -> dict[str, dict]:
+    def outcome(self) -> dict[str, dict[str, Any]]:
         """:meth:`Episode.outcome` (of each robot's current target) and the targets it reached."""
         out = super().outcome()
         for r, o in out.items():

@@ -122,7 +122,7 @@ class GraphSession:
                  step_timeout: float | None = STEP_TIMEOUT,
                  observe: Callable[[GraphExecutor, int], None] | None = None) -> None:
         from world import World  # noqa: PLC0415 -- lazy: pymunk, world
-        from world.episode import make_episode  # noqa: PLC0415 -- lazy: pymunk, world
+        from world.run_episode import make_episode  # noqa: PLC0415 -- lazy: pymunk, world
         from world.tracking import run_kind  # noqa: PLC0415 -- lazy: pymunk, world
 
         task = run_kind(scenario, checkpoints or {})

@@ -12,7 +12,6 @@ import click
 from click.core import ParameterSource
 
 from cekm_swarm.cli_support import (
-    ENDPOINT,
     ROOT,
     RUN_ID,
     SIZE,
@@ -38,6 +37,7 @@ from cekm_swarm.runtime.errors import RuntimeTransportError
 from cekm_swarm.runtime.log_commands import LOG_HELP
 from cekm_swarm.runtime.mcap_sets import log_files
 from cekm_swarm.runtime.wait import resolve_endpoint
+from cekm_swarm.runtime.options import ENDPOINT
 from cekm_swarm.ticks import STEP_TIMEOUT
 
 from .errors import NodeCannotStart, NodeFailed

@@ -5,29 +5,12 @@ draws them (the paper's Fig. 13)."""
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any, cast
 
-from mcap.reader import make_reader
-
 from cekm_swarm.protocol import DEFAULT_ROOT, KeyKind, KeySpace, MessageError, WorldState, decode
 from cekm_swarm.runtime.mcap_log import log_root, read_messages, without_resends
-from cekm_swarm.runtime.mcap_sets import log_files
-
-
-def read_geometry(path: str | Path) -> dict[str, Any] | None:
-    """The geometry the world server recorded (metadata ``geometry``), None if absent.
-    ``path``: a file, or a log set (its directory or first file), whose every file holds it."""
-
-    try:
-        with open(log_files(path)[0], "rb") as f:
-            for md in make_reader(f).iter_metadata():
-                if md.name == "geometry":
-                    return json.loads(md.metadata["json"])
-    except Exception:  # an unfinished log has no index; draw the paths alone
-        return None
-    return None
+from cekm_swarm.runtime.mcap_read import read_geometry
 
 
 def read_run(path: str | Path, keys: KeySpace | None = None) -> dict[str, Any]:

@@ -53,7 +53,7 @@ class ExportReport:
     read: int = 0
     dropped: int = 0
     complete: bool = True
-    topics: Counter = field(default_factory=Counter)
+    topics: Counter[str] = field(default_factory=Counter)
 
     @property
     def written(self) -> int:

@@ -24,6 +24,8 @@ teleop), one for the Twists; the caller's thread waits for the stop.
 
 from __future__ import annotations
 
+import contextlib
+import functools
 import json
 import logging
 import threading
@@ -82,10 +84,10 @@ class BridgeStats:
     topic, Twists received, refused by reason, and wheel commands sent."""
 
     received: int = 0
-    published: Counter = field(default_factory=Counter)
+    published: Counter[str] = field(default_factory=Counter)
     too_large: int = 0
     twists: int = 0
-    refused: Counter = field(default_factory=Counter)
+    refused: Counter[str] = field(default_factory=Counter)
     commands: int = 0
     errors: int = 0
 
@@ -106,6 +108,7 @@ class _RosPublisher:
         self.gid = gid(self.token_key)
         self.key = topic_key(domain, out.topic, out.ros_type, type_hash)
         drop = zenoh.CongestionControl.DROP
+        self.pub: Any  # a Zenoh publisher, advanced (with a cache) or plain
         if out.qos.transient_local:  # as rmw_zenoh does: a publication cache a late subscriber queries
             self.pub = zenoh.ext.declare_advanced_publisher(
                 session, self.key, encoding=CDR, congestion_control=drop,
@@ -170,7 +173,7 @@ class Bridge:
         self.run_sub = s.declare_subscriber(self.keys.everything(), zenoh.handlers.RingChannel(RUN_RING))
         self._threads.append(threading.Thread(target=self._guard(self._run_loop), name="ros2-run", daemon=True))
         for robot, sub in self._twist_subs.items():
-            self._threads.append(threading.Thread(target=self._guard(lambda r=robot, q=sub: self._twist_loop(r, q)),
+            self._threads.append(threading.Thread(target=self._guard(functools.partial(self._twist_loop, robot, sub)),
                                                   name=f"ros2-teleop-{robot}", daemon=True))
         for t in self._threads:
             t.start()
@@ -355,10 +358,8 @@ def bridge_session(connect: str | None, config_file: str | Path | None = None, *
 
     endpoint = ep.endpoint
     if config_file is not None and not ep.explicit:
-        try:
+        with contextlib.suppress(Exception):  # the file's own endpoint cannot be read: say the default
             endpoint = ", ".join(json.loads(make().get_json("connect/endpoints"))) or ep.endpoint
-        except Exception:  # the file's own endpoint cannot be read: say the default
-            pass
     make()  # a bad config file fails here, before any waiting
     return open_when_ready(make, endpoint, timeout=timeout, say=say, stop=stop)
 

@@ -15,9 +15,12 @@ from typing import Any
 
 import click
 
-from cekm_swarm.cli_support import ENDPOINT, ROOT, Finite, Interrupted, RobotIds, prepare_out_dir
+from cekm_swarm.cli_support import ROOT, Finite, Interrupted, RobotIds, prepare_out_dir
 from cekm_swarm.errors import CekmError
-from cekm_swarm.runtime.wait import DEFAULT_WAIT, ENV_CONNECT
+from cekm_swarm.protocol import DEFAULT_ROOT, KeySpace
+from cekm_swarm.runtime.mcap_log import MSGPACK, is_complete, log_root, read_messages
+from cekm_swarm.runtime.options import ENDPOINT
+from cekm_swarm.runtime.wait import DEFAULT_WAIT, ENV_CONNECT, resolve_endpoint
 
 from .interfaces import DEFAULT_DISTRO, DISTROS
 
@@ -38,11 +41,7 @@ def _say(text: str) -> None:
 @click.option("--quiet", is_flag=True, help="No progress bar (there is none when stderr is not a terminal).")
 def export_cmd(log_file: Path, to: str, out_dir: Path, overwrite: bool, distro: str, quiet: bool) -> None:
     """Export RUN.mcap for ROS 2 tools: `ros2 bag play`, `ros2 bag info`, Foxglove, rosbags."""
-    from cekm_swarm.protocol import DEFAULT_ROOT, KeySpace
-    from cekm_swarm.runtime.mcap_log import MSGPACK, is_complete, read_messages
-    from cekm_swarm.runtime.mcap_read import log_root
-
-    from .bag import export_ros2, format_report
+    from .bag import export_ros2, format_report  # noqa: PLC0415 -- lazy: cekm --help loads no exporter
 
     try:
         is_complete(log_file)  # a missing or non-MCAP file: one line, before anything is written
@@ -58,7 +57,7 @@ def export_cmd(log_file: Path, to: str, out_dir: Path, overwrite: bool, distro: 
         if quiet:
             return
         if bar is None:
-            from tqdm import tqdm
+            from tqdm import tqdm  # noqa: PLC0415 -- lazy: a progress bar only on a terminal
 
             bar = tqdm(total=total, unit="msg", desc="export", file=sys.stderr, leave=False, disable=None)
         bar.update(done - bar.n)
@@ -97,11 +96,10 @@ def ros2_group() -> None:
 @click.option("--root", default="cekm", show_default=True, type=ROOT, help="Key-space root of the run.")
 @click.option("--json", "as_json", is_flag=True, help="Print the final report as one JSON object.")
 def bridge_cmd(endpoint: str | None, config_file: Path | None, wait_s: float, domain: int,
-               robots: tuple[str, ...] | None, teleop: tuple[str, ...] | None, distro: str, root: str, as_json: bool) -> None:
+               robots: tuple[str, ...] | None, teleop: tuple[str, ...] | None, distro: str, root: str,
+               as_json: bool) -> None:
     """Publish a live run's topics as a ROS 2 node under rmw_zenoh, until Ctrl-C or SIGTERM."""
-    from cekm_swarm.runtime.wait import resolve_endpoint
-
-    from .bridge import BridgeConfig, bridge_session, run_bridge
+    from .bridge import BridgeConfig, bridge_session, run_bridge  # noqa: PLC0415 -- lazy: cekm --help loads no bridge
 
     config = BridgeConfig(domain=domain, robots=robots, teleop=teleop or (),
                           distro=distro, root=root)

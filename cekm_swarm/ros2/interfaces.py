@@ -17,8 +17,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from rosbags.typesys import Stores, get_typestore
-from rosbags.typesys.store import Nodetype
 
 _DTYPES = {"bool": np.bool_, "byte": np.uint8, "char": np.uint8, "octet": np.uint8, "int8": np.int8,
            "uint8": np.uint8, "int16": np.int16, "uint16": np.uint16, "int32": np.int32, "uint32": np.uint32,
@@ -103,6 +101,8 @@ class Interfaces:
         return cls(**values)
 
     def _default(self, desc: Any) -> Any:
+        from rosbags.typesys.store import Nodetype
+
         node, rest = desc
         if node == Nodetype.NAME:
             return self.make(rest)
@@ -123,15 +123,17 @@ class Interfaces:
         return self.store.deserialize_cdr(data, ros_type)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def interfaces(distro: str = DEFAULT_DISTRO) -> Interfaces:
     """The message types of ROS 2 ``distro`` (one of :data:`DISTROS`)."""
     if distro not in DISTROS:
         raise InterfaceError(f"ROS 2 distribution {distro!r}: use one of {', '.join(DISTROS)}")
+    from rosbags.typesys import Stores, get_typestore
+
     return Interfaces(distro, get_typestore(Stores[f"ROS2_{distro.upper()}"]))
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _computed_hash(distro: str, ros_type: str) -> str:
     if ros_type not in JAZZY_TYPE_HASHES:
         raise InterfaceError(f"message type {ros_type!r} is not one the project uses ({', '.join(MESSAGE_TYPES)})")

@@ -23,9 +23,9 @@ k = argmax e (Eq. 10) and each obstacle field's winner, -1 where there is none.
 from __future__ import annotations
 
 import math
-from collections.abc import Collection, Mapping
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -233,7 +233,8 @@ class RosMapper:
         return self.ifc.make("geometry_msgs/msg/Quaternion", x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2))
 
     def _pose(self, x: float, y: float, z: float = 0.0, yaw: float = 0.0) -> Any:
-        return self.ifc.make("geometry_msgs/msg/Pose", position=self._vector(x, y, z, "Point"), orientation=self._yaw(yaw))
+        return self.ifc.make("geometry_msgs/msg/Pose", position=self._vector(x, y, z, "Point"),
+                             orientation=self._yaw(yaw))
 
     def _twist(self, v: float, omega: float) -> Any:
         return self.ifc.make(TWIST, linear=self._vector(v), angular=self._vector(0.0, 0.0, omega))
@@ -259,7 +260,7 @@ class RosMapper:
         dims = [("row", side, side * side), ("col", side, side)] if side * side == n else [("neuron", n, n)]
         if len(fields) > 1:
             dims = [("field", len(fields), len(fields) * n)] + dims
-        return self._array(np.concatenate(fields), dims)
+        return self._array(np.concatenate(cast("tuple[np.ndarray, ...]", fields)), dims)  # all given when the first is
 
     # ------------------------------------------------------------------ per key
 
@@ -275,7 +276,8 @@ class RosMapper:
             cov = np.zeros(36)
             odom = self.ifc.make(
                 ODOMETRY, header=self._header(t, MAP_FRAME), child_frame_id=base_frame(rid),
-                pose=self.ifc.make("geometry_msgs/msg/PoseWithCovariance", pose=self._pose(x, y, 0.0, th), covariance=cov),
+                pose=self.ifc.make("geometry_msgs/msg/PoseWithCovariance", pose=self._pose(x, y, 0.0, th),
+                                   covariance=cov),
                 twist=self.ifc.make("geometry_msgs/msg/TwistWithCovariance",
                                     twist=self._twist((v_l + v_r) / 2, (v_r - v_l) / self.axle), covariance=cov))
             out.append(RosOut(f"/{ros_name(rid)}/odom", ODOMETRY, odom, ns))
@@ -289,7 +291,8 @@ class RosMapper:
                 out.append(RosOut("/world/markers", MARKER_ARRAY, self.ifc.make(MARKER_ARRAY, markers=scene), ns))
             except (KeyError, TypeError, ValueError, IndexError) as exc:  # a geometry it cannot draw
                 self.geometry = None
-                self.drops.drop(self.keys.world_geometry(), f"the run's geometry cannot be drawn ({exc!r}); no scene markers")
+                self.drops.drop(self.keys.world_geometry(),
+                                f"the run's geometry cannot be drawn ({exc!r}); no scene markers")
         try:
             markers = self._dynamic_markers(t, poses, msg)
         except (KeyError, TypeError, ValueError, IndexError) as exc:  # a moving obstacle's shape it cannot draw
@@ -309,13 +312,14 @@ class RosMapper:
         head = "sense/range/"
         for key in msg.keys:
             if key == "sense/target" and robot in self._target:  # the target field again
-                out.append(self._target_field(robot, with_stamp(self._target[robot], msg.stamp)))
+                field = cast("TargetField | TrackingField", with_stamp(self._target[robot], msg.stamp))
+                out.append(self._target_field(robot, field))
             if not key.startswith(head):
                 continue
             j = int(key[len(head):])
             last = self._ranges.get(robot, {}).get(j)
             if last is not None:
-                out += self._range(robot, with_stamp(last, msg.stamp))
+                out += self._range(robot, cast(SenseRange, with_stamp(last, msg.stamp)))
             held = self._obstacles.get(robot, {}).get(j)
             if held is not None:
                 t = f"/{ros_name(robot)}/ekm/obstacle_field_{j}"
@@ -348,7 +352,8 @@ class RosMapper:
     def _wheels(self, robot: str, msg: WheelCommand) -> list[RosOut]:
         ns = stamp_ns(msg.stamp)
         name = ros_name(robot)
-        out = [RosOut(f"/{name}/cmd_vel_out", TWIST, self._twist((msg.v_l + msg.v_r) / 2, (msg.v_r - msg.v_l) / self.axle), ns),
+        twist = self._twist((msg.v_l + msg.v_r) / 2, (msg.v_r - msg.v_l) / self.axle)
+        out = [RosOut(f"/{name}/cmd_vel_out", TWIST, twist, ns),
                RosOut(f"/{name}/wheel_speeds", FLOAT_ARRAY, self._array([msg.v_l, msg.v_r], [("wheel", 2, 2)]), ns)]
         activity = self.motor_activity(robot, msg.stamp)
         if activity is not None:
@@ -388,24 +393,26 @@ class RosMapper:
         k = int(np.argmax(e)) if tf is not None and tf.a is not None else -1  # Eq. 10
         by_index = {f.index: f.winner for f in obstacles}
         sensors = max([len(self._sensors.get(robot, {})), self.keys.range_sensors])
-        winners = [s, k] + [(-1 if by_index.get(j) is None else int(by_index[j])) for j in range(sensors)]
+        winners = [s, k] + [(-1 if (w := by_index.get(j)) is None else int(w)) for j in range(sensors)]
         return e, winners
 
     # ------------------------------------------------------------------ markers
 
     def _marker(self, t: float, ns: str, mid: int, kind: int, pose: Any, scale: tuple[float, float, float],
-                color: tuple[float, float, float, float], points: list[tuple[float, float]] = ()) -> Any:
+                color: tuple[float, float, float, float], points: Sequence[tuple[float, float]] = ()) -> Any:
         return self.ifc.make(
             "visualization_msgs/msg/Marker", header=self._header(t, MAP_FRAME), ns=ns, id=mid, type=kind, action=0,
             pose=pose, scale=self._vector(*scale),
             color=self.ifc.make("std_msgs/msg/ColorRGBA", r=color[0], g=color[1], b=color[2], a=color[3]),
             points=[self._vector(x, y, 0.0, "Point") for x, y in points])
 
-    def _outline(self, t: float, ns: str, mid: int, vertices: list[Any], color: tuple[float, ...]) -> Any:
+    def _outline(self, t: float, ns: str, mid: int, vertices: list[Any],
+                 color: tuple[float, float, float, float]) -> Any:
         pts = [(float(v[0]), float(v[1])) for v in vertices]
         return self._marker(t, ns, mid, 4, self._pose(0.0, 0.0), (LINE_WIDTH, 0.0, 0.0), color, pts + pts[:1])
 
-    def _circle(self, t: float, ns: str, mid: int, cx: float, cy: float, r: float, color: tuple[float, ...]) -> Any:
+    def _circle(self, t: float, ns: str, mid: int, cx: float, cy: float, r: float,
+                color: tuple[float, float, float, float]) -> Any:
         pts = [(cx + r * math.cos(2 * math.pi * i / CIRCLE_POINTS), cy + r * math.sin(2 * math.pi * i / CIRCLE_POINTS))
                for i in range(CIRCLE_POINTS)]
         return self._marker(t, ns, mid, 4, self._pose(0.0, 0.0), (LINE_WIDTH, 0.0, 0.0), color, pts + pts[:1])
@@ -422,31 +429,33 @@ class RosMapper:
         for i, d in enumerate(g.get("discs", [])):
             color = (0.35, 0.35, 0.75, 0.9) if d.get("known") else (0.75, 0.35, 0.35, 0.9)
             r = float(d["radius"])
-            out.append(self._marker(t, "discs", i, 3, self._pose(float(d["center"][0]), float(d["center"][1]), MARKER_HEIGHT / 2),
-                                    (2 * r, 2 * r, MARKER_HEIGHT), color))
+            centre = self._pose(float(d["center"][0]), float(d["center"][1]), MARKER_HEIGHT / 2)
+            out.append(self._marker(t, "discs", i, 3, centre, (2 * r, 2 * r, MARKER_HEIGHT), color))
         return out
 
     def _dynamic_markers(self, t: float, poses: dict[str, tuple[float, float, float]], msg: WorldState) -> list[Any]:
         """Robots (cylinder and heading arrow), targets, moving obstacles, sensing circles."""
         out = []
         r = self.radius
-        for i, (rid, (x, y, th)) in enumerate(sorted(poses.items())):
-            out.append(self._marker(t, "robots", i, 3, self._pose(x, y, MARKER_HEIGHT / 2), (2 * r, 2 * r, MARKER_HEIGHT),
-                                    (0.1, 0.55, 0.95, 1.0)))
+        for i, (_rid, (x, y, th)) in enumerate(sorted(poses.items())):
+            out.append(self._marker(t, "robots", i, 3, self._pose(x, y, MARKER_HEIGHT / 2),
+                                    (2 * r, 2 * r, MARKER_HEIGHT), (0.1, 0.55, 0.95, 1.0)))
             out.append(self._marker(t, "headings", i, 0, self._pose(x, y, MARKER_HEIGHT, th), (2 * r, 0.008, 0.008),
                                     (1.0, 1.0, 1.0, 1.0)))
             if math.isfinite(self.target_range):
                 out.append(self._circle(t, "sensing", i, x, y, self.target_range, (0.1, 0.55, 0.95, 0.5)))
-        for i, (tid, tg) in enumerate(sorted(msg.targets.items())):
+        for i, (_tid, tg) in enumerate(sorted(msg.targets.items())):
             x, y = tg.x, tg.y
-            out.append(self._marker(t, "targets", i, 2, self._pose(x, y, 0.015), (0.03, 0.03, 0.03), (0.95, 0.6, 0.1, 1.0)))
+            out.append(self._marker(t, "targets", i, 2, self._pose(x, y, 0.015), (0.03, 0.03, 0.03),
+                                    (0.95, 0.6, 0.1, 1.0)))
         for i, (oid, ob) in enumerate(sorted(msg.obstacles.items())):
             x, y, th = ob.x, ob.y, ob.theta
             shape = self._moving.get(oid, {})
             color = (0.75, 0.35, 0.35, 0.9)
             if shape.get("vertices"):
                 c, s = math.cos(th), math.sin(th)
-                pts = [(x + c * float(vx) - s * float(vy), y + s * float(vx) + c * float(vy)) for vx, vy in shape["vertices"]]
+                pts = [(x + c * float(vx) - s * float(vy), y + s * float(vx) + c * float(vy))
+                       for vx, vy in shape["vertices"]]
                 out.append(self._outline(t, "moving_obstacles", i, pts, color))
             else:
                 rad = float(shape.get("radius") or r)

@@ -56,6 +56,8 @@ STALE_S = 0.5
 AHEAD_S = 0.5
 """... or this much ahead of the plant's clock (two hosts' clocks apart): refused too."""
 TARGET_RESOLUTION = KHEPERA.target_resolution
+DEFAULT_BODY = RobotBody()
+"""The body a robot description's missing keys come from by default (RobotBody's defaults: the Khepera)."""
 
 MALFORMED, NOT_FINITE, WRONG_LENGTH, STALE, AHEAD, UNKNOWN_FRAME, NOT_COVERED = (
     "malformed CDR", "not finite", "scan of the wrong length", "stale stamp", "stamp ahead of the clock",
@@ -103,7 +105,7 @@ class RobotDescription:
                 "base_frame": self.base_frame, "scan_frame": self.scan_frame}
 
     @classmethod
-    def from_dict(cls, doc: dict[str, Any]) -> "RobotDescription":
+    def from_dict(cls, doc: dict[str, Any]) -> RobotDescription:
         return cls(RobotBody.from_dict(doc["body"]), doc["sensors"], doc["odom_frame"], doc["base_frame"],
                    doc["scan_frame"])
 
@@ -113,7 +115,7 @@ _NUMBERS = {"body_radius": (0.001, 5.0), "axle": (0.001, 5.0), "max_wheel_speed"
 _KEYS = tuple(_NUMBERS) + ("sensor_angles_deg", "sensors", "odom_frame", "base_frame", "scan_frame", "target_range")
 
 
-def load_description(path: str | Path, default: RobotBody = RobotBody()) -> RobotDescription:
+def load_description(path: str | Path, default: RobotBody = DEFAULT_BODY) -> RobotDescription:
     """A robot description file (TOML; docs/ros2.md "Driving a ROS 2 robot"): every key
     optional, a missing one taken from ``default`` (the scenario's body). Raises
     :class:`DescriptionError` naming the file and key."""
@@ -127,7 +129,7 @@ def load_description(path: str | Path, default: RobotBody = RobotBody()) -> Robo
     return description_from(doc, str(path), default)
 
 
-def description_from(doc: dict[str, Any], where: str, default: RobotBody = RobotBody()) -> RobotDescription:
+def description_from(doc: dict[str, Any], where: str, default: RobotBody = DEFAULT_BODY) -> RobotDescription:
     """A robot description from its TOML table ``doc`` (``where`` names it in errors)."""
     unknown = sorted(set(doc) - set(_KEYS))
     if unknown:
@@ -137,9 +139,11 @@ def description_from(doc: dict[str, Any], where: str, default: RobotBody = Robot
         if key in doc:
             v = doc[key]
             if type(v) not in (int, float) or not math.isfinite(v) or not lo <= v <= hi:
-                raise DescriptionError(f"{where}: {key} = {v!r}: expected a number of metres (per second) in [{lo:g}, {hi:g}]")
+                raise DescriptionError(f"{where}: {key} = {v!r}: expected a number of metres (per second) "
+                                       f"in [{lo:g}, {hi:g}]")
             values[key] = float(v)
-    body = replace(default, **{("v_max" if k == "max_wheel_speed" else k): v for k, v in values.items()})
+    changes: dict[str, Any] = {("v_max" if k == "max_wheel_speed" else k): v for k, v in values.items()}
+    body = replace(default, **changes)
     if "sensor_angles_deg" in doc:
         a = doc["sensor_angles_deg"]
         if (not isinstance(a, list) or not 1 <= len(a) <= 64
@@ -161,7 +165,8 @@ def description_from(doc: dict[str, Any], where: str, default: RobotBody = Robot
                 raise DescriptionError(f"{where}: {key} = {v!r}: expected a frame or source name")
             strings[key] = v
     if strings.get("sensors", "scan") not in SENSOR_SOURCES:
-        raise DescriptionError(f"{where}: sensors = {strings['sensors']!r}: expected one of {', '.join(SENSOR_SOURCES)}")
+        raise DescriptionError(f"{where}: sensors = {strings['sensors']!r}: "
+                               f"expected one of {', '.join(SENSOR_SOURCES)}")
     return RobotDescription(body, **strings)
 
 
@@ -179,7 +184,8 @@ def body_differences(body: RobotBody, trained: RobotBody, rel: float = 1e-6) -> 
             out.append(f"{what} {a:g} {unit} (the model's: {b:g} {unit})")
     if len(body.sensor_angles) != len(trained.sensor_angles):
         out.append(f"{len(body.sensor_angles)} distance sensors (the model's: {len(trained.sensor_angles)})")
-    elif not all(math.isclose(a, b, abs_tol=1e-6) for a, b in zip(body.sensor_angles, trained.sensor_angles)):
+    elif not all(math.isclose(a, b, abs_tol=1e-6)
+                 for a, b in zip(body.sensor_angles, trained.sensor_angles, strict=True)):
         deg = ", ".join(f"{math.degrees(a):.4g}" for a in body.sensor_angles)
         out.append(f"sensor directions [{deg}] deg differ from the model's")
     return out
@@ -356,10 +362,11 @@ def decode_targets(ifc: Interfaces, payload: bytes, desc: RobotDescription, ids:
     if not all(math.isfinite(v) for p in xy for v in p):
         raise Refused(NOT_FINITE, f"target positions {xy}")
     _stamp(m.header, now, "targets")
-    return dict(zip(ids, xy))
+    return dict(zip(ids, xy, strict=True))
 
 
-def targets_seen(odom: Odom, targets: dict[str, tuple[float, float]], target_range: float) -> dict[str, tuple[float, float]]:
+def targets_seen(odom: Odom, targets: dict[str, tuple[float, float]],
+                 target_range: float) -> dict[str, tuple[float, float]]:
     """The targets within ``target_range`` of the robot, each as (alpha, d) in its frame (the
     target reading of :func:`target_reading`)."""
     out = {}

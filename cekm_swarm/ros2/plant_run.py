@@ -55,7 +55,7 @@ class PlantConfig:
         return path
 
     @classmethod
-    def read(cls, path: str | Path) -> "PlantConfig":
+    def read(cls, path: str | Path) -> PlantConfig:
         return cls(**json.loads(Path(path).read_text()))
 
 
@@ -103,7 +103,8 @@ def outcome_doc(plant: Any, ticks: int, aborted: bool, wall: float, loop_s: floa
     robots = {}
     for r, p in plant.ports.items():
         o = p.odom
-        robots[r] = {"reached": None if plant.cfg.task == "tracking" else p.reached, "time_s": p.reached_time if p.reached else tick_time(max(ticks - 1, 0)),
+        robots[r] = {"reached": None if plant.cfg.task == "tracking" else p.reached,
+                     "time_s": p.reached_time if p.reached else tick_time(max(ticks - 1, 0)),
                      "path_length_m": round(p.path_m, 4), "collisions": None,
                      "final_distance_m": None if o is None or p.goal is None else
                      round(math.hypot(p.goal[0] - o.x, p.goal[1] - o.y), 4),
@@ -116,7 +117,8 @@ def outcome_doc(plant: Any, ticks: int, aborted: bool, wall: float, loop_s: floa
            "tick_loop_seconds": round(loop_s, 3), "sim_seconds": tick_time(max(ticks - 1, 0)), "ticks": ticks,
            "aborted": aborted, "deadline_misses": sum(plant.misses.values()),
            "deadline_miss_ticks": {str(k): v for k, v in sorted(plant.misses.items())[:64]},
-           "sense_to_command_ms": latency_ms(plant.sense_to_command), "scan_to_twist_ms": latency_ms(plant.scan_to_twist),
+           "sense_to_command_ms": latency_ms(plant.sense_to_command),
+           "scan_to_twist_ms": latency_ms(plant.scan_to_twist),
            "ros_received": dict(plant.received), "ros_dropped": drops,
            "dropped_messages": sum(n for v in drops.values() for n in v.values()) + plant.cmd_drops.total,
            "drops": {"commands": plant.cmd_drops.by_source()}, "recorded_messages": plant.recorded,
@@ -164,7 +166,7 @@ def drop_doc(plant: Any) -> dict[str, Any]:
     """The robots' messages dropped: topic -> reason -> how many."""
     with plant.lock:
         out: dict[str, Any] = {}
-        for (r, topic, reason), n in sorted(plant.drops.items()):
+        for (_robot, topic, reason), n in sorted(plant.drops.items()):
             out.setdefault(topic, {})[reason] = n
         return out
 
@@ -203,4 +205,5 @@ def target_messages(plant: Any, robot: str, odom: P.Odom, t: float) -> list[tupl
     if goal is None:
         return [(keys.sense_target(robot), SenseTarget(t, SENDER, 0.0, 0.0, False))]
     alpha, d, visible = P.target_reading(odom, goal, body.target_range)
-    return [(keys.sense_target(robot), SenseTarget(t, SENDER, alpha if visible else 0.0, d if visible else 0.0, visible))]
+    return [(keys.sense_target(robot),
+             SenseTarget(t, SENDER, alpha if visible else 0.0, d if visible else 0.0, visible))]

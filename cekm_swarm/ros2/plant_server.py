@@ -118,9 +118,9 @@ class PlantServer:
         self.ended = False  # the run is over: commands are no longer taken
         self.targets: dict[str, tuple[float, float]] = {}  # a tracking run's targets (from /targets)
         self.targets_stamp = -math.inf
-        self.drops: Counter = Counter()  # (robot, topic, reason) -> n
+        self.drops: Counter[tuple[str, str, str]] = Counter()  # (robot, topic, reason) -> n
         self.cmd_drops = DropCounter("plant commands", keys=self.keys)
-        self.received = Counter()
+        self.received: Counter[str] = Counter()  # topic -> messages
         self.now_t = 0.0  # the sim time of the tick whose readings are out
         self.sent_at: dict[float, float] = {}
         self.sense_to_command = Samples()
@@ -128,11 +128,11 @@ class PlantServer:
         self.events: list[dict[str, Any]] = []
         self.ros_log: deque[tuple[str, str, bytes]] = deque(maxlen=ROS_LOG_QUEUE)
         self.answer = {self.plan.answer_key(r): r for r in self.robots}
-        self.misses: Counter = Counter()
+        self.misses: Counter[int] = Counter()
         self.recorded = 0
         self.pending_log: list[tuple[str, bytes, float]] = []
         self._schemas: dict[str, SchemaSpec] = {}
-        self.inbox: queue.SimpleQueue = queue.SimpleQueue()
+        self.inbox: queue.SimpleQueue[tuple[str, str, str, bytes, float] | None] = queue.SimpleQueue()
         self.input_thread = threading.Thread(target=self._input_loop, name="plant-input", daemon=True)
 
     # ------------------------------------------------------------------ time
@@ -175,38 +175,44 @@ class PlantServer:
         """One ROS message from a robot: checked, kept when believed, logged either way."""
         with self.lock:
             self.received[topic] += 1
-        port, now = self.ports.get(robot), self.now()
+        now = self.now()
         try:
             if kind == P.POSE_ARRAY:  # a tracking run's targets
                 targets = P.decode_targets(self.ifc, payload, self.desc, self.cfg.target_ids, now)
                 with self.lock:
                     self.targets, self.targets_stamp = targets, now
-            elif kind == P.ODOMETRY:
-                odom = P.decode_odometry(self.ifc, payload, self.desc, ros_name(robot), now)
-                with self.lock:
-                    port.odom = odom
-            elif kind == P.LASER_SCAN:
-                scan = P.decode_scan(self.ifc, payload, self.desc, ros_name(robot), now)
-                readings = P.scan_readings(scan, self.desc.body)
-                with self.lock:
-                    port.readings, port.scan_stamp, port.scan_at = readings, scan.stamp, at
-            elif kind == P.RANGE:
-                j = int(topic.rsplit("_", 1)[1])
-                stamp, d = P.decode_range(self.ifc, payload, self.desc, ros_name(robot), j, now)
-                with self.lock:
-                    port.ranges[j] = (stamp, d)
-                    if len(port.ranges) == self.desc.body.sensors:
-                        port.readings = [port.ranges[i][1] for i in range(self.desc.body.sensors)]
-                        port.scan_stamp, port.scan_at = min(s for s, _ in port.ranges.values()), at
-            elif kind == P.POSE_STAMPED:
-                goal = P.decode_goal(self.ifc, payload, self.desc, ros_name(robot))
-                with self.lock:
-                    port.goal, port.reached, port.reached_time = goal, False, None
-                emit("EVENT", {"event": "goal", "t": self.now_t, "robot": robot, "goal": list(goal)})
+            else:  # a robot's own topic (subscribed for the robots the plant drives only)
+                self._robot_reading(robot, self.ports[robot], topic, kind, payload, at, now)
         except P.Refused as exc:
             self._refused(robot, topic, exc)
             return
         self.ros_log.append((topic, kind, payload))  # the log holds what the plant believed
+
+    def _robot_reading(self, robot: str, port: RobotPort, topic: str, kind: str, payload: bytes, at: float,
+                       now: float) -> None:
+        """A robot's odometry, scan, range or goal, decoded (P.Refused when not believed) and kept."""
+        if kind == P.ODOMETRY:
+            odom = P.decode_odometry(self.ifc, payload, self.desc, ros_name(robot), now)
+            with self.lock:
+                port.odom = odom
+        elif kind == P.LASER_SCAN:
+            scan = P.decode_scan(self.ifc, payload, self.desc, ros_name(robot), now)
+            readings = P.scan_readings(scan, self.desc.body)
+            with self.lock:
+                port.readings, port.scan_stamp, port.scan_at = readings, scan.stamp, at
+        elif kind == P.RANGE:
+            j = int(topic.rsplit("_", 1)[1])
+            stamp, d = P.decode_range(self.ifc, payload, self.desc, ros_name(robot), j, now)
+            with self.lock:
+                port.ranges[j] = (stamp, d)
+                if len(port.ranges) == self.desc.body.sensors:
+                    port.readings = [port.ranges[i][1] for i in range(self.desc.body.sensors)]
+                    port.scan_stamp, port.scan_at = min(s for s, _ in port.ranges.values()), at
+        elif kind == P.POSE_STAMPED:
+            goal = P.decode_goal(self.ifc, payload, self.desc, ros_name(robot))
+            with self.lock:
+                port.goal, port.reached, port.reached_time = goal, False, None
+            emit("EVENT", {"event": "goal", "t": self.now_t, "robot": robot, "goal": list(goal)})
 
     def on_clock(self, payload: bytes) -> None:
         try:
@@ -316,14 +322,14 @@ class PlantServer:
         said = False
         while not self.stop.is_set():
             with self.lock:
-                missing = [r for r, p in self.ports.items() if p.odom is None or p.readings is None]
-            if not missing:
+                silent = [r for r, p in self.ports.items() if p.odom is None or p.readings is None]
+            if not silent:
                 break
             if not said:
-                emit("EVENT", {"event": "waiting_for_robots", "t": 0.0, "robots": missing})
+                emit("EVENT", {"event": "waiting_for_robots", "t": 0.0, "robots": silent})
                 said = True
             if time.monotonic() > deadline:
-                self.event("robots_silent", 0.0, {"robots": missing, "after_s": FIRST_INPUT_WAIT_S,
+                self.event("robots_silent", 0.0, {"robots": silent, "after_s": FIRST_INPUT_WAIT_S,
                                                  "drops": drop_doc(self)})
                 return False
             self.stop.wait(0.1)
@@ -364,11 +370,12 @@ class PlantServer:
                 if not port.stopped or port.reached:
                     self.send_twist(r, 0.0, 0.0)
                 continue
+            assert odom is not None and readings is not None  # fresh
             with self.lock:
                 port.tick_scan_at[t] = scan_at
                 if len(port.tick_scan_at) > 16:
                     port.tick_scan_at.pop(next(iter(port.tick_scan_at)))
-            for j, (a, d) in enumerate(zip(self.desc.body.sensor_angles, readings)):
+            for j, (a, d) in enumerate(zip(self.desc.body.sensor_angles, readings, strict=True)):
                 self.put(self.keys.sense_range(r, j), SenseRange(t, SENDER, j, float(a), d))
             if k % TARGET_EVERY == 0:
                 for key, msg in target_messages(self, r, odom, t):
@@ -376,8 +383,8 @@ class PlantServer:
         self.put(self.keys.world_clock(), Clock(t, SENDER, k))
         targets = dict(self.targets) if self.cfg.task == "tracking" else {
             self.cfg.goal_ids.get(r, f"{r}-goal"): p.goal for r, p in self.ports.items() if p.goal}
-        self.put(self.keys.world_state(), WorldState(t, SENDER, robots, {i: TargetState(*xy) for i, xy in targets.items()},
-                                                     {}))
+        states = {i: TargetState(*xy) for i, xy in targets.items()}
+        self.put(self.keys.world_state(), WorldState(t, SENDER, robots, states, {}))
 
     def _wait_boundary(self, boundary: float) -> None:
         """Until the plant's clock reaches ``boundary``, stopping a robot on its dead-man
@@ -385,10 +392,11 @@ class PlantServer:
         limit = self.cfg.deadman
         while not self.stop.is_set():
             mono = time.monotonic()
-            due = [r for r, p in self.ports.items()
-                   if not p.stopped and not p.reached and p.heard is not None and mono >= p.heard + limit - DEADMAN_MARGIN_S]
-            for r in due:
-                silent = mono - self.ports[r].heard
+            due = [(r, p.heard) for r, p in self.ports.items()
+                   if not p.stopped and not p.reached and p.heard is not None
+                   and mono >= p.heard + limit - DEADMAN_MARGIN_S]
+            for r, heard in due:
+                silent = mono - heard
                 self.send_twist(r, 0.0, 0.0)
                 self.event("deadman", self.now_t, {"robot": r, "silent_s": round(silent, 4), "limit_s": limit,
                                                    "wall": time.time()})
@@ -405,12 +413,17 @@ class PlantServer:
 
     def run(self) -> dict[str, Any]:
         cfg = self.cfg
+        def on_signal(*_: Any) -> None:
+            self.stop.set()
+            self.wake.set()
+
         for sig in (signal.SIGTERM, signal.SIGINT):
-            signal.signal(sig, lambda *_: (self.stop.set(), self.wake.set()))
+            signal.signal(sig, on_signal)
         if cfg.listen:
             host, port = tcp_host_port(cfg.listen)
             self.session = open_embedded_router(port, host)
         else:
+            assert cfg.connect is not None  # the launcher gives the plant listen or connect
             self.session = open_client_when_ready(cfg.connect, cfg.zenoh_config, stop=self.stop)
         self._pubs = Publishers(self.session, block=True)  # the readings, as the world's (express: no)
         out = Path(cfg.out)
@@ -479,8 +492,8 @@ class PlantServer:
     def _outcome(self, ticks: int, aborted: bool, wall: float, loop_s: float) -> dict[str, Any]:
         doc = outcome_doc(self, ticks, aborted, wall, loop_s)
         (Path(self.cfg.out) / "outcome.json").write_text(json.dumps(doc, indent=1))
-        emit("DONE", {"cpu_s": time.process_time(), "sim_seconds": doc["sim_seconds"], "wall_seconds": doc["wall_seconds"],
-                      "aborted": aborted, "robots": doc["robots"]})
+        emit("DONE", {"cpu_s": time.process_time(), "sim_seconds": doc["sim_seconds"],
+                      "wall_seconds": doc["wall_seconds"], "aborted": aborted, "robots": doc["robots"]})
         return doc
 
 

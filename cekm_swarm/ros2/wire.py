@@ -130,7 +130,7 @@ class Attachment:
         return _ATTACHMENT.pack(self.sequence, self.timestamp_ns, GID_SIZE) + bytes(self.gid)
 
     @staticmethod
-    def decode(data: bytes) -> "Attachment":
+    def decode(data: bytes) -> Attachment:
         """Parse an attachment; :class:`WireError` saying what is wrong for anything else."""
         if len(data) != ATTACHMENT_SIZE:
             raise WireError(f"attachment of {len(data)} bytes, expected {ATTACHMENT_SIZE}")

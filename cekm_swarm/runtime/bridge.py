@@ -15,6 +15,7 @@ order matters under one subscription (one key expression).
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import ctypes
 import logging
 import threading
@@ -44,7 +45,7 @@ class Received:
     at: float
 
     @staticmethod
-    def from_sample(sample: zenoh.Sample) -> "Received":
+    def from_sample(sample: zenoh.Sample) -> Received:
         """Copy what matters out of a Zenoh sample (safe to call in a Zenoh callback)."""
         return Received(str(sample.key_expr), sample.payload.to_bytes(),
                         "put" if sample.kind == zenoh.SampleKind.PUT else "delete", str(sample.encoding),
@@ -57,7 +58,7 @@ def _handoff(loop: asyncio.AbstractEventLoop, fn: Callable[[Received], None]) ->
     def callback(sample: zenoh.Sample) -> None:
         keep_thread_state()
         rec = Received.from_sample(sample)
-        try:
+        try:  # noqa: SIM105 -- every sample: a try costs nothing, suppress() a context manager each
             loop.call_soon_threadsafe(fn, rec)
         except RuntimeError:  # loop closed while Zenoh still delivers: nothing left to receive it
             pass
@@ -123,7 +124,7 @@ class AsyncSubscription(_Subscriber):
         """Samples waiting in the queue."""
         return self._queue.qsize()
 
-    def __aiter__(self) -> "AsyncSubscription":
+    def __aiter__(self) -> AsyncSubscription:
         return self
 
     async def __anext__(self) -> Received:
@@ -224,7 +225,7 @@ class LatestValues(_Subscriber):
         return dirty
 
 
-def ring_subscriber(session: zenoh.Session, key_expr: str, capacity: int = 1) -> zenoh.Subscriber:
+def ring_subscriber(session: zenoh.Session, key_expr: str, capacity: int = 1) -> zenoh.Subscriber[Any]:
     """A Zenoh subscriber that keeps only the newest ``capacity`` samples (RingChannel);
     poll it with ``try_recv()`` (None when empty). For synchronous loops."""
     return session.declare_subscriber(key_expr, zenoh.handlers.RingChannel(capacity))
@@ -237,12 +238,12 @@ def wait_matching(publisher: zenoh.Publisher, timeout: float) -> bool:
     """Wait until ``publisher`` has at least one matching subscriber; False on timeout.
 
     Blocks the calling thread (use :func:`wait_matching_async` in a coroutine)."""
-    if publisher.matching_status.matching:
+    if publisher.matching_status.matching:  # type: ignore[attr-defined]  # zenoh's stub says bool: a MatchingStatus
         return True
     ready = threading.Event()
     listener = publisher.declare_matching_listener(lambda status: ready.set() if status.matching else None)
     try:
-        return publisher.matching_status.matching or ready.wait(timeout)
+        return publisher.matching_status.matching or ready.wait(timeout)  # type: ignore[attr-defined]  # as above
     finally:
         listener.undeclare()
 
@@ -298,7 +299,7 @@ class Publishers:
             pub.undeclare()
         self._pubs.clear()
 
-    def __enter__(self) -> "Publishers":
+    def __enter__(self) -> Publishers:
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -373,17 +374,15 @@ class LivelinessWatcher(_Subscriber):
     async def wait_all(self, keys: set[str] | frozenset[str], timeout: float) -> frozenset[str]:
         """Wait until every token of ``keys`` is alive, at most ``timeout`` seconds; the
         keys still missing then (empty when all came)."""
-        try:
+        with contextlib.suppress(TimeoutError):
             await self._until(lambda: keys <= self._alive, timeout)
-        except asyncio.TimeoutError:
-            pass
         return frozenset(keys) - self._alive
 
     async def wait_for(self, key: str, alive: bool = True, timeout: float | None = None) -> None:
         """Wait until ``key``'s token is alive (or gone, ``alive=False``); TimeoutError after ``timeout``."""
         await self._until(lambda: (key in self._alive) == alive, timeout)
 
-    def __aiter__(self) -> "LivelinessWatcher":
+    def __aiter__(self) -> LivelinessWatcher:
         return self
 
     async def __anext__(self) -> LivelinessEvent:

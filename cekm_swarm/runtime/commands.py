@@ -19,6 +19,7 @@ from cekm_swarm.errors import CekmError
 from .log_commands import log_group, record_cmd, replay_cmd
 from .tool_session import _ROOT_HELP, _check_key_expr, _connect_options, _keys, _session
 from .topic_commands import node, topic
+from .wait import resolve_endpoint
 
 
 @click.command("monitor")
@@ -36,9 +37,8 @@ def monitor(endpoint: str | None, config_file: Path | None, wait_s: float, root:
     """A live view of a run (80 columns): the run's phase, robots' poses, goals, status,
     commands, modules alive and sense-to-command latency; --keys adds per-key rates.
     Attach from any terminal, before or after the run starts; Ctrl-C to leave."""
-    from .logcat import key_filter
-    from .monitor import run_monitor
-    from .wait import resolve_endpoint
+    from .logcat import key_filter  # noqa: PLC0415 -- lazy: cekm --help loads no monitor
+    from .monitor import run_monitor  # noqa: PLC0415 -- lazy: cekm --help loads no monitor (rich)
 
     _keys(root)
     if as_json and once_after is None:

@@ -328,6 +328,7 @@ def open_client(endpoint: str = DEFAULT_ENDPOINT, *, user: str | None = None, pa
     credentials and TLS settings are used (see :func:`client_config_from_file`)."""
     if config_file is not None:
         if user is not None or password is not None:
-            raise RuntimeTransportError("client config: give credentials in the config file or as user/password, not both")
+            raise RuntimeTransportError("client config: give credentials in the config file or as user/password, "
+                                        "not both")
         return open_session(client_config_from_file(config_file, endpoint), f"client session ({config_file})")
     return open_session(client_config(endpoint, user=user, password=password), "client session")

@@ -36,13 +36,14 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import contextlib
 import dataclasses
 import json
 import random
 import sys
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import IO, Any
 
 CHUNK = 65536
 """Bytes read from a TCP socket at a time (a chunk is the unit of delay and loss)."""
@@ -138,7 +139,7 @@ class FaultLink:
         self._restored.set()
         self._servers: list[Any] = []
         self._conns: set[asyncio.StreamWriter] = set()
-        self._tasks: set[asyncio.Task] = set()
+        self._tasks: set[asyncio.Task[None]] = set()
         self._note("start", dataclasses.asdict(self.settings))
 
     # -- settings -------------------------------------------------------------------------
@@ -202,7 +203,7 @@ class FaultLink:
     async def _tcp_connection(self, c_reader: asyncio.StreamReader, c_writer: asyncio.StreamWriter,
                               target: tuple[str, int]) -> None:
         self._conns.add(c_writer)
-        queue_up: asyncio.Queue = asyncio.Queue()
+        queue_up: asyncio.Queue[tuple[float | None, bytes]] = asyncio.Queue()
         pump_up = asyncio.ensure_future(self._tcp_read(c_reader, _Direction(self, "up", True), queue_up))
         try:
             await self._restored.wait()  # a cut link carries no new connection (its SYNs are lost)
@@ -217,7 +218,7 @@ class FaultLink:
             return
         self._conns.add(s_writer)
         self.stats.connections += 1
-        queue_down: asyncio.Queue = asyncio.Queue()
+        queue_down: asyncio.Queue[tuple[float | None, bytes]] = asyncio.Queue()
         parts = [pump_up, asyncio.ensure_future(self._tcp_write(queue_up, s_writer)),
                  asyncio.ensure_future(self._tcp_read(s_reader, _Direction(self, "down", True), queue_down)),
                  asyncio.ensure_future(self._tcp_write(queue_down, c_writer))]
@@ -233,7 +234,8 @@ class FaultLink:
             for w in (c_writer, s_writer):
                 self._close(w)
 
-    async def _tcp_read(self, reader: asyncio.StreamReader, d: _Direction, out: asyncio.Queue) -> None:
+    async def _tcp_read(self, reader: asyncio.StreamReader, d: _Direction,
+                        out: asyncio.Queue[tuple[float | None, bytes]]) -> None:
         loop = asyncio.get_running_loop()
         try:
             while data := await reader.read(CHUNK):
@@ -245,7 +247,7 @@ class FaultLink:
             pass
         out.put_nowait((None, b""))
 
-    async def _tcp_write(self, inq: asyncio.Queue, writer: asyncio.StreamWriter) -> None:
+    async def _tcp_write(self, inq: asyncio.Queue[tuple[float | None, bytes]], writer: asyncio.StreamWriter) -> None:
         loop = asyncio.get_running_loop()
         try:
             while True:
@@ -262,10 +264,8 @@ class FaultLink:
 
     def _close(self, writer: asyncio.StreamWriter) -> None:
         self._conns.discard(writer)
-        try:
+        with contextlib.suppress(ConnectionError, OSError, RuntimeError):
             writer.close()
-        except (ConnectionError, OSError, RuntimeError):
-            pass
 
     # -- UDP ------------------------------------------------------------------------------
     async def add_udp(self, listen: tuple[str, int], target: tuple[str, int]) -> tuple[str, int]:
@@ -276,12 +276,12 @@ class FaultLink:
 
         class Front(asyncio.DatagramProtocol):
             def __init__(self) -> None:
-                self.peers: dict[tuple, tuple[Any, _Direction, _Direction]] = {}
+                self.peers: dict[tuple[Any, ...], tuple[Any, _Direction, _Direction]] = {}
 
             def connection_made(self, transport: Any) -> None:
                 self.transport = transport
 
-            def datagram_received(self, data: bytes, addr: tuple) -> None:
+            def datagram_received(self, data: bytes, addr: tuple[Any, ...]) -> None:
                 if addr not in self.peers:
                     link._spawn(self._open(addr, data))
                     return
@@ -289,13 +289,13 @@ class FaultLink:
                 if back is not None:
                     link._send_udp(up, data, back.sendto)
 
-            async def _open(self, addr: tuple, first: bytes) -> None:
+            async def _open(self, addr: tuple[Any, ...], first: bytes) -> None:
                 down = _Direction(link, "down", False)
                 self.peers[addr] = (None, _Direction(link, "up", False), down)
                 front = self.transport
 
                 class Back(asyncio.DatagramProtocol):
-                    def datagram_received(self, data: bytes, _addr: tuple) -> None:
+                    def datagram_received(self, data: bytes, _addr: tuple[Any, ...]) -> None:
                         link._send_udp(down, data, lambda d: front.sendto(d, addr))
 
                 back, _ = await loop.create_datagram_endpoint(Back, remote_addr=target)
@@ -359,8 +359,15 @@ def parse_command(link: FaultLink, line: str) -> str:
 
 
 async def serve(args: argparse.Namespace) -> None:
-    log_file = open(args.log, "a") if args.log else None
+    """Run the link of ``args`` until stdin closes, appending setting changes to ``--log``."""
+    if not args.log:
+        await _serve(args, None)
+        return
+    with open(args.log, "a") as log_file:
+        await _serve(args, log_file)
 
+
+async def _serve(args: argparse.Namespace, log_file: IO[str] | None) -> None:
     def log(line: str) -> None:
         if log_file is not None:
             log_file.write(line + "\n")

@@ -28,14 +28,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import Any, Protocol
 
-from .mcap_log import McapRecorder, SchemaSpec
+from .mcap_log import SchemaSpec
 
 try:  # optional dependency: foxglove-sdk
     import foxglove.messages as fm
 except ImportError:  # pragma: no cover - exercised only where foxglove-sdk is missing
-    fm = None
+    fm = None  # type: ignore[assignment]  # foxglove-sdk missing: available() says so
 
 SCENE_TOPIC = "/view/scene"
 TF_TOPIC = "/view/tf"
@@ -108,10 +108,18 @@ def _fill(parts: Sequence[Sequence[Sequence[float]]], z: float, color: Sequence[
     return fm.TriangleListPrimitive(pose=_pose(0, 0), points=pts, color=_color(color))
 
 
+class ViewSink(Protocol):
+    """Where the views go: a log (:class:`McapRecorder`, a log set's recorder) or a live
+    Foxglove server's channels (``cekm view --foxglove``)."""
+
+    def write_encoded(self, topic: str, message_encoding: str, schema: SchemaSpec, data: bytes,
+                      sim_time: float, sticky: bool = False) -> None: ...
+
+
 class FoxgloveViews:
     """Writes the view channels of one run into ``recorder``."""
 
-    def __init__(self, recorder: McapRecorder, *, robot_radius: float = 0.03,
+    def __init__(self, recorder: ViewSink, *, robot_radius: float = 0.03,
                  path_every: float = PATH_EVERY_S) -> None:
         _need()
         self.path_every = path_every  # s of sim time between two path messages of a robot (0: whenever it moved)
@@ -136,7 +144,7 @@ class FoxgloveViews:
         self._fixed: _Fixed | None = None
         self._circles: dict[float, list[Any]] = {}  # sensing radius -> the circle's points about its centre
 
-    def _constants(self) -> "_Fixed":
+    def _constants(self) -> _Fixed:
         if self._fixed is None or self._fixed.robot_radius != self.robot_radius:
             self._fixed = _Fixed(self.robot_radius)
         return self._fixed
@@ -199,7 +207,7 @@ class FoxgloveViews:
         self._path_sent[rid] = t
         return True
 
-    def _robot(self, c: "_Fixed", ts: Any, t: float, rid: str, x: float, y: float, th: float) -> tuple[Any, Any]:
+    def _robot(self, c: _Fixed, ts: Any, t: float, rid: str, x: float, y: float, th: float) -> tuple[Any, Any]:
         """The robot's scene entity (body, heading, label, trail) and its transform; its path
         message when one is due."""
         r = self.robot_radius
@@ -252,7 +260,7 @@ class FoxgloveViews:
             x, y, th = float(os_["x"]), float(os_["y"]), float(os_.get("theta", 0.0))
             if shape.get("radius"):
                 rr = float(shape["radius"])
-                prim = {"cylinders": [fm.CylinderPrimitive(pose=_pose(x, y, _HEIGHT / 2),
+                prim: dict[str, Any] = {"cylinders": [fm.CylinderPrimitive(pose=_pose(x, y, _HEIGHT / 2),
                                                            size=fm.Vector3(x=2 * rr, y=2 * rr, z=_HEIGHT),
                                                            bottom_scale=1.0, top_scale=1.0, color=c.unknown)]}
             elif shape.get("vertices"):

@@ -9,10 +9,13 @@ from __future__ import annotations
 import math
 import os
 from pathlib import Path
+from typing import Any
 
+from .errors import McapLogError
 from .foxglove_view import _color, _need, _pose, _schema, _stamp
 from .map_log import map_messages
 from .mcap_log import McapRecorder
+from .mcap_recover import recover_log
 
 TOPIC = "/view/lattice/{robot}"
 FRAME = "lattice/{robot}"
@@ -20,7 +23,7 @@ _LINE = (0.2, 0.45, 0.85, 1.0)
 _NEURON = (0.85, 0.3, 0.2, 1.0)
 
 
-def lattice_points(w, size: int) -> list[tuple[float, float]]:
+def lattice_points(w: Any, size: int) -> list[tuple[float, float]]:
     """Each neuron's input weight as the displacement it stands for: (d cos alpha, d sin alpha)."""
     return [(float(w[2 * i + 1]) * math.cos(float(w[2 * i])), float(w[2 * i + 1]) * math.sin(float(w[2 * i])))
             for i in range(size * size)]
@@ -48,9 +51,6 @@ def write_lattice_log(log: str | Path, out: str | Path) -> int:
 def add_lattice_channel(log: str | Path) -> int:
     """Every map version of ``log`` as a lattice view, written into ``log`` itself (the file
     rewritten whole with the views added, then put in its place); the number of views."""
-    from .errors import McapLogError
-    from .mcap_recover import recover_log
-
     log = Path(log)
     tmp = log.with_name(log.name + ".views.tmp")
     written: list[int] = []

@@ -5,10 +5,14 @@ record`` (record live keys like the world server's log)."""
 from __future__ import annotations
 
 import contextlib
+import select
 import signal
 import sys
+import termios
 import threading
+import tty
 from collections.abc import Iterator
+from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
@@ -16,9 +20,15 @@ import click
 
 from cekm_swarm.cli_support import ROOT, SIZE, Finite, Interrupted
 from cekm_swarm.errors import CekmError
+from cekm_swarm.protocol import DEFAULT_ROOT
 
+from .config import DEFAULT_HOST, DEFAULT_PORT, open_embedded_router
+from .jsonout import json_line
+from .mcap_log import format_log_info, log_info, log_root, recover_log
+from .mcap_sets import log_files, set_file
+from .replay import MAX_GAP_S, ReplayControl, log_span, replay_log
 from .tool_session import _ROOT_HELP, _check_key_expr, _connect_options, _keys, _open, _say, _session, _sigint_sets
-from .wait import ENV_CONNECT
+from .wait import ENV_CONNECT, resolve_endpoint
 
 
 @click.group("log")
@@ -52,11 +62,6 @@ def log_info_cmd(log_file: Path, recover_to: Path | None, force: bool, as_json: 
                                  param_hint="LOG")
     if recover_to is not None:
         _refuse_existing(recover_to, force)
-    from dataclasses import asdict
-
-    from .jsonout import json_line
-    from .mcap_log import format_log_info, log_info, recover_log
-
     try:
         info = log_info(log_file)
         if as_json:
@@ -88,10 +93,7 @@ def log_info_cmd(log_file: Path, recover_to: Path | None, force: bool, as_json: 
 def log_cat_cmd(log_file: Path, topics: tuple[str, ...], as_json: bool, views: bool, start: float | None,
                 end: float | None, root: str | None) -> None:
     """Print a log's messages, decoded, in time order (like mcap cat, ros2 bag echo)."""
-    from cekm_swarm.protocol import DEFAULT_ROOT
-
-    from .logcat import CatCounts, cat_lines
-    from .mcap_log import log_root
+    from .logcat import CatCounts, cat_lines  # noqa: PLC0415 -- lazy: cekm --help loads no log reader
 
     if start is not None and end is not None and end < start:
         raise click.UsageError(f"--end {end:g} is before --start {start:g}: no message can be in that window")
@@ -122,8 +124,6 @@ def log_cat_cmd(log_file: Path, topics: tuple[str, ...], as_json: bool, views: b
 def log_recover_cmd(log_file: Path, out_file: Path, force: bool) -> None:
     """Copy every complete message (and metadata) of IN.mcap, e.g. a log whose writer was
     killed, into OUT.mcap, a complete, indexed file."""
-    from .mcap_log import recover_log
-
     _refuse_existing(out_file, force)
     try:
         rep = recover_log(log_file, out_file)
@@ -143,10 +143,6 @@ def _keyboard(control: Any, stop: threading.Event) -> Iterator[bool]:
     if not sys.stdin.isatty():
         yield False
         return
-    import select
-    import termios
-    import tty
-
     fd = sys.stdin.fileno()
     try:
         saved = termios.tcgetattr(fd)
@@ -200,48 +196,12 @@ def replay_cmd(log_file: Path, endpoint: str | None, config_file: Path | None, w
     With no --connect (and no CEKM_CONNECT, no --config) the replay hosts the router itself
     on tcp/127.0.0.1:7447 (--port), where `cekm monitor` and `cekm topic` find it. On a
     terminal, space pauses and resumes, q stops."""
-    from .config import DEFAULT_HOST, DEFAULT_PORT, open_embedded_router
-    from .replay import ReplayControl, log_span, replay_log
-    from .wait import resolve_endpoint
-
-    if not fast and rate <= 0:
-        raise click.BadParameter("must be > 0 (or use --fast)", param_hint="--rate")
-    if key_expr is not None:
-        _check_key_expr(key_expr, "--keys")
-    try:
-        ep = resolve_endpoint(endpoint)
-    except CekmError as exc:
-        raise click.BadParameter(str(exc), param_hint="--connect" if endpoint else ENV_CONNECT) from None
-    try:
-        span = log_span(log_file)
-    except CekmError as exc:  # a log it cannot read: a failure (exit 1), as in `cekm log info`
-        raise click.ClickException(str(exc)) from None
-    if span is not None and start > span[1] - span[0]:
-        raise click.BadParameter(f"{start:g} s is past the log's end ({span[1] - span[0]:.3f} s long)",
-                                 param_hint="--start")
-    if start_paused and not sys.stdin.isatty():
-        raise click.UsageError("--start-paused needs a terminal (space resumes the replay)")
-    host_router = not ep.explicit and config_file is None
-    if port is not None and not host_router:
-        raise click.UsageError(f"--port is for the router the replay hosts; it joins {ep.endpoint} ({ep.source})")
+    host_router = _check_replay(log_file, endpoint, config_file, port, rate, fast, start, key_expr, start_paused)
     stop = threading.Event()
     control = ReplayControl()
     if start_paused:
         control.pause()
-    if host_router:
-        p = DEFAULT_PORT if port is None else port
-        try:
-            session = open_embedded_router(p)
-        except CekmError as exc:
-            raise click.ClickException(f"{exc} (a run or another replay holds port {p}? --port P hosts elsewhere, "
-                                       f"--connect ENDPOINT joins that router)") from None
-        _say(f"replay: hosting the router on tcp/{DEFAULT_HOST}:{p} (attach: cekm monitor"
-             f"{'' if p == DEFAULT_PORT else f' --connect tcp/{DEFAULT_HOST}:{p}'})")
-    else:
-        try:
-            session = _open(endpoint, config_file, wait_s)
-        except KeyboardInterrupt:
-            raise Interrupted() from None
+    session = _host_router(port) if host_router else _replay_session(endpoint, config_file, wait_s)
     tty = sys.stderr.isatty() and not quiet
     width = [0]
 
@@ -266,11 +226,56 @@ def replay_cmd(log_file: Path, endpoint: str | None, config_file: Path | None, w
     click.echo(f"published {result.published} messages on {len(result.per_key)} keys in {result.loops} loop(s), "
                f"{result.sim_seconds:.3f} s of sim time in {result.wall_seconds:.3f} s")
     if result.jumped:
-        from .replay import MAX_GAP_S
-
         _say(f"replay: did not wait across {result.jumped} gap(s) of more than {MAX_GAP_S:g} s of sim time "
              f"between two messages (log times no run reaches: stamps its recorder should not have kept)")
     if hit[0]:
+        raise Interrupted() from None
+
+
+def _check_replay(log_file: Path, endpoint: str | None, config_file: Path | None, port: int | None, rate: float,
+                  fast: bool, start: float, key_expr: str | None, start_paused: bool) -> bool:
+    """Refuse a replay's bad options before anything starts; whether it hosts the router."""
+    if not fast and rate <= 0:
+        raise click.BadParameter("must be > 0 (or use --fast)", param_hint="--rate")
+    if key_expr is not None:
+        _check_key_expr(key_expr, "--keys")
+    try:
+        ep = resolve_endpoint(endpoint)
+    except CekmError as exc:
+        raise click.BadParameter(str(exc), param_hint="--connect" if endpoint else ENV_CONNECT) from None
+    try:
+        span = log_span(log_file)
+    except CekmError as exc:  # a log it cannot read: a failure (exit 1), as in `cekm log info`
+        raise click.ClickException(str(exc)) from None
+    if span is not None and start > span[1] - span[0]:
+        raise click.BadParameter(f"{start:g} s is past the log's end ({span[1] - span[0]:.3f} s long)",
+                                 param_hint="--start")
+    if start_paused and not sys.stdin.isatty():
+        raise click.UsageError("--start-paused needs a terminal (space resumes the replay)")
+    host_router = not ep.explicit and config_file is None
+    if port is not None and not host_router:
+        raise click.UsageError(f"--port is for the router the replay hosts; it joins {ep.endpoint} ({ep.source})")
+    return host_router
+
+
+def _host_router(port: int | None) -> Any:
+    """The router a replay hosts on 127.0.0.1 (``--port``, default 7447), said on stderr."""
+    p = DEFAULT_PORT if port is None else port
+    try:
+        session = open_embedded_router(p)
+    except CekmError as exc:
+        raise click.ClickException(f"{exc} (a run or another replay holds port {p}? --port P hosts elsewhere, "
+                                   f"--connect ENDPOINT joins that router)") from None
+    _say(f"replay: hosting the router on tcp/{DEFAULT_HOST}:{p} (attach: cekm monitor"
+         f"{'' if p == DEFAULT_PORT else f' --connect tcp/{DEFAULT_HOST}:{p}'})")
+    return session
+
+
+def _replay_session(endpoint: str | None, config_file: Path | None, wait_s: float) -> Any:
+    """A session joining the router ``--connect`` (or the config file) names."""
+    try:
+        return _open(endpoint, config_file, wait_s)
+    except KeyboardInterrupt:
         raise Interrupted() from None
 
 
@@ -326,8 +331,6 @@ def record_cmd(key_expr: str | None, out_path: Path, endpoint: str | None, confi
     scene, which it asks the world server for. Ctrl-C or SIGTERM stops and closes the file.
     A message whose stamp is not believable (not a tick's sim time in [0, 1e7] s, or more
     than 8 ticks from the newest taken) is dropped and counted, as in the world's own log."""
-    from .mcap_sets import log_files, set_file
-
     first = set_file(out_path, 0)
     split = max_log_size is not None or max_log_duration is not None
     old = (log_files(first) if first.is_file() else []) if split else ([out_path] if out_path.exists() else [])
@@ -340,8 +343,7 @@ def record_cmd(key_expr: str | None, out_path: Path, endpoint: str | None, confi
 def _record(key_expr: str | None, out_path: Path, endpoint: str | None, config_file: Path | None, wait_s: float,
             duration: float | None, count: int | None, no_views: bool, root: str, max_log_size: int | None,
             max_log_duration: float | None, replaced: list[Path]) -> None:
-    from .record import record
-    from .wait import resolve_endpoint
+    from .record import record  # noqa: PLC0415 -- lazy: cekm --help loads no recorder
 
     keys = _keys(root)
     key_expr = _check_key_expr(key_expr or keys.everything())

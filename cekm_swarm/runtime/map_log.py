@@ -6,8 +6,11 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from pathlib import Path
+from typing import cast
 
 from cekm_swarm.protocol import DEFAULT_KEYS, KeyKind, MapVersion, decode
+
+from .mcap_read import read_messages
 
 MAP_KEY = "model/update"
 """The key below the robot a learning graph's learner sends its map versions on."""
@@ -16,8 +19,6 @@ MAP_KEY = "model/update"
 def map_messages(log: str | Path, robot: str | None = None, root: str = DEFAULT_KEYS.root
                  ) -> Iterator[tuple[str, MapVersion]]:
     """(robot, message) for every map message of the log in log-time order (one robot's with ``robot``)."""
-    from .mcap_read import read_messages
-
     tail = "/" + MAP_KEY
     head = f"{root}/"
     for m in read_messages(log):
@@ -26,7 +27,7 @@ def map_messages(log: str | Path, robot: str | None = None, root: str = DEFAULT_
         owner = m.topic[len(head):-len(tail)]
         if "/" in owner or (robot is not None and owner != robot):
             continue
-        yield owner, decode(m.topic, m.data, expect=KeyKind.MAP_VERSION)
+        yield owner, cast(MapVersion, decode(m.topic, m.data, expect=KeyKind.MAP_VERSION))
 
 
 def versions(log: str | Path, root: str = DEFAULT_KEYS.root) -> dict[str, list[tuple[int, str]]]:

@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from .mcap_read import StreamResult, _open, stream_messages
+from .mcap_sets import log_files
 
 
 @dataclass(frozen=True, slots=True)
@@ -50,8 +51,6 @@ class LogInfo:
 def log_info(path: str | Path) -> LogInfo:
     """Summarise a log (complete or truncated; a file, or a log set as one log: see
     :mod:`.mcap_sets`) by streaming its messages once."""
-    from .mcap_sets import log_files
-
     files = [_open(p) for p in log_files(path)]
     stats: dict[str, list[Any]] = {}
     complete, cut = True, None
@@ -86,7 +85,8 @@ def format_log_info(info: LogInfo) -> str:
                         f"{Path(info.files[-1]).name}")
     if info.channels:
         w = max(len(c.topic) for c in info.channels)
-        lines.append(f"  {'topic':<{w}}  {'encoding':<9} {'count':>7} {'rate Hz':>9} {'first s':>9} {'last s':>9}  schema")
+        lines.append(f"  {'topic':<{w}}  {'encoding':<9} {'count':>7} {'rate Hz':>9} {'first s':>9} "
+                     f"{'last s':>9}  schema")
         for c in info.channels:
             lines.append(f"  {c.topic:<{w}}  {c.message_encoding:<9} {c.count:>7} {c.rate:>9.2f} {c.first:>9.3f} "
                          f"{c.last:>9.3f}  {c.schema_name or '-'}")

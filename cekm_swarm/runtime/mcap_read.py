@@ -4,6 +4,8 @@
 
 from __future__ import annotations
 
+import heapq
+import json
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -12,7 +14,10 @@ from typing import Any
 from mcap.exceptions import McapError
 from mcap.reader import NonSeekingReader, SeekingReader, make_reader
 
+from cekm_swarm.protocol import KeySpaceError, validate_root
+
 from .errors import McapLogError
+from .mcap_sets import log_files
 
 _MAGIC = b"\x89MCAP0\r\n"
 
@@ -59,8 +64,6 @@ def file_complete(path: str | Path) -> bool:
 
 def is_complete(path: str | Path) -> bool:
     """True when the log was closed properly (footer present), every file of a set."""
-    from .mcap_sets import log_files
-
     return all(_has_footer(_open(p)) for p in log_files(path))
 
 
@@ -75,10 +78,6 @@ def log_root(path: str | Path) -> str | None:
     metadata (the world server's and ``cekm record``'s logs write it), else, for a log
     written before they did, the root of its world keys (``<root>/world/clock``); None
     when neither tells (the log is not readable, or holds no world key)."""
-    from cekm_swarm.protocol import KeySpaceError, validate_root
-
-    from .mcap_sets import log_files
-
     def valid(root: str | None) -> str | None:
         try:
             return validate_root(root) if root else None
@@ -107,6 +106,19 @@ def log_root(path: str | Path) -> str | None:
         for tail in _WORLD_KEYS:
             if t.endswith(tail) and valid(t[:-len(tail)]):
                 return t[:-len(tail)]
+    return None
+
+
+def read_geometry(path: str | Path) -> dict[str, Any] | None:
+    """The geometry the world server recorded (metadata ``geometry``), None if absent.
+    ``path``: a file, or a log set (its directory or first file), whose every file holds it."""
+    try:
+        with open(log_files(path)[0], "rb") as f:
+            for md in make_reader(f).iter_metadata():
+                if md.name == "geometry":
+                    return json.loads(md.metadata["json"])
+    except Exception:  # an unfinished log has no index; draw the paths alone
+        return None
     return None
 
 
@@ -155,8 +167,6 @@ def read_messages(path: str | Path, *, topics: Iterable[str] | None = None,
     """Messages of a log in log-time order, optionally only some topics or message
     encodings. ``path`` is a file, or a log set (a directory, or a set's first file: see
     :mod:`.mcap_sets`), whose files are merged in log-time order."""
-    from .mcap_sets import log_files, read_set
-
     return read_set(log_files(path), topics=topics, encodings=encodings)
 
 
@@ -206,3 +216,17 @@ def read_one(path: str | Path, *, topics: Iterable[str] | None = None,
                     yield m
         except McapError as exc:
             raise McapLogError(str(path), f"unreadable: {exc}") from None
+
+
+def read_set(files: list[Path], *, topics: Iterable[str] | None = None,
+             encodings: Iterable[str] | None = None) -> Iterator[LoggedMessage]:
+    """The messages of ``files`` in log-time order (files earlier in the set first on a tie)."""
+    topics = None if topics is None else list(topics)
+    encodings = None if encodings is None else list(encodings)
+    if len(files) == 1:
+        yield from read_one(files[0], topics=topics, encodings=encodings)
+        return
+    streams = [((m.log_time, k, i, m) for i, m in enumerate(read_one(f, topics=topics, encodings=encodings)))
+               for k, f in enumerate(files)]
+    for _, _, _, m in heapq.merge(*streams, key=lambda e: e[:3]):
+        yield m

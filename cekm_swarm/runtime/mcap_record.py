@@ -19,6 +19,7 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import io
 import json
 import os
@@ -33,6 +34,7 @@ from mcap.records import DataEnd, Footer
 from cekm_swarm.protocol import DEFAULT_KEYS, KeySpace, KeySpaceError, peek
 from cekm_swarm.protocol.codec import peek_type
 
+from .bridge import AsyncSubscription
 from .errors import McapLogError
 from .mcap_writer import COMPRESSIONS, MAGIC, ChunkedWriter
 
@@ -135,7 +137,7 @@ class McapRecorder:
             raise McapLogError(str(path), f"compression {compression!r}: use {' or '.join(COMPRESSIONS)}")
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
-            self._file: IO[bytes] | None = open(self.path, "wb")
+            self._file: IO[bytes] | None = open(self.path, "wb")  # noqa: SIM115 -- open while recording, close()d
         except OSError as exc:
             raise McapLogError(str(path), f"cannot open for writing: {exc.strerror or exc}") from None
         self._writer = ChunkedWriter(self._file, chunk_size=chunk_size, compression=compression)
@@ -348,13 +350,11 @@ class McapRecorder:
             self._lost(exc)
         finally:
             if self._file is not None:
-                try:
+                with contextlib.suppress(OSError):
                     self._file.close()
-                except OSError:
-                    pass
                 self._file = None
 
-    def __enter__(self) -> "McapRecorder":
+    def __enter__(self) -> McapRecorder:
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -368,8 +368,6 @@ async def record_zenoh(session: Any, recorder: McapRecorder, key_expr: str | Non
     Each message is filed at the sim time of its own ``stamp``; a message whose stamp
     cannot be read (malformed) is filed at the latest sim time seen, so nothing the
     network carried is left out. Returns the number of messages recorded."""
-    from .bridge import AsyncSubscription
-
     key_expr = key_expr or recorder.keys.everything()
     period = flush_every or recorder.flush_interval or DEFAULT_FLUSH_INTERVAL
     last_stamp = 0.0

@@ -13,23 +13,20 @@ scene of the Foxglove views) again at its start.
 
 Reading (:func:`log_files`): a path names a set when it is a directory (the ``.mcap`` files
 in it: one log, a set or a single file) or the set's first file (``run_0.mcap`` with a
-``run_1.mcap`` beside it); any other file is itself. :func:`read_set` gives the messages of
-every file in log-time order (a merge: a message whose stamp lags the file boundary still
-comes in its place).
+``run_1.mcap`` beside it); any other file is itself. :func:`.mcap_read.read_set` gives the
+messages of every file in log-time order (a merge: a message whose stamp lags the file
+boundary still comes in its place).
 """
 
 from __future__ import annotations
 
-import heapq
 import re
-from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
 from cekm_swarm.protocol import DEFAULT_KEYS, KeySpace
 
 from .errors import McapLogError
-from .mcap_read import LoggedMessage
 from .mcap_record import DEFAULT_CHUNK_SIZE, DEFAULT_FLUSH_INTERVAL, McapRecorder, SchemaSpec, sim_ns
 
 _NUMBERED = re.compile(r"^(?P<stem>.+)_(?P<index>\d+)\.mcap$")
@@ -79,22 +76,6 @@ def log_files(path: str | Path) -> list[Path]:
     return _members(path)
 
 
-def read_set(files: list[Path], *, topics: Iterable[str] | None = None,
-             encodings: Iterable[str] | None = None) -> Iterator[LoggedMessage]:
-    """The messages of ``files`` in log-time order (files earlier in the set first on a tie)."""
-    from .mcap_read import read_one
-
-    topics = None if topics is None else list(topics)
-    encodings = None if encodings is None else list(encodings)
-    if len(files) == 1:
-        yield from read_one(files[0], topics=topics, encodings=encodings)
-        return
-    streams = [((m.log_time, k, i, m) for i, m in enumerate(read_one(f, topics=topics, encodings=encodings)))
-               for k, f in enumerate(files)]
-    for _, _, _, m in heapq.merge(*streams, key=lambda e: e[:3]):
-        yield m
-
-
 class SplitRecorder:
     """A :class:`McapRecorder` that splits its log into a set (see the module's docstring):
     the same calls, the files ``<path stem>_<k>.mcap``. ``max_bytes`` or ``max_seconds``
@@ -113,8 +94,8 @@ class SplitRecorder:
         self.keys = keys
         self.max_ns = None if max_seconds is None else sim_ns(max_seconds)
         self.max_bytes = max_bytes
-        self._options = {"chunk_size": chunk_size, "flush_interval": flush_interval, "compression": compression,
-                         "keys": keys, "kinds": kinds, "schemas": schemas}
+        self._options: dict[str, Any] = {"chunk_size": chunk_size, "flush_interval": flush_interval,
+                                         "compression": compression, "keys": keys, "kinds": kinds, "schemas": schemas}
         self._metadata: list[tuple[str, dict[str, str]]] = []  # every file gets them all
         if metadata:
             self._metadata.append(("cekm", {str(k): str(v) for k, v in metadata.items()}))
@@ -135,8 +116,8 @@ class SplitRecorder:
         self.files.append(path)
         self._rec = rec
         self._first_ns = first_ns
-        for name, data in self._metadata:
-            rec.add_metadata(name, data)
+        for name, meta in self._metadata:
+            rec.add_metadata(name, meta)
         rec.add_metadata("log_set", {"name": self.base.name, "index": str(index),
                                      "first_log_time_ns": "" if first_ns is None else str(first_ns)})
         t = 0.0 if first_ns is None else first_ns / 1e9

@@ -26,8 +26,10 @@ from __future__ import annotations
 import struct
 import tempfile
 import zlib
-from typing import IO
+from collections.abc import Callable
+from typing import IO, Any
 
+import zstandard
 from mcap.data_stream import RecordBuilder
 from mcap.opcode import Opcode
 from mcap.records import (
@@ -67,11 +69,9 @@ COMPRESSIONS = ("zstd", "none")
 """The chunk compressions :class:`ChunkedWriter` writes."""
 
 
-def _compress(kind: str):
+def _compress(kind: str) -> tuple[str, Callable[[bytes], bytes] | None]:
     """(name written in the chunk, function) of a chunk compression."""
     if kind == "zstd":
-        import zstandard
-
         return "zstd", zstandard.compress
     if kind == "none":
         return "", None
@@ -95,7 +95,8 @@ class ChunkedWriter:
         self._chunk_indexes: dict[int, list[tuple[int, int]]] = {}  # channel -> [(log time, offset in chunk)]
         self._schemas: dict[int, Schema] = {}
         self._channels: dict[int, Channel] = {}
-        self._index_spool = tempfile.SpooledTemporaryFile(max_size=INDEX_SPOOL)  # packed ChunkIndex records
+        self._index_spool = tempfile.SpooledTemporaryFile(  # noqa: SIM115 -- the writer's, closed by finish()
+            max_size=INDEX_SPOOL)  # packed ChunkIndex records
         self._attachment_indexes: list[AttachmentIndex] = []
         self._metadata_indexes: list[MetadataIndex] = []
         self._counts: dict[int, int] = {}  # channel -> messages in the chunks written out
@@ -215,7 +216,7 @@ class ChunkedWriter:
         crc = 0
         written = 0  # summary bytes already streamed out (the chunk indexes)
 
-        def group(opcode: Opcode, records) -> None:
+        def group(opcode: Opcode, records: Any) -> None:
             begin = summary.count
             for record in records:
                 record.write(summary)
@@ -259,7 +260,7 @@ class ChunkedWriter:
 
     # ------------------------------------------------------------------ internals
 
-    def _in_chunk(self, record) -> None:
+    def _in_chunk(self, record: Any) -> None:
         builder = RecordBuilder()
         record.write(builder)
         self._chunk += builder.end()

@@ -52,7 +52,8 @@ class ModelServer:
                             f"with its digest, over MAX_MESSAGE_BYTES ({MAX_MESSAGE_BYTES}); give each robot "
                             f"host the file (--model PATH) instead of --model-from-zenoh")
             log.warning("%s: %s", key, self.refusal)
-        self._q = session.declare_queryable(key, zenoh.handlers.Callback(self._reply, indirect=True))
+        self._q: zenoh.Queryable[None] | None = session.declare_queryable(
+            key, zenoh.handlers.Callback(self._reply, indirect=True))
 
     def _reply(self, query: zenoh.Query) -> None:
         if self.refusal is not None:
@@ -79,6 +80,7 @@ def fetch_model_bytes(session: zenoh.Session, key: str, timeout: float = 30.0) -
     while True:
         for reply in session.get(key, timeout=min(1.0, max(0.05, deadline - time.monotonic()))):
             if reply.ok is None:
+                assert reply.err is not None  # a reply is ok or an error
                 text = reply.err.payload.to_bytes()[:400].decode("utf-8", "replace")
                 if text == "Timeout":  # Zenoh's own, when a queryable did not answer in time: ask again
                     last_error = "a queryable did not answer in time"

@@ -22,11 +22,14 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Callable
+from typing import Any
 
 import zenoh
+from rich.live import Live
 
 from cekm_swarm.protocol import KeySpace
 
+from .jsonout import json_line
 from .monitor_state import (
     FRESH,
     MAX_KEYS,
@@ -38,6 +41,7 @@ from .monitor_state import (
     RobotView,
 )
 from .monitor_view import MAX_TARGET_LINES, WIDTH, render, render_text, snapshot
+from .rungraph import fetch_run_graph
 
 __all__ = ["FRESH", "MAX_KEYS", "MAX_ROBOTS", "MAX_TARGET_LINES", "OBSERVATION_SPAN", "STALE_AFTER", "WIDTH",
            "MonitorState", "Observation", "RobotView", "render", "render_text", "run_monitor", "snapshot"]
@@ -73,7 +77,7 @@ def run_monitor(session: zenoh.Session, root: str = "cekm", refresh: float = 0.5
 
     sub = session.declare_subscriber(keys.everything(), on_sample)
     live = session.liveliness().declare_subscriber(keys.alive_all(), on_token, history=True)
-    kw = {"robots": robots, "key_filter": key_filter, "endpoint": endpoint}
+    kw: dict[str, Any] = {"robots": robots, "key_filter": key_filter, "endpoint": endpoint}
     seen_run: list[str | None] = [None]
 
     def learn_graph() -> None:
@@ -81,8 +85,6 @@ def run_monitor(session: zenoh.Session, root: str = "cekm", refresh: float = 0.5
         run = state.world_run()
         if run is not None and run != seen_run[0]:
             seen_run[0] = run
-            from .rungraph import fetch_run_graph
-
             g = fetch_run_graph(session, keys.world_graph())
             state.expected, state.graph = (g.nodes, g.name) if g is not None else (None, None)
 
@@ -92,14 +94,10 @@ def run_monitor(session: zenoh.Session, root: str = "cekm", refresh: float = 0.5
             state.set_alive(current_tokens())
             learn_graph()
             if as_json:
-                from .jsonout import json_line
-
                 out(json_line(snapshot(state, time.monotonic(), robots=robots, key_filter=key_filter)))
             else:
                 out(render_text(state, time.monotonic(), **kw))
             return state
-        from rich.live import Live
-
         with Live(render(state, time.monotonic(), **kw), refresh_per_second=max(1, round(1 / refresh)),
                   screen=False, auto_refresh=False) as view:
             while not stop.is_set():

@@ -53,7 +53,7 @@ OBSERVATION_SPAN = 2.0
 state no longer counts as observing (a robot whose modules died stops observing)."""
 
 
-def natural_key(name: str) -> tuple:
+def natural_key(name: str) -> tuple[Any, ...]:
     """Sort key that orders ids as a person does: t1, t2, t10 (not t1, t10, t2)."""
     return tuple(int(part) if part.isdigit() else part for part in re.split(r"(\d+)", name))
 
@@ -69,8 +69,8 @@ class RobotView:
     command: tuple[float, float] | None = None
     command_stamp: float | None = None
     map: tuple[int, int, float] | None = None  # a learning robot's map: version, steps learned, error (m/s)
-    latencies: deque = field(default_factory=lambda: deque(maxlen=200))  # seconds
-    sense_first: dict = field(default_factory=dict)  # stamp -> wall time of the first sense message
+    latencies: deque[float] = field(default_factory=lambda: deque(maxlen=200))  # seconds
+    sense_first: dict[float, float] = field(default_factory=dict)  # stamp -> wall time of the first sense message
 
     @property
     def status(self) -> str:
@@ -105,7 +105,7 @@ class MonitorState:
         self.keys = keys
         self.window = window
         self.robots: dict[str, RobotView] = {}
-        self.arrivals: dict[str, deque] = {}
+        self.arrivals: dict[str, deque[float]] = {}
         self.last_stamp: dict[str, float] = {}
         self.alive: set[str] = set()
         self.sim_time = math.nan
@@ -147,66 +147,82 @@ class MonitorState:
     def observe(self, key: str, payload: bytes, at: float) -> None:
         """One received message: decoded and checked (a malformed one is counted and dropped)."""
         with self._lock:
-            q = self.arrivals.get(key)
+            q = self._arrived(key, at)
             if q is None:
-                if len(self.arrivals) >= MAX_KEYS:
-                    self.untracked += 1
-                    return
-                q = self.arrivals[key] = deque()
-            q.append(at)
-            while q and at - q[0] > self.window:
-                q.popleft()
+                return
             msg = self.drops.decode(key, payload)
             if msg is None:
                 return
-            robot = None
             try:
                 parsed = self.keys.parse(key)
-                robot = parsed.robot if parsed.robot != WORLD else None
             except Exception:  # decode accepted the key, so this does not happen; never crash on it
                 return
+            robot = parsed.robot if parsed.robot != WORLD else None
             if isinstance(msg, WorldState):  # typed: every robot has a finite pose (protocol.messages)
-                if math.isfinite(self.sim_time) and msg.stamp < self.sim_time:  # a new run or replay
-                    self._new_run()
-                    self.arrivals[key] = q
-                self.targets = {tid: (t.x, t.y) for tid, t in msg.targets.items()}
-                self.last_stamp[key] = msg.stamp
-                self.sim_time = msg.stamp
-                self.world_at = at
-                for rid, r in msg.robots.items():
-                    v = self.robot(rid)
-                    if v is None:
-                        continue
-                    v.pose, v.in_contact = (r.x, r.y, r.theta), r.in_contact
-                    if r.goal is not None:
-                        v.goal = r.goal
+                self._world_state(key, q, msg, at)
                 return
             self.last_stamp[key] = msg.stamp
-            if robot and isinstance(msg, (Share, SenseTargets)):
-                book = self.shares if isinstance(msg, Share) else self.sensed
-                if robot in book or self.robot(robot) is not None:
-                    book[robot] = Observation(msg.stamp, frozenset(msg.targets),
-                                              "share" if isinstance(msg, Share) else "sense")
-                return
-            if robot and isinstance(msg, MapVersion):  # a learning robot (docs/learning.md)
-                mv = self.robot(robot)
-                if mv is not None:
-                    mv.map = (msg.version, msg.applied, msg.error)
-                return
-            v = self.robot(robot) if robot and isinstance(msg, (SenseRange, SenseTarget, WheelCommand)) else None
+            if robot:
+                self._robot_message(robot, msg, at)
+
+    def _arrived(self, key: str, at: float) -> deque[float] | None:
+        """The key's arrival times, ``at`` added and those older than the window gone (None:
+        one key too many, counted as untracked)."""
+        q = self.arrivals.get(key)
+        if q is None:
+            if len(self.arrivals) >= MAX_KEYS:
+                self.untracked += 1
+                return None
+            q = self.arrivals[key] = deque()
+        q.append(at)
+        while q and at - q[0] > self.window:
+            q.popleft()
+        return q
+
+    def _world_state(self, key: str, q: deque[float], msg: WorldState, at: float) -> None:
+        if math.isfinite(self.sim_time) and msg.stamp < self.sim_time:  # a new run or replay
+            self._new_run()
+            self.arrivals[key] = q
+        self.targets = {tid: (t.x, t.y) for tid, t in msg.targets.items()}
+        self.last_stamp[key] = msg.stamp
+        self.sim_time = msg.stamp
+        self.world_at = at
+        for rid, r in msg.robots.items():
+            v = self.robot(rid)
             if v is None:
-                return
-            if isinstance(msg, (SenseRange, SenseTarget)):
-                v.sense_first.setdefault(round(msg.stamp, 6), at)
-                if len(v.sense_first) > 64:
-                    for s in sorted(v.sense_first)[:-64]:
-                        del v.sense_first[s]
-            elif isinstance(msg, WheelCommand):
-                v.command = (msg.v_l, msg.v_r)
-                v.command_stamp = msg.stamp
-                first = v.sense_first.get(round(msg.stamp, 6))
-                if first is not None:
-                    v.latencies.append(at - first)
+                continue
+            v.pose, v.in_contact = (r.x, r.y, r.theta), r.in_contact
+            if r.goal is not None:
+                v.goal = r.goal
+
+    def _robot_message(self, robot: str, msg: Any, at: float) -> None:
+        """A robot's share or sensed targets, its map version, its readings (for the
+        sense-to-command latency) and its wheel command."""
+        if isinstance(msg, (Share, SenseTargets)):
+            book = self.shares if isinstance(msg, Share) else self.sensed
+            if robot in book or self.robot(robot) is not None:
+                book[robot] = Observation(msg.stamp, frozenset(msg.targets),
+                                          "share" if isinstance(msg, Share) else "sense")
+            return
+        if isinstance(msg, MapVersion):  # a learning robot (docs/learning.md)
+            mv = self.robot(robot)
+            if mv is not None:
+                mv.map = (msg.version, msg.applied, msg.error)
+            return
+        v = self.robot(robot) if isinstance(msg, (SenseRange, SenseTarget, WheelCommand)) else None
+        if v is None:
+            return
+        if isinstance(msg, (SenseRange, SenseTarget)):
+            v.sense_first.setdefault(round(msg.stamp, 6), at)
+            if len(v.sense_first) > 64:
+                for s in sorted(v.sense_first)[:-64]:
+                    del v.sense_first[s]
+        elif isinstance(msg, WheelCommand):
+            v.command = (msg.v_l, msg.v_r)
+            v.command_stamp = msg.stamp
+            first = v.sense_first.get(round(msg.stamp, 6))
+            if first is not None:
+                v.latencies.append(at - first)
 
     def is_tracking(self) -> bool:
         """A tracking run: targets in the world state, and shares or sense/targets seen."""
@@ -239,7 +255,10 @@ class MonitorState:
             for tid in obs[rid].targets:
                 by.setdefault(tid, []).append(rid)
         observed = sum(1 for tid in targets if by[tid])
-        shown = (lambda r: robots is None or r in robots)
+
+        def shown(r: str) -> bool:
+            return robots is None or r in robots
+
         return {
             "targets": {tid: {"x": targets[tid][0] if tid in targets else None,
                               "y": targets[tid][1] if tid in targets else None,

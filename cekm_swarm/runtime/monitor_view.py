@@ -35,8 +35,8 @@ def _num(x: float, width: int, digits: int) -> str:
 
 
 _STATUS_STYLE = {"ended": "dim", "moving": "green", "reached": "bold cyan", "stopped": "yellow", "waiting": "dim"}
-_PHASE_STYLE = {"running": "bold green", "replay": "bold green", "run ended": "bold red", "waiting for the world": "bold yellow",
-                "waiting for the modules": "bold yellow"}
+_PHASE_STYLE = {"running": "bold green", "replay": "bold green", "run ended": "bold red",
+                "waiting for the world": "bold yellow", "waiting for the modules": "bold yellow"}
 _HEADER = (f"{_fit('robot', 6, '<')} {_fit('x', 6)} {_fit('y', 6)} {_fit('theta', 5)} {_fit('goal', 13)} "
            f"{_fit('status', 7, '<')} {_fit('v_l', 6)} {_fit('v_r', 6)} {_fit('mods', 5)} {_fit('lat ms', 11)}")
 
@@ -88,12 +88,8 @@ def _tracking_lines(state: MonitorState, robots: set[str] | None, width: int) ->
     return out
 
 
-def render(state: MonitorState, now: float, *, robots: set[str] | None = None, key_filter: Callable[[str], bool] | None
-           = None, endpoint: str = "", width: int = WIDTH) -> Group:
-    """The view as a rich renderable, every line at most ``width`` (80) columns: the run's
-    phase, one row per robot (only ``robots`` if given), and, with ``key_filter``, the
-    rate, age and stamp of every matching key."""
-    phase = state.phase(now)
+def _head(state: MonitorState, phase: str, endpoint: str) -> Text:
+    """The view's first line: the run's phase, sim time, drops, run ids, the endpoint."""
     head = Text(no_wrap=True, overflow="ellipsis")
     head.append("cekm monitor ", style="bold")
     head.append(_fit(phase, len(phase), "<"), style=_PHASE_STYLE.get(phase, "bold yellow"))
@@ -106,7 +102,16 @@ def render(state: MonitorState, now: float, *, robots: set[str] | None = None, k
         head.append(f"  untracked {state.untracked}", style="yellow")
     if endpoint:
         head.append(f"  {endpoint}", style="dim")
-    lines: list[Text] = [head]
+    return head
+
+
+def render(state: MonitorState, now: float, *, robots: set[str] | None = None, key_filter: Callable[[str], bool] | None
+           = None, endpoint: str = "", width: int = WIDTH) -> Group:
+    """The view as a rich renderable, every line at most ``width`` (80) columns: the run's
+    phase, one row per robot (only ``robots`` if given), and, with ``key_filter``, the
+    rate, age and stamp of every matching key."""
+    phase = state.phase(now)
+    lines: list[Text] = [_head(state, phase, endpoint)]
     if phase == "waiting for the world":
         lines.append(Text("waiting for the world server's first state (start a run or `cekm replay LOG`)",
                           style="dim", no_wrap=True, overflow="ellipsis"))

@@ -13,6 +13,7 @@ kills every process left in the namespaces and deletes them (their veth ends go 
 
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
 import signal
@@ -24,7 +25,7 @@ from pathlib import Path
 from .lines import LineReader
 
 
-def ip(*args: str) -> subprocess.CompletedProcess:
+def ip(*args: str) -> subprocess.CompletedProcess[str]:
     return subprocess.run(["ip", *args], capture_output=True, text=True, timeout=30)
 
 
@@ -102,7 +103,7 @@ class Hosts:
             raise
 
     @staticmethod
-    def _ok(done: subprocess.CompletedProcess) -> None:
+    def _ok(done: subprocess.CompletedProcess[str]) -> None:
         if done.returncode != 0:
             raise RuntimeError(f"{' '.join(done.args)}: {done.stderr.strip()}")
 
@@ -131,10 +132,8 @@ class Hosts:
             if ns not in listed:
                 continue
             for pid in ip("netns", "pids", ns).stdout.split():
-                try:
+                with contextlib.suppress(ProcessLookupError, ValueError):
                     os.kill(int(pid), signal.SIGKILL)
-                except (ProcessLookupError, ValueError):
-                    pass
             ip("netns", "del", ns)
 
     def left_over(self) -> list[str]:

@@ -17,7 +17,12 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from cekm_swarm.protocol import DEFAULT_KEYS as K
+from cekm_swarm.ticks import tick_of
+
+from .config import RECONNECT_RETRY, _insert, embedded_router_config, open_session
 from .faultlink import LinkSettings
+from .mcap_log import read_messages
 from .netns import Hosts, NsProcess
 
 PORT = 7447
@@ -32,8 +37,6 @@ def open_router(port: int, host: str, connect: list[str]) -> Any:
     """A router listening on ``tcp/host:port`` (and ``udp/host:port``) that also joins the
     routers ``connect`` names (a robot host's own router joining the world's: its nodes'
     traffic to each other stays on the host), retrying a lost one as the clients do."""
-    from .config import RECONNECT_RETRY, _insert, embedded_router_config, open_session
-
     config = embedded_router_config(port, host)
     _insert(config, "listen/endpoints", [f"tcp/{host}:{port}", f"udp/{host}:{port}"])
     if connect:
@@ -84,9 +87,9 @@ class NetRun:
             self.start_router()
         where = ["--connect", f"tcp/127.0.0.1:{PORT}"] if self.outside_router else \
             ["--listen", "0.0.0.0", "--port", str(PORT)]
-        self.world = self.hosts.start("world", ["cekm", "launch", self.scenario, "--mode", self.mode, "--robots", "none",
-                                                *where, "--out", str(self.world_out), "--no-plot", *self.opts],
-                                      self.env, self.work)
+        argv = ["cekm", "launch", self.scenario, "--mode", self.mode, "--robots", "none",
+                *where, "--out", str(self.world_out), "--no-plot", *self.opts]
+        self.world = self.hosts.start("world", argv, self.env, self.work)
         self.world.wait_line(WORLD_UP, timeout=120)
         for r in self.hosts.robots:
             addr = self.hosts.world_addr[r]
@@ -99,7 +102,8 @@ class NetRun:
                     argv += ["--rate", str(s.rate)]
                 self.links[r] = self.hosts.start("world", argv, self.env, self.work, stdin=True)
                 self.links[r].wait_line("READY", timeout=60)
-            upstream = f"{self.transport if r in self.faulty else 'tcp'}/{addr}:{LINK_PORT if r in self.faulty else PORT}"
+            faulty = r in self.faulty
+            upstream = f"{self.transport if faulty else 'tcp'}/{addr}:{LINK_PORT if faulty else PORT}"
             if self.host_routers:
                 self.hosts.start(r, [sys.executable, "-c", ROUTER, str(PORT), "127.0.0.1", upstream], self.env,
                                  self.work, stdin=True).wait_line("READY", timeout=60)
@@ -125,6 +129,7 @@ class NetRun:
             rc = p.finish(60)
             assert rc == 0, f"{r}'s host failed:\n" + "\n".join(p.lines[-40:])
         for p in self.links.values():
+            assert p.proc.stdin is not None  # started with stdin=True
             p.proc.stdin.close()  # the link prints its statistics and ends
             p.finish(30)
         return json.loads((self.world_out / "outcome.json").read_text())
@@ -143,11 +148,6 @@ def world_log_gaps(log: Path, outcome: dict[str, Any], robots: list[str]) -> dic
     since it was last sent being named in the tick's ``sense/unchanged``), the ticks with
     none; and ``recorded`` the messages the world says it recorded that are not in the log.
     All zero for a whole log."""
-    from cekm_swarm.protocol import DEFAULT_KEYS as K
-    from cekm_swarm.ticks import tick_of
-
-    from .mcap_log import read_messages
-
     ticks = set(range(outcome["ticks"] + 1))
     stamps: dict[str, set[int]] = {}
     recorded = 0

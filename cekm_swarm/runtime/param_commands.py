@@ -11,6 +11,7 @@ from typing import Any
 import click
 
 from cekm_swarm.cli_support import Finite, RunFailed
+from cekm_swarm.protocol import KeySpace
 
 from .tool_session import _connect_options, _session
 
@@ -46,9 +47,7 @@ def param_group() -> None:
     """A running node's parameters: list, get, set (docs/modules.md)."""
 
 
-def _keys(root: str):
-    from cekm_swarm.protocol import KeySpace
-
+def _keys(root: str) -> KeySpace:
     return KeySpace(root=root)
 
 
@@ -80,8 +79,8 @@ def param_get_cmd(node: str, name: str, endpoint: str | None, config_file: Path 
     with _session(endpoint, config_file, wait_s) as session:
         doc = _ask(session, _keys(root).param(robot, nm), {})
     if name not in doc["params"]:
-        raise click.BadParameter(f"{node} has no parameter {name!r} (its parameters: {', '.join(doc['params']) or 'none'})",
-                                 param_hint="NAME")
+        known = ", ".join(doc["params"]) or "none"
+        raise click.BadParameter(f"{node} has no parameter {name!r} (its parameters: {known})", param_hint="NAME")
     click.echo(json.dumps(doc["params"][name]["value"]))
 
 

@@ -5,11 +5,13 @@ Fan's definition 7, numpy's default), on the values as given."""
 from __future__ import annotations
 
 import math
+from array import array
 from collections.abc import Sequence
+from typing import Final
 
 import numpy as np
 
-METHOD = "linear"
+METHOD: Final = "linear"
 
 
 def percentile(values: Sequence[float], q: float) -> float:
@@ -33,8 +35,6 @@ class Samples:
     low, high, resolution = 1e-6, 1e3, 0.005
 
     def __init__(self) -> None:
-        from array import array
-
         self._exact = array("d")
         self._step = math.log1p(self.resolution)
         self._bins = np.zeros(int(math.log(self.high / self.low) / self._step) + 2, dtype=np.int64)

@@ -40,19 +40,20 @@ import zenoh
 from cekm_swarm.protocol import DEFAULT_KEYS, DropCounter, KeyKind, KeySpace, KeySpaceError, WorldState, peek
 from cekm_swarm.protocol.stamps import StampWindow
 
+from . import foxglove_view
 from .mcap_log import McapRecorder
-from .mcap_sets import open_recorder
+from .mcap_sets import SplitRecorder, open_recorder
 
 GEOMETRY_ENCODING = "application/json"
 
 
-def serve_geometry(session: zenoh.Session, key: str, geometry: dict[str, Any]) -> zenoh.Queryable:
+def serve_geometry(session: zenoh.Session, key: str, geometry: dict[str, Any]) -> zenoh.Queryable[None]:
     """Answer queries on ``key`` with ``geometry`` as JSON (the world server calls this);
     undeclare the returned queryable when done."""
     return serve_json(session, key, geometry)
 
 
-def serve_json(session: zenoh.Session, key: str, doc: dict[str, Any]) -> zenoh.Queryable:
+def serve_json(session: zenoh.Session, key: str, doc: dict[str, Any]) -> zenoh.Queryable[None]:
     """Answer queries on ``key`` with ``doc`` as JSON (the static scene, the run's graph)."""
     blob = json.dumps(doc).encode()
 
@@ -117,7 +118,7 @@ class RecordResult:
 class Recording:
     """The pure part: feed (key, payload) in arrival order; writes the log. One thread."""
 
-    def __init__(self, recorder: McapRecorder, keys: KeySpace = DEFAULT_KEYS, views: bool = True,
+    def __init__(self, recorder: McapRecorder | SplitRecorder, keys: KeySpace = DEFAULT_KEYS, views: bool = True,
                  geometry: Callable[[], dict[str, Any] | None] | None = None) -> None:
         self.recorder = recorder
         self._geometry = geometry  # asked once, at the first world state
@@ -128,15 +129,9 @@ class Recording:
         self.result = RecordResult()
         self._last = 0.0
         self._views = None
-        if views:
-            try:
-                from . import foxglove_view
-
-                if foxglove_view.available():
-                    self._views = foxglove_view.FoxgloveViews(recorder)
-                    self.result.views = True
-            except ImportError:  # pragma: no cover - foxglove-sdk missing
-                self._views = None
+        if views and foxglove_view.available():  # foxglove-sdk is installed
+            self._views = foxglove_view.FoxgloveViews(recorder)
+            self.result.views = True
 
     def add(self, key: str, payload: bytes) -> None:
         """Record one message received on ``key`` (or drop and count it: :func:`record_problem`)."""

@@ -33,10 +33,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import zenoh
+from mcap.reader import make_reader
 
 from ..protocol.stamps import QUIET_S
 from .bridge import Publishers
-from .mcap_log import MSGPACK, LoggedMessage, read_messages
+from .mcap_log import MSGPACK, LoggedMessage, is_complete, read_messages
+from .mcap_sets import log_files
 
 MAX_GAP_S = 60.0
 """Sim seconds between two consecutive published messages beyond which replay does not
@@ -110,11 +112,6 @@ class ReplayProgress:
 def log_span(path: str | Path) -> tuple[float, float] | None:
     """(first, last) log time in seconds from the log's summary statistics (every file of a
     log set); None when a file has none (a truncated log) or the log holds no message."""
-    from mcap.reader import make_reader
-
-    from .mcap_log import is_complete
-    from .mcap_sets import log_files
-
     if not is_complete(path):
         return None
     spans = []
@@ -181,107 +178,157 @@ def replay_log(session: zenoh.Session, path: str | Path, *, rate: float | None =
     ``on_progress`` is called at most every ``progress_every`` s and once at the end of
     each loop. A gap of more than :data:`MAX_GAP_S` of sim time between two messages is
     not waited for (module docstring). Returns the counts."""
-    fast = rate is None or rate <= 0
-    wanted = _selector(key_expr)
-    own = publishers is None
-    pubs = publishers or Publishers(session, block=True)
-    result = ReplayResult()
-    t_start = time.perf_counter()
-    span = log_span(path) if on_progress is not None else None
-    log_start_ns: int | None = None if span is None else int(round(span[0] * 1e9))
-    end_s = math.nan if span is None else span[1]
-    last_report = -math.inf
+    replay = _Replay(session, path, rate=rate, key_expr=key_expr, stop=stop, publishers=publishers,
+                     on_publish=on_publish, start=start, control=control, on_progress=on_progress,
+                     progress_every=progress_every)
+    return replay.run(loop, max_loops)
 
-    def report(sim_ns: int, force: bool = False) -> None:
-        nonlocal last_report
-        now = time.perf_counter()
-        if on_progress is None or (not force and now - last_report < progress_every):
-            return
-        last_report = now
-        first = 0.0 if log_start_ns is None else log_start_ns / 1e9
-        on_progress(ReplayProgress(sim_ns / 1e9, first, end_s if math.isfinite(end_s) else sim_ns / 1e9,
-                                   result.published, result.loops, control is not None and control.paused))
 
+class _Stopped(Exception):
+    """The replay's ``stop`` was set: unwinds a replay to :meth:`_Replay.run`."""
+
+
+@dataclass
+class _Schedule:
+    """One loop's schedule: the wall time its first message went out at (``t0``, moved on
+    by a pause), the log times of its first and latest messages, and the sim time of the
+    gaps jumped (left out of the schedule)."""
+
+    t0: float
     first_ns: int | None = None
-    last_ns = 0
-    jumped_ns = 0  # sim time of the gaps jumped in this loop: left out of the schedule
-    max_gap_ns = int(MAX_GAP_S * 1e9)
-    try:
-        while True:
-            first_ns = None
-            last_ns = 0
-            jumped_ns = 0
-            skip_before: int | None = None if log_start_ns is None else log_start_ns + int(round(start * 1e9))
-            loop_t0 = time.perf_counter()
-            published_before = result.published
-            for m in read_messages(path, encodings=(MSGPACK,)):
-                if log_start_ns is None:
-                    log_start_ns = m.log_time
-                if skip_before is None:
-                    skip_before = log_start_ns + int(round(start * 1e9))
-                if m.log_time < skip_before or not wanted(m.topic):
-                    continue
-                if stop is not None and stop.is_set():
-                    result.stopped = True
+    last_ns: int = 0
+    jumped_ns: int = 0
+
+    def due(self, log_time: int, rate: float) -> float:
+        """The wall time a message of ``log_time`` goes out at."""
+        assert self.first_ns is not None
+        return self.t0 + (log_time - self.first_ns - self.jumped_ns) / 1e9 / rate
+
+    def sim_seconds(self) -> float:
+        """The sim time the loop has replayed so far (0 before its first message)."""
+        return 0.0 if self.first_ns is None else (self.last_ns - self.first_ns - self.jumped_ns) / 1e9
+
+
+class _Replay:
+    """One :func:`replay_log`: its settings, its counts and the current loop's schedule."""
+
+    def __init__(self, session: zenoh.Session, path: str | Path, *, rate: float | None, key_expr: str | None,
+                 stop: threading.Event | None, publishers: Publishers | None,
+                 on_publish: Callable[[LoggedMessage], None] | None, start: float, control: ReplayControl | None,
+                 on_progress: Callable[[ReplayProgress], None] | None, progress_every: float) -> None:
+        self.path, self.start, self.stop, self.control = path, start, stop, control
+        self.rate = None if rate is None or rate <= 0 else rate  # None: as fast as possible
+        self.wanted = _selector(key_expr)
+        self.own = publishers is None
+        self.pubs = publishers or Publishers(session, block=True)
+        self.on_publish, self.on_progress, self.progress_every = on_publish, on_progress, progress_every
+        self.result = ReplayResult()
+        span = log_span(path) if on_progress is not None else None
+        self.log_start_ns: int | None = None if span is None else int(round(span[0] * 1e9))
+        self.end_s = math.nan if span is None else span[1]
+        self.last_report = -math.inf
+        self.sched = _Schedule(time.perf_counter())
+
+    def run(self, loop: bool, max_loops: int | None) -> ReplayResult:
+        """Every loop, until the log is done (``loop`` False, or ``max_loops``) or ``stop``."""
+        result = self.result
+        t_start = time.perf_counter()
+        try:
+            while True:
+                published_before = result.published
+                self.one_loop()
+                if not loop or result.published == published_before:
                     return result
-                if control is not None and control.paused:
-                    report(last_ns, force=True)
-                    loop_t0 += control.wait_running(stop)  # the recorded gaps are kept across a pause
-                    if stop is not None and stop.is_set():
-                        result.stopped = True
-                        return result
-                if first_ns is None:
-                    loop_t0 = time.perf_counter()  # the schedule starts at the first message
-                    first_ns = m.log_time
-                elif m.log_time - last_ns > max_gap_ns:  # a time no run reaches: do not wait for it
-                    jumped_ns += m.log_time - last_ns
-                    result.jumped += 1
-                last_ns = m.log_time
-                if not fast:
-                    due = loop_t0 + (m.log_time - first_ns - jumped_ns) / 1e9 / rate  # type: ignore[operator]
-                    delay = due - time.perf_counter()
-                    while delay > 0:
-                        report(last_ns)
-                        pause = min(delay, progress_every) if on_progress is not None or control is not None \
-                            else delay
-                        if stop is not None:
-                            if stop.wait(pause):
-                                result.stopped = True
-                                return result
-                        else:
-                            time.sleep(pause)
-                        if control is not None and control.paused:
-                            report(last_ns, force=True)
-                            loop_t0 += control.wait_running(stop)
-                            if stop is not None and stop.is_set():
-                                result.stopped = True
-                                return result
-                        delay = (loop_t0 + (m.log_time - first_ns - jumped_ns) / 1e9 / rate  # type: ignore[operator]
-                                 - time.perf_counter())
-                pubs.put(m.topic, m.data)
-                result.published += 1
-                result.per_key[m.topic] = result.per_key.get(m.topic, 0) + 1
-                if on_publish is not None:
-                    on_publish(m)
-                report(m.log_time)
-            report(last_ns, force=True)
-            result.loops += 1
-            if first_ns is not None:
-                result.sim_seconds += (last_ns - first_ns - jumped_ns) / 1e9
-                first_ns = None  # counted: a stop in the pause below adds nothing more
-            if not loop or result.published == published_before:
-                return result
-            if max_loops is not None and result.loops >= max_loops:
-                return result
-            if stop is not None:  # quiet long enough that readers take the next loop as a new run
-                if stop.wait(LOOP_PAUSE_S):
-                    result.stopped = True
+                if max_loops is not None and result.loops >= max_loops:
                     return result
-            else:
-                time.sleep(LOOP_PAUSE_S)
-    finally:
-        if result.stopped and first_ns is not None:  # the part of the interrupted loop
-            result.sim_seconds += (last_ns - first_ns - jumped_ns) / 1e9
-        result.wall_seconds = time.perf_counter() - t_start
-        if own:
-            pubs.close()
+                self.sleep(LOOP_PAUSE_S)  # quiet long enough that readers take the next loop as a new run
+        except _Stopped:
+            result.stopped = True
+            return result
+        finally:
+            if result.stopped:  # the part of the interrupted loop
+                result.sim_seconds += self.sched.sim_seconds()
+            result.wall_seconds = time.perf_counter() - t_start
+            if self.own:
+                self.pubs.close()
+
+    def one_loop(self) -> None:
+        """The log once, from ``start`` s in, each message when its schedule says."""
+        self.sched = _Schedule(time.perf_counter())
+        skip_before = None if self.log_start_ns is None else self.log_start_ns + int(round(self.start * 1e9))
+        for m in read_messages(self.path, encodings=(MSGPACK,)):
+            if self.log_start_ns is None:
+                self.log_start_ns = m.log_time
+            if skip_before is None:
+                skip_before = self.log_start_ns + int(round(self.start * 1e9))
+            if m.log_time < skip_before or not self.wanted(m.topic):
+                continue
+            self.check_stop()
+            self.hold_while_paused()
+            self.schedule(m)
+            if self.rate is not None:
+                self.wait_due(m, self.rate)
+            self.publish(m)
+        self.report(self.sched.last_ns, force=True)
+        self.result.loops += 1
+        self.result.sim_seconds += self.sched.sim_seconds()
+        self.sched.first_ns = None  # counted: a stop in the pause after it adds nothing more
+
+    def schedule(self, m: LoggedMessage) -> None:
+        """The schedule starts at the loop's first message; a gap no run reaches is jumped."""
+        sched = self.sched
+        if sched.first_ns is None:
+            sched.t0 = time.perf_counter()
+            sched.first_ns = m.log_time
+        elif m.log_time - sched.last_ns > int(MAX_GAP_S * 1e9):  # a time no run reaches: do not wait for it
+            sched.jumped_ns += m.log_time - sched.last_ns
+            self.result.jumped += 1
+        sched.last_ns = m.log_time
+
+    def wait_due(self, m: LoggedMessage, rate: float) -> None:
+        """Until ``m`` is due, reporting progress and holding while paused meanwhile."""
+        delay = self.sched.due(m.log_time, rate) - time.perf_counter()
+        while delay > 0:
+            self.report(self.sched.last_ns)
+            watched = self.on_progress is not None or self.control is not None
+            self.sleep(min(delay, self.progress_every) if watched else delay)
+            self.hold_while_paused()
+            delay = self.sched.due(m.log_time, rate) - time.perf_counter()
+
+    def publish(self, m: LoggedMessage) -> None:
+        self.pubs.put(m.topic, m.data)
+        result = self.result
+        result.published += 1
+        result.per_key[m.topic] = result.per_key.get(m.topic, 0) + 1
+        if self.on_publish is not None:
+            self.on_publish(m)
+        self.report(m.log_time)
+
+    def check_stop(self) -> None:
+        if self.stop is not None and self.stop.is_set():
+            raise _Stopped
+
+    def sleep(self, seconds: float) -> None:
+        """``seconds`` of wall time, or until ``stop``."""
+        if self.stop is None:
+            time.sleep(seconds)
+        elif self.stop.wait(seconds):
+            raise _Stopped
+
+    def hold_while_paused(self) -> None:
+        """While ``control`` is paused; the recorded gaps are kept across a pause."""
+        if self.control is not None and self.control.paused:
+            self.report(self.sched.last_ns, force=True)
+            self.sched.t0 += self.control.wait_running(self.stop)
+            self.check_stop()
+
+    def report(self, sim_ns: int, force: bool = False) -> None:
+        """``on_progress``, at most every ``progress_every`` s unless ``force``."""
+        now = time.perf_counter()
+        if self.on_progress is None or (not force and now - self.last_report < self.progress_every):
+            return
+        self.last_report = now
+        first = 0.0 if self.log_start_ns is None else self.log_start_ns / 1e9
+        end = self.end_s if math.isfinite(self.end_s) else sim_ns / 1e9
+        paused = self.control is not None and self.control.paused
+        self.on_progress(ReplayProgress(sim_ns / 1e9, first, end, self.result.published, self.result.loops, paused))

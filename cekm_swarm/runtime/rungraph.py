@@ -8,7 +8,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from cekm_swarm.graph.spec import Graph, GraphError, load_graph
+from cekm_swarm.graph.spec import Graph, GraphError, graph_for, load_graph
 
 from .record import fetch_json
 
@@ -25,7 +25,7 @@ class RunGraph:
     sent: dict[str, str]  # key below a robot -> message kind, for every output of the graph
 
     @classmethod
-    def from_spec(cls, doc: dict[str, Any]) -> "RunGraph":
+    def from_spec(cls, doc: dict[str, Any]) -> RunGraph:
         g = Graph.from_dict(doc["graph"])
         sensors = len(doc.get("body", {}).get("sensor_angles", [])) or 12
         sent: dict[str, str] = {}
@@ -35,7 +35,8 @@ class RunGraph:
             for o in n.outputs:
                 for i in range(count):
                     sent[o.key.replace("{i}", str(i))] = kinds.get(o.port, "")
-        return cls(g.name, g.controller, tuple(g.node_names(sensors)), tuple(doc.get("team", ())), doc.get("run_id"), sent)
+        return cls(g.name, g.controller, tuple(g.node_names(sensors)), tuple(doc.get("team", ())), doc.get("run_id"),
+                   sent)
 
 
 def fetch_run_graph(session: Any, key: str, timeout: float = 2.0) -> RunGraph | None:
@@ -52,6 +53,4 @@ def fetch_run_graph(session: Any, key: str, timeout: float = 2.0) -> RunGraph | 
 def default_nodes(task: str = "navigation", sensors: int = 12) -> tuple[str, ...]:
     """The node instances of the default controller's graph (cekm) for ``task``: what a
     world started without a run spec waits for."""
-    from cekm_swarm.graph.spec import graph_for
-
     return tuple(load_graph(graph_for("cekm", task)).node_names(sensors))

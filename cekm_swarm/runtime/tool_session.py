@@ -18,11 +18,14 @@ from pathlib import Path
 from typing import Any
 
 import click
+import zenoh
 
-from cekm_swarm.cli_support import ENDPOINT, Finite, Interrupted
+from cekm_swarm.cli_support import Finite, Interrupted
 from cekm_swarm.errors import CekmError
+from cekm_swarm.protocol import KeySpace
 
-from .wait import DEFAULT_WAIT, ENV_CONNECT
+from .options import ENDPOINT
+from .wait import DEFAULT_WAIT, ENV_CONNECT, open_tool_session, resolve_endpoint
 
 _ROOT_HELP = "Key-space root (docs/design.md section 6)."
 
@@ -41,9 +44,8 @@ def _say(text: str) -> None:
     click.echo(text, err=True)
 
 
-def _open(endpoint: str | None, config_file: Path | None, wait_s: float, stop: threading.Event | None = None):
-    from .wait import open_tool_session, resolve_endpoint
-
+def _open(endpoint: str | None, config_file: Path | None, wait_s: float,
+          stop: threading.Event | None = None) -> zenoh.Session:
     try:
         resolve_endpoint(endpoint)
     except CekmError as exc:
@@ -87,9 +89,7 @@ def _sigint_sets(stop: threading.Event) -> Iterator[list[bool]]:
         signal.signal(signal.SIGINT, old)
 
 
-def _keys(root: str):
-    from cekm_swarm.protocol import KeySpace
-
+def _keys(root: str) -> KeySpace:
     try:
         return KeySpace(root)
     except CekmError as exc:
@@ -97,8 +97,6 @@ def _keys(root: str):
 
 
 def _check_key_expr(key_expr: str, hint: str = "KEYEXPR") -> str:
-    import zenoh
-
     try:
         zenoh.KeyExpr(key_expr)
     except Exception as exc:

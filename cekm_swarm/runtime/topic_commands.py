@@ -6,12 +6,15 @@ from __future__ import annotations
 
 import threading
 import time
+from dataclasses import asdict
 from pathlib import Path
 
 import click
 
 from cekm_swarm.cli_support import ROOT, Finite, Interrupted
+from cekm_swarm.protocol import MessageError
 
+from .jsonout import json_line
 from .tool_session import _ROOT_HELP, _check_key_expr, _connect_options, _keys, _open, _say, _session, _sigint_sets
 
 
@@ -29,8 +32,7 @@ def topic() -> None:
 def topic_list_cmd(endpoint: str | None, config_file: Path | None, wait_s: float, window: float, root: str,
                    alive: bool, as_json: bool) -> None:
     """Keys that carried messages during a listening window, with counts and rates."""
-    from .jsonout import json_line
-    from .topics import alive_tokens, topic_list
+    from .topics import alive_tokens, topic_list  # noqa: PLC0415 -- lazy: cekm --help loads no topic tools
 
     keys = _keys(root)
     with _session(endpoint, config_file, wait_s) as session:
@@ -69,7 +71,7 @@ def topic_list_cmd(endpoint: str | None, config_file: Path | None, wait_s: float
 def topic_echo_cmd(endpoint: str | None, config_file: Path | None, wait_s: float, key_expr: str, count: int | None,
                    timeout: float | None, full: bool, as_json: bool, root: str) -> None:
     """Decode and print the messages on KEYEXPR (e.g. 'cekm/r1/cmd/wheels', 'cekm/r1/**')."""
-    from .topics import echo
+    from .topics import echo  # noqa: PLC0415 -- lazy: cekm --help loads no topic tools
 
     _check_key_expr(key_expr)
     keys = _keys(root)
@@ -94,10 +96,7 @@ def topic_echo_cmd(endpoint: str | None, config_file: Path | None, wait_s: float
 def topic_hz_cmd(endpoint: str | None, config_file: Path | None, wait_s: float, key_expr: str, window: float,
                  interval: float, duration: float | None, as_json: bool) -> None:
     """Rate, period jitter and age of the newest message of each key matching KEYEXPR."""
-    from dataclasses import asdict
-
-    from .jsonout import json_line
-    from .topics import ArrivalLog, format_hz
+    from .topics import ArrivalLog, format_hz  # noqa: PLC0415 -- lazy: cekm --help loads no topic tools
 
     _check_key_expr(key_expr)
     stop = threading.Event()
@@ -135,10 +134,7 @@ def topic_hz_cmd(endpoint: str | None, config_file: Path | None, wait_s: float, 
 def topic_info_cmd(endpoint: str | None, config_file: Path | None, wait_s: float, key_expr: str, window: float,
                    root: str, as_json: bool) -> None:
     """Publishers and subscribers of KEYEXPR (from the router) and the rate of each key."""
-    from dataclasses import asdict
-
-    from .jsonout import json_line
-    from .topics import ArrivalLog, format_endpoints, router_endpoints
+    from .topics import ArrivalLog, format_endpoints, router_endpoints  # noqa: PLC0415 -- lazy: cekm --help loads no topic tools
 
     _check_key_expr(key_expr)
     keys = _keys(root)
@@ -164,7 +160,8 @@ def topic_info_cmd(endpoint: str | None, config_file: Path | None, wait_s: float
 @click.argument("message", metavar="JSON")
 @click.option("--count", "-n", default=1, show_default=True, type=click.IntRange(1), help="Messages to publish.")
 @click.option("--rate", default=None, type=Finite(min=0.0, min_open=True), help="Messages per second.")
-@click.option("--stamp", default=None, type=Finite(), help="The messages' stamp, over the JSON's (default: the JSON's, else 0).")
+@click.option("--stamp", default=None, type=Finite(),
+              help="The messages' stamp, over the JSON's (default: the JSON's, else 0).")
 @click.option("--wait-subscriber", default=5.0, show_default=True, type=Finite(0.0),
               help="Seconds to wait for a subscriber before publishing anyway.")
 @click.option("--confirm-timeout", default=3.0, show_default=True, type=Finite(0.1),
@@ -182,9 +179,7 @@ def topic_pub_cmd(endpoint: str | None, config_file: Path | None, wait_s: float,
     this client to publish on KEY drops the message silently, so by default a second
     session with the same credentials listens on KEY and the command fails (exit 1) when
     the messages do not come back through the router."""
-    from cekm_swarm.protocol import MessageError
-
-    from .topics import build_message, publish
+    from .topics import build_message, publish  # noqa: PLC0415 -- lazy: cekm --help loads no topic tools
 
     keys = _keys(root)
     try:
@@ -229,9 +224,8 @@ def node_list_cmd(endpoint: str | None, config_file: Path | None, wait_s: float,
                   as_json: bool) -> None:
     """Live nodes per robot (and the world server), from their liveliness tokens, against
     the nodes of the graph the run runs (which the world serves)."""
-    from .jsonout import json_line
-    from .nodes import format_nodes, group_tokens, wait_for_tokens
-    from .rungraph import fetch_run_graph
+    from .nodes import format_nodes, group_tokens, wait_for_tokens  # noqa: PLC0415 -- lazy: cekm --help loads no node tools
+    from .rungraph import fetch_run_graph  # noqa: PLC0415 -- lazy: cekm --help loads no run-graph reader
 
     keys = _keys(root)
     with _session(endpoint, config_file, wait_s) as session:

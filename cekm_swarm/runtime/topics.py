@@ -7,6 +7,7 @@ Zenoh's threads.
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 import queue
@@ -20,9 +21,12 @@ from typing import Any
 import msgspec
 import zenoh
 
-from cekm_swarm.protocol import DEFAULT_KEYS, KeyKind, KeySpace, MessageError, decode, summary, to_plain
+from cekm_swarm.protocol import DEFAULT_KEYS, KeyKind, KeySpace, KeySpaceError, MessageError, decode, summary, to_plain
+from cekm_swarm.protocol.messages import MESSAGE_TYPES, encode
 
-from .bridge import Received
+from .bridge import Publishers, Received, wait_matching
+from .config import MAX_MESSAGE_BYTES
+from .jsonout import json_line
 
 
 @dataclass(frozen=True, slots=True)
@@ -45,7 +49,7 @@ def hz_stats(key: str, times: Sequence[float], now: float) -> HzStats:
     age = now - times[-1] if n else math.inf
     if n < 2:
         return HzStats(key, n, 0.0, math.nan, math.nan, math.nan, math.nan, age)
-    periods = [b - a for a, b in zip(times, times[1:])]
+    periods = [b - a for a, b in itertools.pairwise(times)]
     mean = (times[-1] - times[0]) / (n - 1)
     var = sum((p - mean) ** 2 for p in periods) / len(periods)
     return HzStats(key, n, 1.0 / mean if mean > 0 else math.inf, mean, min(periods), max(periods), math.sqrt(var), age)
@@ -81,7 +85,7 @@ class ArrivalLog:
         self._times: dict[str, deque[float]] = {}
         self._counts: dict[str, int] = {}
         self._bytes: dict[str, int] = {}
-        self._sub = session.declare_subscriber(key_expr, self._on_sample)
+        self._sub: zenoh.Subscriber[None] | None = session.declare_subscriber(key_expr, self._on_sample)
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
         now = time.monotonic()
@@ -124,7 +128,7 @@ class ArrivalLog:
             self._sub.undeclare()
             self._sub = None
 
-    def __enter__(self) -> "ArrivalLog":
+    def __enter__(self) -> ArrivalLog:
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -158,8 +162,6 @@ def echo(session: zenoh.Session, key_expr: str, out: Callable[[str], None], *, c
     ``stop``. ``as_json``: one JSON object per message (:func:`echo_record`). If nothing
     arrives within ``waiting_after`` s, ``waiting("waiting for messages on KEYEXPR ...")``
     is called once. Returns how many messages arrived."""
-    from .jsonout import json_line
-
     q: queue.SimpleQueue[Received] = queue.SimpleQueue()
     sub = session.declare_subscriber(key_expr, lambda s: q.put(Received.from_sample(s)))
     n = 0
@@ -229,7 +231,7 @@ class Endpoints:
 
 def _zids(doc: dict[str, Any], *fields: str) -> list[str]:
     """The session ids listed under ``fields`` of an admin-space entry (anything else ignored)."""
-    out = []
+    out: list[str] = []
     for f in fields:
         value = doc.get(f)
         if isinstance(value, list):
@@ -265,6 +267,32 @@ def router_endpoints(session: zenoh.Session, key_expr: str, keys: KeySpace = DEF
     entries = _admin(session, "@/*/router/**", timeout)
     if not any("/router/" in k for k, _ in entries):
         return None
+    names = _session_names(entries, keys)
+
+    def who(doc: dict[str, Any], routers: bool) -> list[str]:
+        out = []
+        for zid in _zids(doc, "clients", "peers"):
+            if zid != me:
+                out.append(", ".join(sorted(names[zid])) if zid in names else f"zid {zid}")
+        if routers and _zids(doc, "routers"):
+            out.append("router")
+        return sorted(out)
+
+    pubs: dict[str, list[str]] = {}
+    subs: dict[str, list[str]] = {}
+    for k, doc in entries:
+        for marker, table, routers in (("/router/publisher/", pubs, True), ("/router/subscriber/", subs, False)):
+            _, _, declared = k.partition(marker)
+            if declared and _intersects(declared, target):
+                named = who(doc, routers)
+                if named:
+                    table.setdefault(declared, []).extend(named)
+    return Endpoints(pubs, subs)
+
+
+def _session_names(entries: list[tuple[str, Any]], keys: KeySpace) -> dict[str, list[str]]:
+    """{session zid: its names}: ``router`` for the router's own session, ``robot/module``
+    for each liveliness token a session holds (the token's key when it is not the key space's)."""
     names: dict[str, list[str]] = {}
     for k, _ in entries:
         parts = k.split("/")
@@ -281,32 +309,15 @@ def router_endpoints(session: zenoh.Session, key_expr: str, keys: KeySpace = DEF
             label = rest
         for zid in _zids(doc, "clients", "peers"):
             names.setdefault(zid, []).append(label)
+    return names
 
-    def who(doc: dict[str, Any], routers: bool) -> list[str]:
-        out = []
-        for zid in _zids(doc, "clients", "peers"):
-            if zid != me:
-                out.append(", ".join(sorted(names[zid])) if zid in names else f"zid {zid}")
-        if routers and _zids(doc, "routers"):
-            out.append("router")
-        return sorted(out)
 
-    pubs: dict[str, list[str]] = {}
-    subs: dict[str, list[str]] = {}
-    for k, doc in entries:
-        for marker, table, routers in (("/router/publisher/", pubs, True), ("/router/subscriber/", subs, False)):
-            _, _, declared = k.partition(marker)
-            if not declared:
-                continue
-            try:
-                hit = zenoh.KeyExpr(declared).intersects(target)
-            except Exception:
-                hit = False
-            if hit:
-                named = who(doc, routers)
-                if named:
-                    table.setdefault(declared, []).extend(named)
-    return Endpoints(pubs, subs)
+def _intersects(declared: str, target: zenoh.KeyExpr) -> bool:
+    """Whether a declared key expression meets ``target`` (False for one Zenoh refuses)."""
+    try:
+        return bool(zenoh.KeyExpr(declared).intersects(target))
+    except Exception:
+        return False
 
 
 def format_endpoints(ep: Endpoints | None, stats: Sequence[HzStats]) -> str:
@@ -332,9 +343,6 @@ def build_message(key: str, fields_json: str, keys: KeySpace = DEFAULT_KEYS, *, 
     """The msgpack bytes of the message for ``key`` from a JSON map of its fields (e.g.
     ``{"v_l": 0.05, "v_r": 0.05, "seq": 0}`` for ``cekm/r1/cmd/wheels``), validated like a
     received message. ``stamp`` and ``sender`` may also be given in the map."""
-    from cekm_swarm.protocol import KeySpaceError
-    from cekm_swarm.protocol.messages import MESSAGE_TYPES, encode
-
     try:
         parsed = keys.parse(key)
     except KeySpaceError as exc:
@@ -374,8 +382,6 @@ def build_message(key: str, fields_json: str, keys: KeySpace = DEFAULT_KEYS, *, 
         raise MessageError(f"{key}: missing field(s) {', '.join(missing)}") from None
     data = encode(msg)
     decode(key, data, keys=keys, expect=kind)  # the checks a receiver makes (index matches the key, ...)
-    from .config import MAX_MESSAGE_BYTES
-
     if len(data) > MAX_MESSAGE_BYTES:  # every router and client drops it: refused here, not sent for nothing
         raise MessageError(f"{key}: the message is {len(data):,} bytes, over the {MAX_MESSAGE_BYTES // 1024} KB "
                            f"limit every router and client enforce ({MAX_MESSAGE_BYTES:,} bytes)")
@@ -402,18 +408,14 @@ def publish(session: zenoh.Session, key: str, payload: bytes, *, count: int = 1,
     it silently, so a shortfall is the one sign of that. ``wait_subscriber``: first wait up
     to that many seconds for a subscriber (saying so through ``waiting``), as ``ros2 topic
     pub`` does; published anyway after it, with ``matched`` False."""
-    from .bridge import Publishers
-
     stop = stop or threading.Event()
     result = PubResult()
     got = threading.Semaphore(0)
     probe_sub = None
     with Publishers(session, block=True) as pubs:
         pub = pubs.publisher(key)
-        result.matched = pub.matching_status.matching
+        result.matched = pub.matching_status.matching  # type: ignore[attr-defined]  # zenoh's stub says bool
         if not result.matched and wait_subscriber > 0:
-            from .bridge import wait_matching
-
             if waiting is not None:
                 waiting(f"waiting for a subscriber on {key} ...")
             result.matched = wait_matching(pub, wait_subscriber)
@@ -427,9 +429,8 @@ def publish(session: zenoh.Session, key: str, payload: bytes, *, count: int = 1,
             for i in range(count):
                 if stop.is_set():
                     break
-                if i and rate:
-                    if stop.wait(1.0 / rate):
-                        break
+                if i and rate and stop.wait(1.0 / rate):
+                    break
                 pub.put(payload)
                 result.sent += 1
             if probe_sub is not None:

@@ -4,26 +4,28 @@ from __future__ import annotations
 
 import math
 import threading
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import click
+import zenoh
 
 from cekm_swarm.cli_support import seed_option
 from cekm_swarm.errors import CekmError
+from cekm_swarm.protocol import KeySpace
+from cekm_swarm.runtime.mcap_log import is_complete
+from cekm_swarm.runtime.mcap_read import read_geometry
 from cekm_swarm.runtime.tool_session import _connect_options, _session
 
 
-def _geometry(scenario: str | None, log: Path | None, seed: int | None):
+def _geometry(scenario: str | None, log: Path | None, seed: int | None) -> tuple[dict[str, Any], list[float]]:
     """(static geometry, sensing radii) from a scenario or from a run's MCAP log."""
-    from world import ScenarioError, load_scenario
-    from world.sim import World
+    from world import ScenarioError, load_scenario  # noqa: PLC0415 -- lazy: cekm --help loads no world (pymunk)
+    from world.sim import World  # noqa: PLC0415 -- lazy: cekm --help loads no world (pymunk)
 
     if log is not None:
-        from cekm_swarm.launch.plot import read_geometry
-        from cekm_swarm.runtime.mcap_log import is_complete
-
         try:
             complete = is_complete(log)
         except CekmError as exc:  # a log it cannot read: a failure (exit 1), as in `cekm log info`
@@ -33,6 +35,7 @@ def _geometry(scenario: str | None, log: Path | None, seed: int | None):
             why = "" if complete else " (an unfinished log has no index: `cekm log recover` it first)"
             raise click.BadParameter(f"{log}: no geometry in the log's metadata{why}", param_hint="--log")
         return geometry, sensing_radii(geometry, geometry.get("sensor_range"), geometry.get("target_range"))
+    assert scenario is not None  # a scenario, or a log (above)
     try:
         sc = load_scenario(scenario)
     except ScenarioError as exc:
@@ -41,7 +44,7 @@ def _geometry(scenario: str | None, log: Path | None, seed: int | None):
     return geometry, sensing_radii(geometry, sc.sensor_range, sc.target_range)
 
 
-def sensing_radii(geometry: dict, sensor_range: float | None, target_range: float | None) -> list[float]:
+def sensing_radii(geometry: dict[str, Any], sensor_range: float | None, target_range: float | None) -> list[float]:
     """The circles the view draws about each robot: the obstacle sensors' reach from the
     robot's centre and the target sensing range (each when known and finite)."""
     r = geometry.get("body_radius", 0.03)
@@ -53,12 +56,11 @@ def sensing_radii(geometry: dict, sensor_range: float | None, target_range: floa
     return out
 
 
-def _lattice(session, model_path: Path | None, root: str, timeout: float):
+def _lattice(session: Any, model_path: Path | None, root: str, timeout: float) -> Any:
     """The motor map's input weights w: from --model, else from the run's model queryable
     (None if nothing answers within ``timeout`` s: neurons are then placed by index)."""
-    from cekm_swarm.models.io import load_model, load_model_bytes
-    from cekm_swarm.protocol import KeySpace
-    from cekm_swarm.runtime.model_service import fetch_model_bytes
+    from cekm_swarm.models.io import load_model, load_model_bytes  # noqa: PLC0415 -- lazy: cekm --help loads no model code
+    from cekm_swarm.runtime.model_service import fetch_model_bytes  # noqa: PLC0415 -- lazy: cekm --help loads no hashlib
 
     if model_path is not None:
         return load_model(model_path).w
@@ -96,11 +98,10 @@ def view_cmd(scenario: str | None, log: Path | None, seed: int | None, robot: st
     The arena is the run's (the world server serves it): without SCENARIO the view waits
     for a run and draws its arena; a SCENARIO that is not the run's is drawn until the run
     is seen, then replaced by the run's, with a warning."""
-    from cekm_swarm.protocol import KeySpace
-    from world.draw import robot_colours
+    from world.draw import robot_colours  # noqa: PLC0415 -- lazy: cekm --help loads no world (pymunk)
 
-    from .live import LiveView
-    from .server import ViewServer
+    from .live import LiveView  # noqa: PLC0415 -- lazy: cekm --help loads no view server
+    from .server import ViewServer  # noqa: PLC0415 -- lazy: cekm --help loads no view server
 
     if scenario is not None and log is not None:
         raise click.UsageError("give a SCENARIO (name or TOML file) or --log RUN.mcap, not both")
@@ -132,14 +133,7 @@ def view_cmd(scenario: str | None, log: Path | None, seed: int | None, robot: st
         except OSError as exc:
             raise click.ClickException(f"--http {http_port}: cannot serve on {host}: {exc.strerror}") from None
         if foxglove_port is not None:
-            from .foxglove_live import FoxgloveLive
-
-            try:
-                fox = FoxgloveLive(view, host, foxglove_port)
-            except Exception as exc:  # noqa: BLE001 - foxglove's own error types; the page still serves
-                server.close()
-                raise click.ClickException(f"--foxglove {foxglove_port}: cannot serve on {host}: {exc}") from None
-            click.echo(f"foxglove WebSocket server on ws://{host}:{fox.port}", err=True)
+            fox = _foxglove(view, host, foxglove_port, server)
         click.echo(f"live view on {server.url} (Ctrl-C to stop)", err=True)
         # a new run starts the view afresh as soon as its world's token is seen (on Zenoh's
         # thread, before the run's first state), not after the graph is fetched: by then a
@@ -150,23 +144,8 @@ def view_cmd(scenario: str | None, log: Path | None, seed: int | None, robot: st
         try:
             while True:
                 run = runs.changed(timeout=0.5)
-                if run is not None:  # the arena and the graph the new run runs
-                    from cekm_swarm.runtime.record import fetch_json
-                    from cekm_swarm.runtime.rungraph import fetch_run_graph
-
-                    g = None if log is not None else fetch_json(session, keys.world_geometry())
-                    if g is not None and "bounds" in g and g.get("name") != view.geometry.get("name"):
-                        given = view.geometry.get("name")
-                        gids = sorted(r["id"] for r in g.get("robots", []))
-                        view.set_geometry(g, sensing_radii(g, g.get("sensor_range"), g.get("target_range")),
-                                          robot_colours(gids))  # drawn before it is said
-                        click.echo(f"the run {run} is of arena {g.get('name')!r}, not {given!r}: drawing the run's",
-                                   err=True)
-
-                    g = fetch_run_graph(session, keys.world_graph())
-                    view.set_graph(None if g is None else f"{g.name} ({g.controller})")
-                    if fox is not None:
-                        fox.set_schemas((fetch_json(session, keys.world_graph()) or {}).get("schemas") or {})
+                if run is not None:
+                    _new_run(session, keys, view, fox, run, own_arena=log is None)
         except KeyboardInterrupt:
             pass
         finally:
@@ -177,11 +156,43 @@ def view_cmd(scenario: str | None, log: Path | None, seed: int | None, robot: st
             sub.undeclare()
 
 
-def _run_geometry(session, keys, wait_s: float) -> dict | None:
-    """The arena the run's world server serves, waiting up to ``wait_s`` s for one."""
-    import time
+def _foxglove(view: Any, host: str, port: int, server: Any) -> Any:
+    """The live Foxglove WebSocket server of ``--foxglove PORT`` (the page's server closed
+    and a failure raised when it cannot serve)."""
+    from .foxglove_live import FoxgloveLive  # noqa: PLC0415 -- lazy: cekm --help loads no foxglove server
 
-    from cekm_swarm.runtime.record import fetch_json
+    try:
+        fox = FoxgloveLive(view, host, port)
+    except Exception as exc:  # noqa: BLE001 - foxglove's own error types; the page still serves
+        server.close()
+        raise click.ClickException(f"--foxglove {port}: cannot serve on {host}: {exc}") from None
+    click.echo(f"foxglove WebSocket server on ws://{host}:{fox.port}", err=True)
+    return fox
+
+
+def _new_run(session: Any, keys: KeySpace, view: Any, fox: Any, run: str, own_arena: bool) -> None:
+    """A new run seen: the arena it runs in (unless the view draws a log's, ``own_arena``
+    False), the graph it runs, and its user messages' schemas for Foxglove."""
+    from cekm_swarm.runtime.record import fetch_json  # noqa: PLC0415 -- lazy: cekm --help loads no recorder
+    from cekm_swarm.runtime.rungraph import fetch_run_graph  # noqa: PLC0415 -- lazy: cekm --help loads no graph reader
+    from world.draw import robot_colours  # noqa: PLC0415 -- lazy: cekm --help loads no world (pymunk)
+
+    g = fetch_json(session, keys.world_geometry()) if own_arena else None
+    if g is not None and "bounds" in g and g.get("name") != view.geometry.get("name"):
+        given = view.geometry.get("name")
+        gids = sorted(r["id"] for r in g.get("robots", []))
+        view.set_geometry(g, sensing_radii(g, g.get("sensor_range"), g.get("target_range")),
+                          robot_colours(gids))  # drawn before it is said
+        click.echo(f"the run {run} is of arena {g.get('name')!r}, not {given!r}: drawing the run's", err=True)
+    graph = fetch_run_graph(session, keys.world_graph())
+    view.set_graph(None if graph is None else f"{graph.name} ({graph.controller})")
+    if fox is not None:
+        fox.set_schemas((fetch_json(session, keys.world_graph()) or {}).get("schemas") or {})
+
+
+def _run_geometry(session: Any, keys: KeySpace, wait_s: float) -> dict[str, Any] | None:
+    """The arena the run's world server serves, waiting up to ``wait_s`` s for one."""
+    from cekm_swarm.runtime.record import fetch_json  # noqa: PLC0415 -- lazy: cekm --help loads no recorder
 
     end = time.monotonic() + wait_s
     while True:
@@ -198,17 +209,15 @@ class RunWatch:
     (``<root>/world/alive/server/<run>``); :meth:`changed` returns a new one once, and
     ``on_run(run)`` is called on Zenoh's thread for every token seen."""
 
-    def __init__(self, session, keys, on_run: Callable[[str], None] | None = None,
+    def __init__(self, session: Any, keys: KeySpace, on_run: Callable[[str], None] | None = None,
                  on_end: Callable[[str], None] | None = None) -> None:
-        import zenoh
-
         self._lock = threading.Lock()
         self._event = threading.Event()
         self._current: str | None = None
         self._seen: str | None = None
         any_run = keys.with_run(None)
 
-        def on_token(sample) -> None:  # Zenoh's thread: note it and return
+        def on_token(sample: Any) -> None:  # Zenoh's thread: note it and return
             try:
                 run = any_run.parse(str(sample.key_expr)).run
             except CekmError:

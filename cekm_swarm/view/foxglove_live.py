@@ -22,6 +22,8 @@ import time
 from collections.abc import Mapping
 from typing import Any
 
+import foxglove
+
 from cekm_swarm.protocol import ParamChange, decode, expect_of, to_plain
 from cekm_swarm.protocol.codec import peek_type
 from cekm_swarm.protocol.errors import ProtocolError
@@ -45,8 +47,6 @@ class ChannelSink:
 
     def write_encoded(self, topic: str, message_encoding: str, schema: SchemaSpec, data: bytes,
                       sim_time: float, sticky: bool = False) -> None:
-        import foxglove
-
         with self._lock:
             ch = self.channels.get(topic)
             if ch is None:
@@ -61,8 +61,6 @@ class FoxgloveLive:
     """A foxglove WebSocket server on ``host:port`` (0: any free port) showing ``view``."""
 
     def __init__(self, view: LiveView, host: str = "127.0.0.1", port: int = 0, rate: float = 20.0) -> None:
-        import foxglove
-
         self.view = view
         self.rate = rate
         self.sink = ChannelSink()

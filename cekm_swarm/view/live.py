@@ -144,7 +144,8 @@ class LiveView:
                 else:
                     self.target_field = msg
             elif isinstance(msg, MapVersion):
-                if self.keys.parse(key).robot != self.robot or (self.map is not None and msg.version < self.map.version):
+                if self.keys.parse(key).robot != self.robot or (
+                        self.map is not None and msg.version < self.map.version):
                     return
                 self.map = msg
             else:
@@ -180,26 +181,29 @@ class LiveView:
         newest = max(obstacle_stamps + ([tf.stamp] if tf is not None else []))
         newest_b = max(obstacle_stamps, default=newest)
         b = [f for f in self.obstacle_fields.values() if f.stamp == newest_b and f.b is not None]
+        bs = [f.b for f in b if f.b is not None]  # each one's activities (all of b's)
         a = tf.a if tf is not None else None
         at_goal = bool(isinstance(tf, TargetField) and tf.at_goal)
-        n = a.shape[0] if a is not None else (b[0].b.shape[0] if b else 0)
+        n = a.shape[0] if a is not None else (bs[0].shape[0] if bs else 0)
         if n == 0:
             return {"stamp": newest, "n": 0, "seeing": [], "at_goal": at_goal}
         bsum = np.zeros(n)
-        for f in b:
-            if f.b.shape[0] == n:
-                bsum += f.b
-        team = isinstance(tf, TrackingField) and tf.b.shape[0] == n
-        if team:
+        for fb in bs:
+            if fb.shape[0] == n:
+                bsum += fb
+        team = False
+        if isinstance(tf, TrackingField) and tf.b.shape[0] == n:
+            team = True
             bsum += tf.b  # the teammate fields (docs/design.md section 5)
         out: dict[str, Any] = {"stamp": newest, "n": n, "seeing": sorted(f.index for f in b), "teammates": team,
                                "b": [_r(v) for v in bsum], "at_goal": at_goal}
         if a is not None:
             e = a - bsum  # Eq. 9
+            s: Any = None
             if isinstance(tf, TargetField):
                 s = tf.winner
-            else:  # the localized point of most weight (a sensed target, or the search goal)
-                s = max(tf.inputs, key=lambda row: row[3])[0] if tf.inputs else None
+            elif isinstance(tf, TrackingField) and tf.inputs:  # the localized point of most weight (a sensed
+                s = max(tf.inputs, key=lambda row: row[3])[0]  # target, or the search goal)
             out.update(a=[_r(v) for v in a], e=[_r(v) for v in e], s=None if s is None else int(s),
                        k=int(np.argmax(e)))  # Eq. 10
         return out

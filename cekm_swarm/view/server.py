@@ -12,6 +12,7 @@ import threading
 import time
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from importlib import resources
+from typing import Any
 
 from .live import LiveView
 
@@ -34,7 +35,7 @@ class ViewServer:
         server = self
 
         class Handler(BaseHTTPRequestHandler):
-            def log_message(self, *args) -> None:  # quiet
+            def log_message(self, *args: Any) -> None:  # quiet
                 pass
 
             def _send(self, body: bytes, ctype: str) -> None:
@@ -58,7 +59,10 @@ class ViewServer:
 
         self.httpd = ThreadingHTTPServer((host, port), Handler)
         self.httpd.daemon_threads = True
-        self.host, self.port = self.httpd.server_address[:2]
+        address = self.httpd.server_address  # an IP socket's: (host, port, ...)
+        bound = address[0]
+        self.host: str = bound if isinstance(bound, str) else bytes(bound).decode()
+        self.port: int = int(address[1])
         self._thread = threading.Thread(target=self.httpd.serve_forever, name="view-http", daemon=True)
         self._thread.start()
 

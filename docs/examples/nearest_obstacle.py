@@ -49,7 +49,7 @@ class CommandLog(Node):
     def setup(self) -> None:
         self.file = None
         if self.ctx.mode != "check":  # the launcher builds every node once to check it: no file then
-            self.file = open(self.params.path.format(robot=self.ctx.robot), "w")
+            self.file = open(self.params.path.format(robot=self.ctx.robot), "w")  # noqa: SIM115 -- the node owns it from setup to close
             self.file.write("t,v_l,v_r\n")
 
     def step(self, t, inputs):

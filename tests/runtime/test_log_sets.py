@@ -136,7 +136,7 @@ def test_cekm_plot_takes_the_set_by_its_directory(tmp_path, capsys):
         for key, data, t in sample_traffic(60):
             rec.write(key, data, t)
     assert len(rec.files) > 1
-    from cekm_swarm.launch.plot import read_geometry
+    from cekm_swarm.runtime.mcap_read import read_geometry
 
     assert read_geometry(run) == read_geometry(rec.files[0]) == json.loads(json.dumps(geometry))  # the arena too
     (run / "outcome.json").write_text(json.dumps({"robots": {"r1": {"reached": True}}}))

@@ -15,13 +15,13 @@ import zenoh
 from click.testing import CliRunner
 from runtime_samples import sample_traffic, write_log
 
-from cekm_swarm.launch.plot import read_geometry
 from cekm_swarm.protocol import DEFAULT_KEYS as K
 from cekm_swarm.protocol import WheelCommand, WorldState, decode, encode
 from cekm_swarm.runtime.bridge import Publishers, declare_alive
 from cekm_swarm.runtime.commands import COMMANDS
 from cekm_swarm.runtime.config import load_config, open_session
 from cekm_swarm.runtime.mcap_log import log_info, read_messages
+from cekm_swarm.runtime.mcap_read import read_geometry
 from cekm_swarm.runtime.record import serve_geometry
 from cekm_swarm.runtime.rungraph import default_nodes
 

@@ -12,9 +12,9 @@ from cekm_swarm.protocol import DEFAULT_KEYS as K
 from cekm_swarm.protocol import DropCounter, Unchanged, decode
 from cekm_swarm.ticks import tick_time
 from world import World, load_scenario
-from world.episode import make_episode
 from world.publisher import HOLD_TICKS, TickPublisher
 from world.recorder import RecordFilter
+from world.run_episode import make_episode
 
 
 class Wire:

@@ -8,8 +8,8 @@ import pytest
 from cekm_swarm.protocol import DEFAULT_KEYS as K
 from cekm_swarm.protocol import MessageError, encode
 from world import World, load_scenario
-from world.episode import Episode, TickReadings
-from world.sense import SenseEncoder, sense_messages
+from world.episode import Episode
+from world.sense import SenseEncoder, TickReadings, sense_messages
 
 
 def general(world, rd):

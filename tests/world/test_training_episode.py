@@ -10,7 +10,7 @@ import pytest
 
 from cekm_swarm.experiments.learning_experiment import scenario_text
 from world import World
-from world.episode import make_episode
+from world.run_episode import make_episode
 from world.scenario import ScenarioError, parse_scenario
 from world.training import EXPLORE_ABS, EXPLORE_REL, TrainingEpisode, explore
 
