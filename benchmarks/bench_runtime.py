@@ -51,7 +51,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from cekm_swarm.experiments.default_model import default_model, default_model_path  # noqa: E402
-from cekm_swarm.graph.check import check_graph  # noqa: E402
+from cekm_swarm.node.graph_check import check_graph  # noqa: E402
 from cekm_swarm.launch.cpu import cpu_seconds, host_shares, host_times  # noqa: E402
 from cekm_swarm.launch.prepare import body_of, run_spec  # noqa: E402
 from cekm_swarm.launch.processes import node_argv  # noqa: E402

@@ -413,7 +413,7 @@ _register_launch_commands()
 
 
 def _register_view_command() -> None:
-    from .graph.commands import graph_group
+    from .node.graph_commands import graph_group
     from .view.command import view_cmd
 
     main.add_command(view_cmd)

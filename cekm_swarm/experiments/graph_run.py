@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..errors import ParameterError
-from ..graph.check import CheckedGraph, check_graph
+from ..node.graph_check import CheckedGraph, check_graph
 from ..graph.spec import Graph, GraphError, graph_for
 from ..node.api import Context
 from ..node.inprocess import GraphExecutor

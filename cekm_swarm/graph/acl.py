@@ -12,15 +12,28 @@ and ``deploy/tls/router.json5`` are its output for every shipped graph and robot
 from __future__ import annotations
 
 import json
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
+from typing import Protocol
 
-from .check import CheckedGraph
+from .plan import PortTypes
+from .spec import Graph
 
 ROOT = "cekm"
 FIXED = ("world", "monitor", "operator")
 
 
-def robot_keys(graphs: Iterable[CheckedGraph], robot: str, root: str = ROOT) -> tuple[list[str], list[str]]:
+class GraphPorts(Protocol):
+    """A graph with its programs' ports (a :class:`cekm_swarm.node.graph_check.CheckedGraph`):
+    all the access control needs, as plain data."""
+
+    @property
+    def graph(self) -> Graph: ...
+
+    @property
+    def ports(self) -> Mapping[str, PortTypes]: ...
+
+
+def robot_keys(graphs: Iterable[GraphPorts], robot: str, root: str = ROOT) -> tuple[list[str], list[str]]:
     """(key expressions ``robot`` publishes, key expressions it subscribes to), over
     every node of every graph: instances collapse to ``*`` (``field/obstacle/*``)."""
     publish: list[str] = []
@@ -52,7 +65,7 @@ def _j(xs: list[str]) -> str:
     return json.dumps(xs)
 
 
-def router_config(graphs: list[CheckedGraph], robots: tuple[str, ...], *, tls: bool = False, root: str = ROOT) -> str:
+def router_config(graphs: list[GraphPorts], robots: tuple[str, ...], *, tls: bool = False, root: str = ROOT) -> str:
     """The router config (json5 text) for ``robots`` running ``graphs``."""
     names = ", ".join(sorted({g.graph.name for g in graphs}))
     cmd = "cekm graph acl " + " ".join(sorted({g.graph.name for g in graphs})) + f" --robots {','.join(robots)}" + \
@@ -178,12 +191,4 @@ def router_config(graphs: list[CheckedGraph], robots: tuple[str, ...], *, tls: b
     return "\n".join(out) + "\n"
 
 
-def shipped(robots: tuple[str, ...] = ("r1", "r2", "r3", "r4"), tls: bool = False) -> str:
-    """The router config for every shipped graph (what deploy/ holds)."""
-    from .check import check_graph
-    from .spec import shipped_graphs
-
-    return router_config([check_graph(str(p)) for _, p in sorted(shipped_graphs().items())], robots, tls=tls)
-
-
-__all__ = ["FIXED", "robot_keys", "router_config", "shipped"]
+__all__ = ["FIXED", "GraphPorts", "robot_keys", "router_config"]

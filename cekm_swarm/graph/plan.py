@@ -18,7 +18,7 @@ at tick k sees, in ``cekm run`` and in lockstep alike (docs/runtime.md):
 
 Cycles are allowed only through a delayed input. Plain data in, plain data out: nothing
 here imports node code (the node classes' port types come in as ``ports``, from
-:mod:`cekm_swarm.graph.check` or from a run spec). :func:`cekm_swarm.graph.resolve.build_plan`
+:mod:`cekm_swarm.node.graph_check` or from a run spec). :func:`cekm_swarm.graph.resolve.build_plan`
 builds a :class:`RunPlan` from a graph and refuses one that cannot run.
 """
 

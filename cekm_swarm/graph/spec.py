@@ -31,7 +31,7 @@ previous tick's: ``delay = 1``), or a world key (``"world/clock"``, ``"world/sta
 code), refusing a malformed one with a :class:`GraphError` that names the file, the node
 and the field. What the graph means per robot (keys, periods, the lockstep rule) is
 :mod:`cekm_swarm.graph.plan`; the checks that import the node programs are
-:mod:`cekm_swarm.graph.check`.
+:mod:`cekm_swarm.node.graph_check`.
 """
 
 from __future__ import annotations

@@ -61,7 +61,7 @@ def preload(spec_paths: Sequence[str]) -> list[str]:
     import cekm_swarm.runtime.config  # noqa: F401
     import cekm_swarm.runtime.gc_tuning  # noqa: F401
     from cekm_swarm.errors import CekmError
-    from cekm_swarm.graph.check import node_class
+    from cekm_swarm.node.graph_check import node_class
     from cekm_swarm.graph.runspec import RunSpec
     from cekm_swarm.node.process import build_node
     from cekm_swarm.protocol.codec import warm

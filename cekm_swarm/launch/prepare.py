@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from cekm_swarm.errors import CekmError
-from cekm_swarm.graph.check import CheckedGraph
+from cekm_swarm.node.graph_check import CheckedGraph
 from cekm_swarm.graph.plan import RunPlan
 from cekm_swarm.graph.runspec import RunSpec
 from cekm_swarm.graph.spec import GraphError

@@ -35,7 +35,7 @@ import time
 from typing import Any
 
 from cekm_swarm.errors import CekmError
-from cekm_swarm.graph.check import node_class
+from cekm_swarm.node.graph_check import node_class
 from cekm_swarm.graph.plan import NodePlan, RunPlan
 from cekm_swarm.graph.runspec import RunSpec
 from cekm_swarm.protocol import DropCounter, KeyKind, Nothing, expect_of

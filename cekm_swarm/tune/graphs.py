@@ -7,7 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..errors import ParameterError
-from ..graph.check import CheckedGraph, check_graph
+from ..node.graph_check import CheckedGraph, check_graph
 from ..graph.spec import Graph, graph_for, load_graph
 from ..models.params import PAPER_SIGMA_B_ALPHA
 from .policy import check_task

@@ -9,7 +9,7 @@ import os
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any
 
-from ..graph.check import check_graph
+from ..node.graph_check import check_graph
 from .graphs import fields_graph, policy_graph
 from .scenarios import scenario as generated
 

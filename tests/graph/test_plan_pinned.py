@@ -11,7 +11,7 @@ import hashlib
 from pathlib import Path
 
 from cekm_swarm.graph import shipped_graphs
-from cekm_swarm.graph.check import check_graph
+from cekm_swarm.node.graph_check import check_graph
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "docs" / "examples"
 

@@ -8,7 +8,7 @@ import textwrap
 
 import pytest
 
-from cekm_swarm.graph.check import check_graph
+from cekm_swarm.node.graph_check import check_graph
 from cekm_swarm.graph.resolve import timed_by
 from cekm_swarm.node import NodeError, NotReady, need
 from cekm_swarm.node.api import Inputs
@@ -99,7 +99,7 @@ def test_realtime_runs_every_tick_of_a_node_timed_by_the_clock(reading_plan):
 
 def _node(plan):
     node = plan.node("r1", "motor")
-    from cekm_swarm.graph.check import node_class
+    from cekm_swarm.node.graph_check import node_class
     from cekm_swarm.node.api import Context
 
     cls = node_class(node.decl.program, plan.graph.source, node.decl.where)

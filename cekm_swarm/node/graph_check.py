@@ -4,7 +4,8 @@ program, a parameter a node does not declare, a value of the wrong type, a port 
 the wrong message type), then resolve the graph for a team (:func:`cekm_swarm.graph.resolve.build_plan`).
 
 What the checks produce (:class:`CheckedGraph`) is what a run spec carries to every
-process, so nothing imports a program it does not run.
+process, so nothing imports a program it does not run. These checks live with the node
+API they check: :mod:`cekm_swarm.graph` is plain data and imports no node code.
 """
 
 from __future__ import annotations
@@ -16,12 +17,12 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, Mapping
 
-from cekm_swarm.node.api import Node, make_params, param_fields, raised_at
+from cekm_swarm.graph.plan import PortTypes, RunPlan
+from cekm_swarm.graph.resolve import build_plan
+from cekm_swarm.graph.spec import Graph, GraphError, load_graph
 from cekm_swarm.protocol import KeySpace, kind_of
 
-from .plan import PortTypes, RunPlan
-from .resolve import build_plan
-from .spec import Graph, GraphError, load_graph
+from .api import Node, make_params, param_fields, raised_at
 
 
 def node_class(program: str, source: str = "", where: str = "") -> type[Node]:
