@@ -1,11 +1,13 @@
-"""The construction check of a declared record (:mod:`.schema`), compiled from its
-declared field types: one function per class that tests each field's well-formed case
-inline (an exact type and its range, a few comparisons) and otherwise calls the field
+"""A declared record (:class:`Record`, the base of every message and world-state entry of
+:mod:`.schema`) and its construction check, compiled from its declared field types: one
+function per class that tests each field's well-formed case inline (an exact type and its range, a few comparisons) and otherwise calls the field
 type's check, which normalizes the value (numpy scalars to Python numbers, sequences to
 the declared tuples, arrays to read-only float64 vectors) or raises a
 :class:`~.errors.MessageFieldError` naming the field (``targets.t1[1]``) and the problem.
 The field types are read from msgspec's own view of the declaration
-(:func:`msgspec.inspect.type_info`), the same the wire decoder is built from.
+(:func:`msgspec.inspect.type_info`), the same the wire decoder is built from. The wire
+form of a vector (:class:`WireVector`) and the limits these checks hold values to live here
+too, below :mod:`.schema`, which builds its field types from them.
 """
 
 from __future__ import annotations
@@ -16,16 +18,55 @@ import re
 import sys
 import warnings
 from collections.abc import Callable
-from typing import Any
+from typing import Annotated, Any, Literal
 
 import msgspec
 import msgspec.inspect as mi
 import numpy as np
+from msgspec import Meta
 
 from .errors import MessageArrayError, MessageFieldError
-from .schema import MAX_ARRAY_LEN, MAX_DEPTH, Record, WireVector
 
 _F8 = np.dtype("<f8")
+
+MAX_ARRAY_LEN = 1 << 20
+"""The longest vector a message may hold."""
+MAX_DEPTH = 16
+"""How deeply plain data (:data:`~.schema.Plain`) may nest."""
+
+
+class WireVector(msgspec.Struct, forbid_unknown_fields=True, gc=False):
+    """A :data:`Vector` as it travels: float64, one dimension, the raw little-endian bytes."""
+
+    dtype: Literal["<f8"]
+    shape: tuple[Annotated[int, Meta(ge=1, le=MAX_ARRAY_LEN)]]
+    data: bytes
+
+
+class Record(msgspec.Struct, forbid_unknown_fields=True, gc=False):
+    """A declared record (a message, or an entry of the world state): checked and
+    normalized when built, by its declared field types and then its own :meth:`check`.
+
+    Records are mutable for speed; treat them as immutable once built."""
+
+    def __post_init__(self) -> None:
+        _CHECKS[type(self)](self)
+
+    def check(self) -> None:
+        """The record's own rules between fields (after every field passed its type)."""
+
+
+class _Checks(dict):
+    """Each record class's compiled check, compiled when the class's first record is built."""
+
+    def __missing__(self, cls: type[Record]) -> Callable[[Record], None]:
+        check = self[cls] = compile_check(cls)
+        return check
+
+
+_CHECKS = _Checks()
+
+
 
 
 def _fail(where: str, problem: str) -> MessageFieldError:

@@ -7,7 +7,7 @@ declaration of each message.
 * :func:`decode`: msgspec decodes the bytes against a wire type generated from the
   message's declaration (the envelope's ``v`` and ``kind`` as literals, then every field
   with its declared type and constraints, all required, nothing else allowed; vectors as
-  :class:`~.schema.WireVector`), and the message is built from it (its construction
+  :class:`~.checks.WireVector`), and the message is built from it (its construction
   check: vectors to read-only float64 arrays, the message's rules). Bytes it refuses are
   read again with msgpack to say precisely why (:func:`_explain`): the key, the field and
   the problem. Only refusals pay for that.
@@ -23,7 +23,7 @@ import msgpack
 import msgspec
 import numpy as np
 
-from .checks import wire_vector
+from .checks import _CHECKS, Record, WireVector, wire_vector
 from .errors import (
     KeySpaceError,
     MessageError,
@@ -33,7 +33,7 @@ from .errors import (
     MessageVersionError,
 )
 from .keys import DEFAULT_KEYS, KeyKind, KeySpace
-from .schema import MESSAGE_TYPES, SCHEMA_VERSION, Message, WireVector
+from .schema import MESSAGE_TYPES, SCHEMA_VERSION, Message
 from .user import NOTHING_HEAD, USER_TYPES, Nothing, UntypedData, UserMessage, is_message_type
 
 _F8 = np.dtype("<f8")
@@ -144,8 +144,6 @@ def warm() -> int:
     the node processes it forks share them instead of each paying 2-6 ms on its first
     messages (in a 30 s lockstep ``tracking-crowd`` run, 84 nodes made them 84 times).
     Returns how many record classes were made ready."""
-    from .schema import _CHECKS, Record
-
     for kind, cls in MESSAGE_TYPES.items():
         _codec(kind)
         if cls not in _HEADS:
@@ -348,7 +346,7 @@ _peek_type = msgspec.msgpack.Decoder(_PeekType)
 
 
 def _plain_vector(v: Any) -> Any:
-    """A wire vector (:class:`~.schema.WireVector`'s map) as its list of floats; anything else as it is."""
+    """A wire vector (:class:`~.checks.WireVector`'s map) as its list of floats; anything else as it is."""
     if type(v) is dict and v.get("dtype") == "<f8" and type(v.get("data")) is bytes:
         return np.frombuffer(v["data"], dtype=_F8).tolist()
     return v
