@@ -35,19 +35,19 @@ import time
 from typing import Any
 
 from cekm_swarm.errors import CekmError
-from cekm_swarm.node.graph_check import node_class
 from cekm_swarm.graph.plan import NodePlan, RunPlan
 from cekm_swarm.graph.runspec import RunSpec
+from cekm_swarm.node.graph_check import node_class
 from cekm_swarm.protocol import DropCounter, KeyKind, Nothing, expect_of
 from cekm_swarm.protocol.stamps import ANY_STAMP, StampWindow
 from cekm_swarm.ticks import tick_of
 
 from .api import Context, NodeError, cannot_start, make_params, raised_at, start_node, traceback_text
 from .direct_gate import DirectGate
+from .gates import Gate, make_gate
 from .live_params import LiveParams
 from .runner import Runner
 from .timer_gate import Timer, TimerGate
-from .timing import LockstepGate, RealtimeGate
 from .wire import Decoder, Encoder
 
 EXIT_CANNOT_START = 78
@@ -121,10 +121,7 @@ class NodeShell:
         self.clock_key = node_plan.clock_key
         if TimerGate.fits(node_plan, spec.mode):  # its own timer; it learns each tick from the clock
             self.clock_key = self.keys.world_clock()
-            self.gate: Any = TimerGate(runner, drop=self.drops.drop, clock_key=self.clock_key)
-        else:
-            gate_cls = DirectGate if DirectGate.fits(node_plan) else LockstepGate if lockstep else RealtimeGate
-            self.gate = gate_cls(runner, drop=self.drops.drop)
+        self.gate: Gate = make_gate(runner, spec.mode, self.drops.drop, self.clock_key)
         self.kinds: dict[str, Any] = {s.key: expect_of(b.kind) for b in node_plan.bindings for s in b.sources}
         self.ports: dict[str, str] = {s.key: b.port for b in node_plan.bindings for s in b.sources}
         if self.clock_key is not None:
@@ -144,7 +141,7 @@ class NodeShell:
         # a delay or not): its token -> the keys it reads. A reader's (re)appearing token
         # asks for the recent outputs it missed while down (LockstepGate.resend)
         # real time: nothing sent again; a pure node of one key (DirectGate), only to readers with a delay
-        self.readers = outputs_readers(plan, node_plan, self.keys, delayed_only=type(self.gate) is DirectGate) \
+        self.readers = outputs_readers(plan, node_plan, self.keys, delayed_only=isinstance(self.gate, DirectGate)) \
             if lockstep else {}
         self.pubs: Any = None
         runner.live = LiveParams(runner)  # cekm param: parameters changed while it runs
@@ -316,7 +313,7 @@ class NodeShell:
         token = declare_alive(session, self.keys.alive(self.node_plan.robot, self.node_plan.name))
         log.info("%s: up (%s), listening on %s", self.node_plan.label, self.spec.mode, ", ".join(self.listen_exprs()))
         if isinstance(self.gate, TimerGate):
-            threading.Thread(target=self.run_timer, name="timer", daemon=True).start()
+            threading.Thread(target=self.run_timer, args=(self.gate,), name="timer", daemon=True).start()
         if ready is not None:
             ready()
         try:
@@ -332,13 +329,13 @@ class NodeShell:
             self.pubs.close()
         return self.handled
 
-    def run_timer(self) -> None:
+    def run_timer(self, gate: TimerGate) -> None:
         """A node on a timer of its own (:mod:`.timer_gate`): a run every ``timer`` s until it stops."""
         timer = Timer(float(self.node_plan.decl.timer))
         while not self.closed.wait(timer.wait()):
             with self.lock:
                 try:
-                    self.publish(self.gate.fire())
+                    self.publish(gate.fire())
                 except Exception as exc:  # noqa: BLE001 - as for a run a message completes
                     self.step_failed(exc)
 
@@ -372,11 +369,11 @@ class NodeShell:
         sys.stderr.flush()
 
     def report(self) -> dict[str, Any]:
-        g = self.gate
+        c = self.gate.counts()
         return {"handled": self.handled, "runs": self.runner.runs, "dropped": self.drops.by_source(),
-                "repeats": getattr(g, "repeats", 0), "stale": getattr(g, "stale_drops", {}),
-                "step_failures": dict(self.step_failures), "not_ready": getattr(g, "not_ready", 0),
-                "ran_without": list(getattr(g, "ran_without", ())), "param_changes": list(self.runner.live.changes)}
+                "repeats": c.repeats, "stale": c.stale, "step_failures": dict(self.step_failures),
+                "not_ready": c.not_ready, "ran_without": list(c.ran_without),
+                "param_changes": list(self.runner.live.changes)}
 
 
 def outputs_readers(plan: RunPlan, node_plan: NodePlan, keys: Any,

@@ -12,9 +12,15 @@ node in its own process (lockstep and real time) and for a whole graph in one pr
   ``resend(keys)`` gives its recent runs' outputs again, for a reader of them that
   (re)appeared. A delayed value nobody can send again (:func:`lost_on_restart`: its own
   previous output, a world reading of a tick before) is left out of its first run, as
-  before tick 0. A restarted process (first run after tick 0) gives up any delayed value
-  still missing when its tick's trigger comes again (re-published: the producer restarted
-  too, and its previous life sent it), naming it (``ran_without``).
+  before tick 0 (:class:`FirstRun`). A restarted process (one whose first run was after
+  tick 0, or that has not run yet) gives up any other delayed value still missing once a
+  trigger's value of the tick it waits at comes again (:class:`GiveUp`): the world
+  re-publishing a stalled tick, a second or more later, means that value's producer
+  restarted too and has nothing of that tick to send again (two teammates' tracking
+  modules killed together waited for each other's share for good; in waves, a later run
+  waited for one only the producer's previous life had). The gate names those keys
+  (``ran_without``), and the run may no longer equal ``cekm run``; a process that has run
+  since tick 0 never gives up.
 * :class:`RealtimeGate`: a node runs at its newest due tick as soon as every live
   same-tick producer has delivered (or at once, with what came, when a later tick
   begins), with the latest value of each source; a value older than its staleness limit
@@ -40,7 +46,7 @@ from typing import Any
 
 from msgspec import Struct
 
-from cekm_swarm.graph.plan import WORLD_OWNER, Binding, NodePlan, needed_tick
+from cekm_swarm.graph.plan import WORLD_OWNER, Binding, NodePlan, Source, needed_tick
 from cekm_swarm.protocol import Nothing
 from cekm_swarm.ticks import TICK_S, tick_of, tick_time
 
@@ -120,6 +126,81 @@ def lost_on_restart(node: NodePlan) -> frozenset[str]:
                      if s.key in own or s.owner == WORLD_OWNER)
 
 
+@dataclass(frozen=True)
+class GateCounts:
+    """What a gate counted, for the node's report: values that came again for the last
+    run (lockstep), stale values left out and due ticks given up (real time), and the
+    delayed keys a restarted process ran without (lockstep, :class:`GiveUp`)."""
+
+    repeats: int = 0
+    stale: dict[str, int] = field(default_factory=dict)
+    not_ready: int = 0
+    ran_without: tuple[str, ...] = ()
+
+
+@dataclass
+class FirstRun:
+    """The first run of this process, and the delayed values from before it that nobody
+    sends again (:func:`lost_on_restart`): a run leaves them out, as before tick 0."""
+
+    lost_keys: frozenset[str]
+    born: int | None = None  # the tick of this process's first run
+
+    @property
+    def maybe_restarted(self) -> bool:
+        """Not known to have run from tick 0: it has not run yet, or first ran after it."""
+        return self.born is None or self.born > 0
+
+    def lost(self, key: str, n: int) -> bool:
+        """Whether ``key``'s value of tick ``n`` predates the first run and is not coming."""
+        return key in self.lost_keys and (self.born is None or n < self.born)
+
+    def ran(self, c: int) -> None:
+        if self.born is None:
+            self.born = c
+
+
+@dataclass
+class GiveUp:
+    """A restarted process gives up the delayed values still missing once a trigger's
+    value of a tick it waits at comes again, re-published (module docstring), and names
+    the keys a run went without."""
+
+    delayed: dict[str, Source]  # every delayed source: key -> source
+    seen: dict[str, set[int]] = field(default_factory=dict)  # trigger key -> ticks not yet run whose value came
+    gave_up_at: int | None = None  # the latest tick whose trigger's value came again while it waited
+    without: set[str] = field(default_factory=set)  # delayed keys a run went without, having given up
+
+    def trigger_came(self, key: str, k: int) -> None:
+        """A trigger's value of tick ``k`` (not run yet): a second one is a re-published tick."""
+        seen = self.seen.setdefault(key, set())
+        if k in seen and (self.gave_up_at is None or k > self.gave_up_at):
+            self.gave_up_at = k  # this tick again, re-published: what a restarted process lacks is not coming
+        seen.add(k)
+
+    def lost(self, key: str, n: int) -> bool:
+        """Whether ``key``'s value of tick ``n`` is a delayed value given up for."""
+        return self.gave_up_at is not None and n < self.gave_up_at and key in self.delayed
+
+    def before_run(self, c: int, has: Callable[[str, int], bool], first: FirstRun, gone: Collection[str]) -> None:
+        """The run at tick ``c`` goes without the given-up delayed values it lacks: name them."""
+        if self.gave_up_at is None:
+            return
+        self.without.update(
+            key for key, s in self.delayed.items()
+            if key not in first.lost_keys and s.owner not in gone
+            and (n := needed_tick(c, s.period, 1)) is not None and n < self.gave_up_at and not has(key, n))
+
+    def ran(self, c: int) -> None:
+        if self.seen:
+            self.seen = {key: {x for x in seen if x > c} for key, seen in self.seen.items()}
+
+    @property
+    def ran_without(self) -> tuple[str, ...]:
+        """The delayed keys a run went without, having given up (sorted)."""
+        return tuple(sorted(self.without))
+
+
 def _triggers(node: NodePlan) -> frozenset[str]:
     """Keys whose value of a tick opens that tick: every same-tick source, and the clock."""
     keys = {s.key for b in node.bindings if b.delay == 0 for s in b.sources}
@@ -151,20 +232,29 @@ class LockstepGate:
         self.sources = {s.key: (s, b.delay) for b in self.node.bindings for s in b.sources}
         self._needs = [(s.key, s.period, b.delay, s.owner) for b in self.node.bindings for s in b.sources]
         self._waiting: dict[int, tuple[str, int, str]] = {}  # candidate tick -> a value it still lacks
-        self.lost_keys = lost_on_restart(self.node)
-        self.born: int | None = None  # the tick of this process's first run
-        self._first_seen: dict[str, set[int]] = {}  # a restarted process: trigger key -> ticks whose value came
-        self.gave_up_at: int | None = None  # the latest tick whose trigger's value came again while it waited
-        self._without: set[str] = set()  # delayed keys a run went without, having given up
+        self.first_run = FirstRun(lost_on_restart(self.node))
+        self.give_up = GiveUp({key: s for key, (s, delay) in self.sources.items() if delay == 1})
 
-    ran_without = property(lambda self: tuple(sorted(self._without)), doc="delayed keys given up (module docstring)")
+    @property
+    def born(self) -> int | None:
+        """The tick of this process's first run (None before it)."""
+        return self.first_run.born
+
+    @property
+    def ran_without(self) -> tuple[str, ...]:
+        """The delayed keys a run of this (restarted) process went without (module docstring)."""
+        return self.give_up.ran_without
+
+    def counts(self) -> GateCounts:
+        return GateCounts(repeats=self.repeats, ran_without=self.ran_without)
 
     def _lost(self, key: str, n: int) -> bool:
         """Whether ``key``'s value of tick ``n`` predates this process's first run and nobody
         sends it again, or is a delayed value given up for (module docstring)."""
-        if key in self.lost_keys and (self.born is None or n < self.born):
-            return True
-        return self.gave_up_at is not None and n < self.gave_up_at and self.sources[key][1] == 1
+        return self.first_run.lost(key, n) or self.give_up.lost(key, n)
+
+    def _has(self, key: str, n: int) -> bool:
+        return n in self.store.get(key, ())
 
     def _lacks(self, c: int) -> bool:
         """Whether the run at tick ``c`` still lacks a value, the one it lacked last time
@@ -234,11 +324,8 @@ class LockstepGate:
         if k <= self.done and key in self.used and self.used[key] == k:
             self.repeats += 1
             return list(self.last_out)  # a value again for what the last run used: send that run again
-        if key in self.trigger and k > self.done and (self.born is None or self.born > 0):
-            seen = self._first_seen.setdefault(key, set())
-            if k in seen and (self.gave_up_at is None or k > self.gave_up_at):
-                self.gave_up_at = k  # this tick again, re-published: what a restarted process lacks is not coming
-            seen.add(k)
+        if key in self.trigger and k > self.done and self.first_run.maybe_restarted:
+            self.give_up.trigger_came(key, k)
         if key in self.watched and self.done >= 0:
             source, delay = self.sources[key]
             first = needed_tick(self.done + 1, source.period, delay)
@@ -285,18 +372,11 @@ class LockstepGate:
             if ready is None:
                 return out
             c, inputs = ready
-            if self.gave_up_at is not None:
-                self._without.update(
-                    key for key, (s, d) in self.sources.items()
-                    if d == 1 and key not in self.lost_keys and s.owner not in self.gone
-                    and (n := needed_tick(c, s.period, 1)) is not None and n < self.gave_up_at
-                    and n not in self.store.get(key, ()))
+            self.give_up.before_run(c, self._has, self.first_run, self.gone)
             sent = self.runner.run(c, inputs)
             self.done = c
-            if self.born is None:
-                self.born = c
-            if self._first_seen:
-                self._first_seen = {key: {x for x in seen if x > c} for key, seen in self._first_seen.items()}
+            self.first_run.ran(c)
+            self.give_up.ran(c)
             self.last_out = sent
             self.recent_out.append(sent)
             self.used = {key: n for key, (src, delay) in self.sources.items()
@@ -482,6 +562,9 @@ class RealtimeGate:
     def resend(self, keys: Collection[str] | None = None) -> list[tuple[str, Any]]:
         return []  # real time waits for nothing: a restarted reader takes the next values
 
+    def counts(self) -> GateCounts:
+        return GateCounts(stale=dict(self.stale_drops), not_ready=self.not_ready)
+
 
 def _max_age(stale_s: float) -> int | float:
     """The most ticks a value may lag the tick that reads it and still count: the largest
@@ -494,4 +577,5 @@ def _max_age(stale_s: float) -> int | float:
     return n
 
 
-__all__ = ["gather", "lost_on_restart", "LockstepGate", "RealtimeGate", "KEEP_TICKS", "RESEND_RUNS"]
+__all__ = ["gather", "lost_on_restart", "FirstRun", "GateCounts", "GiveUp", "LockstepGate", "RealtimeGate",
+           "KEEP_TICKS", "RESEND_RUNS"]
