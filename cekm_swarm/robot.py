@@ -99,7 +99,7 @@ class RobotBody:
                 "target_range": None if math.isinf(self.target_range) else self.target_range}
 
     @classmethod
-    def from_dict(cls, doc: dict) -> "RobotBody":
+    def from_dict(cls, doc: dict) -> RobotBody:
         tr = doc.get("target_range")
         return cls(float(doc["body_radius"]), float(doc["axle"]), float(doc["v_max"]), float(doc["sensor_range"]),
                    tuple(float(a) for a in doc["sensor_angles"]), math.inf if tr is None else float(tr))

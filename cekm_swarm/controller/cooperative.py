@@ -14,8 +14,8 @@ All localization EKMs and the motor EKM share the trained input weights w (secti
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field
-from typing import Iterable
 
 import numpy as np
 

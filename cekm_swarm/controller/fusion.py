@@ -16,8 +16,8 @@ blocks): the turns of the two sides cancel and the backing cancels the forward d
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 

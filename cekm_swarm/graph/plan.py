@@ -24,8 +24,9 @@ builds a :class:`RunPlan` from a graph and refuses one that cannot run.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, Mapping
+from typing import Any
 
 from cekm_swarm.protocol import KeySpace
 from cekm_swarm.ticks import ODOMETRY_EVERY, TARGET_EVERY
@@ -75,7 +76,7 @@ class PortTypes:
                 "stateful": self.stateful, "uses_model": self.uses_model, "pure": self.pure}
 
     @classmethod
-    def from_dict(cls, doc: Mapping[str, Any]) -> "PortTypes":
+    def from_dict(cls, doc: Mapping[str, Any]) -> PortTypes:
         return cls({p: (v[0], bool(v[1])) for p, v in doc["inputs"].items()}, dict(doc["outputs"]),
                    bool(doc["stateful"]), bool(doc["uses_model"]), bool(doc.get("pure", False)))
 

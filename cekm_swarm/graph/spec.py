@@ -38,10 +38,11 @@ from __future__ import annotations
 
 import re
 import tomllib
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 from cekm_swarm.errors import CekmError
 
@@ -145,7 +146,7 @@ class Graph:
                            "outputs": [{"port": o.port, "key": o.key} for o in n.outputs]} for n in self.nodes]}
 
     @classmethod
-    def from_dict(cls, doc: Mapping[str, Any]) -> "Graph":
+    def from_dict(cls, doc: Mapping[str, Any]) -> Graph:
         """The inverse of :meth:`to_dict` (a run spec's graph, already checked)."""
         nodes = tuple(NodeDecl(n["name"], n["program"], n["instances"], n["every"],
                                tuple(InputDecl(i["port"], i["key"], i["scope"], i["delay"], i["stale"]) for i in n["inputs"]),

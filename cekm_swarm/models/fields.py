@@ -6,7 +6,7 @@ every field is a vector over the same n neurons.
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 

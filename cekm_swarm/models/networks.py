@@ -105,7 +105,7 @@ class IndirectEKM(TargetReaching):
 
     @classmethod
     def untrained(cls, size: int, rule: str, rng: np.random.Generator, comp: CompetitionParams | None = None,
-                  learn_p: LearningParams | None = None, v_max: float = KHEPERA.v_max) -> "IndirectEKM":
+                  learn_p: LearningParams | None = None, v_max: float = KHEPERA.v_max) -> IndirectEKM:
         """Regular input weights and uninformed random M_i (docs/design.md section 3, item 7)."""
         if rule not in ("gd", "rls"):
             raise ParameterError(f"IndirectEKM.rule must be 'gd' or 'rls', got {rule!r}")
@@ -118,7 +118,7 @@ class IndirectEKM(TargetReaching):
 
     @classmethod
     def kinematic(cls, size: int, comp: CompetitionParams | None = None, learn_p: LearningParams | None = None,
-                  v_max: float = KHEPERA.v_max, axle: float = KHEPERA.axle, step_s: float = 1.024) -> "IndirectEKM":
+                  v_max: float = KHEPERA.v_max, axle: float = KHEPERA.axle, step_s: float = 1.024) -> IndirectEKM:
         """The kinematic initial guess M0 = (1/T) [[-axle, 1], [axle, 1]] (in SI units): a labelled option,
         not the paper's untrained start."""
         lat = Lattice(size)
@@ -167,7 +167,7 @@ class DirectEKM(TargetReaching):
 
     @classmethod
     def untrained(cls, size: int, rng: np.random.Generator, comp: CompetitionParams | None = None,
-                  learn_p: LearningParams | None = None, v_max: float = KHEPERA.v_max) -> "DirectEKM":
+                  learn_p: LearningParams | None = None, v_max: float = KHEPERA.v_max) -> DirectEKM:
         lat = Lattice(size)
         lp = learn_p or LearningParams()
         C = rng.uniform(-lp.m_init_scale * v_max, lp.m_init_scale * v_max, size=(lat.n, 2))
@@ -251,7 +251,7 @@ class BasisFunctionNetwork(TargetReaching):
     @classmethod
     def untrained(cls, size: int, rng: np.random.Generator, comp: CompetitionParams | None = None,
                   learn_p: LearningParams | None = None, v_max: float = KHEPERA.v_max,
-                  rule: str = "trained-units") -> "BasisFunctionNetwork":
+                  rule: str = "trained-units") -> BasisFunctionNetwork:
         lat = Lattice(size)
         lp = learn_p or LearningParams()
         w0 = lat.initial_weights()

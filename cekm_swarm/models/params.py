@@ -112,7 +112,7 @@ class FieldParams:
         _check_positive(self, *(f.name for f in fields(self)))
 
     @classmethod
-    def paper(cls) -> "FieldParams":
+    def paper(cls) -> FieldParams:
         """The paper's values throughout (sigma_b_alpha 0.495): what the multi-robot
         tracking controller was tuned and measured with (docs/tracking.md)."""
         return cls(sigma_b_alpha=PAPER_SIGMA_B_ALPHA)

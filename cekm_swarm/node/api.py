@@ -207,7 +207,7 @@ class Node:
         """Build what the node needs (load the model, tabulate fields). Raise
         :class:`NodeError` for a configuration it cannot use."""
 
-    def step(self, t: float, inputs: "Inputs") -> dict[str, Any]:
+    def step(self, t: float, inputs: Inputs) -> dict[str, Any]:
         """Compute the outputs of the tick at sim time ``t``: one message per output port."""
         raise NotImplementedError
 
@@ -256,7 +256,7 @@ def traceback_text(exc: BaseException) -> str:
     return "".join(traceback.format_exception(type(cause), cause, cause.__traceback__))
 
 
-def start_node(cls: type["Node"], ctx: Context, params: Any = None) -> "Node":
+def start_node(cls: type[Node], ctx: Context, params: Any = None) -> Node:
     """``cls(ctx, params)``, built and set up; a :class:`NodeError` with the node's one line
     (:func:`cannot_start`) when that fails."""
     try:

@@ -13,9 +13,10 @@ from __future__ import annotations
 import importlib
 import inspect
 import sys
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 from cekm_swarm.graph.plan import PortTypes, RunPlan
 from cekm_swarm.graph.resolve import build_plan

@@ -15,8 +15,8 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from cekm_swarm.node.graph_check import CheckedGraph
 from cekm_swarm.graph.plan import NodePlan, RunPlan
+from cekm_swarm.node.graph_check import CheckedGraph
 from cekm_swarm.protocol import Nothing, decode, encode, expect_of
 from cekm_swarm.ticks import STEP_TIMEOUT, TICK_S, tick_time
 

@@ -62,7 +62,7 @@ class Watchdog:
         f = stack[at[-1] + 1]
         return f', at File "{f.filename}", line {f.lineno} in {f.name}'
 
-    def timed_out(self) -> "StepTimeout | None":
+    def timed_out(self) -> StepTimeout | None:
         """The failure to raise in place of the KeyboardInterrupt the watchdog caused (None:
         the user's Ctrl-C)."""
         return None if self.line is None else StepTimeout(self.line)
@@ -71,7 +71,7 @@ class Watchdog:
         self.closed = True
 
 
-def _watch(ref: "weakref.ref[Watchdog]", every: float) -> None:
+def _watch(ref: weakref.ref[Watchdog], every: float) -> None:
     """The watchdog's thread: it ends once its executor is closed or gone."""
     while True:
         time.sleep(every)

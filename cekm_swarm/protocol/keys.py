@@ -270,7 +270,7 @@ class KeySpace:
         shared with the world host was lost (so it does not wait for that router to return)."""
         return self.alive(WORLD, "ended")
 
-    def with_run(self, run: str | None) -> "KeySpace":
+    def with_run(self, run: str | None) -> KeySpace:
         """This key space for the run ``run``."""
         return KeySpace(self.root, self.range_sensors, run)
 

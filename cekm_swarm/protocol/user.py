@@ -28,7 +28,7 @@ from .errors import MessageKindError
 from .keys import KeyKind
 from .schema import MESSAGE_TYPES, Message, Plain, Sender, Stamp  # noqa: F401 - Stamp, Sender: the envelope
 
-USER_TYPES: dict[str, type["UserMessage"]] = {}
+USER_TYPES: dict[str, type[UserMessage]] = {}
 """Every user message type this process has declared, by its name on the wire."""
 
 _NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_.-]{0,63}\Z")
@@ -85,7 +85,7 @@ NOTHING_HEAD = b"\x84\xa1v\x01\xa4kind\xa4none"
 """How the wire bytes of a :class:`Nothing` begin (a msgpack map of 4: v = 1, kind = none)."""
 
 
-def json_schema(cls: type["UserMessage"]) -> dict[str, Any]:
+def json_schema(cls: type[UserMessage]) -> dict[str, Any]:
     """A JSON Schema of user message type ``cls`` as it travels (its map's fields, their
     types and ranges, its docstring): what the run's MCAP log keeps for its channels, so a
     reader without the declaration knows what the fields are."""
