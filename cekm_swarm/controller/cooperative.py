@@ -166,7 +166,7 @@ class CooperativeEKM:
             self._A_rows = FieldRows(self.w, self.fields, target_field)
             self._B_rows = FieldRows(self.w, self.fields, obstacle_field)
         if self.backend == "numba":
-            from ..models import fast
+            from ..models import fast  # noqa: PLC0415 -- lazy: numba costs ~0.15 s; only this backend needs it
 
             params = fast.pack_params(self.model.comp, self.model.learn_p, self.model.v_max, 1e-3)
             self._compete = lambda alpha, d: int(fast.winner(alpha, d, self.w, params))

@@ -4,14 +4,13 @@ process for each set of field parameters (:meth:`cekm_swarm.node.Context.shared`
 from __future__ import annotations
 
 from cekm_swarm.controller.cooperative import CooperativeEKM
+from cekm_swarm.errors import CekmError
 from cekm_swarm.models.params import FieldParams
 from cekm_swarm.node import Context, NodeError
 
 
 def indirect_model(ctx: Context):
     """The run's model, which must be an indirect-mapping EKM (Eq. 1)."""
-    from cekm_swarm.errors import CekmError
-
     try:
         model = ctx.model()
     except CekmError as exc:  # names the model file and what is wrong with it

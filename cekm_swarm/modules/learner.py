@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -82,7 +82,7 @@ def copy_model(model: IndirectEKM, w: np.ndarray | None = None, M: np.ndarray | 
 def winner_of(net: IndirectEKM, v: np.ndarray) -> int:
     """The winner for v (Eqs. 2-4) by numba's competition (``models.fast.winner``: the same
     winner as the models' numpy one bit for bit, tested; a few us instead of tens)."""
-    from cekm_swarm.models import fast
+    from cekm_swarm.models import fast  # noqa: PLC0415 -- lazy: numba costs ~0.15 s at a node's start-up
 
     params = getattr(net, "_fast_params", None)
     if params is None:
@@ -338,7 +338,7 @@ def map_misfit(msg: MapVersion, version: int, n: int) -> str | None:
 def warm_winner(ekm) -> None:
     """Load numba's competition (``models.fast.winner``, compiled and cached on disk) and
     run it once, so that a map version's first winners cost no compilation."""
-    from cekm_swarm.models import fast
+    from cekm_swarm.models import fast  # noqa: PLC0415 -- lazy: numba costs ~0.15 s at a node's start-up
 
     params = fast.pack_params(ekm.model.comp, ekm.model.learn_p, ekm.model.v_max, 1e-3)
     fast.winner(0.0, 0.05, np.ascontiguousarray(ekm.model.w), params)
@@ -364,8 +364,6 @@ class MapFollower:
             self.dropped += 1
             self.last_drop = why or f"stale: version {msg.version}, this node has version {self.version}"
             return
-        from dataclasses import replace
-
         # numba winners: a new version empties the winner memo, and numpy's competition
         # (tens of us) would then run again for every reading; numba's gives the same
         # winners bit for bit (tested) in about 1 us (docs/learning.md, cost)

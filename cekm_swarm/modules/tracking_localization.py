@@ -8,6 +8,8 @@ where targets were last reported: the node keeps state across ticks (``stateful`
 
 from __future__ import annotations
 
+import math
+
 from cekm_swarm.controller.team import TeammateShare, TeamView
 from cekm_swarm.controller.tracking import TrackingActivity, TrackingEKM, TrackingRobot
 from cekm_swarm.models.params import FieldParams, TrackingParams
@@ -29,8 +31,6 @@ def tracking_activity(msg: TrackingField) -> TrackingActivity:
 
 def tracking_ekm(ctx, params: TrackingParams) -> TrackingEKM:
     """The robot's cooperative-EKM tracking controller (the paper's field widths)."""
-    import math
-
     R = ctx.body.target_range
     if not math.isfinite(R):
         raise NodeError(f"{ctx.sender}: tracking needs a finite target sensing range (sensors.target_range)")

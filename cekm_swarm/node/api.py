@@ -43,6 +43,7 @@ from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 from cekm_swarm.errors import CekmError
+from cekm_swarm.models.io import load_model, load_model_bytes
 from cekm_swarm.protocol import is_message_type
 from cekm_swarm.robot import RobotBody
 
@@ -159,8 +160,6 @@ class Context:
         with _LOCK:
             held = _MODELS.get(key)
         if held is None:
-            from cekm_swarm.models.io import load_model, load_model_bytes
-
             held = load_model(src) if isinstance(src, str) else load_model_bytes(src[1], src[0])
             with _LOCK:
                 if len(_MODELS) >= 8:

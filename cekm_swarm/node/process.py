@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import contextlib
 import faulthandler
 import json
 import logging
@@ -34,12 +35,19 @@ import threading
 import time
 from typing import Any
 
+import zenoh
+
 from cekm_swarm.errors import CekmError
 from cekm_swarm.graph.plan import NodePlan, RunPlan
 from cekm_swarm.graph.runspec import RunSpec
 from cekm_swarm.node.graph_check import node_class
 from cekm_swarm.protocol import DropCounter, KeyKind, Nothing, expect_of
 from cekm_swarm.protocol.stamps import ANY_STAMP, StampWindow
+from cekm_swarm.runtime.bridge import InlineSubscription, Publishers, declare_alive
+from cekm_swarm.runtime.config import LOCKSTEP_MODULE_RUNTIME, ONE_THREAD_RUNTIME, open_client, use_zenoh_runtime
+from cekm_swarm.runtime.gc_tuning import freeze_startup_heap
+from cekm_swarm.runtime.lifetime import die_with_parent
+from cekm_swarm.runtime.model_service import fetch_model_bytes
 from cekm_swarm.ticks import tick_of
 
 from .api import Context, NodeError, cannot_start, make_params, raised_at, start_node, traceback_text
@@ -267,17 +275,11 @@ class NodeShell:
     # ------------------------------------------------------------------ serving
 
     async def serve(self, session: Any, ready: Any = None) -> int:
-        import zenoh
-
-        from cekm_swarm.runtime.bridge import InlineSubscription, Publishers, declare_alive
-
         loop = asyncio.get_running_loop()
         stop = asyncio.Event()
         for sig in (signal.SIGTERM, signal.SIGINT):
-            try:
+            with contextlib.suppress(NotImplementedError, RuntimeError):  # not the main thread
                 loop.add_signal_handler(sig, stop.set)
-            except (NotImplementedError, RuntimeError):  # pragma: no cover - non-main thread
-                pass
         loop.add_signal_handler(STALL_SIGNAL, self.say_where)
         put = zenoh.SampleKind.PUT
         self.on_failure = lambda: loop.call_soon_threadsafe(stop.set)
@@ -413,10 +415,6 @@ def node_argv(spec_path: str, robot: str, name: str, run_id: str | None = None) 
 
 
 def main(argv: list[str] | None = None) -> int:
-    from cekm_swarm.runtime.config import LOCKSTEP_MODULE_RUNTIME, ONE_THREAD_RUNTIME, open_client, use_zenoh_runtime
-    from cekm_swarm.runtime.gc_tuning import freeze_startup_heap
-    from cekm_swarm.runtime.lifetime import die_with_parent
-
     die_with_parent()  # started by a launcher: stop when it dies, whatever kills it
     signal.signal(STALL_SIGNAL, signal.SIG_IGN)  # asked before it serves: nothing to say yet
     args = parser().parse_args(argv)
@@ -483,9 +481,6 @@ def _cannot_start(label: str, why: str) -> int:
 
 def _fetch_model(spec: RunSpec) -> tuple[str, bytes]:
     """``(where, bytes)`` of the model the world host's launcher serves (``--model-from-zenoh``)."""
-    from cekm_swarm.runtime.config import open_client
-    from cekm_swarm.runtime.model_service import fetch_model_bytes
-
     key = spec.keys.world_model()
     session = open_client(spec.connect, config_file=spec.zenoh_config)
     try:

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 from typing import Annotated, ClassVar
 
+import msgspec
 from msgspec import Meta
 
 from .errors import MessageFieldError
@@ -352,8 +353,6 @@ class MapVersion(Message):
 def with_stamp(msg: Message, t: float) -> Message:
     """``msg`` as sent at sim time ``t`` (checked as any record): what a pure node would
     have sent at ``t`` for the same inputs."""
-    import msgspec
-
     return msgspec.structs.replace(msg, stamp=t)
 
 

@@ -24,6 +24,8 @@ import re
 from collections.abc import Iterable
 from typing import Any, ClassVar, get_type_hints
 
+import msgspec
+
 from .errors import MessageKindError
 from .keys import KeyKind
 from .schema import MESSAGE_TYPES, Message, Plain, Sender, Stamp  # noqa: F401 - Stamp, Sender: the envelope
@@ -89,8 +91,6 @@ def json_schema(cls: type[UserMessage]) -> dict[str, Any]:
     """A JSON Schema of user message type ``cls`` as it travels (its map's fields, their
     types and ranges, its docstring): what the run's MCAP log keeps for its channels, so a
     reader without the declaration knows what the fields are."""
-    import msgspec
-
     hints = get_type_hints(cls, include_extras=True)
     props: dict[str, Any] = {"v": {"const": 1}, "kind": {"const": "data"}, "type": {"const": cls.TYPE}}
     for name in cls.__struct_fields__:
