@@ -37,6 +37,7 @@ import math
 import os
 import threading
 import traceback
+import types
 import typing
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -322,50 +323,64 @@ def _type_of(cls: type[Node], name: str) -> Any:
     return hints.get(name, Any)
 
 
+def _exactly(kind: type, what: str) -> Callable[[Any, str], Any]:
+    def check(value: Any, where: str) -> Any:
+        if type(value) is not kind:
+            raise ValueError(f"{where}: expected {what}, got {value!r}")
+        return value
+
+    return check
+
+
+def _number(value: Any, where: str) -> float:
+    if type(value) not in (int, float):
+        raise ValueError(f"{where}: expected a number, got {value!r}")
+    value = float(value)
+    if math.isnan(value):
+        raise ValueError(f"{where}: expected a number, got NaN")
+    return value
+
+
+_SCALARS: dict[type, Callable[[Any, str], Any]] = {
+    bool: _exactly(bool, "true or false"), int: _exactly(int, "an integer"), float: _number,
+    str: _exactly(str, "a string"),
+}
+"""A parameter of a scalar type: its check (a bool is not an int, an int is a float)."""
+
+
 def _coerce(value: Any, kind: Any, where: str) -> Any:
     """``value`` as a parameter of type ``kind`` (bool, int, float, str, tuples of them), or
     a ValueError naming ``where``."""
-    origin = typing.get_origin(kind)
     if kind is Any:
         return value
-    if kind is bool:
-        if type(value) is not bool:
-            raise ValueError(f"{where}: expected true or false, got {value!r}")
-        return value
-    if kind is int:
-        if type(value) is not int:
-            raise ValueError(f"{where}: expected an integer, got {value!r}")
-        return value
-    if kind is float:
-        if type(value) not in (int, float):
-            raise ValueError(f"{where}: expected a number, got {value!r}")
-        value = float(value)
-        if math.isnan(value):
-            raise ValueError(f"{where}: expected a number, got NaN")
-        return value
-    if kind is str:
-        if type(value) is not str:
-            raise ValueError(f"{where}: expected a string, got {value!r}")
-        return value
+    scalar = _SCALARS.get(kind) if isinstance(kind, type) else None
+    if scalar is not None:
+        return scalar(value, where)
+    origin = typing.get_origin(kind)
     if origin is tuple:
         if not isinstance(value, (list, tuple)):
             raise ValueError(f"{where}: expected a list, got {value!r}")
         args = typing.get_args(kind)
         item = args[0] if args else Any
         return tuple(_coerce(v, item, f"{where}[{i}]") for i, v in enumerate(value))
-    if origin in (typing.Union, getattr(__import__("types"), "UnionType", ())):
-        errors = []
-        for arm in typing.get_args(kind):
-            if arm is type(None):
-                if value is None:
-                    return None
-                continue
-            try:
-                return _coerce(value, arm, where)
-            except ValueError as exc:
-                errors.append(str(exc))
-        raise ValueError(errors[0] if errors else f"{where}: {value!r} does not fit {kind}")
+    if origin in (typing.Union, types.UnionType):
+        return _coerce_union(value, kind, where)
     return value
+
+
+def _coerce_union(value: Any, kind: Any, where: str) -> Any:
+    """``value`` as the first arm of union ``kind`` it fits (None for an optional's None)."""
+    errors = []
+    for arm in typing.get_args(kind):
+        if arm is type(None):
+            if value is None:
+                return None
+            continue
+        try:
+            return _coerce(value, arm, where)
+        except ValueError as exc:
+            errors.append(str(exc))
+    raise ValueError(errors[0] if errors else f"{where}: {value!r} does not fit {kind}")
 
 
 def make_params(cls: type[Node], values: Mapping[str, Any], where: str) -> Any:

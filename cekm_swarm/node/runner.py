@@ -39,14 +39,29 @@ class Runner:
         t = tick_time(k)
         if self.live is not None and self.live.pending:
             self.live.apply_due(k)
+        sent = self._messages(self._step(t, inputs), k, t)
+        if self._check is not None:
+            try:
+                self._check(t, sent)
+            except StepFailed:
+                raise
+            except NodeError as exc:  # what its readers check of what it sends: its step failed
+                raise StepFailed(str(exc)) from exc
+        self.runs += 1
+        self.done = max(self.done, k)
+        return sent
+
+    def _step(self, t: float, inputs: Inputs) -> Any:
+        """The node's step at tick time ``t``; a step that raises is a StepFailed naming it. (The
+        step watchdog names the frame this calls: :meth:`.watchdog.Watchdog._where`.)"""
         self.stepping = (t, time.monotonic())
         try:
-            out = self.node.step(t, inputs)
+            return self.node.step(t, inputs)
         except NotReady:
             if self.skip_not_ready:
                 raise
             raise StepFailed(f"{self.plan.label}: its step at t={t:.3f} s raised NotReady, but in lockstep and "
-                            f"in one process every input of a run is there (NotReady is for real time)") from None
+                             f"in one process every input of a run is there (NotReady is for real time)") from None
         except NodeError as exc:
             if str(exc).startswith(self.plan.label):
                 raise StepFailed(str(exc)) from exc
@@ -55,9 +70,13 @@ class Runner:
             raise StepFailed(step_failure(self.plan.label, t, exc)) from exc
         finally:
             self.stepping = None
+
+    def _messages(self, out: Any, k: int, t: float) -> list[tuple[str, Any]]:
+        """What a step returned as (key, message) pairs to send: its own fields filled in,
+        a None as a Nothing (not on the run's answer); anything else wrong is refused."""
         if type(out) is not dict or len(out) != len(self._outs):
             self._refuse(out, t)
-        sent = []
+        sent: list[tuple[str, Any]] = []
         for port, key, want in self._outs:
             msg = out.get(port)
             if type(msg) is dict:  # its own fields: the runner adds what it knows
@@ -71,15 +90,6 @@ class Runner:
             if type(msg) is not want or msg.stamp != t:
                 self._refuse(out, t)
             sent.append((key, msg))
-        if self._check is not None:
-            try:
-                self._check(t, sent)
-            except StepFailed:
-                raise
-            except NodeError as exc:  # what its readers check of what it sends: its step failed
-                raise StepFailed(str(exc)) from exc
-        self.runs += 1
-        self.done = max(self.done, k)
         return sent
 
     def _fill(self, want: type, fields: dict[str, Any], k: int, t: float, port: str) -> Any:

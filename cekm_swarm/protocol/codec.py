@@ -98,7 +98,7 @@ def _wire_type(t: Any) -> Any:
     if t is np.ndarray:
         return WireVector
     if get_origin(t) in (Union, type(int | None)) and np.ndarray in get_args(t):
-        return Union[tuple(_wire_type(a) for a in get_args(t))]  # type: ignore[return-value]
+        return Union[tuple(_wire_type(a) for a in get_args(t))]  # type: ignore[return-value]  # noqa: UP007 -- built at run time
     return t
 
 
@@ -235,6 +235,26 @@ def _explain(codec: _Codec, kind: KeyKind, where: str, data: Any, refusal: BaseE
     """Why the decoder refused ``data``: the bytes read again with msgpack, the envelope and
     the fields checked in turn (the message's construction check names the field and the
     problem); msgspec's own words when none of that finds it."""
+    m = _unpacked(data, where)
+    if not isinstance(m, dict):
+        return m
+    wrong = _envelope_problem(codec, m, where)
+    if wrong is not None:
+        return wrong
+    try:
+        for name in codec.vectors:
+            if m[name] is not None:
+                m[name] = wire_vector(m[name], name)  # a vector must come as its wire map
+        codec.cls(**m)
+    except MessageError as exc:
+        return exc.at_key(where)
+    except Exception as exc:  # noqa: BLE001 - whatever it is, the bytes are refused with msgspec's reason
+        refusal = exc
+    return _from_msgspec(refusal, where)
+
+
+def _unpacked(data: Any, where: str) -> dict[Any, Any] | MessageError:
+    """The refused bytes read again with msgpack: the map, or why they are not one."""
     try:
         m = msgpack.unpackb(data, raw=False, strict_map_key=True)
     except msgpack.ExtraData as exc:  # one msgpack object, then more bytes
@@ -248,6 +268,12 @@ def _explain(codec: _Codec, kind: KeyKind, where: str, data: Any, refusal: BaseE
         return MessageFormatError(f"not valid msgpack ({why})", key=where)
     if type(m) is not dict:
         return MessageFormatError(f"not a msgpack map: a msgpack {_msgpack_type(m)}", key=where)
+    return m
+
+
+def _envelope_problem(codec: _Codec, m: dict[Any, Any], where: str) -> MessageError | None:
+    """What is wrong with a refused map's envelope (version, kind, type) or its set of
+    fields; None when they are right. Takes the envelope's fields out of ``m``."""
     if "v" not in m:
         return MessageVersionError("missing schema version field 'v'", key=where, field="v")
     v = m.pop("v")
@@ -268,16 +294,7 @@ def _explain(codec: _Codec, kind: KeyKind, where: str, data: Any, refusal: BaseE
         if missing:
             return MessageFieldError("missing", key=where, field=missing[0])
         return MessageFieldError("unexpected field", key=where, field=sorted(map(str, m.keys() - codec.fields))[0])
-    try:
-        for name in codec.vectors:
-            if m[name] is not None:
-                m[name] = wire_vector(m[name], name)  # a vector must come as its wire map
-        codec.cls(**m)
-    except MessageError as exc:
-        return exc.at_key(where)
-    except Exception as exc:  # noqa: BLE001 - whatever it is, the bytes are refused with msgspec's reason
-        refusal = exc
-    return _from_msgspec(refusal, where)
+    return None
 
 
 _MSGPACK_TYPES = {bool: "boolean", int: "integer", float: "float", str: "string", bytes: "binary", list: "array",
@@ -470,7 +487,7 @@ def summary(msg: Message, max_items: int = 6) -> str:
             v = f"[{head}{more}]"
         elif isinstance(v, float):
             v = f"{v:.4g}"
-        elif isinstance(v, dict) or isinstance(v, msgspec.Struct):
+        elif isinstance(v, dict | msgspec.Struct):
             v = msgspec.to_builtins(v, enc_hook=_plain_hook)
         parts.append(f"{name}={v}")
     return " ".join(parts)
