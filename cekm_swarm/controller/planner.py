@@ -105,8 +105,8 @@ def plan_checkpoints(geometry: Mapping[str, Any], start: tuple[float, float], go
     window = max(1, int(0.2 / resolution))  # one checkpoint per narrow passage
     for i in range(1, len(cl) - 1):
         lo, hi = max(0, i - window), min(len(cl), i + window + 1)
-        if cl[i] < doorway_clearance and cl[i] == cl[lo:hi].min():
-            if not checkpoints or math.dist(checkpoints[-1], path[i]) > 0.1:
-                checkpoints.append(path[i])
+        narrowest = cl[i] < doorway_clearance and cl[i] == cl[lo:hi].min()
+        if narrowest and (not checkpoints or math.dist(checkpoints[-1], path[i]) > 0.1):
+            checkpoints.append(path[i])
     checkpoints.append((float(goal[0]), float(goal[1])))
     return Plan(checkpoints=[(float(x), float(y)) for x, y in checkpoints], path=path)

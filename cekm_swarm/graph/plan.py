@@ -154,7 +154,7 @@ class NodePlan:
         input of many keys as one expression (``<root>/r1/field/obstacle/*``, every
         teammate's ``<root>/*/share``), the world's clock when it triggers the node."""
         exprs: list[str] = []
-        for b, d in zip(self.bindings, self.decl.inputs):
+        for b, d in zip(self.bindings, self.decl.inputs, strict=True):  # a binding per input
             if d.scope == "teammates":
                 exprs.append(f"{root}/*/{d.key}")
             elif d.key.endswith("/*"):

@@ -229,7 +229,7 @@ def learn(kind, va, vd, c0, c1, t, w, P, R, size, p, idx_buf, g_buf):
                 g_buf[m] = g
                 m += 1
     eta_w = p[P_ETA_W]
-    if kind == KIND_GD or kind == KIND_RLS:
+    if kind in (KIND_GD, KIND_RLS):
         ds = p[P_DSCALE]
         x1 = ds * vd
         for j in range(m):

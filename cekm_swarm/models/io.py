@@ -28,6 +28,7 @@ import json
 import os
 import zipfile
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -93,30 +94,65 @@ def load_model_bytes(blob: bytes, source: str):
     return _parse(io.BytesIO(blob), source)
 
 
-def _parse(file, path):
+Network = IndirectEKM | DirectEKM | BasisFunctionNetwork
+"""A saved network of any kind."""
+
+
+def _parse(file: Any, path: str) -> Network:
+    """The network in an .npz model file: read, its header and arrays checked, built."""
+    data = _read_npz(file, path)
+    kind, size = _header(data, path)
+    arrays = _arrays(data, path, kind, size)
+    comp, learn_p = _params(data, path)
+    lat = Lattice(size)
+    if kind.startswith("indirect"):
+        return IndirectEKM(lat, kind.split("-")[1], arrays["w"], arrays["M"], arrays["Rinv"], comp, learn_p,
+                           converged=_converged(data, path, size * size))
+    if kind == "direct":
+        return DirectEKM(lat, arrays["w"], arrays["C"], comp, learn_p)
+    rule = _scalar(data, path, "bfn_rule", str) if "bfn_rule" in data else "trained-units"
+    if rule not in BFN_RULES:
+        raise ModelFormatError(path, "bfn_rule", f"unknown rule {rule!r}; expected one of {', '.join(BFN_RULES)}")
+    return BasisFunctionNetwork(lat, arrays["w"], arrays["widths"], arrays["W"], arrays["won"] > 0.0, comp, learn_p,
+                                rule)
+
+
+def _read_npz(file: Any, path: str) -> dict[str, np.ndarray]:
+    """Every array of an .npz archive, or a ModelFormatError saying what the file is not."""
     try:
         loaded = np.load(file, allow_pickle=False)
         if not isinstance(loaded, np.lib.npyio.NpzFile):  # a lone .npy array
             raise ValueError("an .npy array, not an .npz archive")
         with loaded as npz:
-            data = {k: npz[k] for k in npz.files}
+            return {k: npz[k] for k in npz.files}
     except (zipfile.BadZipFile, ValueError, OSError, EOFError) as exc:
         # numpy tries a file that is neither .npz nor .npy as a pickle, and its refusal
         # advises loading it unsafely: say what the file is not instead
         why = "not an .npz archive" if "pickle" in str(exc) and "Object arrays" not in str(exc) else str(exc)
         raise ModelFormatError(path, None, f"not a readable .npz model file ({why})") from None
+
+
+def _header(data: dict[str, np.ndarray], path: str) -> tuple[str, int]:
+    """The file's format and version checked; its network kind and lattice size."""
     fmt = _scalar(data, path, "format", str)
     if fmt != FORMAT:
         raise ModelFormatError(path, "format", f"expected {FORMAT!r}, got {fmt!r}")
     version = _scalar(data, path, "format_version", int)
     if version != FORMAT_VERSION:
-        raise ModelFormatError(path, "format_version", f"version {version} is not supported (this library reads {FORMAT_VERSION})")
+        raise ModelFormatError(path, "format_version",
+                               f"version {version} is not supported (this library reads {FORMAT_VERSION})")
     kind = _scalar(data, path, "kind", str)
     if kind not in _ARRAYS:
         raise ModelFormatError(path, "kind", f"unknown network kind {kind!r}; expected one of {sorted(_ARRAYS)}")
     size = _scalar(data, path, "lattice_size", int)
     if not 2 <= size <= 64:
         raise ModelFormatError(path, "lattice_size", f"must be 2-64, got {size}")
+    return kind, size
+
+
+def _arrays(data: dict[str, np.ndarray], path: str, kind: str, size: int) -> dict[str, np.ndarray]:
+    """The arrays of a network of ``kind`` on a ``size`` x ``size`` lattice, each checked
+    (present, its shape, floating point, finite) and as float64."""
     n = size * size
     arrays = {}
     for name in ("w", *_ARRAYS[kind]):
@@ -131,30 +167,28 @@ def _parse(file, path):
         if not np.all(np.isfinite(a)):
             raise ModelFormatError(path, name, "contains NaN or infinite values")
         arrays[name] = a.astype(np.float64)
+    return arrays
+
+
+def _params(data: dict[str, np.ndarray], path: str) -> tuple[CompetitionParams, LearningParams]:
+    """The competition and learning parameters the network was saved with."""
     try:
         params = json.loads(_scalar(data, path, "params", str))
-        comp = CompetitionParams(**params["CompetitionParams"])
-        learn_p = LearningParams(**params["LearningParams"])
+        return CompetitionParams(**params["CompetitionParams"]), LearningParams(**params["LearningParams"])
     except ModelFormatError:
         raise
     except (ValueError, KeyError, TypeError) as exc:
         raise ModelFormatError(path, "params", f"unreadable parameters ({exc})") from None
-    lat = Lattice(size)
-    if kind.startswith("indirect"):
-        converged = None
-        if "converged" in data:
-            c = data["converged"]
-            if c.shape != (n,):
-                raise ModelFormatError(path, "converged", f"expected shape {(n,)}, got {c.shape}")
-            converged = np.asarray(c) > 0.0
-        return IndirectEKM(lat, kind.split("-")[1], arrays["w"], arrays["M"], arrays["Rinv"], comp, learn_p,
-                           converged=converged)
-    if kind == "direct":
-        return DirectEKM(lat, arrays["w"], arrays["C"], comp, learn_p)
-    rule = _scalar(data, path, "bfn_rule", str) if "bfn_rule" in data else "trained-units"
-    if rule not in BFN_RULES:
-        raise ModelFormatError(path, "bfn_rule", f"unknown rule {rule!r}; expected one of {', '.join(BFN_RULES)}")
-    return BasisFunctionNetwork(lat, arrays["w"], arrays["widths"], arrays["W"], arrays["won"] > 0.0, comp, learn_p, rule)
+
+
+def _converged(data: dict[str, np.ndarray], path: str, n: int) -> np.ndarray | None:
+    """An indirect EKM's converged units (None when the file has none)."""
+    if "converged" not in data:
+        return None
+    c = data["converged"]
+    if c.shape != (n,):
+        raise ModelFormatError(path, "converged", f"expected shape {(n,)}, got {c.shape}")
+    return np.asarray(c) > 0.0
 
 
 def model_provenance(path: str | os.PathLike) -> dict:

@@ -295,7 +295,7 @@ def need(inputs: Mapping[str, Any], *ports: str) -> Any:
     computing from nothing: ``pose, sensed = need(inputs, "pose", "targets")``."""
     got = tuple(inputs[p] for p in ports)
     if any(m is None for m in got):
-        raise NotReady(", ".join(p for p, m in zip(ports, got) if m is None))
+        raise NotReady(", ".join(p for p, m in zip(ports, got, strict=True) if m is None))
     return got[0] if len(got) == 1 else got
 
 

@@ -220,7 +220,8 @@ class NodeShell:
         held = self.holds_rel[key]
         k = tick_of(msg.stamp)
         try:
-            return self.gate.hold_all([(source, k, tick_of(since)) for rel, since in zip(msg.keys, msg.since)
+            return self.gate.hold_all([(source, k, tick_of(since))
+                                       for rel, since in zip(msg.keys, msg.since, strict=True)  # checked equal
                                        for source in held.get(rel, ())])
         except Exception as exc:  # noqa: BLE001 - a run it completes may fail like any other
             return self.step_failed(exc)

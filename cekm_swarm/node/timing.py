@@ -504,7 +504,7 @@ class RealtimeGate:
             self.gone.discard(robot)
         else:
             self.gone.add(robot)
-            for key, (b, s) in self.binding_of.items():
+            for key, (_, s) in self.binding_of.items():
                 if s.owner == robot:
                     self.latest.pop(key, None)
         return []

@@ -176,10 +176,10 @@ def _tuple_check(items: tuple[Check, ...]) -> Check:
         if not isinstance(x, (list, tuple, np.ndarray)) or len(x) != n:
             raise _fail(where, f"expected {n} values, got {x!r}"[:200])
         try:
-            return tuple([c(v, where) for c, v in zip(items, x)])
+            return tuple([c(v, where) for c, v in zip(items, x, strict=True)])
         except MessageFieldError:
             pass  # said again below, naming the entry
-        return tuple(c(v, f"{where}[{i}]") for i, (c, v) in enumerate(zip(items, x)))
+        return tuple(c(v, f"{where}[{i}]") for i, (c, v) in enumerate(zip(items, x, strict=True)))
 
     return check
 

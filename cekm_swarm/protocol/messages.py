@@ -313,7 +313,7 @@ class SenseOdometry(Message):
         for name in ("set_l", "set_r", "left", "right", "blocked"):
             if len(getattr(self, name)) != n:
                 raise _fail(name, f"{len(getattr(self, name))} rows, ticks has {n}")
-        if any(b <= a for a, b in zip(self.ticks, self.ticks[1:])):
+        if any(b <= a for a, b in zip(self.ticks, self.ticks[1:], strict=False)):
             raise _fail("ticks", "not increasing")
 
 
