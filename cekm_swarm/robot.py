@@ -84,7 +84,8 @@ class RobotBody:
     v_max: float = KHEPERA.v_max
     sensor_range: float = KHEPERA.sensor_range
     sensor_angles: tuple[float, ...] = tuple(
-        math.atan2(math.sin(2 * math.pi * j / KHEPERA.n_range_sensors), math.cos(2 * math.pi * j / KHEPERA.n_range_sensors))
+        math.atan2(math.sin(2 * math.pi * j / KHEPERA.n_range_sensors),
+                   math.cos(2 * math.pi * j / KHEPERA.n_range_sensors))
         for j in range(KHEPERA.n_range_sensors))
     target_range: float = math.inf
 

@@ -58,7 +58,8 @@ def occupancy(geometry: Mapping[str, Any], resolution: float) -> tuple[np.ndarra
 
 
 def plan_checkpoints(geometry: Mapping[str, Any], start: tuple[float, float], goal: tuple[float, float],
-                     body_radius: float = KHEPERA.body_radius, resolution: float = 0.01, doorway_clearance: float = 0.12) -> Plan:
+                     body_radius: float = KHEPERA.body_radius, resolution: float = 0.01,
+                     doorway_clearance: float = 0.12) -> Plan:
     """Checkpoints at the doorways on the way from start to goal, then the goal."""
     from scipy.ndimage import distance_transform_edt
 
@@ -73,7 +74,8 @@ def plan_checkpoints(geometry: Mapping[str, Any], start: tuple[float, float], go
     s, g = cell(start), cell(goal)
     for name, c in (("start", s), ("goal", g)):
         if not free[c]:
-            raise PlanningError(f"the {name} {start if name == 'start' else goal} is inside or too close to a known wall")
+            where = start if name == "start" else goal
+            raise PlanningError(f"the {name} {where} is inside or too close to a known wall")
     cost = 1.0 + 0.05 / np.maximum(clearance, resolution)  # prefer the middle of passages
     moves = [(-1, 0, 1.0), (1, 0, 1.0), (0, -1, 1.0), (0, 1, 1.0), (-1, -1, math.sqrt(2)), (-1, 1, math.sqrt(2)),
              (1, -1, math.sqrt(2)), (1, 1, math.sqrt(2))]

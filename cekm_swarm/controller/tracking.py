@@ -96,7 +96,8 @@ def led_centroid(group: tuple[tuple[float, float], tuple[str, ...]], tracks: Tar
 
 
 def teammate_weight(d: float, target_range: float, params: TrackingParams) -> float:
-    """A teammate's field weight at distance d: 1 within teammate_near * R, 0 beyond teammate_far * R, linear between."""
+    """A teammate's field weight at distance d: 1 within teammate_near * R, 0 beyond
+    teammate_far * R, linear between."""
     near, far = params.teammate_near * target_range, params.teammate_far * target_range
     if d <= near:
         return 1.0

@@ -77,7 +77,8 @@ class RunSpec:
     @classmethod
     def from_dict(cls, doc: Mapping[str, Any], source: str = "run spec") -> RunSpec:
         if doc.get("version") != SPEC_VERSION:
-            raise GraphError(source, "version", f"{doc.get('version')!r}: this code reads run spec version {SPEC_VERSION}")
+            raise GraphError(source, "version",
+                             f"{doc.get('version')!r}: this code reads run spec version {SPEC_VERSION}")
         try:
             return cls(Graph.from_dict(doc["graph"]), {k: PortTypes.from_dict(v) for k, v in doc["ports"].items()},
                        {k: dict(v) for k, v in doc["params"].items()}, tuple(doc["team"]), doc["task"],

@@ -149,7 +149,8 @@ class Graph:
     def from_dict(cls, doc: Mapping[str, Any]) -> Graph:
         """The inverse of :meth:`to_dict` (a run spec's graph, already checked)."""
         nodes = tuple(NodeDecl(n["name"], n["program"], n["instances"], n["every"],
-                               tuple(InputDecl(i["port"], i["key"], i["scope"], i["delay"], i["stale"]) for i in n["inputs"]),
+                               tuple(InputDecl(i["port"], i["key"], i["scope"], i["delay"], i["stale"])
+                                     for i in n["inputs"]),
                                tuple(OutputDecl(o["port"], o["key"]) for o in n["outputs"]), dict(n["params"]), k,
                                n.get("timer"))
                       for k, n in enumerate(doc["nodes"]))
@@ -240,7 +241,8 @@ def parse_graph(doc: Mapping[str, Any], source: str) -> Graph:
         seen[name] = k
         program = p.text(raw.get("program"), f"{where}.program")
         instances = raw.get("instances")
-        if instances is not None and not (instances == "sensors" or (type(instances) is int and 1 <= instances <= 1024)):
+        counted = type(instances) is int and 1 <= instances <= 1024
+        if instances is not None and not (instances == "sensors" or counted):
             raise GraphError(source, f"{where}.instances", f"{instances!r}: expected a number 1..1024 or \"sensors\"")
         every = raw.get("every")
         if every is not None and not (type(every) is int and 1 <= every <= 10_000):

@@ -44,7 +44,8 @@ def pack_params(comp: CompetitionParams, lp: LearningParams, v_max: float, width
     network's rule, :data:`cekm_swarm.models.networks.BFN_RULES`)."""
     p = np.empty(N_PARAMS)
     p[P_BETA_A], p[P_BETA_D], p[P_TOL] = comp.beta_alpha, comp.beta_d, comp.direction_tolerance
-    p[P_ETA_W], p[P_ETA_M], p[P_ETA_C], p[P_ETA_BFN], p[P_ETA_WIDTH] = lp.eta_w, lp.eta_m, lp.eta_c, lp.eta_bfn, lp.eta_width
+    p[P_ETA_W], p[P_ETA_M], p[P_ETA_C] = lp.eta_w, lp.eta_m, lp.eta_c
+    p[P_ETA_BFN], p[P_ETA_WIDTH] = lp.eta_bfn, lp.eta_width
     p[P_SIG0], p[P_SIGF], p[P_TAU], p[P_GMIN] = lp.sigma_initial, lp.sigma_final, lp.sigma_tau, lp.g_min
     p[P_LAMBDA], p[P_TRCAP], p[P_DSCALE] = lp.forgetting, lp.rinv_trace_cap, lp.d_scale
     p[P_EXP_REL], p[P_EXP_ABS], p[P_VMAX], p[P_WIDTH_FLOOR] = lp.explore_rel, lp.explore_abs, v_max, width_floor

@@ -43,7 +43,8 @@ def motor_winner(e: np.ndarray) -> int:
     return int(np.argmax(e))
 
 
-def motor_control(M: np.ndarray, w: np.ndarray, u: np.ndarray, k: int, s: int, v_max: float, d_scale: float) -> np.ndarray:
+def motor_control(M: np.ndarray, w: np.ndarray, u: np.ndarray, k: int, s: int, v_max: float,
+                  d_scale: float) -> np.ndarray:
     """Eq. 11: c = M_k u if k = s and |M_k u| <= c* (both wheels), else c = M_k w_k.
 
     Inputs go through the model's internal scaling (alpha on the neuron's branch,

@@ -44,7 +44,8 @@ def parse_network_name(name: str) -> tuple[str, int]:
     """'R15' -> ('indirect-rls', 15); the paper's naming (B, D, G, R + lattice side)."""
     m = _NAME.match(name.strip().upper())
     if not m or not 2 <= int(m.group(2)) <= 64:
-        raise ParameterError(f"unknown network {name!r}: expected a letter B, D, G or R and a lattice side 2-64, e.g. R15")
+        raise ParameterError(f"unknown network {name!r}: expected a letter B, D, G or R and a lattice side 2-64, "
+                             f"e.g. R15")
     return _KIND_OF_LETTER[m.group(1)], int(m.group(2))
 
 
@@ -125,7 +126,8 @@ class IndirectEKM(TargetReaching):
         lp = learn_p or LearningParams()
         m_si = np.array([[-axle, 1.0], [axle, 1.0]]) / step_s  # turn by 2 alpha (chord convention), move d
         M = np.tile(m_si @ np.diag([1.0, 1.0 / lp.d_scale]), (lat.n, 1, 1))
-        return cls(lat, "rls", lat.initial_weights(), M, np.tile(np.eye(2), (lat.n, 1, 1)), comp or CompetitionParams(), lp, v_max)
+        return cls(lat, "rls", lat.initial_weights(), M, np.tile(np.eye(2), (lat.n, 1, 1)), comp or CompetitionParams(),
+                   lp, v_max)
 
     @property
     def kind(self) -> str:

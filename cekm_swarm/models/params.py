@@ -36,7 +36,8 @@ class CompetitionParams:
     def __post_init__(self) -> None:
         _check_positive(self, "beta_alpha", "beta_d")
         if not (0.0 <= self.direction_tolerance < math.pi):
-            raise ParameterError(f"CompetitionParams.direction_tolerance must be in [0, pi), got {self.direction_tolerance!r}")
+            raise ParameterError(f"CompetitionParams.direction_tolerance must be in [0, pi), "
+                                 f"got {self.direction_tolerance!r}")
 
 
 @dataclass(frozen=True)

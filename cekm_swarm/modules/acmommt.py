@@ -49,7 +49,8 @@ class ACMOMMTForces(Node):
 
     def setup(self) -> None:
         p = self.params
-        self.brain = TrackingRobot(self.ctx.robot, acmommt(self), TeamView(self.ctx.robot, p.share_timeout_s, p.memory_s))
+        view = TeamView(self.ctx.robot, p.share_timeout_s, p.memory_s)
+        self.brain = TrackingRobot(self.ctx.robot, acmommt(self), view)
 
     def step(self, t, inputs):
         pose, sensed = need(inputs, "pose", "targets")  # real time: skipped until both are in

@@ -132,8 +132,9 @@ class Learner(Node):
         winner_of(self.net, np.zeros(2))  # numba's competition loaded (and compiled once, cached) before the run
         size = 8 * 6 * self.net.lattice.n
         if size > MAX_MAP_BYTES:
-            raise NodeError(f"{self.ctx.sender}: a {self.net.lattice.size}x{self.net.lattice.size} map is {size} bytes, "
-                            f"more than a map message may hold ({MAX_MAP_BYTES}); learn with a lattice of at most 25x25")
+            side = self.net.lattice.size
+            raise NodeError(f"{self.ctx.sender}: a {side}x{side} map is {size} bytes, more than a map message may "
+                            f"hold ({MAX_MAP_BYTES}); learn with a lattice of at most 25x25")
         self.counts = LearnerCounts()
         self.version = 0
         self.last_tick = 0  # the last tick of odometry learned from

@@ -35,8 +35,9 @@ class ObstacleLocalization(Node):
 
     def setup(self) -> None:
         p = self.params
-        self.ekm = cooperative_ekm(self.ctx, FieldParams(sigma_b_alpha=p.sigma_b_alpha, sigma_b_d_beyond=p.sigma_b_d_beyond,
-                                                         sigma_b_d_near=p.sigma_b_d_near))
+        fields = FieldParams(sigma_b_alpha=p.sigma_b_alpha, sigma_b_d_beyond=p.sigma_b_d_beyond,
+                             sigma_b_d_near=p.sigma_b_d_near)
+        self.ekm = cooperative_ekm(self.ctx, fields)
 
     def step(self, t, inputs):
         r: SenseRange | None = inputs["reading"]

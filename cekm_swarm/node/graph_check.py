@@ -37,15 +37,11 @@ def node_class(program: str, source: str = "", where: str = "") -> type[Node]:
         missing = getattr(exc, "name", None)
         if missing is not None and missing != mod_name and not mod_name.startswith(missing + "."):
             # the program's module was found, and an import of its own failed
-            at = raised_at(exc)
-            raise GraphError(source, f"{where}.program", f"program {program!r} failed to import: "
-                                                        f"{type(exc).__name__}: {exc}" + (f" ({at})" if at else "")) from None
+            raise GraphError(source, f"{where}.program", _failed_import(program, exc)) from None
         raise GraphError(source, f"{where}.program", f"unknown program {program!r}: cannot import {mod_name!r} "
                                                     f"({exc})") from None
     except Exception as exc:  # noqa: BLE001 - a user's module may fail in any way on import
-        at = raised_at(exc)
-        raise GraphError(source, f"{where}.program", f"program {program!r} failed to import: "
-                                                    f"{type(exc).__name__}: {exc}" + (f" ({at})" if at else "")) from None
+        raise GraphError(source, f"{where}.program", _failed_import(program, exc)) from None
     if cls_name:
         cls = getattr(mod, cls_name, None)
         if not (inspect.isclass(cls) and issubclass(cls, Node)):
@@ -61,6 +57,12 @@ def node_class(program: str, source: str = "", where: str = "") -> type[Node]:
                                                     f"({', '.join(c.__name__ for c in own) or 'none'}): name one as "
                                                     f"'{mod_name}:Class'")
     return own[0]
+
+
+def _failed_import(program: str, exc: BaseException) -> str:
+    """What went wrong importing a program's module: the exception and where it was raised."""
+    at = raised_at(exc)
+    return f"program {program!r} failed to import: {type(exc).__name__}: {exc}" + (f" ({at})" if at else "")
 
 
 def _beside(source: str) -> None:

@@ -97,7 +97,8 @@ def describe(checked: CheckedGraph, plan: RunPlan) -> list[str]:
 @graph_group.command("show")
 @click.argument("graph")
 @click.option("--task", type=click.Choice(["navigation", "tracking"]), help="For a graph of any task.")
-@click.option("--robots", default="2", show_default=True, type=RobotIds(count=True), help="The team: a count or ids (r1,r2,r3).")
+@click.option("--robots", default="2", show_default=True, type=RobotIds(count=True),
+              help="The team: a count or ids (r1,r2,r3).")
 @click.option("--json", "as_json", is_flag=True, help="The resolved graph as JSON (what a run spec carries).")
 def show_cmd(graph: str, task: str | None, robots: tuple[str, ...], as_json: bool) -> None:
     """GRAPH (a shipped graph's name or a file): its nodes per robot, with program,

@@ -88,7 +88,8 @@ def build_node(spec: RunSpec, plan: RunPlan, robot: str, name: str, backend: str
         node_plan = plan.node(robot, name)
     except KeyError:
         names = ", ".join(n.name for n in plan.nodes.get(robot, [])) or "none"
-        raise CekmError(f"graph {spec.graph.name!r} has no node {name!r} for robot {robot!r} (nodes: {names})") from None
+        raise CekmError(f"graph {spec.graph.name!r} has no node {name!r} for robot {robot!r} "
+                        f"(nodes: {names})") from None
     decl = node_plan.decl
     cls = node_class(decl.program, spec.graph.source, decl.where)
     params = make_params(cls, spec.params.get(decl.name, {}), f"{decl.where}.params")
@@ -365,8 +366,8 @@ class NodeShell:
             sys.stderr.write(f"{STALLED} {label}: no step running ({self.runner.runs} runs so far)\n")
         else:
             t, began = stepping
-            sys.stderr.write(f"{STALLED} {label}: its step at t={t:.3f} s has run for {time.monotonic() - began:.1f} s; "
-                             f"its threads' stacks follow\n")
+            sys.stderr.write(f"{STALLED} {label}: its step at t={t:.3f} s has run for "
+                             f"{time.monotonic() - began:.1f} s; its threads' stacks follow\n")
             sys.stderr.flush()
             faulthandler.dump_traceback(file=sys.stderr, all_threads=True)
         sys.stderr.flush()

@@ -2,7 +2,8 @@
 :mod:`.schema`) and its construction check, compiled from its declared field types: one
 function per class that tests each field's well-formed case inline (an exact type and
 its range, a few comparisons) and otherwise calls the field type's check, which
-normalizes the value (numpy scalars to Python numbers, sequences to the declared tuples, arrays to read-only float64 vectors) or raises a
+normalizes the value (numpy scalars to Python numbers, sequences to the declared tuples,
+arrays to read-only float64 vectors) or raises a
 :class:`~.errors.MessageFieldError` naming the field (``targets.t1[1]``) and the problem.
 The field types are read from msgspec's own view of the declaration
 (:func:`msgspec.inspect.type_info`), the same the wire decoder is built from. The wire

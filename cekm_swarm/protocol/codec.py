@@ -483,7 +483,8 @@ def summary(msg: Message, max_items: int = 6) -> str:
     for name, v in fields.items():
         if isinstance(v, np.ndarray):
             head = ", ".join(f"{x:.3g}" for x in v[:max_items])
-            more = f", ... ({v.shape[0]} values, max {v.max():.3g} at {int(v.argmax())})" if v.shape[0] > max_items else ""
+            more = (f", ... ({v.shape[0]} values, max {v.max():.3g} at {int(v.argmax())})"
+                    if v.shape[0] > max_items else "")
             v = f"[{head}{more}]"
         elif isinstance(v, float):
             v = f"{v:.4g}"

@@ -136,7 +136,8 @@ def validate_root(root: object) -> str:
     for chunk in root.split("/"):
         if not _CHUNK_RE.match(chunk):
             raise KeySpaceError(f"key root {root!r}",
-                                f"chunk {chunk!r} must be letters, digits, '_', '.' or '-' (no wildcards, no empty chunks)")
+                                f"chunk {chunk!r} must be letters, digits, '_', '.' or '-' "
+                                f"(no wildcards, no empty chunks)")
     return root
 
 

@@ -57,8 +57,9 @@ from .schema import (
 
 __all__ = ["MAX_ARRAY_LEN", "MAX_INDEX", "MAX_SENDER_LEN", "MAX_TARGETS", "MESSAGE_TYPES", "MSGPACK_ENCODING",
            "SCHEMA_VERSION", "Message", "SenseTarget", "SenseRange", "TargetField", "ObstacleField", "WheelCommand",
-           "Share", "SensePose", "SenseTargets", "Unchanged", "TrackingField", "RobotState", "TargetState", "ObstacleState",
-           "WorldState", "Clock", "Data", "SenseOdometry", "MapVersion", "with_stamp", "decode", "encode", "peek", "summary", "to_plain", "to_wire"]
+           "Share", "SensePose", "SenseTargets", "Unchanged", "TrackingField", "RobotState", "TargetState",
+           "ObstacleState", "WorldState", "Clock", "Data", "SenseOdometry", "MapVersion", "with_stamp", "decode",
+           "encode", "peek", "summary", "to_plain", "to_wire"]
 
 
 def _fail(field: str, problem: str) -> MessageFieldError:
@@ -105,7 +106,8 @@ class TargetField(Message):
 
     def check(self) -> None:
         if (self.alpha is None) != (self.d is None):
-            raise _fail("alpha" if self.alpha is None else "d", "alpha and d must both be None (no target) or both be given")
+            raise _fail("alpha" if self.alpha is None else "d",
+                        "alpha and d must both be None (no target) or both be given")
         if (self.winner is None) != (self.a is None):
             raise _fail("winner" if self.winner is None else "a", "winner and a must both be None or both be given")
         if self.a is not None:
