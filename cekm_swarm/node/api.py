@@ -39,7 +39,7 @@ import threading
 import traceback
 import types
 import typing
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
@@ -245,9 +245,10 @@ def raised_at(exc: BaseException) -> str:
     """``file.py:line`` of the innermost frame of ``exc``'s traceback in the node's own code
     (not the framework's checks), "" when it has none."""
     frames = traceback.extract_tb(exc.__traceback__)
-    own = [f for f in frames if not f.filename.startswith(_PLUMBING + ("<",))]
-    f = (own or frames or [None])[-1]
-    return f"{os.path.basename(f.filename)}:{f.lineno}" if f is not None else ""
+    own = [f for f in frames if not f.filename.startswith(_PLUMBING + ("<",))] or frames
+    if not own:
+        return ""
+    return f"{os.path.basename(own[-1].filename)}:{own[-1].lineno}"
 
 
 def traceback_text(exc: BaseException) -> str:
@@ -282,7 +283,7 @@ class Inputs(Mapping[str, Any]):
         except KeyError:
             raise KeyError(f"no input port {port!r} (ports: {', '.join(self._values) or 'none'})") from None
 
-    def __iter__(self):
+    def __iter__(self) -> Iterator[str]:
         return iter(self._values)
 
     def __len__(self) -> int:
@@ -302,7 +303,7 @@ def need(inputs: Mapping[str, Any], *ports: str) -> Any:
 # --------------------------------------------------------------------------- parameters
 
 
-def param_fields(cls: type[Node]) -> dict[str, dataclasses.Field]:
+def param_fields(cls: type[Node]) -> dict[str, dataclasses.Field[Any]]:
     """The declared parameters of a node class: name -> dataclass field."""
     P = cls.Params
     if not dataclasses.is_dataclass(P):
@@ -310,11 +311,11 @@ def param_fields(cls: type[Node]) -> dict[str, dataclasses.Field]:
     return {f.name: f for f in dataclasses.fields(P)}
 
 
-def param_default(f: dataclasses.Field) -> Any:
+def param_default(f: dataclasses.Field[Any]) -> Any:
     if f.default is not dataclasses.MISSING:
         return f.default
-    if f.default_factory is not dataclasses.MISSING:  # type: ignore[misc]
-        return f.default_factory()  # type: ignore[misc]
+    if f.default_factory is not dataclasses.MISSING:
+        return f.default_factory()
     return dataclasses.MISSING
 
 
@@ -335,10 +336,10 @@ def _exactly(kind: type, what: str) -> Callable[[Any, str], Any]:
 def _number(value: Any, where: str) -> float:
     if type(value) not in (int, float):
         raise ValueError(f"{where}: expected a number, got {value!r}")
-    value = float(value)
-    if math.isnan(value):
+    number = float(value)
+    if math.isnan(number):
         raise ValueError(f"{where}: expected a number, got NaN")
-    return value
+    return number
 
 
 _SCALARS: dict[type, Callable[[Any, str], Any]] = {

@@ -123,7 +123,7 @@ class GraphExecutor:
         """What was sent on ``key`` at ``tick`` (while it is kept), e.g. a robot's fields for Fig. 4."""
         return self._lookup(key, tick)
 
-    def node(self, robot: str, name: str):
+    def node(self, robot: str, name: str) -> Node:
         """The node object of ``robot``'s node instance ``name``."""
         for r in self.runners:
             if r.plan.robot == robot and r.plan.name == name:

@@ -198,7 +198,7 @@ class NodeShell:
         where = (type(cause).__name__, at or what)  # grouped by where it was raised, not by its text
         group = self._failure_groups.get(where)
         first = group is None
-        if first:  # named by its first failure's text and its line
+        if group is None:  # named by its first failure's text and its line
             group = "other failures" if len(self.step_failures) >= 64 else what + (f" ({at})" if at else "")
             self._failure_groups[where] = group
         self.step_failures[group] = self.step_failures.get(group, 0) + 1
@@ -328,14 +328,17 @@ class NodeShell:
                 s.close()
             if tokens is not None:
                 tokens.undeclare()
-            token.undeclare()
+            token.undeclare()  # type: ignore[no-untyped-call]  # zenoh's stub leaves LivelinessToken.undeclare untyped
             params.undeclare()
             self.pubs.close()
         return self.handled
 
     def run_timer(self, gate: TimerGate) -> None:
         """A node on a timer of its own (:mod:`.timer_gate`): a run every ``timer`` s until it stops."""
-        timer = Timer(float(self.node_plan.decl.timer))
+        period = self.node_plan.decl.timer
+        if period is None:  # only a node that declares a timer takes a TimerGate
+            return
+        timer = Timer(float(period))
         while not self.closed.wait(timer.wait()):
             with self.lock:
                 try:
@@ -435,7 +438,7 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
     try:
         plan = spec.plan()
-        source = spec.model
+        source: str | tuple[str, bytes] | None = spec.model
         if source == "zenoh":
             source = _fetch_model(spec)
         node_plan, runner = build_node(spec, plan, args.robot, args.node, "numpy", source)
@@ -453,7 +456,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         asyncio.run(shell.serve(session))
     finally:
-        session.close()
+        session.close()  # type: ignore[no-untyped-call]  # zenoh's stub leaves Session.close untyped
         runner.node.close()
     report = shell.report()
     if shell.drops.total:
@@ -488,4 +491,4 @@ def _fetch_model(spec: RunSpec) -> tuple[str, bytes]:
     try:
         return f"zenoh:{key}", fetch_model_bytes(session, key, spec.model_timeout)
     finally:
-        session.close()
+        session.close()  # type: ignore[no-untyped-call]  # zenoh's stub leaves Session.close untyped

@@ -29,7 +29,9 @@ class Runner:
         self.live: Any = None  # parameters changed while it runs (.live_params.LiveParams), in a node's process
         self.stepping: tuple[float, float] | None = None  # (t, time.monotonic() it began) while a step runs
         self.skip_not_ready = False  # set by the real-time gate, which takes NotReady
-        self._outs = [(port, key, node.outputs[port].type) for port, key in plan.outputs.items()]
+        # (port, key, message type): a type of the protocol's or a user's, read as Any
+        self._outs: list[tuple[str, str, Any]] = [(port, key, node.outputs[port].type)
+                                                  for port, key in plan.outputs.items()]
         self._check = output_check(plan, node)  # what its readers check of what it sends (None: nothing)
 
     def run(self, k: int, inputs: Inputs) -> list[tuple[str, Any]]:
@@ -92,7 +94,7 @@ class Runner:
             sent.append((key, msg))
         return sent
 
-    def _fill(self, want: type, fields: dict[str, Any], k: int, t: float, port: str) -> Any:
+    def _fill(self, want: Any, fields: dict[str, Any], k: int, t: float, port: str) -> Any:
         """The message of type ``want`` a step gave as a dict of its own fields: stamped
         ``t``, signed with the node's sender, and a ``seq`` it left out set to the tick ``k``
         (what the shipped motors send: the same in every mode, across restarts)."""

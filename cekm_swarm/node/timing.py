@@ -68,7 +68,7 @@ Drop = Callable[[str, str], None]
 def restamp(msg: Any, t: float) -> Any:
     """``msg`` as its pure producer would have sent it at tick time ``t``: a shallow copy,
     not checked again (``msg`` was checked when received; ``t`` is a tick's time)."""
-    out = msg.__copy__() if isinstance(msg, Struct) else copy.copy(msg)
+    out = msg.__copy__() if isinstance(msg, Struct) else copy.copy(msg)  # type: ignore[attr-defined]  # msgspec's stub omits Struct.__copy__
     out.stamp = t
     return out
 
@@ -216,7 +216,7 @@ class LockstepGate:
     drop: Drop = lambda key, why: None
     done: int = -1
     last_out: list[tuple[str, Any]] = field(default_factory=list)
-    recent_out: deque = field(default_factory=lambda: deque(maxlen=RESEND_RUNS))
+    recent_out: deque[list[tuple[str, Any]]] = field(default_factory=lambda: deque(maxlen=RESEND_RUNS))
     used: dict[str, int] = field(default_factory=dict)
     gone: set[str] = field(default_factory=set)
     store: dict[str, dict[int, Any]] = field(default_factory=dict)
