@@ -54,7 +54,7 @@ _encoder = msgspec.msgpack.Encoder(enc_hook=_enc_hook)
 _HEADS: dict[type, bytes] = {}
 
 
-def _head(cls: type) -> bytes:
+def _head(cls: type[Message]) -> bytes:
     """The wire map's header and its envelope entries ``v`` and ``kind`` (and a user type's
     ``type``): what comes before the message's own fields (msgspec packs those as a map of
     their own, whose one-byte header this replaces)."""
@@ -62,9 +62,9 @@ def _head(cls: type) -> bytes:
     n = len(cls.__struct_fields__) + 2 + user
     if n > 15:  # a declaration past 12 (a user's: 11) fields of its own
         raise TypeError(f"{cls.__name__}: more fields than one msgpack fixmap holds (at most {15 - 2 - user})")
-    head = bytes([0x80 | n]) + msgpack.packb("v") + msgpack.packb(SCHEMA_VERSION) + \
+    head: bytes = bytes([0x80 | n]) + msgpack.packb("v") + msgpack.packb(SCHEMA_VERSION) + \
         msgpack.packb("kind") + msgpack.packb(cls.KIND.value)
-    if user:
+    if issubclass(cls, UserMessage):
         head += msgpack.packb("type") + msgpack.packb(cls.TYPE)
     _HEADS[cls] = head
     return head
@@ -87,7 +87,8 @@ def encode(msg: Message) -> bytes:
 
 def to_wire(msg: Message) -> dict[str, Any]:
     """The map that :func:`encode` packs: the envelope, then the kind's fields in order."""
-    return msgpack.unpackb(encode(msg), raw=False)
+    doc: dict[str, Any] = msgpack.unpackb(encode(msg), raw=False)
+    return doc
 
 
 # --------------------------------------------------------------------------- decode
@@ -98,7 +99,7 @@ def _wire_type(t: Any) -> Any:
     if t is np.ndarray:
         return WireVector
     if get_origin(t) in (Union, type(int | None)) and np.ndarray in get_args(t):
-        return Union[tuple(_wire_type(a) for a in get_args(t))]  # type: ignore[return-value]  # noqa: UP007 -- built at run time
+        return Union[tuple(_wire_type(a) for a in get_args(t))]  # noqa: UP007 -- built at run time
     return t
 
 
@@ -150,9 +151,9 @@ def warm() -> int:
             _head(cls)
     n, stack = 0, list(Record.__subclasses__())
     while stack:
-        cls = stack.pop()
-        stack += cls.__subclasses__()
-        _CHECKS[cls]  # noqa: B018 - compiled on its first lookup (_Checks.__missing__)
+        sub = stack.pop()
+        stack += sub.__subclasses__()
+        _CHECKS[sub]  # noqa: B018 - compiled on its first lookup (_Checks.__missing__)
         n += 1
     return n
 
@@ -205,12 +206,13 @@ def decode(key: str | KeyKind, data: bytes | bytearray | memoryview, *, keys: Ke
         return _nothing(where, data)
     if kind is KeyKind.NODE:
         kind = expect if expect is not None else _payload_kind(data, where)
-    if type(kind) is str:  # a user's type by name: its class if declared here, else its envelope and fields
-        declared = USER_TYPES.get(kind)
+    what: Any = kind  # a KeyKind, or a user's type (its class, or its name)
+    if type(what) is str:  # a user's type by name: its class if declared here, else its envelope and fields
+        declared = USER_TYPES.get(what)
         if declared is None:
-            return _untyped(kind, where, data)
-        kind = declared
-    codec = _CODECS.get(kind) or _codec(kind)
+            return _untyped(what, where, data)
+        what = declared
+    codec = _CODECS.get(what) or _codec(what)
     if codec is None:
         raise MessageKindError(f"keys of kind '{kind.value}' carry no message", key=where)
     try:
@@ -370,7 +372,7 @@ def _plain_vector(v: Any) -> Any:
 
 
 class _NothingWire(msgspec.Struct, forbid_unknown_fields=True, gc=False):
-    v: Literal[SCHEMA_VERSION]
+    v: Literal[SCHEMA_VERSION]  # type: ignore[valid-type]  # msgspec reads the constant's value at run time
     kind: Literal["none"]
     stamp: Any
     sender: Any

@@ -26,10 +26,10 @@ from typing import Annotated, ClassVar
 import msgspec
 from msgspec import Meta
 
+from .checks import MAX_ARRAY_LEN
 from .errors import MessageFieldError
 from .keys import KeyKind
 from .schema import (
-    MAX_ARRAY_LEN,
     MAX_INDEX,
     MAX_SENDER_LEN,
     MAX_TARGETS,

@@ -108,7 +108,7 @@ def user_schemas(types: Iterable[type]) -> dict[str, dict[str, Any]]:
     return {kind_of(t): json_schema(t) for t in types if isinstance(t, type) and issubclass(t, UserMessage)}
 
 
-def kind_of(cls: type) -> str:
+def kind_of(cls: type[Message]) -> str:
     """The kind a graph gives a port of message class ``cls``: ``field/target`` for the
     protocol's, ``data:FreeDirection`` for a user's type."""
     if isinstance(cls, type) and issubclass(cls, UserMessage):
