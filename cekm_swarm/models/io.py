@@ -27,14 +27,15 @@ import io
 import json
 import os
 import zipfile
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, overload
 
 import numpy as np
 
 from ..errors import ModelFormatError
 from .lattice import Lattice
-from .networks import BFN_RULES, BasisFunctionNetwork, DirectEKM, IndirectEKM
+from .networks import BFN_RULES, BasisFunctionNetwork, DirectEKM, IndirectEKM, Network
 from .params import CompetitionParams, LearningParams, params_to_dict
 
 FORMAT = "cekm-model"
@@ -43,15 +44,15 @@ _ARRAYS = {"indirect-gd": ("M", "Rinv"), "indirect-rls": ("M", "Rinv"), "direct"
 _SHAPES = {"w": (2,), "M": (2, 2), "Rinv": (2, 2), "C": (2,), "W": (2,), "widths": (2,), "won": ()}
 
 
-def save_model(path: str | os.PathLike, net, provenance: dict | None = None) -> Path:
+def save_model(path: str | os.PathLike[str], net: Network, provenance: dict[str, Any] | None = None) -> Path:
     """Write ``net`` to ``path`` (``.npz``); returns the path written."""
     path = Path(path)
-    arrays = {"w": net.w}
+    arrays: dict[str, Any] = {"w": net.w}
     for name in _ARRAYS[net.kind]:
         arrays[name] = np.asarray(getattr(net, name), dtype=np.float64)
-    if getattr(net, "converged", None) is not None:
+    if isinstance(net, IndirectEKM) and net.converged is not None:  # the only kind with converged units
         arrays["converged"] = np.asarray(net.converged, dtype=np.float64)
-    meta = {"bfn_rule": np.array(net.rule)} if net.kind == "bfn" else {}
+    meta: dict[str, Any] = {"bfn_rule": np.array(net.rule)} if isinstance(net, BasisFunctionNetwork) else {}
     meta |= {
         "format": np.array(FORMAT),
         "format_version": np.array(FORMAT_VERSION),
@@ -68,7 +69,14 @@ def save_model(path: str | os.PathLike, net, provenance: dict | None = None) -> 
     return path
 
 
-def _scalar(data, path, key, kind):
+@overload
+def _scalar(data: Mapping[str, np.ndarray], path: str, key: str, kind: type[str]) -> str: ...
+@overload
+def _scalar(data: Mapping[str, np.ndarray], path: str, key: str, kind: type[int]) -> int: ...
+
+
+def _scalar(data: Mapping[str, np.ndarray], path: str, key: str, kind: type[str] | type[int]) -> str | int:
+    """The scalar ``key`` of a model file, as ``kind``."""
     if key not in data:
         raise ModelFormatError(path, key, "missing")
     value = data[key]
@@ -80,22 +88,18 @@ def _scalar(data, path, key, kind):
         raise ModelFormatError(path, key, f"expected {kind.__name__}: {exc}") from None
 
 
-def load_model(path: str | os.PathLike):
+def load_model(path: str | os.PathLike[str]) -> Network:
     """Read a saved network; raises :class:`ModelFormatError` naming the file and field on any problem."""
     path = Path(path)
     if not path.is_file():
         raise ModelFormatError(path, None, "no such file")
-    return _parse(path, path)
+    return _parse(path, str(path))
 
 
-def load_model_bytes(blob: bytes, source: str):
+def load_model_bytes(blob: bytes, source: str) -> Network:
     """A saved network from the bytes of its file (e.g. served over Zenoh); ``source``
     names where they came from in any :class:`ModelFormatError`."""
     return _parse(io.BytesIO(blob), source)
-
-
-Network = IndirectEKM | DirectEKM | BasisFunctionNetwork
-"""A saved network of any kind."""
 
 
 def _parse(file: Any, path: str) -> Network:
@@ -191,8 +195,9 @@ def _converged(data: dict[str, np.ndarray], path: str, n: int) -> np.ndarray | N
     return np.asarray(c) > 0.0
 
 
-def model_provenance(path: str | os.PathLike) -> dict:
+def model_provenance(path: str | os.PathLike[str]) -> dict[str, Any]:
     """The provenance record of a saved model (after the same checks as :func:`load_model`)."""
     load_model(path)
     with np.load(path, allow_pickle=False) as npz:
-        return json.loads(npz["provenance"].item())
+        doc: dict[str, Any] = json.loads(npz["provenance"].item())
+    return doc

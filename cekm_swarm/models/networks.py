@@ -67,7 +67,7 @@ def updated_neighbourhood(v: np.ndarray, w: np.ndarray, lattice: Lattice, comp: 
 
 def at_goal(u: np.ndarray) -> bool:
     """The goal state u(T) = (alpha, 0): the target sensor reads d = 0 (section 3.1)."""
-    return u[1] == 0.0
+    return bool(u[1] == 0.0)
 
 
 class TargetReaching:
@@ -177,7 +177,8 @@ class DirectEKM(TargetReaching):
 
     def output(self, u: np.ndarray) -> np.ndarray:
         """The winner's stored command c_s (also at the goal state)."""
-        return self.C[winner(u, self.w, self.comp)].copy()
+        out: np.ndarray = self.C[winner(u, self.w, self.comp)].copy()
+        return out
 
     def learn(self, v: np.ndarray, c: np.ndarray, t: float) -> None:
         """c_i += eta G(k, i) (c - c_i), then Eq. 12, k the winner for v."""
@@ -283,11 +284,13 @@ class BasisFunctionNetwork(TargetReaching):
         zd = (d - self.w[:, 1]) / self.widths[:, 1]
         q = np.where(active, 0.5 * (za * za + zd * zd), np.inf)
         phi = np.exp(-(q - q.min()))
-        return phi / phi.sum()
+        out: np.ndarray = phi / phi.sum()
+        return out
 
     def output(self, u: np.ndarray) -> np.ndarray:
         """The weighted sum of the output weights (also at the goal state)."""
-        return self.activations(u) @ self.W
+        out: np.ndarray = self.activations(u) @ self.W
+        return out
 
     def learn(self, v: np.ndarray, c: np.ndarray, t: float) -> None:
         """Output weights by gradient descent, widths toward the nearest-centre distance, centres by Eq. 12."""
@@ -304,8 +307,12 @@ class BasisFunctionNetwork(TargetReaching):
         self.won[k] = True
 
 
+Network = IndirectEKM | DirectEKM | BasisFunctionNetwork
+"""A network of any kind the library trains, saves and loads."""
+
+
 def make_network(name: str, rng: np.random.Generator, comp: CompetitionParams | None = None,
-                 learn_p: LearningParams | None = None, bfn_rule: str = "trained-units"):
+                 learn_p: LearningParams | None = None, bfn_rule: str = "trained-units") -> Network:
     """An untrained network by the paper's name (B15, D15, G9, G12, G15, R15, ...);
     ``bfn_rule`` applies to a basis-function network (:data:`BFN_RULES`)."""
     kind, size = parse_network_name(name)

@@ -9,11 +9,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, fields
+from typing import Any
 
 from ..errors import ParameterError
 
 
-def _check_positive(obj, *names: str) -> None:
+def _check_positive(obj: object, *names: str) -> None:
     for name in names:
         value = getattr(obj, name)
         if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
@@ -119,7 +120,7 @@ class FieldParams:
         return cls(sigma_b_alpha=PAPER_SIGMA_B_ALPHA)
 
 
-def params_to_dict(*objs) -> dict:
+def params_to_dict(*objs: Any) -> dict[str, Any]:
     """A JSON-ready dict of several parameter dataclasses, keyed by class name."""
     return {type(o).__name__: asdict(o) for o in objs}
 
