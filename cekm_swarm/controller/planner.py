@@ -68,7 +68,7 @@ def plan_checkpoints(geometry: Mapping[str, Any], start: tuple[float, float], go
     free = clearance > body_radius + 0.005
     ny, nx = occ.shape
 
-    def cell(p):
+    def cell(p: tuple[float, float] | np.ndarray) -> tuple[int, int]:
         return (min(ny - 1, max(0, int((p[1] - y0) / resolution))), min(nx - 1, max(0, int((p[0] - x0) / resolution))))
 
     s, g = cell(start), cell(goal)
@@ -80,7 +80,7 @@ def plan_checkpoints(geometry: Mapping[str, Any], start: tuple[float, float], go
     moves = [(-1, 0, 1.0), (1, 0, 1.0), (0, -1, 1.0), (0, 1, 1.0), (-1, -1, math.sqrt(2)), (-1, 1, math.sqrt(2)),
              (1, -1, math.sqrt(2)), (1, 1, math.sqrt(2))]
     dist = {s: 0.0}
-    prev: dict = {}
+    prev: dict[tuple[int, int], tuple[int, int]] = {}
     heap = [(0.0, s)]
     while heap:
         f, c = heapq.heappop(heap)
@@ -103,7 +103,7 @@ def plan_checkpoints(geometry: Mapping[str, Any], start: tuple[float, float], go
     cells.reverse()
     path = [(x0 + (c[1] + 0.5) * resolution, y0 + (c[0] + 0.5) * resolution) for c in cells]
     cl = np.array([clearance[c] for c in cells])
-    checkpoints = []
+    checkpoints: list[tuple[float, float]] = []
     window = max(1, int(0.2 / resolution))  # one checkpoint per narrow passage
     for i in range(1, len(cl) - 1):
         lo, hi = max(0, i - window), min(len(cl), i + window + 1)

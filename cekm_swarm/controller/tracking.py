@@ -32,7 +32,9 @@ Per robot (docs/tracking.md):
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass, field
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -111,10 +113,11 @@ def teammate_field(w: np.ndarray, s: int, params: TrackingParams) -> np.ndarray:
     da = np.angle(np.exp(1j * (w[s, 0] - w[:, 0])))
     dd = w[s, 1] - w[:, 1]
     sd = np.where(w[:, 1] >= w[s, 1], params.teammate_sigma_d_beyond, params.teammate_sigma_d_near)
-    return np.exp(-da * da / (2.0 * params.teammate_sigma_alpha ** 2) - dd * dd / (2.0 * sd * sd))
+    out: np.ndarray = np.exp(-da * da / (2.0 * params.teammate_sigma_alpha ** 2) - dd * dd / (2.0 * sd * sd))
+    return out
 
 
-_SHARED: dict = {}
+_SHARED: dict[Any, tuple[IndirectEKM, CooperativeEKM, np.ndarray]] = {}
 
 
 @dataclass(frozen=True)
@@ -256,7 +259,7 @@ class TrackingEKM:
                 b += wr * self._T[ekm.winner(ra, rd)]
         return b
 
-    def integrate(self, act: TrackingActivity | None, obstacles) -> MotorOutput:
+    def integrate(self, act: TrackingActivity | None, obstacles: Iterable[ObstacleActivity]) -> MotorOutput:
         """The motor module (Eqs. 9-11): nothing localized yet, the robot stands still."""
         if act is None:
             return MotorOutput(0.0, 0.0, None, None)
@@ -277,6 +280,16 @@ class TrackingEKM:
         return MotorOutput(v_l, v_r, k, None)
 
 
+class TrackingController(Protocol):
+    """What a tracking robot's controller does: the target module, from what it senses
+    and the team view, and the motor module, from that and its obstacle inputs."""
+
+    def localize(self, t: float, pose: tuple[float, float, float], sensed: dict[str, tuple[float, float]],
+                 view: TeamView) -> Any: ...
+
+    def integrate(self, act: Any, obstacles: Any) -> Any: ...
+
+
 @dataclass
 class TrackingRobot:
     """One robot's side of a tracking run, as its module processes run it: the tracking
@@ -289,9 +302,9 @@ class TrackingRobot:
     (``x``: obstacle activities for the EKM, range readings for A-CMOMMT)."""
 
     robot: str
-    controller: object
+    controller: TrackingController
     view: TeamView
-    activity: object | None = None
+    activity: Any = None  # what the controller's localize gave last
     obstacles: dict[int, ObstacleActivity] = field(default_factory=dict)
     ranges: list[RangeReading] = field(default_factory=list)
 
@@ -313,7 +326,8 @@ class TrackingRobot:
         if isinstance(self.controller, TrackingEKM):
             out = self.controller.integrate(self.activity, self.obstacles.values())
             return out.v_l, out.v_r
-        return self.controller.integrate(self.activity, self.ranges)
+        wheels: tuple[float, float] = self.controller.integrate(self.activity, self.ranges)
+        return wheels
 
     def receive(self, robot: str, share: TeammateShare) -> None:
         self.view.receive(robot, share)
@@ -328,8 +342,9 @@ class Stay:
 
     robot: str
 
-    def localize(self, t, pose, sensed, view) -> None:
+    def localize(self, t: float, pose: tuple[float, float, float], sensed: dict[str, tuple[float, float]],
+                 view: TeamView) -> None:
         return None
 
-    def integrate(self, act, ranges) -> tuple[float, float]:
+    def integrate(self, act: None, ranges: list[RangeReading]) -> tuple[float, float]:
         return 0.0, 0.0

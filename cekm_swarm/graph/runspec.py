@@ -114,4 +114,4 @@ class RunSpec:
         return spec
 
 
-_READ: dict[tuple, RunSpec] = {}
+_READ: dict[tuple[Any, ...], RunSpec] = {}

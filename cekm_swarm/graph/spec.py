@@ -274,14 +274,14 @@ class _Parser:
     def fail(self, where: str, problem: str) -> GraphError:
         return GraphError(self.source, where, problem)
 
-    def table(self, x: Any, where: str) -> dict:
+    def table(self, x: Any, where: str) -> dict[str, Any]:
         if x is None:
             raise self.fail(where, "missing")
         if not isinstance(x, dict):
             raise self.fail(where, f"expected a table, got {type(x).__name__}")
         return x
 
-    def keys(self, x: Mapping, where: str, allowed: set[str]) -> None:
+    def keys(self, x: Mapping[str, Any], where: str, allowed: set[str]) -> None:
         extra = sorted(set(x) - allowed)
         if extra:
             raise self.fail(f"{where}.{extra[0]}", f"unknown field (expected: {', '.join(sorted(allowed))})")
