@@ -12,9 +12,9 @@ node in its own process (lockstep and real time) and for a whole graph in one pr
   ``resend(keys)`` gives its recent runs' outputs again, for a reader of them that
   (re)appeared. A delayed value nobody can send again (:func:`lost_on_restart`: its own
   previous output, a world reading of a tick before) is left out of its first run, as
-  before tick 0 (:class:`FirstRun`). A restarted process (one whose first run was after
+  before tick 0 (:class:`~.restart.FirstRun`). A restarted process (one whose first run was after
   tick 0, or that has not run yet) gives up any other delayed value still missing once a
-  trigger's value of the tick it waits at comes again (:class:`GiveUp`): the world
+  trigger's value of the tick it waits at comes again (:class:`~.restart.GiveUp`): the world
   re-publishing a stalled tick, a second or more later, means that value's producer
   restarted too and has nothing of that tick to send again (two teammates' tracking
   modules killed together waited for each other's share for good; in waves, a later run
@@ -46,11 +46,12 @@ from typing import Any
 
 from msgspec import Struct
 
-from cekm_swarm.graph.plan import WORLD_OWNER, Binding, NodePlan, Source, needed_tick
+from cekm_swarm.graph.plan import Binding, NodePlan, needed_tick
 from cekm_swarm.protocol import Nothing
 from cekm_swarm.ticks import TICK_S, tick_of, tick_time
 
 from .api import Inputs, NotReady
+from .restart import FirstRun, GiveUp, lost_on_restart
 from .runner import Runner
 
 log = logging.getLogger("cekm_swarm.node")
@@ -113,92 +114,16 @@ def gather(node: NodePlan, k: int, lookup: Callable[[str, int], Any], skip: Call
     return Inputs(values), missing
 
 
-def lost_on_restart(node: NodePlan) -> frozenset[str]:
-    """The delayed sources of ``node`` whose values of the ticks before a (re)started
-    process's first run nobody sends again: its own outputs read back with ``delay = 1``
-    (it sent them itself, in its life before) and the world's readings read with
-    ``delay = 1`` (the world sends a stalled tick again, not the one before it). Every
-    other producer is a node that sends its recent outputs again when a reader of them
-    (re)appears (:meth:`LockstepGate.resend`). A restarted node with such a source starts
-    without those values, as at tick 0, so the run may no longer equal ``cekm run``."""
-    own = set(node.outputs.values())
-    return frozenset(s.key for b in node.bindings if b.delay == 1 for s in b.sources
-                     if s.key in own or s.owner == WORLD_OWNER)
-
-
 @dataclass(frozen=True)
 class GateCounts:
     """What a gate counted, for the node's report: values that came again for the last
     run (lockstep), stale values left out and due ticks given up (real time), and the
-    delayed keys a restarted process ran without (lockstep, :class:`GiveUp`)."""
+    delayed keys a restarted process ran without (lockstep, :class:`~.restart.GiveUp`)."""
 
     repeats: int = 0
     stale: dict[str, int] = field(default_factory=dict)
     not_ready: int = 0
     ran_without: tuple[str, ...] = ()
-
-
-@dataclass
-class FirstRun:
-    """The first run of this process, and the delayed values from before it that nobody
-    sends again (:func:`lost_on_restart`): a run leaves them out, as before tick 0."""
-
-    lost_keys: frozenset[str]
-    born: int | None = None  # the tick of this process's first run
-
-    @property
-    def maybe_restarted(self) -> bool:
-        """Not known to have run from tick 0: it has not run yet, or first ran after it."""
-        return self.born is None or self.born > 0
-
-    def lost(self, key: str, n: int) -> bool:
-        """Whether ``key``'s value of tick ``n`` predates the first run and is not coming."""
-        return key in self.lost_keys and (self.born is None or n < self.born)
-
-    def ran(self, c: int) -> None:
-        if self.born is None:
-            self.born = c
-
-
-@dataclass
-class GiveUp:
-    """A restarted process gives up the delayed values still missing once a trigger's
-    value of a tick it waits at comes again, re-published (module docstring), and names
-    the keys a run went without."""
-
-    delayed: dict[str, Source]  # every delayed source: key -> source
-    seen: dict[str, set[int]] = field(default_factory=dict)  # trigger key -> ticks not yet run whose value came
-    gave_up_at: int | None = None  # the latest tick whose trigger's value came again while it waited
-    without: set[str] = field(default_factory=set)  # delayed keys a run went without, having given up
-
-    def trigger_came(self, key: str, k: int) -> None:
-        """A trigger's value of tick ``k`` (not run yet): a second one is a re-published tick."""
-        seen = self.seen.setdefault(key, set())
-        if k in seen and (self.gave_up_at is None or k > self.gave_up_at):
-            self.gave_up_at = k  # this tick again, re-published: what a restarted process lacks is not coming
-        seen.add(k)
-
-    def lost(self, key: str, n: int) -> bool:
-        """Whether ``key``'s value of tick ``n`` is a delayed value given up for."""
-        return self.gave_up_at is not None and n < self.gave_up_at and key in self.delayed
-
-    def before_run(self, c: int, has: Callable[[str, int], bool], first: FirstRun, gone: Collection[str]) -> None:
-        """The run at tick ``c`` goes without the given-up delayed values it lacks: name them."""
-        if self.gave_up_at is None:
-            return
-        self.without.update(
-            key for key, s in self.delayed.items()
-            if key not in first.lost_keys and s.owner not in gone
-            and (n := needed_tick(c, s.period, 1)) is not None and n < self.gave_up_at and not has(key, n))
-
-    def ran(self, c: int) -> None:
-        if self.seen:
-            self.seen = {key: {x for x in seen if x > c} for key, seen in self.seen.items()}
-
-    @property
-    def ran_without(self) -> tuple[str, ...]:
-        """The delayed keys a run went without, having given up (sorted)."""
-        return tuple(sorted(self.without))
 
 
 def _triggers(node: NodePlan) -> frozenset[str]:
@@ -577,5 +502,4 @@ def _max_age(stale_s: float) -> int | float:
     return n
 
 
-__all__ = ["gather", "lost_on_restart", "FirstRun", "GateCounts", "GiveUp", "LockstepGate", "RealtimeGate",
-           "KEEP_TICKS", "RESEND_RUNS"]
+__all__ = ["gather", "lost_on_restart", "GateCounts", "LockstepGate", "RealtimeGate", "KEEP_TICKS", "RESEND_RUNS"]
