@@ -44,7 +44,6 @@ from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 from cekm_swarm.errors import CekmError
-from cekm_swarm.models.io import load_model, load_model_bytes
 from cekm_swarm.protocol import is_message_type
 from cekm_swarm.robot import RobotBody
 
@@ -161,6 +160,8 @@ class Context:
         with _LOCK:
             held = _MODELS.get(key)
         if held is None:
+            from cekm_swarm.models.io import load_model, load_model_bytes  # noqa: PLC0415 -- lazy: ~25 ms, for a node that reads the model
+
             held = load_model(src) if isinstance(src, str) else load_model_bytes(src[1], src[0])
             with _LOCK:
                 if len(_MODELS) >= 8:
