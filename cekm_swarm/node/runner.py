@@ -41,24 +41,11 @@ class Runner:
         t = tick_time(k)
         if self.live is not None and self.live.pending:
             self.live.apply_due(k)
-        sent = self._messages(self._step(t, inputs), k, t)
-        if self._check is not None:
-            try:
-                self._check(t, sent)
-            except StepFailed:
-                raise
-            except NodeError as exc:  # what its readers check of what it sends: its step failed
-                raise StepFailed(str(exc)) from exc
-        self.runs += 1
-        self.done = max(self.done, k)
-        return sent
-
-    def _step(self, t: float, inputs: Inputs) -> Any:
-        """The node's step at tick time ``t``; a step that raises is a StepFailed naming it. (The
-        step watchdog names the frame this calls: :meth:`.watchdog.Watchdog._where`.)"""
+        # the node's step is called here, in run: the step watchdog and the launcher's
+        # reading of a stalled node's stack name the frame run calls (the node's own line)
         self.stepping = (t, time.monotonic())
         try:
-            return self.node.step(t, inputs)
+            out = self.node.step(t, inputs)
         except NotReady:
             if self.skip_not_ready:
                 raise
@@ -72,6 +59,17 @@ class Runner:
             raise StepFailed(step_failure(self.plan.label, t, exc)) from exc
         finally:
             self.stepping = None
+        sent = self._messages(out, k, t)
+        if self._check is not None:
+            try:
+                self._check(t, sent)
+            except StepFailed:
+                raise
+            except NodeError as exc:  # what its readers check of what it sends: its step failed
+                raise StepFailed(str(exc)) from exc
+        self.runs += 1
+        self.done = max(self.done, k)
+        return sent
 
     def _messages(self, out: Any, k: int, t: float) -> list[tuple[str, Any]]:
         """What a step returned as (key, message) pairs to send: its own fields filled in,

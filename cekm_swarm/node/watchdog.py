@@ -56,7 +56,7 @@ class Watchdog:
             return ""
         stack = traceback.extract_stack(frame)
         # the frame the runner called: the node's step, at the line it is at (as a launch names it)
-        at = [i for i, f in enumerate(stack) if f.filename == _RUNNER and f.name == "_step"]  # Runner._step
+        at = [i for i, f in enumerate(stack) if f.filename == _RUNNER and f.name == "run"]
         if not at or at[-1] + 1 >= len(stack):
             return ""
         f = stack[at[-1] + 1]
