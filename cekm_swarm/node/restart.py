@@ -33,11 +33,9 @@ class FirstRun:
 
     lost_keys: frozenset[str]
     born: int | None = None  # the tick of this process's first run
-
-    @property
-    def maybe_restarted(self) -> bool:
-        """Not known to have run from tick 0: it has not run yet, or first ran after it."""
-        return self.born is None or self.born > 0
+    # not known to have run from tick 0: it has not run yet, or first ran after it (a plain
+    # attribute, not a property: the gate asks on every value that opens a tick)
+    maybe_restarted: bool = True
 
     def lost(self, key: str, n: int) -> bool:
         """Whether ``key``'s value of tick ``n`` predates the first run and is not coming."""
@@ -46,6 +44,7 @@ class FirstRun:
     def ran(self, c: int) -> None:
         if self.born is None:
             self.born = c
+            self.maybe_restarted = c > 0
 
 
 @dataclass

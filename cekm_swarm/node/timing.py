@@ -158,6 +158,7 @@ class LockstepGate:
         self._needs = [(s.key, s.period, b.delay, s.owner) for b in self.node.bindings for s in b.sources]
         self._waiting: dict[int, tuple[str, int, str]] = {}  # candidate tick -> a value it still lacks
         self.first_run = FirstRun(lost_on_restart(self.node))
+        self._lost_keys = self.first_run.lost_keys
         self.give_up = GiveUp({key: s for key, (s, delay) in self.sources.items() if delay == 1})
 
     @property
@@ -175,8 +176,11 @@ class LockstepGate:
 
     def _lost(self, key: str, n: int) -> bool:
         """Whether ``key``'s value of tick ``n`` predates this process's first run and nobody
-        sends it again, or is a delayed value given up for (module docstring)."""
-        return self.first_run.lost(key, n) or self.give_up.lost(key, n)
+        sends it again, or is a delayed value given up for (module docstring). Asked for
+        most values a run waits for: the rules are asked only when they can apply (a key
+        they may lose; a process that has given up)."""
+        return ((key in self._lost_keys and self.first_run.lost(key, n))
+                or (self.give_up.gave_up_at is not None and self.give_up.lost(key, n)))
 
     def _has(self, key: str, n: int) -> bool:
         return n in self.store.get(key, ())
@@ -297,11 +301,15 @@ class LockstepGate:
             if ready is None:
                 return out
             c, inputs = ready
-            self.give_up.before_run(c, self._has, self.first_run, self.gone)
+            give_up = self.give_up
+            if give_up.gave_up_at is not None:  # (the restart rules asked only when they apply)
+                give_up.before_run(c, self._has, self.first_run, self.gone)
             sent = self.runner.run(c, inputs)
             self.done = c
-            self.first_run.ran(c)
-            self.give_up.ran(c)
+            if self.first_run.born is None:
+                self.first_run.ran(c)
+            if give_up.seen:
+                give_up.ran(c)
             self.last_out = sent
             self.recent_out.append(sent)
             self.used = {key: n for key, (src, delay) in self.sources.items()
