@@ -41,7 +41,7 @@ def main() -> None:
 
     from cekm_swarm.experiments.default_model import default_model
     from cekm_swarm.experiments.graph_run import run_graph
-    from cekm_swarm.graph.check import check_graph
+    from cekm_swarm.node.graph_check import check_graph
     from cekm_swarm.tune.env import FieldEnv
     from cekm_swarm.tune.features import N_FEATURES
     from cekm_swarm.tune.graphs import policy_graph

@@ -51,10 +51,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from cekm_swarm.experiments.default_model import default_model, default_model_path  # noqa: E402
-from cekm_swarm.graph.check import check_graph  # noqa: E402
 from cekm_swarm.launch.cpu import cpu_seconds, host_shares, host_times  # noqa: E402
 from cekm_swarm.launch.prepare import body_of, run_spec  # noqa: E402
 from cekm_swarm.launch.processes import node_argv  # noqa: E402
+from cekm_swarm.node.graph_check import check_graph  # noqa: E402
 from cekm_swarm.protocol import DEFAULT_KEYS as K  # noqa: E402
 from cekm_swarm.protocol import WheelCommand, decode  # noqa: E402
 from cekm_swarm.runtime.bridge import InlineSubscription, LivelinessWatcher, Publishers  # noqa: E402

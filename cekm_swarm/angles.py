@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import overload
 
 import numpy as np
 
@@ -10,7 +11,13 @@ PI = math.pi
 TWO_PI = 2.0 * math.pi
 
 
-def wrap(a):
+@overload
+def wrap(a: float) -> float: ...
+@overload
+def wrap(a: np.ndarray) -> np.ndarray: ...
+
+
+def wrap(a: float | np.ndarray) -> float | np.ndarray:
     """Wrap an angle (scalar or array) to (-pi, pi]."""
     b = np.pi - a
     return np.pi - (b - TWO_PI * np.floor(b / TWO_PI))

@@ -25,9 +25,9 @@ from .experiments.graph_run import default_max_time, resolve_graph, with_params
 from .experiments.learning_commands import controller_model, model_group, model_option
 from .experiments.learning_run import learning_controller, learning_params
 from .experiments.sweep_commands import sweep
-from .graph.commands import graph_group
 from .graph.spec import GraphError
 from .launch.commands import launch_cmd, plot_cmd
+from .node.graph_commands import graph_group
 from .ros2.commands import export_cmd, ros2_group
 from .runtime.commands import monitor, node, topic
 from .runtime.log_commands import log_cat_cmd, log_group, log_info_cmd, log_recover_cmd, record_cmd, replay_cmd

@@ -6,6 +6,8 @@ go on (a router unreachable, a process that did not come up)."""
 
 from __future__ import annotations
 
+import os
+
 EXIT_OK = 0
 EXIT_FAILED = 1
 """The run failed: ``cekm: failed: ...``."""
@@ -34,7 +36,7 @@ class OutputDirError(CekmError):
 class ModelFormatError(CekmError):
     """A saved-model file is missing, damaged, of another version, or inconsistent."""
 
-    def __init__(self, path: str, field: str | None, problem: str) -> None:
+    def __init__(self, path: str | os.PathLike[str], field: str | None, problem: str) -> None:
         self.path = str(path)
         self.field = field
         self.problem = problem

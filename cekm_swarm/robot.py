@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 # The robot's clocks, re-exported from their one home (cekm_swarm.ticks).
 from .ticks import SUBSTEP_S as SUBSTEP_S
@@ -84,7 +85,8 @@ class RobotBody:
     v_max: float = KHEPERA.v_max
     sensor_range: float = KHEPERA.sensor_range
     sensor_angles: tuple[float, ...] = tuple(
-        math.atan2(math.sin(2 * math.pi * j / KHEPERA.n_range_sensors), math.cos(2 * math.pi * j / KHEPERA.n_range_sensors))
+        math.atan2(math.sin(2 * math.pi * j / KHEPERA.n_range_sensors),
+                   math.cos(2 * math.pi * j / KHEPERA.n_range_sensors))
         for j in range(KHEPERA.n_range_sensors))
     target_range: float = math.inf
 
@@ -93,13 +95,13 @@ class RobotBody:
         """How many distance sensors the robot has."""
         return len(self.sensor_angles)
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
         return {"body_radius": self.body_radius, "axle": self.axle, "v_max": self.v_max,
                 "sensor_range": self.sensor_range, "sensor_angles": list(self.sensor_angles),
                 "target_range": None if math.isinf(self.target_range) else self.target_range}
 
     @classmethod
-    def from_dict(cls, doc: dict) -> "RobotBody":
+    def from_dict(cls, doc: dict[str, Any]) -> RobotBody:
         tr = doc.get("target_range")
         return cls(float(doc["body_radius"]), float(doc["axle"]), float(doc["v_max"]), float(doc["sensor_range"]),
                    tuple(float(a) for a in doc["sensor_angles"]), math.inf if tr is None else float(tr))

@@ -14,8 +14,8 @@ All localization EKMs and the motor EKM share the trained input weights w (secti
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
-from typing import Iterable
 
 import numpy as np
 
@@ -82,8 +82,9 @@ def motor_candidates(model: IndirectEKM, allow_reverse: bool = False, reverse_mi
     """
     w = model.w
     ok = np.ones(w.shape[0], dtype=np.bool_)
-    if getattr(model, "converged", None) is not None:
-        ok &= model.converged
+    converged = getattr(model, "converged", None)
+    if converged is not None:
+        ok &= converged
     if not allow_reverse:
         ok &= ~((np.abs(w[:, 0]) > np.pi / 2) & (w[:, 1] > reverse_min_d))
     if not ok.any():
@@ -113,11 +114,12 @@ def motor_command(M: np.ndarray, w: np.ndarray, alpha: float, d: float, k: int, 
     return min(max(c0, -v_max), v_max), min(max(c1, -v_max), v_max)
 
 
-class FieldRows(dict):
+class FieldRows(dict[int, np.ndarray]):
     """A field's rows by winner s, each computed when first asked for (read-only): the
     values a tabulated row holds, for a map that changes too often to tabulate."""
 
-    def __init__(self, w: np.ndarray, fields: FieldParams, field_of) -> None:
+    def __init__(self, w: np.ndarray, fields: FieldParams,
+                 field_of: Callable[[np.ndarray, int, FieldParams], np.ndarray]) -> None:
         super().__init__()
         self.w, self.fields, self.field_of = w, fields, field_of
 
@@ -160,16 +162,16 @@ class CooperativeEKM:
             self._B.flags.writeable = False
             # one read-only row object per winner, made once: each call hands out the same array
             # (no view made per message; a field message takes a read-only array as it is)
-            self._A_rows = tuple(self._A[s] for s in range(self.n))
-            self._B_rows = tuple(self._B[s] for s in range(self.n))
+            self._A_rows: tuple[np.ndarray, ...] | FieldRows = tuple(self._A[s] for s in range(self.n))
+            self._B_rows: tuple[np.ndarray, ...] | FieldRows = tuple(self._B[s] for s in range(self.n))
         else:  # a map that changes as it learns (docs/learning.md): the rows it meets, when it meets them
             self._A_rows = FieldRows(self.w, self.fields, target_field)
             self._B_rows = FieldRows(self.w, self.fields, obstacle_field)
         if self.backend == "numba":
-            from ..models import fast
+            from ..models import fast  # noqa: PLC0415 -- lazy: numba costs ~0.15 s; only this backend needs it
 
             params = fast.pack_params(self.model.comp, self.model.learn_p, self.model.v_max, 1e-3)
-            self._compete = lambda alpha, d: int(fast.winner(alpha, d, self.w, params))
+            self._compete: Callable[[float, float], int] = lambda alpha, d: int(fast.winner(alpha, d, self.w, params))
         else:
             self._compete = lambda alpha, d: winner(np.array([alpha, d]), self.w, self.model.comp)
         self._winners: dict[tuple[float, float], int] = {}

@@ -16,8 +16,8 @@ blocks): the turns of the two sides cancel and the backing cancels the forward d
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 
@@ -43,7 +43,8 @@ class CommandFusion:
     # 86 mm doorway with collisions. The lone obstacle is still passed (turns, not backing).
     gain_back: float = 2.0
     backward_bias: float = 1.5  # the wheel turning backward turns faster
-    front_turn: float = 1.0  # the straight-ahead sensor turns as hard as one at 90 degrees (0.5 grazed the disc in 5/5 seeds)
+    # the straight-ahead sensor turns as hard as one at 90 degrees (0.5 grazed the disc in 5/5 seeds)
+    front_turn: float = 1.0
 
     def target_command(self, reading: TargetReading) -> np.ndarray:
         """The target-reaching EKM alone (Eq. 11 with k = s); zero at the goal or with no target."""

@@ -15,8 +15,9 @@ from __future__ import annotations
 
 import heapq
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -57,7 +58,8 @@ def occupancy(geometry: Mapping[str, Any], resolution: float) -> tuple[np.ndarra
 
 
 def plan_checkpoints(geometry: Mapping[str, Any], start: tuple[float, float], goal: tuple[float, float],
-                     body_radius: float = KHEPERA.body_radius, resolution: float = 0.01, doorway_clearance: float = 0.12) -> Plan:
+                     body_radius: float = KHEPERA.body_radius, resolution: float = 0.01,
+                     doorway_clearance: float = 0.12) -> Plan:
     """Checkpoints at the doorways on the way from start to goal, then the goal."""
     from scipy.ndimage import distance_transform_edt
 
@@ -66,18 +68,19 @@ def plan_checkpoints(geometry: Mapping[str, Any], start: tuple[float, float], go
     free = clearance > body_radius + 0.005
     ny, nx = occ.shape
 
-    def cell(p):
+    def cell(p: tuple[float, float] | np.ndarray) -> tuple[int, int]:
         return (min(ny - 1, max(0, int((p[1] - y0) / resolution))), min(nx - 1, max(0, int((p[0] - x0) / resolution))))
 
     s, g = cell(start), cell(goal)
     for name, c in (("start", s), ("goal", g)):
         if not free[c]:
-            raise PlanningError(f"the {name} {start if name == 'start' else goal} is inside or too close to a known wall")
+            where = start if name == "start" else goal
+            raise PlanningError(f"the {name} {where} is inside or too close to a known wall")
     cost = 1.0 + 0.05 / np.maximum(clearance, resolution)  # prefer the middle of passages
     moves = [(-1, 0, 1.0), (1, 0, 1.0), (0, -1, 1.0), (0, 1, 1.0), (-1, -1, math.sqrt(2)), (-1, 1, math.sqrt(2)),
              (1, -1, math.sqrt(2)), (1, 1, math.sqrt(2))]
     dist = {s: 0.0}
-    prev: dict = {}
+    prev: dict[tuple[int, int], tuple[int, int]] = {}
     heap = [(0.0, s)]
     while heap:
         f, c = heapq.heappop(heap)
@@ -100,12 +103,12 @@ def plan_checkpoints(geometry: Mapping[str, Any], start: tuple[float, float], go
     cells.reverse()
     path = [(x0 + (c[1] + 0.5) * resolution, y0 + (c[0] + 0.5) * resolution) for c in cells]
     cl = np.array([clearance[c] for c in cells])
-    checkpoints = []
+    checkpoints: list[tuple[float, float]] = []
     window = max(1, int(0.2 / resolution))  # one checkpoint per narrow passage
     for i in range(1, len(cl) - 1):
         lo, hi = max(0, i - window), min(len(cl), i + window + 1)
-        if cl[i] < doorway_clearance and cl[i] == cl[lo:hi].min():
-            if not checkpoints or math.dist(checkpoints[-1], path[i]) > 0.1:
-                checkpoints.append(path[i])
+        narrowest = cl[i] < doorway_clearance and cl[i] == cl[lo:hi].min()
+        if narrowest and (not checkpoints or math.dist(checkpoints[-1], path[i]) > 0.1):
+            checkpoints.append(path[i])
     checkpoints.append((float(goal[0]), float(goal[1])))
     return Plan(checkpoints=[(float(x), float(y)) for x, y in checkpoints], path=path)

@@ -41,6 +41,6 @@ class RangeReading:
 def range_readings(surface_ranges: np.ndarray, sensor_angles: np.ndarray, body_radius: float) -> list[RangeReading]:
     """Sensor surface ranges (NaN = nothing seen) as obstacle inputs u_j = (alpha_j, d_j) from the centre."""
     out = []
-    for j, (r, a) in enumerate(zip(surface_ranges, sensor_angles)):
+    for j, (r, a) in enumerate(zip(surface_ranges, sensor_angles, strict=True)):
         out.append(RangeReading(j, float(a), centre_distance(float(r), body_radius)))
     return out

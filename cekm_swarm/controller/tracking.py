@@ -32,7 +32,9 @@ Per robot (docs/tracking.md):
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass, field
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -96,7 +98,8 @@ def led_centroid(group: tuple[tuple[float, float], tuple[str, ...]], tracks: Tar
 
 
 def teammate_weight(d: float, target_range: float, params: TrackingParams) -> float:
-    """A teammate's field weight at distance d: 1 within teammate_near * R, 0 beyond teammate_far * R, linear between."""
+    """A teammate's field weight at distance d: 1 within teammate_near * R, 0 beyond
+    teammate_far * R, linear between."""
     near, far = params.teammate_near * target_range, params.teammate_far * target_range
     if d <= near:
         return 1.0
@@ -110,10 +113,11 @@ def teammate_field(w: np.ndarray, s: int, params: TrackingParams) -> np.ndarray:
     da = np.angle(np.exp(1j * (w[s, 0] - w[:, 0])))
     dd = w[s, 1] - w[:, 1]
     sd = np.where(w[:, 1] >= w[s, 1], params.teammate_sigma_d_beyond, params.teammate_sigma_d_near)
-    return np.exp(-da * da / (2.0 * params.teammate_sigma_alpha ** 2) - dd * dd / (2.0 * sd * sd))
+    out: np.ndarray = np.exp(-da * da / (2.0 * params.teammate_sigma_alpha ** 2) - dd * dd / (2.0 * sd * sd))
+    return out
 
 
-_SHARED: dict = {}
+_SHARED: dict[Any, tuple[IndirectEKM, CooperativeEKM, np.ndarray]] = {}
 
 
 @dataclass(frozen=True)
@@ -170,15 +174,7 @@ class TrackingEKM:
         full = False
         if p.predict_s > 0.0 or p.standoff_speed_s > 0.0:
             self.tracks.update(t, own)
-        known = dict(own)  # every target known now: sensed, then the teammates' fresh shares
-        for r in sorted(team):
-            for tid, xy in team[r].targets.items():
-                known.setdefault(tid, xy)
-        assigned = assigned_group(self.robot, pose, known, team, R, p)
-        if p.assign_lead_s > 0.0:
-            self.known_tracks.update(t, known)
-            if assigned is not None:
-                assigned = (led_centroid(assigned, self.known_tracks, p.assign_lead_s), assigned[1])
+        assigned = self._assigned(t, pose, own, team)
         held: dict[str, tuple[float, float]] = {}
         for tid in sorted(sensed):
             alpha, d = sensed[tid]
@@ -189,48 +185,81 @@ class TrackingEKM:
                 held[tid] = own[tid]
             if assigned is not None and tid in assigned[1]:
                 continue  # held together at the centroid below
-            la, ld = alpha, d
-            if p.predict_s > 0.0:  # where the target will be
-                ahead = self.tracks.predict(tid, p.predict_s)
-                if ahead is not None:
-                    la, ld = to_robot(pose, ahead)
-            if abs(la) > p.face_angle:  # beside or behind: turn in place toward it first
-                la, u_d = math.copysign(p.face_angle, la), 0.0
-            else:
-                so = standoff_distance(self.tracks.speed(tid), R, p)
-                u_d = ld - so if ld > so else 0.0
-            s = ekm.winner(la, u_d)
+            s, la, u_d = self._aim(tid, alpha, d, pose)
             a += (wt * (1.0 - p.urgency + p.urgency * min(d / R, 1.0))) * ekm.target_activity(s)
             inputs.append((s, la, u_d, wt))
         if assigned is not None:  # this robot's share of the team's targets, at its centroid (no stand-off)
-            ga, gd = to_robot(pose, assigned[0])
-            if abs(ga) > p.face_angle:  # beside or behind: turn in place toward it first
-                ga, gd = math.copysign(p.face_angle, ga), 0.0
-            s = ekm.winner(ga, gd)
+            s, ga, gd = self._toward(pose, assigned[0], face=True)
             a += p.assign_weight * ekm.target_activity(s)
             inputs.append((s, ga, gd, p.assign_weight))
             full = True  # it has targets to hold: no search
         group = held_group(held, p.group_radius * R) if p.group_weight > 0.0 and len(held) >= 2 else None
         if group is not None:  # the point between the targets this robot can hold together
-            ga, gd = to_robot(pose, group[0])
-            s = ekm.winner(ga, gd)
+            s, ga, gd = self._toward(pose, group[0])
             a += p.group_weight * ekm.target_activity(s)
             inputs.append((s, ga, gd, p.group_weight))
         if not full:
             goal = view.search_goal(t, pose, own, team, p.search_reached * R, p.wander_ahead_m)
-            ga, gd = to_robot(pose, goal)
-            s = ekm.winner(ga, gd)
+            s, ga, gd = self._toward(pose, goal)
             a += p.search_weight * ekm.target_activity(s)
             inputs.append((s, ga, gd, p.search_weight))
+        return TrackingActivity(t, a, self._team_activity(pose, team), tuple(inputs), weights, not full)
+
+    def _assigned(self, t: float, pose: tuple[float, float, float], own: dict[str, tuple[float, float]],
+                  team: dict[str, TeammateShare]) -> tuple[tuple[float, float], tuple[str, ...]] | None:
+        """This robot's group of the targets known now (sensed, then the teammates' fresh
+        shares): its centroid, led ahead when asked, and its targets; None without one."""
+        p = self.params
+        known = dict(own)
+        for r in sorted(team):
+            for tid, xy in team[r].targets.items():
+                known.setdefault(tid, xy)
+        assigned = assigned_group(self.robot, pose, known, team, self.target_range, p)
+        if p.assign_lead_s > 0.0:
+            self.known_tracks.update(t, known)
+            if assigned is not None:
+                assigned = (led_centroid(assigned, self.known_tracks, p.assign_lead_s), assigned[1])
+        return assigned
+
+    def _aim(self, tid: str, alpha: float, d: float, pose: tuple[float, float, float]) -> tuple[int, float, float]:
+        """The winner for a sensed target and the input it stands for: where the target will
+        be (when predicting), turned toward first when beside or behind, short of it by the
+        stand-off distance."""
+        p = self.params
+        la, ld = alpha, d
+        if p.predict_s > 0.0:  # where the target will be
+            ahead = self.tracks.predict(tid, p.predict_s)
+            if ahead is not None:
+                la, ld = to_robot(pose, ahead)
+        if abs(la) > p.face_angle:  # beside or behind: turn in place toward it first
+            la, u_d = math.copysign(p.face_angle, la), 0.0
+        else:
+            so = standoff_distance(self.tracks.speed(tid), self.target_range, p)
+            u_d = ld - so if ld > so else 0.0
+        return self.ekm.winner(la, u_d), la, u_d
+
+    def _toward(self, pose: tuple[float, float, float], xy: tuple[float, float],
+                face: bool = False) -> tuple[int, float, float]:
+        """The winner for a point of the world and its (angle, distance) from the robot
+        (``face``: turned toward first when beside or behind)."""
+        ga, gd = to_robot(pose, xy)
+        if face and abs(ga) > self.params.face_angle:  # beside or behind: turn in place toward it first
+            ga, gd = math.copysign(self.params.face_angle, ga), 0.0
+        return self.ekm.winner(ga, gd), ga, gd
+
+    def _team_activity(self, pose: tuple[float, float, float], team: dict[str, TeammateShare]) -> np.ndarray:
+        """The activity of the teammates' positions on the lattice (``b_team``: each nearby
+        teammate's tabulated field at its winner, weighted by its distance)."""
+        ekm = self.ekm
         b = np.zeros(ekm.n)
         for sh in team.values():
             ra, rd = to_robot(pose, (sh.pose[0], sh.pose[1]))
-            wr = teammate_weight(rd, R, p)
+            wr = teammate_weight(rd, self.target_range, self.params)
             if wr > 0.0:
                 b += wr * self._T[ekm.winner(ra, rd)]
-        return TrackingActivity(t, a, b, tuple(inputs), weights, not full)
+        return b
 
-    def integrate(self, act: TrackingActivity | None, obstacles) -> MotorOutput:
+    def integrate(self, act: TrackingActivity | None, obstacles: Iterable[ObstacleActivity]) -> MotorOutput:
         """The motor module (Eqs. 9-11): nothing localized yet, the robot stands still."""
         if act is None:
             return MotorOutput(0.0, 0.0, None, None)
@@ -251,6 +280,16 @@ class TrackingEKM:
         return MotorOutput(v_l, v_r, k, None)
 
 
+class TrackingController(Protocol):
+    """What a tracking robot's controller does: the target module, from what it senses
+    and the team view, and the motor module, from that and its obstacle inputs."""
+
+    def localize(self, t: float, pose: tuple[float, float, float], sensed: dict[str, tuple[float, float]],
+                 view: TeamView) -> Any: ...
+
+    def integrate(self, act: Any, obstacles: Any) -> Any: ...
+
+
 @dataclass
 class TrackingRobot:
     """One robot's side of a tracking run, as its module processes run it: the tracking
@@ -263,9 +302,9 @@ class TrackingRobot:
     (``x``: obstacle activities for the EKM, range readings for A-CMOMMT)."""
 
     robot: str
-    controller: object
+    controller: TrackingController
     view: TeamView
-    activity: object | None = None
+    activity: Any = None  # what the controller's localize gave last
     obstacles: dict[int, ObstacleActivity] = field(default_factory=dict)
     ranges: list[RangeReading] = field(default_factory=list)
 
@@ -287,7 +326,8 @@ class TrackingRobot:
         if isinstance(self.controller, TrackingEKM):
             out = self.controller.integrate(self.activity, self.obstacles.values())
             return out.v_l, out.v_r
-        return self.controller.integrate(self.activity, self.ranges)
+        wheels: tuple[float, float] = self.controller.integrate(self.activity, self.ranges)
+        return wheels
 
     def receive(self, robot: str, share: TeammateShare) -> None:
         self.view.receive(robot, share)
@@ -302,8 +342,9 @@ class Stay:
 
     robot: str
 
-    def localize(self, t, pose, sensed, view) -> None:
+    def localize(self, t: float, pose: tuple[float, float, float], sensed: dict[str, tuple[float, float]],
+                 view: TeamView) -> None:
         return None
 
-    def integrate(self, act, ranges) -> tuple[float, float]:
+    def integrate(self, act: None, ranges: list[RangeReading]) -> tuple[float, float]:
         return 0.0, 0.0

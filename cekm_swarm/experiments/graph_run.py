@@ -17,9 +17,9 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..errors import ParameterError
-from ..graph.check import CheckedGraph, check_graph
 from ..graph.spec import Graph, GraphError, graph_for, shipped_graphs
 from ..node.api import Context, param_fields
+from ..node.graph_check import CheckedGraph, check_graph
 from ..node.inprocess import GraphExecutor
 from ..protocol import DEFAULT_KEYS, Clock, KeySpace, WorldState
 from ..robot import RobotBody

@@ -18,14 +18,15 @@ at tick k sees, in ``cekm run`` and in lockstep alike (docs/runtime.md):
 
 Cycles are allowed only through a delayed input. Plain data in, plain data out: nothing
 here imports node code (the node classes' port types come in as ``ports``, from
-:mod:`cekm_swarm.graph.check` or from a run spec). :func:`cekm_swarm.graph.resolve.build_plan`
+:mod:`cekm_swarm.node.graph_check` or from a run spec). :func:`cekm_swarm.graph.resolve.build_plan`
 builds a :class:`RunPlan` from a graph and refuses one that cannot run.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, Mapping
+from typing import Any
 
 from cekm_swarm.protocol import KeySpace
 from cekm_swarm.ticks import ODOMETRY_EVERY, TARGET_EVERY
@@ -75,7 +76,7 @@ class PortTypes:
                 "stateful": self.stateful, "uses_model": self.uses_model, "pure": self.pure}
 
     @classmethod
-    def from_dict(cls, doc: Mapping[str, Any]) -> "PortTypes":
+    def from_dict(cls, doc: Mapping[str, Any]) -> PortTypes:
         return cls({p: (v[0], bool(v[1])) for p, v in doc["inputs"].items()}, dict(doc["outputs"]),
                    bool(doc["stateful"]), bool(doc["uses_model"]), bool(doc.get("pure", False)))
 
@@ -153,7 +154,7 @@ class NodePlan:
         input of many keys as one expression (``<root>/r1/field/obstacle/*``, every
         teammate's ``<root>/*/share``), the world's clock when it triggers the node."""
         exprs: list[str] = []
-        for b, d in zip(self.bindings, self.decl.inputs):
+        for b, d in zip(self.bindings, self.decl.inputs, strict=True):  # a binding per input
             if d.scope == "teammates":
                 exprs.append(f"{root}/*/{d.key}")
             elif d.key.endswith("/*"):

@@ -12,9 +12,10 @@ from __future__ import annotations
 
 import json
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 from cekm_swarm.protocol import KeySpace
 from cekm_swarm.robot import RobotBody
@@ -61,7 +62,7 @@ class RunSpec:
             object.__setattr__(self, "_plan", held)
         return held
 
-    def with_(self, **changes: Any) -> "RunSpec":
+    def with_(self, **changes: Any) -> RunSpec:
         return replace(self, **changes)
 
     def to_dict(self) -> dict[str, Any]:
@@ -74,9 +75,10 @@ class RunSpec:
                 "hold_readings": self.hold_readings, **({"schemas": dict(self.schemas)} if self.schemas else {})}
 
     @classmethod
-    def from_dict(cls, doc: Mapping[str, Any], source: str = "run spec") -> "RunSpec":
+    def from_dict(cls, doc: Mapping[str, Any], source: str = "run spec") -> RunSpec:
         if doc.get("version") != SPEC_VERSION:
-            raise GraphError(source, "version", f"{doc.get('version')!r}: this code reads run spec version {SPEC_VERSION}")
+            raise GraphError(source, "version",
+                             f"{doc.get('version')!r}: this code reads run spec version {SPEC_VERSION}")
         try:
             return cls(Graph.from_dict(doc["graph"]), {k: PortTypes.from_dict(v) for k, v in doc["ports"].items()},
                        {k: dict(v) for k, v in doc["params"].items()}, tuple(doc["team"]), doc["task"],
@@ -94,7 +96,7 @@ class RunSpec:
         return path
 
     @classmethod
-    def read(cls, path: str | Path) -> "RunSpec":
+    def read(cls, path: str | Path) -> RunSpec:
         """The run spec in ``path``; the same object again while the file is unchanged (a
         fork server reads it once for all the nodes it forks)."""
         try:
@@ -112,4 +114,4 @@ class RunSpec:
         return spec
 
 
-_READ: dict[tuple, RunSpec] = {}
+_READ: dict[tuple[Any, ...], RunSpec] = {}

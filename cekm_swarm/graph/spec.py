@@ -31,17 +31,18 @@ previous tick's: ``delay = 1``), or a world key (``"world/clock"``, ``"world/sta
 code), refusing a malformed one with a :class:`GraphError` that names the file, the node
 and the field. What the graph means per robot (keys, periods, the lockstep rule) is
 :mod:`cekm_swarm.graph.plan`; the checks that import the node programs are
-:mod:`cekm_swarm.graph.check`.
+:mod:`cekm_swarm.node.graph_check`.
 """
 
 from __future__ import annotations
 
 import re
 import tomllib
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 from cekm_swarm.errors import CekmError
 
@@ -145,10 +146,11 @@ class Graph:
                            "outputs": [{"port": o.port, "key": o.key} for o in n.outputs]} for n in self.nodes]}
 
     @classmethod
-    def from_dict(cls, doc: Mapping[str, Any]) -> "Graph":
+    def from_dict(cls, doc: Mapping[str, Any]) -> Graph:
         """The inverse of :meth:`to_dict` (a run spec's graph, already checked)."""
         nodes = tuple(NodeDecl(n["name"], n["program"], n["instances"], n["every"],
-                               tuple(InputDecl(i["port"], i["key"], i["scope"], i["delay"], i["stale"]) for i in n["inputs"]),
+                               tuple(InputDecl(i["port"], i["key"], i["scope"], i["delay"], i["stale"])
+                                     for i in n["inputs"]),
                                tuple(OutputDecl(o["port"], o["key"]) for o in n["outputs"]), dict(n["params"]), k,
                                n.get("timer"))
                       for k, n in enumerate(doc["nodes"]))
@@ -239,7 +241,8 @@ def parse_graph(doc: Mapping[str, Any], source: str) -> Graph:
         seen[name] = k
         program = p.text(raw.get("program"), f"{where}.program")
         instances = raw.get("instances")
-        if instances is not None and not (instances == "sensors" or (type(instances) is int and 1 <= instances <= 1024)):
+        counted = type(instances) is int and 1 <= instances <= 1024
+        if instances is not None and not (instances == "sensors" or counted):
             raise GraphError(source, f"{where}.instances", f"{instances!r}: expected a number 1..1024 or \"sensors\"")
         every = raw.get("every")
         if every is not None and not (type(every) is int and 1 <= every <= 10_000):
@@ -271,14 +274,14 @@ class _Parser:
     def fail(self, where: str, problem: str) -> GraphError:
         return GraphError(self.source, where, problem)
 
-    def table(self, x: Any, where: str) -> dict:
+    def table(self, x: Any, where: str) -> dict[str, Any]:
         if x is None:
             raise self.fail(where, "missing")
         if not isinstance(x, dict):
             raise self.fail(where, f"expected a table, got {type(x).__name__}")
         return x
 
-    def keys(self, x: Mapping, where: str, allowed: set[str]) -> None:
+    def keys(self, x: Mapping[str, Any], where: str, allowed: set[str]) -> None:
         extra = sorted(set(x) - allowed)
         if extra:
             raise self.fail(f"{where}.{extra[0]}", f"unknown field (expected: {', '.join(sorted(allowed))})")

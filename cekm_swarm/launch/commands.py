@@ -30,14 +30,14 @@ from cekm_swarm.errors import CekmError
 from cekm_swarm.experiments.commands import load_scenario_file, refuse_unplannable, scenario_kind
 from cekm_swarm.experiments.learning_commands import add_launch_learning, model_option
 from cekm_swarm.experiments.learning_run import UNTRAINED, learning_controller, learning_params, model_file_for_launch
-from cekm_swarm.graph.check import CheckedGraph
 from cekm_swarm.graph.spec import GraphError
+from cekm_swarm.node.graph_check import CheckedGraph
 from cekm_swarm.runtime.config import DEFAULT_ENDPOINT, DEFAULT_PORT, client_config_from_file
 from cekm_swarm.runtime.errors import RuntimeTransportError
 from cekm_swarm.runtime.log_commands import LOG_HELP
 from cekm_swarm.runtime.mcap_sets import log_files
-from cekm_swarm.runtime.wait import resolve_endpoint
 from cekm_swarm.runtime.options import ENDPOINT
+from cekm_swarm.runtime.wait import resolve_endpoint
 from cekm_swarm.ticks import STEP_TIMEOUT
 
 from .errors import NodeCannotStart, NodeFailed

@@ -64,8 +64,8 @@ def preload(spec_paths: Sequence[str]) -> list[str]:
     import cekm_swarm.runtime.config  # noqa: F401, PLC0415 -- preload
     import cekm_swarm.runtime.gc_tuning  # noqa: F401, PLC0415 -- preload
     from cekm_swarm.errors import CekmError  # noqa: PLC0415 -- preload
-    from cekm_swarm.graph.check import node_class  # noqa: PLC0415 -- preload
     from cekm_swarm.graph.runspec import RunSpec  # noqa: PLC0415 -- preload
+    from cekm_swarm.node.graph_check import node_class  # noqa: PLC0415 -- preload
     from cekm_swarm.node.process import build_node  # noqa: PLC0415 -- preload
     from cekm_swarm.protocol.codec import warm  # noqa: PLC0415 -- preload
 

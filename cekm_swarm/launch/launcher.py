@@ -131,7 +131,7 @@ class Launcher(Supervision, WorldHost, RobotHost):
         self.supervisors: list[asyncio.Future] = []
         self._cpu_start: CpuSnapshot | None = None  # when the world starts ticking
         self._cpu_end: CpuSnapshot | None = None  # when it is done
-        self.checked: Any = None  # the controller's graph, checked (cekm_swarm.graph.check)
+        self.checked: Any = None  # the controller's graph, checked (cekm_swarm.node.graph_check)
         self.plan: Any = None  # ... resolved for the team
         self.spec_path: Path | None = None
         self.failed_running = False  # the failure is a step's that failed or hung (exit 1), not a start's

@@ -13,11 +13,11 @@ from typing import Any
 
 from cekm_swarm.errors import CekmError
 from cekm_swarm.experiments.graph_run import resolve_graph, robot_body, with_params
-from cekm_swarm.graph.check import CheckedGraph
 from cekm_swarm.graph.plan import RunPlan
 from cekm_swarm.graph.runspec import RunSpec
 from cekm_swarm.graph.spec import GraphError
 from cekm_swarm.node.api import Context, cannot_start, traceback_text
+from cekm_swarm.node.graph_check import CheckedGraph
 from cekm_swarm.protocol import KeySpace
 from cekm_swarm.protocol.user import user_schemas
 from cekm_swarm.robot import RobotBody

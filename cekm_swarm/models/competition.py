@@ -12,13 +12,15 @@ def weighted_difference(u: np.ndarray, w: np.ndarray, p: CompetitionParams) -> n
     """D(u, w_i) = beta_alpha (alpha - alpha_i)^2 + beta_d (d - d_i)^2, angles wrapped (Eq. 3)."""
     da = wrap(u[0] - w[:, 0])
     dd = u[1] - w[:, 1]
-    return p.beta_alpha * da * da + p.beta_d * dd * dd
+    out: np.ndarray = p.beta_alpha * da * da + p.beta_d * dd * dd
+    return out
 
 
 def direction_set(u: np.ndarray, w: np.ndarray, p: CompetitionParams) -> np.ndarray:
     """A(alpha): neurons whose |wrapped angle difference| is within the tolerance of the smallest (Eq. 4)."""
     da = np.abs(wrap(u[0] - w[:, 0]))
-    return da <= da.min() + p.direction_tolerance
+    out: np.ndarray = da <= da.min() + p.direction_tolerance
+    return out
 
 
 def winner(u: np.ndarray, w: np.ndarray, p: CompetitionParams) -> int:

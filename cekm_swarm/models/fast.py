@@ -23,6 +23,7 @@ import numpy as np
 from numba import njit
 
 from ..angles import wrap_scalar
+from .networks import DirectEKM, IndirectEKM, Network
 from .params import CompetitionParams, LearningParams
 
 KIND_GD, KIND_RLS, KIND_DIRECT, KIND_BFN = 0, 1, 2, 3
@@ -44,7 +45,8 @@ def pack_params(comp: CompetitionParams, lp: LearningParams, v_max: float, width
     network's rule, :data:`cekm_swarm.models.networks.BFN_RULES`)."""
     p = np.empty(N_PARAMS)
     p[P_BETA_A], p[P_BETA_D], p[P_TOL] = comp.beta_alpha, comp.beta_d, comp.direction_tolerance
-    p[P_ETA_W], p[P_ETA_M], p[P_ETA_C], p[P_ETA_BFN], p[P_ETA_WIDTH] = lp.eta_w, lp.eta_m, lp.eta_c, lp.eta_bfn, lp.eta_width
+    p[P_ETA_W], p[P_ETA_M], p[P_ETA_C] = lp.eta_w, lp.eta_m, lp.eta_c
+    p[P_ETA_BFN], p[P_ETA_WIDTH] = lp.eta_bfn, lp.eta_width
     p[P_SIG0], p[P_SIGF], p[P_TAU], p[P_GMIN] = lp.sigma_initial, lp.sigma_final, lp.sigma_tau, lp.g_min
     p[P_LAMBDA], p[P_TRCAP], p[P_DSCALE] = lp.forgetting, lp.rinv_trace_cap, lp.d_scale
     p[P_EXP_REL], p[P_EXP_ABS], p[P_VMAX], p[P_WIDTH_FLOOR] = lp.explore_rel, lp.explore_abs, v_max, width_floor
@@ -56,7 +58,7 @@ wrap = njit(cache=True)(wrap_scalar)  # (-pi, pi], the formula of cekm_swarm.ang
 
 
 @njit(cache=True)
-def winner(alpha, d, w, p):
+def winner(alpha: float, d: float, w: np.ndarray, p: np.ndarray) -> int:
     """Eqs. 2-4: the direction set A(alpha) first, then the smallest D over it."""
     n = w.shape[0]
     das = np.empty(n)
@@ -80,7 +82,8 @@ def winner(alpha, d, w, p):
 
 
 @njit(cache=True)
-def bfn_activations(alpha, d, w, P, R, p, out):
+def bfn_activations(alpha: float, d: float, w: np.ndarray, P: np.ndarray, R: np.ndarray, p: np.ndarray,
+                    out: np.ndarray) -> None:
     """Normalized Gaussian activations of the basis-function network (widths in P[:, 1]).
 
     R[i, 0, 0] > 0 marks a centre that has won for some training input; under the
@@ -123,7 +126,8 @@ def bfn_activations(alpha, d, w, P, R, p, out):
 
 
 @njit(cache=True)
-def output(kind, alpha, d, w, P, R, p, out):
+def output(kind: int, alpha: float, d: float, w: np.ndarray, P: np.ndarray, R: np.ndarray, p: np.ndarray,
+           out: np.ndarray) -> None:
     """A network's own output for the input (alpha, d), written into out[0:2]: Eq. 11 with
     k = s (indirect EKM), the winner's c_s (direct EKM), the weighted sum (BFN)."""
     if kind == KIND_BFN:
@@ -156,7 +160,8 @@ def output(kind, alpha, d, w, P, R, p, out):
 
 
 @njit(cache=True)
-def command(kind, alpha, d, w, P, R, p, out):
+def command(kind: int, alpha: float, d: float, w: np.ndarray, P: np.ndarray, R: np.ndarray, p: np.ndarray,
+            out: np.ndarray) -> None:
     """The target-reaching rule of each network kind, written into out[0:2]: its
     :func:`output`, except that the goal state (d = 0) gives c = 0 for every kind."""
     if d == 0.0:
@@ -167,14 +172,14 @@ def command(kind, alpha, d, w, P, R, p, out):
 
 
 @njit(cache=True)
-def _update_input_weight(w, i, va, vd, step):
+def _update_input_weight(w: np.ndarray, i: int, va: float, vd: float, step: float) -> None:
     """Eq. 12 for one neuron."""
     w[i, 0] = wrap(w[i, 0] + step * wrap(va - w[i, 0]))
     w[i, 1] = w[i, 1] + step * (vd - w[i, 1])
 
 
 @njit(cache=True)
-def _rho(w, i, q, p):
+def _rho(w: np.ndarray, i: int, q: int, p: np.ndarray) -> float:
     """Eq. 3's distance between centres i and q: sqrt(beta_alpha dalpha^2 + beta_d dd^2)."""
     da = wrap(w[i, 0] - w[q, 0])
     dd = w[i, 1] - w[q, 1]
@@ -182,7 +187,7 @@ def _rho(w, i, q, p):
 
 
 @njit(cache=True)
-def nearest_lattice_neighbour(w, i, size, p):
+def nearest_lattice_neighbour(w: np.ndarray, i: int, size: int, p: np.ndarray) -> float:
     """Eq. 3's distance from centre i to the nearest of its up to 4 lattice neighbours."""
     r = i // size
     c = i - r * size
@@ -196,7 +201,7 @@ def nearest_lattice_neighbour(w, i, size, p):
 
 
 @njit(cache=True)
-def nearest_centre(w, i, p):
+def nearest_centre(w: np.ndarray, i: int, p: np.ndarray) -> float:
     """Eq. 3's distance from centre i to the nearest other centre (Moody & Darken's rule).
     The square root is taken once, of the smallest square (the same number: sqrt is
     correctly rounded and monotonic)."""
@@ -210,7 +215,8 @@ def nearest_centre(w, i, p):
 
 
 @njit(cache=True)
-def learn(kind, va, vd, c0, c1, t, w, P, R, size, p, idx_buf, g_buf):
+def learn(kind: int, va: float, vd: float, c0: float, c1: float, t: float, w: np.ndarray, P: np.ndarray, R: np.ndarray,
+          size: int, p: np.ndarray, idx_buf: np.ndarray, g_buf: np.ndarray) -> None:
     """One step of self-organized learning from displacement v = (va, vd) and executed c."""
     n = w.shape[0]
     k = winner(va, vd, w, p)
@@ -229,7 +235,7 @@ def learn(kind, va, vd, c0, c1, t, w, P, R, size, p, idx_buf, g_buf):
                 g_buf[m] = g
                 m += 1
     eta_w = p[P_ETA_W]
-    if kind == KIND_GD or kind == KIND_RLS:
+    if kind in (KIND_GD, KIND_RLS):
         ds = p[P_DSCALE]
         x1 = ds * vd
         for j in range(m):
@@ -305,15 +311,15 @@ def learn(kind, va, vd, c0, c1, t, w, P, R, size, p, idx_buf, g_buf):
         R[k, 0, 0] = 1.0
 
 
-def network_arrays(net) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def network_arrays(net: Network) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A reference network's state in this module's (w, P, R) convention (copies)."""
     n = net.w.shape[0]
     P = np.zeros((n, 2, 2))
     R = np.zeros((n, 2, 2))
-    if net.kind.startswith("indirect"):
+    if isinstance(net, IndirectEKM):
         P[:] = net.M
         R[:] = net.Rinv
-    elif net.kind == "direct":
+    elif isinstance(net, DirectEKM):
         P[:, 0] = net.C
     else:
         P[:, 0] = net.W
@@ -322,13 +328,13 @@ def network_arrays(net) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return net.w.copy(), P, R
 
 
-def load_arrays(net, w: np.ndarray, P: np.ndarray, R: np.ndarray) -> None:
+def load_arrays(net: Network, w: np.ndarray, P: np.ndarray, R: np.ndarray) -> None:
     """Write (w, P, R) back into a reference network of the same kind and size."""
     net.w[:] = w
-    if net.kind.startswith("indirect"):
+    if isinstance(net, IndirectEKM):
         net.M[:] = P
         net.Rinv[:] = R
-    elif net.kind == "direct":
+    elif isinstance(net, DirectEKM):
         net.C[:] = P[:, 0]
     else:
         net.W[:] = P[:, 0]

@@ -6,7 +6,7 @@ every field is a vector over the same n neurons.
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -19,7 +19,8 @@ def target_field(w: np.ndarray, s: int, p: FieldParams) -> np.ndarray:
     """a_i = G_a(w_s, w_i), an elongated Gaussian: angle-insensitive, distance-sensitive (Eqs. 5-6)."""
     da = wrap(w[s, 0] - w[:, 0])
     dd = w[s, 1] - w[:, 1]
-    return np.exp(-da * da / (2.0 * p.sigma_a_alpha ** 2) - dd * dd / (2.0 * p.sigma_a_d ** 2))
+    out: np.ndarray = np.exp(-da * da / (2.0 * p.sigma_a_alpha ** 2) - dd * dd / (2.0 * p.sigma_a_d ** 2))
+    return out
 
 
 def obstacle_field(w: np.ndarray, s: int, p: FieldParams) -> np.ndarray:
@@ -27,7 +28,8 @@ def obstacle_field(w: np.ndarray, s: int, p: FieldParams) -> np.ndarray:
     da = wrap(w[s, 0] - w[:, 0])
     dd = w[s, 1] - w[:, 1]
     sigma_d = np.where(w[:, 1] >= w[s, 1], p.sigma_b_d_beyond, p.sigma_b_d_near)
-    return np.exp(-da * da / (2.0 * p.sigma_b_alpha ** 2) - dd * dd / (2.0 * sigma_d * sigma_d))
+    out: np.ndarray = np.exp(-da * da / (2.0 * p.sigma_b_alpha ** 2) - dd * dd / (2.0 * sigma_d * sigma_d))
+    return out
 
 
 def integrate(a: np.ndarray, obstacle_fields: Sequence[np.ndarray] | np.ndarray) -> np.ndarray:
@@ -43,14 +45,16 @@ def motor_winner(e: np.ndarray) -> int:
     return int(np.argmax(e))
 
 
-def motor_control(M: np.ndarray, w: np.ndarray, u: np.ndarray, k: int, s: int, v_max: float, d_scale: float) -> np.ndarray:
+def motor_control(M: np.ndarray, w: np.ndarray, u: np.ndarray, k: int, s: int, v_max: float,
+                  d_scale: float) -> np.ndarray:
     """Eq. 11: c = M_k u if k = s and |M_k u| <= c* (both wheels), else c = M_k w_k.
 
     Inputs go through the model's internal scaling (alpha on the neuron's branch,
     d_scale * d). The caller clips what the wheels execute to c*.
     """
     if k == s:
-        c = M[k] @ np.array([on_branch(u[0], w[k:k + 1, 0])[0], d_scale * u[1]])
+        c: np.ndarray = M[k] @ np.array([on_branch(u[0], w[k:k + 1, 0])[0], d_scale * u[1]])
         if np.all(np.abs(c) <= v_max):
             return c
-    return M[k] @ np.array([w[k, 0], d_scale * w[k, 1]])
+    out: np.ndarray = M[k] @ np.array([w[k, 0], d_scale * w[k, 1]])
+    return out

@@ -51,4 +51,5 @@ class Lattice:
 def neighbourhood(positions: np.ndarray, k: int, sigma: float) -> np.ndarray:
     """G(k, i): a Gaussian of the lattice distance ||r_k - r_i|| (Eqs. 12-17)."""
     d2 = np.sum((positions - positions[k]) ** 2, axis=1)
-    return np.exp(-d2 / (2.0 * sigma * sigma))
+    out: np.ndarray = np.exp(-d2 / (2.0 * sigma * sigma))
+    return out

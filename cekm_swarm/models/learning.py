@@ -19,7 +19,8 @@ SMALL_D = 1e-4  # m: below it a displacement's direction is dtheta / 2 (docs/des
 def on_branch(alpha: float, alpha_i: np.ndarray) -> np.ndarray:
     """alpha taken on each neuron's own branch, alpha_i + wrap(alpha - alpha_i), so the
     linear model c = M_i u does not jump at +-pi (docs/design.md section 3)."""
-    return alpha_i + wrap(alpha - alpha_i)
+    out: np.ndarray = alpha_i + wrap(alpha - alpha_i)
+    return out
 
 
 def model_inputs(u: np.ndarray, w_idx: np.ndarray, d_scale: float) -> np.ndarray:

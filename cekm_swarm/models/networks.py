@@ -44,7 +44,8 @@ def parse_network_name(name: str) -> tuple[str, int]:
     """'R15' -> ('indirect-rls', 15); the paper's naming (B, D, G, R + lattice side)."""
     m = _NAME.match(name.strip().upper())
     if not m or not 2 <= int(m.group(2)) <= 64:
-        raise ParameterError(f"unknown network {name!r}: expected a letter B, D, G or R and a lattice side 2-64, e.g. R15")
+        raise ParameterError(f"unknown network {name!r}: expected a letter B, D, G or R and a lattice side 2-64, "
+                             f"e.g. R15")
     return _KIND_OF_LETTER[m.group(1)], int(m.group(2))
 
 
@@ -66,7 +67,7 @@ def updated_neighbourhood(v: np.ndarray, w: np.ndarray, lattice: Lattice, comp: 
 
 def at_goal(u: np.ndarray) -> bool:
     """The goal state u(T) = (alpha, 0): the target sensor reads d = 0 (section 3.1)."""
-    return u[1] == 0.0
+    return bool(u[1] == 0.0)
 
 
 class TargetReaching:
@@ -105,7 +106,7 @@ class IndirectEKM(TargetReaching):
 
     @classmethod
     def untrained(cls, size: int, rule: str, rng: np.random.Generator, comp: CompetitionParams | None = None,
-                  learn_p: LearningParams | None = None, v_max: float = KHEPERA.v_max) -> "IndirectEKM":
+                  learn_p: LearningParams | None = None, v_max: float = KHEPERA.v_max) -> IndirectEKM:
         """Regular input weights and uninformed random M_i (docs/design.md section 3, item 7)."""
         if rule not in ("gd", "rls"):
             raise ParameterError(f"IndirectEKM.rule must be 'gd' or 'rls', got {rule!r}")
@@ -118,14 +119,15 @@ class IndirectEKM(TargetReaching):
 
     @classmethod
     def kinematic(cls, size: int, comp: CompetitionParams | None = None, learn_p: LearningParams | None = None,
-                  v_max: float = KHEPERA.v_max, axle: float = KHEPERA.axle, step_s: float = 1.024) -> "IndirectEKM":
+                  v_max: float = KHEPERA.v_max, axle: float = KHEPERA.axle, step_s: float = 1.024) -> IndirectEKM:
         """The kinematic initial guess M0 = (1/T) [[-axle, 1], [axle, 1]] (in SI units): a labelled option,
         not the paper's untrained start."""
         lat = Lattice(size)
         lp = learn_p or LearningParams()
         m_si = np.array([[-axle, 1.0], [axle, 1.0]]) / step_s  # turn by 2 alpha (chord convention), move d
         M = np.tile(m_si @ np.diag([1.0, 1.0 / lp.d_scale]), (lat.n, 1, 1))
-        return cls(lat, "rls", lat.initial_weights(), M, np.tile(np.eye(2), (lat.n, 1, 1)), comp or CompetitionParams(), lp, v_max)
+        return cls(lat, "rls", lat.initial_weights(), M, np.tile(np.eye(2), (lat.n, 1, 1)), comp or CompetitionParams(),
+                   lp, v_max)
 
     @property
     def kind(self) -> str:
@@ -167,7 +169,7 @@ class DirectEKM(TargetReaching):
 
     @classmethod
     def untrained(cls, size: int, rng: np.random.Generator, comp: CompetitionParams | None = None,
-                  learn_p: LearningParams | None = None, v_max: float = KHEPERA.v_max) -> "DirectEKM":
+                  learn_p: LearningParams | None = None, v_max: float = KHEPERA.v_max) -> DirectEKM:
         lat = Lattice(size)
         lp = learn_p or LearningParams()
         C = rng.uniform(-lp.m_init_scale * v_max, lp.m_init_scale * v_max, size=(lat.n, 2))
@@ -175,7 +177,8 @@ class DirectEKM(TargetReaching):
 
     def output(self, u: np.ndarray) -> np.ndarray:
         """The winner's stored command c_s (also at the goal state)."""
-        return self.C[winner(u, self.w, self.comp)].copy()
+        out: np.ndarray = self.C[winner(u, self.w, self.comp)].copy()
+        return out
 
     def learn(self, v: np.ndarray, c: np.ndarray, t: float) -> None:
         """c_i += eta G(k, i) (c - c_i), then Eq. 12, k the winner for v."""
@@ -251,7 +254,7 @@ class BasisFunctionNetwork(TargetReaching):
     @classmethod
     def untrained(cls, size: int, rng: np.random.Generator, comp: CompetitionParams | None = None,
                   learn_p: LearningParams | None = None, v_max: float = KHEPERA.v_max,
-                  rule: str = "trained-units") -> "BasisFunctionNetwork":
+                  rule: str = "trained-units") -> BasisFunctionNetwork:
         lat = Lattice(size)
         lp = learn_p or LearningParams()
         w0 = lat.initial_weights()
@@ -281,11 +284,13 @@ class BasisFunctionNetwork(TargetReaching):
         zd = (d - self.w[:, 1]) / self.widths[:, 1]
         q = np.where(active, 0.5 * (za * za + zd * zd), np.inf)
         phi = np.exp(-(q - q.min()))
-        return phi / phi.sum()
+        out: np.ndarray = phi / phi.sum()
+        return out
 
     def output(self, u: np.ndarray) -> np.ndarray:
         """The weighted sum of the output weights (also at the goal state)."""
-        return self.activations(u) @ self.W
+        out: np.ndarray = self.activations(u) @ self.W
+        return out
 
     def learn(self, v: np.ndarray, c: np.ndarray, t: float) -> None:
         """Output weights by gradient descent, widths toward the nearest-centre distance, centres by Eq. 12."""
@@ -302,8 +307,12 @@ class BasisFunctionNetwork(TargetReaching):
         self.won[k] = True
 
 
+Network = IndirectEKM | DirectEKM | BasisFunctionNetwork
+"""A network of any kind the library trains, saves and loads."""
+
+
 def make_network(name: str, rng: np.random.Generator, comp: CompetitionParams | None = None,
-                 learn_p: LearningParams | None = None, bfn_rule: str = "trained-units"):
+                 learn_p: LearningParams | None = None, bfn_rule: str = "trained-units") -> Network:
     """An untrained network by the paper's name (B15, D15, G9, G12, G15, R15, ...);
     ``bfn_rule`` applies to a basis-function network (:data:`BFN_RULES`)."""
     kind, size = parse_network_name(name)

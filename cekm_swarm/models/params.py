@@ -9,11 +9,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, fields
+from typing import Any
 
 from ..errors import ParameterError
 
 
-def _check_positive(obj, *names: str) -> None:
+def _check_positive(obj: object, *names: str) -> None:
     for name in names:
         value = getattr(obj, name)
         if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
@@ -36,7 +37,8 @@ class CompetitionParams:
     def __post_init__(self) -> None:
         _check_positive(self, "beta_alpha", "beta_d")
         if not (0.0 <= self.direction_tolerance < math.pi):
-            raise ParameterError(f"CompetitionParams.direction_tolerance must be in [0, pi), got {self.direction_tolerance!r}")
+            raise ParameterError(f"CompetitionParams.direction_tolerance must be in [0, pi), "
+                                 f"got {self.direction_tolerance!r}")
 
 
 @dataclass(frozen=True)
@@ -112,13 +114,13 @@ class FieldParams:
         _check_positive(self, *(f.name for f in fields(self)))
 
     @classmethod
-    def paper(cls) -> "FieldParams":
+    def paper(cls) -> FieldParams:
         """The paper's values throughout (sigma_b_alpha 0.495): what the multi-robot
         tracking controller was tuned and measured with (docs/tracking.md)."""
         return cls(sigma_b_alpha=PAPER_SIGMA_B_ALPHA)
 
 
-def params_to_dict(*objs) -> dict:
+def params_to_dict(*objs: Any) -> dict[str, Any]:
     """A JSON-ready dict of several parameter dataclasses, keyed by class name."""
     return {type(o).__name__: asdict(o) for o in objs}
 

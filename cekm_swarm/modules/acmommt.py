@@ -8,13 +8,14 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import Any
 
 from cekm_swarm.controller.acmommt import ACMOMMT, ForceActivity
 from cekm_swarm.controller.readings import RangeReading
 from cekm_swarm.controller.team import TeammateShare, TeamView
 from cekm_swarm.controller.tracking import TrackingRobot
 from cekm_swarm.models.params import ACMOMMTParams, TrackingParams
-from cekm_swarm.node import In, Node, NodeError, Out, need
+from cekm_swarm.node import In, Inputs, Node, NodeError, Out, need
 from cekm_swarm.protocol import Data, SensePose, SenseRange, SenseTargets, Share, WheelCommand
 from cekm_swarm.ticks import tick_of
 
@@ -49,9 +50,10 @@ class ACMOMMTForces(Node):
 
     def setup(self) -> None:
         p = self.params
-        self.brain = TrackingRobot(self.ctx.robot, acmommt(self), TeamView(self.ctx.robot, p.share_timeout_s, p.memory_s))
+        view = TeamView(self.ctx.robot, p.share_timeout_s, p.memory_s)
+        self.brain = TrackingRobot(self.ctx.robot, acmommt(self), view)
 
-    def step(self, t, inputs):
+    def step(self, t: float, inputs: Inputs) -> dict[str, Any]:
         pose, sensed = need(inputs, "pose", "targets")  # real time: skipped until both are in
         for robot, share in inputs["team"].items():
             self.brain.receive(robot, TeammateShare(share.stamp, share.pose, share.targets))
@@ -74,7 +76,7 @@ class ACMOMMTMotor(Node):
     def setup(self) -> None:
         self.ctl = acmommt(self)
 
-    def step(self, t, inputs):
+    def step(self, t: float, inputs: Inputs) -> dict[str, Any]:
         f = inputs["force"]
         act = None if f is None else ForceActivity(f.stamp, f.values["fx"], f.values["fy"], f.values["searching"])
         ranges = [RangeReading(r.index, r.alpha, r.d) for r in inputs["ranges"].values()]

@@ -4,16 +4,16 @@ process for each set of field parameters (:meth:`cekm_swarm.node.Context.shared`
 from __future__ import annotations
 
 from cekm_swarm.controller.cooperative import CooperativeEKM
+from cekm_swarm.errors import CekmError
+from cekm_swarm.models.networks import IndirectEKM
 from cekm_swarm.models.params import FieldParams
 from cekm_swarm.node import Context, NodeError
 
 
-def indirect_model(ctx: Context):
+def indirect_model(ctx: Context) -> IndirectEKM:
     """The run's model, which must be an indirect-mapping EKM (Eq. 1)."""
-    from cekm_swarm.errors import CekmError
-
     try:
-        model = ctx.model()
+        model: IndirectEKM = ctx.model()  # checked to be one below
     except CekmError as exc:  # names the model file and what is wrong with it
         raise NodeError(str(exc)) from None
     if not str(getattr(model, "kind", "")).startswith("indirect"):
@@ -32,7 +32,7 @@ def cooperative_ekm(ctx: Context, fields: FieldParams | None = None, allow_rever
     def make() -> CooperativeEKM:
         return CooperativeEKM(model, fields, allow_reverse, reverse_min_d, backend=ctx.backend)
 
-    ekm = ctx.shared(key, make)
+    ekm: CooperativeEKM = ctx.shared(key, make)
     if ekm.model is not model:  # a model object freed and its id reused: build afresh
         ekm = make()
     return ekm

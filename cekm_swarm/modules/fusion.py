@@ -7,30 +7,30 @@ state the robot stops."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from cekm_swarm.controller.fusion import CommandFusion
 from cekm_swarm.controller.readings import RangeReading, TargetReading
-from cekm_swarm.node import In, Node, Out
+from cekm_swarm.node import In, Inputs, Node, Out
 from cekm_swarm.protocol import Data, SenseRange, SenseTarget, WheelCommand
 from cekm_swarm.ticks import tick_of
 
 from .ekm import indirect_model
 
-_D = CommandFusion.__dataclass_fields__
-
 
 @dataclass(frozen=True)
 class FusionParams:
-    """:class:`CommandFusion`'s weights and gains (see it for what each does)."""
+    """:class:`CommandFusion`'s weights and gains (see it for what each does); their
+    defaults are its own (a dataclass's class attribute is the field's default)."""
 
-    weight_target: float = _D["weight_target"].default
-    weight_avoid: float = _D["weight_avoid"].default
-    gain_turn: float = _D["gain_turn"].default
-    gain_back: float = _D["gain_back"].default
-    backward_bias: float = _D["backward_bias"].default
-    front_turn: float = _D["front_turn"].default
+    weight_target: float = CommandFusion.weight_target
+    weight_avoid: float = CommandFusion.weight_avoid
+    gain_turn: float = CommandFusion.gain_turn
+    gain_back: float = CommandFusion.gain_back
+    backward_bias: float = CommandFusion.backward_bias
+    front_turn: float = CommandFusion.front_turn
 
 
 def command_fusion(node: Node) -> CommandFusion:
@@ -50,7 +50,7 @@ class FusionTarget(Node):
     def setup(self) -> None:
         self.fusion = command_fusion(self)
 
-    def step(self, t, inputs):
+    def step(self, t: float, inputs: Inputs) -> dict[str, Any]:
         r = inputs["reading"]
         reading = TargetReading(r.alpha, r.d, r.visible) if r is not None else TargetReading(0.0, 0.0, False)
         c = self.fusion.target_command(reading)
@@ -69,7 +69,7 @@ class BraitenbergAvoidance(Node):
     def setup(self) -> None:
         self.fusion = command_fusion(self)
 
-    def step(self, t, inputs):
+    def step(self, t: float, inputs: Inputs) -> dict[str, Any]:
         ranges = [RangeReading(r.index, r.alpha, r.d) for r in inputs["ranges"].values()]
         c = self.fusion.avoid_command(ranges)
         return {"proposal": Data(t, self.ctx.sender, {"v_l": float(c[0]), "v_r": float(c[1])})}
@@ -86,7 +86,7 @@ class FusionMotor(Node):
     def setup(self) -> None:
         self.fusion = command_fusion(self)
 
-    def step(self, t, inputs):
+    def step(self, t: float, inputs: Inputs) -> dict[str, Any]:
         tgt, avoid = inputs["target"], inputs["avoid"]
         if tgt is not None and tgt.values.get("at_goal"):
             v_l = v_r = 0.0

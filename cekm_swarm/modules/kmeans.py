@@ -12,11 +12,12 @@ turns the goal's pull into wheel speeds each tick
 from __future__ import annotations
 
 import math
+from typing import Any
 
 from cekm_swarm.controller.kmeans import GoalForce, KMeansTracker, local_view, usable_shares
 from cekm_swarm.controller.team import to_world
 from cekm_swarm.models.params import KMeansParams
-from cekm_swarm.node import In, Node, NodeError, Out, need
+from cekm_swarm.node import In, Inputs, Node, NodeError, Out, need
 from cekm_swarm.protocol import Data, SensePose, SenseTargets, Share, WorldState
 
 
@@ -45,9 +46,9 @@ class KMeansLocal(Node):
 
     def setup(self) -> None:
         self.brain = tracker(self)
-        self.shares: dict = {}
+        self.shares: dict[str, Any] = {}
 
-    def step(self, t, inputs):
+    def step(self, t: float, inputs: Inputs) -> dict[str, Any]:
         pose_msg, sensed_msg = need(inputs, "pose", "targets")  # real time: skipped until both are in
         for robot, sh in inputs["team"].items():
             held = self.shares.get(robot)
@@ -74,7 +75,7 @@ class KMeansGlobal(Node):
     def setup(self) -> None:
         self.brain = tracker(self)
 
-    def step(self, t, inputs):
+    def step(self, t: float, inputs: Inputs) -> dict[str, Any]:
         st: WorldState = inputs["state"]
         me = st.robots[self.ctx.robot]
         pose = (me.x, me.y, me.theta)

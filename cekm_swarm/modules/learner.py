@@ -23,14 +23,16 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+from cekm_swarm.controller.cooperative import CooperativeEKM
 from cekm_swarm.models.learning import map_digest, wheel_displacement
 from cekm_swarm.models.networks import IndirectEKM
-from cekm_swarm.node import In, Node, NodeError, Out
+from cekm_swarm.node import Context, In, Inputs, Node, NodeError, Out
 from cekm_swarm.protocol import Data, MapVersion, SenseOdometry
 
 from .ekm import indirect_model
@@ -82,12 +84,13 @@ def copy_model(model: IndirectEKM, w: np.ndarray | None = None, M: np.ndarray | 
 def winner_of(net: IndirectEKM, v: np.ndarray) -> int:
     """The winner for v (Eqs. 2-4) by numba's competition (``models.fast.winner``: the same
     winner as the models' numpy one bit for bit, tested; a few us instead of tens)."""
-    from cekm_swarm.models import fast
+    from cekm_swarm.models import fast  # noqa: PLC0415 -- lazy: numba costs ~0.15 s at a node's start-up
 
     params = getattr(net, "_fast_params", None)
     if params is None:
         params = fast.pack_params(net.comp, net.learn_p, net.v_max, 1e-3)
-        net._fast_params = params  # the parameters do not change while it learns (only w, M, R^-1 do)
+        # the parameters do not change while it learns (only w, M, R^-1 do): kept on the network
+        net._fast_params = params  # type: ignore[attr-defined]  # a cache set on the object, not a field
     return int(fast.winner(float(v[0]), float(v[1]), net.w, params))
 
 
@@ -132,8 +135,9 @@ class Learner(Node):
         winner_of(self.net, np.zeros(2))  # numba's competition loaded (and compiled once, cached) before the run
         size = 8 * 6 * self.net.lattice.n
         if size > MAX_MAP_BYTES:
-            raise NodeError(f"{self.ctx.sender}: a {self.net.lattice.size}x{self.net.lattice.size} map is {size} bytes, "
-                            f"more than a map message may hold ({MAX_MAP_BYTES}); learn with a lattice of at most 25x25")
+            side = self.net.lattice.size
+            raise NodeError(f"{self.ctx.sender}: a {side}x{side} map is {size} bytes, more than a map message may "
+                            f"hold ({MAX_MAP_BYTES}); learn with a lattice of at most 25x25")
         self.counts = LearnerCounts()
         self.version = 0
         self.last_tick = 0  # the last tick of odometry learned from
@@ -187,7 +191,7 @@ class Learner(Node):
             self.error = sum(errors) / len(errors)
         return pairs
 
-    def map_message(self, t, learned: bool) -> MapVersion:
+    def map_message(self, t: float, learned: bool) -> MapVersion:
         """The current version: a new one when this run learned (kept on disk in a launch,
         with the counts and the last tick learned from, before it is sent)."""
         if learned:
@@ -201,7 +205,7 @@ class Learner(Node):
         return MapVersion(t, self.ctx.sender, self.version, c.steps, c.learned, c.skipped, self.digest, w, M,
                           self.error)
 
-    def step(self, t, inputs):
+    def step(self, t: float, inputs: Inputs) -> dict[str, Any]:
         pairs = self.learn_own(inputs["odometry"])
         return {"map": self.map_message(t, bool(pairs))}
 
@@ -215,7 +219,7 @@ class TeamLearner(Learner):
               "maps": In(MapVersion, many=True, doc="each teammate's map version of its previous run")}
     outputs = {**Learner.outputs, "experience": Out(Data, doc="this run's own (v, c) pairs")}
 
-    def step(self, t, inputs):
+    def step(self, t: float, inputs: Inputs) -> dict[str, Any]:
         learned = self.catch_up(inputs["maps"])
         for robot in sorted(inputs["team"]):
             for v, c in experience_pairs(inputs["team"][robot]):
@@ -227,7 +231,7 @@ class TeamLearner(Learner):
                 "experience": Data(t, self.ctx.sender, {"pairs": pairs})}
 
 
-    def catch_up(self, maps: dict) -> bool:
+    def catch_up(self, maps: dict[str, MapVersion]) -> bool:
         """A learner that has seen nothing yet (a robot that joins a running team, with no
         snapshot of its own) starts from the teammate map that has learned most (the first
         in robot-id order on a tie); its own R^-1 stays. Never at tick 0 (no teammate has
@@ -266,7 +270,7 @@ SNAPSHOT_DIR = "CEKM_LEARNER_DIR"
 latest version (``cekm launch`` sets it to ``OUT/maps``): a restarted learner goes on from it."""
 
 
-def snapshot_path(ctx) -> Path | None:
+def snapshot_path(ctx: Context) -> Path | None:
     """Where this learner keeps its latest version (None: nowhere, as in ``cekm run``)."""
     folder = os.environ.get(SNAPSHOT_DIR)
     if not folder or ctx.mode not in ("lockstep", "realtime"):
@@ -335,16 +339,16 @@ def map_misfit(msg: MapVersion, version: int, n: int) -> str | None:
     return None
 
 
-def warm_winner(ekm) -> None:
+def warm_winner(ekm: CooperativeEKM) -> None:
     """Load numba's competition (``models.fast.winner``, compiled and cached on disk) and
     run it once, so that a map version's first winners cost no compilation."""
-    from cekm_swarm.models import fast
+    from cekm_swarm.models import fast  # noqa: PLC0415 -- lazy: numba costs ~0.15 s at a node's start-up
 
     params = fast.pack_params(ekm.model.comp, ekm.model.learn_p, ekm.model.v_max, 1e-3)
     fast.winner(0.0, 0.05, np.ascontiguousarray(ekm.model.w), params)
 
 
-class MapFollower:
+class MapFollower(Node):
     """What an EKM node of a learning robot adds: its ``map`` input, the learner's latest
     version before the tick, used from that tick on (``self.ekm`` rebuilt on a new version,
     its field rows computed as they are needed). A malformed message or one of another
@@ -355,6 +359,9 @@ class MapFollower:
     version = 0
     dropped = 0
     _checked: tuple[int, str] | None = None  # the (version, digest) last checked on receipt
+    ekm: CooperativeEKM  # the node's cooperative EKM (built by the node it is mixed into)
+    digest: str  # of the version in use
+    last_drop: str  # why the last map message was dropped
 
     def follow(self, msg: MapVersion | None) -> None:
         if msg is None or msg.version == self.version:
@@ -364,8 +371,6 @@ class MapFollower:
             self.dropped += 1
             self.last_drop = why or f"stale: version {msg.version}, this node has version {self.version}"
             return
-        from dataclasses import replace
-
         # numba winners: a new version empties the winner memo, and numpy's competition
         # (tens of us) would then run again for every reading; numba's gives the same
         # winners bit for bit (tested) in about 1 us (docs/learning.md, cost)
@@ -377,7 +382,7 @@ class MapFollower:
         super().setup()
         warm_winner(self.ekm)  # in the launcher's fork server (warm_setup): its children find it compiled
 
-    def check_input(self, port: str, msg) -> str | None:
+    def check_input(self, port: str, msg: Any) -> str | None:
         if port != "map":
             return super().check_input(port, msg)
         if msg.version > self.version:
@@ -386,7 +391,7 @@ class MapFollower:
             return why
         return None
 
-    def step(self, t, inputs):
+    def step(self, t: float, inputs: Inputs) -> dict[str, Any]:
         self.follow(inputs["map"])  # the version of the learner's latest run before t
         return super().step(t, inputs)
 

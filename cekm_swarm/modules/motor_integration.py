@@ -5,10 +5,12 @@ goal state c = 0. What the wheels execute is c clipped to c*."""
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import Any
 
 from cekm_swarm.controller.cooperative import ObstacleActivity, TargetActivity
-from cekm_swarm.node import In, Node, Out
+from cekm_swarm.node import In, Inputs, Node, Out
 from cekm_swarm.protocol import ObstacleField, TargetField, WheelCommand
 from cekm_swarm.protocol.checks import lattice_misfit
 from cekm_swarm.ticks import tick_of
@@ -25,7 +27,7 @@ def target_activity(f: TargetField | None) -> TargetActivity | None:
                           f.at_goal)
 
 
-def obstacle_activities(fields) -> list[ObstacleActivity]:
+def obstacle_activities(fields: Iterable[ObstacleField]) -> list[ObstacleActivity]:
     """The obstacle fields as the controller's activities (Eq. 9 reads only each one's ``b``,
     so the motor nodes hand it the fields themselves: the same arrays, in the same order)."""
     return [ObstacleActivity(f.stamp, f.index, f.winner, f.b) for f in fields]
@@ -48,9 +50,9 @@ class MotorIntegration(Node):
     def setup(self) -> None:
         self.ekm = cooperative_ekm(self.ctx, None, self.params.allow_reverse, self.params.reverse_min_d)
 
-    def check_input(self, port, msg):
+    def check_input(self, port: str, msg: Any) -> str | None:
         return lattice_misfit(msg, self.ekm.n)
 
-    def step(self, t, inputs):
+    def step(self, t: float, inputs: Inputs) -> dict[str, Any]:
         out = self.ekm.integrate(target_activity(inputs["target"]), inputs["obstacles"].values())  # Eqs. 9-11
         return {"command": WheelCommand(t, self.ctx.sender, out.v_l, out.v_r, tick_of(t))}

@@ -8,9 +8,10 @@ range plus body radius), None when nothing is in range."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 from cekm_swarm.models.params import FieldParams
-from cekm_swarm.node import In, Node, Out
+from cekm_swarm.node import In, Inputs, Node, Out
 from cekm_swarm.protocol import ObstacleField, SenseRange
 
 from .ekm import cooperative_ekm
@@ -35,10 +36,11 @@ class ObstacleLocalization(Node):
 
     def setup(self) -> None:
         p = self.params
-        self.ekm = cooperative_ekm(self.ctx, FieldParams(sigma_b_alpha=p.sigma_b_alpha, sigma_b_d_beyond=p.sigma_b_d_beyond,
-                                                         sigma_b_d_near=p.sigma_b_d_near))
+        fields = FieldParams(sigma_b_alpha=p.sigma_b_alpha, sigma_b_d_beyond=p.sigma_b_d_beyond,
+                             sigma_b_d_near=p.sigma_b_d_near)
+        self.ekm = cooperative_ekm(self.ctx, fields)
 
-    def step(self, t, inputs):
+    def step(self, t: float, inputs: Inputs) -> dict[str, Any]:
         r: SenseRange | None = inputs["reading"]
         j = self.ctx.instance or 0
         if r is None:

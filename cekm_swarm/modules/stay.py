@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from cekm_swarm.node import Node, Out
+from typing import Any
+
+from cekm_swarm.node import Inputs, Node, Out
 from cekm_swarm.protocol import WheelCommand
 from cekm_swarm.ticks import tick_of
 
@@ -12,5 +14,5 @@ class Stay(Node):
 
     outputs = {"command": Out(WheelCommand)}
 
-    def step(self, t, inputs):
+    def step(self, t: float, inputs: Inputs) -> dict[str, Any]:
         return {"command": WheelCommand(t, self.ctx.sender, 0.0, 0.0, tick_of(t))}

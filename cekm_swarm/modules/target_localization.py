@@ -5,10 +5,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
+from cekm_swarm.controller.cooperative import CooperativeEKM
 from cekm_swarm.controller.readings import TargetReading
 from cekm_swarm.models.params import FieldParams
-from cekm_swarm.node import In, Node, Out
+from cekm_swarm.node import In, Inputs, Node, Out
 from cekm_swarm.protocol import SenseTarget, TargetField
 
 from .ekm import cooperative_ekm
@@ -16,7 +18,7 @@ from .ekm import cooperative_ekm
 _DEFAULT = FieldParams()
 
 
-def target_field(ekm, reading: SenseTarget | None, t: float, sender: str) -> TargetField:
+def target_field(ekm: CooperativeEKM, reading: SenseTarget | None, t: float, sender: str) -> TargetField:
     """The target field of one reading, as a message: no target (not visible, or no
     reading) gives no field; the goal state (d = 0) gives ``at_goal`` and no field."""
     if reading is None:
@@ -47,5 +49,5 @@ class TargetLocalization(Node):
         p = self.params
         self.ekm = cooperative_ekm(self.ctx, FieldParams(sigma_a_alpha=p.sigma_a_alpha, sigma_a_d=p.sigma_a_d))
 
-    def step(self, t, inputs):
+    def step(self, t: float, inputs: Inputs) -> dict[str, Any]:
         return {"field": target_field(self.ekm, inputs["reading"], t, self.ctx.sender)}

@@ -8,10 +8,13 @@ where targets were last reported: the node keeps state across ticks (``stateful`
 
 from __future__ import annotations
 
+import math
+from typing import Any
+
 from cekm_swarm.controller.team import TeammateShare, TeamView
 from cekm_swarm.controller.tracking import TrackingActivity, TrackingEKM, TrackingRobot
 from cekm_swarm.models.params import FieldParams, TrackingParams
-from cekm_swarm.node import In, Node, NodeError, Out, need
+from cekm_swarm.node import Context, In, Inputs, Node, NodeError, Out, need
 from cekm_swarm.protocol import SensePose, SenseTargets, Share, TrackingField
 
 from .ekm import indirect_model
@@ -27,10 +30,8 @@ def tracking_activity(msg: TrackingField) -> TrackingActivity:
     return TrackingActivity(msg.stamp, msg.a, msg.b, msg.inputs, msg.weights, msg.searching)
 
 
-def tracking_ekm(ctx, params: TrackingParams) -> TrackingEKM:
+def tracking_ekm(ctx: Context, params: TrackingParams) -> TrackingEKM:
     """The robot's cooperative-EKM tracking controller (the paper's field widths)."""
-    import math
-
     R = ctx.body.target_range
     if not math.isfinite(R):
         raise NodeError(f"{ctx.sender}: tracking needs a finite target sensing range (sensors.target_range)")
@@ -55,7 +56,7 @@ class TrackingLocalization(Node):
         self.brain = TrackingRobot(self.ctx.robot, tracking_ekm(self.ctx, p),
                                    TeamView(self.ctx.robot, p.share_timeout_s, p.memory_s))
 
-    def step(self, t, inputs):
+    def step(self, t: float, inputs: Inputs) -> dict[str, Any]:
         pose, sensed = need(inputs, "pose", "targets")  # real time: skipped until both are in
         for robot, share in inputs["team"].items():
             self.brain.receive(robot, TeammateShare(share.stamp, share.pose, share.targets))

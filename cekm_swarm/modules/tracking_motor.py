@@ -4,8 +4,10 @@ Eq. 11 with the input u of the localized target (or search goal) whose winner is
 
 from __future__ import annotations
 
+from typing import Any
+
 from cekm_swarm.models.params import TrackingParams
-from cekm_swarm.node import In, Node, Out
+from cekm_swarm.node import In, Inputs, Node, Out
 from cekm_swarm.protocol import ObstacleField, TrackingField, WheelCommand
 from cekm_swarm.protocol.checks import lattice_misfit
 from cekm_swarm.ticks import tick_of
@@ -25,10 +27,10 @@ class TrackingMotor(Node):
     def setup(self) -> None:
         self.tekm = tracking_ekm(self.ctx, TrackingParams())
 
-    def check_input(self, port, msg):
+    def check_input(self, port: str, msg: Any) -> str | None:
         return lattice_misfit(msg, self.tekm.ekm.n)
 
-    def step(self, t, inputs):
+    def step(self, t: float, inputs: Inputs) -> dict[str, Any]:
         f = inputs["tracking"]
         act = None if f is None else tracking_activity(f)
         out = self.tekm.integrate(act, inputs["obstacles"].values())  # Eqs. 9-11 (reads each field's b)

@@ -37,8 +37,9 @@ import math
 import os
 import threading
 import traceback
+import types
 import typing
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
@@ -159,7 +160,7 @@ class Context:
         with _LOCK:
             held = _MODELS.get(key)
         if held is None:
-            from cekm_swarm.models.io import load_model, load_model_bytes
+            from cekm_swarm.models.io import load_model, load_model_bytes  # noqa: PLC0415 -- lazy: ~25 ms, for a node that reads the model
 
             held = load_model(src) if isinstance(src, str) else load_model_bytes(src[1], src[0])
             with _LOCK:
@@ -207,7 +208,7 @@ class Node:
         """Build what the node needs (load the model, tabulate fields). Raise
         :class:`NodeError` for a configuration it cannot use."""
 
-    def step(self, t: float, inputs: "Inputs") -> dict[str, Any]:
+    def step(self, t: float, inputs: Inputs) -> dict[str, Any]:
         """Compute the outputs of the tick at sim time ``t``: one message per output port."""
         raise NotImplementedError
 
@@ -245,9 +246,10 @@ def raised_at(exc: BaseException) -> str:
     """``file.py:line`` of the innermost frame of ``exc``'s traceback in the node's own code
     (not the framework's checks), "" when it has none."""
     frames = traceback.extract_tb(exc.__traceback__)
-    own = [f for f in frames if not f.filename.startswith(_PLUMBING + ("<",))]
-    f = (own or frames or [None])[-1]
-    return f"{os.path.basename(f.filename)}:{f.lineno}" if f is not None else ""
+    own = [f for f in frames if not f.filename.startswith(_PLUMBING + ("<",))] or frames
+    if not own:
+        return ""
+    return f"{os.path.basename(own[-1].filename)}:{own[-1].lineno}"
 
 
 def traceback_text(exc: BaseException) -> str:
@@ -256,7 +258,7 @@ def traceback_text(exc: BaseException) -> str:
     return "".join(traceback.format_exception(type(cause), cause, cause.__traceback__))
 
 
-def start_node(cls: type["Node"], ctx: Context, params: Any = None) -> "Node":
+def start_node(cls: type[Node], ctx: Context, params: Any = None) -> Node:
     """``cls(ctx, params)``, built and set up; a :class:`NodeError` with the node's one line
     (:func:`cannot_start`) when that fails."""
     try:
@@ -282,7 +284,7 @@ class Inputs(Mapping[str, Any]):
         except KeyError:
             raise KeyError(f"no input port {port!r} (ports: {', '.join(self._values) or 'none'})") from None
 
-    def __iter__(self):
+    def __iter__(self) -> Iterator[str]:
         return iter(self._values)
 
     def __len__(self) -> int:
@@ -295,14 +297,14 @@ def need(inputs: Mapping[str, Any], *ports: str) -> Any:
     computing from nothing: ``pose, sensed = need(inputs, "pose", "targets")``."""
     got = tuple(inputs[p] for p in ports)
     if any(m is None for m in got):
-        raise NotReady(", ".join(p for p, m in zip(ports, got) if m is None))
+        raise NotReady(", ".join(p for p, m in zip(ports, got, strict=True) if m is None))
     return got[0] if len(got) == 1 else got
 
 
 # --------------------------------------------------------------------------- parameters
 
 
-def param_fields(cls: type[Node]) -> dict[str, dataclasses.Field]:
+def param_fields(cls: type[Node]) -> dict[str, dataclasses.Field[Any]]:
     """The declared parameters of a node class: name -> dataclass field."""
     P = cls.Params
     if not dataclasses.is_dataclass(P):
@@ -310,11 +312,11 @@ def param_fields(cls: type[Node]) -> dict[str, dataclasses.Field]:
     return {f.name: f for f in dataclasses.fields(P)}
 
 
-def param_default(f: dataclasses.Field) -> Any:
+def param_default(f: dataclasses.Field[Any]) -> Any:
     if f.default is not dataclasses.MISSING:
         return f.default
-    if f.default_factory is not dataclasses.MISSING:  # type: ignore[misc]
-        return f.default_factory()  # type: ignore[misc]
+    if f.default_factory is not dataclasses.MISSING:
+        return f.default_factory()
     return dataclasses.MISSING
 
 
@@ -323,50 +325,64 @@ def _type_of(cls: type[Node], name: str) -> Any:
     return hints.get(name, Any)
 
 
+def _exactly(kind: type, what: str) -> Callable[[Any, str], Any]:
+    def check(value: Any, where: str) -> Any:
+        if type(value) is not kind:
+            raise ValueError(f"{where}: expected {what}, got {value!r}")
+        return value
+
+    return check
+
+
+def _number(value: Any, where: str) -> float:
+    if type(value) not in (int, float):
+        raise ValueError(f"{where}: expected a number, got {value!r}")
+    number = float(value)
+    if math.isnan(number):
+        raise ValueError(f"{where}: expected a number, got NaN")
+    return number
+
+
+_SCALARS: dict[type, Callable[[Any, str], Any]] = {
+    bool: _exactly(bool, "true or false"), int: _exactly(int, "an integer"), float: _number,
+    str: _exactly(str, "a string"),
+}
+"""A parameter of a scalar type: its check (a bool is not an int, an int is a float)."""
+
+
 def _coerce(value: Any, kind: Any, where: str) -> Any:
     """``value`` as a parameter of type ``kind`` (bool, int, float, str, tuples of them), or
     a ValueError naming ``where``."""
-    origin = typing.get_origin(kind)
     if kind is Any:
         return value
-    if kind is bool:
-        if type(value) is not bool:
-            raise ValueError(f"{where}: expected true or false, got {value!r}")
-        return value
-    if kind is int:
-        if type(value) is not int:
-            raise ValueError(f"{where}: expected an integer, got {value!r}")
-        return value
-    if kind is float:
-        if type(value) not in (int, float):
-            raise ValueError(f"{where}: expected a number, got {value!r}")
-        value = float(value)
-        if math.isnan(value):
-            raise ValueError(f"{where}: expected a number, got NaN")
-        return value
-    if kind is str:
-        if type(value) is not str:
-            raise ValueError(f"{where}: expected a string, got {value!r}")
-        return value
+    scalar = _SCALARS.get(kind) if isinstance(kind, type) else None
+    if scalar is not None:
+        return scalar(value, where)
+    origin = typing.get_origin(kind)
     if origin is tuple:
         if not isinstance(value, (list, tuple)):
             raise ValueError(f"{where}: expected a list, got {value!r}")
         args = typing.get_args(kind)
         item = args[0] if args else Any
         return tuple(_coerce(v, item, f"{where}[{i}]") for i, v in enumerate(value))
-    if origin in (typing.Union, getattr(__import__("types"), "UnionType", ())):
-        errors = []
-        for arm in typing.get_args(kind):
-            if arm is type(None):
-                if value is None:
-                    return None
-                continue
-            try:
-                return _coerce(value, arm, where)
-            except ValueError as exc:
-                errors.append(str(exc))
-        raise ValueError(errors[0] if errors else f"{where}: {value!r} does not fit {kind}")
+    if origin in (typing.Union, types.UnionType):
+        return _coerce_union(value, kind, where)
     return value
+
+
+def _coerce_union(value: Any, kind: Any, where: str) -> Any:
+    """``value`` as the first arm of union ``kind`` it fits (None for an optional's None)."""
+    errors = []
+    for arm in typing.get_args(kind):
+        if arm is type(None):
+            if value is None:
+                return None
+            continue
+        try:
+            return _coerce(value, arm, where)
+        except ValueError as exc:
+            errors.append(str(exc))
+    raise ValueError(errors[0] if errors else f"{where}: {value!r} does not fit {kind}")
 
 
 def make_params(cls: type[Node], values: Mapping[str, Any], where: str) -> Any:

@@ -13,7 +13,7 @@ from cekm_swarm.ticks import tick_of
 
 from .api import Inputs
 from .runner import Runner
-from .timing import RESEND_RUNS, Drop
+from .timing import RESEND_RUNS, Drop, GateCounts
 
 
 class DirectGate:
@@ -62,3 +62,6 @@ class DirectGate:
         """The recent runs' outputs (on ``keys``, or all), oldest first (a reader reading
         them with ``delay = 1`` that restarted needs a run before the stalled tick's)."""
         return [m for run in self.recent_out for m in run if keys is None or m[0] in keys]
+
+    def counts(self) -> GateCounts:
+        return GateCounts(repeats=self.repeats)

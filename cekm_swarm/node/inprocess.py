@@ -15,8 +15,8 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from cekm_swarm.graph.check import CheckedGraph
 from cekm_swarm.graph.plan import NodePlan, RunPlan
+from cekm_swarm.node.graph_check import CheckedGraph
 from cekm_swarm.protocol import Nothing, decode, encode, expect_of
 from cekm_swarm.ticks import STEP_TIMEOUT, TICK_S, tick_time
 
@@ -123,7 +123,7 @@ class GraphExecutor:
         """What was sent on ``key`` at ``tick`` (while it is kept), e.g. a robot's fields for Fig. 4."""
         return self._lookup(key, tick)
 
-    def node(self, robot: str, name: str):
+    def node(self, robot: str, name: str) -> Node:
         """The node object of ``robot``'s node instance ``name``."""
         for r in self.runners:
             if r.plan.robot == robot and r.plan.name == name:

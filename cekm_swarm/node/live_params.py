@@ -55,7 +55,8 @@ class LiveParams:
         period = runner.plan.period
         k = math.ceil(round(at / TICK_S, 9)) if at is not None else runner.done + 2 * period
         if k <= runner.done:
-            raise ValueError(f"{label}: too late for t={tick_time(k):.3f} s: the node has run t={tick_time(runner.done):.3f} s")
+            raise ValueError(f"{label}: too late for t={tick_time(k):.3f} s: "
+                             f"the node has run t={tick_time(runner.done):.3f} s")
         self.pending.append((k, name, getattr(params, name), params))
         self.pending.sort(key=lambda p: p[0])
         return {"node": label, "name": name, "value": getattr(params, name), "t": tick_time(k)}

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import contextlib
 import faulthandler
 import json
 import logging
@@ -34,20 +35,27 @@ import threading
 import time
 from typing import Any
 
+import zenoh
+
 from cekm_swarm.errors import CekmError
-from cekm_swarm.graph.check import node_class
 from cekm_swarm.graph.plan import NodePlan, RunPlan
 from cekm_swarm.graph.runspec import RunSpec
+from cekm_swarm.node.graph_check import node_class
 from cekm_swarm.protocol import DropCounter, KeyKind, Nothing, expect_of
 from cekm_swarm.protocol.stamps import ANY_STAMP, StampWindow
+from cekm_swarm.runtime.bridge import InlineSubscription, Publishers, declare_alive
+from cekm_swarm.runtime.config import LOCKSTEP_MODULE_RUNTIME, ONE_THREAD_RUNTIME, open_client, use_zenoh_runtime
+from cekm_swarm.runtime.gc_tuning import freeze_startup_heap
+from cekm_swarm.runtime.lifetime import die_with_parent
+from cekm_swarm.runtime.model_service import fetch_model_bytes
 from cekm_swarm.ticks import tick_of
 
 from .api import Context, NodeError, cannot_start, make_params, raised_at, start_node, traceback_text
 from .direct_gate import DirectGate
+from .gates import Gate, make_gate
 from .live_params import LiveParams
 from .runner import Runner
 from .timer_gate import Timer, TimerGate
-from .timing import LockstepGate, RealtimeGate
 from .wire import Decoder, Encoder
 
 EXIT_CANNOT_START = 78
@@ -80,7 +88,8 @@ def build_node(spec: RunSpec, plan: RunPlan, robot: str, name: str, backend: str
         node_plan = plan.node(robot, name)
     except KeyError:
         names = ", ".join(n.name for n in plan.nodes.get(robot, [])) or "none"
-        raise CekmError(f"graph {spec.graph.name!r} has no node {name!r} for robot {robot!r} (nodes: {names})") from None
+        raise CekmError(f"graph {spec.graph.name!r} has no node {name!r} for robot {robot!r} "
+                        f"(nodes: {names})") from None
     decl = node_plan.decl
     cls = node_class(decl.program, spec.graph.source, decl.where)
     params = make_params(cls, spec.params.get(decl.name, {}), f"{decl.where}.params")
@@ -121,10 +130,7 @@ class NodeShell:
         self.clock_key = node_plan.clock_key
         if TimerGate.fits(node_plan, spec.mode):  # its own timer; it learns each tick from the clock
             self.clock_key = self.keys.world_clock()
-            self.gate: Any = TimerGate(runner, drop=self.drops.drop, clock_key=self.clock_key)
-        else:
-            gate_cls = DirectGate if DirectGate.fits(node_plan) else LockstepGate if lockstep else RealtimeGate
-            self.gate = gate_cls(runner, drop=self.drops.drop)
+        self.gate: Gate = make_gate(runner, spec.mode, self.drops.drop, self.clock_key)
         self.kinds: dict[str, Any] = {s.key: expect_of(b.kind) for b in node_plan.bindings for s in b.sources}
         self.ports: dict[str, str] = {s.key: b.port for b in node_plan.bindings for s in b.sources}
         if self.clock_key is not None:
@@ -144,7 +150,7 @@ class NodeShell:
         # a delay or not): its token -> the keys it reads. A reader's (re)appearing token
         # asks for the recent outputs it missed while down (LockstepGate.resend)
         # real time: nothing sent again; a pure node of one key (DirectGate), only to readers with a delay
-        self.readers = outputs_readers(plan, node_plan, self.keys, delayed_only=type(self.gate) is DirectGate) \
+        self.readers = outputs_readers(plan, node_plan, self.keys, delayed_only=isinstance(self.gate, DirectGate)) \
             if lockstep else {}
         self.pubs: Any = None
         runner.live = LiveParams(runner)  # cekm param: parameters changed while it runs
@@ -192,7 +198,7 @@ class NodeShell:
         where = (type(cause).__name__, at or what)  # grouped by where it was raised, not by its text
         group = self._failure_groups.get(where)
         first = group is None
-        if first:  # named by its first failure's text and its line
+        if group is None:  # named by its first failure's text and its line
             group = "other failures" if len(self.step_failures) >= 64 else what + (f" ({at})" if at else "")
             self._failure_groups[where] = group
         self.step_failures[group] = self.step_failures.get(group, 0) + 1
@@ -215,7 +221,8 @@ class NodeShell:
         held = self.holds_rel[key]
         k = tick_of(msg.stamp)
         try:
-            return self.gate.hold_all([(source, k, tick_of(since)) for rel, since in zip(msg.keys, msg.since)
+            return self.gate.hold_all([(source, k, tick_of(since))
+                                       for rel, since in zip(msg.keys, msg.since, strict=True)  # checked equal
                                        for source in held.get(rel, ())])
         except Exception as exc:  # noqa: BLE001 - a run it completes may fail like any other
             return self.step_failed(exc)
@@ -270,17 +277,11 @@ class NodeShell:
     # ------------------------------------------------------------------ serving
 
     async def serve(self, session: Any, ready: Any = None) -> int:
-        import zenoh
-
-        from cekm_swarm.runtime.bridge import InlineSubscription, Publishers, declare_alive
-
         loop = asyncio.get_running_loop()
         stop = asyncio.Event()
         for sig in (signal.SIGTERM, signal.SIGINT):
-            try:
+            with contextlib.suppress(NotImplementedError, RuntimeError):  # not the main thread
                 loop.add_signal_handler(sig, stop.set)
-            except (NotImplementedError, RuntimeError):  # pragma: no cover - non-main thread
-                pass
         loop.add_signal_handler(STALL_SIGNAL, self.say_where)
         put = zenoh.SampleKind.PUT
         self.on_failure = lambda: loop.call_soon_threadsafe(stop.set)
@@ -316,7 +317,7 @@ class NodeShell:
         token = declare_alive(session, self.keys.alive(self.node_plan.robot, self.node_plan.name))
         log.info("%s: up (%s), listening on %s", self.node_plan.label, self.spec.mode, ", ".join(self.listen_exprs()))
         if isinstance(self.gate, TimerGate):
-            threading.Thread(target=self.run_timer, name="timer", daemon=True).start()
+            threading.Thread(target=self.run_timer, args=(self.gate,), name="timer", daemon=True).start()
         if ready is not None:
             ready()
         try:
@@ -327,18 +328,21 @@ class NodeShell:
                 s.close()
             if tokens is not None:
                 tokens.undeclare()
-            token.undeclare()
+            token.undeclare()  # type: ignore[no-untyped-call]  # zenoh's stub leaves LivelinessToken.undeclare untyped
             params.undeclare()
             self.pubs.close()
         return self.handled
 
-    def run_timer(self) -> None:
+    def run_timer(self, gate: TimerGate) -> None:
         """A node on a timer of its own (:mod:`.timer_gate`): a run every ``timer`` s until it stops."""
-        timer = Timer(float(self.node_plan.decl.timer))
+        period = self.node_plan.decl.timer
+        if period is None:  # only a node that declares a timer takes a TimerGate
+            return
+        timer = Timer(float(period))
         while not self.closed.wait(timer.wait()):
             with self.lock:
                 try:
-                    self.publish(self.gate.fire())
+                    self.publish(gate.fire())
                 except Exception as exc:  # noqa: BLE001 - as for a run a message completes
                     self.step_failed(exc)
 
@@ -365,18 +369,18 @@ class NodeShell:
             sys.stderr.write(f"{STALLED} {label}: no step running ({self.runner.runs} runs so far)\n")
         else:
             t, began = stepping
-            sys.stderr.write(f"{STALLED} {label}: its step at t={t:.3f} s has run for {time.monotonic() - began:.1f} s; "
-                             f"its threads' stacks follow\n")
+            sys.stderr.write(f"{STALLED} {label}: its step at t={t:.3f} s has run for "
+                             f"{time.monotonic() - began:.1f} s; its threads' stacks follow\n")
             sys.stderr.flush()
             faulthandler.dump_traceback(file=sys.stderr, all_threads=True)
         sys.stderr.flush()
 
     def report(self) -> dict[str, Any]:
-        g = self.gate
+        c = self.gate.counts()
         return {"handled": self.handled, "runs": self.runner.runs, "dropped": self.drops.by_source(),
-                "repeats": getattr(g, "repeats", 0), "stale": getattr(g, "stale_drops", {}),
-                "step_failures": dict(self.step_failures), "not_ready": getattr(g, "not_ready", 0),
-                "ran_without": list(getattr(g, "ran_without", ())), "param_changes": list(self.runner.live.changes)}
+                "repeats": c.repeats, "stale": c.stale, "step_failures": dict(self.step_failures),
+                "not_ready": c.not_ready, "ran_without": list(c.ran_without),
+                "param_changes": list(self.runner.live.changes)}
 
 
 def outputs_readers(plan: RunPlan, node_plan: NodePlan, keys: Any,
@@ -416,10 +420,6 @@ def node_argv(spec_path: str, robot: str, name: str, run_id: str | None = None) 
 
 
 def main(argv: list[str] | None = None) -> int:
-    from cekm_swarm.runtime.config import LOCKSTEP_MODULE_RUNTIME, ONE_THREAD_RUNTIME, open_client, use_zenoh_runtime
-    from cekm_swarm.runtime.gc_tuning import freeze_startup_heap
-    from cekm_swarm.runtime.lifetime import die_with_parent
-
     die_with_parent()  # started by a launcher: stop when it dies, whatever kills it
     signal.signal(STALL_SIGNAL, signal.SIG_IGN)  # asked before it serves: nothing to say yet
     args = parser().parse_args(argv)
@@ -438,7 +438,7 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
     try:
         plan = spec.plan()
-        source = spec.model
+        source: str | tuple[str, bytes] | None = spec.model
         if source == "zenoh":
             source = _fetch_model(spec)
         node_plan, runner = build_node(spec, plan, args.robot, args.node, "numpy", source)
@@ -456,7 +456,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         asyncio.run(shell.serve(session))
     finally:
-        session.close()
+        session.close()  # type: ignore[no-untyped-call]  # zenoh's stub leaves Session.close untyped
         runner.node.close()
     report = shell.report()
     if shell.drops.total:
@@ -486,12 +486,9 @@ def _cannot_start(label: str, why: str) -> int:
 
 def _fetch_model(spec: RunSpec) -> tuple[str, bytes]:
     """``(where, bytes)`` of the model the world host's launcher serves (``--model-from-zenoh``)."""
-    from cekm_swarm.runtime.config import open_client
-    from cekm_swarm.runtime.model_service import fetch_model_bytes
-
     key = spec.keys.world_model()
     session = open_client(spec.connect, config_file=spec.zenoh_config)
     try:
         return f"zenoh:{key}", fetch_model_bytes(session, key, spec.model_timeout)
     finally:
-        session.close()
+        session.close()  # type: ignore[no-untyped-call]  # zenoh's stub leaves Session.close untyped

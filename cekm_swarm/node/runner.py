@@ -29,7 +29,9 @@ class Runner:
         self.live: Any = None  # parameters changed while it runs (.live_params.LiveParams), in a node's process
         self.stepping: tuple[float, float] | None = None  # (t, time.monotonic() it began) while a step runs
         self.skip_not_ready = False  # set by the real-time gate, which takes NotReady
-        self._outs = [(port, key, node.outputs[port].type) for port, key in plan.outputs.items()]
+        # (port, key, message type): a type of the protocol's or a user's, read as Any
+        self._outs: list[tuple[str, str, Any]] = [(port, key, node.outputs[port].type)
+                                                  for port, key in plan.outputs.items()]
         self._check = output_check(plan, node)  # what its readers check of what it sends (None: nothing)
 
     def run(self, k: int, inputs: Inputs) -> list[tuple[str, Any]]:
@@ -39,6 +41,8 @@ class Runner:
         t = tick_time(k)
         if self.live is not None and self.live.pending:
             self.live.apply_due(k)
+        # the node's step is called here, in run: the step watchdog and the launcher's
+        # reading of a stalled node's stack name the frame run calls (the node's own line)
         self.stepping = (t, time.monotonic())
         try:
             out = self.node.step(t, inputs)
@@ -46,7 +50,7 @@ class Runner:
             if self.skip_not_ready:
                 raise
             raise StepFailed(f"{self.plan.label}: its step at t={t:.3f} s raised NotReady, but in lockstep and "
-                            f"in one process every input of a run is there (NotReady is for real time)") from None
+                             f"in one process every input of a run is there (NotReady is for real time)") from None
         except NodeError as exc:
             if str(exc).startswith(self.plan.label):
                 raise StepFailed(str(exc)) from exc
@@ -55,9 +59,24 @@ class Runner:
             raise StepFailed(step_failure(self.plan.label, t, exc)) from exc
         finally:
             self.stepping = None
+        sent = self._messages(out, k, t)
+        if self._check is not None:
+            try:
+                self._check(t, sent)
+            except StepFailed:
+                raise
+            except NodeError as exc:  # what its readers check of what it sends: its step failed
+                raise StepFailed(str(exc)) from exc
+        self.runs += 1
+        self.done = max(self.done, k)
+        return sent
+
+    def _messages(self, out: Any, k: int, t: float) -> list[tuple[str, Any]]:
+        """What a step returned as (key, message) pairs to send: its own fields filled in,
+        a None as a Nothing (not on the run's answer); anything else wrong is refused."""
         if type(out) is not dict or len(out) != len(self._outs):
             self._refuse(out, t)
-        sent = []
+        sent: list[tuple[str, Any]] = []
         for port, key, want in self._outs:
             msg = out.get(port)
             if type(msg) is dict:  # its own fields: the runner adds what it knows
@@ -71,18 +90,9 @@ class Runner:
             if type(msg) is not want or msg.stamp != t:
                 self._refuse(out, t)
             sent.append((key, msg))
-        if self._check is not None:
-            try:
-                self._check(t, sent)
-            except StepFailed:
-                raise
-            except NodeError as exc:  # what its readers check of what it sends: its step failed
-                raise StepFailed(str(exc)) from exc
-        self.runs += 1
-        self.done = max(self.done, k)
         return sent
 
-    def _fill(self, want: type, fields: dict[str, Any], k: int, t: float, port: str) -> Any:
+    def _fill(self, want: Any, fields: dict[str, Any], k: int, t: float, port: str) -> Any:
         """The message of type ``want`` a step gave as a dict of its own fields: stamped
         ``t``, signed with the node's sender, and a ``seq`` it left out set to the tick ``k``
         (what the shipped motors send: the same in every mode, across restarts)."""

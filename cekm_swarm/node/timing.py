@@ -12,9 +12,15 @@ node in its own process (lockstep and real time) and for a whole graph in one pr
   ``resend(keys)`` gives its recent runs' outputs again, for a reader of them that
   (re)appeared. A delayed value nobody can send again (:func:`lost_on_restart`: its own
   previous output, a world reading of a tick before) is left out of its first run, as
-  before tick 0. A restarted process (first run after tick 0) gives up any delayed value
-  still missing when its tick's trigger comes again (re-published: the producer restarted
-  too, and its previous life sent it), naming it (``ran_without``).
+  before tick 0 (:class:`~.restart.FirstRun`). A restarted process (one whose first run was after
+  tick 0, or that has not run yet) gives up any other delayed value still missing once a
+  trigger's value of the tick it waits at comes again (:class:`~.restart.GiveUp`): the world
+  re-publishing a stalled tick, a second or more later, means that value's producer
+  restarted too and has nothing of that tick to send again (two teammates' tracking
+  modules killed together waited for each other's share for good; in waves, a later run
+  waited for one only the producer's previous life had). The gate names those keys
+  (``ran_without``), and the run may no longer equal ``cekm run``; a process that has run
+  since tick 0 never gives up.
 * :class:`RealtimeGate`: a node runs at its newest due tick as soon as every live
   same-tick producer has delivered (or at once, with what came, when a later tick
   begins), with the latest value of each source; a value older than its staleness limit
@@ -40,11 +46,12 @@ from typing import Any
 
 from msgspec import Struct
 
-from cekm_swarm.graph.plan import WORLD_OWNER, Binding, NodePlan, needed_tick
+from cekm_swarm.graph.plan import Binding, NodePlan, needed_tick
 from cekm_swarm.protocol import Nothing
 from cekm_swarm.ticks import TICK_S, tick_of, tick_time
 
 from .api import Inputs, NotReady
+from .restart import FirstRun, GiveUp, lost_on_restart
 from .runner import Runner
 
 log = logging.getLogger("cekm_swarm.node")
@@ -62,7 +69,7 @@ Drop = Callable[[str, str], None]
 def restamp(msg: Any, t: float) -> Any:
     """``msg`` as its pure producer would have sent it at tick time ``t``: a shallow copy,
     not checked again (``msg`` was checked when received; ``t`` is a tick's time)."""
-    out = msg.__copy__() if isinstance(msg, Struct) else copy.copy(msg)
+    out = msg.__copy__() if isinstance(msg, Struct) else copy.copy(msg)  # type: ignore[attr-defined]  # msgspec's stub omits Struct.__copy__
     out.stamp = t
     return out
 
@@ -107,17 +114,16 @@ def gather(node: NodePlan, k: int, lookup: Callable[[str, int], Any], skip: Call
     return Inputs(values), missing
 
 
-def lost_on_restart(node: NodePlan) -> frozenset[str]:
-    """The delayed sources of ``node`` whose values of the ticks before a (re)started
-    process's first run nobody sends again: its own outputs read back with ``delay = 1``
-    (it sent them itself, in its life before) and the world's readings read with
-    ``delay = 1`` (the world sends a stalled tick again, not the one before it). Every
-    other producer is a node that sends its recent outputs again when a reader of them
-    (re)appears (:meth:`LockstepGate.resend`). A restarted node with such a source starts
-    without those values, as at tick 0, so the run may no longer equal ``cekm run``."""
-    own = set(node.outputs.values())
-    return frozenset(s.key for b in node.bindings if b.delay == 1 for s in b.sources
-                     if s.key in own or s.owner == WORLD_OWNER)
+@dataclass(frozen=True)
+class GateCounts:
+    """What a gate counted, for the node's report: values that came again for the last
+    run (lockstep), stale values left out and due ticks given up (real time), and the
+    delayed keys a restarted process ran without (lockstep, :class:`~.restart.GiveUp`)."""
+
+    repeats: int = 0
+    stale: dict[str, int] = field(default_factory=dict)
+    not_ready: int = 0
+    ran_without: tuple[str, ...] = ()
 
 
 def _triggers(node: NodePlan) -> frozenset[str]:
@@ -135,7 +141,7 @@ class LockstepGate:
     drop: Drop = lambda key, why: None
     done: int = -1
     last_out: list[tuple[str, Any]] = field(default_factory=list)
-    recent_out: deque = field(default_factory=lambda: deque(maxlen=RESEND_RUNS))
+    recent_out: deque[list[tuple[str, Any]]] = field(default_factory=lambda: deque(maxlen=RESEND_RUNS))
     used: dict[str, int] = field(default_factory=dict)
     gone: set[str] = field(default_factory=set)
     store: dict[str, dict[int, Any]] = field(default_factory=dict)
@@ -151,20 +157,33 @@ class LockstepGate:
         self.sources = {s.key: (s, b.delay) for b in self.node.bindings for s in b.sources}
         self._needs = [(s.key, s.period, b.delay, s.owner) for b in self.node.bindings for s in b.sources]
         self._waiting: dict[int, tuple[str, int, str]] = {}  # candidate tick -> a value it still lacks
-        self.lost_keys = lost_on_restart(self.node)
-        self.born: int | None = None  # the tick of this process's first run
-        self._first_seen: dict[str, set[int]] = {}  # a restarted process: trigger key -> ticks whose value came
-        self.gave_up_at: int | None = None  # the latest tick whose trigger's value came again while it waited
-        self._without: set[str] = set()  # delayed keys a run went without, having given up
+        self.first_run = FirstRun(lost_on_restart(self.node))
+        self._lost_keys = self.first_run.lost_keys
+        self.give_up = GiveUp({key: s for key, (s, delay) in self.sources.items() if delay == 1})
 
-    ran_without = property(lambda self: tuple(sorted(self._without)), doc="delayed keys given up (module docstring)")
+    @property
+    def born(self) -> int | None:
+        """The tick of this process's first run (None before it)."""
+        return self.first_run.born
+
+    @property
+    def ran_without(self) -> tuple[str, ...]:
+        """The delayed keys a run of this (restarted) process went without (module docstring)."""
+        return self.give_up.ran_without
+
+    def counts(self) -> GateCounts:
+        return GateCounts(repeats=self.repeats, ran_without=self.ran_without)
 
     def _lost(self, key: str, n: int) -> bool:
         """Whether ``key``'s value of tick ``n`` predates this process's first run and nobody
-        sends it again, or is a delayed value given up for (module docstring)."""
-        if key in self.lost_keys and (self.born is None or n < self.born):
-            return True
-        return self.gave_up_at is not None and n < self.gave_up_at and self.sources[key][1] == 1
+        sends it again, or is a delayed value given up for (module docstring). Asked for
+        most values a run waits for: the rules are asked only when they can apply (a key
+        they may lose; a process that has given up)."""
+        return ((key in self._lost_keys and self.first_run.lost(key, n))
+                or (self.give_up.gave_up_at is not None and self.give_up.lost(key, n)))
+
+    def _has(self, key: str, n: int) -> bool:
+        return n in self.store.get(key, ())
 
     def _lacks(self, c: int) -> bool:
         """Whether the run at tick ``c`` still lacks a value, the one it lacked last time
@@ -234,11 +253,8 @@ class LockstepGate:
         if k <= self.done and key in self.used and self.used[key] == k:
             self.repeats += 1
             return list(self.last_out)  # a value again for what the last run used: send that run again
-        if key in self.trigger and k > self.done and (self.born is None or self.born > 0):
-            seen = self._first_seen.setdefault(key, set())
-            if k in seen and (self.gave_up_at is None or k > self.gave_up_at):
-                self.gave_up_at = k  # this tick again, re-published: what a restarted process lacks is not coming
-            seen.add(k)
+        if key in self.trigger and k > self.done and self.first_run.maybe_restarted:
+            self.give_up.trigger_came(key, k)
         if key in self.watched and self.done >= 0:
             source, delay = self.sources[key]
             first = needed_tick(self.done + 1, source.period, delay)
@@ -285,18 +301,15 @@ class LockstepGate:
             if ready is None:
                 return out
             c, inputs = ready
-            if self.gave_up_at is not None:
-                self._without.update(
-                    key for key, (s, d) in self.sources.items()
-                    if d == 1 and key not in self.lost_keys and s.owner not in self.gone
-                    and (n := needed_tick(c, s.period, 1)) is not None and n < self.gave_up_at
-                    and n not in self.store.get(key, ()))
+            give_up = self.give_up
+            if give_up.gave_up_at is not None:  # (the restart rules asked only when they apply)
+                give_up.before_run(c, self._has, self.first_run, self.gone)
             sent = self.runner.run(c, inputs)
             self.done = c
-            if self.born is None:
-                self.born = c
-            if self._first_seen:
-                self._first_seen = {key: {x for x in seen if x > c} for key, seen in self._first_seen.items()}
+            if self.first_run.born is None:
+                self.first_run.ran(c)
+            if give_up.seen:
+                give_up.ran(c)
             self.last_out = sent
             self.recent_out.append(sent)
             self.used = {key: n for key, (src, delay) in self.sources.items()
@@ -424,7 +437,7 @@ class RealtimeGate:
             self.gone.discard(robot)
         else:
             self.gone.add(robot)
-            for key, (b, s) in self.binding_of.items():
+            for key, (_, s) in self.binding_of.items():
                 if s.owner == robot:
                     self.latest.pop(key, None)
         return []
@@ -482,6 +495,9 @@ class RealtimeGate:
     def resend(self, keys: Collection[str] | None = None) -> list[tuple[str, Any]]:
         return []  # real time waits for nothing: a restarted reader takes the next values
 
+    def counts(self) -> GateCounts:
+        return GateCounts(stale=dict(self.stale_drops), not_ready=self.not_ready)
+
 
 def _max_age(stale_s: float) -> int | float:
     """The most ticks a value may lag the tick that reads it and still count: the largest
@@ -494,4 +510,4 @@ def _max_age(stale_s: float) -> int | float:
     return n
 
 
-__all__ = ["gather", "lost_on_restart", "LockstepGate", "RealtimeGate", "KEEP_TICKS", "RESEND_RUNS"]
+__all__ = ["gather", "lost_on_restart", "GateCounts", "LockstepGate", "RealtimeGate", "KEEP_TICKS", "RESEND_RUNS"]

@@ -31,7 +31,7 @@ class Watchdog:
     def __init__(self, timeout: float) -> None:
         self.timeout = timeout
         self.line: str | None = None
-        self.runner = None  # the Runner whose step runs now
+        self.runner: runner.Runner | None = None  # the Runner whose step runs now
         self.closed = False
         self._main = threading.get_ident()
         if threading.current_thread() is threading.main_thread():  # only the main thread can be interrupted
@@ -42,7 +42,7 @@ class Watchdog:
         """True (and the interrupt raised) when the step running now has run too long."""
         runner = self.runner
         stepping = None if runner is None else runner.stepping
-        if stepping is None or time.monotonic() - stepping[1] < self.timeout:
+        if runner is None or stepping is None or time.monotonic() - stepping[1] < self.timeout:
             return False
         t, began = stepping
         self.line = (f"{runner.plan.label}: its step at t={t:.3f} s has run for {time.monotonic() - began:.1f} s"
@@ -62,7 +62,7 @@ class Watchdog:
         f = stack[at[-1] + 1]
         return f', at File "{f.filename}", line {f.lineno} in {f.name}'
 
-    def timed_out(self) -> "StepTimeout | None":
+    def timed_out(self) -> StepTimeout | None:
         """The failure to raise in place of the KeyboardInterrupt the watchdog caused (None:
         the user's Ctrl-C)."""
         return None if self.line is None else StepTimeout(self.line)
@@ -71,7 +71,7 @@ class Watchdog:
         self.closed = True
 
 
-def _watch(ref: "weakref.ref[Watchdog]", every: float) -> None:
+def _watch(ref: weakref.ref[Watchdog], every: float) -> None:
     """The watchdog's thread: it ends once its executor is closed or gone."""
     while True:
         time.sleep(every)

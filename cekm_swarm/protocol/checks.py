@@ -1,11 +1,14 @@
-"""The construction check of a declared record (:mod:`.schema`), compiled from its
-declared field types: one function per class that tests each field's well-formed case
-inline (an exact type and its range, a few comparisons) and otherwise calls the field
-type's check, which normalizes the value (numpy scalars to Python numbers, sequences to
-the declared tuples, arrays to read-only float64 vectors) or raises a
+"""A declared record (:class:`Record`, the base of every message and world-state entry of
+:mod:`.schema`) and its construction check, compiled from its declared field types: one
+function per class that tests each field's well-formed case inline (an exact type and
+its range, a few comparisons) and otherwise calls the field type's check, which
+normalizes the value (numpy scalars to Python numbers, sequences to the declared tuples,
+arrays to read-only float64 vectors) or raises a
 :class:`~.errors.MessageFieldError` naming the field (``targets.t1[1]``) and the problem.
 The field types are read from msgspec's own view of the declaration
-(:func:`msgspec.inspect.type_info`), the same the wire decoder is built from.
+(:func:`msgspec.inspect.type_info`), the same the wire decoder is built from. The wire
+form of a vector (:class:`WireVector`) and the limits these checks hold values to live here
+too, below :mod:`.schema`, which builds its field types from them.
 """
 
 from __future__ import annotations
@@ -16,16 +19,55 @@ import re
 import sys
 import warnings
 from collections.abc import Callable
-from typing import Any
+from typing import Annotated, Any, Literal
 
 import msgspec
 import msgspec.inspect as mi
 import numpy as np
+from msgspec import Meta
 
 from .errors import MessageArrayError, MessageFieldError
-from .schema import MAX_ARRAY_LEN, MAX_DEPTH, Record, WireVector
 
 _F8 = np.dtype("<f8")
+
+MAX_ARRAY_LEN = 1 << 20
+"""The longest vector a message may hold."""
+MAX_DEPTH = 16
+"""How deeply plain data (:data:`~.schema.Plain`) may nest."""
+
+
+class WireVector(msgspec.Struct, forbid_unknown_fields=True, gc=False):
+    """A :data:`Vector` as it travels: float64, one dimension, the raw little-endian bytes."""
+
+    dtype: Literal["<f8"]
+    shape: tuple[Annotated[int, Meta(ge=1, le=MAX_ARRAY_LEN)]]
+    data: bytes
+
+
+class Record(msgspec.Struct, forbid_unknown_fields=True, gc=False):
+    """A declared record (a message, or an entry of the world state): checked and
+    normalized when built, by its declared field types and then its own :meth:`check`.
+
+    Records are mutable for speed; treat them as immutable once built."""
+
+    def __post_init__(self) -> None:
+        _CHECKS[type(self)](self)
+
+    def check(self) -> None:
+        """The record's own rules between fields (after every field passed its type)."""
+
+
+class _Checks(dict[type[Record], Callable[[Record], None]]):
+    """Each record class's compiled check, compiled when the class's first record is built."""
+
+    def __missing__(self, cls: type[Record]) -> Callable[[Record], None]:
+        check = self[cls] = compile_check(cls)
+        return check
+
+
+_CHECKS = _Checks()
+
+
 
 
 def _fail(where: str, problem: str) -> MessageFieldError:
@@ -51,12 +93,13 @@ def _float_check(t: mi.FloatType, what: str | None) -> Check:
             if type(x) is bool or not isinstance(x, (int, float, np.floating, np.integer)):
                 raise _fail(where, f"expected a number, got {type(x).__name__}")
             x = float(x)
-        if not math.isfinite(x):
+        v: float = x
+        if not math.isfinite(v):
             raise _fail(where, f"not finite ({x})")
         if not lo <= x <= hi:
             raise _fail(where, f"{x} is not {what}" if what else f"{x} is below {lo:g}" if x < lo
                         else f"{x} is above {hi:g}")
-        return x
+        return v
 
     return check
 
@@ -79,9 +122,10 @@ def _int_check(t: mi.IntType) -> Check:
                 x = operator.index(x)
             except TypeError:
                 raise _fail(where, f"expected an integer, got {type(x).__name__}") from None
-        if not lo <= x < hi:
-            raise _fail(where, f"{x} out of range {lo}..{hi - 1}")
-        return x
+        v: int = x
+        if not lo <= v < hi:
+            raise _fail(where, f"{v} out of range {lo}..{hi - 1}")
+        return v
 
     return check
 
@@ -131,14 +175,14 @@ def _bool_check(x: Any, where: str) -> bool:
 def _tuple_check(items: tuple[Check, ...]) -> Check:
     n = len(items)
 
-    def check(x: Any, where: str) -> tuple:
+    def check(x: Any, where: str) -> tuple[Any, ...]:
         if not isinstance(x, (list, tuple, np.ndarray)) or len(x) != n:
             raise _fail(where, f"expected {n} values, got {x!r}"[:200])
         try:
-            return tuple([c(v, where) for c, v in zip(items, x)])
+            return tuple([c(v, where) for c, v in zip(items, x, strict=True)])
         except MessageFieldError:
             pass  # said again below, naming the entry
-        return tuple(c(v, f"{where}[{i}]") for i, (c, v) in enumerate(zip(items, x)))
+        return tuple(c(v, f"{where}[{i}]") for i, (c, v) in enumerate(zip(items, x, strict=True)))
 
     return check
 
@@ -147,7 +191,7 @@ def _var_tuple_check(item: Check, max_length: int | None, well_formed: Callable[
                      ) -> Check:
     """``well_formed``: the item type's inline guard (:func:`_guard`) as a function, for a
     scalar item type: entries that all pass it are taken as they are."""
-    def check(x: Any, where: str) -> tuple:
+    def check(x: Any, where: str) -> tuple[Any, ...]:
         if not isinstance(x, (list, tuple)):
             raise _fail(where, f"expected a list, got {type(x).__name__}")
         if max_length is not None and len(x) > max_length:
@@ -172,7 +216,7 @@ def _at(where: str, key: str) -> str:
 
 
 def _dict_check(key: Check, value: Check, max_length: int | None) -> Check:
-    def check(x: Any, where: str) -> dict:
+    def check(x: Any, where: str) -> dict[Any, Any]:
         if not isinstance(x, dict):
             raise _fail(where, f"expected a map, got {type(x).__name__}")
         if max_length is not None and len(x) > max_length:
@@ -306,9 +350,9 @@ def vector(x: Any, where: str) -> np.ndarray:
     """A :data:`Vector`: finite float64, one dimension, 1..2^20 values, read-only (a
     writeable array is held through a read-only view; its owner may still change it)."""
     if type(x) is WireVector:  # as decoded: read-only, one dimension, its length checked
-        x = wire_vector(x, where)
-        _finite(x, where)
-        return x
+        decoded = wire_vector(x, where)
+        _finite(decoded, where)
+        return decoded
     if type(x) is not np.ndarray or x.dtype is not _F8:
         if isinstance(x, dict):
             x = wire_vector(x, where)
@@ -326,7 +370,8 @@ def vector(x: Any, where: str) -> np.ndarray:
     if x.flags.writeable:
         x = x.view()
         x.flags.writeable = False
-    return x
+    held: np.ndarray = x
+    return held
 
 
 def checker(t: mi.Type) -> Check:
@@ -391,7 +436,8 @@ def _well_formed(t: mi.Type) -> Callable[[Any], bool] | None:
     if guard is None:
         return None
     exec(f"def well_formed(x):\n    return {guard}", ns)  # noqa: S102 - from the declared type, as below
-    return ns["well_formed"]
+    well_formed: Callable[[Any], bool] = ns["well_formed"]
+    return well_formed
 
 
 def compile_check(cls: type[Record]) -> Callable[[Record], None]:
@@ -399,6 +445,8 @@ def compile_check(cls: type[Record]) -> Callable[[Record], None]:
     case, else the field type's check (which normalizes the value or raises); then the
     class's own :meth:`~Record.check`."""
     info = mi.type_info(cls)
+    if not isinstance(info, mi.StructType):
+        raise TypeError(f"{cls.__name__} is not a record declaration")
     ns: dict[str, Any] = {}
     lines = ["def check(self):"]
     for i, f in enumerate(info.fields):
@@ -417,7 +465,8 @@ def compile_check(cls: type[Record]) -> Callable[[Record], None]:
     if len(lines) == 1:
         lines.append("    pass")
     exec("\n".join(lines), ns)  # noqa: S102 - source built above from the declared field types
-    return ns["check"]
+    check: Callable[[Record], None] = ns["check"]
+    return check
 
 
 # ------------------------------------------------------------------- the model's lattice

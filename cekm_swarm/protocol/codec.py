@@ -7,7 +7,7 @@ declaration of each message.
 * :func:`decode`: msgspec decodes the bytes against a wire type generated from the
   message's declaration (the envelope's ``v`` and ``kind`` as literals, then every field
   with its declared type and constraints, all required, nothing else allowed; vectors as
-  :class:`~.schema.WireVector`), and the message is built from it (its construction
+  :class:`~.checks.WireVector`), and the message is built from it (its construction
   check: vectors to read-only float64 arrays, the message's rules). Bytes it refuses are
   read again with msgpack to say precisely why (:func:`_explain`): the key, the field and
   the problem. Only refusals pay for that.
@@ -23,7 +23,7 @@ import msgpack
 import msgspec
 import numpy as np
 
-from .checks import wire_vector
+from .checks import _CHECKS, Record, WireVector, wire_vector
 from .errors import (
     KeySpaceError,
     MessageError,
@@ -33,7 +33,7 @@ from .errors import (
     MessageVersionError,
 )
 from .keys import DEFAULT_KEYS, KeyKind, KeySpace
-from .schema import MESSAGE_TYPES, SCHEMA_VERSION, Message, WireVector
+from .schema import MESSAGE_TYPES, SCHEMA_VERSION, Message
 from .user import NOTHING_HEAD, USER_TYPES, Nothing, UntypedData, UserMessage, is_message_type
 
 _F8 = np.dtype("<f8")
@@ -54,7 +54,7 @@ _encoder = msgspec.msgpack.Encoder(enc_hook=_enc_hook)
 _HEADS: dict[type, bytes] = {}
 
 
-def _head(cls: type) -> bytes:
+def _head(cls: type[Message]) -> bytes:
     """The wire map's header and its envelope entries ``v`` and ``kind`` (and a user type's
     ``type``): what comes before the message's own fields (msgspec packs those as a map of
     their own, whose one-byte header this replaces)."""
@@ -62,9 +62,9 @@ def _head(cls: type) -> bytes:
     n = len(cls.__struct_fields__) + 2 + user
     if n > 15:  # a declaration past 12 (a user's: 11) fields of its own
         raise TypeError(f"{cls.__name__}: more fields than one msgpack fixmap holds (at most {15 - 2 - user})")
-    head = bytes([0x80 | n]) + msgpack.packb("v") + msgpack.packb(SCHEMA_VERSION) + \
+    head: bytes = bytes([0x80 | n]) + msgpack.packb("v") + msgpack.packb(SCHEMA_VERSION) + \
         msgpack.packb("kind") + msgpack.packb(cls.KIND.value)
-    if user:
+    if issubclass(cls, UserMessage):
         head += msgpack.packb("type") + msgpack.packb(cls.TYPE)
     _HEADS[cls] = head
     return head
@@ -87,7 +87,8 @@ def encode(msg: Message) -> bytes:
 
 def to_wire(msg: Message) -> dict[str, Any]:
     """The map that :func:`encode` packs: the envelope, then the kind's fields in order."""
-    return msgpack.unpackb(encode(msg), raw=False)
+    doc: dict[str, Any] = msgpack.unpackb(encode(msg), raw=False)
+    return doc
 
 
 # --------------------------------------------------------------------------- decode
@@ -98,7 +99,7 @@ def _wire_type(t: Any) -> Any:
     if t is np.ndarray:
         return WireVector
     if get_origin(t) in (Union, type(int | None)) and np.ndarray in get_args(t):
-        return Union[tuple(_wire_type(a) for a in get_args(t))]  # type: ignore[return-value]
+        return Union[tuple(_wire_type(a) for a in get_args(t))]  # noqa: UP007 -- built at run time
     return t
 
 
@@ -144,17 +145,15 @@ def warm() -> int:
     the node processes it forks share them instead of each paying 2-6 ms on its first
     messages (in a 30 s lockstep ``tracking-crowd`` run, 84 nodes made them 84 times).
     Returns how many record classes were made ready."""
-    from .schema import _CHECKS, Record
-
     for kind, cls in MESSAGE_TYPES.items():
         _codec(kind)
         if cls not in _HEADS:
             _head(cls)
     n, stack = 0, list(Record.__subclasses__())
     while stack:
-        cls = stack.pop()
-        stack += cls.__subclasses__()
-        _CHECKS[cls]  # noqa: B018 - compiled on its first lookup (_Checks.__missing__)
+        sub = stack.pop()
+        stack += sub.__subclasses__()
+        _CHECKS[sub]  # noqa: B018 - compiled on its first lookup (_Checks.__missing__)
         n += 1
     return n
 
@@ -207,12 +206,13 @@ def decode(key: str | KeyKind, data: bytes | bytearray | memoryview, *, keys: Ke
         return _nothing(where, data)
     if kind is KeyKind.NODE:
         kind = expect if expect is not None else _payload_kind(data, where)
-    if type(kind) is str:  # a user's type by name: its class if declared here, else its envelope and fields
-        declared = USER_TYPES.get(kind)
+    what: Any = kind  # a KeyKind, or a user's type (its class, or its name)
+    if type(what) is str:  # a user's type by name: its class if declared here, else its envelope and fields
+        declared = USER_TYPES.get(what)
         if declared is None:
-            return _untyped(kind, where, data)
-        kind = declared
-    codec = _CODECS.get(kind) or _codec(kind)
+            return _untyped(what, where, data)
+        what = declared
+    codec = _CODECS.get(what) or _codec(what)
     if codec is None:
         raise MessageKindError(f"keys of kind '{kind.value}' carry no message", key=where)
     try:
@@ -237,6 +237,26 @@ def _explain(codec: _Codec, kind: KeyKind, where: str, data: Any, refusal: BaseE
     """Why the decoder refused ``data``: the bytes read again with msgpack, the envelope and
     the fields checked in turn (the message's construction check names the field and the
     problem); msgspec's own words when none of that finds it."""
+    m = _unpacked(data, where)
+    if not isinstance(m, dict):
+        return m
+    wrong = _envelope_problem(codec, m, where)
+    if wrong is not None:
+        return wrong
+    try:
+        for name in codec.vectors:
+            if m[name] is not None:
+                m[name] = wire_vector(m[name], name)  # a vector must come as its wire map
+        codec.cls(**m)
+    except MessageError as exc:
+        return exc.at_key(where)
+    except Exception as exc:  # noqa: BLE001 - whatever it is, the bytes are refused with msgspec's reason
+        refusal = exc
+    return _from_msgspec(refusal, where)
+
+
+def _unpacked(data: Any, where: str) -> dict[Any, Any] | MessageError:
+    """The refused bytes read again with msgpack: the map, or why they are not one."""
     try:
         m = msgpack.unpackb(data, raw=False, strict_map_key=True)
     except msgpack.ExtraData as exc:  # one msgpack object, then more bytes
@@ -250,6 +270,12 @@ def _explain(codec: _Codec, kind: KeyKind, where: str, data: Any, refusal: BaseE
         return MessageFormatError(f"not valid msgpack ({why})", key=where)
     if type(m) is not dict:
         return MessageFormatError(f"not a msgpack map: a msgpack {_msgpack_type(m)}", key=where)
+    return m
+
+
+def _envelope_problem(codec: _Codec, m: dict[Any, Any], where: str) -> MessageError | None:
+    """What is wrong with a refused map's envelope (version, kind, type) or its set of
+    fields; None when they are right. Takes the envelope's fields out of ``m``."""
     if "v" not in m:
         return MessageVersionError("missing schema version field 'v'", key=where, field="v")
     v = m.pop("v")
@@ -270,16 +296,7 @@ def _explain(codec: _Codec, kind: KeyKind, where: str, data: Any, refusal: BaseE
         if missing:
             return MessageFieldError("missing", key=where, field=missing[0])
         return MessageFieldError("unexpected field", key=where, field=sorted(map(str, m.keys() - codec.fields))[0])
-    try:
-        for name in codec.vectors:
-            if m[name] is not None:
-                m[name] = wire_vector(m[name], name)  # a vector must come as its wire map
-        codec.cls(**m)
-    except MessageError as exc:
-        return exc.at_key(where)
-    except Exception as exc:  # noqa: BLE001 - whatever it is, the bytes are refused with msgspec's reason
-        refusal = exc
-    return _from_msgspec(refusal, where)
+    return None
 
 
 _MSGPACK_TYPES = {bool: "boolean", int: "integer", float: "float", str: "string", bytes: "binary", list: "array",
@@ -348,14 +365,14 @@ _peek_type = msgspec.msgpack.Decoder(_PeekType)
 
 
 def _plain_vector(v: Any) -> Any:
-    """A wire vector (:class:`~.schema.WireVector`'s map) as its list of floats; anything else as it is."""
+    """A wire vector (:class:`~.checks.WireVector`'s map) as its list of floats; anything else as it is."""
     if type(v) is dict and v.get("dtype") == "<f8" and type(v.get("data")) is bytes:
         return np.frombuffer(v["data"], dtype=_F8).tolist()
     return v
 
 
 class _NothingWire(msgspec.Struct, forbid_unknown_fields=True, gc=False):
-    v: Literal[SCHEMA_VERSION]
+    v: Literal[SCHEMA_VERSION]  # type: ignore[valid-type]  # msgspec reads the constant's value at run time
     kind: Literal["none"]
     stamp: Any
     sender: Any
@@ -468,11 +485,12 @@ def summary(msg: Message, max_items: int = 6) -> str:
     for name, v in fields.items():
         if isinstance(v, np.ndarray):
             head = ", ".join(f"{x:.3g}" for x in v[:max_items])
-            more = f", ... ({v.shape[0]} values, max {v.max():.3g} at {int(v.argmax())})" if v.shape[0] > max_items else ""
+            more = (f", ... ({v.shape[0]} values, max {v.max():.3g} at {int(v.argmax())})"
+                    if v.shape[0] > max_items else "")
             v = f"[{head}{more}]"
         elif isinstance(v, float):
             v = f"{v:.4g}"
-        elif isinstance(v, dict) or isinstance(v, msgspec.Struct):
+        elif isinstance(v, dict | msgspec.Struct):
             v = msgspec.to_builtins(v, enc_hook=_plain_hook)
         parts.append(f"{name}={v}")
     return " ".join(parts)

@@ -61,7 +61,7 @@ class DropCounter:
             self._log.warning("%s: dropped a message from %s (further drops from it are only counted): %s",
                               self.name, source, text)
 
-    def decode(self, key: str, data: bytes, expect: "KeyKind | None" = None) -> Message | None:
+    def decode(self, key: str, data: bytes, expect: KeyKind | None = None) -> Message | None:
         """Decode ``data`` received on ``key`` (of kind ``expect`` on a graph's own key); on
         a MessageError drop it and return None."""
         try:

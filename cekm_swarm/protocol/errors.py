@@ -40,7 +40,7 @@ class MessageError(ProtocolError, ValueError):
             parts.append(f"field '{self.field}'")
         return ": ".join(parts + [self.problem])
 
-    def at_key(self, key: str) -> "MessageError":
+    def at_key(self, key: str) -> MessageError:
         """The same error located at ``key`` (for errors raised before the key was known)."""
         self.key = key
         self.args = (self._text(),)

@@ -53,7 +53,7 @@ _CHUNK_RE = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*\Z")
 _RUN_RE = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}\Z")
 
 
-class KeyKind(str, enum.Enum):
+class KeyKind(str, enum.Enum):  # noqa: UP042 -- StrEnum would change what str() and format() of a member print
     """What a key carries; the value is the key's suffix after the robot segment."""
 
     SENSE_TARGET = "sense/target"
@@ -136,8 +136,17 @@ def validate_root(root: object) -> str:
     for chunk in root.split("/"):
         if not _CHUNK_RE.match(chunk):
             raise KeySpaceError(f"key root {root!r}",
-                                f"chunk {chunk!r} must be letters, digits, '_', '.' or '-' (no wildcards, no empty chunks)")
+                                f"chunk {chunk!r} must be letters, digits, '_', '.' or '-' "
+                                f"(no wildcards, no empty chunks)")
     return root
+
+
+_TWO_PART = {k.value: k for k in (KeyKind.SENSE_TARGET, KeyKind.FIELD_TARGET, KeyKind.CMD_WHEELS,
+                                    KeyKind.SENSE_POSE, KeyKind.SENSE_TARGETS, KeyKind.SENSE_UNCHANGED,
+                                    KeyKind.FIELD_TRACKING, KeyKind.SENSE_ODOMETRY)}
+"""A robot's keys of two parts (``sense/target``): their kinds."""
+_INDEXED = {k.value: k for k in (KeyKind.SENSE_RANGE, KeyKind.FIELD_OBSTACLE)}
+"""A robot's keys of two parts and a sensor index (``sense/range/3``): their kinds."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -270,7 +279,7 @@ class KeySpace:
         shared with the world host was lost (so it does not wait for that router to return)."""
         return self.alive(WORLD, "ended")
 
-    def with_run(self, run: str | None) -> "KeySpace":
+    def with_run(self, run: str | None) -> KeySpace:
         """This key space for the run ``run``."""
         return KeySpace(self.root, self.range_sensors, run)
 
@@ -330,37 +339,41 @@ class KeySpace:
         parts = key[len(prefix):].split("/")
         owner, rest = parts[0], parts[1:]
         if owner == WORLD:
-            if rest == ["state"]:
-                return ParsedKey(KeyKind.WORLD_STATE)
-            if rest == ["clock"]:
-                return ParsedKey(KeyKind.WORLD_CLOCK)
-            if len(rest) in (2, 3) and rest[0] == "alive":
-                return ParsedKey(KeyKind.ALIVE, WORLD, None, self._module_in(key, rest[1]), self._run_in(key, rest[2:]))
-            raise KeySpaceError(f"key '{key}'", "unknown world key (expected world/state, world/clock or "
-                                                "world/alive/<module>[/<run>])")
+            return self._world_key(key, rest)
         try:
             validate_robot_id(owner)
         except KeySpaceError as exc:
             raise KeySpaceError(f"key '{key}'", f"bad robot id: {exc.problem}") from None
+        return self._robot_key(key, owner, rest)
+
+    def _world_key(self, key: str, rest: list[str]) -> ParsedKey:
+        """A key under ``<root>/world/``: its state, its clock, a token of one of its modules."""
+        if rest == ["state"]:
+            return ParsedKey(KeyKind.WORLD_STATE)
+        if rest == ["clock"]:
+            return ParsedKey(KeyKind.WORLD_CLOCK)
+        if len(rest) in (2, 3) and rest[0] == "alive":
+            return ParsedKey(KeyKind.ALIVE, WORLD, None, self._module_in(key, rest[1]), self._run_in(key, rest[2:]))
+        raise KeySpaceError(f"key '{key}'", "unknown world key (expected world/state, world/clock or "
+                                            "world/alive/<module>[/<run>])")
+
+    def _robot_key(self, key: str, owner: str, rest: list[str]) -> ParsedKey:
+        """A key under ``<root>/<robot>/``: a kind of its own, a token, or a graph node's key."""
         n = len(rest)
         if n == 1 and rest[0] == "share":
             return ParsedKey(KeyKind.SHARE, owner)
         if n == 2:
-            suffix = f"{rest[0]}/{rest[1]}"
-            for kind in (KeyKind.SENSE_TARGET, KeyKind.FIELD_TARGET, KeyKind.CMD_WHEELS, KeyKind.SENSE_POSE,
-                         KeyKind.SENSE_TARGETS, KeyKind.SENSE_UNCHANGED, KeyKind.FIELD_TRACKING,
-                         KeyKind.SENSE_ODOMETRY):
-                if suffix == kind.value:
-                    return ParsedKey(kind, owner)
+            kind = _TWO_PART.get(f"{rest[0]}/{rest[1]}")
+            if kind is not None:
+                return ParsedKey(kind, owner)
             if rest[0] == "alive":
                 return ParsedKey(KeyKind.ALIVE, owner, None, self._module_in(key, rest[1]))
         if n == 3 and rest[0] == "alive":
             return ParsedKey(KeyKind.ALIVE, owner, None, self._module_in(key, rest[1]), self._run_in(key, rest[2:]))
         if n == 3:
-            suffix = f"{rest[0]}/{rest[1]}"
-            for kind in (KeyKind.SENSE_RANGE, KeyKind.FIELD_OBSTACLE):
-                if suffix == kind.value:
-                    return ParsedKey(kind, owner, self._index_in(key, rest[2]))
+            kind = _INDEXED.get(f"{rest[0]}/{rest[1]}")
+            if kind is not None:
+                return ParsedKey(kind, owner, self._index_in(key, rest[2]))
         if 1 <= n <= 8 and rest[0] not in ("alive", "sense") and all(_CHUNK_RE.match(c) for c in rest):
             return ParsedKey(KeyKind.NODE, owner, path="/".join(rest))
         raise KeySpaceError(f"key '{key}'", "not a key of the cekm key space (docs/design.md section 6)")

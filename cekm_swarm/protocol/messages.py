@@ -23,12 +23,13 @@ from __future__ import annotations
 
 from typing import Annotated, ClassVar
 
+import msgspec
 from msgspec import Meta
 
+from .checks import MAX_ARRAY_LEN
 from .errors import MessageFieldError
 from .keys import KeyKind
 from .schema import (
-    MAX_ARRAY_LEN,
     MAX_INDEX,
     MAX_SENDER_LEN,
     MAX_TARGETS,
@@ -56,8 +57,9 @@ from .schema import (
 
 __all__ = ["MAX_ARRAY_LEN", "MAX_INDEX", "MAX_SENDER_LEN", "MAX_TARGETS", "MESSAGE_TYPES", "MSGPACK_ENCODING",
            "SCHEMA_VERSION", "Message", "SenseTarget", "SenseRange", "TargetField", "ObstacleField", "WheelCommand",
-           "Share", "SensePose", "SenseTargets", "Unchanged", "TrackingField", "RobotState", "TargetState", "ObstacleState",
-           "WorldState", "Clock", "Data", "SenseOdometry", "MapVersion", "with_stamp", "decode", "encode", "peek", "summary", "to_plain", "to_wire"]
+           "Share", "SensePose", "SenseTargets", "Unchanged", "TrackingField", "RobotState", "TargetState",
+           "ObstacleState", "WorldState", "Clock", "Data", "SenseOdometry", "MapVersion", "with_stamp", "decode",
+           "encode", "peek", "summary", "to_plain", "to_wire"]
 
 
 def _fail(field: str, problem: str) -> MessageFieldError:
@@ -104,7 +106,8 @@ class TargetField(Message):
 
     def check(self) -> None:
         if (self.alpha is None) != (self.d is None):
-            raise _fail("alpha" if self.alpha is None else "d", "alpha and d must both be None (no target) or both be given")
+            raise _fail("alpha" if self.alpha is None else "d",
+                        "alpha and d must both be None (no target) or both be given")
         if (self.winner is None) != (self.a is None):
             raise _fail("winner" if self.winner is None else "a", "winner and a must both be None or both be given")
         if self.a is not None:
@@ -312,7 +315,7 @@ class SenseOdometry(Message):
         for name in ("set_l", "set_r", "left", "right", "blocked"):
             if len(getattr(self, name)) != n:
                 raise _fail(name, f"{len(getattr(self, name))} rows, ticks has {n}")
-        if any(b <= a for a, b in zip(self.ticks, self.ticks[1:])):
+        if any(b <= a for a, b in zip(self.ticks, self.ticks[1:], strict=False)):
             raise _fail("ticks", "not increasing")
 
 
@@ -352,8 +355,6 @@ class MapVersion(Message):
 def with_stamp(msg: Message, t: float) -> Message:
     """``msg`` as sent at sim time ``t`` (checked as any record): what a pure node would
     have sent at ``t`` for the same inputs."""
-    import msgspec
-
     return msgspec.structs.replace(msg, stamp=t)
 
 

@@ -29,13 +29,13 @@ from __future__ import annotations
 
 import math
 import sys
-from collections.abc import Callable, Iterator
-from typing import Annotated, Any, ClassVar, Literal
+from collections.abc import Iterator
+from typing import Annotated, Any, ClassVar
 
-import msgspec
 import numpy as np
 from msgspec import Meta
 
+from .checks import MAX_ARRAY_LEN, Record
 from .keys import KeyKind
 
 SCHEMA_VERSION = 1
@@ -46,11 +46,8 @@ MSGPACK_ENCODING = "application/msgpack"
 
 MAX_SENDER_LEN = 128
 MAX_INDEX = 1024  # sanity bound for indices in payloads; the key space bounds sensor indices exactly
-MAX_ARRAY_LEN = 1 << 20
 MAX_TARGETS = 4096
 """Sanity bound on the number of targets in one message."""
-MAX_DEPTH = 16
-"""How deeply plain data (:data:`Plain`) may nest."""
 ANGLE_LIMIT = math.pi + 1e-9
 _BIG = sys.float_info.max  # ge=-_BIG, le=_BIG: finite (NaN and infinities fail both)
 
@@ -76,7 +73,7 @@ Count = Annotated[int, Meta(ge=0, le=(1 << 63) - 1)]
 """A tick number or sequence number."""
 Vector = np.ndarray
 """A finite float64 vector of 1..2^20 values, held read-only; on the wire the map
-``{"dtype": "<f8", "shape": [n], "data": <n * 8 raw little-endian bytes>}`` (:class:`WireVector`)."""
+``{"dtype": "<f8", "shape": [n], "data": <n * 8 raw little-endian bytes>}`` (:class:`~.checks.WireVector`)."""
 Point = tuple[Finite, Finite]
 """(x, y) in metres, in the world frame."""
 Pose = tuple[Finite, Finite, Angle]
@@ -91,44 +88,10 @@ RobotId = Annotated[str, Meta(pattern=r"^(?!world\Z)[A-Za-z][A-Za-z0-9_-]{0,63}\
 """A robot id, as the key space takes it (:func:`~.keys.validate_robot_id`)."""
 Plain = Any
 """Plain data: None, bool, int (64 bits), finite float, str, and lists and string-keyed
-maps of them, at most :data:`MAX_DEPTH` levels deep (tuples become lists)."""
-
-
-class WireVector(msgspec.Struct, forbid_unknown_fields=True, gc=False):
-    """A :data:`Vector` as it travels: float64, one dimension, the raw little-endian bytes."""
-
-    dtype: Literal["<f8"]
-    shape: tuple[Annotated[int, Meta(ge=1, le=MAX_ARRAY_LEN)]]
-    data: bytes
+maps of them, at most :data:`~.checks.MAX_DEPTH` levels deep (tuples become lists)."""
 
 
 # --------------------------------------------------------------------------- records
-
-
-class Record(msgspec.Struct, forbid_unknown_fields=True, gc=False):
-    """A declared record (a message, or an entry of the world state): checked and
-    normalized when built, by its declared field types and then its own :meth:`check`.
-
-    Records are mutable for speed; treat them as immutable once built."""
-
-    def __post_init__(self) -> None:
-        _CHECKS[type(self)](self)
-
-    def check(self) -> None:
-        """The record's own rules between fields (after every field passed its type)."""
-
-
-class _Checks(dict):
-    """Each record class's compiled check, compiled when the class's first record is built."""
-
-    def __missing__(self, cls: type[Record]) -> Callable[[Record], None]:
-        from .checks import compile_check
-
-        check = self[cls] = compile_check(cls)
-        return check
-
-
-_CHECKS = _Checks()
 
 
 class Entry(Record):

@@ -24,11 +24,13 @@ import re
 from collections.abc import Iterable
 from typing import Any, ClassVar, get_type_hints
 
+import msgspec
+
 from .errors import MessageKindError
 from .keys import KeyKind
 from .schema import MESSAGE_TYPES, Message, Plain, Sender, Stamp  # noqa: F401 - Stamp, Sender: the envelope
 
-USER_TYPES: dict[str, type["UserMessage"]] = {}
+USER_TYPES: dict[str, type[UserMessage]] = {}
 """Every user message type this process has declared, by its name on the wire."""
 
 _NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_.-]{0,63}\Z")
@@ -85,12 +87,10 @@ NOTHING_HEAD = b"\x84\xa1v\x01\xa4kind\xa4none"
 """How the wire bytes of a :class:`Nothing` begin (a msgpack map of 4: v = 1, kind = none)."""
 
 
-def json_schema(cls: type["UserMessage"]) -> dict[str, Any]:
+def json_schema(cls: type[UserMessage]) -> dict[str, Any]:
     """A JSON Schema of user message type ``cls`` as it travels (its map's fields, their
     types and ranges, its docstring): what the run's MCAP log keeps for its channels, so a
     reader without the declaration knows what the fields are."""
-    import msgspec
-
     hints = get_type_hints(cls, include_extras=True)
     props: dict[str, Any] = {"v": {"const": 1}, "kind": {"const": "data"}, "type": {"const": cls.TYPE}}
     for name in cls.__struct_fields__:
@@ -108,7 +108,7 @@ def user_schemas(types: Iterable[type]) -> dict[str, dict[str, Any]]:
     return {kind_of(t): json_schema(t) for t in types if isinstance(t, type) and issubclass(t, UserMessage)}
 
 
-def kind_of(cls: type) -> str:
+def kind_of(cls: type[Message]) -> str:
     """The kind a graph gives a port of message class ``cls``: ``field/target`` for the
     protocol's, ``data:FreeDirection`` for a user's type."""
     if isinstance(cls, type) and issubclass(cls, UserMessage):

@@ -27,7 +27,7 @@ import gymnasium as gym  # noqa: TID253 -- the environment subclasses gym.Env; o
 import numpy as np
 
 from ..experiments.graph_run import GraphSession
-from ..graph.check import check_graph
+from ..node.graph_check import check_graph
 from .features import N_FEATURES
 from .graphs import policy_graph
 from .policy import FieldPolicy, check_task

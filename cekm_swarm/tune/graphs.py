@@ -8,9 +8,9 @@ from pathlib import Path
 
 from ..errors import ParameterError
 from ..experiments.graph_run import with_params
-from ..graph.check import CheckedGraph, check_graph
 from ..graph.spec import Graph, graph_for, load_graph
 from ..models.params import PAPER_SIGMA_B_ALPHA
+from ..node.graph_check import CheckedGraph, check_graph
 from .policy import check_task
 
 FIELDS = ("paper", "tuned", "learned")

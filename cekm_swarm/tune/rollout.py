@@ -12,8 +12,8 @@ from typing import Any
 from world import load_scenario
 
 from ..experiments.graph_run import run_graph
-from ..graph.check import check_graph
 from ..models.io import load_model
+from ..node.graph_check import check_graph
 from .graphs import fields_graph, policy_graph
 from .scenarios import scenario as generated
 

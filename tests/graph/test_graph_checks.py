@@ -10,7 +10,7 @@ import textwrap
 import pytest
 
 from cekm_swarm.graph import GraphError, load_graph, shipped_graphs
-from cekm_swarm.graph.check import check_graph
+from cekm_swarm.node.graph_check import check_graph
 
 PROGRAMS = '''
 from dataclasses import dataclass
@@ -245,7 +245,7 @@ def test_every_shipped_graph_checks_for_teams_of_one_to_eight(name):
 def test_graph_list_names_every_shipped_graph_in_aligned_columns():
     from click.testing import CliRunner
 
-    from cekm_swarm.graph.commands import graph_group
+    from cekm_swarm.node.graph_commands import graph_group
 
     out = CliRunner().invoke(graph_group, ["list"])
     assert out.exit_code == 0, out.output

@@ -9,8 +9,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cekm_swarm.graph.check import check_graph
 from cekm_swarm.node import Node
+from cekm_swarm.node.graph_check import check_graph
 from cekm_swarm.node.runner import Runner
 from cekm_swarm.node.timing import LockstepGate, RealtimeGate
 from cekm_swarm.protocol import DEFAULT_KEYS as K

@@ -8,10 +8,10 @@ import textwrap
 
 import pytest
 
-from cekm_swarm.graph.check import check_graph
 from cekm_swarm.graph.resolve import timed_by
 from cekm_swarm.node import NodeError, NotReady, need
 from cekm_swarm.node.api import Inputs
+from cekm_swarm.node.graph_check import check_graph
 from cekm_swarm.node.runner import Runner
 from cekm_swarm.node.timing import LockstepGate, RealtimeGate
 from cekm_swarm.protocol import DEFAULT_KEYS as K
@@ -99,8 +99,8 @@ def test_realtime_runs_every_tick_of_a_node_timed_by_the_clock(reading_plan):
 
 def _node(plan):
     node = plan.node("r1", "motor")
-    from cekm_swarm.graph.check import node_class
     from cekm_swarm.node.api import Context
+    from cekm_swarm.node.graph_check import node_class
 
     cls = node_class(node.decl.program, plan.graph.source, node.decl.where)
     return cls(Context("r1", "motor"), cls.Params())

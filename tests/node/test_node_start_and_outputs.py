@@ -13,10 +13,10 @@ import pytest
 
 from cekm_swarm.experiments.default_model import default_model
 from cekm_swarm.experiments.graph_run import run_graph
-from cekm_swarm.graph.check import check_graph
 from cekm_swarm.node import Context, NodeError
 from cekm_swarm.node.api import cannot_start, start_node
 from cekm_swarm.node.checks import output_check
+from cekm_swarm.node.graph_check import check_graph
 from cekm_swarm.protocol import ObstacleField, TargetField, WheelCommand
 from cekm_swarm.protocol.checks import lattice_misfit, on_lattice
 from world import load_scenario
@@ -182,8 +182,8 @@ def run_error(scenario, model, path: str) -> str:
 
 def preflight_error(path: str, model) -> str:
     """The line the launcher's check of the graph refuses it with (before any process starts)."""
-    from cekm_swarm.graph.check import check_graph as check
     from cekm_swarm.launch.prepare import PreflightError, preflight
+    from cekm_swarm.node.graph_check import check_graph as check
     from cekm_swarm.robot import RobotBody
 
     checked = check(path)

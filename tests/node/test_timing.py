@@ -11,9 +11,9 @@ import random
 import numpy as np
 import pytest
 
-from cekm_swarm.graph.check import check_graph
 from cekm_swarm.graph.plan import needed_tick
 from cekm_swarm.node import Node
+from cekm_swarm.node.graph_check import check_graph
 from cekm_swarm.node.runner import Runner
 from cekm_swarm.node.timing import LockstepGate, RealtimeGate
 from cekm_swarm.protocol import DEFAULT_KEYS as K

@@ -19,9 +19,9 @@ import numpy as np
 import pytest
 
 from cekm_swarm.experiments.graph_run import run_graph
-from cekm_swarm.graph.check import check_graph
 from cekm_swarm.graph.spec import GraphError
 from cekm_swarm.node.api import StepFailed
+from cekm_swarm.node.graph_check import check_graph
 from cekm_swarm.protocol import (
     MessageKindError,
     Nothing,

@@ -20,13 +20,13 @@ def test_warm_makes_everything_a_message_of_any_kind_needs():
     kind (and every record inside one) makes no decoder, head or check any more."""
     script = textwrap.dedent("""
         import json
-        from cekm_swarm.protocol import codec, schema
+        from cekm_swarm.protocol import checks, codec
         from test_wire_format import samples
         made = codec.warm()
-        before = (len(codec._CODECS), len(codec._HEADS), len(schema._CHECKS))
+        before = (len(codec._CODECS), len(codec._HEADS), len(checks._CHECKS))
         for key, msg in samples():
             codec.decode(key, codec.encode(msg))
-        after = (len(codec._CODECS), len(codec._HEADS), len(schema._CHECKS))
+        after = (len(codec._CODECS), len(codec._HEADS), len(checks._CHECKS))
         print(json.dumps({"made": made, "before": before, "after": after, "again": codec.warm()}))
     """)
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(Path(__file__).parent), os.environ.get("PYTHONPATH", "")]))

@@ -201,7 +201,7 @@ def test_monitor_fetches_the_scene_the_world_serves_and_a_robot_does_not(acl_rou
 def test_the_shipped_router_configs_are_the_generators_output_for_every_shipped_graph():
     """deploy/router.json5 and deploy/tls/router.json5 come from `cekm graph acl` (the
     graphs' own keys, robots r1-r4): regenerate them with that command, never by hand."""
-    from cekm_swarm.graph.acl import shipped
+    from cekm_swarm.node.graph_commands import shipped_router_config as shipped
 
     assert (DEPLOY / "router.json5").read_text() == shipped()
     assert (DEPLOY / "tls" / "router.json5").read_text() == shipped(tls=True)

@@ -123,7 +123,7 @@ def fuzz(port: int, total: int, batch: int, neurons: int, seed: int, last_tick: 
 
 def module_listens() -> dict[str, list[str]]:
     """Each r1 node's subscriptions, as the graph that runs derives them."""
-    from cekm_swarm.graph.check import check_graph
+    from cekm_swarm.node.graph_check import check_graph
 
     plan = check_graph("cekm-navigation").plan(("r1",), "navigation")
     return {n.name: n.subscriptions("cekm") for n in plan.nodes["r1"]}
@@ -158,7 +158,7 @@ def fuzz_in_log(out: Path) -> Counter:
 @functools.cache
 def held_readings() -> frozenset[str]:
     """r1's readings the world holds in the graph the fuzz runs (``RunPlan.held_readings``)."""
-    from cekm_swarm.graph.check import check_graph
+    from cekm_swarm.node.graph_check import check_graph
 
     return frozenset(check_graph("cekm-navigation").plan(("r1",), "navigation").held_readings("r1"))
 

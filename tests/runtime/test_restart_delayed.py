@@ -179,7 +179,7 @@ def graph(folder: Path, name: str) -> Path:
 
 
 def plan_of(folder: Path, name: str):
-    from cekm_swarm.graph.check import check_graph
+    from cekm_swarm.node.graph_check import check_graph
 
     checked = check_graph(str(graph(folder, name)))
     plan = checked.plan(("r1",), "navigation")
@@ -449,8 +449,8 @@ def test_a_pure_node_of_one_key_sends_again_only_to_readers_with_a_delay():
     restarted motor, which reads them at the same tick (and gets fresh ones from the
     world's refresh anyway), their stamps set its stamp window in the past, so it dropped
     the only copies of its delayed inputs and the run waited for good."""
-    from cekm_swarm.graph.check import check_graph
     from cekm_swarm.graph.spec import graph_for
+    from cekm_swarm.node.graph_check import check_graph
     from cekm_swarm.node.process import outputs_readers
     from cekm_swarm.protocol import DEFAULT_KEYS as K
 

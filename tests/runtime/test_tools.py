@@ -143,8 +143,8 @@ def test_topic_info_names_publishers_and_subscribers_and_measures_the_rate(route
 
 def test_node_list_groups_live_modules_and_names_the_missing(router, clients):
     """The nodes each robot should have come from the graph the world serves (as a world server does)."""
-    from cekm_swarm.graph.check import check_graph
     from cekm_swarm.launch.prepare import run_spec
+    from cekm_swarm.node.graph_check import check_graph
     from cekm_swarm.robot import RobotBody
     from cekm_swarm.runtime.record import serve_json
 

@@ -10,8 +10,8 @@ import pytest
 
 from cekm_swarm.errors import ParameterError
 from cekm_swarm.experiments.graph_run import run_graph
-from cekm_swarm.graph.check import check_graph
 from cekm_swarm.models.params import FieldParams
+from cekm_swarm.node.graph_check import check_graph
 from cekm_swarm.tune.features import FEATURES, field_features
 from cekm_swarm.tune.graphs import fields_graph, policy_graph, with_fields
 from cekm_swarm.tune.policy import FieldPolicy

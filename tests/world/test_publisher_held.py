@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from collections import Counter
 
-from cekm_swarm.graph.check import check_graph
+from cekm_swarm.node.graph_check import check_graph
 from cekm_swarm.protocol import DEFAULT_KEYS as K
 from cekm_swarm.protocol import DropCounter, Unchanged, decode
 from cekm_swarm.ticks import tick_time

@@ -1,17 +1,23 @@
 """``cekm graph``: list the shipped controllers' graphs, show one, check a graph file, and
-write the router's access-control rules a deployment of graphs needs."""
+write the router's access-control rules a deployment of graphs needs. Its home is beside
+the checks it runs (:mod:`.graph_check`, which import the node programs):
+:mod:`cekm_swarm.graph` is plain data and imports no node code."""
 
 from __future__ import annotations
 
+import json
 from dataclasses import asdict
 from pathlib import Path
 
 import click
 
-from cekm_swarm.cli_support import FileRefused, RobotIds
+from cekm_swarm.cli_support import FileRefused, RobotIds, prepare_out_file
+from cekm_swarm.graph.acl import router_config
+from cekm_swarm.graph.plan import RunPlan
+from cekm_swarm.graph.spec import GraphError, load_graph, shipped_graphs
 from cekm_swarm.ticks import TICK_S
 
-from .spec import GraphError, load_graph, shipped_graphs
+from .graph_check import CheckedGraph, check_graph, params_doc
 
 TEAM = ("r1", "r2")
 
@@ -32,16 +38,14 @@ def list_cmd() -> None:
         click.echo(f"{name:<{wn}}  --controller {g.controller:<{wc}}  {g.task:<{wt}}  {g.description}")
 
 
-def _checked(graph: str):
-    from .check import check_graph
-
+def _checked(graph: str) -> CheckedGraph:
     try:
         return check_graph(graph)
     except GraphError as exc:
         raise FileRefused(str(exc)) from None
 
 
-def _task(checked, task: str | None) -> str:
+def _task(checked: CheckedGraph, task: str | None) -> str:
     g = checked.graph
     if task is None:
         return g.task if g.task != "any" else "navigation"
@@ -50,10 +54,8 @@ def _task(checked, task: str | None) -> str:
     return task
 
 
-def describe(checked, plan) -> list[str]:
+def describe(checked: CheckedGraph, plan: RunPlan) -> list[str]:
     """The graph as text: per node its program, instances, rate, inputs, outputs, parameters."""
-    from .check import params_doc
-
     g = checked.graph
     robot = plan.team[0]
     lines = [f"{g.name}: {g.description}", f"  controller {g.controller}, task {plan.task}, from {g.source}",
@@ -95,13 +97,12 @@ def describe(checked, plan) -> list[str]:
 @graph_group.command("show")
 @click.argument("graph")
 @click.option("--task", type=click.Choice(["navigation", "tracking"]), help="For a graph of any task.")
-@click.option("--robots", default="2", show_default=True, type=RobotIds(count=True), help="The team: a count or ids (r1,r2,r3).")
+@click.option("--robots", default="2", show_default=True, type=RobotIds(count=True),
+              help="The team: a count or ids (r1,r2,r3).")
 @click.option("--json", "as_json", is_flag=True, help="The resolved graph as JSON (what a run spec carries).")
 def show_cmd(graph: str, task: str | None, robots: tuple[str, ...], as_json: bool) -> None:
     """GRAPH (a shipped graph's name or a file): its nodes per robot, with program,
     instances, rate, inputs and outputs."""
-    import json
-
     checked = _checked(graph)
     t = _task(checked, task)
     try:
@@ -147,8 +148,6 @@ def check_cmd(graph: str, task: str | None) -> None:
 def acl_cmd(graphs: tuple[str, ...], robots: tuple[str, ...], tls: bool, out_path: Path | None) -> None:
     """The Zenoh router config (access control included) that lets each robot identity
     publish only what the GRAPHS' nodes send and read only what they read (deploy/)."""
-    from .acl import router_config
-
     try:
         text = router_config([_checked(g) for g in graphs], robots, tls=tls)
     except GraphError as exc:
@@ -156,7 +155,10 @@ def acl_cmd(graphs: tuple[str, ...], robots: tuple[str, ...], tls: bool, out_pat
     if out_path is None:
         click.echo(text, nl=False)
     else:
-        from cekm_swarm.cli_support import prepare_out_file
-
         prepare_out_file(out_path).write_text(text)
         click.echo(f"wrote {out_path}")
+
+
+def shipped_router_config(robots: tuple[str, ...] = ("r1", "r2", "r3", "r4"), tls: bool = False) -> str:
+    """The router config for every shipped graph (what deploy/ holds)."""
+    return router_config([check_graph(str(p)) for _, p in sorted(shipped_graphs().items())], robots, tls=tls)

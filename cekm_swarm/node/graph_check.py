@@ -4,7 +4,8 @@ program, a parameter a node does not declare, a value of the wrong type, a port 
 the wrong message type), then resolve the graph for a team (:func:`cekm_swarm.graph.resolve.build_plan`).
 
 What the checks produce (:class:`CheckedGraph`) is what a run spec carries to every
-process, so nothing imports a program it does not run.
+process, so nothing imports a program it does not run. These checks live with the node
+API they check: :mod:`cekm_swarm.graph` is plain data and imports no node code.
 """
 
 from __future__ import annotations
@@ -12,16 +13,17 @@ from __future__ import annotations
 import importlib
 import inspect
 import sys
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
-from cekm_swarm.node.api import Node, make_params, param_fields, raised_at
+from cekm_swarm.graph.plan import PortTypes, RunPlan
+from cekm_swarm.graph.resolve import build_plan
+from cekm_swarm.graph.spec import Graph, GraphError, load_graph
 from cekm_swarm.protocol import KeySpace, kind_of
 
-from .plan import PortTypes, RunPlan
-from .resolve import build_plan
-from .spec import Graph, GraphError, load_graph
+from .api import Node, make_params, param_fields, raised_at
 
 
 def node_class(program: str, source: str = "", where: str = "") -> type[Node]:
@@ -35,15 +37,11 @@ def node_class(program: str, source: str = "", where: str = "") -> type[Node]:
         missing = getattr(exc, "name", None)
         if missing is not None and missing != mod_name and not mod_name.startswith(missing + "."):
             # the program's module was found, and an import of its own failed
-            at = raised_at(exc)
-            raise GraphError(source, f"{where}.program", f"program {program!r} failed to import: "
-                                                        f"{type(exc).__name__}: {exc}" + (f" ({at})" if at else "")) from None
+            raise GraphError(source, f"{where}.program", _failed_import(program, exc)) from None
         raise GraphError(source, f"{where}.program", f"unknown program {program!r}: cannot import {mod_name!r} "
                                                     f"({exc})") from None
     except Exception as exc:  # noqa: BLE001 - a user's module may fail in any way on import
-        at = raised_at(exc)
-        raise GraphError(source, f"{where}.program", f"program {program!r} failed to import: "
-                                                    f"{type(exc).__name__}: {exc}" + (f" ({at})" if at else "")) from None
+        raise GraphError(source, f"{where}.program", _failed_import(program, exc)) from None
     if cls_name:
         cls = getattr(mod, cls_name, None)
         if not (inspect.isclass(cls) and issubclass(cls, Node)):
@@ -59,6 +57,12 @@ def node_class(program: str, source: str = "", where: str = "") -> type[Node]:
                                                     f"({', '.join(c.__name__ for c in own) or 'none'}): name one as "
                                                     f"'{mod_name}:Class'")
     return own[0]
+
+
+def _failed_import(program: str, exc: BaseException) -> str:
+    """What went wrong importing a program's module: the exception and where it was raised."""
+    at = raised_at(exc)
+    return f"program {program!r} failed to import: {type(exc).__name__}: {exc}" + (f" ({at})" if at else "")
 
 
 def _beside(source: str) -> None:
