@@ -44,7 +44,7 @@ def _sense_keys(keys: KeySpace, robot: str, n: int) -> tuple[list[str], str]:
     return hit
 
 
-def sense_messages(keys: KeySpace, rd: TickReadings, sensor_angles: Sequence[float],
+def sense_messages(keys: KeySpace, rd: TickReadings, sensor_angles: Sequence[float] | np.ndarray,
                    body_radius: float) -> list[tuple[str, Any]]:
     """The sense messages of one robot's readings at one tick: 12 ranges (+ the target)."""
     out: list[tuple[str, Any]] = []

@@ -14,8 +14,9 @@ import click
 
 from .. import jsonfile
 from ..cli_support import F, Finite, out_dir_options, prepare_out_dir
-from ..errors import CekmError
+from ..errors import CekmError, ModelFormatError
 from ..models.io import load_model, save_model
+from ..models.networks import IndirectEKM
 from ..modules.learner import model_of
 from ..runtime import foxglove_view
 from ..runtime.lattice_view import add_lattice_channel, write_lattice_log
@@ -130,6 +131,9 @@ def add_launch_learning(out_dir: Path, outcome: dict[str, Any], model_path) -> d
     if not seen:
         return {}
     base = load_model(model_path) if model_path is not None else default_model()
+    if not isinstance(base, IndirectEKM):
+        raise ModelFormatError(model_path or "the default model", None,
+                               f"online learning needs an indirect-mapped EKM, not a {type(base).__name__}")
     start = test_score(base)
     nodes = (outcome.get("launcher") or {}).get("nodes") or {}
     block = {}

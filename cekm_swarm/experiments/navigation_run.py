@@ -18,7 +18,7 @@ from ..controller.cooperative import CooperativeEKM
 from ..controller.planner import PlanningError, plan_checkpoints
 from ..errors import ParameterError
 from ..models.params import FieldParams
-from ..modules.motor_integration import target_activity
+from ..modules.motor_integration import MotorIntegration, target_activity
 from .graph_run import run_graph
 from .learning_run import learning_outcome
 
@@ -162,7 +162,11 @@ def fields_at(scenario, model, at_time: float, controller_seed: int | None = Non
     obstacle = {j: f.b for j, f in sorted(obs_fields.items()) if f is not None and f.b is not None}
     combined = np.sum(list(obstacle.values()), axis=0) if obstacle else np.zeros(n)
     e = a - combined
-    ekm: CooperativeEKM = ex.node(robot, "motor").ekm
+    motor = ex.node(robot, "motor")
+    if not isinstance(motor, MotorIntegration):
+        raise TypeError(f"{robot}'s motor node is a {type(motor).__name__}, not cekm's motor integration: "
+                        f"cekm fields draws the cekm controller's fields")
+    ekm: CooperativeEKM = motor.ekm
 
     decision = ekm.integrate(target_activity(target), [f for f in obs_fields.values() if f is not None])
     return {"time": episode.t, "robot": robot, "pose": world.pose(robot), "w": model.w.copy(),

@@ -30,11 +30,19 @@ from ..experiments.graph_run import GraphSession
 from ..node.graph_check import check_graph
 from .features import N_FEATURES
 from .graphs import policy_graph
+from .motor import FieldMotor, FieldTrackingMotor
 from .policy import FieldPolicy, check_task
 from .scenarios import scenario as generated
 from .scenarios import seed_of
 
 SCENARIOS_PER_PURPOSE = 1_000_000
+
+
+def _policy_motor(node: object) -> FieldMotor | FieldTrackingMotor:
+    """A robot's motor node of the policy graph (the one whose field parameters the actions set)."""
+    if not isinstance(node, FieldMotor | FieldTrackingMotor):
+        raise TypeError(f"the policy graph's motor node is a {type(node).__name__}, not a field-policy motor")
+    return node
 
 
 class FieldEnv(gym.Env):
@@ -106,7 +114,7 @@ class FieldEnv(gym.Env):
         self.session = GraphSession(sc, graph=self.checked, model=self.model, max_time=self.max_time,
                                     params={"weights": (0.0,) * FieldPolicy.size(self.task)})  # the actions rule
         self.robots = tuple(self.session.world.robot_ids)
-        self.motors = [self.session.executor.node(r, "motor") for r in self.robots]
+        self.motors = [_policy_motor(self.session.executor.node(r, "motor")) for r in self.robots]
         self.choice = self.policy.choice(np.zeros(len(self.policy.outputs)))
         for m in self.motors:
             m.override = self.choice
