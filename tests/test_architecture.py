@@ -16,7 +16,8 @@ import tomllib
 from pathlib import Path
 
 import pytest
-from importlinter.cli import lint_imports
+
+from helpers.contracts import lint
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -29,7 +30,7 @@ def _contracts() -> list[dict]:
 def test_every_import_contract_is_kept(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
     monkeypatch.chdir(ROOT)
     monkeypatch.syspath_prepend(str(ROOT))
-    code = lint_imports(config_filename=str(ROOT / "pyproject.toml"), no_cache=True, no_logo=True)
+    code = lint(ROOT / "pyproject.toml")
     assert code == 0, "an import contract is broken (pyproject.toml [tool.importlinter]):\n" + capsys.readouterr().out
 
 
@@ -59,7 +60,7 @@ def _lint(tmp_path: Path, roots: list[str], contracts: str) -> int:
     config = tmp_path / "contracts.toml"
     config.write_text(f"[tool.importlinter]\nroot_packages = {roots!r}\n"
                       f"include_external_packages = true\n\n{contracts}")
-    return lint_imports(config_filename=str(config), no_cache=True, no_logo=True)
+    return lint(config)
 
 
 @pytest.mark.parametrize("leak", [True, False])
@@ -79,3 +80,19 @@ def test_a_forbidden_import_hidden_in_a_function_two_steps_away_is_caught(
     contract = ('[[tool.importlinter.contracts]]\nname = "world never reaches the controller"\ntype = "forbidden"\n'
                 'source_modules = ["fakeworld"]\nforbidden_modules = ["fakectl"]\n')
     assert _lint(tmp_path, ["fakeworld", "fakecli", "fakectl"], contract) == (1 if leak else 0)
+
+
+@pytest.mark.parametrize("circle", [True, False])
+def test_a_circle_held_by_a_function_level_import_is_caught(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                            circle: bool) -> None:
+    """The acyclic contract sees a circle closed by an import inside a function (how the
+    tree's circles hid before)."""
+    (tmp_path / "circled").mkdir()
+    (tmp_path / "circled" / "__init__.py").write_text("")
+    (tmp_path / "circled" / "a.py").write_text("from . import b\n")
+    (tmp_path / "circled" / "b.py").write_text("def f():\n    from . import a  # closes the circle\n" if circle
+                                               else "def f():\n    return 1\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    contract = ('[[tool.importlinter.contracts]]\nname = "no circles"\ntype = "acyclic_siblings"\n'
+                'ancestors = ["circled"]\n')
+    assert _lint(tmp_path, ["circled"], contract) == (1 if circle else 0)
