@@ -57,6 +57,7 @@ LOSSES = (0.0, 0.01, 0.05)
 PARTITION_S = 5.0
 PARTITION_AT = 5.0  # sim s
 WIFI_DEADMAN_S = 1.0  # the dead-man limit docs/faults.md recommends on a lossy link
+WIFI_DEADLINE_TICKS = 3  # the deadline allowance docs/faults.md recommends at 50 ms and loss
 
 
 def robots_of(scenario: str) -> tuple[str, ...]:
@@ -206,10 +207,15 @@ def plot(rows: list[dict], path: Path) -> None:
     fig.savefig(path, dpi=110)
 
 
-def rss_by_process(hosts_dirs: list[Path]) -> dict[str, int]:
-    """Resident memory (kB) of every process of the run, by its launcher label (pids.json
-    of each host's out directory)."""
-    out = {}
+MEMORY_FIELDS = {"VmRSS:": "rss", "RssAnon:": "anon", "RssFile:": "file"}
+"""Resident memory in all (``rss``), the process's own (``anon``: heap, stacks, buffers) and
+its mapped files' pages (``file``: mostly shared-library code paged in as it first runs)."""
+
+
+def rss_by_process(hosts_dirs: list[Path]) -> dict[str, dict[str, int]]:
+    """Resident memory (kB, :data:`MEMORY_FIELDS`) of every process of the run, by its
+    launcher label (pids.json of each host's out directory)."""
+    out: dict[str, dict[str, int]] = {}
     for d in hosts_dirs:
         try:
             pids = json.loads((d / "pids.json").read_text())
@@ -217,9 +223,11 @@ def rss_by_process(hosts_dirs: list[Path]) -> dict[str, int]:
             continue
         for label, pid in pids.items():
             try:
-                for line in Path(f"/proc/{pid}/status").read_text().splitlines():
-                    if line.startswith("VmRSS:"):
-                        out[label] = int(line.split()[1])
+                with open(f"/proc/{pid}/status") as f:
+                    for line in f:
+                        name = MEMORY_FIELDS.get(line.split(maxsplit=1)[0] if line.strip() else "")
+                        if name:
+                            out.setdefault(label, {})[name] = int(line.split()[1])
             except OSError:
                 pass
     return out
@@ -231,10 +239,12 @@ def soak(args, work: Path) -> None:
     minutes = args.soak
     cuts: list[tuple[float, float]] = []
     mem: dict[str, dict[str, int]] = {}
+    series: list[dict[str, int]] = []  # minute m+1's memory, by process
     try:
         link = LinkSettings(delay=0.05, loss=0.01)
         opts = ["--seed", str(SEED), "--max-time", str(minutes * 60), "--model", str(default_model_path()),
-                "--max-log-duration", "600", "--deadman", str(WIFI_DEADMAN_S)]
+                "--max-log-duration", "600", "--deadman", str(WIFI_DEADMAN_S),
+                "--deadline-ticks", str(args.deadline_ticks)]
         run = NetRun(hosts, work, scenario, "realtime", opts, {r: link for r in robots}, host_routers=True, seed=SEED)
         before = host_times()
         run.start()
@@ -243,8 +253,9 @@ def soak(args, work: Path) -> None:
         next_cut = args.cut_every - 30
         while time.monotonic() - t0 < minutes * 60 - 20:
             el = time.monotonic() - t0
-            if "minute 1" not in mem and el >= 60:
-                mem["minute 1"] = rss_by_process(dirs)
+            if el >= 60 * (len(series) + 1):  # every process's memory, every minute
+                series.append(rss_by_process(dirs))
+                mem.setdefault("minute 1", series[0])
             if el >= next_cut:
                 line = run.world.lines[-1] if run.world.lines else ""
                 cut = run.link(robots[0], "cut")
@@ -272,8 +283,11 @@ def soak(args, work: Path) -> None:
           f"{Path('/proc/loadavg').read_text().split()[0]}, "
           "steal "
           f"{'?' if steal is None else f'{100 * steal:.1f} %'}")
-    print(f"ticks {out['ticks']}, deadline misses {out['deadline_misses']} of {out['ticks'] * len(robots)} "
-          "robot-ticks; "
+    ages = {int(k): v for k, v in out["command_age_ticks"].items()}
+    strict = out["deadline_misses"] + sum(v for k, v in ages.items() if 0 < k <= out.get("deadline_ticks", 0))
+    print(f"ticks {out['ticks']}, deadline misses {out['deadline_misses']} of {out['ticks'] * len(robots)} robot-ticks "
+          f"with --deadline-ticks {out.get('deadline_ticks', 0)} ({strict} by the tick's-own-command rule, 0); "
+          f"applied commands by age in ticks {dict(sorted(ages.items()))}; "
           f"dead-man stops {len(stops)} ({len(outside)} outside a partition)")
     # sim time of a wall instant: real time runs on the wall clock (any event carries both)
     offset = statistics.median([e["wall"] - e["t"] for e in out["events"] if "wall" in e] or [0.0])
@@ -282,21 +296,24 @@ def soak(args, work: Path) -> None:
     off_cut = {k: v for k, v in listed.items() if not any(lo <= k * 0.128 <= hi for lo, hi in windows)}
     print(f"misses listed by tick: {sum(listed.values())} (of {out['deadline_misses']}), outside the partitions "
           f"(from 0.5 s before a cut to 2 s after it): {sum(off_cut.values())} at ticks {sorted(off_cut)[:40]}")
-    growth = {}
-    for label, kb in sorted(mem.get("end", {}).items()):
-        first = mem.get("minute 1", {}).get(label)
-        if first:
-            growth[label] = kb / first - 1
-    by_kind: dict[str, list[float]] = {}
-    for label, g in growth.items():
-        by_kind.setdefault(kind_of(label), []).append(g)
-    for kind, gs in sorted(by_kind.items()):
-        print(f"  memory {kind:12s} minute 1 -> end: max {100 * max(gs):+.1f} %, median "
-              f"{100 * statistics.median(gs):+.1f} %"
-              f" ({len(gs)} processes)")
+    growth: dict[str, dict[str, float]] = {}
+    for label, now in sorted(mem.get("end", {}).items()):
+        first = mem.get("minute 1", {}).get(label, {})
+        growth[label] = {k: now[k] / first[k] - 1 for k in now if first.get(k)}
+    for field in ("rss", "anon"):
+        by_kind: dict[str, list[float]] = {}
+        for label, g in growth.items():
+            if field in g:
+                by_kind.setdefault(kind_of(label), []).append(g[field])
+        for kind, gs in sorted(by_kind.items()):
+            print(f"  memory ({field}) {kind:12s} minute 1 -> end: max {100 * max(gs):+.1f} %, median "
+                  f"{100 * statistics.median(gs):+.1f} % ({len(gs)} processes)")
     print(f"log set: {len(files)} files, {sum(f.stat().st_size for f in files) / 1e6:.1f} MB; gaps {gaps}")
     print(info.stdout[-3000:] or info.stderr[-2000:])
     (work / "soak.json").write_text(json.dumps({"outcome_events": out["events"], "cuts": cuts, "memory": mem,
+                                                "memory_by_minute": series, "command_age_ticks": ages,
+                                                "deadline_misses": out["deadline_misses"], "strict_misses": strict,
+                                                "misses_outside_partitions": sum(off_cut.values()),
                                                 "growth": growth, "gaps": gaps, "steal": steal}, indent=1))
 
 
@@ -314,6 +331,8 @@ def main() -> None:
     p.add_argument("--lockstep", action="store_true", help="instead: lockstep speed against the delay")
     p.add_argument("--loss", type=float, default=0.0, help="--lockstep: the links' loss")
     p.add_argument("--cut-every", type=float, default=600.0, metavar="S", help="soak: s between two partitions")
+    p.add_argument("--deadline-ticks", type=int, default=WIFI_DEADLINE_TICKS, metavar="N",
+                   help="soak: the world's deadline allowance (docs/faults.md)")
     args = p.parse_args()
     why = namespaces_unavailable()
     if why:

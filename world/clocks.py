@@ -7,7 +7,8 @@
   listen) starts once every robot has answered tick 0 (at most :data:`FIRST_TICK_WAIT_S`:
   a start-up burst is not a missed deadline). At each tick boundary the latest command of
   each robot is applied; a robot whose commands have stopped is stopped (the dead-man),
-  and a robot whose latest command is older than the tick has missed its deadline.
+  and a robot whose latest command is older than the tick has missed its deadline (older
+  than ``deadline_ticks`` ticks, on a link whose round trip is longer than a tick).
 """
 
 from __future__ import annotations
@@ -34,6 +35,19 @@ two cores."""
 FIRST_TICK_WAIT_S = 10.0
 """Real time: how long the world waits for every robot's answer to tick 0 before its wall
 clock starts anyway."""
+
+
+def late_ticks(t: float, stamp: float) -> int:
+    """How many ticks a command stamped ``stamp`` lags the tick at ``t`` (0: it is that
+    tick's own command): the deadline rule's measure and ``command_age_ticks``'."""
+    return round((t - stamp) / TICK_S)
+
+
+def missed_deadline(t: float, stamp: float | None, deadline_ticks: int = 0) -> bool:
+    """The deadline rule: the command applied at the tick at ``t`` (stamped ``stamp``; None:
+    the robot never sent one) is a miss when it lags the tick by more than ``deadline_ticks``
+    ticks. 0, the default, asks each tick's own command by the end of that tick."""
+    return stamp is None or late_ticks(t, stamp) > deadline_ticks
 
 
 class Stopped(Exception):
@@ -92,9 +106,10 @@ class LockstepClock(_Clock):
 
 
 class RealtimeClock(_Clock):
-    def __init__(self, *args: Any, deadman: Any, wait_first: bool) -> None:
+    def __init__(self, *args: Any, deadman: Any, wait_first: bool, deadline_ticks: int = 0) -> None:
         super().__init__(*args)
         self.deadman = deadman
+        self.deadline_ticks = deadline_ticks  # a command for tick k is on time until the end of tick k + this
         self.wait_first = wait_first
         self.start: float | None = None
 
@@ -132,7 +147,7 @@ class RealtimeClock(_Clock):
         commands = {}
         for r in self.inbox.robots:
             c = self.inbox.latest.get(r)
-            if c is None or c.stamp < ep.t:
+            if missed_deadline(ep.t, None if c is None else c.stamp, self.deadline_ticks):
                 self.stats.missed(ep.tick)
             was_stopped = self.deadman.stopped[r]
             stop, newly = self.deadman.check(r, now, TICK_S)
@@ -143,7 +158,7 @@ class RealtimeClock(_Clock):
                                                        "limit_s": self.deadman.limit, "wall": time.time()})
             else:
                 commands[r] = (c.v_l, c.v_r)
-                self.stats.applied(round((ep.t - c.stamp) / TICK_S))
+                self.stats.applied(late_ticks(ep.t, c.stamp))
                 if was_stopped:  # its commands are back: it drives on
                     self.stats.event("deadman_resumed", ep.t, {"robot": r, "wall": time.time()})
         return commands

@@ -48,6 +48,7 @@ class WorldConfig:
     max_time: float = DEFAULT_MAX_TIME
     checkpoints: str | None = None
     deadman: float = DEADMAN_S
+    deadline_ticks: int = 0
     republish: float = REPUBLISH_S
     match_timeout: float = 20.0
     progress_every: float = 1.0
@@ -108,6 +109,10 @@ WORLD_OPTIONS: tuple[tuple[str, dict[str, Any]], ...] = (
     ("checkpoints", {"help": "JSON {robot: [[x, y], ...]} or a file holding it"}),
     ("deadman", {"type": Finite(0.0, min_open=True), "default": DEADMAN_S, "show_default": True,
                  "help": "s without commands before a robot is stopped"}),
+    ("deadline_ticks", {"type": click.IntRange(0, 64), "default": 0, "show_default": True, "metavar": "N",
+                        "help": "real time: a robot's command for tick k is on time until the end of tick k+N; a "
+                                "robot-tick whose applied command is older is a deadline miss (a link whose round "
+                                "trip exceeds a tick wants more: docs/faults.md)"}),
     ("republish", {"type": Finite(0.0, min_open=True), "default": REPUBLISH_S, "show_default": True,
                    "help": "lockstep: s before re-publishing a tick"}),
     ("match_timeout", {"type": Finite(0.0), "default": 20.0, "show_default": True}),

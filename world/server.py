@@ -201,7 +201,8 @@ class WorldServer:
         parts = (self.inbox, self.publisher, self.episode, self.stats, self.stop, self.arrived)
         if cfg.mode == "lockstep":
             return LockstepClock(*parts, republish=cfg.republish)
-        return RealtimeClock(*parts, deadman=self.deadman, wait_first=cfg.wait_modules > 0)
+        return RealtimeClock(*parts, deadman=self.deadman, wait_first=cfg.wait_modules > 0,
+                             deadline_ticks=cfg.deadline_ticks)
 
     async def run(self) -> dict[str, Any]:
         cfg = self.config
@@ -398,7 +399,7 @@ class WorldServer:
                "ticks": ep.tick, "aborted": aborted, "republished": pub.republished,
                "readings_left_out": pub.left_out,
                "log": _log_doc(pub, self.config),
-               "deadline_misses": st.deadline_misses,
+               "deadline_misses": st.deadline_misses, "deadline_ticks": self.config.deadline_ticks,
                "deadline_miss_ticks": {str(k): v for k, v in st.missed_ticks.items()},
                "command_age_ticks": {str(k): v for k, v in sorted(st.command_age.items())},
                "first_tick_ms": None if st.first_tick_s is None else round(1000 * st.first_tick_s, 3),

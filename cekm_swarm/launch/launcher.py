@@ -77,6 +77,7 @@ class LaunchConfig:
     params: dict | None = None  # parameter overrides for the graph's nodes
     root: str = DEFAULT_ROOT
     deadman: float = 0.5
+    deadline_ticks: int = 0  # real time: ticks a command may lag its tick before it is a miss
     republish: float = 1.0
     plot: bool = True
     progress_every: float = 1.0
