@@ -163,7 +163,8 @@ class WorldHost:
             scenario=c.scenario, spec=self.spec_path, listen=where if hosts_router else None,
             connect=None if hosts_router else where,
             root=c.root, run_id=self.run_id, out=c.out, mode=c.mode, max_time=c.max_time, deadman=c.deadman,
-            deadline_ticks=c.deadline_ticks, republish=c.republish, progress_every=c.progress_every, wait_modules=c.alive_timeout, seed=c.seed,
+            deadline_ticks=c.deadline_ticks, republish=c.republish, progress_every=c.progress_every,
+            wait_modules=c.alive_timeout, seed=c.seed,
             zenoh_config=None if hosts_router else c.zenoh_config, checkpoints=checkpoints,
             max_log_size=c.max_log_size, max_log_duration=c.max_log_duration,
             record=None if c.record == "full" else c.record)
