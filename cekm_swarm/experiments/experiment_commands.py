@@ -231,6 +231,8 @@ def obstacles(seeds: str, speed_unit: float | None, max_time: float, model_path:
 @click.option("--grid", is_flag=True, help="The scenario grid instead (team size, targets per robot, target speed, "
               "sensing range, obstacles; docs/tracking.md): results.json, tables.md, grid.png.")
 @click.option("--quick", is_flag=True, help="With --grid: a small grid (CI).")
+@click.option("--reference", is_flag=True, help="With --grid: the reference grid, 40 seeds x 120 s a cell (about 70 "
+              "minutes on 2 cores; the default, 10 x 60 s, is the quick look).")
 @click.option("--first-seed", default=1, show_default=True, type=click.IntRange(0),
               help="Seeds first-seed .. first-seed + N - 1 (the grid's default held-out 1-10; its tuning used "
                    "1001-1099).")
@@ -239,22 +241,24 @@ def obstacles(seeds: str, speed_unit: float | None, max_time: float, model_path:
                    "recorded in results.json. How the defaults were tuned (docs/tracking.md).")
 def tracking_experiment(out_dir: Path, overwrite: bool, seeds: int | None, robots: str, duration: float | None,
                         model_path: Path | None, workers: int | None, quiet: bool, grid: bool, quick: bool,
-                        first_seed: int, params: tuple[str, ...]) -> None:
+                        first_seed: int, params: tuple[str, ...], reference: bool = False) -> None:
     """Multi-robot tracking (Fig. 13): cooperative EKMs, A-CMOMMT, K-means (local and global) and static robots
     on the same seeds; with --grid, over the scenario grid."""
-    if quick and not grid:
-        raise click.UsageError("--quick goes with --grid")
+    if (quick or reference) and not grid:
+        raise click.UsageError(f"{'--quick' if quick else '--reference'} goes with --grid")
     if params and not grid:
         raise click.UsageError("--param goes with --grid")
     controller_model(model_path)
     if grid:
-        from .grid_report import DEFAULT_DURATION, DEFAULT_SEEDS  # noqa: PLC0415 -- lazy: numba and scipy
+        from .grid_report import grid_size  # noqa: PLC0415 -- lazy: numba and scipy
 
         cekm_params = parse_cekm_params(params)  # before anything is written
-        n = seeds if seeds is not None else (2 if quick else DEFAULT_SEEDS[1])
+        try:
+            n, run_s = grid_size(quick, reference, seeds, duration)
+        except ValueError as exc:
+            raise click.UsageError(str(exc)) from None
         prepare_out_dir(out_dir, overwrite)
-        run_grid_cmd(out_dir, quick, list(range(first_seed, first_seed + n)),
-                     duration if duration is not None else (8.0 if quick else DEFAULT_DURATION), model_path, workers,
+        run_grid_cmd(out_dir, quick, list(range(first_seed, first_seed + n)), run_s, model_path, workers,
                      quiet, cekm_params)
         return
     sizes = parse_team_sizes(robots)

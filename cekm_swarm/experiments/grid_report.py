@@ -17,6 +17,23 @@ from .grid_stats import by_axis, by_pair, by_part, cell_stats
 
 DEFAULT_SEEDS = (1, 10)  # held-out seeds 1..10 (docs/tracking.md: why 10); tuning used 1001-1099
 DEFAULT_DURATION = 60.0
+REFERENCE_SEEDS = 40  # the reference grid (--reference): 40 held-out seeds a cell ...
+REFERENCE_DURATION = 120.0  # ... of 120 s each (docs/tracking.md); the default is the quick look
+QUICK_SEEDS, QUICK_DURATION = 2, 8.0  # --quick: a small grid (CI)
+
+
+def grid_size(quick: bool, reference: bool, seeds: int | None, duration: float | None) -> tuple[int, float]:
+    """Seeds a cell and sim seconds a run of the tracking grid: the quick look (10 x 60 s) by
+    default, the reference grid (40 x 120 s) with ``reference``, a small one with ``quick``;
+    ``seeds`` and ``duration`` override either, except the reference, which is what it says."""
+    if quick and reference:
+        raise ValueError("--quick and --reference: choose one")
+    if reference and (seeds is not None or duration is not None):
+        raise ValueError("--reference is 40 seeds x 120 s: leave out --seeds and --duration")
+    if reference:
+        return REFERENCE_SEEDS, REFERENCE_DURATION
+    n = seeds if seeds is not None else (QUICK_SEEDS if quick else DEFAULT_SEEDS[1])
+    return n, duration if duration is not None else (QUICK_DURATION if quick else DEFAULT_DURATION)
 
 
 def git_commit(ignore: Path | None = None, where: Path | None = None) -> dict[str, Any]:

@@ -247,3 +247,20 @@ def test_the_grid_gives_the_same_rows_with_one_worker_or_two():
     one = run_grid(cells, [1, 2], 4.0, path, workers=1, progress=False)
     two = run_grid(cells, [1, 2], 4.0, path, workers=2, progress=False)
     assert len(one) == 4 * len(cells) * 2 and one == two
+
+
+def test_the_grid_sizes_the_quick_look_the_reference_and_refuses_what_contradicts_them(tmp_path):
+    from cekm_swarm.experiments.grid_report import grid_size
+
+    assert grid_size(False, False, None, None) == (10, 60.0)  # the quick look
+    assert grid_size(False, True, None, None) == (40, 120.0)  # the reference grid
+    assert grid_size(True, False, None, None) == (2, 8.0)
+    assert grid_size(False, False, 5, 30.0) == (5, 30.0)
+    for contradiction in [(True, True, None, None), (False, True, 12, None), (False, True, None, 9.0)]:
+        with pytest.raises(ValueError, match="--reference"):
+            grid_size(*contradiction)
+    out = CliRunner().invoke(main, ["experiment", "tracking", "--reference", "--out", str(tmp_path / "r")])
+    assert out.exit_code == 2 and "--reference goes with --grid" in out.output
+    out = CliRunner().invoke(main, ["experiment", "tracking", "--grid", "--reference", "--seeds", "12",
+                                    "--out", str(tmp_path / "r")])
+    assert out.exit_code == 2 and "leave out --seeds" in out.output and not (tmp_path / "r").exists()
