@@ -72,6 +72,7 @@ from cekm_swarm.runtime.config import (
 )
 from cekm_swarm.runtime.errors import RuntimeTransportError
 from cekm_swarm.runtime.gc_tuning import freeze_startup_heap
+from cekm_swarm.runtime.heap import HeapTrimmer, trim
 from cekm_swarm.runtime.lifetime import die_with_parent
 from cekm_swarm.runtime.mcap_record import LogFull
 from cekm_swarm.runtime.record import serve_geometry, serve_json
@@ -148,6 +149,7 @@ class WorldServer:
                    else {self.keys.cmd_wheels(r): r for r in self.robots})
         sends = None if plan is None else {r: set(plan.world_keys(r)) for r in self.robots}
         held = None if plan is None else {r: set(plan.held_readings(r)) for r in self.robots}
+        self.heap = HeapTrimmer()
         self.deadman = Deadman(self.robots, cfg.deadman, time.monotonic())  # restarted when the run starts
         self.inbox = CommandInbox(self.robots, answers, self.drops, self.deadman)
         self.publisher = TickPublisher(self.keys, self.world, self.episode, sends,
@@ -337,6 +339,8 @@ class WorldServer:
                 if now - last_progress >= cfg.progress_every:
                     last_progress = now
                     self._progress()
+                if self.heap.due(now):  # freed memory back to the system, off the loop (runtime/heap.py)
+                    asyncio.get_running_loop().run_in_executor(None, trim)
                 if ep.done or ep.tick >= self.max_ticks:
                     return True
                 ep.advance()
