@@ -79,18 +79,22 @@ def _screenshot(url: str, path: Path):
     return np.asarray(Image.open(path).convert("RGB")).astype(int)
 
 
-def _centroid(mask) -> np.ndarray:
-    ys, xs = np.nonzero(mask)
+def _front(mask) -> float:
+    """The rightmost x of ``mask``'s pixels (r1 drives towards +x)."""
+    _, xs = np.nonzero(mask)
     assert len(xs) >= 10, "too few of r1's pixels changed"
-    return np.array([xs.mean(), ys.mean()])
+    return float(xs.max())
 
 
 def _moved(img_a, img_b, rgb) -> float:
-    """How far (px, along x) r1's drawing moved from one screenshot to the other: the pixels
-    of its colour that appeared (its disc now, its path since) against those that vanished
-    (its disc then); its start and goal markers, in both, count in neither."""
+    """How far (px, along x) the front of r1's drawing moved from one screenshot to the
+    other: the rightmost of its colour's pixels that appeared (its disc now, its path since)
+    against the rightmost of those that vanished (its disc then); its start and goal markers,
+    in both, count in neither. The front, not the centroid: a page that drew no path yet in
+    the first screenshot (it reloads once when it learns the run) shows the whole path in the
+    second, whose centroid can lie behind the first disc although the robot drove on."""
     in_a, in_b = (np.all(np.abs(img - np.array(rgb)) <= 2, axis=2) for img in (img_a, img_b))
-    return float(_centroid(in_b & ~in_a)[0] - _centroid(in_a & ~in_b)[0])
+    return float(_front(in_b & ~in_a) - _front(in_a & ~in_b))
 
 
 # lone_obstacle with the goal 3 m away instead of 1: the run lasts long enough for the second
