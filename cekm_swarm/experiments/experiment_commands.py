@@ -231,7 +231,7 @@ def obstacles(seeds: str, speed_unit: float | None, max_time: float, model_path:
 @click.option("--grid", is_flag=True, help="The scenario grid instead (team size, targets per robot, target speed, "
               "sensing range, obstacles; docs/tracking.md): results.json, tables.md, grid.png.")
 @click.option("--quick", is_flag=True, help="With --grid: a small grid (CI).")
-@click.option("--reference", is_flag=True, help="With --grid: the reference grid, 40 seeds x 120 s a cell (about 70 "
+@click.option("--reference", is_flag=True, help="With --grid: the reference grid, 40 seeds x 120 s a cell (about 60 "
               "minutes on 2 cores; the default, 10 x 60 s, is the quick look).")
 @click.option("--first-seed", default=1, show_default=True, type=click.IntRange(0),
               help="Seeds first-seed .. first-seed + N - 1 (the grid's default held-out 1-10; its tuning used "
