@@ -65,12 +65,13 @@ class FieldEnvCore:
         self.checked = check_graph(policy_graph(task))
         self.session: GraphSession | None = None
         self.scenario_seed: int | None = None
+        self.team_size: int | None = None  # generated scenarios of this many robots (None: any)
 
     def _scenario(self):
         if self.fixed_scenario is not None:
             return self.fixed_scenario
         self.scenario_seed = seed_of(self.purpose, int(self.np_random.integers(SCENARIOS_PER_PURPOSE)))
-        return generated(self.task, self.scenario_seed)
+        return generated(self.task, self.scenario_seed, self.team_size)
 
     def _start(self) -> None:
         """A new episode's session (the scenario drawn now), every robot at action 0 (today's values)."""
