@@ -30,7 +30,6 @@ episode. With every agent at action 0 the run is ``cekm run``'s (tested).
 
 from __future__ import annotations
 
-import functools
 from typing import Any
 
 import numpy as np
@@ -71,11 +70,10 @@ class FieldTeamEnv(FieldEnvCore, ParallelEnv):
         self.action_spaces = {a: spaces.Box(-1.0, 1.0, (k,), dtype=np.float32) for a in ids}
         self.np_random, self.np_random_seed = seeding.np_random()  # from the OS until reset(seed=) seeds it
 
-    @functools.cache  # noqa: B019 -- one space object per agent, as PettingZoo asks; the env lives as long
     def observation_space(self, agent: str) -> spaces.Box:
+        """The agent's space: the same object at every call, as PettingZoo asks."""
         return self.observation_spaces[agent]
 
-    @functools.cache  # noqa: B019 -- as above
     def action_space(self, agent: str) -> spaces.Box:
         return self.action_spaces[agent]
 
