@@ -26,26 +26,11 @@ from typing import Any
 import gymnasium as gym  # noqa: TID253 -- the environment subclasses gym.Env; only `cekm tune` imports it
 import numpy as np
 
-from ..experiments.graph_run import GraphSession
-from ..node.graph_check import check_graph
+from .env_core import FieldEnvCore
 from .features import N_FEATURES
-from .graphs import policy_graph
-from .motor import FieldMotor, FieldTrackingMotor
-from .policy import FieldPolicy, check_task
-from .scenarios import scenario as generated
-from .scenarios import seed_of
-
-SCENARIOS_PER_PURPOSE = 1_000_000
 
 
-def _policy_motor(node: object) -> FieldMotor | FieldTrackingMotor:
-    """A robot's motor node of the policy graph (the one whose field parameters the actions set)."""
-    if not isinstance(node, FieldMotor | FieldTrackingMotor):
-        raise TypeError(f"the policy graph's motor node is a {type(node).__name__}, not a field-policy motor")
-    return node
-
-
-class FieldEnv(gym.Env):
+class FieldEnv(FieldEnvCore, gym.Env):
     """Field parameters as actions over a ``cekm run`` of one scenario (see the module docstring)."""
 
     metadata = {"render_modes": []}
@@ -53,71 +38,28 @@ class FieldEnv(gym.Env):
     def __init__(self, task: str = "navigation", scenario: Any = None, *, ticks_per_action: int = 8,
                  max_time: float | None = None, purpose: str = "train", model: Any = None,
                  contact_penalty: float = 0.5) -> None:
-        self.task = check_task(task)
-        self.fixed_scenario = scenario
-        self.ticks_per_action = int(ticks_per_action)
-        if self.ticks_per_action < 1:
-            raise ValueError("ticks_per_action must be at least 1")
-        self.max_time = max_time if max_time is not None else (120.0 if task == "navigation" else 60.0)
-        self.purpose = purpose
-        seed_of(purpose, 0)  # checks the purpose
-        if model is None:
-            from ..experiments.default_model import default_model  # noqa: PLC0415 -- lazy: scipy
-
-            model = default_model()
-        self.model = model
-        self.contact_penalty = float(contact_penalty)
-        self.policy = FieldPolicy(task)
-        self.checked = check_graph(policy_graph(task))
+        self._setup(task, scenario, ticks_per_action, max_time, purpose, model, contact_penalty)
         self.action_space = gym.spaces.Box(-1.0, 1.0, (len(self.policy.outputs),), dtype=np.float32)
         self.observation_space = gym.spaces.Box(0.0, 1.0, (N_FEATURES,), dtype=np.float32)
-        self.session: GraphSession | None = None
-        self.scenario_seed: int | None = None
 
     # ------------------------------------------------------------------ helpers
-    def _scenario(self):
-        if self.fixed_scenario is not None:
-            return self.fixed_scenario
-        self.scenario_seed = seed_of(self.purpose, int(self.np_random.integers(SCENARIOS_PER_PURPOSE)))
-        return generated(self.task, self.scenario_seed)
-
-    @property
-    def _live(self) -> Any:
-        """The episode's session (made by :meth:`reset`)."""
-        assert self.session is not None, "reset() first"
-        return self.session
-
     def _observation(self) -> np.ndarray:
-        feats = [m.last_features for m in self.motors if m.last_features is not None]
-        f = np.mean(feats, axis=0) if feats else np.zeros(N_FEATURES)
-        return np.clip(f, 0.0, 1.0).astype(np.float32)
+        feats = [f for f in map(self._features, self.robots) if f is not None]
+        return self._as_observation(np.mean(feats, axis=0) if feats else None)
 
     def _distance(self) -> float:
-        ep = self._live.episode
-        return sum(float(ep.to_goal(r)) for r in self.robots)
+        return sum(self._to_goal(r) for r in self.robots)
 
     def _contacts(self) -> int:
-        w = self._live.world
-        return sum(int(w.stats(r)["collisions"]) for r in self.robots)
-
-    def _observed(self) -> float:
-        return float(sum(self._live.episode.meter.fraction))
-
-    def _run(self, ticks: int) -> bool:
-        """Up to ``ticks`` ticks; True as soon as the session ends (the rest are not run)."""
-        return any(self._live.step() for _ in range(ticks))
+        return sum(self._contacts_of(r) for r in self.robots)
 
     # ------------------------------------------------------------------ Gymnasium API
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
-        sc = self._scenario()
-        self.session = GraphSession(sc, graph=self.checked, model=self.model, max_time=self.max_time,
-                                    params={"weights": (0.0,) * FieldPolicy.size(self.task)})  # the actions rule
-        self.robots = tuple(self.session.world.robot_ids)
-        self.motors = [_policy_motor(self.session.executor.node(r, "motor")) for r in self.robots]
+        self._start()
         self.choice = self.policy.choice(np.zeros(len(self.policy.outputs)))
-        for m in self.motors:
-            m.override = self.choice
+        for r in self.robots:
+            self._set(r, self.choice)
         self.done = self._run(1)
         self.start_distance = max(self._distance(), 1e-9) if self.task == "navigation" else 1.0
         self.last_distance = self._distance() if self.task == "navigation" else 0.0
@@ -131,8 +73,8 @@ class FieldEnv(gym.Env):
         if self.done:
             raise RuntimeError("FieldEnv.step after the episode ended: call reset")
         self.choice = self.policy.choice(np.asarray(action, dtype=np.float64))
-        for m in self.motors:
-            m.override = self.choice
+        for r in self.robots:
+            self._set(r, self.choice)
         self.done = self._run(self.ticks_per_action)
         contacts = self._contacts()
         new_contacts, self.last_contacts = contacts - self.last_contacts, contacts
@@ -140,12 +82,12 @@ class FieldEnv(gym.Env):
             d = self._distance()
             reward = (self.last_distance - d) / self.start_distance - self.contact_penalty * new_contacts
             self.last_distance = d
-            reached = all(p.reached for p in self.session.episode.progress.values())
+            reached = all(self._reached(r) for r in self.robots)
             reward += 1.0 if reached else 0.0
             terminated = reached
         else:
             seen = self._observed()
-            reward = (seen - self.last_observed) / (self.session.max_ticks + 1)
+            reward = self._a_reward(seen, self.last_observed)
             self.last_observed = seen
             terminated = False
         truncated = self.done and not terminated
@@ -153,15 +95,4 @@ class FieldEnv(gym.Env):
 
     def _info(self) -> dict[str, Any]:
         return {"t": self._live.episode.t, "tick": self._live.episode.tick, "scenario_seed": self.scenario_seed,
-                "fields": dict(zip(self.policy.outputs, (
-                    self.choice.fields.sigma_b_alpha, self.choice.fields.sigma_b_d_beyond,
-                    self.choice.fields.sigma_b_d_near, self.choice.teammate_gain), strict=False))}
-
-    def outcome(self) -> dict[str, dict]:
-        """The run's outcome as ``cekm run`` reports it (per robot)."""
-        return self._live.episode.outcome()
-
-    def close(self) -> None:
-        if self.session is not None:
-            self.session.executor.close()
-            self.session = None
+                "fields": self._fields_info(self.choice)}

@@ -57,7 +57,7 @@ class _PolicyFields:
             raise NodeError(f"{self.ctx.sender}: field policy: {exc}") from None
         if self.policy.task != self.task:
             raise NodeError(f"{self.ctx.sender}: field policy {p.policy!r} is for {self.policy.task}, not {self.task}")
-        self.override: FieldChoice | None = None  # set by the environment (cekm_swarm.tune.env)
+        self.override: FieldChoice | None = None  # set by the environments (cekm_swarm.tune.env_core)
         self.last_features: np.ndarray | None = None
         self.last_choice: FieldChoice | None = None
         self._rows: dict[int, np.ndarray] = {}

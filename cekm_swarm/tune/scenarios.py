@@ -22,7 +22,7 @@ import numpy as np
 from world.scenario import parse_scenario
 
 from ..errors import ParameterError
-from ..experiments.grid_design import design, grid_scenario
+from ..experiments.grid_design import TEAM_SIZES, design, grid_scenario
 
 KINDS = ("u", "doorway", "corridor", "movers")
 SEED_BASE = {"train": 1_000_000, "validation": 2_000_000, "test": 3_000_000}
@@ -116,19 +116,38 @@ def grid_cells() -> tuple:
     return tuple(design())
 
 
-def tracking_scenario(seed: int, cell=None):
+def tracking_scenario(seed: int, cell=None, robots: int | None = None):
     """A tracking grid scenario: ``cell`` (default: a cell of the grid's design drawn from
-    the seed) with the grid's generator for ``seed``."""
+    the seed, among those of ``robots`` robots if given) with the grid's generator for ``seed``."""
     if cell is None:
-        cells = grid_cells()
+        cells = tuple(c for c in grid_cells() if robots is None or c.robots == robots)
+        if not cells:
+            raise ParameterError(f"the tracking grid has no cell of {robots} robots; its team sizes are "
+                                 f"{sorted({c.robots for c in grid_cells()})}")
         cell = cells[int(np.random.default_rng([int(seed), 43]).integers(len(cells)))]
     return grid_scenario(cell, seed)
 
 
-def scenario(task: str, seed: int):
-    """Generated scenario ``seed`` of ``task``."""
+def scenario(task: str, seed: int, robots: int | None = None):
+    """Generated scenario ``seed`` of ``task`` (tracking: of ``robots`` robots if given;
+    navigation's have one)."""
     if task == "navigation":
+        if robots not in (None, 1):
+            raise ParameterError(f"generated navigation scenarios have one robot, not {robots}")
         return navigation_scenario(seed)
     if task == "tracking":
-        return tracking_scenario(seed)
+        return tracking_scenario(seed, robots=robots)
+    raise ParameterError(f"unknown task {task!r}; expected navigation or tracking")
+
+
+def team_ids(task: str, robots: int | None = None) -> tuple[str, ...]:
+    """Every robot id a generated scenario of ``task`` (of ``robots`` robots if given) can
+    have: navigation's one robot; tracking's largest team of the grid or ``robots`` (its
+    generator names them r1, r2, ...)."""
+    if task == "navigation":
+        if robots not in (None, 1):
+            raise ParameterError(f"generated navigation scenarios have one robot, not {robots}")
+        return ("r1",)
+    if task == "tracking":
+        return tuple(f"r{i + 1}" for i in range(robots or max(TEAM_SIZES)))
     raise ParameterError(f"unknown task {task!r}; expected navigation or tracking")
