@@ -339,10 +339,8 @@ class WorldServer:
                 if now - last_progress >= cfg.progress_every:
                     last_progress = now
                     self._progress()
-                if self.heap.due(now):  # once a minute: cyclic garbage collected, the C heap's free
-                    self.heap.collect()  # memory back to the system off the loop (runtime/heap.py)
-                    if self.heap.available:
-                        asyncio.get_running_loop().run_in_executor(None, trim)
+                if self.heap.due(now):  # freed memory back to the system, off the loop (runtime/heap.py)
+                    asyncio.get_running_loop().run_in_executor(None, trim)
                 if ep.done or ep.tick >= self.max_ticks:
                     return True
                 ep.advance()
@@ -412,7 +410,7 @@ class WorldServer:
                "sense_to_command_ms": latency_ms(inbox.latencies),
                "dropped_messages": self.drops.total + self.record_drops.total, "recorded_messages": pub.recorded,
                "drops": {"commands": self.drops.by_source(), "recorder": self.record_drops.by_source()},
-               "late_commands": inbox.late_commands, "heap": self.heap.summary(), "events": st.events}
+               "late_commands": inbox.late_commands, "events": st.events}
         if self.log_full is not None:
             doc["log_full"] = str(self.log_full)
         doc.update(ep.summary())
