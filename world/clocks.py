@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import math
 import time
 from typing import Any
 
@@ -48,6 +49,28 @@ def missed_deadline(t: float, stamp: float | None, deadline_ticks: int = 0) -> b
     the robot never sent one) is a miss when it lags the tick by more than ``deadline_ticks``
     ticks. 0, the default, asks each tick's own command by the end of that tick."""
     return stamp is None or late_ticks(t, stamp) > deadline_ticks
+
+
+RTO_MIN_S = 0.2
+"""Linux's least TCP retransmission timeout: a lost segment is sent again a round trip plus
+this after it first left (and everything behind it on the connection waits for it)."""
+
+
+def link_deadline_ticks(one_way_delay: float, jitter: float = 0.0, *, lossy: bool = True,
+                        compute: float = 0.02) -> int:
+    """The deadline allowance (``--deadline-ticks``) a TCP link of this one-way delay needs
+    so that only what really went wrong counts as a miss. A tick's readings leave at its
+    start, cross the link, the robot computes (``compute`` s) and its command crosses back,
+    due by the end of tick k + N, (N + 1) ticks later. On a ``lossy`` link each crossing may
+    also wait one retransmission (a round trip plus :data:`RTO_MIN_S`): the two crossings
+    lose packets independently, so the allowance covers one on each. 50 ms one way, lossy:
+    5 (0.77 s); without loss: 0. docs/faults.md, 'Real time under delay and loss'."""
+    if one_way_delay < 0 or jitter < 0 or compute < 0:
+        raise ValueError(f"delay, jitter and compute must be >= 0 s, got {one_way_delay}, {jitter}, {compute}")
+    crossing = one_way_delay + jitter
+    if lossy:
+        crossing += 2 * one_way_delay + RTO_MIN_S
+    return max(0, math.ceil((2 * crossing + compute) / TICK_S) - 1)
 
 
 class Stopped(Exception):

@@ -72,7 +72,7 @@ from cekm_swarm.runtime.config import (
 )
 from cekm_swarm.runtime.errors import RuntimeTransportError
 from cekm_swarm.runtime.gc_tuning import freeze_startup_heap
-from cekm_swarm.runtime.heap import HeapTrimmer, trim
+from cekm_swarm.runtime.heap import HeapTrimmer, hold_mmap_threshold, trim
 from cekm_swarm.runtime.lifetime import die_with_parent
 from cekm_swarm.runtime.mcap_record import LogFull
 from cekm_swarm.runtime.record import serve_geometry, serve_json
@@ -150,6 +150,7 @@ class WorldServer:
         sends = None if plan is None else {r: set(plan.world_keys(r)) for r in self.robots}
         held = None if plan is None else {r: set(plan.held_readings(r)) for r in self.robots}
         self.heap = HeapTrimmer()
+        hold_mmap_threshold()  # large transient buffers (the log's chunks) never settle in the heap
         self.deadman = Deadman(self.robots, cfg.deadman, time.monotonic())  # restarted when the run starts
         self.inbox = CommandInbox(self.robots, answers, self.drops, self.deadman)
         self.publisher = TickPublisher(self.keys, self.world, self.episode, sends,

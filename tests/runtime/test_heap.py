@@ -6,7 +6,7 @@ import sys
 
 import pytest
 
-from cekm_swarm.runtime.heap import HeapTrimmer, trim
+from cekm_swarm.runtime.heap import HeapTrimmer, hold_mmap_threshold, trim
 
 
 def test_a_trim_is_due_once_a_period_and_never_at_the_start() -> None:
@@ -48,3 +48,10 @@ def test_no_trim_where_the_c_library_has_none(monkeypatch: pytest.MonkeyPatch) -
     assert heap.trim() is False
     h = heap.HeapTrimmer()
     assert not h.available and not h.due(0.0) and not h.due(1e9)
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="mallopt is glibc's (Linux)")
+def test_the_mmap_threshold_is_held_where_glibc_runs() -> None:
+    if not HeapTrimmer().available:
+        pytest.skip("this C library is not glibc")
+    assert hold_mmap_threshold()
