@@ -41,10 +41,11 @@ def hold_mmap_threshold(nbytes: int = MMAP_THRESHOLD) -> bool:
 
     glibc raises the threshold to the size of any large block that is freed (up to 32 MB),
     after which blocks below it come from the heap. The world's log frees a 1 MB chunk
-    buffer every few seconds, so its compressed chunks, Zenoh's 64 kB batches and the like
-    then land in the heap between long-lived objects and leave holes it does not give back:
-    in a 2-robot real-time run, 3.3 MB of anonymous memory grew over six minutes with the
-    moving threshold, 2.3 MB with it held (docs/faults.md, 'An hour on a bad link')."""
+    buffer every few seconds, so later large buffers (its compressed chunks and the like)
+    then land in the heap between long-lived objects and can leave holes it does not give
+    back. In two 2-robot real-time runs side by side, one each way, the world server's
+    anonymous memory grew 3.3 MB from minute 1 to minute 6.5 with the moving threshold and
+    2.3 MB with it held (one pair of runs: docs/faults.md, 'An hour on a bad link')."""
     if not sys.platform.startswith("linux"):
         return False
     try:
