@@ -34,7 +34,11 @@ class Watchdog:
         self.runner: runner.Runner | None = None  # the Runner whose step runs now
         self.closed = False
         self._main = threading.get_ident()
+        self._ignored = False  # SIGINT was ignored when the run began (a script's background job)
         if threading.current_thread() is threading.main_thread():  # only the main thread can be interrupted
+            if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:  # `cekm run ... &` in a script: its
+                signal.signal(signal.SIGINT, signal.default_int_handler)  # interrupt would be lost
+                self._ignored = True
             threading.Thread(target=_watch, args=(weakref.ref(self), min(1.0, timeout / 4)),
                              name="cekm-step-watchdog", daemon=True).start()
 
@@ -69,6 +73,9 @@ class Watchdog:
 
     def close(self) -> None:
         self.closed = True
+        if self._ignored and threading.get_ident() == self._main:
+            signal.signal(signal.SIGINT, signal.SIG_IGN)  # as the run found it
+            self._ignored = False
 
 
 def _watch(ref: weakref.ref[Watchdog], every: float) -> None:
