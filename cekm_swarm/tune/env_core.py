@@ -81,7 +81,6 @@ class FieldEnvCore:
                                     params={"weights": (0.0,) * FieldPolicy.size(self.task)})  # the actions rule
         self.robots = tuple(self.session.world.robot_ids)
         self.motor_of = {r: _policy_motor(self.session.executor.node(r, "motor")) for r in self.robots}
-        self.motors = [self.motor_of[r] for r in self.robots]
 
     @property
     def _live(self) -> Any:

@@ -128,12 +128,16 @@ def tracking_scenario(seed: int, cell=None, robots: int | None = None):
     return grid_scenario(cell, seed)
 
 
+def _one_robot(robots: int | None) -> None:
+    if robots not in (None, 1):
+        raise ParameterError(f"generated navigation scenarios have one robot, not {robots}")
+
+
 def scenario(task: str, seed: int, robots: int | None = None):
     """Generated scenario ``seed`` of ``task`` (tracking: of ``robots`` robots if given;
     navigation's have one)."""
     if task == "navigation":
-        if robots not in (None, 1):
-            raise ParameterError(f"generated navigation scenarios have one robot, not {robots}")
+        _one_robot(robots)
         return navigation_scenario(seed)
     if task == "tracking":
         return tracking_scenario(seed, robots=robots)
@@ -145,8 +149,7 @@ def team_ids(task: str, robots: int | None = None) -> tuple[str, ...]:
     have: navigation's one robot; tracking's largest team of the grid or ``robots`` (its
     generator names them r1, r2, ...)."""
     if task == "navigation":
-        if robots not in (None, 1):
-            raise ParameterError(f"generated navigation scenarios have one robot, not {robots}")
+        _one_robot(robots)
         return ("r1",)
     if task == "tracking":
         return tuple(f"r{i + 1}" for i in range(robots or max(TEAM_SIZES)))

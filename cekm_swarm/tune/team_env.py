@@ -45,7 +45,6 @@ except ImportError as exc:  # pettingzoo is in the `test` extra, not a runtime d
 from ..errors import ParameterError
 from .env_core import FieldEnvCore
 from .features import N_FEATURES
-from .policy import FieldChoice
 from .scenarios import team_ids
 
 
@@ -87,9 +86,8 @@ class FieldTeamEnv(FieldEnvCore, ParallelEnv):
             raise ParameterError(f"FieldTeamEnv: the scenario's robots {unknown} are not among its possible "
                                  f"agents {self.possible_agents}")
         zero = self.policy.choice(np.zeros(len(self.policy.outputs)))
-        self.choices: dict[str, FieldChoice] = {}
         for r in self.robots:
-            self._choose(r, zero)
+            self._set(r, zero)
         self.done = self._run(1)
         self.agents = list(self.robots)
         nav = self.task == "navigation"
@@ -108,7 +106,7 @@ class FieldTeamEnv(FieldEnvCore, ParallelEnv):
         if stray:
             raise ValueError(f"FieldTeamEnv.step: actions for {stray}, which are not live agents {self.agents}")
         for r, a in actions.items():
-            self._choose(r, self.policy.choice(np.asarray(a, dtype=np.float64)))
+            self._set(r, self.policy.choice(np.asarray(a, dtype=np.float64)))
         if not self.done:
             self.done = self._run(self.ticks_per_action)
         rewards: dict[str, float] = {}
@@ -134,14 +132,11 @@ class FieldTeamEnv(FieldEnvCore, ParallelEnv):
         return obs, rewards, terminated, truncated, infos
 
     # ------------------------------------------------------------------ helpers
-    def _choose(self, robot: str, choice: FieldChoice) -> None:
-        self.choices[robot] = choice
-        self._set(robot, choice)
-
     def _observation(self, robot: str) -> np.ndarray:
         return self._as_observation(self._features(robot))
 
     def _info(self, robot: str) -> dict[str, Any]:
         ep = self._live.episode
-        return {"t": ep.t, "tick": ep.tick, "scenario_seed": self.scenario_seed,
-                "fields": self._fields_info(self.choices[robot])}
+        choice = self.motor_of[robot].override
+        assert choice is not None  # every robot's is set at reset
+        return {"t": ep.t, "tick": ep.tick, "scenario_seed": self.scenario_seed, "fields": self._fields_info(choice)}
