@@ -12,7 +12,7 @@ from pathlib import Path
 
 import click
 
-from .cli_support import FileRefused, Finite, out_dir_options, prepare_out_dir, run_cli, seed_option
+from .cli_support import FileRefused, Finite, interruptible, out_dir_options, prepare_out_dir, run_cli, seed_option
 from .experiments.commands import (
     load_scenario_file,
     refuse_unplannable,
@@ -113,5 +113,6 @@ def run_cli_args(argv: list[str]) -> int:
     return run_cli(main, argv)
 
 
-def run() -> None:  # pragma: no cover - the console entry (cekm_swarm.cli_support.run_cli is tested)
+def run() -> None:  # the console entry and ``python -m cekm_swarm`` (tests/test_cli_interrupt.py)
+    interruptible()
     sys.exit(run_cli(main))

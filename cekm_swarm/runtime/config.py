@@ -11,6 +11,7 @@ from __future__ import annotations
 import ipaddress
 import json
 import os
+import random
 import re
 import socket
 from pathlib import Path
@@ -108,9 +109,42 @@ def use_zenoh_runtime(spec: str) -> None:
     os.environ.setdefault("ZENOH_RUNTIME", spec)
 
 
-def free_port(host: str = DEFAULT_HOST) -> int:
-    """A TCP port free on ``host`` right now (bound and released; for tests and launchers)."""
+EPHEMERAL_RANGE = Path("/proc/sys/net/ipv4/ip_local_port_range")
+"""Where Linux keeps the range its outgoing connections take their source ports from."""
+
+
+def ephemeral_ports(path: Path = EPHEMERAL_RANGE) -> tuple[int, int]:
+    """The kernel's ephemeral port range (first, last); Linux's default where unreadable."""
+    try:
+        first, last = (int(v) for v in path.read_text().split())
+    except (OSError, ValueError):
+        return 32768, 60999
+    return first, last
+
+
+def _bindable(host: str, port: int) -> bool:
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        try:
+            s.bind((host, port))
+        except OSError:
+            return False
+    return True
+
+
+def free_port(host: str = DEFAULT_HOST, tries: int = 200) -> int:
+    """A TCP port free on ``host`` right now (bound and released; for tests and launchers).
+
+    Drawn at random from outside the kernel's ephemeral range: a port from inside it (what
+    binding port 0 gives) can be taken, between its release and its use, as the source port
+    of any outgoing connection -- a client retrying to reach that very port included, which
+    then connects to itself and keeps the port from the router meant to listen there."""
+    first, last = ephemeral_ports()
+    pool = [*range(10000, max(10000, first)), *range(max(10000, last + 1), 65536)]
+    rng = random.Random(os.urandom(8))  # not the caller's random state
+    for port in rng.sample(pool, min(tries, len(pool))):
+        if _bindable(host, port):
+            return port
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:  # nothing outside is free
         s.bind((host, 0))
         return int(s.getsockname()[1])
 

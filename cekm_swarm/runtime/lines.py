@@ -43,6 +43,20 @@ class LineReader:
             self.seen.append(line)
         return line
 
+    def drain(self) -> list[str]:
+        """Every line read so far and not yet handed out, without waiting (kept in
+        :attr:`seen` too): what a process said, for an error about another one."""
+        start = len(self.seen)
+        while True:
+            try:
+                line = self._q.get_nowait()
+            except queue.Empty:
+                return self.seen[start:]
+            if line is None:
+                self._q.put(None)  # the end stays the end for the next reader
+                return self.seen[start:]
+            self.seen.append(line)
+
     def first(self, match: Callable[[str], bool], waiting_for: str, timeout: float) -> str:
         """The first new line for which ``match`` holds; AssertionError if the stream ends
         or ``timeout`` seconds pass first."""

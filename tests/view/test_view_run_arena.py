@@ -1,5 +1,11 @@
 """``cekm view SCENARIO`` attached to a run of another scenario: it draws the run's arena
-(the one its world server serves), saying so in a warning, not the SCENARIO it was given."""
+(the one its world server serves), saying so in a warning, not the SCENARIO it was given.
+
+The run is split as on two hosts: a world-only launcher, whose lockstep world holds tick 0
+until the robot's modules are alive, and the robot's launcher, started only once the view
+has drawn the run's arena. So the view attaches before the run begins whatever the
+machine's speed (a whole run of one launcher can end within a second of its router
+coming up, before a view retrying to connect gets there)."""
 
 from __future__ import annotations
 
@@ -10,7 +16,6 @@ import urllib.request
 
 import pytest
 
-from cekm_swarm.runtime.config import free_port
 from cekm_swarm.runtime.lines import LineReader
 from helpers.launch import LaunchProcess, interrupt
 
@@ -18,27 +23,32 @@ pytestmark = pytest.mark.slow  # starts real processes (tests/process_guard.py)
 
 
 def test_a_view_given_another_scenario_draws_the_runs_arena_with_a_warning(tmp_path):
-    port = free_port()
-    view = subprocess.Popen([sys.executable, "-m", "cekm_swarm", "view", "crossing", "--http", "0",
-                             "--connect", f"tcp/127.0.0.1:{port}"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=True)
-    lines = LineReader(view.stderr)
-    run = LaunchProcess("lone_obstacle", tmp_path / "run", "--mode", "lockstep", "--max-time", "1", "--no-plot",
-                        port=port)
-    said = lines.seen
-
-    def wait_for(text: str) -> str:
-        return lines.wait_line(text, 120)
-
+    common = ("--mode", "lockstep", "--max-time", "1", "--no-plot")
+    world = LaunchProcess("lone_obstacle", tmp_path / "world-host", "--robots", "none", *common)
+    view = robots = None
     try:
-        url = wait_for("live view on http://").split()[3]
-        warning = wait_for("is of arena 'lone_obstacle', not 'crossing': drawing the run's")
+        world.wait_line("serving the model", timeout=60)
+        endpoint = f"tcp/127.0.0.1:{world.port}"
+        view = subprocess.Popen([sys.executable, "-m", "cekm_swarm", "view", "crossing", "--http", "0",
+                                 "--connect", endpoint],
+                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=True)
+        lines = LineReader(view.stderr)
+        said = lines.seen
+        url = lines.wait_line("live view on http://", 120).split()[3]
+        warning = lines.wait_line("is of arena 'lone_obstacle', not 'crossing': drawing the run's", 120)
         assert warning.startswith("the run "), said
         after = json.loads(urllib.request.urlopen(url + "state.json", timeout=30).read())
         assert after["geometry"]["name"] == "lone_obstacle" and after["arena"] == "lone_obstacle"
         assert [r["id"] for r in after["geometry"]["robots"]] == ["r1"]  # the run's robots, not crossing's
         assert sorted(after["colours"]) == ["r1"]
-        assert run.finish(timeout=120) == 0, "\n".join(run.lines[-20:])
+        robots = LaunchProcess("lone_obstacle", tmp_path / "robot-host", "--robots", "r1", "--no-world",
+                               "--connect", endpoint, *common)
+        assert world.finish(timeout=120) == 0, "\n".join(world.lines)
+        assert robots.finish(timeout=60) == 0, "\n".join(robots.lines)
+        assert world.outcome()["robots"]["r1"]["path_length_m"] > 0  # the run the view watched did run
     finally:
-        run.kill()
-        interrupt(view)
+        world.kill()
+        if robots is not None:
+            robots.kill()
+        if view is not None:
+            interrupt(view)
