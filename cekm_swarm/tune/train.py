@@ -33,7 +33,7 @@ from tqdm import tqdm
 from ..errors import ParameterError
 from .policy import FieldPolicy, check_task
 from .rollout import run_many
-from .scenarios import seed_of
+from .scenarios import check_mix, seed_of
 
 STATE_VERSION = 1
 
@@ -51,9 +51,13 @@ class TuneConfig:
     validation: int = 48
     validate_every: int = 5
     max_time: float = 90.0
+    mix: str = "default"  # navigation: the geometry mix trained and validated on (scenarios.MIXES)
 
     def __post_init__(self) -> None:
         check_task(self.task)
+        check_mix(self.mix)
+        if self.mix != "default" and self.task != "navigation":
+            raise ParameterError("--mix goes with --task navigation")
         for name in ("generations", "popsize", "batch", "validation", "validate_every"):
             v = getattr(self, name)
             if not isinstance(v, int) or v < 1:
@@ -69,7 +73,14 @@ def command_of(config: TuneConfig) -> str:
     c = config
     return (f"cekm tune fields --task {c.task} --out DIR --seed {c.seed} --generations {c.generations} "
             f"--popsize {c.popsize} --sigma0 {c.sigma0:g} --batch {c.batch} --validation {c.validation} "
-            f"--validate-every {c.validate_every} --max-time {c.max_time:g}")
+            f"--validate-every {c.validate_every} --max-time {c.max_time:g}"
+            + (f" --mix {c.mix}" if c.mix != "default" else ""))
+
+
+def where_of(config: TuneConfig, purpose: str, i: int):
+    """A job's scenario (:func:`.rollout.scenario_of`): the ``i``-th seed of ``purpose`` in the config's mix."""
+    seed = seed_of(purpose, i)
+    return seed if config.mix == "default" else ("mix", config.mix, seed)
 
 
 def _write_whole(path: Path, data: bytes) -> None:
@@ -84,6 +95,7 @@ def _check_dir(out: Path, config: TuneConfig) -> dict | None:
     cfg, state = out / "config.json", out / "state.pkl"
     if cfg.is_file():
         saved = json.loads(cfg.read_text())
+        saved.setdefault("mix", "default")  # a directory of a version before --mix
         mine = asdict(config)
         for k in mine:
             if saved.get(k) != mine[k]:
@@ -103,7 +115,8 @@ def _check_dir(out: Path, config: TuneConfig) -> dict | None:
 
 def validate(config: TuneConfig, weights: np.ndarray, model_path: str | None, workers: int) -> float:
     """Mean score of ``weights`` on the validation scenarios."""
-    jobs = [(config.task, tuple(float(x) for x in weights), seed_of("validation", i), config.max_time, model_path)
+    jobs = [(config.task, tuple(float(x) for x in weights), where_of(config, "validation", i), config.max_time,
+             model_path)
             for i in range(config.validation)]
     rows = run_many(jobs, workers)
     return float(np.mean([r["score"] for r in rows]))
@@ -135,7 +148,7 @@ def tune(config: TuneConfig, out: Path, model_path: str | None = None, workers: 
     while state["generation"] < config.generations:
         g = state["generation"]
         candidates = es.ask()
-        seeds = [seed_of("train", g * config.batch + i) for i in range(config.batch)]
+        seeds = [where_of(config, "train", g * config.batch + i) for i in range(config.batch)]
         jobs = [(config.task, tuple(float(x) for x in c), s, config.max_time, model_path)
                 for c in candidates for s in seeds]
         rows = run_many(jobs, workers, bar.update)
