@@ -41,9 +41,9 @@ def tune_group() -> None:
 @click.option("--validate-every", type=click.IntRange(min=1), default=5, show_default=True,
               help="Generations between validations.")
 @click.option("--max-time", type=Finite(min=0.2), help="Sim seconds per run (default 90 navigation, 30 tracking).")
-@click.option("--mix", type=click.Choice(["default", "wide"]), default="default", show_default=True,
+@click.option("--mix", type=click.Choice(["default", "wide", "route"]), default="default", show_default=True,
               help="Navigation: the generated geometries trained and validated on (wide: also disc rows with "
-                   "narrow gaps, long walls and narrow deep U's).")
+                   "narrow gaps, long walls and narrow deep U's; route: also a goal in a narrow alcove).")
 @model_option()
 @click.option("--workers", type=click.IntRange(min=1), default=2, show_default=True, help="Worker processes.")
 def fields_cmd(task, out_dir, seed, generations, popsize, sigma0, batch, validation, validate_every, max_time,

@@ -42,6 +42,11 @@ def test_the_wide_mix_draws_its_own_kinds_too_and_they_are_what_they_say():
     wall = navigation_raw(9, "wall")
     (gx, gy), (_, ay), (bx, by) = wall["targets"][0]["position"], wall["walls"][0]["a"], wall["walls"][0]["b"]
     assert gx > bx and gy < ay == by < wall["robots"][0]["start"][1]  # the goal beyond the wall's end, behind it
+    alcove = navigation_raw(9, "alcove")
+    (x, _), (_, d), (gx, gy) = alcove["walls"][0]["a"], alcove["walls"][0]["b"], alcove["targets"][0]["position"]
+    assert 0.12 <= 3.0 - x <= 0.2 and x < gx < 3.0 and gy < d  # the goal inside the corner's alcove
+    assert {navigation_raw(i, mix="route")["name"].split("-")[1] for i in range(60)} == set(KINDS) | {
+        "gaps", "wall", "alcove"}
     assert scenario_of("navigation", ("mix", "wide", 9))[0].name == navigation_scenario(9, mix="wide").name
     with pytest.raises(ParameterError, match="unknown geometry mix"):
         navigation_raw(9, mix="maze")
