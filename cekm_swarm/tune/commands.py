@@ -44,10 +44,12 @@ def tune_group() -> None:
 @click.option("--mix", type=click.Choice(["default", "wide", "route"]), default="default", show_default=True,
               help="Navigation: the generated geometries trained and validated on (wide: also disc rows with "
                    "narrow gaps, long walls and narrow deep U's; route: also a goal in a narrow alcove).")
+@click.option("--hold", multiple=True, help="An output held at today's value (its row of W stays 0), e.g. "
+                                          "sigma_b_d_near; repeat for more.")
 @model_option()
 @click.option("--workers", type=click.IntRange(min=1), default=2, show_default=True, help="Worker processes.")
 def fields_cmd(task, out_dir, seed, generations, popsize, sigma0, batch, validation, validate_every, max_time,
-               mix, model_path, workers) -> None:
+               mix, hold, model_path, workers) -> None:
     """Train a field policy by CMA-ES into OUT (policy.json), seeded and resumable."""
     from .train import TuneConfig, tune  # noqa: PLC0415 -- lazy: pymunk, tqdm, world
 
@@ -55,7 +57,7 @@ def fields_cmd(task, out_dir, seed, generations, popsize, sigma0, batch, validat
     try:
         config = TuneConfig(task, seed, generations or (30 if nav else 15), popsize or (12 if nav else 8), sigma0,
                             batch or (24 if nav else 6), validation or (48 if nav else 12), validate_every,
-                            max_time or (90.0 if nav else 30.0), mix)
+                            max_time or (90.0 if nav else 30.0), mix, tuple(hold))
         meta = tune(config, out_dir, _text(model_path), workers)
     except ParameterError as exc:
         raise click.UsageError(str(exc)) from None
