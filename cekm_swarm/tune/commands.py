@@ -41,10 +41,15 @@ def tune_group() -> None:
 @click.option("--validate-every", type=click.IntRange(min=1), default=5, show_default=True,
               help="Generations between validations.")
 @click.option("--max-time", type=Finite(min=0.2), help="Sim seconds per run (default 90 navigation, 30 tracking).")
+@click.option("--mix", type=click.Choice(["default", "wide", "route"]), default="default", show_default=True,
+              help="Navigation: the generated geometries trained and validated on (wide: also disc rows with "
+                   "narrow gaps, long walls and narrow deep U's; route: also a goal in a narrow alcove).")
+@click.option("--hold", multiple=True, help="An output held at today's value (its row of W stays 0), e.g. "
+                                          "sigma_b_d_near; repeat for more.")
 @model_option()
 @click.option("--workers", type=click.IntRange(min=1), default=2, show_default=True, help="Worker processes.")
 def fields_cmd(task, out_dir, seed, generations, popsize, sigma0, batch, validation, validate_every, max_time,
-               model_path, workers) -> None:
+               mix, hold, model_path, workers) -> None:
     """Train a field policy by CMA-ES into OUT (policy.json), seeded and resumable."""
     from .train import TuneConfig, tune  # noqa: PLC0415 -- lazy: pymunk, tqdm, world
 
@@ -52,7 +57,7 @@ def fields_cmd(task, out_dir, seed, generations, popsize, sigma0, batch, validat
     try:
         config = TuneConfig(task, seed, generations or (30 if nav else 15), popsize or (12 if nav else 8), sigma0,
                             batch or (24 if nav else 6), validation or (48 if nav else 12), validate_every,
-                            max_time or (90.0 if nav else 30.0))
+                            max_time or (90.0 if nav else 30.0), mix, tuple(hold))
         meta = tune(config, out_dir, _text(model_path), workers)
     except ParameterError as exc:
         raise click.UsageError(str(exc)) from None
@@ -116,6 +121,41 @@ def evaluate_cmd(task, out_dir, policy, tests, concave, suite, only, max_time, m
                 click.echo(f"{v}: {s}")
     (out_dir / "results.json").write_text(dumps(doc))
     click.echo(f"wrote {out_dir / 'results.json'}")
+
+
+@tune_group.command("contacts")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), required=True,
+              help="Directory for contacts.json (every run and every contact).")
+@click.option("--purpose", type=click.Choice(["train", "validation"]), default="validation", show_default=True,
+              help="Whose seeds: training's or validation's (never the held-out tests').")
+@click.option("--runs", type=click.IntRange(min=1), default=200, show_default=True, help="Generated scenarios.")
+@click.option("--policy", type=click.Path(dir_okay=False, exists=True, path_type=Path),
+              help="A navigation field policy (default: today's constants, W = 0).")
+@click.option("--max-time", type=Finite(min=0.2), default=300.0, show_default=True, help="Sim seconds per run.")
+@model_option()
+def contacts_cmd(out_dir, purpose, runs, policy, max_time, model_path) -> None:
+    """Why contacts happen: every contact of generated navigation runs, classified (docs/fields.md)."""
+    from tqdm import tqdm  # noqa: PLC0415 -- lazy
+
+    from .contacts import diagnose  # noqa: PLC0415 -- lazy: pymunk, world
+    from .policy import FieldPolicy  # noqa: PLC0415
+    from .scenarios import seed_of  # noqa: PLC0415
+
+    try:
+        weights = None if policy is None else tuple(FieldPolicy.load(policy).W.ravel().tolist())
+    except ParameterError as exc:
+        raise click.UsageError(str(exc)) from None
+    seeds = [seed_of(purpose, i) for i in range(runs)]
+    with tqdm(total=runs, desc="contacts", unit="run") as bar:
+        doc = diagnose(seeds, max_time, _text(model_path), weights, bar.update)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    for k, x in doc["by_kind"].items():
+        click.echo(f"{k:9s} runs {x['runs']:3d}  reached {x['reached']:3d}  contact-free {x['contact_free']:3d}")
+    click.echo(f"contacts {len(doc['contacts'])}")
+    for what, counts in doc["tally"].items():
+        click.echo(f"  by {what}: " + ", ".join(f"{k} {v}" for k, v in sorted(counts.items(), key=lambda x: -x[1])))
+    (out_dir / "contacts.json").write_text(dumps(doc))
+    click.echo(f"wrote {out_dir / 'contacts.json'}")
 
 
 COMMANDS = (tune_group,)

@@ -43,8 +43,11 @@ def navigation_score(o: dict) -> float:
 
 def scenario_of(task: str, where):
     """The scenario and world seed of a job: a generated scenario's seed (its own world
-    seed), or ("concave", width, depth, sensor range, world seed), Fig. 9's sweep cell
+    seed), ("mix", mix, seed) the same from another geometry mix (:data:`.scenarios.MIXES`),
+    or ("concave", width, depth, sensor range, world seed), Fig. 9's sweep cell
     (concave.toml with those overrides, as ``cekm sweep concave`` builds it)."""
+    if isinstance(where, tuple) and where and where[0] == "mix":
+        return generated(task, int(where[2]), mix=where[1]), None
     if isinstance(where, tuple) and where and where[0] == "concave":
         _, width, depth, rng, seed = where
         return load_scenario("concave", overrides={"obstacles[0].width": width, "obstacles[0].depth": depth,

@@ -25,6 +25,14 @@ from ..errors import ParameterError
 from ..experiments.grid_design import TEAM_SIZES, design, grid_scenario
 
 KINDS = ("u", "doorway", "corridor", "movers")
+"""The generated geometries judged (held out) and, by default, trained on."""
+WIDE_KINDS = (*KINDS, "gaps", "wall", "u-narrow")
+"""``--mix wide``: also a row of discs with narrow gaps (Fig. 12's left room), a long wall
+whose end the robot rounds, and narrow deep U's (Fig. 9's stall cells); docs/fields.md."""
+ROUTE_KINDS = (*WIDE_KINDS, "alcove")
+"""``--mix route``: the wide mix and a goal at the bottom of a narrow alcove in a corner
+(Fig. 12's last checkpoint, where learned policies stall against the alcove's wall end)."""
+MIXES = {"default": KINDS, "wide": WIDE_KINDS, "route": ROUTE_KINDS}
 SEED_BASE = {"train": 1_000_000, "validation": 2_000_000, "test": 3_000_000}
 """Scenario seeds by purpose: purpose p's i-th scenario has seed SEED_BASE[p] + i."""
 
@@ -51,12 +59,26 @@ def u_raw(width: float, depth: float, sensor_range: float, seed: int, offset: fl
                            "thickness": 0.02, "facing": _r(facing)}]}
 
 
-def navigation_raw(seed: int, kind: str | None = None) -> dict[str, Any]:
+def check_mix(mix: str) -> tuple[str, ...]:
+    """The kinds of geometry mix ``mix``."""
+    if mix not in MIXES:
+        raise ParameterError(f"unknown geometry mix {mix!r}; expected one of {list(MIXES)}")
+    return MIXES[mix]
+
+
+def navigation_raw(seed: int, kind: str | None = None, mix: str = "default") -> dict[str, Any]:
     """The scenario document of generated navigation scenario ``seed`` (its kind drawn
-    from the seed unless given)."""
+    from the seed among ``mix``'s kinds unless given; the default mix's scenarios are
+    those of every earlier version)."""
     rng = np.random.default_rng([int(seed), 41])
-    kind = kind or KINDS[int(rng.integers(len(KINDS)))]
+    kinds = check_mix(mix)
+    kind = kind or kinds[int(rng.integers(len(kinds)))]
     rs = float(rng.uniform(0.12, 0.25))
+    if kind == "u-narrow":  # Fig. 9's narrow deep U's: 0.15-0.4 m wide, 0.12-0.3 m deep
+        return u_raw(float(rng.uniform(0.15, 0.4)), float(rng.uniform(0.12, 0.30)), rs, seed,
+                     float(rng.uniform(-0.1, 0.1)), math.pi + float(rng.uniform(-0.3, 0.3)))
+    if kind in ("gaps", "wall", "alcove"):
+        return _extra_raw(kind, rng, rs, seed)
     if kind == "u":
         return u_raw(float(rng.uniform(0.10, 1.0)), float(rng.uniform(0.06, 0.30)), rs, seed,
                      float(rng.uniform(-0.1, 0.1)), math.pi + float(rng.uniform(-0.3, 0.3)))
@@ -104,9 +126,48 @@ def navigation_raw(seed: int, kind: str | None = None) -> dict[str, Any]:
     raise ParameterError(f"unknown geometry kind {kind!r}; expected one of {list(KINDS)}")
 
 
-def navigation_scenario(seed: int, kind: str | None = None):
+def _extra_raw(kind: str, rng: np.random.Generator, rs: float, seed: int) -> dict[str, Any]:
+    """The wide mix's own kinds: ``gaps``, three or four discs 0.1 m across in a row
+    across the way with gaps of 0.085-0.13 m (Fig. 12's left room); ``wall``, a wall 0.8-1.6 m
+    long beside the start, the goal beyond its end and behind it (the robot rounds the end);
+    ``alcove``, the goal at the bottom of an alcove 0.12-0.2 m wide and 0.3-0.5 m deep in a
+    walled arena's corner (Fig. 12's goal)."""
+    if kind == "gaps":
+        n = int(rng.integers(3, 5))
+        gaps = rng.uniform(0.085, 0.13, n - 1)
+        ys = 1.0 + np.concatenate([[0.0], np.cumsum(0.1 + gaps)])
+        ys = ys - (ys[-1] - ys[0]) / 2 + float(rng.uniform(-0.1, 0.1))
+        x = 1.5 + float(rng.uniform(-0.1, 0.1))
+        return {"name": f"gen-gaps-{n}", "seed": int(seed), "arena": {"bounds": [0.0, 0.0, 3.0, 2.0]},
+                "sensors": {"range": _r(rs)},
+                "robots": [{"id": "r1", "start": [1.0, _r(1.0 + rng.uniform(-0.15, 0.15)), 0.0], "goal": "goal"}],
+                "targets": [{"id": "goal", "position": [2.1, _r(1.0 + rng.uniform(-0.3, 0.3))]}],
+                "obstacles": [{"id": f"g{i + 1}", "shape": "disc", "center": [_r(x), _r(y)], "radius": 0.05}
+                              for i, y in enumerate(ys)]}
+    if kind == "alcove":
+        width, depth = float(rng.uniform(0.12, 0.2)), float(rng.uniform(0.3, 0.5))
+        return {"name": f"gen-alcove-{width:.3f}", "seed": int(seed), "arena": {"bounds": [0.0, 0.0, 3.0, 2.0],
+                                                                              "wall_thickness": 0.02},
+                "sensors": {"range": _r(rs)},
+                "robots": [{"id": "r1", "start": [_r(rng.uniform(1.6, 2.3)), _r(rng.uniform(0.6, 1.6)),
+                                                  _r(rng.uniform(-math.pi, math.pi))], "goal": "goal"}],
+                "targets": [{"id": "goal", "position": [_r(3.0 - width / 2), _r(rng.uniform(0.08, 0.15))]}],
+                "walls": [{"a": [_r(3.0 - width), 0.0], "b": [_r(3.0 - width), _r(depth)]}]}
+    length = float(rng.uniform(0.8, 1.6))
+    side = float(rng.uniform(0.06, 0.2))  # the start's distance from the wall
+    y_wall = 1.0
+    end = 0.5 + length
+    return {"name": f"gen-wall-{length:.2f}", "seed": int(seed), "arena": {"bounds": [0.0, 0.0, 3.0, 2.0]},
+            "sensors": {"range": _r(rs)},
+            "robots": [{"id": "r1", "start": [0.4, _r(y_wall + side), _r(rng.uniform(-0.3, 0.3))], "goal": "goal"}],
+            "targets": [{"id": "goal", "position": [_r(end + rng.uniform(0.1, 0.4)),
+                                                     _r(y_wall - rng.uniform(0.1, 0.4))]}],
+            "walls": [{"a": [0.3, y_wall], "b": [_r(end), y_wall]}]}
+
+
+def navigation_scenario(seed: int, kind: str | None = None, mix: str = "default"):
     """The validated scenario of :func:`navigation_raw`."""
-    raw = navigation_raw(seed, kind)
+    raw = navigation_raw(seed, kind, mix)
     return parse_scenario(raw, source=f"<generated {raw['name']}, seed {seed}>")
 
 
@@ -133,12 +194,12 @@ def _one_robot(robots: int | None) -> None:
         raise ParameterError(f"generated navigation scenarios have one robot, not {robots}")
 
 
-def scenario(task: str, seed: int, robots: int | None = None):
+def scenario(task: str, seed: int, robots: int | None = None, mix: str = "default"):
     """Generated scenario ``seed`` of ``task`` (tracking: of ``robots`` robots if given;
-    navigation's have one)."""
+    navigation's have one, its geometry drawn from ``mix``)."""
     if task == "navigation":
         _one_robot(robots)
-        return navigation_scenario(seed)
+        return navigation_scenario(seed, mix=mix)
     if task == "tracking":
         return tracking_scenario(seed, robots=robots)
     raise ParameterError(f"unknown task {task!r}; expected navigation or tracking")

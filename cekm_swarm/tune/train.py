@@ -31,9 +31,10 @@ import numpy as np
 from tqdm import tqdm
 
 from ..errors import ParameterError
-from .policy import FieldPolicy, check_task
+from .features import N_FEATURES
+from .policy import OUTPUTS, FieldPolicy, check_task
 from .rollout import run_many
-from .scenarios import seed_of
+from .scenarios import check_mix, seed_of
 
 STATE_VERSION = 1
 
@@ -51,9 +52,20 @@ class TuneConfig:
     validation: int = 48
     validate_every: int = 5
     max_time: float = 90.0
+    mix: str = "default"  # navigation: the geometry mix trained and validated on (scenarios.MIXES)
+    hold: tuple[str, ...] = ()  # outputs held at today's value (their rows of W stay 0)
 
     def __post_init__(self) -> None:
         check_task(self.task)
+        check_mix(self.mix)
+        if self.mix != "default" and self.task != "navigation":
+            raise ParameterError("--mix goes with --task navigation")
+        outputs = OUTPUTS[self.task]
+        for h in self.hold:
+            if h not in outputs:
+                raise ParameterError(f"--hold: {h!r} is not an output of the {self.task} policy {list(outputs)}")
+        if len(set(self.hold)) >= len(outputs):
+            raise ParameterError("--hold: at least one output must be free")
         for name in ("generations", "popsize", "batch", "validation", "validate_every"):
             v = getattr(self, name)
             if not isinstance(v, int) or v < 1:
@@ -69,7 +81,28 @@ def command_of(config: TuneConfig) -> str:
     c = config
     return (f"cekm tune fields --task {c.task} --out DIR --seed {c.seed} --generations {c.generations} "
             f"--popsize {c.popsize} --sigma0 {c.sigma0:g} --batch {c.batch} --validation {c.validation} "
-            f"--validate-every {c.validate_every} --max-time {c.max_time:g}")
+            f"--validate-every {c.validate_every} --max-time {c.max_time:g}"
+            + (f" --mix {c.mix}" if c.mix != "default" else "")
+            + "".join(f" --hold {h}" for h in c.hold))
+
+
+def free_rows(config: TuneConfig) -> np.ndarray:
+    """Which rows of W the strategy searches (the outputs not held)."""
+    return np.array([o not in config.hold for o in OUTPUTS[config.task]])
+
+
+def full_weights(config: TuneConfig, x: np.ndarray) -> np.ndarray:
+    """W (flattened) of the strategy's vector ``x``: its entries in the free rows, 0 in the held ones."""
+    free = free_rows(config)
+    W = np.zeros((len(free), N_FEATURES))
+    W[free] = np.asarray(x, dtype=np.float64).reshape(int(free.sum()), N_FEATURES)
+    return W.ravel()
+
+
+def where_of(config: TuneConfig, purpose: str, i: int):
+    """A job's scenario (:func:`.rollout.scenario_of`): the ``i``-th seed of ``purpose`` in the config's mix."""
+    seed = seed_of(purpose, i)
+    return seed if config.mix == "default" else ("mix", config.mix, seed)
 
 
 def _write_whole(path: Path, data: bytes) -> None:
@@ -84,7 +117,9 @@ def _check_dir(out: Path, config: TuneConfig) -> dict | None:
     cfg, state = out / "config.json", out / "state.pkl"
     if cfg.is_file():
         saved = json.loads(cfg.read_text())
-        mine = asdict(config)
+        saved.setdefault("mix", "default")  # a directory of a version before --mix, --hold
+        saved.setdefault("hold", [])
+        mine = json.loads(json.dumps(asdict(config)))  # as config.json holds it (a tuple is a list)
         for k in mine:
             if saved.get(k) != mine[k]:
                 raise ParameterError(f"{cfg}: {out} holds a training with {k} = {saved.get(k)!r}, not {mine[k]!r}; "
@@ -103,7 +138,8 @@ def _check_dir(out: Path, config: TuneConfig) -> dict | None:
 
 def validate(config: TuneConfig, weights: np.ndarray, model_path: str | None, workers: int) -> float:
     """Mean score of ``weights`` on the validation scenarios."""
-    jobs = [(config.task, tuple(float(x) for x in weights), seed_of("validation", i), config.max_time, model_path)
+    jobs = [(config.task, tuple(float(x) for x in weights), where_of(config, "validation", i), config.max_time,
+             model_path)
             for i in range(config.validation)]
     rows = run_many(jobs, workers)
     return float(np.mean([r["score"] for r in rows]))
@@ -118,13 +154,14 @@ def tune(config: TuneConfig, out: Path, model_path: str | None = None, workers: 
     out.mkdir(parents=True, exist_ok=True)
     state = _check_dir(out, config)
     (out / "config.json").write_text(json.dumps(asdict(config), indent=1) + "\n")
-    n = FieldPolicy.size(config.task)
+    n = int(free_rows(config).sum()) * N_FEATURES
     if state is None:
         es = cma.CMAEvolutionStrategy(np.zeros(n), config.sigma0,
                                       {"seed": config.seed, "popsize": config.popsize, "verbose": -9})
-        base = validate(config, np.zeros(n), model_path, workers)
+        base = validate(config, full_weights(config, np.zeros(n)), model_path, workers)
         state = {"version": STATE_VERSION, "generation": 0, "es": es, "rng": np.random.get_state(),
-                 "best": {"generation": 0, "score": base, "weights": np.zeros(n).tolist()}, "base_score": base}
+                 "best": {"generation": 0, "score": base, "weights": full_weights(config, np.zeros(n)).tolist()},
+                 "base_score": base}
         _write_whole(out / "state.pkl", pickle.dumps(state))
         (out / "history.jsonl").write_text("")
     es = state["es"]
@@ -135,8 +172,8 @@ def tune(config: TuneConfig, out: Path, model_path: str | None = None, workers: 
     while state["generation"] < config.generations:
         g = state["generation"]
         candidates = es.ask()
-        seeds = [seed_of("train", g * config.batch + i) for i in range(config.batch)]
-        jobs = [(config.task, tuple(float(x) for x in c), s, config.max_time, model_path)
+        seeds = [where_of(config, "train", g * config.batch + i) for i in range(config.batch)]
+        jobs = [(config.task, tuple(float(x) for x in full_weights(config, c)), s, config.max_time, model_path)
                 for c in candidates for s in seeds]
         rows = run_many(jobs, workers, bar.update)
         scores = np.array([r["score"] for r in rows]).reshape(len(candidates), config.batch).mean(axis=1)
@@ -145,7 +182,7 @@ def tune(config: TuneConfig, out: Path, model_path: str | None = None, workers: 
         line = {"generation": g, "mean_score": float(scores.mean()), "best_score": float(scores.max()),
                 "sigma": float(es.sigma)}
         if g % config.validate_every == 0 or g == config.generations:
-            mean = np.asarray(es.mean, dtype=np.float64)
+            mean = full_weights(config, np.asarray(es.mean, dtype=np.float64))
             v = validate(config, mean, model_path, workers)
             line["validation"] = v
             if v > state["best"]["score"]:

@@ -5,7 +5,16 @@ from __future__ import annotations
 import pytest
 
 from cekm_swarm.errors import ParameterError
-from cekm_swarm.tune.scenarios import KINDS, SEED_BASE, navigation_raw, navigation_scenario, seed_of, tracking_scenario
+from cekm_swarm.tune.rollout import scenario_of
+from cekm_swarm.tune.scenarios import (
+    KINDS,
+    SEED_BASE,
+    WIDE_KINDS,
+    navigation_raw,
+    navigation_scenario,
+    seed_of,
+    tracking_scenario,
+)
 
 
 def test_every_kind_parses_over_many_seeds():
@@ -17,6 +26,30 @@ def test_every_kind_parses_over_many_seeds():
     assert seen == set(KINDS)
     for kind in KINDS:
         assert navigation_scenario(5, kind).name.startswith(f"gen-{kind}")
+
+
+def test_the_wide_mix_draws_its_own_kinds_too_and_they_are_what_they_say():
+    seen = set()
+    for i in range(60):
+        sc = navigation_scenario(seed_of("train", i), mix="wide")
+        seen.add(sc.name.split("-")[1])  # a narrow deep U is named as every U
+    assert seen == set(KINDS) | {"gaps", "wall"} and set(WIDE_KINDS) == seen | {"u-narrow"}
+    gaps = navigation_raw(9, "gaps")["obstacles"]
+    ys = sorted(o["center"][1] for o in gaps)
+    assert 3 <= len(gaps) <= 4 and all(0.085 <= b - a - 0.1 <= 0.13 + 1e-3 for a, b in zip(ys, ys[1:], strict=False))
+    u = navigation_raw(9, "u-narrow")["obstacles"][0]
+    assert 0.15 <= u["width"] <= 0.4 and 0.12 <= u["depth"] <= 0.3
+    wall = navigation_raw(9, "wall")
+    (gx, gy), (_, ay), (bx, by) = wall["targets"][0]["position"], wall["walls"][0]["a"], wall["walls"][0]["b"]
+    assert gx > bx and gy < ay == by < wall["robots"][0]["start"][1]  # the goal beyond the wall's end, behind it
+    alcove = navigation_raw(9, "alcove")
+    (x, _), (_, d), (gx, gy) = alcove["walls"][0]["a"], alcove["walls"][0]["b"], alcove["targets"][0]["position"]
+    assert 0.12 <= 3.0 - x <= 0.2 and x < gx < 3.0 and gy < d  # the goal inside the corner's alcove
+    assert {navigation_raw(i, mix="route")["name"].split("-")[1] for i in range(60)} == set(KINDS) | {
+        "gaps", "wall", "alcove"}
+    assert scenario_of("navigation", ("mix", "wide", 9))[0].name == navigation_scenario(9, mix="wide").name
+    with pytest.raises(ParameterError, match="unknown geometry mix"):
+        navigation_raw(9, mix="maze")
 
 
 def test_a_seed_is_one_scenario_and_purposes_are_apart():

@@ -12,10 +12,11 @@ import sys
 import time
 from dataclasses import asdict
 
+import numpy as np
 import pytest
 
 from cekm_swarm.errors import ParameterError
-from cekm_swarm.tune.train import TuneConfig, _check_dir
+from cekm_swarm.tune.train import TuneConfig, _check_dir, command_of, full_weights, where_of
 
 TINY = ["--task", "navigation", "--seed", "7", "--generations", "4", "--popsize", "3", "--batch", "2",
         "--validation", "2", "--validate-every", "1", "--max-time", "20", "--workers", "1"]
@@ -28,6 +29,39 @@ def test_settings_are_checked():
         TuneConfig(task="juggling")
     with pytest.raises(ParameterError, match="--max-time"):
         TuneConfig(max_time=0.0)
+    with pytest.raises(ParameterError, match="unknown geometry mix 'maze'"):
+        TuneConfig(mix="maze")
+    with pytest.raises(ParameterError, match="--mix goes with --task navigation"):
+        TuneConfig(task="tracking", mix="wide")
+
+
+def test_the_mix_chooses_the_jobs_scenarios_and_is_in_the_command():
+    assert where_of(TuneConfig(), "train", 3) == 1_000_003  # the default mix: the seeds as before
+    assert where_of(TuneConfig(mix="wide"), "validation", 3) == ("mix", "wide", 2_000_003)
+    assert command_of(TuneConfig(mix="wide")).endswith("--mix wide") and "--mix" not in command_of(TuneConfig())
+
+
+def test_held_outputs_keep_their_rows_of_w_at_zero():
+    with pytest.raises(ParameterError, match="--hold: 'teammate_gain' is not an output of the navigation"):
+        TuneConfig(hold=("teammate_gain",))
+    with pytest.raises(ParameterError, match="at least one output must be free"):
+        TuneConfig(hold=("sigma_b_alpha", "sigma_b_d_beyond", "sigma_b_d_near"))
+    c = TuneConfig(hold=("sigma_b_d_near",))
+    W = full_weights(c, np.arange(18.0) + 1).reshape(3, 9)
+    assert np.array_equal(W[:2].ravel(), np.arange(18.0) + 1) and not W[2].any()
+    assert np.array_equal(full_weights(TuneConfig(), np.arange(27.0)), np.arange(27.0))
+    assert command_of(c).endswith("--hold sigma_b_d_near")
+
+
+def test_a_directory_from_before_the_mix_still_resumes(tmp_path):
+    old = asdict(TuneConfig(seed=1))
+    del old["mix"], old["hold"]
+    (tmp_path / "config.json").write_text(json.dumps(old))
+    assert _check_dir(tmp_path, TuneConfig(seed=1)) is None
+    with pytest.raises(ParameterError, match="mix = 'default', not 'wide'"):
+        _check_dir(tmp_path, TuneConfig(seed=1, mix="wide"))
+    (tmp_path / "config.json").write_text(json.dumps(asdict(TuneConfig(seed=1, hold=("sigma_b_d_near",)))))
+    assert _check_dir(tmp_path, TuneConfig(seed=1, hold=("sigma_b_d_near",))) is None  # a held output resumes
 
 
 def test_a_directory_resumes_only_its_own_training(tmp_path):

@@ -42,3 +42,12 @@ def test_evaluate_writes_every_variant_on_the_same_held_out_scenarios(tmp_path):
     bad = CliRunner().invoke(main, ["tune", "evaluate", "--task", "navigation", "--only", "magic",
                                     "--out", str(tmp_path / "ev2")])
     assert bad.exit_code != 0 and "unknown variant 'magic'" in bad.output
+
+
+def test_contacts_counts_the_contacts_of_validation_runs(tmp_path):
+    r = CliRunner().invoke(main, ["tune", "contacts", "--runs", "2", "--max-time", "60", "--out", str(tmp_path)])
+    assert r.exit_code == 0, r.output
+    doc = json.loads((tmp_path / "contacts.json").read_text())
+    assert [x["seed"] for x in doc["runs"]] == [2_000_000, 2_000_001]
+    assert sum(x["collisions"] for x in doc["runs"]) == len(doc["contacts"])
+    assert f"contacts {len(doc['contacts'])}" in r.output
