@@ -204,7 +204,7 @@ class TrackingEKM:
             a += p.search_weight * ekm.target_activity(s)
             inputs.append((s, ga, gd, p.search_weight))
         b_team = self._team_activity(pose, team)
-        if full and p.teammate_hold_gain != 1.0:  # holding a target: the spreading weaker
+        if full and p.teammate_hold_gain != 1.0 and len(sensed) >= p.teammate_hold_seen:  # holding: spread less
             b_team = p.teammate_hold_gain * b_team
         return TrackingActivity(t, a, b_team, tuple(inputs), weights, not full)
 
