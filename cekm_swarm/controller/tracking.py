@@ -203,7 +203,10 @@ class TrackingEKM:
             s, ga, gd = self._toward(pose, goal)
             a += p.search_weight * ekm.target_activity(s)
             inputs.append((s, ga, gd, p.search_weight))
-        return TrackingActivity(t, a, self._team_activity(pose, team), tuple(inputs), weights, not full)
+        b_team = self._team_activity(pose, team)
+        if full and p.teammate_hold_gain != 1.0 and len(sensed) >= p.teammate_hold_seen:  # holding: spread less
+            b_team = p.teammate_hold_gain * b_team
+        return TrackingActivity(t, a, b_team, tuple(inputs), weights, not full)
 
     def _assigned(self, t: float, pose: tuple[float, float, float], own: dict[str, tuple[float, float]],
                   team: dict[str, TeammateShare]) -> tuple[tuple[float, float], tuple[str, ...]] | None:

@@ -147,6 +147,10 @@ class TrackingParams:
     teammate_near * R, falling linearly to 0 at teammate_far * R (A-CMOMMT's shape).
     teammate_sigma_alpha, teammate_sigma_d_beyond, teammate_sigma_d_near: its widths
     (Eq. 8's form), wider than an obstacle field's so the robots spread out.
+    teammate_hold_gain, teammate_hold_seen: the teammate fields' gain while the robot holds a
+    target (senses one at full weight, or has targets assigned) and senses at least
+    teammate_hold_seen targets: below 1 the spreading pushes a robot off its targets less
+    (1: the same fields searching or holding; docs/fields.md).
     search_weight: weight of the search goal's target field (see :mod:`controller.search`).
     search_reached: a last reported position is searched until the robot is within
     search_reached * R of it without seeing the target; then it is forgotten.
@@ -194,6 +198,8 @@ class TrackingParams:
     teammate_sigma_alpha: float = 0.99
     teammate_sigma_d_beyond: float = 2.475
     teammate_sigma_d_near: float = 0.0495
+    teammate_hold_gain: float = 1.0
+    teammate_hold_seen: int = 0
     search_weight: float = 0.8
     search_reached: float = 0.5
     wander_ahead_m: float = 0.3
@@ -225,6 +231,11 @@ class TrackingParams:
             raise ParameterError(f"TrackingParams.standoff must be in [0, 1), got {self.standoff!r}")
         if not 0.0 <= self.urgency <= 1.0:
             raise ParameterError(f"TrackingParams.urgency must be in [0, 1], got {self.urgency!r}")
+        if self.teammate_hold_seen < 0:
+            raise ParameterError(f"TrackingParams.teammate_hold_seen must be >= 0, got {self.teammate_hold_seen!r}")
+        if not 0.0 <= self.teammate_hold_gain <= 1.0:
+            raise ParameterError("TrackingParams.teammate_hold_gain must be in [0, 1], "
+                                 f"got {self.teammate_hold_gain!r}")
         if not 0.0 <= self.watched_factor <= 1.0:
             raise ParameterError(f"TrackingParams.watched_factor must be in [0, 1], got {self.watched_factor!r}")
         if not self.teammate_near < self.teammate_far:

@@ -281,3 +281,37 @@ def test_a_target_a_teammate_sees_but_this_robot_is_nearer_to_is_driven_to(model
     view.receive("q", near_teammate)
     act = TrackingEKM("r1", model, R).localize(0.256, pose, {}, view)
     assert act.searching  # the teammate holds it: this robot searches
+
+
+def test_teammate_hold_gain_weakens_the_teammate_fields_only_while_holding_a_target(model):
+    """teammate_hold_gain scales b_team when the robot holds a target (here a lone sensed
+    one, assigned to it) and leaves it alone while the robot searches (nothing sensed)."""
+    pose = (1.0, 1.0, 0.0)
+
+    def b_team(gain: float, sensed: dict, seen: int = 0) -> np.ndarray:
+        ctl = TrackingEKM("r1", model, R, TrackingParams(teammate_hold_gain=gain, teammate_hold_seen=seen))
+        view = TeamView("r1")
+        view.receive("q", TeammateShare(0.0, (1.0, 1.15, 0.0), {}))  # 0.15 m to the left
+        act = ctl.localize(0.256, pose, sensed, view)
+        assert act.searching == (not sensed)
+        return act.b_team
+
+    holding = {"a": (0.0, 0.3)}
+    full = b_team(1.0, holding)
+    assert full.max() > 0.5  # a near teammate: its field is there at full weight
+    np.testing.assert_allclose(b_team(0.4, holding), 0.4 * full, rtol=0, atol=1e-15)
+    assert not b_team(0.0, holding).any()
+    np.testing.assert_array_equal(b_team(0.4, {}), b_team(1.0, {}))  # searching: unchanged
+    # teammate_hold_seen: only while the robot senses at least that many targets
+    np.testing.assert_array_equal(b_team(0.0, holding, seen=2), full)
+    two = {"a": (0.0, 0.3), "b": (0.2, 0.32)}
+    np.testing.assert_allclose(b_team(0.4, two, seen=2), 0.4 * b_team(1.0, two), rtol=0, atol=1e-15)
+
+
+def test_teammate_hold_gain_is_validated():
+    for bad in (-0.1, 1.5, math.nan):
+        with pytest.raises(ParameterError, match="teammate_hold_gain"):
+            TrackingParams(teammate_hold_gain=bad)
+    assert TrackingParams().teammate_hold_gain == 1.0
+    with pytest.raises(ParameterError, match="teammate_hold_seen"):
+        TrackingParams(teammate_hold_seen=-1)
