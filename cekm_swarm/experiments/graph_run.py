@@ -112,7 +112,8 @@ def run_graph(scenario, controller: str | None = "cekm", *, graph: str | Graph |
 
 class GraphSession:
     """A :func:`run_graph` run one tick at a time (:meth:`step`), for a caller that acts
-    between ticks (the field-parameter environment, :mod:`cekm_swarm.tune.env`): the same
+    between ticks (the field-parameter environments, :mod:`cekm_swarm.tune.env` and
+    :mod:`cekm_swarm.tune.team_env`, through :mod:`cekm_swarm.tune.env_core`): the same
     world, the same graph, the same order of messages, so stepping to the end is
     :func:`run_graph`."""
 
