@@ -280,8 +280,10 @@ def test_a_parameter_changed_while_a_lockstep_run_goes_is_applied_at_its_tick_an
     from cekm_swarm.runtime.mcap_log import read_messages
     from helpers.launch import LaunchProcess
 
+    # up to 60 s of sim time (r1 reaches its goal at about 50 s, some 3 s of wall time in
+    # lockstep): the hold below, once "world started ticking" is read, lands long before the end
     run = LaunchProcess("near.toml", tmp_path / "ls", "--graph", str(example), "--mode", "lockstep",
-                        "--max-time", "20", "--no-plot", cwd=example.parent)
+                        "--max-time", "60", "--no-plot", cwd=example.parent)
     connect = ("--connect", f"tcp/127.0.0.1:{run.port}")
     try:
         run.wait_line("world started ticking", timeout=120)
