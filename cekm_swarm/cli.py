@@ -12,7 +12,7 @@ from pathlib import Path
 
 import click
 
-from .cli_support import FileRefused, Finite, interruptible, out_dir_options, prepare_out_dir, run_cli, seed_option
+from .cli_support import FileRefused, Finite, out_dir_options, prepare_out_dir, run_cli, seed_option
 from .experiments.commands import (
     load_scenario_file,
     refuse_unplannable,
@@ -26,6 +26,7 @@ from .experiments.learning_commands import controller_model, model_group, model_
 from .experiments.learning_run import learning_controller, learning_params
 from .experiments.sweep_commands import sweep
 from .graph.spec import GraphError
+from .interrupts import restore_sigint
 from .launch.commands import launch_cmd, plot_cmd
 from .node.graph_commands import graph_group
 from .ros2.commands import export_cmd, ros2_group
@@ -114,5 +115,5 @@ def run_cli_args(argv: list[str]) -> int:
 
 
 def run() -> None:  # the console entry and ``python -m cekm_swarm`` (tests/test_cli_interrupt.py)
-    interruptible()
+    restore_sigint()  # a script's background job: kill -INT still stops the command
     sys.exit(run_cli(main))

@@ -12,7 +12,6 @@ import math
 import os
 import re
 import shutil
-import signal
 import sys
 from collections.abc import Callable, Iterable
 from pathlib import Path
@@ -270,16 +269,6 @@ def say_error(kind: str, message: str) -> None:
     """One line on stderr: ``cekm: error: ...`` (usage) or ``cekm: failed: ...`` (a run)."""
     text = " ".join(str(message).split())  # one line, whatever the message held
     click.echo(f"cekm: {kind}: {text}" if kind else f"cekm: {text}", err=True)
-
-
-def interruptible() -> None:
-    """Let SIGINT stop this process even when it was started ignoring it.
-
-    A shell script's background job (``cekm view ... &``) and everything it starts inherit
-    SIGINT ignored; a supervisor, a test or a user's ``kill -INT`` would then be lost and
-    the command run on until killed. The ``cekm`` entry calls this before anything else."""
-    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
-        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def run_cli(group: click.Group, argv: list[str] | None = None) -> int:

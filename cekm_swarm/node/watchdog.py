@@ -13,6 +13,7 @@ import time
 import traceback
 import weakref
 
+from ..interrupts import restore_sigint
 from . import runner
 from .api import StepFailed
 
@@ -36,9 +37,7 @@ class Watchdog:
         self._main = threading.get_ident()
         self._ignored = False  # SIGINT was ignored when the run began (a script's background job)
         if threading.current_thread() is threading.main_thread():  # only the main thread can be interrupted
-            if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:  # `cekm run ... &` in a script: its
-                signal.signal(signal.SIGINT, signal.default_int_handler)  # interrupt would be lost
-                self._ignored = True
+            self._ignored = restore_sigint()  # `cekm run ... &` in a script: its interrupt would be lost
             threading.Thread(target=_watch, args=(weakref.ref(self), min(1.0, timeout / 4)),
                              name="cekm-step-watchdog", daemon=True).start()
 
