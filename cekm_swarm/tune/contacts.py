@@ -21,6 +21,7 @@ import numpy as np
 from ..angles import wrap_scalar
 from ..experiments.graph_run import GraphSession
 from ..node.graph_check import check_graph
+from ..ticks import TICK_S
 from .graphs import policy_graph
 from .motor import FieldMotor
 from .policy import FieldPolicy
@@ -101,6 +102,7 @@ def contact_events(seed: int, max_time: float = 300.0, model_path: str | None = 
     """The run of generated navigation scenario ``seed`` with the policy ``weights``
     (default W = 0: today's constants): its outcome row, and every new contact, one row each."""
     raw = navigation_raw(seed)
+    kind = raw["name"].split("-")[1]
     w = weights if weights is not None else (0.0,) * FieldPolicy.size("navigation")
     s = GraphSession(navigation_scenario(seed), graph=check_graph(policy_graph("navigation")), model=_model(model_path),
                      max_time=max_time, params={"weights": tuple(w)})
@@ -131,10 +133,10 @@ def contact_events(seed: int, max_time: float = 300.0, model_path: str | None = 
             gx, gy = world.goal_of("r1")
             x, y, th = world.pose("r1")
             back = path[-9] if len(path) > 8 else path[0]
-            speed = math.hypot(x - back[0], y - back[1]) / (min(len(path) - 1, 8) * 0.125 or 1.0)
+            speed = math.hypot(x - back[0], y - back[1]) / (min(len(path) - 1, 8) * TICK_S or 1.0)
             o = outs[-1] if outs else None
             f = motor.last_features if motor.last_features is not None else np.zeros(9)
-            rows.append({"seed": seed, "kind": raw["name"].split("-")[1], "t": s.episode.t, "item": item,
+            rows.append({"seed": seed, "kind": kind, "t": s.episode.t, "item": item,
                          "place": place(raw, item, p), "bearing_deg": round(math.degrees(bearing), 1),
                          "speed_mps": round(speed, 4), "still": speed < STILL,
                          "target_deg": round(math.degrees(wrap_scalar(math.atan2(gy - y, gx - x) - th)), 1),
@@ -143,7 +145,7 @@ def contact_events(seed: int, max_time: float = 300.0, model_path: str | None = 
                          "detour": None if o is None or o.k is None else bool(o.k != o.s)})
     o = s.episode.outcome()["r1"]
     s.executor.close()
-    return {"seed": seed, "kind": raw["name"].split("-")[1], "reached": bool(o["reached"]),
+    return {"seed": seed, "kind": kind, "reached": bool(o["reached"]),
             "collisions": int(o["collisions"])}, rows
 
 
