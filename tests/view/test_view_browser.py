@@ -89,29 +89,15 @@ def _front(mask) -> float:
     return float(xs.max())
 
 
-def _goal_cut(img) -> int:
-    """The page x left of r1's goal star and of a robot touching it: the star (radius 9 px,
-    r1's colour) lies 8 px left of its purple label "goal", the arena's only purple."""
-    arena = img[:, :650]  # the arena's svg (640 px) and its margin; the fields panels lie right of it
-    r, g, b = arena[..., 0], arena[..., 1], arena[..., 2]
-    _, xs = np.nonzero((b - g > 60) & (r - g > 30))  # #7030a0, antialiased against white
-    assert len(xs) >= 10, "no goal label on the page"
-    return int(xs.min()) - 8 - 9 - 6  # the label's offset, the star's radius, a robot's radius and a pixel
-
-
 def _moved(img_a, img_b, rgb) -> float:
     """How far (px, along x) the front of r1's drawing moved from one screenshot to the
     other: the rightmost of its colour's pixels that appeared (its disc now, its path since)
-    against the rightmost of those that vanished (its disc then); its start marker, in both,
-    counts in neither. The front, not the centroid: a page that drew no path yet in the first
+    against the rightmost of those that vanished (its disc then); its start and goal markers,
+    in both, count in neither (the run ends before r1 can reach its goal's star and cover
+    some of it). The front, not the centroid: a page that drew no path yet in the first
     screenshot (it reloads once when it learns the run) shows the whole path in the second,
-    whose centroid can lie behind the first disc although the robot drove on. Nothing at or
-    right of the goal star counts: a robot that reached it covers some of the star's pixels,
-    which would look like r1's drawing vanishing there (-7 px in a CI run whose first moment
-    was held late)."""
+    whose centroid can lie behind the first disc although the robot drove on."""
     in_a, in_b = (np.all(np.abs(img - np.array(rgb)) <= 2, axis=2) for img in (img_a, img_b))
-    cut = min(_goal_cut(img_a), _goal_cut(img_b))
-    in_a[:, cut:] = in_b[:, cut:] = False
     return float(_front(in_b & ~in_a) - _front(in_a & ~in_b))
 
 
