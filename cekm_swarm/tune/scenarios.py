@@ -123,7 +123,7 @@ def navigation_raw(seed: int, kind: str | None = None, mix: str = "default") -> 
                 "robots": [{"id": "r1", "start": [0.25, _r(rng.uniform(0.3, 0.7)), 0.0], "goal": "goal"}],
                 "targets": [{"id": "goal", "position": [2.75, _r(rng.uniform(0.3, 0.7))]}],
                 "walls": walls, "obstacles": movers}
-    raise ParameterError(f"unknown geometry kind {kind!r}; expected one of {list(KINDS)}")
+    raise ParameterError(f"unknown geometry kind {kind!r}; expected one of {list(ROUTE_KINDS)}")
 
 
 def _extra_raw(kind: str, rng: np.random.Generator, rs: float, seed: int) -> dict[str, Any]:
