@@ -107,6 +107,7 @@ def evaluate_cmd(task, out_dir, policy, tests, concave, suite, only, max_time, m
             if v in doc:
                 widths = ", ".join("-" if g["max_width"] is None else f"{g['max_width']:.2f}" for g in doc[v]["grid"])
                 click.echo(f"{v:8s} negotiated cells {doc[v]['negotiated_cells']}; widest per (range, depth): {widths}")
+        _draw_fig9({v: doc[v]["cells"] for v in known if v in doc}, doc["need"], out_dir / "fig9_fields.png")
     else:
         doc = evaluate(task, tests, policy, max_time, _text(model_path), workers, only=chosen)
         for v, s in doc["summary"].items():
@@ -121,6 +122,38 @@ def evaluate_cmd(task, out_dir, policy, tests, concave, suite, only, max_time, m
                 click.echo(f"{v}: {s}")
     (out_dir / "results.json").write_text(dumps(doc))
     click.echo(f"wrote {out_dir / 'results.json'}")
+
+
+def _draw_fig9(rows: dict[str, list[dict]], need: int, path: Path, reference: str = "tuned") -> None:
+    from ..experiments.concave_figures import plot_grid_rows, row_summary  # noqa: PLC0415 -- lazy: matplotlib
+
+    ref = reference if reference in rows else None
+    for label, cells in rows.items():
+        click.echo(row_summary(label, cells, need, rows[ref] if ref and ref != label else None, ref))
+    plot_grid_rows(rows, need, path, ref)
+    click.echo(f"wrote {path}")
+
+
+@tune_group.command("fig9")
+@click.argument("results", nargs=-1, required=True)
+@click.option("--out", "out_path", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help="The picture (PNG).")
+@click.option("--reference", default="tuned", show_default=True,
+              help="The row the others are compared with (cells gained and lost are framed).")
+def fig9_cmd(results, out_path, reference) -> None:
+    """Fig. 9's cells before and after: one row per variant of `tune evaluate --concave` documents.
+
+    Each RESULTS is FILE (every variant in it), FILE:VARIANT or FILE:VARIANT=LABEL.
+    """
+    from .evaluate import concave_rows  # noqa: PLC0415 -- lazy: numba, pymunk, scipy, tqdm, world
+
+    try:
+        rows, need = concave_rows(list(results))
+    except ParameterError as exc:
+        raise click.UsageError(str(exc)) from None
+    if reference not in rows:
+        raise click.UsageError(f"--reference: no row {reference!r} (rows: {', '.join(rows)})")
+    _draw_fig9(rows, need, out_path, reference)
 
 
 @tune_group.command("contacts")

@@ -13,6 +13,7 @@ tracking reports Parker's A with t intervals and Welch p against every other con
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Any
 
@@ -20,6 +21,7 @@ from tqdm import tqdm
 
 from world import load_scenario
 
+from ..errors import ParameterError
 from ..experiments.concave_config import SweepConfig
 from ..experiments.concave_stats import cells_of, grid_of
 from ..experiments.graph_run import with_params
@@ -106,7 +108,8 @@ def evaluate_concave(policy: Path | None = None, model_path: str | None = None, 
     jobs = [("navigation", what, c, config.max_time, model_path) for what in vs.values() for c in cells]
     with tqdm(total=len(jobs), disable=not progress, desc="evaluate concave", unit="run") as bar:
         flat = run_many(jobs, workers, bar.update)
-    out: dict[str, Any] = {"experiment": "field-policy-concave", "policy": str(policy) if policy else "shipped"}
+    out: dict[str, Any] = {"experiment": "field-policy-concave", "policy": str(policy) if policy else "shipped",
+                           "need": config.need}
     for i, v in enumerate(vs):
         mine = flat[i * len(cells):(i + 1) * len(cells)]
         runs = [{"width": c[1], "depth": c[2], "range": c[3], "seed": c[4], "reached": r["reached"],
@@ -150,3 +153,33 @@ def evaluate_suite(seeds: tuple[int, ...], policy: Path | None = None, model_pat
                        "contacts": sum(r["collisions"] for r in rows if r["scenario"] == sc)} for sc in SUITE}
         out[v]["runs"] = rows
     return out
+
+
+def concave_rows(specs: list[str]) -> tuple[dict[str, list[dict]], int]:
+    """The rows of :func:`~cekm_swarm.experiments.concave_figures.plot_grid_rows` from
+    ``cekm tune evaluate --concave`` documents: each spec is ``FILE`` (every variant in it)
+    or ``FILE:VARIANT`` or ``FILE:VARIANT=LABEL``; returns the rows and the cells' ``need``.
+    A ParameterError names the spec and what is wrong."""
+    rows: dict[str, list[dict]] = {}
+    needs = set()
+    for spec in specs:
+        path, _, pick = spec.partition(":") if not Path(spec).exists() else (spec, "", "")
+        variant, _, label = pick.partition("=")
+        try:
+            doc = json.loads(Path(path).read_text())
+        except (OSError, ValueError) as exc:
+            raise ParameterError(f"{path}: not a readable results.json: {exc}") from None
+        if not isinstance(doc, dict) or doc.get("experiment") != "field-policy-concave":
+            raise ParameterError(f"{path}: not the results of `cekm tune evaluate --concave`")
+        found = [v for v in doc if isinstance(doc[v], dict) and "cells" in doc[v]]
+        if variant and variant not in found:
+            raise ParameterError(f"{spec}: no variant {variant!r} in {path} (it has {', '.join(found)})")
+        for v in [variant] if variant else found:
+            name = label or v
+            if name in rows:
+                raise ParameterError(f"{spec}: a second row named {name!r}; name it with {path}:{v}=LABEL")
+            rows[name] = doc[v]["cells"]
+        needs.add(int(doc.get("need", SweepConfig().need)))
+    if len(needs) > 1:
+        raise ParameterError(f"the documents count a cell negotiated at different numbers of runs: {sorted(needs)}")
+    return rows, needs.pop() if needs else SweepConfig().need

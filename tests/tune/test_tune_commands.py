@@ -51,3 +51,25 @@ def test_contacts_counts_the_contacts_of_validation_runs(tmp_path):
     assert [x["seed"] for x in doc["runs"]] == [2_000_000, 2_000_001]
     assert sum(x["collisions"] for x in doc["runs"]) == len(doc["contacts"])
     assert f"contacts {len(doc['contacts'])}" in r.output
+
+
+def test_fig9_draws_rows_from_evaluate_documents_and_names_a_bad_one(tmp_path):
+    def doc(**variants):
+        return {"experiment": "field-policy-concave", "need": 2,
+                **{v: {"cells": [{"range": 0.12, "depth": 0.3, "width": w, "reached": k, "of": 3}
+                                 for w, k in zip((0.2, 0.34), ks, strict=True)]} for v, ks in variants.items()}}
+
+    (tmp_path / "a.json").write_text(json.dumps(doc(tuned=(0, 3), learned=(2, 3))))
+    (tmp_path / "b.json").write_text(json.dumps(doc(learned=(3, 1))))
+    r = CliRunner().invoke(main, ["tune", "fig9", str(tmp_path / "a.json"), f"{tmp_path / 'b.json'}:learned=wide",
+                                  "--out", str(tmp_path / "f.png")])
+    assert r.exit_code == 0, r.output
+    assert "learned: 2 cells negotiated (1 gained, 0 lost against tuned)" in r.output
+    assert "wide: 1 cells negotiated (1 gained, 1 lost against tuned)" in r.output
+    assert (tmp_path / "f.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    twice = CliRunner().invoke(main, ["tune", "fig9", str(tmp_path / "a.json"), str(tmp_path / "b.json"),
+                                      "--out", str(tmp_path / "g.png")])
+    assert twice.exit_code != 0 and "a second row named 'learned'" in twice.output
+    (tmp_path / "c.json").write_text("{}")
+    bad = CliRunner().invoke(main, ["tune", "fig9", str(tmp_path / "c.json"), "--out", str(tmp_path / "h.png")])
+    assert bad.exit_code != 0 and "not the results of `cekm tune evaluate --concave`" in bad.output
