@@ -44,12 +44,14 @@ def tune_group() -> None:
 @click.option("--mix", type=click.Choice(["default", "wide", "route"]), default="default", show_default=True,
               help="Navigation: the generated geometries trained and validated on (wide: also disc rows with "
                    "narrow gaps, long walls and narrow deep U's; route: also a goal in a narrow alcove).")
-@click.option("--hold", multiple=True, help="An output held at today's value (its row of W stays 0), e.g. "
+@click.option("--hold", multiple=True, help="An output held at today's value (its rows of W and V stay 0), e.g. "
                                           "sigma_b_d_near; repeat for more.")
+@click.option("--per-field", is_flag=True, help="Also learn V: each obstacle field's widths from its own "
+                                                "features (nearness, angle, nearest, lone ray), not one set a tick.")
 @model_option()
 @click.option("--workers", type=click.IntRange(min=1), default=2, show_default=True, help="Worker processes.")
 def fields_cmd(task, out_dir, seed, generations, popsize, sigma0, batch, validation, validate_every, max_time,
-               mix, hold, model_path, workers) -> None:
+               mix, hold, per_field, model_path, workers) -> None:
     """Train a field policy by CMA-ES into OUT (policy.json), seeded and resumable."""
     from .train import TuneConfig, tune  # noqa: PLC0415 -- lazy: pymunk, tqdm, world
 
@@ -57,7 +59,7 @@ def fields_cmd(task, out_dir, seed, generations, popsize, sigma0, batch, validat
     try:
         config = TuneConfig(task, seed, generations or (30 if nav else 15), popsize or (12 if nav else 8), sigma0,
                             batch or (24 if nav else 6), validation or (48 if nav else 12), validate_every,
-                            max_time or (90.0 if nav else 30.0), mix, tuple(hold))
+                            max_time or (90.0 if nav else 30.0), mix, tuple(hold), per_field)
         meta = tune(config, out_dir, _text(model_path), workers)
     except ParameterError as exc:
         raise click.UsageError(str(exc)) from None
@@ -142,7 +144,7 @@ def contacts_cmd(out_dir, purpose, runs, policy, max_time, model_path) -> None:
     from .scenarios import seed_of  # noqa: PLC0415
 
     try:
-        weights = None if policy is None else tuple(FieldPolicy.load(policy).W.ravel().tolist())
+        weights = None if policy is None else FieldPolicy.load(policy).flat()
     except ParameterError as exc:
         raise click.UsageError(str(exc)) from None
     seeds = [seed_of(purpose, i) for i in range(runs)]

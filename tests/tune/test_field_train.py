@@ -16,10 +16,11 @@ import numpy as np
 import pytest
 
 from cekm_swarm.errors import ParameterError
-from cekm_swarm.tune.train import TuneConfig, _check_dir, command_of, full_weights, where_of
+from cekm_swarm.tune.train import TuneConfig, _check_dir, command_of, full_weights, search_size, where_of
 
 TINY = ["--task", "navigation", "--seed", "7", "--generations", "4", "--popsize", "3", "--batch", "2",
-        "--validation", "2", "--validate-every", "1", "--max-time", "20", "--workers", "1"]
+        "--validation", "2", "--validate-every", "1", "--max-time", "20", "--workers", "1",
+        "--per-field", "--hold", "sigma_b_d_near"]
 
 
 def test_settings_are_checked():
@@ -53,13 +54,27 @@ def test_held_outputs_keep_their_rows_of_w_at_zero():
     assert command_of(c).endswith("--hold sigma_b_d_near")
 
 
+def test_per_field_training_searches_w_and_v_and_holds_both_rows():
+    c = TuneConfig(per_field=True, hold=("sigma_b_d_near",))
+    assert search_size(c) == 2 * 9 + 2 * 5 and search_size(TuneConfig()) == 27
+    flat = full_weights(c, np.arange(28.0) + 1)
+    W, V = flat[:27].reshape(3, 9), flat[27:].reshape(3, 5)
+    assert np.array_equal(W[:2].ravel(), np.arange(18.0) + 1) and not W[2].any()
+    assert np.array_equal(V[:2].ravel(), np.arange(18.0, 28.0) + 1) and not V[2].any()
+    assert command_of(c).endswith("--hold sigma_b_d_near --per-field") and "--per-field" not in command_of(TuneConfig())
+    trk = TuneConfig(task="tracking", per_field=True, hold=("teammate_gain",))
+    assert search_size(trk) == 3 * 9 + 3 * 5 and full_weights(trk, np.ones(42)).size == 36 + 15
+
+
 def test_a_directory_from_before_the_mix_still_resumes(tmp_path):
     old = asdict(TuneConfig(seed=1))
-    del old["mix"], old["hold"]
+    del old["mix"], old["hold"], old["per_field"]
     (tmp_path / "config.json").write_text(json.dumps(old))
     assert _check_dir(tmp_path, TuneConfig(seed=1)) is None
     with pytest.raises(ParameterError, match="mix = 'default', not 'wide'"):
         _check_dir(tmp_path, TuneConfig(seed=1, mix="wide"))
+    with pytest.raises(ParameterError, match="per_field = False, not True"):
+        _check_dir(tmp_path, TuneConfig(seed=1, per_field=True))
     (tmp_path / "config.json").write_text(json.dumps(asdict(TuneConfig(seed=1, hold=("sigma_b_d_near",)))))
     assert _check_dir(tmp_path, TuneConfig(seed=1, hold=("sigma_b_d_near",))) is None  # a held output resumes
 
@@ -103,6 +118,7 @@ def test_killed_and_resumed_gives_the_same_policy_bit_for_bit(tmp_path):
     assert resumed.wait(timeout=300) == 0, resumed.stdout.read().decode()
     a = (tmp_path / "whole" / "policy.json").read_bytes()
     assert a == (tmp_path / "killed" / "policy.json").read_bytes()
-    assert json.loads(a)["meta"]["config"]["seed"] == 7
+    doc = json.loads(a)
+    assert doc["meta"]["config"]["seed"] == 7 and doc["version"] == 2 and len(doc["field_weights"]) == 3
     history = (tmp_path / "killed" / "history.jsonl").read_text().splitlines()
     assert [json.loads(x)["generation"] for x in history] == [1, 2, 3, 4]
