@@ -134,8 +134,10 @@ def evaluate_cmd(task, out_dir, policy, tests, concave, suite, only, max_time, m
 @click.option("--policy", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               help="A navigation field policy (default: today's constants, W = 0).")
 @click.option("--max-time", type=Finite(min=0.2), default=300.0, show_default=True, help="Sim seconds per run.")
+@click.option("--mix", type=click.Choice(["default", "wide", "route"]), default="default", show_default=True,
+              help="The generated geometries (as cekm tune fields --mix).")
 @model_option()
-def contacts_cmd(out_dir, purpose, runs, policy, max_time, model_path) -> None:
+def contacts_cmd(out_dir, purpose, runs, policy, max_time, mix, model_path) -> None:
     """Why contacts happen: every contact of generated navigation runs, classified (docs/fields.md)."""
     from tqdm import tqdm  # noqa: PLC0415 -- lazy
 
@@ -149,7 +151,7 @@ def contacts_cmd(out_dir, purpose, runs, policy, max_time, model_path) -> None:
         raise click.UsageError(str(exc)) from None
     seeds = [seed_of(purpose, i) for i in range(runs)]
     with tqdm(total=runs, desc="contacts", unit="run") as bar:
-        doc = diagnose(seeds, max_time, _text(model_path), weights, bar.update)
+        doc = diagnose(seeds, max_time, _text(model_path), weights, bar.update, mix)
     out_dir.mkdir(parents=True, exist_ok=True)
     for k, x in doc["by_kind"].items():
         click.echo(f"{k:9s} runs {x['runs']:3d}  reached {x['reached']:3d}  contact-free {x['contact_free']:3d}")
