@@ -48,10 +48,13 @@ def tune_group() -> None:
                                           "sigma_b_d_near; repeat for more.")
 @click.option("--per-field", is_flag=True, help="Also learn V: each obstacle field's widths from its own "
                                                 "features (nearness, angle, nearest, lone ray), not one set a tick.")
+@click.option("--init", "init", type=click.Path(dir_okay=False, exists=True), default="",
+              help="A policy file the search starts from (default: today's constants); kept if it is the best "
+                   "on validation.")
 @model_option()
 @click.option("--workers", type=click.IntRange(min=1), default=2, show_default=True, help="Worker processes.")
 def fields_cmd(task, out_dir, seed, generations, popsize, sigma0, batch, validation, validate_every, max_time,
-               mix, hold, per_field, model_path, workers) -> None:
+               mix, hold, per_field, init, model_path, workers) -> None:
     """Train a field policy by CMA-ES into OUT (policy.json), seeded and resumable."""
     from .train import TuneConfig, tune  # noqa: PLC0415 -- lazy: pymunk, tqdm, world
 
@@ -59,7 +62,7 @@ def fields_cmd(task, out_dir, seed, generations, popsize, sigma0, batch, validat
     try:
         config = TuneConfig(task, seed, generations or (30 if nav else 15), popsize or (12 if nav else 8), sigma0,
                             batch or (24 if nav else 6), validation or (48 if nav else 12), validate_every,
-                            max_time or (90.0 if nav else 30.0), mix, tuple(hold), per_field)
+                            max_time or (90.0 if nav else 30.0), mix, tuple(hold), per_field, str(init or ""))
         meta = tune(config, out_dir, _text(model_path), workers)
     except ParameterError as exc:
         raise click.UsageError(str(exc)) from None

@@ -55,6 +55,7 @@ class TuneConfig:
     mix: str = "default"  # navigation: the geometry mix trained and validated on (scenarios.MIXES)
     hold: tuple[str, ...] = ()  # outputs held at today's value (their rows of W and V stay 0)
     per_field: bool = False  # also train V: each obstacle field's widths from its own features
+    init: str = ""  # a policy file the search starts from (its mean), "" = today's constants (0)
 
     def __post_init__(self) -> None:
         check_task(self.task)
@@ -85,7 +86,8 @@ def command_of(config: TuneConfig) -> str:
             f"--validate-every {c.validate_every} --max-time {c.max_time:g}"
             + (f" --mix {c.mix}" if c.mix != "default" else "")
             + "".join(f" --hold {h}" for h in c.hold)
-            + (" --per-field" if c.per_field else ""))
+            + (" --per-field" if c.per_field else "")
+            + (f" --init {c.init}" if c.init else ""))
 
 
 def free_rows(config: TuneConfig) -> np.ndarray:
@@ -101,6 +103,27 @@ def free_field_rows(config: TuneConfig) -> np.ndarray:
 def search_size(config: TuneConfig) -> int:
     """How many numbers the strategy searches: the free rows of W, then those of V."""
     return int(free_rows(config).sum()) * N_FEATURES + int(free_field_rows(config).sum()) * N_FIELD_FEATURES
+
+
+def start_vector(config: TuneConfig) -> np.ndarray:
+    """Where the search starts: 0 (today's constants), or the free entries of ``--init``'s
+    policy (:func:`full_weights` of it gives that policy back); a ParameterError when the
+    file cannot be a start of this training."""
+    n = search_size(config)
+    if not config.init:
+        return np.zeros(n)
+    p = FieldPolicy.load(config.init)
+    where = f"--init {config.init}"
+    if p.task != config.task:
+        raise ParameterError(f"{where}: a {p.task} policy, not {config.task}")
+    V = np.zeros((len(WIDTHS), N_FIELD_FEATURES)) if p.V is None else p.V
+    if V.any() and not config.per_field:
+        raise ParameterError(f"{where}: it has per-field weights V; train it with --per-field")
+    for o, wrow, vrow in zip(OUTPUTS[config.task], p.W, list(V) + [None], strict=False):
+        if o in config.hold and (wrow.any() or (vrow is not None and vrow.any())):
+            raise ParameterError(f"{where}: its weights for {o} are not 0, but --hold {o} holds them at 0")
+    x = p.W[free_rows(config)].ravel()
+    return np.concatenate([x, V[free_field_rows(config)].ravel()]) if config.per_field else x
 
 
 def full_weights(config: TuneConfig, x: np.ndarray) -> np.ndarray:
@@ -138,7 +161,8 @@ def _check_dir(out: Path, config: TuneConfig) -> dict | None:
         saved = json.loads(cfg.read_text())
         saved.setdefault("mix", "default")  # a directory of a version before --mix, --hold
         saved.setdefault("hold", [])
-        saved.setdefault("per_field", False)  # a directory of a version before --per-field
+        saved.setdefault("per_field", False)  # a directory of a version before --per-field, --init
+        saved.setdefault("init", "")
         mine = json.loads(json.dumps(asdict(config)))  # as config.json holds it (a tuple is a list)
         for k in mine:
             if saved.get(k) != mine[k]:
@@ -176,12 +200,17 @@ def tune(config: TuneConfig, out: Path, model_path: str | None = None, workers: 
     (out / "config.json").write_text(json.dumps(asdict(config), indent=1) + "\n")
     n = search_size(config)
     if state is None:
-        es = cma.CMAEvolutionStrategy(np.zeros(n), config.sigma0,
+        x0 = start_vector(config)
+        es = cma.CMAEvolutionStrategy(x0, config.sigma0,
                                       {"seed": config.seed, "popsize": config.popsize, "verbose": -9})
         base = validate(config, full_weights(config, np.zeros(n)), model_path, workers)
+        best = {"generation": 0, "score": base, "weights": full_weights(config, np.zeros(n)).tolist()}
+        if config.init:  # the start is a candidate too: kept if it beats the constants on validation
+            start = validate(config, full_weights(config, x0), model_path, workers)
+            if start > base:
+                best = {"generation": 0, "score": start, "weights": full_weights(config, x0).tolist()}
         state = {"version": STATE_VERSION, "generation": 0, "es": es, "rng": np.random.get_state(),
-                 "best": {"generation": 0, "score": base, "weights": full_weights(config, np.zeros(n)).tolist()},
-                 "base_score": base}
+                 "best": best, "base_score": base}
         _write_whole(out / "state.pkl", pickle.dumps(state))
         (out / "history.jsonl").write_text("")
     es = state["es"]

@@ -16,7 +16,8 @@ import numpy as np
 import pytest
 
 from cekm_swarm.errors import ParameterError
-from cekm_swarm.tune.train import TuneConfig, _check_dir, command_of, full_weights, search_size, where_of
+from cekm_swarm.tune.policy import FieldPolicy
+from cekm_swarm.tune.train import TuneConfig, _check_dir, command_of, full_weights, search_size, start_vector, where_of
 
 TINY = ["--task", "navigation", "--seed", "7", "--generations", "4", "--popsize", "3", "--batch", "2",
         "--validation", "2", "--validate-every", "1", "--max-time", "20", "--workers", "1",
@@ -66,9 +67,27 @@ def test_per_field_training_searches_w_and_v_and_holds_both_rows():
     assert search_size(trk) == 3 * 9 + 3 * 5 and full_weights(trk, np.ones(42)).size == 36 + 15
 
 
+def test_a_search_starts_from_an_init_policy_or_refuses_it(tmp_path):
+    W, V = np.zeros((3, 9)), np.zeros((3, 5))
+    W[0], W[1, 2], V[1, 4] = 0.5, -1.0, 2.0
+    FieldPolicy("navigation", W, field_weights=V).save(tmp_path / "start.json")
+    c = TuneConfig(per_field=True, hold=("sigma_b_d_near",), init=str(tmp_path / "start.json"))
+    x0 = start_vector(c)
+    assert x0.size == search_size(c) and full_weights(c, x0).tolist() == list(FieldPolicy("navigation", W,
+                                                                                          field_weights=V).flat())
+    assert command_of(c).endswith(f"--per-field --init {tmp_path / 'start.json'}")
+    assert not start_vector(TuneConfig()).any()
+    with pytest.raises(ParameterError, match="start.json: it has per-field weights V; train it with --per-field"):
+        start_vector(TuneConfig(init=str(tmp_path / "start.json")))
+    with pytest.raises(ParameterError, match="its weights for sigma_b_d_beyond are not 0, but --hold"):
+        start_vector(TuneConfig(per_field=True, hold=("sigma_b_d_beyond",), init=str(tmp_path / "start.json")))
+    with pytest.raises(ParameterError, match="a navigation policy, not tracking"):
+        start_vector(TuneConfig(task="tracking", per_field=True, init=str(tmp_path / "start.json")))
+
+
 def test_a_directory_from_before_the_mix_still_resumes(tmp_path):
     old = asdict(TuneConfig(seed=1))
-    del old["mix"], old["hold"], old["per_field"]
+    del old["mix"], old["hold"], old["per_field"], old["init"]
     (tmp_path / "config.json").write_text(json.dumps(old))
     assert _check_dir(tmp_path, TuneConfig(seed=1)) is None
     with pytest.raises(ParameterError, match="mix = 'default', not 'wide'"):
