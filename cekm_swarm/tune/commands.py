@@ -48,7 +48,7 @@ def tune_group() -> None:
                                           "sigma_b_d_near; repeat for more.")
 @click.option("--per-field", is_flag=True, help="Also learn V: each obstacle field's widths from its own "
                                                 "features (nearness, angle, nearest, lone ray), not one set a tick.")
-@click.option("--init", "init", type=click.Path(dir_okay=False, exists=True), default="",
+@click.option("--init", "init", type=click.Path(dir_okay=False, exists=True), default=None,
               help="A policy file the search starts from (default: today's constants); kept if it is the best "
                    "on validation.")
 @model_option()
