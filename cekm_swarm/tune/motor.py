@@ -61,8 +61,8 @@ class _PolicyFields:
         self.override: FieldChoice | None = None  # set by the environments (cekm_swarm.tune.env_core)
         self.last_features: np.ndarray | None = None
         self.last_choice: FieldChoice | None = None
-        self.last_field_params: list[FieldParams] | None = None  # each obstacle field's widths, last tick
-        self._rows: dict[tuple[int, FieldParams], np.ndarray] = {}
+        self.last_widths: list[tuple[float, float, float]] | None = None  # each obstacle field's, last tick
+        self._rows: dict[tuple[int, float, float, float], np.ndarray] = {}
 
     def _choose(self, features: np.ndarray) -> FieldChoice:
         self.last_features = features
@@ -74,23 +74,25 @@ class _PolicyFields:
                    features: np.ndarray) -> list[ObstacleActivity]:
         """b_j of each winner with its widths (Eq. 8), in sensor order: the tick's choice for
         every field, or each field's own when the policy has per-field weights (and no
-        environment's action overrides it)."""
-        winners = [f.winner for f in fields]
+        environment's action overrides it). Rows are cached by (winner, widths): exact."""
+        fp: FieldParams | None = None  # the tick's, when every field has them
         if self.override is None and self.policy.per_field:
-            g = obstacle_features(w, winners, [f.index for f in fields], target)
-            per = self.policy.field_params(features, g)
+            g = obstacle_features(w, [f.winner for f in fields], [f.index for f in fields], target)
+            widths = [(a, b, c) for a, b, c in self.policy.field_widths(features, g).tolist()]
         else:
-            per = [choice.fields] * len(fields)
-        self.last_field_params = per
+            fp = choice.fields
+            widths = [(fp.sigma_b_alpha, fp.sigma_b_d_beyond, fp.sigma_b_d_near)] * len(fields)
+        self.last_widths = widths
         if len(self._rows) > ROWS_KEPT:
             self._rows = {}
         out = []
-        for f, p in zip(fields, per, strict=True):
+        for f, wd in zip(fields, widths, strict=True):
             b = None
             if f.winner is not None:
-                b = self._rows.get((f.winner, p))
+                key = (f.winner, *wd)
+                b = self._rows.get(key)
                 if b is None:
-                    b = self._rows[f.winner, p] = obstacle_field(w, f.winner, p)
+                    b = self._rows[key] = obstacle_field(w, f.winner, fp or self.policy.widths_params(wd))
             out.append(ObstacleActivity(f.stamp, f.index, f.winner, b))
         return out
 

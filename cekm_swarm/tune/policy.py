@@ -136,18 +136,28 @@ class FieldPolicy:
     def choose(self, features: np.ndarray) -> FieldChoice:
         return self.choice(self.action(features))
 
-    def field_params(self, features: np.ndarray, field_features: np.ndarray) -> list[FieldParams]:
-        """Each obstacle field's widths: base * exp(span * tanh(W f + V g_j)) for the rows g_j
-        of ``field_features`` (:func:`.features.obstacle_features`); the tick's widths
-        (:meth:`choose`'s) for every field when the policy has no V."""
-        if self.V is None:
-            return [self.choose(features).fields] * len(field_features)
+    def field_widths(self, features: np.ndarray, field_features: np.ndarray) -> np.ndarray:
+        """Each obstacle field's widths (sigma_b_alpha, sigma_b_d_beyond, sigma_b_d_near), one
+        row per row g_j of ``field_features`` (:func:`.features.obstacle_features`):
+        base * exp(span * tanh(W f + V g_j)); the tick's widths (:meth:`choose`'s) in every row
+        when the policy has no V."""
         k = len(WIDTHS)
+        if self.V is None:
+            fp = self.choose(features).fields
+            return np.tile([fp.sigma_b_alpha, fp.sigma_b_d_beyond, fp.sigma_b_d_near], (len(field_features), 1))
         pre = self.W[:k] @ features
         a = np.tanh(pre[None, :] + np.asarray(field_features, dtype=np.float64) @ self.V.T)
-        widths = self.base[:k] * np.exp(self.span[:k] * a)
+        out: np.ndarray = self.base[:k] * np.exp(self.span[:k] * a)
+        return out
+
+    def widths_params(self, widths: tuple[float, float, float]) -> FieldParams:
+        """The field parameters of one row of :meth:`field_widths` (the target field's as the base's)."""
         f = self._fields
-        return [FieldParams(f.sigma_a_alpha, f.sigma_a_d, *map(float, row)) for row in widths]
+        return FieldParams(f.sigma_a_alpha, f.sigma_a_d, *widths)
+
+    def field_params(self, features: np.ndarray, field_features: np.ndarray) -> list[FieldParams]:
+        """:meth:`field_widths` as each obstacle field's FieldParams."""
+        return [self.widths_params(tuple(r)) for r in self.field_widths(features, field_features).tolist()]
 
     def to_dict(self) -> dict:
         doc = {"format": FORMAT, "version": 1, "task": self.task, "features": list(FEATURES),
