@@ -1,7 +1,8 @@
 """Field-policy training speed (docs/fields.md): environment steps per second of the
 Gymnasium environment (:mod:`cekm_swarm.tune.env`) and ticks per second of a training's
-run (the field-policy motor with a policy's weights), against a plain ``cekm run`` of the
-same scenario measured in the same run (the baseline: the shipped graph, in process).
+run (the field-policy motor with a policy's weights W, and with per-field weights V too:
+Eq. 8 per field with its own widths), against a plain ``cekm run`` of the same scenario
+measured in the same run (the baseline: the shipped graph, in process).
 
 Every variant runs the same scenario to the same end; the best of ``--repeat`` timings
 counts, the variants interleaved. The host's load and steal are printed beside: numbers taken on a shared machine
@@ -43,7 +44,7 @@ def main() -> None:
     from cekm_swarm.experiments.graph_run import run_graph
     from cekm_swarm.node.graph_check import check_graph
     from cekm_swarm.tune.env import FieldEnv
-    from cekm_swarm.tune.features import N_FEATURES
+    from cekm_swarm.tune.features import N_FEATURES, N_FIELD_FEATURES
     from cekm_swarm.tune.graphs import policy_graph
     from world import load_scenario
 
@@ -55,6 +56,7 @@ def main() -> None:
     zero = np.zeros(env.action_space.shape, dtype=np.float32)
     rng = np.random.default_rng(0)
     W = tuple(rng.normal(0, 0.3, len(env.policy.outputs) * N_FEATURES).tolist())
+    WV = W + tuple(rng.normal(0, 0.3, 3 * N_FIELD_FEATURES).tolist())
     checked = check_graph(policy_graph(task))
 
     def plain():
@@ -64,6 +66,9 @@ def main() -> None:
         return run_graph(sc, graph=checked, params={"weights": W}, model=model, max_time=max_time).ticks
 
     steps = {"n": 0}
+
+    def per_field():
+        return run_graph(sc, graph=checked, params={"weights": WV}, model=model, max_time=max_time).ticks
 
     def stepped():
         env.reset(seed=0)
@@ -76,8 +81,9 @@ def main() -> None:
         return env.session.episode.tick
 
     plain()  # warm up (compile, caches)
-    res = best_of({"plain": plain, "env": stepped, "policy": trained}, args.repeat)
+    res = best_of({"plain": plain, "env": stepped, "policy": trained, "per_field": per_field}, args.repeat)
     (base_s, base_ticks), (env_s, env_ticks), (pol_s, pol_ticks) = res["plain"], res["env"], res["policy"]
+    pf_s, pf_ticks = res["per_field"]
     print(f"scenario {args.scenario} ({task}), best of {args.repeat}")
     print(f"  cekm run (baseline)         {base_ticks:6d} ticks  {base_ticks / base_s:9.0f} ticks/s")
     print(f"  environment, {args.ticks_per_action} ticks/step   {env_ticks:6d} ticks  {env_ticks / env_s:9.0f} ticks/s "
@@ -85,6 +91,8 @@ def main() -> None:
           f"{steps['n'] / env_s:8.1f} steps/s  ratio {base_s / base_ticks / (env_s / env_ticks):.2f} of baseline")
     print(f"  training run (a policy)     {pol_ticks:6d} ticks  {pol_ticks / pol_s:9.0f} ticks/s  "
           f"ratio {base_s / base_ticks / (pol_s / pol_ticks):.2f} of baseline")
+    print(f"  training run, per-field (V) {pf_ticks:6d} ticks  {pf_ticks / pf_s:9.0f} ticks/s  "
+          f"ratio {base_s / base_ticks / (pf_s / pf_ticks):.2f} of baseline")
     with open("/proc/loadavg") as f:
         print(f"  host load: {f.read().strip()}")
     try:

@@ -44,12 +44,17 @@ def tune_group() -> None:
 @click.option("--mix", type=click.Choice(["default", "wide", "route"]), default="default", show_default=True,
               help="Navigation: the generated geometries trained and validated on (wide: also disc rows with "
                    "narrow gaps, long walls and narrow deep U's; route: also a goal in a narrow alcove).")
-@click.option("--hold", multiple=True, help="An output held at today's value (its row of W stays 0), e.g. "
+@click.option("--hold", multiple=True, help="An output held at today's value (its rows of W and V stay 0), e.g. "
                                           "sigma_b_d_near; repeat for more.")
+@click.option("--per-field", is_flag=True, help="Also learn V: each obstacle field's widths from its own "
+                                                "features (nearness, angle, nearest, lone ray), not one set a tick.")
+@click.option("--init", "init", type=click.Path(dir_okay=False, exists=True), default=None,
+              help="A policy file the search starts from (default: today's constants); kept if it is the best "
+                   "on validation.")
 @model_option()
 @click.option("--workers", type=click.IntRange(min=1), default=2, show_default=True, help="Worker processes.")
 def fields_cmd(task, out_dir, seed, generations, popsize, sigma0, batch, validation, validate_every, max_time,
-               mix, hold, model_path, workers) -> None:
+               mix, hold, per_field, init, model_path, workers) -> None:
     """Train a field policy by CMA-ES into OUT (policy.json), seeded and resumable."""
     from .train import TuneConfig, tune  # noqa: PLC0415 -- lazy: pymunk, tqdm, world
 
@@ -57,7 +62,7 @@ def fields_cmd(task, out_dir, seed, generations, popsize, sigma0, batch, validat
     try:
         config = TuneConfig(task, seed, generations or (30 if nav else 15), popsize or (12 if nav else 8), sigma0,
                             batch or (24 if nav else 6), validation or (48 if nav else 12), validate_every,
-                            max_time or (90.0 if nav else 30.0), mix, tuple(hold))
+                            max_time or (90.0 if nav else 30.0), mix, tuple(hold), per_field, str(init or ""))
         meta = tune(config, out_dir, _text(model_path), workers)
     except ParameterError as exc:
         raise click.UsageError(str(exc)) from None
@@ -165,8 +170,10 @@ def fig9_cmd(results, out_path, reference) -> None:
 @click.option("--policy", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               help="A navigation field policy (default: today's constants, W = 0).")
 @click.option("--max-time", type=Finite(min=0.2), default=300.0, show_default=True, help="Sim seconds per run.")
+@click.option("--mix", type=click.Choice(["default", "wide", "route"]), default="default", show_default=True,
+              help="The generated geometries (as cekm tune fields --mix).")
 @model_option()
-def contacts_cmd(out_dir, purpose, runs, policy, max_time, model_path) -> None:
+def contacts_cmd(out_dir, purpose, runs, policy, max_time, mix, model_path) -> None:
     """Why contacts happen: every contact of generated navigation runs, classified (docs/fields.md)."""
     from tqdm import tqdm  # noqa: PLC0415 -- lazy
 
@@ -175,12 +182,12 @@ def contacts_cmd(out_dir, purpose, runs, policy, max_time, model_path) -> None:
     from .scenarios import seed_of  # noqa: PLC0415
 
     try:
-        weights = None if policy is None else tuple(FieldPolicy.load(policy).W.ravel().tolist())
+        weights = None if policy is None else FieldPolicy.load(policy).flat()
     except ParameterError as exc:
         raise click.UsageError(str(exc)) from None
     seeds = [seed_of(purpose, i) for i in range(runs)]
     with tqdm(total=runs, desc="contacts", unit="run") as bar:
-        doc = diagnose(seeds, max_time, _text(model_path), weights, bar.update)
+        doc = diagnose(seeds, max_time, _text(model_path), weights, bar.update, mix)
     out_dir.mkdir(parents=True, exist_ok=True)
     for k, x in doc["by_kind"].items():
         click.echo(f"{k:9s} runs {x['runs']:3d}  reached {x['reached']:3d}  contact-free {x['contact_free']:3d}")

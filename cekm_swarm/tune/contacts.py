@@ -98,14 +98,16 @@ def _contact_point(world, robot: str, item: str) -> tuple[tuple[float, float], f
 
 
 def contact_events(seed: int, max_time: float = 300.0, model_path: str | None = None,
-                   weights: tuple[float, ...] | None = None) -> tuple[dict[str, Any], list[dict[str, Any]]]:
-    """The run of generated navigation scenario ``seed`` with the policy ``weights``
-    (default W = 0: today's constants): its outcome row, and every new contact, one row each."""
-    raw = navigation_raw(seed)
+                   weights: tuple[float, ...] | None = None,
+                   mix: str = "default") -> tuple[dict[str, Any], list[dict[str, Any]]]:
+    """The run of generated navigation scenario ``seed`` of geometry mix ``mix`` with the
+    policy ``weights`` (default W = 0: today's constants): its outcome row, and every new
+    contact, one row each."""
+    raw = navigation_raw(seed, mix=mix)
     kind = raw["name"].split("-")[1]
     w = weights if weights is not None else (0.0,) * FieldPolicy.size("navigation")
-    s = GraphSession(navigation_scenario(seed), graph=check_graph(policy_graph("navigation")), model=_model(model_path),
-                     max_time=max_time, params={"weights": tuple(w)})
+    s = GraphSession(navigation_scenario(seed, mix=mix), graph=check_graph(policy_graph("navigation")),
+                     model=_model(model_path), max_time=max_time, params={"weights": tuple(w)})
     motor = s.executor.node("r1", "motor")
     assert isinstance(motor, FieldMotor)
     outs: list[Any] = []
@@ -150,12 +152,12 @@ def contact_events(seed: int, max_time: float = 300.0, model_path: str | None = 
 
 
 def diagnose(seeds: list[int], max_time: float = 300.0, model_path: str | None = None,
-             weights: tuple[float, ...] | None = None, progress=None) -> dict[str, Any]:
+             weights: tuple[float, ...] | None = None, progress=None, mix: str = "default") -> dict[str, Any]:
     """:func:`contact_events` of every seed: {"runs": outcome rows, "contacts": contact rows,
     "tally": :func:`tally` of the contacts, "by_kind": runs, reached, contact-free per kind}."""
     runs, contacts = [], []
     for seed in seeds:
-        run, rows = contact_events(seed, max_time, model_path, weights)
+        run, rows = contact_events(seed, max_time, model_path, weights, mix)
         runs.append(run)
         contacts.extend(rows)
         if progress:

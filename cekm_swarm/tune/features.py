@@ -9,7 +9,7 @@ teammate fields' sum: no raw sensor reading, no world state. Every feature lies 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 
 import numpy as np
 
@@ -65,3 +65,40 @@ def field_features(w: np.ndarray, obstacle_winners: Iterable[int | None], target
         t_angle, t_near = abs(wrap_scalar(target[0])) / math.pi, proximity(target[1], d_max)
     return np.array([1.0, front, left, right, seen / n if n else 0.0, toward, t_angle, t_near,
                      min(max(teammates, 0.0), 1.0)], dtype=np.float64)
+
+
+FIELD_FEATURES = ("near", "off_heading", "toward_target", "nearest", "lone")
+"""Names of one obstacle field's own features g_j (:func:`obstacle_features`), in order."""
+
+N_FIELD_FEATURES = len(FIELD_FEATURES)
+
+
+def obstacle_features(w: np.ndarray, obstacle_winners: Sequence[int | None], indices: Sequence[int],
+                      target: tuple[float, float] | None) -> np.ndarray:
+    """g_j of each obstacle field of one tick (rows in the order given; zeros for a sensor
+    that sees nothing), each in [0, 1]: what the per-field widths of the policy read.
+
+    near: 1 - d_j/d_max of its winner; off_heading: |alpha_j|/pi; toward_target: 1 -
+    |alpha_j - alpha_target|/pi (0 with no target); nearest: 1 for the nearest reading of
+    the tick (ties all 1); lone: the share of its two neighbouring sensors (``indices``
+    j - 1 and j + 1 around the ring of len(obstacle_winners) sensors, the world's 12 rays
+    30 degrees apart) that see nothing -- 1/2 at a wall's end seen by one ray, 1 for a
+    thin thing, 0 along a wall.
+    """
+    m = len(obstacle_winners)
+    g = np.zeros((m, N_FIELD_FEATURES), dtype=np.float64)
+    if m == 0:
+        return g
+    d_max = float(np.max(w[:, 1])) or 1.0
+    seeing = {i for i, s in zip(indices, obstacle_winners, strict=True) if s is not None}
+    ds = [float(w[s, 1]) for s in obstacle_winners if s is not None]
+    nearest = min(ds) if ds else math.inf
+    t_ok = target is not None and math.isfinite(target[0]) and math.isfinite(target[1])
+    for row, (i, s) in enumerate(zip(indices, obstacle_winners, strict=True)):
+        if s is None:
+            continue
+        a, d = float(w[s, 0]), float(w[s, 1])
+        toward = 1.0 - abs(wrap_scalar(a - target[0])) / math.pi if t_ok and target is not None else 0.0
+        lone = (((i - 1) % m) not in seeing) * 0.5 + (((i + 1) % m) not in seeing) * 0.5
+        g[row] = (proximity(d, d_max), abs(wrap_scalar(a)) / math.pi, toward, float(d <= nearest), lone)
+    return g

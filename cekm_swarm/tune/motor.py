@@ -3,7 +3,8 @@
 They integrate exactly as :mod:`cekm_swarm.modules.motor_integration` and
 :mod:`cekm_swarm.modules.tracking_motor` do (Eqs. 9-11, the same code), with one
 difference: the obstacle fields b_j are Eq. 8 of each localization module's winner with
-the widths the field policy chooses from what the fields see (:mod:`.features`), and for
+the widths the field policy chooses from what the fields see (:mod:`.features`) -- one set
+for the tick, or with a policy's per-field weights V each field's own -- and for
 tracking the teammate fields' sum is scaled by the policy's gain. A field is a pure
 function of its winner and its widths, so computing it here is exact, and the
 localization modules and the message protocol are unchanged: with the base widths this
@@ -32,11 +33,11 @@ from cekm_swarm.protocol import ObstacleField, TargetField, TrackingField, Wheel
 from cekm_swarm.protocol.checks import lattice_misfit
 from cekm_swarm.ticks import tick_of
 
-from .features import field_features
+from .features import field_features, obstacle_features
 from .policy import FieldChoice, FieldPolicy, shipped_policy
 
 ROWS_KEPT = 256
-"""Obstacle-field rows a node remembers for the current choice of widths."""
+"""Obstacle-field rows a node remembers (keyed by winner and widths: exact for any widths)."""
 
 
 class _PolicyFields:
@@ -50,7 +51,7 @@ class _PolicyFields:
         p = self.params
         try:
             if p.weights:
-                self.policy = FieldPolicy(self.task, np.array(p.weights))
+                self.policy = FieldPolicy.from_flat(self.task, p.weights)
             else:
                 self.policy = FieldPolicy.load(p.policy or shipped_policy(self.task))
         except Exception as exc:  # a bad file or weight count: the node names it and stops
@@ -60,8 +61,8 @@ class _PolicyFields:
         self.override: FieldChoice | None = None  # set by the environments (cekm_swarm.tune.env_core)
         self.last_features: np.ndarray | None = None
         self.last_choice: FieldChoice | None = None
-        self._rows: dict[int, np.ndarray] = {}
-        self._rows_for: FieldParams | None = None
+        self.last_widths: list[tuple[float, float, float]] | None = None  # each obstacle field's, last tick
+        self._rows: dict[tuple[int, float, float, float], np.ndarray] = {}
 
     def _choose(self, features: np.ndarray) -> FieldChoice:
         self.last_features = features
@@ -69,17 +70,29 @@ class _PolicyFields:
         self.last_choice = choice
         return choice
 
-    def _obstacles(self, w: np.ndarray, fields, choice: FieldChoice) -> list[ObstacleActivity]:
-        """b_j of each winner with the chosen widths (Eq. 8), in sensor order."""
-        if choice.fields != self._rows_for or len(self._rows) > ROWS_KEPT:
-            self._rows, self._rows_for = {}, choice.fields
+    def _obstacles(self, w: np.ndarray, fields, choice: FieldChoice, target: tuple[float, float] | None,
+                   features: np.ndarray) -> list[ObstacleActivity]:
+        """b_j of each winner with its widths (Eq. 8), in sensor order: the tick's choice for
+        every field, or each field's own when the policy has per-field weights (and no
+        environment's action overrides it). Rows are cached by (winner, widths): exact."""
+        fp: FieldParams | None = None  # the tick's, when every field has them
+        if self.override is None and self.policy.per_field:
+            g = obstacle_features(w, [f.winner for f in fields], [f.index for f in fields], target)
+            widths = [(a, b, c) for a, b, c in self.policy.field_widths(features, g).tolist()]
+        else:
+            fp = choice.fields
+            widths = [(fp.sigma_b_alpha, fp.sigma_b_d_beyond, fp.sigma_b_d_near)] * len(fields)
+        self.last_widths = widths
+        if len(self._rows) > ROWS_KEPT:
+            self._rows = {}
         out = []
-        for f in fields:
+        for f, wd in zip(fields, widths, strict=True):
             b = None
             if f.winner is not None:
-                b = self._rows.get(f.winner)
+                key = (f.winner, *wd)
+                b = self._rows.get(key)
                 if b is None:
-                    b = self._rows[f.winner] = obstacle_field(w, f.winner, choice.fields)
+                    b = self._rows[key] = obstacle_field(w, f.winner, fp or self.policy.widths_params(wd))
             out.append(ObstacleActivity(f.stamp, f.index, f.winner, b))
         return out
 
@@ -98,7 +111,7 @@ class FieldMotor(_PolicyFields, Node):
         allow_reverse: bool = False  # as the shipped motor node's
         reverse_min_d: float = 0.02
         policy: str = ""  # a field policy file (cekm tune fields); "" = the one shipped for navigation
-        weights: tuple[float, ...] = ()  # the policy's weights in place of a file (training)
+        weights: tuple[float, ...] = ()  # the policy's weights in place of a file (training): W, then V if any
 
     def setup(self) -> None:
         self.ekm = cooperative_ekm(self.ctx, None, self.params.allow_reverse, self.params.reverse_min_d)
@@ -110,8 +123,10 @@ class FieldMotor(_PolicyFields, Node):
     def step(self, t, inputs):
         tf, fields = inputs["target"], list(inputs["obstacles"].values())
         target = None if tf is None or tf.a is None else (tf.alpha, tf.d)
-        choice = self._choose(field_features(self.ekm.w, [f.winner for f in fields], target))
-        out = self.ekm.integrate(target_activity(tf), self._obstacles(self.ekm.w, fields, choice))  # Eqs. 9-11
+        features = field_features(self.ekm.w, [f.winner for f in fields], target)
+        choice = self._choose(features)
+        out = self.ekm.integrate(target_activity(tf), self._obstacles(self.ekm.w, fields, choice, target,
+                                                                      features))  # Eqs. 9-11
         return {"command": WheelCommand(t, self.ctx.sender, out.v_l, out.v_r, tick_of(t))}
 
 
@@ -147,8 +162,9 @@ class FieldTrackingMotor(_PolicyFields, Node):
                 _, alpha, d, _ = max(act.inputs, key=lambda x: x[3])
                 target = (alpha, d)
             team = float(np.max(act.b_team)) if len(act.b_team) else 0.0
-        choice = self._choose(field_features(w, [o.winner for o in fields], target, team))
+        features = field_features(w, [o.winner for o in fields], target, team)
+        choice = self._choose(features)
         if act is not None and choice.teammate_gain != 1.0:
             act = replace(act, b_team=choice.teammate_gain * act.b_team)
-        out = self.tekm.integrate(act, self._obstacles(w, fields, choice))  # Eqs. 9-11
+        out = self.tekm.integrate(act, self._obstacles(w, fields, choice, target, features))  # Eqs. 9-11
         return {"command": WheelCommand(t, self.ctx.sender, out.v_l, out.v_r, tick_of(t))}

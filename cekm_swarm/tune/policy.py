@@ -4,6 +4,12 @@ p_i = base_i * exp(span_i * tanh((W f)_i)) for the features f (:mod:`.features`)
 map squashed to +-1, so every width stays within a factor exp(span_i) of its base (today's
 hand-tuned value); W = 0 gives the base values exactly, bit for bit. Only the fields'
 parameters move: the fields are still Eqs. 6 and 8, integrated by the motor EKM (Eqs. 9-11).
+
+Per-field widths (optional, V): the widths of obstacle field b_j are
+base * exp(span * tanh(W f + V g_j)) with g_j that field's own features
+(:func:`.features.obstacle_features`), so one tick can give a near wall end a wide field
+and the far jambs of a doorway narrow ones. V moves Eq. 8's three widths only (the
+teammate gain stays one per tick); V = 0 is the policy without it, exactly.
 """
 
 from __future__ import annotations
@@ -17,9 +23,12 @@ import numpy as np
 
 from ..errors import ParameterError
 from ..models.params import FieldParams
-from .features import FEATURES, N_FEATURES
+from .features import FEATURES, FIELD_FEATURES, N_FEATURES, N_FIELD_FEATURES
 
 FORMAT = "cekm-field-policy"
+VERSION = 2
+"""The file format's version: 1 has W only; 2 adds the per-field weights V (a version-1
+file loads with V = 0, and a policy without V is still written as version 1)."""
 TASKS = ("navigation", "tracking")
 
 OUTPUTS: dict[str, tuple[str, ...]] = {
@@ -32,6 +41,9 @@ sigma_b_alpha and sigma_b_d) and, for tracking, a gain on the teammate fields' s
 SPAN = {"sigma_b_alpha": math.log(2.0), "sigma_b_d_beyond": math.log(4.0), "sigma_b_d_near": math.log(2.0),
         "teammate_gain": math.log(2.0)}
 """How far (log factor) the policy may move each parameter from its base."""
+
+WIDTHS = ("sigma_b_alpha", "sigma_b_d_beyond", "sigma_b_d_near")
+"""The outputs the per-field weights V move: Eq. 8's widths, the first outputs of every task."""
 
 
 def base_values(task: str) -> dict[str, float]:
@@ -60,16 +72,24 @@ def check_task(task: str) -> str:
 
 
 class FieldPolicy:
-    """W (outputs x features) for one task; :meth:`choose` maps features to field parameters."""
+    """W (outputs x features) and, optionally, V (widths x field features) for one task;
+    :meth:`choose` maps features to one tick's field parameters, :meth:`field_params` the
+    tick's and each obstacle field's own features to each field's widths."""
 
-    def __init__(self, task: str, weights: np.ndarray | None = None, meta: dict | None = None) -> None:
+    def __init__(self, task: str, weights: np.ndarray | None = None, meta: dict | None = None,
+                 field_weights: np.ndarray | None = None) -> None:
         self.task = check_task(task)
         self.outputs = OUTPUTS[task]
         shape = (len(self.outputs), N_FEATURES)
         W = np.zeros(shape) if weights is None else np.asarray(weights, dtype=np.float64).reshape(shape)
-        if not np.all(np.isfinite(W)):
+        V = None if field_weights is None else np.asarray(field_weights, dtype=np.float64).reshape(
+            len(WIDTHS), N_FIELD_FEATURES)
+        if not np.all(np.isfinite(W)) or (V is not None and not np.all(np.isfinite(V))):
             raise ParameterError("FieldPolicy: the weights must be finite")
         self.W = W
+        self.V = V
+        self.per_field = V is not None and bool(np.any(V != 0.0))
+        """True when some field's widths can differ from the tick's (V has a nonzero weight)."""
         self.meta = dict(meta or {})
         base = base_values(task)
         self.base = np.array([base[o] for o in self.outputs])
@@ -77,9 +97,24 @@ class FieldPolicy:
         self._fields = FieldParams() if task == "navigation" else FieldParams.paper()
 
     @classmethod
-    def size(cls, task: str) -> int:
-        """How many weights a policy of ``task`` has."""
-        return len(OUTPUTS[check_task(task)]) * N_FEATURES
+    def size(cls, task: str, per_field: bool = False) -> int:
+        """How many weights a policy of ``task`` has (with V: W's and V's)."""
+        return len(OUTPUTS[check_task(task)]) * N_FEATURES + (len(WIDTHS) * N_FIELD_FEATURES if per_field else 0)
+
+    @classmethod
+    def from_flat(cls, task: str, flat: tuple[float, ...] | list[float] | np.ndarray) -> FieldPolicy:
+        """The policy of a flat weight vector (:meth:`flat`): W's entries, then V's if there are any."""
+        x = np.asarray(flat, dtype=np.float64).ravel()
+        n_w, n_all = cls.size(task), cls.size(task, per_field=True)
+        if x.size not in (n_w, n_all):
+            raise ParameterError(f"field policy weights: a {task} policy takes {n_w} (W) or {n_all} (W and V) "
+                                 f"numbers, got {x.size}")
+        return cls(task, x[:n_w], field_weights=x[n_w:] if x.size == n_all else None)
+
+    def flat(self) -> tuple[float, ...]:
+        """W's entries row by row, then V's if the policy has V (:meth:`from_flat` inverts it)."""
+        parts = [self.W.ravel()] + ([] if self.V is None else [self.V.ravel()])
+        return tuple(float(v) for v in np.concatenate(parts))
 
     def values(self, action: np.ndarray) -> dict[str, float]:
         """The parameters of an action in [-1, 1]^outputs: base * exp(span * action)."""
@@ -101,10 +136,37 @@ class FieldPolicy:
     def choose(self, features: np.ndarray) -> FieldChoice:
         return self.choice(self.action(features))
 
+    def field_widths(self, features: np.ndarray, field_features: np.ndarray) -> np.ndarray:
+        """Each obstacle field's widths (sigma_b_alpha, sigma_b_d_beyond, sigma_b_d_near), one
+        row per row g_j of ``field_features`` (:func:`.features.obstacle_features`):
+        base * exp(span * tanh(W f + V g_j)); the tick's widths (:meth:`choose`'s) in every row
+        when the policy has no V."""
+        k = len(WIDTHS)
+        if self.V is None:
+            fp = self.choose(features).fields
+            return np.tile([fp.sigma_b_alpha, fp.sigma_b_d_beyond, fp.sigma_b_d_near], (len(field_features), 1))
+        pre = self.W[:k] @ features
+        a = np.tanh(pre[None, :] + np.asarray(field_features, dtype=np.float64) @ self.V.T)
+        out: np.ndarray = self.base[:k] * np.exp(self.span[:k] * a)
+        return out
+
+    def widths_params(self, widths: tuple[float, float, float]) -> FieldParams:
+        """The field parameters of one row of :meth:`field_widths` (the target field's as the base's)."""
+        f = self._fields
+        return FieldParams(f.sigma_a_alpha, f.sigma_a_d, *widths)
+
+    def field_params(self, features: np.ndarray, field_features: np.ndarray) -> list[FieldParams]:
+        """:meth:`field_widths` as each obstacle field's FieldParams."""
+        return [self.widths_params(tuple(r)) for r in self.field_widths(features, field_features).tolist()]
+
     def to_dict(self) -> dict:
-        return {"format": FORMAT, "version": 1, "task": self.task, "features": list(FEATURES),
-                "outputs": list(self.outputs), "base": self.base.tolist(), "span": self.span.tolist(),
-                "weights": self.W.tolist(), **({"meta": self.meta} if self.meta else {})}
+        doc = {"format": FORMAT, "version": 1, "task": self.task, "features": list(FEATURES),
+               "outputs": list(self.outputs), "base": self.base.tolist(), "span": self.span.tolist(),
+               "weights": self.W.tolist()}
+        if self.V is not None:
+            doc.update(version=VERSION, field_features=list(FIELD_FEATURES), field_outputs=list(WIDTHS),
+                       field_weights=self.V.tolist())
+        return {**doc, **({"meta": self.meta} if self.meta else {})}
 
     def save(self, path: Path) -> None:
         """The policy as JSON, written beside and renamed (whole or not at all)."""
@@ -129,10 +191,24 @@ class FieldPolicy:
         if doc.get("features") != list(FEATURES) or doc.get("outputs") != list(OUTPUTS[task]):
             raise ParameterError(f"{path}: its features/outputs are not this version's {list(FEATURES)} / "
                                  f"{list(OUTPUTS[task])}")
-        W = np.asarray(doc.get("weights"), dtype=np.float64)
+        version = doc.get("version", 1)
+        if version not in (1, VERSION):
+            raise ParameterError(f"{path}: format version {version!r}; this code reads versions 1 and {VERSION}")
+        try:
+            W = np.asarray(doc.get("weights"), dtype=np.float64)
+            V = None if version == 1 else np.asarray(doc.get("field_weights"), dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            raise ParameterError(f"{path}: weights must be arrays of numbers: {exc}") from None
         if W.shape != (len(OUTPUTS[task]), N_FEATURES):
             raise ParameterError(f"{path}: weights must be {len(OUTPUTS[task])} x {N_FEATURES}, got shape {W.shape}")
-        return cls(task, W, doc.get("meta"))
+        if V is not None:
+            if doc.get("field_features") != list(FIELD_FEATURES) or doc.get("field_outputs") != list(WIDTHS):
+                raise ParameterError(f"{path}: its field_features/field_outputs are not this version's "
+                                     f"{list(FIELD_FEATURES)} / {list(WIDTHS)}")
+            if V.shape != (len(WIDTHS), N_FIELD_FEATURES):
+                raise ParameterError(f"{path}: field_weights must be {len(WIDTHS)} x {N_FIELD_FEATURES}, "
+                                     f"got shape {V.shape}")
+        return cls(task, W, doc.get("meta"), V)
 
 
 def shipped_policy(task: str) -> Path:

@@ -31,8 +31,8 @@ import numpy as np
 from tqdm import tqdm
 
 from ..errors import ParameterError
-from .features import N_FEATURES
-from .policy import OUTPUTS, FieldPolicy, check_task
+from .features import N_FEATURES, N_FIELD_FEATURES
+from .policy import OUTPUTS, WIDTHS, FieldPolicy, check_task
 from .rollout import run_many
 from .scenarios import check_mix, seed_of
 
@@ -53,7 +53,9 @@ class TuneConfig:
     validate_every: int = 5
     max_time: float = 90.0
     mix: str = "default"  # navigation: the geometry mix trained and validated on (scenarios.MIXES)
-    hold: tuple[str, ...] = ()  # outputs held at today's value (their rows of W stay 0)
+    hold: tuple[str, ...] = ()  # outputs held at today's value (their rows of W and V stay 0)
+    per_field: bool = False  # also train V: each obstacle field's widths from its own features
+    init: str = ""  # a policy file the search starts from (its mean), "" = today's constants (0)
 
     def __post_init__(self) -> None:
         check_task(self.task)
@@ -83,7 +85,9 @@ def command_of(config: TuneConfig) -> str:
             f"--popsize {c.popsize} --sigma0 {c.sigma0:g} --batch {c.batch} --validation {c.validation} "
             f"--validate-every {c.validate_every} --max-time {c.max_time:g}"
             + (f" --mix {c.mix}" if c.mix != "default" else "")
-            + "".join(f" --hold {h}" for h in c.hold))
+            + "".join(f" --hold {h}" for h in c.hold)
+            + (" --per-field" if c.per_field else "")
+            + (f" --init {c.init}" if c.init else ""))
 
 
 def free_rows(config: TuneConfig) -> np.ndarray:
@@ -91,12 +95,50 @@ def free_rows(config: TuneConfig) -> np.ndarray:
     return np.array([o not in config.hold for o in OUTPUTS[config.task]])
 
 
+def free_field_rows(config: TuneConfig) -> np.ndarray:
+    """Which rows of V the strategy searches (none without --per-field; else the widths not held)."""
+    return np.array([config.per_field and o not in config.hold for o in WIDTHS])
+
+
+def search_size(config: TuneConfig) -> int:
+    """How many numbers the strategy searches: the free rows of W, then those of V."""
+    return int(free_rows(config).sum()) * N_FEATURES + int(free_field_rows(config).sum()) * N_FIELD_FEATURES
+
+
+def start_vector(config: TuneConfig) -> np.ndarray:
+    """Where the search starts: 0 (today's constants), or the free entries of ``--init``'s
+    policy (:func:`full_weights` of it gives that policy back); a ParameterError when the
+    file cannot be a start of this training."""
+    n = search_size(config)
+    if not config.init:
+        return np.zeros(n)
+    p = FieldPolicy.load(config.init)
+    where = f"--init {config.init}"
+    if p.task != config.task:
+        raise ParameterError(f"{where}: a {p.task} policy, not {config.task}")
+    V = np.zeros((len(WIDTHS), N_FIELD_FEATURES)) if p.V is None else p.V
+    if V.any() and not config.per_field:
+        raise ParameterError(f"{where}: it has per-field weights V; train it with --per-field")
+    for o, wrow, vrow in zip(OUTPUTS[config.task], p.W, list(V) + [None], strict=False):
+        if o in config.hold and (wrow.any() or (vrow is not None and vrow.any())):
+            raise ParameterError(f"{where}: its weights for {o} are not 0, but --hold {o} holds them at 0")
+    x = p.W[free_rows(config)].ravel()
+    return np.concatenate([x, V[free_field_rows(config)].ravel()]) if config.per_field else x
+
+
 def full_weights(config: TuneConfig, x: np.ndarray) -> np.ndarray:
-    """W (flattened) of the strategy's vector ``x``: its entries in the free rows, 0 in the held ones."""
-    free = free_rows(config)
+    """The policy's flat weights (:meth:`.policy.FieldPolicy.flat`: W, then V with
+    --per-field) of the strategy's vector ``x``: its entries in the free rows, 0 in the held ones."""
+    x = np.asarray(x, dtype=np.float64)
+    free, vfree = free_rows(config), free_field_rows(config)
+    n_w = int(free.sum()) * N_FEATURES
     W = np.zeros((len(free), N_FEATURES))
-    W[free] = np.asarray(x, dtype=np.float64).reshape(int(free.sum()), N_FEATURES)
-    return W.ravel()
+    W[free] = x[:n_w].reshape(int(free.sum()), N_FEATURES)
+    if not config.per_field:
+        return W.ravel()
+    V = np.zeros((len(vfree), N_FIELD_FEATURES))
+    V[vfree] = x[n_w:].reshape(int(vfree.sum()), N_FIELD_FEATURES)
+    return np.concatenate([W.ravel(), V.ravel()])
 
 
 def where_of(config: TuneConfig, purpose: str, i: int):
@@ -119,6 +161,8 @@ def _check_dir(out: Path, config: TuneConfig) -> dict | None:
         saved = json.loads(cfg.read_text())
         saved.setdefault("mix", "default")  # a directory of a version before --mix, --hold
         saved.setdefault("hold", [])
+        saved.setdefault("per_field", False)  # a directory of a version before --per-field, --init
+        saved.setdefault("init", "")
         mine = json.loads(json.dumps(asdict(config)))  # as config.json holds it (a tuple is a list)
         for k in mine:
             if saved.get(k) != mine[k]:
@@ -154,14 +198,19 @@ def tune(config: TuneConfig, out: Path, model_path: str | None = None, workers: 
     out.mkdir(parents=True, exist_ok=True)
     state = _check_dir(out, config)
     (out / "config.json").write_text(json.dumps(asdict(config), indent=1) + "\n")
-    n = int(free_rows(config).sum()) * N_FEATURES
+    n = search_size(config)
     if state is None:
-        es = cma.CMAEvolutionStrategy(np.zeros(n), config.sigma0,
+        x0 = start_vector(config)
+        es = cma.CMAEvolutionStrategy(x0, config.sigma0,
                                       {"seed": config.seed, "popsize": config.popsize, "verbose": -9})
         base = validate(config, full_weights(config, np.zeros(n)), model_path, workers)
+        best = {"generation": 0, "score": base, "weights": full_weights(config, np.zeros(n)).tolist()}
+        if config.init:  # the start is a candidate too: kept if it beats the constants on validation
+            start = validate(config, full_weights(config, x0), model_path, workers)
+            if start > base:
+                best = {"generation": 0, "score": start, "weights": full_weights(config, x0).tolist()}
         state = {"version": STATE_VERSION, "generation": 0, "es": es, "rng": np.random.get_state(),
-                 "best": {"generation": 0, "score": base, "weights": full_weights(config, np.zeros(n)).tolist()},
-                 "base_score": base}
+                 "best": best, "base_score": base}
         _write_whole(out / "state.pkl", pickle.dumps(state))
         (out / "history.jsonl").write_text("")
     es = state["es"]
@@ -197,6 +246,7 @@ def tune(config: TuneConfig, out: Path, model_path: str | None = None, workers: 
     meta = {"trained_by": "cekm tune fields", "command": command_of(config), "config": asdict(config),
             "kept_generation": best["generation"], "validation_score": best["score"],
             "validation_score_of_constants": state["base_score"]}
-    policy = FieldPolicy(config.task, np.array(best["weights"]), meta)
+    policy = FieldPolicy.from_flat(config.task, best["weights"])
+    policy.meta = meta
     policy.save(out / "policy.json")
     return meta

@@ -12,9 +12,9 @@ from cekm_swarm.errors import ParameterError
 from cekm_swarm.experiments.graph_run import run_graph
 from cekm_swarm.models.params import FieldParams
 from cekm_swarm.node.graph_check import check_graph
-from cekm_swarm.tune.features import FEATURES, field_features
+from cekm_swarm.tune.features import FEATURES, FIELD_FEATURES, field_features, obstacle_features
 from cekm_swarm.tune.graphs import fields_graph, policy_graph, with_fields
-from cekm_swarm.tune.policy import FieldPolicy
+from cekm_swarm.tune.policy import FieldPolicy, shipped_policy
 from world import load_scenario
 
 
@@ -52,6 +52,73 @@ def test_save_load_round_trip_and_bad_files(tmp_path):
         FieldPolicy.load(bad)
 
 
+def test_without_v_every_field_gets_the_ticks_widths_bit_for_bit():
+    """V = 0 (or no V) is the tick's policy exactly; W = V = 0 today's constants."""
+    rng = np.random.default_rng(4)
+    f, g = rng.uniform(0, 1, len(FEATURES)), rng.uniform(0, 1, (12, len(FIELD_FEATURES)))
+    assert FieldPolicy("navigation", field_weights=np.zeros((3, 5))).field_params(f, g) == [FieldParams()] * 12
+    for task in ("navigation", "tracking"):
+        W = rng.normal(0, 1, (len(FieldPolicy(task).outputs), len(FEATURES)))
+        tick = FieldPolicy(task, W).choose(f).fields
+        zero_v = FieldPolicy(task, W, field_weights=np.zeros((3, len(FIELD_FEATURES))))
+        assert not zero_v.per_field and FieldPolicy(task, W).field_params(f, g) == [tick] * 12
+        assert zero_v.field_params(f, g) == [tick] * 12  # the per-field formula with V = 0, to the bit
+
+
+def test_v_gives_each_field_its_own_widths_within_the_span():
+    V = np.zeros((3, len(FIELD_FEATURES)))
+    V[0, FIELD_FEATURES.index("near")] = 100.0  # sigma_b_alpha at its widest for a near field only
+    p = FieldPolicy("navigation", field_weights=V)
+    g = np.zeros((2, len(FIELD_FEATURES)))
+    g[0, 0] = 0.9
+    near, far = p.field_params(np.ones(len(FEATURES)), g)
+    assert p.per_field and near.sigma_b_alpha == pytest.approx(2 * 0.6) and far == FieldParams()
+    assert near.sigma_b_d_beyond == far.sigma_b_d_beyond and near.sigma_a_alpha == far.sigma_a_alpha
+
+
+def test_flat_weights_and_their_lengths():
+    p = FieldPolicy.from_flat("navigation", tuple(range(42)))
+    assert p.W[2, 8] == 26 and p.V is not None and p.V[2, 4] == 41 and p.flat() == tuple(float(x) for x in range(42))
+    assert FieldPolicy.from_flat("navigation", (0.0,) * 27).V is None
+    assert FieldPolicy.size("tracking", per_field=True) == 36 + 15
+    with pytest.raises(ParameterError, match=r"takes 27 \(W\) or 42 \(W and V\) numbers, got 30"):
+        FieldPolicy.from_flat("navigation", (0.0,) * 30)
+
+
+def test_a_v_policy_file_round_trips_and_old_files_load(tmp_path):
+    old = FieldPolicy.load(shipped_policy("navigation"))  # version 1: no V
+    assert old.V is None and not old.per_field and old.to_dict()["version"] == 1
+    p = FieldPolicy("navigation", old.W, {"seed": 5}, np.arange(15.0).reshape(3, 5) / 10)
+    p.save(tmp_path / "v.json")
+    q = FieldPolicy.load(tmp_path / "v.json")
+    assert q.to_dict()["version"] == 2 and np.array_equal(q.V, p.V) and np.array_equal(q.W, p.W) and q.meta == p.meta
+    doc = p.to_dict()
+    bad = tmp_path / "bad.json"
+    for key, value, message in (("field_features", ["near"], "field_features/field_outputs are not this version's"),
+                                ("field_weights", [[0.0]], "field_weights must be 3 x 5, got shape \\(1, 1\\)"),
+                                ("field_weights", "many", "weights must be arrays of numbers"),
+                                ("version", 3, "format version 3; this code reads versions 1 and 2")):
+        bad.write_text(json.dumps({**doc, key: value}))
+        with pytest.raises(ParameterError, match=message):
+            FieldPolicy.load(bad)
+
+
+def test_each_field_sees_its_own_situation():
+    """near, off_heading, toward_target, nearest, lone: a wall end (one neighbour blind), a
+    ray inside a wall (both neighbours see), a lone post; a sensor that sees nothing is 0."""
+    w = np.array([[0.0, 0.02], [0.0, 0.16], [math.pi / 2, 0.08], [-math.pi / 2, 0.04], [math.pi, 0.16]])
+    winners = [0, 2, 2, None, 3, None]  # sensors 0..5 around a ring of six
+    g = obstacle_features(w, winners, list(range(6)), (math.pi / 2, 0.1))
+    row = [dict(zip(FIELD_FEATURES, r, strict=True)) for r in g]
+    assert row[0]["near"] == pytest.approx(1 - 0.02 / 0.16) and row[0]["off_heading"] == 0.0
+    assert row[0]["toward_target"] == pytest.approx(0.5) and row[1]["toward_target"] == 1.0
+    assert row[1]["off_heading"] == pytest.approx(0.5) and row[4]["toward_target"] == 0.0
+    assert [r["nearest"] for r in row] == [1, 0, 0, 0, 0, 0]
+    assert row[0]["lone"] == 0.5 and row[1]["lone"] == 0.0 and row[2]["lone"] == 0.5 and row[4]["lone"] == 1.0
+    assert not g[3].any() and not g[5].any()
+    assert obstacle_features(w, [None, 1, None], [0, 1, 2], None)[1].tolist() == [0.0, 0.0, 0.0, 1.0, 1.0]
+
+
 def test_features_see_an_obstacle_ahead_and_the_target():
     w = np.array([[0.0, 0.02], [0.0, 0.16], [math.pi / 2, 0.08], [-math.pi / 2, 0.08], [math.pi, 0.16]])
     f = dict(zip(FEATURES, field_features(w, [0, None, 2, None], (0.0, 0.16)), strict=True))
@@ -69,10 +136,15 @@ def test_the_motor_node_uses_the_policys_widths():
     checked = check_graph(policy_graph("navigation"))
     base = run_graph(sc, "cekm").episode.outcome()
     zero = run_graph(sc, graph=checked, params={"weights": (0.0,) * 27}).episode.outcome()
+    zero_v = run_graph(sc, graph=checked, params={"weights": (0.0,) * 42}).episode.outcome()
     W = np.zeros((3, len(FEATURES)))
     W[0, 1] = 3.0  # sigma_b_alpha up with an obstacle ahead
     wide = run_graph(sc, graph=checked, params={"weights": tuple(W.ravel().tolist())}).episode.outcome()
-    assert zero == base and wide != base
+    V = np.zeros((3, len(FIELD_FEATURES)))
+    V[0, 0] = 3.0  # sigma_b_alpha up for the near fields only
+    near = run_graph(sc, graph=checked, params={"weights": (0.0,) * 27 + tuple(V.ravel().tolist())},
+                     max_time=60.0).episode.outcome()
+    assert zero == base and zero_v == base and wide != base and near != base
 
 
 def test_fields_option_graphs():

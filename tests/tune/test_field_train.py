@@ -16,10 +16,12 @@ import numpy as np
 import pytest
 
 from cekm_swarm.errors import ParameterError
-from cekm_swarm.tune.train import TuneConfig, _check_dir, command_of, full_weights, where_of
+from cekm_swarm.tune.policy import FieldPolicy
+from cekm_swarm.tune.train import TuneConfig, _check_dir, command_of, full_weights, search_size, start_vector, where_of
 
 TINY = ["--task", "navigation", "--seed", "7", "--generations", "4", "--popsize", "3", "--batch", "2",
-        "--validation", "2", "--validate-every", "1", "--max-time", "20", "--workers", "1"]
+        "--validation", "2", "--validate-every", "1", "--max-time", "20", "--workers", "1",
+        "--per-field", "--hold", "sigma_b_d_near"]
 
 
 def test_settings_are_checked():
@@ -53,13 +55,45 @@ def test_held_outputs_keep_their_rows_of_w_at_zero():
     assert command_of(c).endswith("--hold sigma_b_d_near")
 
 
+def test_per_field_training_searches_w_and_v_and_holds_both_rows():
+    c = TuneConfig(per_field=True, hold=("sigma_b_d_near",))
+    assert search_size(c) == 2 * 9 + 2 * 5 and search_size(TuneConfig()) == 27
+    flat = full_weights(c, np.arange(28.0) + 1)
+    W, V = flat[:27].reshape(3, 9), flat[27:].reshape(3, 5)
+    assert np.array_equal(W[:2].ravel(), np.arange(18.0) + 1) and not W[2].any()
+    assert np.array_equal(V[:2].ravel(), np.arange(18.0, 28.0) + 1) and not V[2].any()
+    assert command_of(c).endswith("--hold sigma_b_d_near --per-field") and "--per-field" not in command_of(TuneConfig())
+    trk = TuneConfig(task="tracking", per_field=True, hold=("teammate_gain",))
+    assert search_size(trk) == 3 * 9 + 3 * 5 and full_weights(trk, np.ones(42)).size == 36 + 15
+
+
+def test_a_search_starts_from_an_init_policy_or_refuses_it(tmp_path):
+    W, V = np.zeros((3, 9)), np.zeros((3, 5))
+    W[0], W[1, 2], V[1, 4] = 0.5, -1.0, 2.0
+    FieldPolicy("navigation", W, field_weights=V).save(tmp_path / "start.json")
+    c = TuneConfig(per_field=True, hold=("sigma_b_d_near",), init=str(tmp_path / "start.json"))
+    x0 = start_vector(c)
+    assert x0.size == search_size(c) and full_weights(c, x0).tolist() == list(FieldPolicy("navigation", W,
+                                                                                          field_weights=V).flat())
+    assert command_of(c).endswith(f"--per-field --init {tmp_path / 'start.json'}")
+    assert not start_vector(TuneConfig()).any()
+    with pytest.raises(ParameterError, match="start.json: it has per-field weights V; train it with --per-field"):
+        start_vector(TuneConfig(init=str(tmp_path / "start.json")))
+    with pytest.raises(ParameterError, match="its weights for sigma_b_d_beyond are not 0, but --hold"):
+        start_vector(TuneConfig(per_field=True, hold=("sigma_b_d_beyond",), init=str(tmp_path / "start.json")))
+    with pytest.raises(ParameterError, match="a navigation policy, not tracking"):
+        start_vector(TuneConfig(task="tracking", per_field=True, init=str(tmp_path / "start.json")))
+
+
 def test_a_directory_from_before_the_mix_still_resumes(tmp_path):
     old = asdict(TuneConfig(seed=1))
-    del old["mix"], old["hold"]
+    del old["mix"], old["hold"], old["per_field"], old["init"]
     (tmp_path / "config.json").write_text(json.dumps(old))
     assert _check_dir(tmp_path, TuneConfig(seed=1)) is None
     with pytest.raises(ParameterError, match="mix = 'default', not 'wide'"):
         _check_dir(tmp_path, TuneConfig(seed=1, mix="wide"))
+    with pytest.raises(ParameterError, match="per_field = False, not True"):
+        _check_dir(tmp_path, TuneConfig(seed=1, per_field=True))
     (tmp_path / "config.json").write_text(json.dumps(asdict(TuneConfig(seed=1, hold=("sigma_b_d_near",)))))
     assert _check_dir(tmp_path, TuneConfig(seed=1, hold=("sigma_b_d_near",))) is None  # a held output resumes
 
@@ -103,6 +137,7 @@ def test_killed_and_resumed_gives_the_same_policy_bit_for_bit(tmp_path):
     assert resumed.wait(timeout=300) == 0, resumed.stdout.read().decode()
     a = (tmp_path / "whole" / "policy.json").read_bytes()
     assert a == (tmp_path / "killed" / "policy.json").read_bytes()
-    assert json.loads(a)["meta"]["config"]["seed"] == 7
+    doc = json.loads(a)
+    assert doc["meta"]["config"]["seed"] == 7 and doc["version"] == 2 and len(doc["field_weights"]) == 3
     history = (tmp_path / "killed" / "history.jsonl").read_text().splitlines()
     assert [json.loads(x)["generation"] for x in history] == [1, 2, 3, 4]

@@ -10,6 +10,7 @@ from click.testing import CliRunner
 from cekm_swarm.cli import main, run_cli_args
 from cekm_swarm.tune.features import N_FEATURES
 from cekm_swarm.tune.policy import FieldPolicy
+from cekm_swarm.tune.scenarios import navigation_raw
 
 
 def _run(tmp_path, *args) -> dict:
@@ -51,6 +52,12 @@ def test_contacts_counts_the_contacts_of_validation_runs(tmp_path):
     assert [x["seed"] for x in doc["runs"]] == [2_000_000, 2_000_001]
     assert sum(x["collisions"] for x in doc["runs"]) == len(doc["contacts"])
     assert f"contacts {len(doc['contacts'])}" in r.output
+    r = CliRunner().invoke(main, ["tune", "contacts", "--runs", "4", "--max-time", "1", "--mix", "wide", "--out",
+                                  str(tmp_path)])  # the wide mix's validation scenarios: its own kinds too
+    assert r.exit_code == 0, r.output
+    kinds = [x["kind"] for x in json.loads((tmp_path / "contacts.json").read_text())["runs"]]
+    assert kinds == [navigation_raw(2_000_000 + i, mix="wide")["name"].split("-")[1] for i in range(4)]
+    assert "wall" in kinds
 
 
 def test_fig9_draws_rows_from_evaluate_documents_and_names_a_bad_one(tmp_path):
