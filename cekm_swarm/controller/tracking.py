@@ -117,6 +117,14 @@ def teammate_field(w: np.ndarray, s: int, params: TrackingParams) -> np.ndarray:
     return out
 
 
+def face_turn(v_l: float, v_r: float, gain: float, v_max: float) -> tuple[float, float]:
+    """A turn-in-place command of Eq. 11 executed faster: c scaled by min(gain, c* / max |c|),
+    its direction kept, no wheel beyond c* (TrackingParams.face_turn_gain)."""
+    top = max(abs(v_l), abs(v_r))
+    f = min(gain, v_max / top) if top > 0.0 else 1.0
+    return (v_l * f, v_r * f) if f > 1.0 else (v_l, v_r)
+
+
 _SHARED: dict[Any, tuple[IndirectEKM, CooperativeEKM, np.ndarray]] = {}
 
 
@@ -278,6 +286,8 @@ class TrackingEKM:
             _, i = max(match)
             s, alpha, d, _ = act.inputs[i]
             v_l, v_r = motor_command(ekm._M, ekm.w, alpha, d, k, s, m.v_max, m.learn_p.d_scale)
+            if self.params.face_turn_gain != 1.0 and d == 0.0 and abs(alpha) >= self.params.face_angle:
+                v_l, v_r = face_turn(v_l, v_r, self.params.face_turn_gain, m.v_max)
             return MotorOutput(v_l, v_r, k, s)
         v_l, v_r = motor_command(ekm._M, ekm.w, 0.0, 0.0, k, None, m.v_max, m.learn_p.d_scale)
         return MotorOutput(v_l, v_r, k, None)
