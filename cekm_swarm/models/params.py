@@ -195,6 +195,9 @@ class TrackingParams:
     at 1 rad, A-CMOMMT's motor 3.4 rad/s; docs/fields.md). Not a field parameter: the
     fields and the winner are unchanged, only how fast the winner's command is executed
     (1: off, Eq. 11 as it is; inf: always to c*).
+    face_turn_only: face_turn_gain scales only the command's turn part (v_r - v_l) / 2 (up
+    to c* - |v|), keeping its mean speed v = (v_l + v_r) / 2, the map's slight drift while
+    it turns, as it is (false: the whole command).
     """
 
     standoff: float = 0.7
@@ -218,6 +221,7 @@ class TrackingParams:
     standoff_speed_s: float = 2.0
     face_angle: float = 1.0
     face_turn_gain: float = 1.0
+    face_turn_only: bool = False
     assign_radius: float = 0.8
     assign_min: int = 1
     assign_weight: float = 1.0

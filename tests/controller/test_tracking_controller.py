@@ -353,6 +353,12 @@ def test_face_turn_gain_executes_the_turn_in_place_faster_in_its_direction(model
             assert math.copysign(1.0, out.v_r - out.v_l) == math.copysign(1.0, alpha)
             assert abs(out.v_r - out.v_l) > abs(base.v_r - base.v_l)
         assert max(abs(command(math.inf).v_l), abs(command(math.inf).v_r)) == pytest.approx(c_star)
+        ctl = TrackingEKM("r1", model, R, TrackingParams(assign_radius=0.0, face_turn_gain=math.inf,
+                                                         face_turn_only=True))
+        out = ctl.integrate(ctl.localize(0.0, pose, {"a": (alpha, 0.8 * R)}, TeamView("r1")), [])
+        assert out.v_l + out.v_r == pytest.approx(base.v_l + base.v_r)  # the map's mean speed kept
+        assert max(abs(out.v_l), abs(out.v_r)) == pytest.approx(c_star)
+        assert math.copysign(1.0, out.v_r - out.v_l) == math.copysign(1.0, alpha)
     for alpha in (0.5, -0.9, 0.0):  # ahead (within face_angle): untouched
         outs = []
         for g in (1.0, math.inf):
@@ -367,6 +373,10 @@ def test_face_turn_scales_up_to_the_wheels_limit_only():
     assert face_turn(-0.01, 0.02, 2.0, 0.15) == (-0.02, 0.04)
     assert face_turn(-0.01, 0.02, math.inf, 0.15) == pytest.approx((-0.075, 0.15))
     assert face_turn(-0.1, 0.15, 3.0, 0.15) == (-0.1, 0.15)  # already at c*
+    # turn_only: the turn part scaled, the mean speed kept
+    assert face_turn(-0.01, 0.02, 2.0, 0.15, turn_only=True) == pytest.approx((-0.025, 0.035))
+    assert face_turn(-0.01, 0.02, math.inf, 0.15, turn_only=True) == pytest.approx((-0.14, 0.15))
+    assert face_turn(0.02, 0.02, math.inf, 0.15, turn_only=True) == (0.02, 0.02)  # no turn to scale
 
 
 def test_face_turn_gain_reaches_the_motor_module_and_is_validated():
