@@ -318,11 +318,11 @@ def test_teammate_hold_gain_is_validated():
 
 
 def test_face_turn_gain_off_is_eq_11_as_it_is(model):
-    """face_turn_gain 1 (the default): every command is Eq. 11's, bit for bit, beside or ahead."""
+    """face_turn_gain 1 (off): every command is Eq. 11's, bit for bit, beside or ahead."""
     from cekm_swarm.controller.cooperative import motor_command
     pose = (1.0, 1.0, 0.0)
     for alpha in (2.6, -2.6, 1.2, -1.5, 0.5, -0.2):
-        ctl = TrackingEKM("r1", model, R, TrackingParams(assign_radius=0.0))
+        ctl = TrackingEKM("r1", model, R, TrackingParams(assign_radius=0.0, face_turn_gain=1.0))
         act = ctl.localize(0.0, pose, {"a": (alpha, 0.9 * R)}, TeamView("r1"))
         out = ctl.integrate(act, [])
         (s, la, u_d, _), = act.inputs
@@ -339,7 +339,7 @@ def test_face_turn_gain_executes_the_turn_in_place_faster_in_its_direction(model
     c_star = model.v_max
     for alpha in (2.6, -2.6, 1.6, -1.5):
         def command(g, alpha=alpha):
-            ctl = TrackingEKM("r1", model, R, TrackingParams(assign_radius=0.0, face_turn_gain=g))
+            ctl = TrackingEKM("r1", model, R, TrackingParams(assign_radius=0.0, face_turn_gain=g, face_turn_only=False))
             return ctl.integrate(ctl.localize(0.0, pose, {"a": (alpha, 0.8 * R)}, TeamView("r1")), [])
         base = command(1.0)
         top = max(abs(base.v_l), abs(base.v_r))
@@ -353,18 +353,18 @@ def test_face_turn_gain_executes_the_turn_in_place_faster_in_its_direction(model
             assert math.copysign(1.0, out.v_r - out.v_l) == math.copysign(1.0, alpha)
             assert abs(out.v_r - out.v_l) > abs(base.v_r - base.v_l)
         assert max(abs(command(math.inf).v_l), abs(command(math.inf).v_r)) == pytest.approx(c_star)
-        ctl = TrackingEKM("r1", model, R, TrackingParams(assign_radius=0.0, face_turn_gain=math.inf,
-                                                         face_turn_only=True))
+        ctl = TrackingEKM("r1", model, R, TrackingParams(assign_radius=0.0))  # the default: turn part to c*
         out = ctl.integrate(ctl.localize(0.0, pose, {"a": (alpha, 0.8 * R)}, TeamView("r1")), [])
+        assert (out.k, out.s) == (base.k, base.s)
         assert out.v_l + out.v_r == pytest.approx(base.v_l + base.v_r)  # the map's mean speed kept
         assert max(abs(out.v_l), abs(out.v_r)) == pytest.approx(c_star)
         assert math.copysign(1.0, out.v_r - out.v_l) == math.copysign(1.0, alpha)
     for alpha in (0.5, -0.9, 0.0):  # ahead (within face_angle): untouched
         outs = []
-        for g in (1.0, math.inf):
-            ctl = TrackingEKM("r1", model, R, TrackingParams(assign_radius=0.0, face_turn_gain=g))
+        for g, only in ((1.0, False), (math.inf, False), (math.inf, True)):
+            ctl = TrackingEKM("r1", model, R, TrackingParams(assign_radius=0.0, face_turn_gain=g, face_turn_only=only))
             outs.append(ctl.integrate(ctl.localize(0.0, pose, {"a": (alpha, 0.9 * R)}, TeamView("r1")), []))
-        assert outs[0] == outs[1]
+        assert outs[0] == outs[1] == outs[2]
 
 
 def test_face_turn_scales_up_to_the_wheels_limit_only():
