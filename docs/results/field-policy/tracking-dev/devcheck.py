@@ -116,7 +116,7 @@ def cmd_turns(over: list[str]) -> None:
     for alpha in [x * sign for x in (0.0, 0.25, 0.5, 0.75, 0.9, 1.0, 1.1, 1.25, 1.5, 2.0, 2.5, 3.0, math.pi)
                   for sign in (1, -1) if x or sign > 0]:
         s = ekm.winner(alpha, 0.0)
-        raw = TrackingEKM("r1", model, R, TrackingParams()).integrate(  # Eq. 11 as it is
+        raw = TrackingEKM("r1", model, R, TrackingParams(face_turn_gain=1.0)).integrate(  # Eq. 11 as it is
             TrackingActivity(0.0, ekm.target_activity(s), np.zeros(ekm.n), ((s, alpha, 0.0, 1.0),), {}, False), [])
         act = TrackingEKM("r1", model, R, tp).localize(0.0, (0.0, 0.0, 0.0), {"t1": (alpha, 0.9 * R)}, TeamView("r1"))
         out = ctl.integrate(act, [])
