@@ -117,6 +117,20 @@ def teammate_field(w: np.ndarray, s: int, params: TrackingParams) -> np.ndarray:
     return out
 
 
+def face_turn(v_l: float, v_r: float, gain: float, v_max: float, turn_only: bool = False) -> tuple[float, float]:
+    """A turn-in-place command of Eq. 11 executed faster (TrackingParams.face_turn_gain): c
+    scaled by min(gain, c* / max |c|), its direction kept, no wheel beyond c*; ``turn_only``:
+    only its turn part (v_r - v_l) / 2 scaled, by min(gain, (c* - |v|) / |turn|), its mean
+    speed v = (v_l + v_r) / 2 kept (face_turn_only)."""
+    if turn_only:
+        v, h = 0.5 * (v_l + v_r), 0.5 * (v_r - v_l)
+        f = min(gain, (v_max - abs(v)) / abs(h)) if h != 0.0 else 1.0
+        return (v - f * h, v + f * h) if f > 1.0 else (v_l, v_r)
+    top = max(abs(v_l), abs(v_r))
+    f = min(gain, v_max / top) if top > 0.0 else 1.0
+    return (v_l * f, v_r * f) if f > 1.0 else (v_l, v_r)
+
+
 _SHARED: dict[Any, tuple[IndirectEKM, CooperativeEKM, np.ndarray]] = {}
 
 
@@ -278,6 +292,8 @@ class TrackingEKM:
             _, i = max(match)
             s, alpha, d, _ = act.inputs[i]
             v_l, v_r = motor_command(ekm._M, ekm.w, alpha, d, k, s, m.v_max, m.learn_p.d_scale)
+            if self.params.face_turn_gain != 1.0 and d == 0.0 and abs(alpha) >= self.params.face_angle:
+                v_l, v_r = face_turn(v_l, v_r, self.params.face_turn_gain, m.v_max, self.params.face_turn_only)
             return MotorOutput(v_l, v_r, k, s)
         v_l, v_r = motor_command(ekm._M, ekm.w, 0.0, 0.0, k, None, m.v_max, m.learn_p.d_scale)
         return MotorOutput(v_l, v_r, k, None)

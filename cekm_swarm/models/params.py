@@ -188,6 +188,17 @@ class TrackingParams:
     forward arc away from it; the map's turn-in-place neurons beyond about 1.1 rad turn
     slowly or the wrong way, hence the side's angle rather than the target's (1.0 rad
     chosen on the tuning seeds, docs/tracking.md).
+    face_turn_gain, face_turn_only: how the motor executes Eq. 11's command when the
+    winner k is the input of that turn-in-place rule (k = s, u = (+-face_angle, 0): a target
+    or centroid beside or behind). The map's goal states turn slowly (0.55 rad/s left and
+    0.96 rad/s right at 1 rad, where A-CMOMMT's motor turns 3.4-5.9 rad/s toward a target
+    beside it; docs/fields.md), so the command's turn part (v_r - v_l) / 2 is scaled by
+    min(face_turn_gain, (c* - |v|) / |turn|), keeping its mean speed v = (v_l + v_r) / 2:
+    the map's turn, at up to the wheels' top speed (face_turn_only false: the whole command
+    c scaled by min(face_turn_gain, c* / max |c|), its direction kept). Not a field
+    parameter: the fields, the winner and the direction of its turn are unchanged, only how
+    fast the winner's command is executed (1: off, Eq. 11 as it is; inf, the default since
+    issue 41's second round: to c*, chosen on development seeds, docs/fields.md).
     """
 
     standoff: float = 0.7
@@ -210,6 +221,8 @@ class TrackingParams:
     group_radius: float = 0.6
     standoff_speed_s: float = 2.0
     face_angle: float = 1.0
+    face_turn_gain: float = math.inf
+    face_turn_only: bool = True
     assign_radius: float = 0.8
     assign_min: int = 1
     assign_weight: float = 1.0
@@ -220,6 +233,9 @@ class TrackingParams:
             raise ParameterError("TrackingParams: assign_radius must be >= 0, assign_weight > 0 and assign_min >= 1")
         if not 0.0 < self.face_angle <= math.pi:
             raise ParameterError(f"TrackingParams.face_angle must be in (0, pi], got {self.face_angle!r}")
+        if not self.face_turn_gain >= 1.0:
+            raise ParameterError("TrackingParams.face_turn_gain must be >= 1 (inf: up to c*), "
+                                 f"got {self.face_turn_gain!r}")
         if not (self.predict_s >= 0.0 and self.group_weight >= 0.0 and self.group_radius > 0.0
                 and self.standoff_speed_s >= 0.0 and 0.0 <= self.assign_lead_s < math.inf):
             raise ParameterError("TrackingParams: predict_s, group_weight, standoff_speed_s and assign_lead_s must be "

@@ -21,11 +21,12 @@ class TrackingMotor(Node):
     inputs = {"tracking": In(TrackingField, doc="the tracking fields of the latest target tick"),
               "obstacles": In(ObstacleField, many=True, doc="every obstacle field of the tick")}
     outputs = {"command": Out(WheelCommand)}
+    Params = TrackingParams  # the target module's: face_turn_gain is executed here
     uses_model = True
     warm_setup = True  # setup builds the shared EKM tables only
 
     def setup(self) -> None:
-        self.tekm = tracking_ekm(self.ctx, TrackingParams())
+        self.tekm = tracking_ekm(self.ctx, self.params)
 
     def check_input(self, port: str, msg: Any) -> str | None:
         return lattice_misfit(msg, self.tekm.ekm.n)

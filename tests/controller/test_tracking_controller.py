@@ -315,3 +315,78 @@ def test_teammate_hold_gain_is_validated():
     assert TrackingParams().teammate_hold_gain == 1.0
     with pytest.raises(ParameterError, match="teammate_hold_seen"):
         TrackingParams(teammate_hold_seen=-1)
+
+
+def test_face_turn_gain_off_is_eq_11_as_it_is(model):
+    """face_turn_gain 1 (off): every command is Eq. 11's, bit for bit, beside or ahead."""
+    from cekm_swarm.controller.cooperative import motor_command
+    pose = (1.0, 1.0, 0.0)
+    for alpha in (2.6, -2.6, 1.2, -1.5, 0.5, -0.2):
+        ctl = TrackingEKM("r1", model, R, TrackingParams(assign_radius=0.0, face_turn_gain=1.0))
+        act = ctl.localize(0.0, pose, {"a": (alpha, 0.9 * R)}, TeamView("r1"))
+        out = ctl.integrate(act, [])
+        (s, la, u_d, _), = act.inputs
+        ekm = ctl.ekm
+        assert out.k == s
+        assert (out.v_l, out.v_r) == motor_command(ekm._M, ekm.w, la, u_d, s, s, model.v_max, model.learn_p.d_scale)
+
+
+def test_face_turn_gain_executes_the_turn_in_place_faster_in_its_direction(model):
+    """face_turn_gain g: a target beside or behind (the face_angle rule's input (+-face_angle,
+    0) winning) gets Eq. 11's command scaled by min(g, c* / max |c|): the same direction, no
+    wheel beyond c*, a faster turn toward its side; a target ahead gets Eq. 11's command as it is."""
+    pose = (1.0, 1.0, 0.0)
+    c_star = model.v_max
+    for alpha in (2.6, -2.6, 1.6, -1.5):
+        def command(g, alpha=alpha):
+            ctl = TrackingEKM("r1", model, R, TrackingParams(assign_radius=0.0, face_turn_gain=g, face_turn_only=False))
+            return ctl.integrate(ctl.localize(0.0, pose, {"a": (alpha, 0.8 * R)}, TeamView("r1")), [])
+        base = command(1.0)
+        top = max(abs(base.v_l), abs(base.v_r))
+        for g in (2.0, math.inf):
+            out = command(g)
+            f = min(g, c_star / top)
+            assert f > 1.5  # the map's turn in place is slow: there is room to scale it
+            assert (out.k, out.s) == (base.k, base.s)
+            assert out.v_l == pytest.approx(f * base.v_l) and out.v_r == pytest.approx(f * base.v_r)
+            assert max(abs(out.v_l), abs(out.v_r)) <= c_star * (1 + 1e-12)
+            assert math.copysign(1.0, out.v_r - out.v_l) == math.copysign(1.0, alpha)
+            assert abs(out.v_r - out.v_l) > abs(base.v_r - base.v_l)
+        assert max(abs(command(math.inf).v_l), abs(command(math.inf).v_r)) == pytest.approx(c_star)
+        ctl = TrackingEKM("r1", model, R, TrackingParams(assign_radius=0.0))  # the default: turn part to c*
+        out = ctl.integrate(ctl.localize(0.0, pose, {"a": (alpha, 0.8 * R)}, TeamView("r1")), [])
+        assert (out.k, out.s) == (base.k, base.s)
+        assert out.v_l + out.v_r == pytest.approx(base.v_l + base.v_r)  # the map's mean speed kept
+        assert max(abs(out.v_l), abs(out.v_r)) == pytest.approx(c_star)
+        assert math.copysign(1.0, out.v_r - out.v_l) == math.copysign(1.0, alpha)
+    for alpha in (0.5, -0.9, 0.0):  # ahead (within face_angle): untouched
+        outs = []
+        for g, only in ((1.0, False), (math.inf, False), (math.inf, True)):
+            ctl = TrackingEKM("r1", model, R, TrackingParams(assign_radius=0.0, face_turn_gain=g, face_turn_only=only))
+            outs.append(ctl.integrate(ctl.localize(0.0, pose, {"a": (alpha, 0.9 * R)}, TeamView("r1")), []))
+        assert outs[0] == outs[1] == outs[2]
+
+
+def test_face_turn_scales_up_to_the_wheels_limit_only():
+    from cekm_swarm.controller.tracking import face_turn
+    assert face_turn(0.0, 0.0, 4.0, 0.15) == (0.0, 0.0)
+    assert face_turn(-0.01, 0.02, 2.0, 0.15) == (-0.02, 0.04)
+    assert face_turn(-0.01, 0.02, math.inf, 0.15) == pytest.approx((-0.075, 0.15))
+    assert face_turn(-0.1, 0.15, 3.0, 0.15) == (-0.1, 0.15)  # already at c*
+    # turn_only: the turn part scaled, the mean speed kept
+    assert face_turn(-0.01, 0.02, 2.0, 0.15, turn_only=True) == pytest.approx((-0.025, 0.035))
+    assert face_turn(-0.01, 0.02, math.inf, 0.15, turn_only=True) == pytest.approx((-0.14, 0.15))
+    assert face_turn(0.02, 0.02, math.inf, 0.15, turn_only=True) == (0.02, 0.02)  # no turn to scale
+
+
+def test_face_turn_gain_reaches_the_motor_module_and_is_validated():
+    """The motor module executes Eq. 11, so it takes TrackingParams (a graph's or --param's)."""
+    from cekm_swarm.experiments.graph_run import with_params
+    from cekm_swarm.graph.spec import graph_for
+    from cekm_swarm.node.graph_check import check_graph
+    checked = with_params(check_graph(str(graph_for("cekm", "tracking"))), {"face_turn_gain": 3.0})
+    assert checked.make_params("motor").face_turn_gain == 3.0
+    assert TrackingParams(face_turn_gain=math.inf).face_turn_gain == math.inf
+    for bad in (0.5, 0.0, -1.0, float("nan")):
+        with pytest.raises(ParameterError, match="face_turn_gain"):
+            TrackingParams(face_turn_gain=bad)

@@ -4,6 +4,7 @@ reported; docs/fields.md, "Tracking: the weak cells on development seeds").
   python devcheck.py losses CELLS SEEDS DURATION CONTROLLERS [NAME=VALUE ...]
   python devcheck.py run OUT.json CELLS SEEDS DURATION CONTROLLERS [NAME=VALUE ...]
   python devcheck.py compare BASE.json BASELINES.json CANDIDATE.json ...
+  python devcheck.py turns [NAME=VALUE ...]
 
 CELLS: comma-separated parts of the grid's cell labels (``fast``, ``R0.35``, a full label)
 or ``all``; SEEDS: ``A-B``; NAME=VALUE: overrides of cekm's TrackingParams (as ``--param``).
@@ -13,6 +14,11 @@ or ``all``; SEEDS: ``A-B``; NAME=VALUE: overrides of cekm's TrackingParams (as `
 target (idle); the fraction of targets seen by two robots or more (redundant); covered
 targets lost per target-minute; the share of those losses whose one observer lost it; and
 the share of the observers losing a target that had it more than 1 rad off their heading.
+``turns`` tabulates, for the default model the tracker uses, the command Eq. 11 gives at the
+goal states (alpha, 0), alpha from 0 to pi each side (the winner's neuron, the motor's
+winner, the wheels and the turn rate (v_r - v_l) / axle); then what the tracker (today's, or
+with NAME=VALUE a candidate) commands for a lone target sensed at (alpha, 0.9 R), R = 0.35 m
+(after its face_angle rule); and A-CMOMMT's motor (force_wheels) toward a unit force at alpha.
 """
 
 from __future__ import annotations
@@ -92,6 +98,35 @@ def cmd_run(out: str, sel: str, seeds: str, duration: str, controllers: str, ove
                    "rows": [{k: r[k] for k in ("cell", "seed", "controller", "A", "collisions")} for r in rows]}, f)
 
 
+def cmd_turns(over: list[str]) -> None:
+    from cekm_swarm.controller.acmommt import force_wheels  # noqa: PLC0415
+    from cekm_swarm.controller.team import TeamView  # noqa: PLC0415
+    from cekm_swarm.controller.tracking import TrackingActivity, TrackingEKM  # noqa: PLC0415
+    from cekm_swarm.models.params import ACMOMMTParams  # noqa: PLC0415
+    from cekm_swarm.robot import KHEPERA  # noqa: PLC0415
+    model, tp, ap = default_model(progress=False), params_of(over) or TrackingParams(), ACMOMMTParams()
+    R = 0.35
+    ctl = TrackingEKM("r1", model, R, tp)
+    ekm, axle, c = ctl.ekm, KHEPERA.axle, model.v_max
+    print(f"c* = {c:.4f} m/s, axle {axle} m: the fastest turn in place is 2 c* / axle = {2 * c / axle:.2f} rad/s; "
+          f"turn = (v_r - v_l) / axle, + = left")
+    print("| alpha | map at (alpha, 0): s (alpha_s, d_s) | k | v_l, v_r (m/s) | turn (rad/s) | "
+          "tracker, lone target at (alpha, 0.9 R): k | v_l, v_r | turn | A-CMOMMT v_l, v_r | turn |")
+    print("|---:|---|---:|---|---:|---:|---|---:|---|---:|")
+    for alpha in [x * sign for x in (0.0, 0.25, 0.5, 0.75, 0.9, 1.0, 1.1, 1.25, 1.5, 2.0, 2.5, 3.0, math.pi)
+                  for sign in (1, -1) if x or sign > 0]:
+        s = ekm.winner(alpha, 0.0)
+        raw = TrackingEKM("r1", model, R, TrackingParams(face_turn_gain=1.0)).integrate(  # Eq. 11 as it is
+            TrackingActivity(0.0, ekm.target_activity(s), np.zeros(ekm.n), ((s, alpha, 0.0, 1.0),), {}, False), [])
+        act = TrackingEKM("r1", model, R, tp).localize(0.0, (0.0, 0.0, 0.0), {"t1": (alpha, 0.9 * R)}, TeamView("r1"))
+        out = ctl.integrate(act, [])
+        al, ar = force_wheels(math.cos(alpha), math.sin(alpha), [], 0.0, 1.0, axle, c, ap.obstacle_gain,
+                              ap.turn_gain)
+        print(f"| {alpha:+.2f} | {s} ({ekm.w[s, 0]:+.2f}, {ekm.w[s, 1]:.3f}) | {raw.k} | {raw.v_l:+.3f}, "
+              f"{raw.v_r:+.3f} | {(raw.v_r - raw.v_l) / axle:+.2f} | {out.k} | {out.v_l:+.3f}, {out.v_r:+.3f} | "
+              f"{(out.v_r - out.v_l) / axle:+.2f} | {al:+.3f}, {ar:+.3f} | {(ar - al) / axle:+.2f} |")
+
+
 def _a(doc: dict, controller: str) -> dict[str, dict[int, float]]:
     out: dict[str, dict[int, float]] = collections.defaultdict(dict)
     for r in doc["rows"]:
@@ -136,6 +171,8 @@ if __name__ == "__main__":
         cmd_losses(args[0], args[1], args[2], args[3], args[4:])
     elif cmd == "run":
         cmd_run(args[0], args[1], args[2], args[3], args[4], args[5:])
+    elif cmd == "turns":
+        cmd_turns(args)
     elif cmd == "compare":
         cmd_compare(args[0], args[1], args[2:])
     else:
