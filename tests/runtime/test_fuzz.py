@@ -16,9 +16,12 @@ of the world, and on keys it invents under the root.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import json
+import os
 import re
+import signal
 import threading
 from collections import Counter
 from pathlib import Path
@@ -88,14 +91,46 @@ class Clockwatch:
             return self.tick
 
 
-def fuzz(port: int, total: int, batch: int, neurons: int, seed: int, last_tick: int) -> tuple[list[Fuzz], int]:
+MAX_HOLD_S = 0.3  # a hold ends by then: well inside the world's 1 s before it republishes a tick
+
+
+class Hold:
+    """Holds a lockstep world while a late batch is built and sent: SIGSTOP of one of r1's
+    modules, whose command the world waits for, so the run's ticks and outcome are those
+    of an unheld run. Released when the batch is out or after MAX_HOLD_S, whichever comes
+    first: a put blocked by the stopped module's queue cannot deadlock, and the world never
+    waits long enough on a tick to republish it."""
+
+    def __init__(self, pid: int) -> None:
+        self.pid = pid
+
+    def _release(self) -> None:
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(self.pid, signal.SIGCONT)
+
+    @contextlib.contextmanager
+    def __call__(self):
+        os.kill(self.pid, signal.SIGSTOP)
+        timer = threading.Timer(MAX_HOLD_S, self._release)
+        timer.start()
+        try:
+            yield
+        finally:
+            timer.cancel()
+            self._release()
+
+
+def fuzz(port: int, total: int, batch: int, neurons: int, seed: int, last_tick: int,
+         hold: Hold | None = None) -> tuple[list[Fuzz], int]:
     """Publish ``total`` malformed messages, ``batch`` at a time, then a fence; returns what
     was sent (fence included) and the tick at which the last batch was built.
 
     The batches are spread evenly over the run's ticks from START_TICK to ``last_tick``
     (less a margin for the fence): each one waits for the world to reach the tick it is
     due at and is built at the world's latest tick. One that is late (in lockstep the world
-    does not wait for us, and on a loaded host it can outpace us) goes out at once. Fails,
+    does not wait for us, and on a loaded host it can outpace us) goes out at once, with
+    the world held (``hold``, lockstep) while it does, once the world has moved on from the
+    last hold's tick: so the fuzz keeps up with the world whatever the host's load. Fails,
     saying so, if the world gets to the margin first."""
     rng = np.random.default_rng(seed)
     session = open_client(f"tcp/127.0.0.1:{port}")
@@ -105,13 +140,21 @@ def fuzz(port: int, total: int, batch: int, neurons: int, seed: int, last_tick: 
     batches = -(-total // batch)
     try:
         clock = Clockwatch(session)
+        held, holds = -1, 0  # the tick of the last hold (the world passes it before the next one), how many
         for i in range(batches):
-            tick = clock.wait_past(START_TICK + i * (end - START_TICK) // batches - 1, timeout=60)
+            due = START_TICK + i * (end - START_TICK) // batches
+            tick = clock.wait_past(max(due - 1, held), timeout=60)
             assert tick < end, f"the world reached tick {tick} of {last_tick} with {total - len(sent)} of {total} " \
                                "messages unsent"
-            for f in make_corpus(rng, min(batch, total - len(sent)), tick, ["r1"], neurons, start=len(sent)):
-                session.put(f.key, f.payload, congestion_control=block)
-                sent.append(f)
+            late = hold is not None and tick > due
+            with hold() if late else contextlib.nullcontext():
+                held, holds = (clock.tick, holds + 1) if late else (held, holds)
+                for f in make_corpus(rng, min(batch, total - len(sent)), clock.tick, ["r1"], neurons,
+                                     start=len(sent)):
+                    session.put(f.key, f.payload, congestion_control=block)
+                    sent.append(f)
+            tick = max(tick, held)
+        print(f"fuzz: {holds} of {batches} batches sent with the world held")
         session.put(FENCE, b"fence", congestion_control=block)
         sent.append(Fuzz(FENCE, b"fence", "invented key"))
         clock.wait_past(tick + AFTER_FENCE, timeout=30)  # before closing: what is queued in our session goes out
@@ -230,14 +273,14 @@ def unreachable_concave(folder: Path) -> Path:
 
 
 def launched(out, scenario: str, max_time: str, args: tuple[str, ...], send):
-    """Launch ``scenario`` for ``max_time`` s with ``args``, call ``send(port, last_tick)``
+    """Launch ``scenario`` for ``max_time`` s with ``args``, call ``send(run, last_tick)``
     once the world ticks (an outside client's traffic), and let the run finish:
     (run, what ``send`` returned)."""
     run = LaunchProcess(scenario, out, "--max-time", max_time, *args, "--model", str(default_model_path()),
                         "--no-plot")
     try:
         run.wait_line("world started ticking", timeout=90)
-        sent = send(run.port, int(float(max_time) / TICK_S))
+        sent = send(run, int(float(max_time) / TICK_S))
         code = run.finish(timeout=120)
     finally:
         run.kill()
@@ -250,8 +293,11 @@ def fuzzed_launch(out, scenario: str, max_time: str, args: tuple[str, ...], n: i
     """Launch ``scenario`` for ``max_time`` s with ``args``, fuzz it with ``n`` messages (at
     least ``per_tick`` a tick) once it ticks, and let it finish: (run, messages sent, tick
     the fuzz ended at)."""
-    run, (sent, last_tick) = launched(out, scenario, max_time, args,
-                                      lambda port, last: fuzz(port, n, per_tick, neurons, seed=seed, last_tick=last))
+    def send(run: LaunchProcess, last: int) -> tuple[list[Fuzz], int]:
+        hold = Hold(run.pids()["r1/motor"]) if "lockstep" in args else None
+        return fuzz(run.port, n, per_tick, neurons, seed=seed, last_tick=last, hold=hold)
+
+    run, (sent, last_tick) = launched(out, scenario, max_time, args, send)
     return run, sent, last_tick
 
 
@@ -327,8 +373,8 @@ def test_a_burst_of_well_formed_readings_stalls_no_lockstep_module(tmp_path):
     every one and the run never waits for a command."""
     key, bursts, burst = K.sense_range("r1", 3), 5, 300
 
-    def send(port: int, last_tick: int) -> None:
-        session = open_client(f"tcp/127.0.0.1:{port}")
+    def send(run: LaunchProcess, last_tick: int) -> None:
+        session = open_client(f"tcp/127.0.0.1:{run.port}")
         try:
             clock = Clockwatch(session)
             tick = START_TICK - 1
