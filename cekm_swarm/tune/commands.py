@@ -23,6 +23,13 @@ def tune_group() -> None:
     """Field parameters learned, not hand-tuned (docs/fields.md)."""
 
 
+def mix_option(help: str):
+    """``--mix``, the generated geometry mix (the keys of scenarios.MIXES, which a test keeps
+    equal; not imported here, as scenarios pulls in the world)."""
+    return click.option("--mix", type=click.Choice(["default", "wide", "route"]), default="default",
+                        show_default=True, help=help)
+
+
 @tune_group.command("fields")
 @click.option("--task", type=click.Choice(["navigation", "tracking"]), default="navigation", show_default=True,
               help="Train the navigation policy (generated obstacle geometries) or the tracking one (grid cells).")
@@ -41,9 +48,8 @@ def tune_group() -> None:
 @click.option("--validate-every", type=click.IntRange(min=1), default=5, show_default=True,
               help="Generations between validations.")
 @click.option("--max-time", type=Finite(min=0.2), help="Sim seconds per run (default 90 navigation, 30 tracking).")
-@click.option("--mix", type=click.Choice(["default", "wide", "route"]), default="default", show_default=True,
-              help="Navigation: the generated geometries trained and validated on (wide: also disc rows with "
-                   "narrow gaps, long walls and narrow deep U's; route: also a goal in a narrow alcove).")
+@mix_option("Navigation: the generated geometries trained and validated on (wide: also disc rows with "
+            "narrow gaps, long walls and narrow deep U's; route: also a goal in a narrow alcove).")
 @click.option("--hold", multiple=True, help="An output held at today's value (its rows of W and V stay 0), e.g. "
                                           "sigma_b_d_near; repeat for more.")
 @click.option("--per-field", is_flag=True, help="Also learn V: each obstacle field's widths from its own "
@@ -170,8 +176,7 @@ def fig9_cmd(results, out_path, reference) -> None:
 @click.option("--policy", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               help="A navigation field policy (default: today's constants, W = 0).")
 @click.option("--max-time", type=Finite(min=0.2), default=300.0, show_default=True, help="Sim seconds per run.")
-@click.option("--mix", type=click.Choice(["default", "wide", "route"]), default="default", show_default=True,
-              help="The generated geometries (as cekm tune fields --mix).")
+@mix_option("The generated geometries (as cekm tune fields --mix).")
 @model_option()
 def contacts_cmd(out_dir, purpose, runs, policy, max_time, mix, model_path) -> None:
     """Why contacts happen: every contact of generated navigation runs, classified (docs/fields.md)."""

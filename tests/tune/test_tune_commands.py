@@ -80,3 +80,12 @@ def test_fig9_draws_rows_from_evaluate_documents_and_names_a_bad_one(tmp_path):
     (tmp_path / "c.json").write_text("{}")
     bad = CliRunner().invoke(main, ["tune", "fig9", str(tmp_path / "c.json"), "--out", str(tmp_path / "h.png")])
     assert bad.exit_code != 0 and "not the results of `cekm tune evaluate --concave`" in bad.output
+
+
+def test_the_mix_option_offers_exactly_the_generator_s_mixes():
+    from cekm_swarm.tune.commands import tune_group
+    from cekm_swarm.tune.scenarios import MIXES
+
+    for name in ("fields", "contacts"):
+        (mix,) = [p for p in tune_group.commands[name].params if p.name == "mix"]
+        assert list(mix.type.choices) == list(MIXES)
