@@ -61,8 +61,8 @@ def test_cekm_drives_a_ros2_robot_past_the_disc_through_bad_input_and_a_killed_m
     # SIGKILL the motor node, and its restart at once: the supervisor's back-off doubles (0.5 s), so
     # the commands stop for longer than the dead-man limit whatever the machine's speed
     motor = json.loads((out / "pids.json").read_text())["r1/motor"]
+    killed = time.monotonic()  # (read before the signal: what the kill causes can reach the simulator first)
     os.kill(motor, signal.SIGKILL)
-    killed = time.monotonic()
     restarted = launch.expect("", timeout=60, where=lambda s: "module r1/motor restarted" in s)
     os.kill(int(restarted.split("pid ")[1].rstrip(")")), signal.SIGKILL)
     launch.expect("", timeout=30, where=lambda s: ": deadman" in s)
@@ -122,8 +122,8 @@ def test_tracking_targets_from_ros2_then_ctrl_c_stops_the_robots_with_a_zero_twi
         return xs[1] - xs[0]
 
     launch.expect("", timeout=120, where=lambda s: " t=" in s and " r2 (" in s and apart(s) >= 0.4)  # from 0.16 m
-    launch.proc.send_signal(signal.SIGINT)
-    interrupted = time.monotonic()
+    interrupted = time.monotonic()  # (before the signal: the launcher's zero Twist can reach the simulator
+    launch.proc.send_signal(signal.SIGINT)  # before this process runs again, as a CI run here showed)
     assert launch.proc.wait(timeout=60) == 130, "\n".join(launch.seen[-20:])
     sim.send("quit")
     done = json.loads(sim.expect("DONE", timeout=30).split(" ", 1)[1])
