@@ -31,6 +31,7 @@ Per robot (docs/tracking.md):
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field
@@ -65,12 +66,15 @@ def standoff_distance(speed: float | None, target_range: float, params: Tracking
 
 def assigned_group(robot: str, pose: tuple[float, float, float], known: dict[str, tuple[float, float]],
                    team: dict[str, TeammateShare], target_range: float,
-                   params: TrackingParams) -> tuple[tuple[float, float], tuple[str, ...]] | None:
+                   params: TrackingParams,
+                   speeds: dict[str, float] | None = None) -> tuple[tuple[float, float], tuple[str, ...]] | None:
     """Hand-offs by K-means' assignment: each target of ``known`` (world frame) goes to its
     nearest robot (this one at ``pose``, the teammates at their shared poses); (the
     centroid, the targets) of this robot's share when there are at least assign_min and
     all lie within assign_radius * R of the centroid, else None. The targets are in sorted
-    order: every sum over them has one order, whatever the process's string hashes."""
+    order: every sum over them has one order, whatever the process's string hashes.
+    ``speeds`` (m/s, by target; from their tracks) shrink the reach by assign_speed_s times
+    the share's mean speed: a fast group spreads before the robot reaches its centroid."""
     if params.assign_radius <= 0.0 or not known:
         return None
     robots = {robot: (pose[0], pose[1])} | {r: (sh.pose[0], sh.pose[1]) for r, sh in team.items()}
@@ -78,12 +82,40 @@ def assigned_group(robot: str, pose: tuple[float, float, float], known: dict[str
     mine = [tid for tid in sorted(labels) if labels[tid] == robot]
     if len(mine) < params.assign_min:
         return None
-    cx = sum(known[t][0] for t in mine) / len(mine)
-    cy = sum(known[t][1] for t in mine) / len(mine)
     reach = params.assign_radius * target_range
-    if any(math.hypot(known[t][0] - cx, known[t][1] - cy) > reach for t in mine):
+    if params.assign_speed_s > 0.0 and speeds:
+        reach -= params.assign_speed_s * sum(speeds.get(t, 0.0) for t in mine) / len(mine)
+    group = fitting_group(mine, known, reach)
+    if group is not None:
+        return group
+    if params.assign_subset <= 1 or len(mine) <= 2:
         return None
-    return (cx, cy), tuple(mine)
+    return largest_fitting_subset(mine, known, reach, (pose[0], pose[1]), params.assign_subset)
+
+
+def fitting_group(ids: Iterable[str], known: dict[str, tuple[float, float]],
+                  reach: float) -> tuple[tuple[float, float], tuple[str, ...]] | None:
+    """(the centroid, the targets) when every target of ``ids`` lies within ``reach`` of
+    their centroid, else None."""
+    ids = tuple(ids)
+    cx = sum(known[t][0] for t in ids) / len(ids)
+    cy = sum(known[t][1] for t in ids) / len(ids)
+    if any(math.hypot(known[t][0] - cx, known[t][1] - cy) > reach for t in ids):
+        return None
+    return (cx, cy), ids
+
+
+def largest_fitting_subset(mine: list[str], known: dict[str, tuple[float, float]], reach: float,
+                           at: tuple[float, float], most: int) -> tuple[tuple[float, float], tuple[str, ...]] | None:
+    """When a robot's whole share does not fit: the most of its targets (at least two; of its
+    ``most`` nearest) that fit within ``reach`` of their centroid, the one nearest to the
+    robot among the largest (TrackingParams.assign_subset); None when no two fit."""
+    near = sorted(mine, key=lambda t: (math.hypot(known[t][0] - at[0], known[t][1] - at[1]), t))[:most]
+    for size in range(min(len(near), len(mine) - 1), 1, -1):
+        fits = [g for ids in itertools.combinations(sorted(near), size) if (g := fitting_group(ids, known, reach))]
+        if fits:
+            return min(fits, key=lambda g: (math.hypot(g[0][0] - at[0], g[0][1] - at[1]), g[1]))
+    return None
 
 
 def led_centroid(group: tuple[tuple[float, float], tuple[str, ...]], tracks: TargetTracks,
@@ -231,11 +263,14 @@ class TrackingEKM:
         for r in sorted(team):
             for tid, xy in team[r].targets.items():
                 known.setdefault(tid, xy)
-        assigned = assigned_group(self.robot, pose, known, team, self.target_range, p)
-        if p.assign_lead_s > 0.0:
+        if p.assign_lead_s > 0.0 or p.assign_speed_s > 0.0:
             self.known_tracks.update(t, known)
-            if assigned is not None:
-                assigned = (led_centroid(assigned, self.known_tracks, p.assign_lead_s), assigned[1])
+        speeds = None
+        if p.assign_speed_s > 0.0:
+            speeds = {tid: v for tid in sorted(known) if (v := self.known_tracks.speed(tid)) is not None}
+        assigned = assigned_group(self.robot, pose, known, team, self.target_range, p, speeds)
+        if p.assign_lead_s > 0.0 and assigned is not None:
+            assigned = (led_centroid(assigned, self.known_tracks, p.assign_lead_s), assigned[1])
         return assigned
 
     def _aim(self, tid: str, alpha: float, d: float, pose: tuple[float, float, float]) -> tuple[int, float, float]:

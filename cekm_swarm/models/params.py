@@ -180,6 +180,13 @@ class TrackingParams:
     targets' mean velocity (an alpha-beta track of every known target's reported position),
     so the robot meets a moving group where it is going (0: where it is; 1 s chosen on the
     tuning seeds, docs/tracking.md).
+    assign_subset: when the robot's share does not all fit within assign_radius * R of its
+    centroid, the largest part of it that does (two targets or more, from its assign_subset
+    nearest; the part nearest to the robot among the largest) is held at its centroid
+    instead, as K-means holds its whole share (0 or 1: off, the share or nothing).
+    assign_speed_s: the share fits when within assign_radius * R - assign_speed_s * v of its
+    centroid, v its targets' mean estimated speed (their alpha-beta tracks): a fast group
+    spreads while the robot drives to it, so it must be tighter (0: off).
     face_angle (rad): a sensed target more than face_angle to either side of the robot's
     heading is localized at (+-face_angle, 0), a goal state on its side, whatever its
     distance, so the robot turns in place toward it before it drives (pi: off). Without it
@@ -227,19 +234,25 @@ class TrackingParams:
     assign_min: int = 1
     assign_weight: float = 1.0
     assign_lead_s: float = 1.0
+    assign_subset: int = 0
+    assign_speed_s: float = 0.0
 
     def __post_init__(self) -> None:
-        if not (self.assign_radius >= 0.0 and self.assign_weight > 0.0 and self.assign_min >= 1):
-            raise ParameterError("TrackingParams: assign_radius must be >= 0, assign_weight > 0 and assign_min >= 1")
+        if not (self.assign_radius >= 0.0 and self.assign_weight > 0.0 and self.assign_min >= 1
+                and self.assign_subset >= 0):
+            raise ParameterError("TrackingParams: assign_radius must be >= 0, assign_weight > 0, assign_min >= 1 "
+                                 "and assign_subset >= 0")
         if not 0.0 < self.face_angle <= math.pi:
             raise ParameterError(f"TrackingParams.face_angle must be in (0, pi], got {self.face_angle!r}")
         if not self.face_turn_gain >= 1.0:
             raise ParameterError("TrackingParams.face_turn_gain must be >= 1 (inf: up to c*), "
                                  f"got {self.face_turn_gain!r}")
         if not (self.predict_s >= 0.0 and self.group_weight >= 0.0 and self.group_radius > 0.0
-                and self.standoff_speed_s >= 0.0 and 0.0 <= self.assign_lead_s < math.inf):
-            raise ParameterError("TrackingParams: predict_s, group_weight, standoff_speed_s and assign_lead_s must be "
-                                 ">= 0 (assign_lead_s finite), group_radius > 0")
+                and self.standoff_speed_s >= 0.0 and 0.0 <= self.assign_lead_s < math.inf
+                and 0.0 <= self.assign_speed_s < math.inf):
+            raise ParameterError("TrackingParams: predict_s, group_weight, standoff_speed_s, assign_lead_s and "
+                                 "assign_speed_s must be >= 0 (assign_lead_s and assign_speed_s finite), "
+                                 "group_radius > 0")
         _check_positive(self, "teammate_near", "teammate_far", "teammate_sigma_alpha", "teammate_sigma_d_beyond",
                         "teammate_sigma_d_near", "search_weight", "search_reached", "wander_ahead_m",
                         "share_timeout_s", "memory_s")
