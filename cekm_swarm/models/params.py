@@ -175,7 +175,9 @@ class TrackingParams:
     the centroid is localized (no stand-off) with weight assign_weight in place of their
     own fields, and the robot does not search. So a robot drives to a target a teammate
     sees but is nearer to, and holds two or three close targets between them (0 radius:
-    off; 0.8 R, 1 and 1.0 chosen on the tuning seeds, docs/tracking.md).
+    off; 1 and 1.0 chosen on the tuning seeds, docs/tracking.md; the radius 0.8 R then, 1.0
+    R since issue 41's third round, chosen on development seeds, docs/fields.md: a share
+    whose every target a robot at its centroid sees).
     assign_lead_s: the assigned group's centroid is localized assign_lead_s ahead along its
     targets' mean velocity (an alpha-beta track of every known target's reported position),
     so the robot meets a moving group where it is going (0: where it is; 1 s chosen on the
@@ -230,7 +232,7 @@ class TrackingParams:
     face_angle: float = 1.0
     face_turn_gain: float = math.inf
     face_turn_only: bool = True
-    assign_radius: float = 0.8
+    assign_radius: float = 1.0
     assign_min: int = 1
     assign_weight: float = 1.0
     assign_lead_s: float = 1.0
