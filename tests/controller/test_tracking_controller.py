@@ -274,35 +274,35 @@ def test_assign_speed_s_tightens_the_reach_of_a_fast_share():
     team = {"q": TeammateShare(0.0, (3.0, 1.0, 0.0), {})}
     pose, known = (1.0, 1.0, 0.0), {"a": (1.2, 1.0), "b": (1.2, 1.0 + 0.6 * R)}
     fast = {"a": 0.1, "b": 0.1}
-    p = TrackingParams(assign_speed_s=3.0)
+    p = TrackingParams(assign_radius=0.8, assign_speed_s=3.0)
     assert assigned_group("r1", pose, known, team, R, p, fast) is None
     assert assigned_group("r1", pose, known, team, R, p, {})[1] == ("a", "b")
-    assert assigned_group("r1", pose, known, team, R, TrackingParams(), fast)[1] == ("a", "b")
+    assert assigned_group("r1", pose, known, team, R, TrackingParams(assign_radius=0.8), fast)[1] == ("a", "b")
     for bad in (-1.0, float("inf"), float("nan")):
         with pytest.raises(ParameterError, match="assign_speed_s"):
             TrackingParams(assign_speed_s=bad)
 
 
 def test_assign_subset_holds_the_largest_part_of_a_share_that_fits_nearest_first():
-    """A share of three that does not fit: off, no group; on, the two of it that fit (of the
-    two pairs that fit, the one whose centroid is nearer the robot)."""
+    """A share of four that does not fit within 0.5 R: off, no group; on, the two of it that
+    fit (of the two pairs that fit, the one whose centroid is nearer the robot)."""
     from cekm_swarm.controller.tracking import assigned_group
 
     team = {"q": TeammateShare(0.0, (3.0, 1.0, 0.0), {})}
     pose = (1.0, 1.0, 0.0)
     known = {"a": (1.2, 1.0), "b": (1.2, 1.2), "c": (1.2, 0.1), "d": (1.4, 0.1)}  # {a, b} and {c, d} fit, not all
-    assert assigned_group("r1", pose, known, team, R, TrackingParams(assign_subset=0)) is None
-    centroid, mine = assigned_group("r1", pose, known, team, R, TrackingParams(assign_subset=6))
+    assert assigned_group("r1", pose, known, team, R, TrackingParams(assign_radius=0.5, assign_subset=0)) is None
+    centroid, mine = assigned_group("r1", pose, known, team, R, TrackingParams(assign_radius=0.5, assign_subset=6))
     assert mine == ("a", "b") and centroid == pytest.approx((1.2, 1.1))
     # three of the four fit once d leaves: the largest part wins over a nearer pair
     three = {"a": (1.1, 1.0), "b": (1.1, 1.2), "c": (1.1, 1.1), "d": (1.1, 2.2)}
-    assert assigned_group("r1", pose, three, team, R, TrackingParams(assign_subset=6))[1] == ("a", "b", "c")
+    assert assigned_group("r1", pose, three, team, R, TrackingParams(assign_radius=0.5, assign_subset=6))[1] == ("a", "b", "c")
     # only the assign_subset nearest count; no two fit: none
-    assert assigned_group("r1", pose, three, team, R, TrackingParams(assign_subset=2))[1] == ("a", "c")
+    assert assigned_group("r1", pose, three, team, R, TrackingParams(assign_radius=0.5, assign_subset=2))[1] == ("a", "c")
     apart = {"a": (1.0, 2.0), "b": (2.0, 1.0), "c": (1.0, 0.0)}
-    assert assigned_group("r1", pose, apart, team, R, TrackingParams(assign_subset=6)) is None
+    assert assigned_group("r1", pose, apart, team, R, TrackingParams(assign_radius=0.5, assign_subset=6)) is None
     with pytest.raises(ParameterError, match="assign_subset"):
-        TrackingParams(assign_subset=-1)
+        TrackingParams(assign_radius=0.5, assign_subset=-1)
 
 
 def test_a_target_a_teammate_sees_but_this_robot_is_nearer_to_is_driven_to(model):
