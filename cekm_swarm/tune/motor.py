@@ -17,7 +17,7 @@ localization module for the same result.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from typing import Any
 
 import numpy as np
@@ -141,12 +141,13 @@ class FieldTrackingMotor(_PolicyFields, Node):
     warm_setup = True
 
     @dataclass(frozen=True)
-    class Params:
+    class Params(TrackingParams):  # the tracking motor's (face_turn_gain is executed here), and:
         policy: str = ""  # a field policy file; "" = the one shipped for tracking
         weights: tuple[float, ...] = ()
 
     def setup(self) -> None:
-        self.tekm = tracking_ekm(self.ctx, TrackingParams())
+        tp = {f.name: getattr(self.params, f.name) for f in fields(TrackingParams)}
+        self.tekm = tracking_ekm(self.ctx, TrackingParams(**tp))
         self._setup_policy()
 
     def check_input(self, port, msg):

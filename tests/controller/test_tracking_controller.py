@@ -290,19 +290,23 @@ def test_assign_subset_holds_the_largest_part_of_a_share_that_fits_nearest_first
 
     team = {"q": TeammateShare(0.0, (3.0, 1.0, 0.0), {})}
     pose = (1.0, 1.0, 0.0)
+
+    def sub(n: int) -> TrackingParams:
+        return TrackingParams(assign_radius=0.5, assign_subset=n)
+
     known = {"a": (1.2, 1.0), "b": (1.2, 1.2), "c": (1.2, 0.1), "d": (1.4, 0.1)}  # {a, b} and {c, d} fit, not all
-    assert assigned_group("r1", pose, known, team, R, TrackingParams(assign_radius=0.5, assign_subset=0)) is None
-    centroid, mine = assigned_group("r1", pose, known, team, R, TrackingParams(assign_radius=0.5, assign_subset=6))
+    assert assigned_group("r1", pose, known, team, R, sub(0)) is None
+    centroid, mine = assigned_group("r1", pose, known, team, R, sub(6))
     assert mine == ("a", "b") and centroid == pytest.approx((1.2, 1.1))
     # three of the four fit once d leaves: the largest part wins over a nearer pair
     three = {"a": (1.1, 1.0), "b": (1.1, 1.2), "c": (1.1, 1.1), "d": (1.1, 2.2)}
-    assert assigned_group("r1", pose, three, team, R, TrackingParams(assign_radius=0.5, assign_subset=6))[1] == ("a", "b", "c")
+    assert assigned_group("r1", pose, three, team, R, sub(6))[1] == ("a", "b", "c")
     # only the assign_subset nearest count; no two fit: none
-    assert assigned_group("r1", pose, three, team, R, TrackingParams(assign_radius=0.5, assign_subset=2))[1] == ("a", "c")
+    assert assigned_group("r1", pose, three, team, R, sub(2))[1] == ("a", "c")
     apart = {"a": (1.0, 2.0), "b": (2.0, 1.0), "c": (1.0, 0.0)}
-    assert assigned_group("r1", pose, apart, team, R, TrackingParams(assign_radius=0.5, assign_subset=6)) is None
+    assert assigned_group("r1", pose, apart, team, R, sub(6)) is None
     with pytest.raises(ParameterError, match="assign_subset"):
-        TrackingParams(assign_radius=0.5, assign_subset=-1)
+        sub(-1)
 
 
 def test_a_target_a_teammate_sees_but_this_robot_is_nearer_to_is_driven_to(model):

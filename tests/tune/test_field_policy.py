@@ -147,6 +147,23 @@ def test_the_motor_node_uses_the_policys_widths():
     assert zero == base and zero_v == base and wide != base and near != base
 
 
+def test_the_tracking_policy_motor_takes_the_trackers_parameters():
+    """The tracking field-policy motor with zero weights is the shipped tracking motor, with
+    the default TrackingParams and with ``face_turn_gain=1`` (the previous turn) alike: the
+    parameter reaches it, and changes the run."""
+    sc = load_scenario("tracking")
+    checked = check_graph(policy_graph("tracking"))
+    zero = (0.0,) * FieldPolicy.size("tracking")
+    runs = {}
+    for gain in (math.inf, 1.0):
+        shipped = run_graph(sc, "cekm", params={"face_turn_gain": gain}, max_time=30.0).episode.outcome()
+        policy = run_graph(sc, graph=checked, params={"weights": zero, "face_turn_gain": gain},
+                           max_time=30.0).episode.outcome()
+        assert policy == shipped
+        runs[gain] = policy
+    assert runs[math.inf] != runs[1.0]
+
+
 def test_fields_option_graphs():
     checked, params = fields_graph("paper", "navigation")
     assert params == {"sigma_b_alpha": 0.495}
