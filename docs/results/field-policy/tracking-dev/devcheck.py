@@ -3,7 +3,7 @@ reported; docs/fields.md, "Tracking: the weak cells on development seeds").
 
   python devcheck.py losses CELLS SEEDS DURATION CONTROLLERS [NAME=VALUE ...]
   python devcheck.py run OUT.json CELLS SEEDS DURATION CONTROLLERS [NAME=VALUE ...]
-  python devcheck.py compare BASE.json BASELINES.json CANDIDATE.json ...
+  python devcheck.py compare BASE.json BASELINES.json CANDIDATE.json ...   (A.json+B.json: both files' runs)
   python devcheck.py turns [NAME=VALUE ...]
 
 CELLS: comma-separated parts of the grid's cell labels (``fast``, ``R0.35``, a full label)
@@ -135,16 +135,22 @@ def _a(doc: dict, controller: str) -> dict[str, dict[int, float]]:
     return out
 
 
+def _load(paths: str) -> dict:
+    """The runs of one or more ``run`` files (``A.json+B.json``: other seeds of the same setting)."""
+    rows = []
+    for path in paths.split("+"):
+        with open(path) as f:
+            rows += json.load(f)["rows"]
+    return {"rows": rows}
+
+
 def cmd_compare(base_file: str, baselines_file: str, candidates: list[str]) -> None:
     from scipy import stats  # noqa: PLC0415 -- lazy, as the project's statistics modules do
-    with open(base_file) as f:
-        base = _a(json.load(f), "cekm")
-    with open(baselines_file) as f:
-        bl = json.load(f)
+    base = _a(_load(base_file), "cekm")
+    bl = _load(baselines_file)
     acm, km = _a(bl, "acmommt"), _a(bl, "kmeans")
     for path in candidates:
-        with open(path) as f:
-            cand = _a(json.load(f), "cekm")
+        cand = _a(_load(path), "cekm")
         diffs, lines, better, worse = [], [], 0, 0
         for cell in sorted(cand, key=lambda c: ("fast" not in c, c)):
             seeds = sorted(set(cand[cell]) & set(base[cell]))
