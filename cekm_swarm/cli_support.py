@@ -154,6 +154,13 @@ def seed_option(default: int | None = None, help_text: str = WORLD_SEED_HELP) ->
     return click.option("--seed", type=SEED, default=default, show_default=default is not None, help=help_text)
 
 
+def workers_option(help_text: str, default: int | None = None) -> Callable[[F], F]:
+    """``--workers N``: how many processes a many-run command uses (N >= 1; none given, the
+    command's ``default``, or its own rule when that is None)."""
+    return click.option("--workers", type=click.IntRange(min=1), default=default, show_default=default is not None,
+                        help=help_text)
+
+
 quiet_option = click.option("--quiet", is_flag=True, help="No progress bar.")
 """``--quiet``: no progress bar."""
 

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from .. import jsonfile
-from ..cli_support import F, ScenarioFileError
+from ..cli_support import F, ScenarioFileError, workers_option
 from ..controller.planner import PlanningError
 from ..errors import ParameterError, ResultsFileError
 from ..models.io import load_model
@@ -45,9 +45,8 @@ def engine_options(fn: Callable[..., Any]) -> Callable[..., Any]:
         except ClusterAddressError as exc:
             raise click.BadParameter(str(exc)) from None
 
-    @click.option("--workers", type=click.IntRange(1),
-                  help="Local worker processes (default: one per core; target-reaching: its seeds one after the "
-                       "other; 1: in this process).")
+    @workers_option("Local worker processes (default: one per core; target-reaching: its seeds one after the "
+                    "other; 1: in this process).")
     @click.option("--cluster", callback=address, metavar="tcp://HOST:PORT",
                   help="Run on the Dask scheduler at this address instead of a local cluster "
                        "(docs/performance.md, \"Experiments on a cluster\").")

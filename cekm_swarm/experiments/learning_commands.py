@@ -13,7 +13,7 @@ from typing import Any
 import click
 
 from .. import jsonfile
-from ..cli_support import F, Finite, out_dir_options, prepare_out_dir
+from ..cli_support import F, Finite, out_dir_options, prepare_out_dir, workers_option
 from ..errors import CekmError, ModelFormatError
 from ..models.io import load_model, save_model
 from ..models.networks import IndirectEKM
@@ -162,7 +162,7 @@ def add_launch_learning(out_dir: Path, outcome: dict[str, Any], model_path) -> d
 @seeds_option("1,2")
 @click.option("--ticks", default=1600, show_default=True, type=click.IntRange(16, 100_000),
               help="Ticks of 0.128 s per run (about one learning step each per robot).")
-@click.option("--workers", type=click.IntRange(1), help="Parallel processes (default: one per core).")
+@workers_option("Parallel processes (default: one per core).")
 @out_dir_options("Directory for results.json and learning.png.")
 def learning_experiment_cmd(teams: str, seeds: str, ticks: int, workers: int | None, out_dir: Path,
                             overwrite: bool) -> None:

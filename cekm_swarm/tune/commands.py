@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from ..cli_support import Finite, seed_option
+from ..cli_support import Finite, seed_option, workers_option
 from ..errors import ParameterError
 from ..experiments.learning_commands import model_option
 from ..jsonfile import dumps
@@ -58,7 +58,7 @@ def mix_option(help: str):
               help="A policy file the search starts from (default: today's constants); kept if it is the best "
                    "on validation.")
 @model_option()
-@click.option("--workers", type=click.IntRange(min=1), default=2, show_default=True, help="Worker processes.")
+@workers_option("Worker processes.", default=2)
 def fields_cmd(task, out_dir, seed, generations, popsize, sigma0, batch, validation, validate_every, max_time,
                mix, hold, per_field, init, model_path, workers) -> None:
     """Train a field policy by CMA-ES into OUT (policy.json), seeded and resumable."""
@@ -91,7 +91,7 @@ def fields_cmd(task, out_dir, seed, generations, popsize, sigma0, batch, validat
                              "kmeans, kmeans-global).")
 @click.option("--max-time", type=Finite(min=0.2), help="Sim seconds per run (default 300 navigation, 120 tracking).")
 @model_option()
-@click.option("--workers", type=click.IntRange(min=1), default=2, show_default=True)
+@workers_option("Worker processes.", default=2)
 def evaluate_cmd(task, out_dir, policy, tests, concave, suite, only, max_time, model_path, workers) -> None:
     """Judge the learned field policy against the paper's and today's constants on held-out scenarios."""
     from .evaluate import evaluate, evaluate_concave, evaluate_suite, variants  # noqa: PLC0415 -- lazy: numba, pymunk, scipy, tqdm, world
