@@ -175,9 +175,9 @@ class TrackingParams:
     the centroid is localized (no stand-off) with weight assign_weight in place of their
     own fields, and the robot does not search. So a robot drives to a target a teammate
     sees but is nearer to, and holds two or three close targets between them (0 radius:
-    off; 1 and 1.0 chosen on the tuning seeds, docs/tracking.md; the radius 0.8 R then, 1.0
-    R since issue 41's third round, chosen on development seeds, docs/fields.md: a share
-    whose every target a robot at its centroid sees).
+    off; assign_min 1 and assign_weight 1.0 chosen on the tuning seeds with a radius of 0.8
+    R, docs/tracking.md; the radius 1.0 R, a share a robot at its centroid sees whole,
+    since issue 41's third round, chosen on development seeds, docs/fields.md).
     assign_lead_s: the assigned group's centroid is localized assign_lead_s ahead along its
     targets' mean velocity (an alpha-beta track of every known target's reported position),
     so the robot meets a moving group where it is going (0: where it is; 1 s chosen on the
