@@ -9,9 +9,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, fields
-from typing import Any
+from typing import Any, TypeVar
 
 from ..errors import ParameterError
+
+P = TypeVar("P")
 
 
 def _check_positive(obj: object, *names: str) -> None:
@@ -118,6 +120,12 @@ class FieldParams:
         """The paper's values throughout (sigma_b_alpha 0.495): what the multi-robot
         tracking controller was tuned and measured with (docs/tracking.md)."""
         return cls(sigma_b_alpha=PAPER_SIGMA_B_ALPHA)
+
+
+def narrowed(obj: Any, cls: type[P]) -> P:
+    """The ``cls`` parameters held by ``obj``, a parameter set that has all of its fields
+    and more (a node's Params extending them): ``cls(**{its fields from obj})``."""
+    return cls(**{f.name: getattr(obj, f.name) for f in fields(cls)})  # type: ignore[arg-type]  # (cls: a dataclass)
 
 
 def params_to_dict(*objs: Any) -> dict[str, Any]:

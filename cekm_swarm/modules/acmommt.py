@@ -14,7 +14,7 @@ from cekm_swarm.controller.acmommt import ACMOMMT, ForceActivity
 from cekm_swarm.controller.readings import RangeReading
 from cekm_swarm.controller.team import TeammateShare, TeamView
 from cekm_swarm.controller.tracking import TrackingRobot
-from cekm_swarm.models.params import ACMOMMTParams, TrackingParams
+from cekm_swarm.models.params import ACMOMMTParams, TrackingParams, narrowed
 from cekm_swarm.node import In, Inputs, Node, NodeError, Out, need
 from cekm_swarm.protocol import Data, SensePose, SenseRange, SenseTargets, Share, WheelCommand
 from cekm_swarm.ticks import tick_of
@@ -35,7 +35,7 @@ def acmommt(node: Node) -> ACMOMMT:
     b, p = node.ctx.body, node.params
     if not math.isfinite(b.target_range):
         raise NodeError(f"{node.ctx.sender}: tracking needs a finite target sensing range (sensors.target_range)")
-    ap = ACMOMMTParams(**{f.name: getattr(p, f.name) for f in dataclasses.fields(ACMOMMTParams)})
+    ap = narrowed(p, ACMOMMTParams)
     return ACMOMMT(node.ctx.robot, b.target_range, b.sensor_range, b.body_radius, b.axle, b.v_max, ap,
                    p.search_reached, p.wander_ahead_m)
 

@@ -17,14 +17,14 @@ localization module for the same result.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
 from cekm_swarm.controller.cooperative import ObstacleActivity
 from cekm_swarm.models.fields import obstacle_field
-from cekm_swarm.models.params import FieldParams, TrackingParams
+from cekm_swarm.models.params import FieldParams, TrackingParams, narrowed
 from cekm_swarm.modules.ekm import cooperative_ekm
 from cekm_swarm.modules.motor_integration import target_activity
 from cekm_swarm.modules.tracking_localization import tracking_activity, tracking_ekm
@@ -146,8 +146,7 @@ class FieldTrackingMotor(_PolicyFields, Node):
         weights: tuple[float, ...] = ()
 
     def setup(self) -> None:
-        tp = {f.name: getattr(self.params, f.name) for f in fields(TrackingParams)}
-        self.tekm = tracking_ekm(self.ctx, TrackingParams(**tp))
+        self.tekm = tracking_ekm(self.ctx, narrowed(self.params, TrackingParams))
         self._setup_policy()
 
     def check_input(self, port, msg):
