@@ -35,6 +35,32 @@ def plot_sweep(doc: dict, path: Path) -> Path:
     return path
 
 
+def _range_panel(ax, cells: list[dict], r: float, depths: list[float], widths: list[float],
+                 frames: dict[tuple[float, float, float], str] | None = None):
+    """One sensing range's cells on ``ax``: each cell's share of runs reaching the goal
+    (width across, depth up) with its count, and a frame of the given colour around the
+    cells of ``frames``; returns the image (for the colour bar)."""
+    from matplotlib.patches import Rectangle
+
+    z = np.full((len(depths), len(widths)), np.nan)
+    for c in cells:
+        if c["range"] != r:
+            continue
+        i, j = depths.index(c["depth"]), widths.index(c["width"])
+        z[i, j] = c["reached"] / c["of"] if c["of"] else np.nan
+        ax.text(j, i, f"{c['reached']}/{c['of']}", ha="center", va="center", fontsize=7)
+        colour = (frames or {}).get((r, c["depth"], c["width"]))
+        if colour is not None:
+            ax.add_patch(Rectangle((j - 0.46, i - 0.46), 0.92, 0.92, fill=False, lw=2.2, edgecolor=colour))
+    im = ax.imshow(z, origin="lower", cmap="RdYlGn", vmin=0.0, vmax=1.0, aspect="auto")
+    ax.set_xticks(range(len(widths)), [f"{w * 100:.0f}" for w in widths], fontsize=7)
+    ax.set_yticks(range(len(depths)), [f"{d * 100:.0f}" for d in depths], fontsize=7)
+    ax.set_xlabel("width (cm)", fontsize=8)
+    ax.set_ylabel("depth (cm)", fontsize=8)
+    ax.set_title(f"sensing range {r * 100:.0f} cm", fontsize=9)
+    return im
+
+
 def plot_grid(doc: dict, path: Path) -> Path:
     """Every cell's success rate: one panel per sensing range, width across, depth down."""
     import matplotlib
@@ -46,22 +72,7 @@ def plot_grid(doc: dict, path: Path) -> Path:
     widths, depths, ranges = st["widths"], st["depths"], st["ranges"]
     fig, axes = plt.subplots(1, len(ranges), figsize=(4.2 * len(ranges) + 1.0, 3.6), squeeze=False)
     for ax, r in zip(axes[0], ranges, strict=True):
-        z = np.full((len(depths), len(widths)), np.nan)
-        for c in doc["cells"]:
-            if c["range"] == r and c["rate"] is not None:
-                z[depths.index(c["depth"]), widths.index(c["width"])] = c["rate"]
-        im = ax.imshow(z, origin="lower", cmap="RdYlGn", vmin=0.0, vmax=1.0, aspect="auto")
-        for i in range(len(depths)):
-            for j in range(len(widths)):
-                cell = next((c for c in doc["cells"] if c["range"] == r and c["depth"] == depths[i]
-                             and c["width"] == widths[j]), None)
-                if cell is not None:
-                    ax.text(j, i, f"{cell['reached']}/{cell['of']}", ha="center", va="center", fontsize=7)
-        ax.set_xticks(range(len(widths)), [f"{w * 100:.0f}" for w in widths], fontsize=7)
-        ax.set_yticks(range(len(depths)), [f"{d * 100:.0f}" for d in depths], fontsize=7)
-        ax.set_xlabel("width (cm)")
-        ax.set_ylabel("depth (cm)")
-        ax.set_title(f"sensing range {r * 100:.0f} cm", fontsize=9)
+        im = _range_panel(ax, doc["cells"], r, depths, widths)
     fig.colorbar(im, ax=axes[0].tolist(), fraction=0.03, label="success rate")
     fig.suptitle("Fig. 9 as a grid: runs that reached the goal behind the U, per cell", fontsize=10)
     fig.savefig(path, dpi=130, bbox_inches="tight")
@@ -101,7 +112,6 @@ def plot_grid_rows(rows: dict[str, list[dict]], need: int, path: Path, reference
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.patches import Rectangle
 
     if not rows:
         raise ValueError("plot_grid_rows: no rows to draw")
@@ -118,24 +128,10 @@ def plot_grid_rows(rows: dict[str, list[dict]], need: int, path: Path, reference
         sub.suptitle(row_summary(label, cells, need, against, reference), fontsize=10, fontweight="bold",
                      x=0.02, ha="left")
         row_axes = sub.subplots(1, len(ranges), squeeze=False)[0]
+        frames = {} if ref is None or label == reference else \
+            {key: "#1a7f37" if key in mine else "#cf222e" for key in mine ^ ref}
         for ax, r in zip(row_axes, ranges, strict=True):
-            z = np.full((len(depths), len(widths)), np.nan)
-            for c in cells:
-                if c["range"] != r:
-                    continue
-                i, j = depths.index(c["depth"]), widths.index(c["width"])
-                z[i, j] = c["reached"] / c["of"] if c["of"] else np.nan
-                ax.text(j, i, f"{c['reached']}/{c['of']}", ha="center", va="center", fontsize=7)
-                key = (r, c["depth"], c["width"])
-                if ref is not None and label != reference and (key in mine) != (key in ref):
-                    ax.add_patch(Rectangle((j - 0.46, i - 0.46), 0.92, 0.92, fill=False, lw=2.2,
-                                           edgecolor="#1a7f37" if key in mine else "#cf222e"))
-            im = ax.imshow(z, origin="lower", cmap="RdYlGn", vmin=0.0, vmax=1.0, aspect="auto")
-            ax.set_xticks(range(len(widths)), [f"{w * 100:.0f}" for w in widths], fontsize=7)
-            ax.set_yticks(range(len(depths)), [f"{d * 100:.0f}" for d in depths], fontsize=7)
-            ax.set_xlabel("U width (cm)", fontsize=8)
-            ax.set_ylabel("U depth (cm)", fontsize=8)
-            ax.set_title(f"sensing range {r * 100:.0f} cm", fontsize=8)
+            im = _range_panel(ax, cells, r, depths, widths, frames)
         sub.colorbar(im, ax=row_axes.tolist(), fraction=0.03, label="share of runs reaching the goal")
     fig.suptitle(f"Fig. 9 as a grid: a cell is negotiated at >= {need} runs"
                  + (f"\nframed: negotiated by this row and not by {reference} (green), or the reverse (red)"
