@@ -148,7 +148,8 @@ def fuzz(port: int, total: int, batch: int, neurons: int, seed: int, last_tick: 
                                "messages unsent"
             late = hold is not None and tick > due
             with hold() if late else contextlib.nullcontext():
-                held, holds = (clock.tick, holds + 1) if late else (held, holds)
+                if late:
+                    held, holds = clock.tick, holds + 1
                 for f in make_corpus(rng, min(batch, total - len(sent)), clock.tick, ["r1"], neurons,
                                      start=len(sent)):
                     session.put(f.key, f.payload, congestion_control=block)
