@@ -26,7 +26,7 @@ def tune_group() -> None:
 def mix_option(help: str):
     """``--mix``, the generated geometry mix (the keys of scenarios.MIXES, which a test keeps
     equal; not imported here, as scenarios pulls in the world)."""
-    return click.option("--mix", type=click.Choice(["default", "wide", "route"]), default="default",
+    return click.option("--mix", type=click.Choice(["default", "wide", "route", "movers"]), default="default",
                         show_default=True, help=help)
 
 
@@ -49,11 +49,13 @@ def mix_option(help: str):
               help="Generations between validations.")
 @click.option("--max-time", type=Finite(min=0.2), help="Sim seconds per run (default 90 navigation, 30 tracking).")
 @mix_option("Navigation: the generated geometries trained and validated on (wide: also disc rows with "
-            "narrow gaps, long walls and narrow deep U's; route: also a goal in a narrow alcove).")
+            "narrow gaps, long walls and narrow deep U's; route: also a goal in a narrow alcove; "
+            "movers: the wide mix with rooms with movers a third of the time).")
 @click.option("--hold", multiple=True, help="An output held at today's value (its rows of W and V stay 0), e.g. "
                                           "sigma_b_d_near; repeat for more.")
 @click.option("--per-field", is_flag=True, help="Also learn V: each obstacle field's widths from its own "
-                                                "features (nearness, angle, nearest, lone ray), not one set a tick.")
+                                                "features (nearness, angle, nearest, lone ray, closing speed), not one "
+                                                "set a tick.")
 @click.option("--init", "init", type=click.Path(dir_okay=False, exists=True), default=None,
               help="A policy file the search starts from (default: today's constants); kept if it is the best "
                    "on validation.")

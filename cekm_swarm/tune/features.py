@@ -67,14 +67,60 @@ def field_features(w: np.ndarray, obstacle_winners: Iterable[int | None], target
                      min(max(teammates, 0.0), 1.0)], dtype=np.float64)
 
 
-FIELD_FEATURES = ("near", "off_heading", "toward_target", "nearest", "lone")
+FIELD_FEATURES = ("near", "off_heading", "toward_target", "nearest", "lone", "closing")
 """Names of one obstacle field's own features g_j (:func:`obstacle_features`), in order."""
 
 N_FIELD_FEATURES = len(FIELD_FEATURES)
 
 
+CLOSING_SCALE = 0.3
+"""m/s of closing speed beyond the robot's own approach that make the feature ``closing`` 1
+(twice the robot's c* is 0.31 m/s: a mover crossing toward it)."""
+CLOSING_DT_MAX = 1.0
+"""s: readings farther apart than this are not differenced (a sensor that was blind)."""
+
+
+def closing_speed(before: tuple[float, float] | None, now: tuple[float, float], alpha: float,
+                  forward: float) -> float:
+    """How fast a sensor's reading (stamp, d) closes in beyond what the robot's own forward
+    speed explains for a still thing at bearing ``alpha`` (m/s, >= 0): (d_before - d_now) / dt
+    - forward * cos(alpha). 0 with no earlier reading, or one older than CLOSING_DT_MAX.
+    A wall the robot drives at closes at about its own speed and gives ~0; a mover coming
+    at it from the side gives its speed."""
+    if before is None:
+        return 0.0
+    dt = now[0] - before[0]
+    if not 0.0 < dt <= CLOSING_DT_MAX:
+        return 0.0
+    return max((before[1] - now[1]) / dt - forward * max(math.cos(alpha), 0.0), 0.0)
+
+
+class ClosingSpeeds:
+    """Each sensor's last reading, to difference the next one against (:func:`closing_speed`).
+
+    One per motor node: the only state of the features, and none of the fields' (a field is
+    still a pure function of its winner and widths)."""
+
+    def __init__(self) -> None:
+        self._last: dict[int, tuple[float, float]] = {}
+
+    def update(self, w: np.ndarray, readings: Sequence[tuple[float, int, int | None]], forward: float) -> list[float]:
+        """Each reading's (stamp, sensor index, winner) closing speed, in order; remembers them.
+        ``forward``: the robot's forward speed, the mean of its last wheel command (m/s)."""
+        out = []
+        for stamp, i, s in readings:
+            if s is None:
+                self._last.pop(i, None)
+                out.append(0.0)
+                continue
+            now = (float(stamp), float(w[s, 1]))
+            out.append(closing_speed(self._last.get(i), now, float(w[s, 0]), forward))
+            self._last[i] = now
+        return out
+
+
 def obstacle_features(w: np.ndarray, obstacle_winners: Sequence[int | None], indices: Sequence[int],
-                      target: tuple[float, float] | None) -> np.ndarray:
+                      target: tuple[float, float] | None, closing: Sequence[float] | None = None) -> np.ndarray:
     """g_j of each obstacle field of one tick (rows in the order given; zeros for a sensor
     that sees nothing), each in [0, 1]: what the per-field widths of the policy read.
 
@@ -83,7 +129,8 @@ def obstacle_features(w: np.ndarray, obstacle_winners: Sequence[int | None], ind
     the tick (ties all 1); lone: the share of its two neighbouring sensors (``indices``
     j - 1 and j + 1 around the ring of len(obstacle_winners) sensors, the world's 12 rays
     30 degrees apart) that see nothing -- 1/2 at a wall's end seen by one ray, 1 for a
-    thin thing, 0 along a wall.
+    thin thing, 0 along a wall; closing: the field's ``closing`` speed (:class:`ClosingSpeeds`,
+    m/s; none given: 0) over CLOSING_SCALE, at most 1 -- what tells a mover from a wall.
     """
     m = len(obstacle_winners)
     g = np.zeros((m, N_FIELD_FEATURES), dtype=np.float64)
@@ -100,5 +147,6 @@ def obstacle_features(w: np.ndarray, obstacle_winners: Sequence[int | None], ind
         a, d = float(w[s, 0]), float(w[s, 1])
         toward = 1.0 - abs(wrap_scalar(a - target[0])) / math.pi if t_ok and target is not None else 0.0
         lone = (((i - 1) % m) not in seeing) * 0.5 + (((i + 1) % m) not in seeing) * 0.5
-        g[row] = (proximity(d, d_max), abs(wrap_scalar(a)) / math.pi, toward, float(d <= nearest), lone)
+        c = 0.0 if closing is None else min(max(closing[row] / CLOSING_SCALE, 0.0), 1.0)
+        g[row] = (proximity(d, d_max), abs(wrap_scalar(a)) / math.pi, toward, float(d <= nearest), lone, c)
     return g

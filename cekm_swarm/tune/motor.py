@@ -31,9 +31,10 @@ from cekm_swarm.modules.tracking_localization import tracking_activity, tracking
 from cekm_swarm.node import In, Node, NodeError, Out
 from cekm_swarm.protocol import ObstacleField, TargetField, TrackingField, WheelCommand
 from cekm_swarm.protocol.checks import lattice_misfit
+from cekm_swarm.robot import Khepera
 from cekm_swarm.ticks import tick_of
 
-from .features import field_features, obstacle_features
+from .features import ClosingSpeeds, field_features, obstacle_features
 from .policy import FieldChoice, FieldPolicy, shipped_policy
 
 ROWS_KEPT = 256
@@ -63,6 +64,13 @@ class _PolicyFields:
         self.last_choice: FieldChoice | None = None
         self.last_widths: list[tuple[float, float, float]] | None = None  # each obstacle field's, last tick
         self._rows: dict[tuple[int, float, float, float], np.ndarray] = {}
+        self._closing = ClosingSpeeds()  # each sensor's last reading (the feature "closing")
+        self._forward = 0.0  # the robot's forward speed, from the last command sent (m/s)
+
+    def _sent(self, v_l: float, v_r: float) -> None:
+        """Remember the command sent: the robot's own approach, which ``closing`` discounts."""
+        v = Khepera.v_max
+        self._forward = (min(max(v_l, -v), v) + min(max(v_r, -v), v)) / 2.0
 
     def _choose(self, features: np.ndarray) -> FieldChoice:
         self.last_features = features
@@ -77,7 +85,8 @@ class _PolicyFields:
         environment's action overrides it). Rows are cached by (winner, widths): exact."""
         fp: FieldParams | None = None  # the tick's, when every field has them
         if self.override is None and self.policy.per_field:
-            g = obstacle_features(w, [f.winner for f in fields], [f.index for f in fields], target)
+            closing = self._closing.update(w, [(f.stamp, f.index, f.winner) for f in fields], self._forward)
+            g = obstacle_features(w, [f.winner for f in fields], [f.index for f in fields], target, closing)
             widths = [(a, b, c) for a, b, c in self.policy.field_widths(features, g).tolist()]
         else:
             fp = choice.fields
@@ -127,6 +136,7 @@ class FieldMotor(_PolicyFields, Node):
         choice = self._choose(features)
         out = self.ekm.integrate(target_activity(tf), self._obstacles(self.ekm.w, fields, choice, target,
                                                                       features))  # Eqs. 9-11
+        self._sent(out.v_l, out.v_r)
         return {"command": WheelCommand(t, self.ctx.sender, out.v_l, out.v_r, tick_of(t))}
 
 
@@ -167,4 +177,5 @@ class FieldTrackingMotor(_PolicyFields, Node):
         if act is not None and choice.teammate_gain != 1.0:
             act = replace(act, b_team=choice.teammate_gain * act.b_team)
         out = self.tekm.integrate(act, self._obstacles(w, fields, choice, target, features))  # Eqs. 9-11
+        self._sent(out.v_l, out.v_r)
         return {"command": WheelCommand(t, self.ctx.sender, out.v_l, out.v_r, tick_of(t))}

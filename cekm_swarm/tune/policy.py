@@ -26,9 +26,13 @@ from ..models.params import FieldParams
 from .features import FEATURES, FIELD_FEATURES, N_FEATURES, N_FIELD_FEATURES
 
 FORMAT = "cekm-field-policy"
-VERSION = 2
-"""The file format's version: 1 has W only; 2 adds the per-field weights V (a version-1
-file loads with V = 0, and a policy without V is still written as version 1)."""
+VERSION = 3
+"""The file format's version: 1 has W only; 2 adds the per-field weights V over five field
+features; 3 adds the sixth, ``closing``. A version-1 file loads with no V, a version-2 file
+with V's ``closing`` column 0 (the same policy exactly), and a policy without V is still
+written as version 1."""
+FIELD_FEATURES_V2 = FIELD_FEATURES[:5]
+"""The per-field features of a version-2 file."""
 TASKS = ("navigation", "tracking")
 
 OUTPUTS: dict[str, tuple[str, ...]] = {
@@ -145,7 +149,7 @@ class FieldPolicy:
         if self.V is None:
             fp = self.choose(features).fields
             return np.tile([fp.sigma_b_alpha, fp.sigma_b_d_beyond, fp.sigma_b_d_near], (len(field_features), 1))
-        pre = self.W[:k] @ features
+        pre = (self.W @ features)[:k]  # not W[:k] @ f: a 3-row product may round otherwise than choose()'s
         a = np.tanh(pre[None, :] + np.asarray(field_features, dtype=np.float64) @ self.V.T)
         out: np.ndarray = self.base[:k] * np.exp(self.span[:k] * a)
         return out
@@ -192,8 +196,8 @@ class FieldPolicy:
             raise ParameterError(f"{path}: its features/outputs are not this version's {list(FEATURES)} / "
                                  f"{list(OUTPUTS[task])}")
         version = doc.get("version", 1)
-        if version not in (1, VERSION):
-            raise ParameterError(f"{path}: format version {version!r}; this code reads versions 1 and {VERSION}")
+        if version not in (1, 2, VERSION):
+            raise ParameterError(f"{path}: format version {version!r}; this code reads versions 1 to {VERSION}")
         try:
             W = np.asarray(doc.get("weights"), dtype=np.float64)
             V = None if version == 1 else np.asarray(doc.get("field_weights"), dtype=np.float64)
@@ -202,12 +206,15 @@ class FieldPolicy:
         if W.shape != (len(OUTPUTS[task]), N_FEATURES):
             raise ParameterError(f"{path}: weights must be {len(OUTPUTS[task])} x {N_FEATURES}, got shape {W.shape}")
         if V is not None:
-            if doc.get("field_features") != list(FIELD_FEATURES) or doc.get("field_outputs") != list(WIDTHS):
-                raise ParameterError(f"{path}: its field_features/field_outputs are not this version's "
-                                     f"{list(FIELD_FEATURES)} / {list(WIDTHS)}")
-            if V.shape != (len(WIDTHS), N_FIELD_FEATURES):
-                raise ParameterError(f"{path}: field_weights must be {len(WIDTHS)} x {N_FIELD_FEATURES}, "
+            names = FIELD_FEATURES_V2 if version == 2 else FIELD_FEATURES
+            if doc.get("field_features") != list(names) or doc.get("field_outputs") != list(WIDTHS):
+                raise ParameterError(f"{path}: its field_features/field_outputs are not version {version}'s "
+                                     f"{list(names)} / {list(WIDTHS)}")
+            if V.shape != (len(WIDTHS), len(names)):
+                raise ParameterError(f"{path}: field_weights must be {len(WIDTHS)} x {len(names)}, "
                                      f"got shape {V.shape}")
+            if version == 2:  # the features it was trained on, and closing not read: the same policy
+                V = np.concatenate([V, np.zeros((len(WIDTHS), N_FIELD_FEATURES - len(names)))], axis=1)
         return cls(task, W, doc.get("meta"), V)
 
 

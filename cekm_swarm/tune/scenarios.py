@@ -32,7 +32,10 @@ whose end the robot rounds, and narrow deep U's (Fig. 9's stall cells); docs/fie
 ROUTE_KINDS = (*WIDE_KINDS, "alcove")
 """``--mix route``: the wide mix and a goal at the bottom of a narrow alcove in a corner
 (Fig. 12's last checkpoint, where learned policies stall against the alcove's wall end)."""
-MIXES = {"default": KINDS, "wide": WIDE_KINDS, "route": ROUTE_KINDS}
+MOVER_KINDS = (*WIDE_KINDS, "movers", "movers")
+"""``--mix movers``: the wide mix with rooms with movers three times as often (a third of
+the scenarios): the geometry a closing speed is for (docs/fields.md, the third round)."""
+MIXES = {"default": KINDS, "wide": WIDE_KINDS, "route": ROUTE_KINDS, "movers": MOVER_KINDS}
 SEED_BASE = {"train": 1_000_000, "validation": 2_000_000, "test": 3_000_000}
 """Scenario seeds by purpose: purpose p's i-th scenario has seed SEED_BASE[p] + i."""
 

@@ -12,7 +12,14 @@ from cekm_swarm.errors import ParameterError
 from cekm_swarm.experiments.graph_run import run_graph
 from cekm_swarm.models.params import FieldParams
 from cekm_swarm.node.graph_check import check_graph
-from cekm_swarm.tune.features import FEATURES, FIELD_FEATURES, field_features, obstacle_features
+from cekm_swarm.tune.features import (
+    FEATURES,
+    FIELD_FEATURES,
+    ClosingSpeeds,
+    closing_speed,
+    field_features,
+    obstacle_features,
+)
 from cekm_swarm.tune.graphs import fields_graph, policy_graph, with_fields
 from cekm_swarm.tune.policy import FieldPolicy, shipped_policy
 from world import load_scenario
@@ -56,7 +63,8 @@ def test_without_v_every_field_gets_the_ticks_widths_bit_for_bit():
     """V = 0 (or no V) is the tick's policy exactly; W = V = 0 today's constants."""
     rng = np.random.default_rng(4)
     f, g = rng.uniform(0, 1, len(FEATURES)), rng.uniform(0, 1, (12, len(FIELD_FEATURES)))
-    assert FieldPolicy("navigation", field_weights=np.zeros((3, 5))).field_params(f, g) == [FieldParams()] * 12
+    no_v = FieldPolicy("navigation", field_weights=np.zeros((3, len(FIELD_FEATURES))))
+    assert no_v.field_params(f, g) == [FieldParams()] * 12
     for task in ("navigation", "tracking"):
         W = rng.normal(0, 1, (len(FieldPolicy(task).outputs), len(FEATURES)))
         tick = FieldPolicy(task, W).choose(f).fields
@@ -77,27 +85,36 @@ def test_v_gives_each_field_its_own_widths_within_the_span():
 
 
 def test_flat_weights_and_their_lengths():
-    p = FieldPolicy.from_flat("navigation", tuple(range(42)))
-    assert p.W[2, 8] == 26 and p.V is not None and p.V[2, 4] == 41 and p.flat() == tuple(float(x) for x in range(42))
+    p = FieldPolicy.from_flat("navigation", tuple(range(45)))
+    assert p.W[2, 8] == 26 and p.V is not None and p.V[2, 5] == 44 and p.flat() == tuple(float(x) for x in range(45))
     assert FieldPolicy.from_flat("navigation", (0.0,) * 27).V is None
-    assert FieldPolicy.size("tracking", per_field=True) == 36 + 15
-    with pytest.raises(ParameterError, match=r"takes 27 \(W\) or 42 \(W and V\) numbers, got 30"):
+    assert FieldPolicy.size("tracking", per_field=True) == 36 + 18
+    with pytest.raises(ParameterError, match=r"takes 27 \(W\) or 45 \(W and V\) numbers, got 30"):
         FieldPolicy.from_flat("navigation", (0.0,) * 30)
 
 
 def test_a_v_policy_file_round_trips_and_old_files_load(tmp_path):
     old = FieldPolicy.load(shipped_policy("navigation"))  # version 1: no V
     assert old.V is None and not old.per_field and old.to_dict()["version"] == 1
-    p = FieldPolicy("navigation", old.W, {"seed": 5}, np.arange(15.0).reshape(3, 5) / 10)
+    p = FieldPolicy("navigation", old.W, {"seed": 5}, np.arange(18.0).reshape(3, 6) / 10)
     p.save(tmp_path / "v.json")
     q = FieldPolicy.load(tmp_path / "v.json")
-    assert q.to_dict()["version"] == 2 and np.array_equal(q.V, p.V) and np.array_equal(q.W, p.W) and q.meta == p.meta
+    assert q.to_dict()["version"] == 3 and np.array_equal(q.V, p.V) and np.array_equal(q.W, p.W) and q.meta == p.meta
     doc = p.to_dict()
+    v2 = {**doc, "version": 2, "field_features": list(FIELD_FEATURES[:5]), "field_weights": (p.V[:, :5]).tolist()}
+    (tmp_path / "v2.json").write_text(json.dumps(v2))
+    r = FieldPolicy.load(tmp_path / "v2.json")  # five features, closing's column 0: the same policy
+    assert r.V is not None and np.array_equal(r.V[:, :5], p.V[:, :5]) and not r.V[:, 5].any()
+    g = np.random.default_rng(1).uniform(0, 1, (12, len(FIELD_FEATURES)))
+    g5 = g.copy()
+    g5[:, 5] = 0.0
+    f = np.ones(len(FEATURES))
+    assert np.array_equal(r.field_widths(f, g), FieldPolicy("navigation", old.W, field_weights=r.V).field_widths(f, g5))
     bad = tmp_path / "bad.json"
-    for key, value, message in (("field_features", ["near"], "field_features/field_outputs are not this version's"),
-                                ("field_weights", [[0.0]], "field_weights must be 3 x 5, got shape \\(1, 1\\)"),
+    for key, value, message in (("field_features", ["near"], "field_features/field_outputs are not version 3's"),
+                                ("field_weights", [[0.0]], "field_weights must be 3 x 6, got shape \\(1, 1\\)"),
                                 ("field_weights", "many", "weights must be arrays of numbers"),
-                                ("version", 3, "format version 3; this code reads versions 1 and 2")):
+                                ("version", 4, "format version 4; this code reads versions 1 to 3")):
         bad.write_text(json.dumps({**doc, key: value}))
         with pytest.raises(ParameterError, match=message):
             FieldPolicy.load(bad)
@@ -116,7 +133,23 @@ def test_each_field_sees_its_own_situation():
     assert [r["nearest"] for r in row] == [1, 0, 0, 0, 0, 0]
     assert row[0]["lone"] == 0.5 and row[1]["lone"] == 0.0 and row[2]["lone"] == 0.5 and row[4]["lone"] == 1.0
     assert not g[3].any() and not g[5].any()
-    assert obstacle_features(w, [None, 1, None], [0, 1, 2], None)[1].tolist() == [0.0, 0.0, 0.0, 1.0, 1.0]
+    assert obstacle_features(w, [None, 1, None], [0, 1, 2], None)[1].tolist() == [0.0, 0.0, 0.0, 1.0, 1.0, 0.0]
+    assert obstacle_features(w, [0, 1], [0, 1], None, [0.15, 9.0])[:, 5].tolist() == [0.5, 1.0]
+
+
+def test_closing_tells_a_mover_from_the_robots_own_approach():
+    """A wall ahead closing at the robot's own speed gives 0; the same closing beside the
+    robot (nothing it drives at) is a mover's; an old or missing reading gives 0."""
+    assert closing_speed((0.0, 0.10), (0.5, 0.05), 0.0, 0.1) == pytest.approx(0.0)
+    assert closing_speed((0.0, 0.10), (0.5, 0.05), math.pi / 2, 0.1) == pytest.approx(0.1)
+    assert closing_speed((0.0, 0.05), (0.5, 0.10), math.pi / 2, 0.0) == 0.0  # receding
+    assert closing_speed(None, (0.5, 0.05), 0.0, 0.0) == 0.0
+    assert closing_speed((0.0, 0.10), (2.0, 0.05), 0.0, 0.0) == 0.0
+    w = np.array([[math.pi / 2, 0.10], [math.pi / 2, 0.07], [0.0, 0.10]])
+    c = ClosingSpeeds()
+    assert c.update(w, [(0.0, 3, 0), (0.0, 4, 2)], 0.0) == [0.0, 0.0]
+    assert c.update(w, [(0.25, 3, 1), (0.25, 4, None)], 0.0) == [pytest.approx(0.12), 0.0]
+    assert c.update(w, [(0.5, 3, 1), (0.5, 4, 2)], 0.0) == [0.0, 0.0]  # sensor 4 was blind: no difference
 
 
 def test_features_see_an_obstacle_ahead_and_the_target():
@@ -136,7 +169,7 @@ def test_the_motor_node_uses_the_policys_widths():
     checked = check_graph(policy_graph("navigation"))
     base = run_graph(sc, "cekm").episode.outcome()
     zero = run_graph(sc, graph=checked, params={"weights": (0.0,) * 27}).episode.outcome()
-    zero_v = run_graph(sc, graph=checked, params={"weights": (0.0,) * 42}).episode.outcome()
+    zero_v = run_graph(sc, graph=checked, params={"weights": (0.0,) * 45}).episode.outcome()
     W = np.zeros((3, len(FEATURES)))
     W[0, 1] = 3.0  # sigma_b_alpha up with an obstacle ahead
     wide = run_graph(sc, graph=checked, params={"weights": tuple(W.ravel().tolist())}).episode.outcome()

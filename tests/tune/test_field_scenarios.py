@@ -47,6 +47,8 @@ def test_the_wide_mix_draws_its_own_kinds_too_and_they_are_what_they_say():
     assert 0.12 <= 3.0 - x <= 0.2 and x < gx < 3.0 and gy < d  # the goal inside the corner's alcove
     assert {navigation_raw(i, mix="route")["name"].split("-")[1] for i in range(60)} == set(KINDS) | {
         "gaps", "wall", "alcove"}
+    kinds = [navigation_raw(i, mix="movers")["name"].split("-")[1] for i in range(300)]
+    assert set(kinds) == set(KINDS) | {"gaps", "wall"} and 0.25 < kinds.count("movers") / 300 < 0.42  # a third
     assert scenario_of("navigation", ("mix", "wide", 9))[0].name == navigation_scenario(9, mix="wide").name
     with pytest.raises(ParameterError, match="unknown geometry mix"):
         navigation_raw(9, mix="maze")

@@ -57,18 +57,18 @@ def test_held_outputs_keep_their_rows_of_w_at_zero():
 
 def test_per_field_training_searches_w_and_v_and_holds_both_rows():
     c = TuneConfig(per_field=True, hold=("sigma_b_d_near",))
-    assert search_size(c) == 2 * 9 + 2 * 5 and search_size(TuneConfig()) == 27
-    flat = full_weights(c, np.arange(28.0) + 1)
-    W, V = flat[:27].reshape(3, 9), flat[27:].reshape(3, 5)
+    assert search_size(c) == 2 * 9 + 2 * 6 and search_size(TuneConfig()) == 27
+    flat = full_weights(c, np.arange(30.0) + 1)
+    W, V = flat[:27].reshape(3, 9), flat[27:].reshape(3, 6)
     assert np.array_equal(W[:2].ravel(), np.arange(18.0) + 1) and not W[2].any()
-    assert np.array_equal(V[:2].ravel(), np.arange(18.0, 28.0) + 1) and not V[2].any()
+    assert np.array_equal(V[:2].ravel(), np.arange(18.0, 30.0) + 1) and not V[2].any()
     assert command_of(c).endswith("--hold sigma_b_d_near --per-field") and "--per-field" not in command_of(TuneConfig())
     trk = TuneConfig(task="tracking", per_field=True, hold=("teammate_gain",))
-    assert search_size(trk) == 3 * 9 + 3 * 5 and full_weights(trk, np.ones(42)).size == 36 + 15
+    assert search_size(trk) == 3 * 9 + 3 * 6 and full_weights(trk, np.ones(45)).size == 36 + 18
 
 
 def test_a_search_starts_from_an_init_policy_or_refuses_it(tmp_path):
-    W, V = np.zeros((3, 9)), np.zeros((3, 5))
+    W, V = np.zeros((3, 9)), np.zeros((3, 6))
     W[0], W[1, 2], V[1, 4] = 0.5, -1.0, 2.0
     FieldPolicy("navigation", W, field_weights=V).save(tmp_path / "start.json")
     c = TuneConfig(per_field=True, hold=("sigma_b_d_near",), init=str(tmp_path / "start.json"))
@@ -138,6 +138,6 @@ def test_killed_and_resumed_gives_the_same_policy_bit_for_bit(tmp_path):
     a = (tmp_path / "whole" / "policy.json").read_bytes()
     assert a == (tmp_path / "killed" / "policy.json").read_bytes()
     doc = json.loads(a)
-    assert doc["meta"]["config"]["seed"] == 7 and doc["version"] == 2 and len(doc["field_weights"]) == 3
+    assert doc["meta"]["config"]["seed"] == 7 and doc["version"] == 3 and len(doc["field_weights"]) == 3
     history = (tmp_path / "killed" / "history.jsonl").read_text().splitlines()
     assert [json.loads(x)["generation"] for x in history] == [1, 2, 3, 4]
