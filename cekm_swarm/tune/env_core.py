@@ -122,8 +122,7 @@ class FieldEnvCore:
         return (seen - last_seen) / (self._live.max_ticks + 1)
 
     def _fields_info(self, choice: FieldChoice) -> dict[str, float]:
-        return dict(zip(self.policy.outputs, (choice.fields.sigma_b_alpha, choice.fields.sigma_b_d_beyond,
-                                              choice.fields.sigma_b_d_near, choice.teammate_gain), strict=False))
+        return self.policy.outputs_of(choice)
 
     def outcome(self) -> dict[str, dict]:
         """The run's outcome as ``cekm run`` reports it (per robot)."""

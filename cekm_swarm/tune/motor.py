@@ -22,8 +22,8 @@ from typing import Any
 
 import numpy as np
 
-from cekm_swarm.controller.cooperative import ObstacleActivity
-from cekm_swarm.models.fields import obstacle_field
+from cekm_swarm.controller.cooperative import ObstacleActivity, TargetActivity
+from cekm_swarm.models.fields import obstacle_field, target_field
 from cekm_swarm.models.params import FieldParams, TrackingParams, narrowed
 from cekm_swarm.modules.ekm import cooperative_ekm
 from cekm_swarm.modules.motor_integration import target_activity
@@ -64,6 +64,7 @@ class _PolicyFields:
         self.last_choice: FieldChoice | None = None
         self.last_widths: list[tuple[float, float, float]] | None = None  # each obstacle field's, last tick
         self._rows: dict[tuple[int, float, float, float], np.ndarray] = {}
+        self._sigma_a_d = self.policy.base_fields.sigma_a_d  # the target module's width (Eq. 6)
         self._closing = ClosingSpeeds()  # each sensor's last reading (the feature "closing")
         self._forward = 0.0  # the robot's forward speed, from the last command sent (m/s)
 
@@ -77,6 +78,19 @@ class _PolicyFields:
         choice = self.override if self.override is not None else self.policy.choose(features)
         self.last_choice = choice
         return choice
+
+    def _target(self, w: np.ndarray, act: TargetActivity | None, choice: FieldChoice) -> TargetActivity | None:
+        """The target field a with the choice's sigma_a_d (Eq. 6): the target module's own row
+        when it is the base width (so W = 0 is today's run, bit for bit), else recomputed from
+        its winner (a pure function of winner and widths: exact). Rows cached as Eq. 8's."""
+        sd = choice.fields.sigma_a_d
+        if act is None or act.a is None or act.winner is None or sd == self._sigma_a_d:
+            return act
+        key = (-1 - act.winner, sd, 0.0, 0.0)  # winners as negative keys: apart from the obstacle rows
+        a = self._rows.get(key)
+        if a is None:
+            a = self._rows[key] = target_field(w, act.winner, choice.fields)
+        return replace(act, a=a)
 
     def _obstacles(self, w: np.ndarray, fields, choice: FieldChoice, target: tuple[float, float] | None,
                    features: np.ndarray) -> list[ObstacleActivity]:
@@ -134,8 +148,8 @@ class FieldMotor(_PolicyFields, Node):
         target = None if tf is None or tf.a is None else (tf.alpha, tf.d)
         features = field_features(self.ekm.w, [f.winner for f in fields], target)
         choice = self._choose(features)
-        out = self.ekm.integrate(target_activity(tf), self._obstacles(self.ekm.w, fields, choice, target,
-                                                                      features))  # Eqs. 9-11
+        out = self.ekm.integrate(self._target(self.ekm.w, target_activity(tf), choice),
+                                 self._obstacles(self.ekm.w, fields, choice, target, features))  # Eqs. 9-11
         self._sent(out.v_l, out.v_r)
         return {"command": WheelCommand(t, self.ctx.sender, out.v_l, out.v_r, tick_of(t))}
 

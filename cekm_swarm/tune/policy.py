@@ -28,22 +28,27 @@ from .features import FEATURES, FIELD_FEATURES, N_FEATURES, N_FIELD_FEATURES
 FORMAT = "cekm-field-policy"
 VERSION = 3
 """The file format's version: 1 has W only; 2 adds the per-field weights V over five field
-features; 3 adds the sixth, ``closing``. A version-1 file loads with no V, a version-2 file
-with V's ``closing`` column 0 (the same policy exactly), and a policy without V is still
-written as version 1."""
+features; 3 adds the sixth field feature, ``closing``, and navigation's fourth output,
+``sigma_a_d``. A version-1 file loads with no V, a version-2 file with V's ``closing``
+column 0, and either with W's ``sigma_a_d`` row 0: the same policy exactly. A policy a
+version-1 file can hold (no V, no sigma_a_d) is still written as version 1."""
 FIELD_FEATURES_V2 = FIELD_FEATURES[:5]
 """The per-field features of a version-2 file."""
 TASKS = ("navigation", "tracking")
 
 OUTPUTS: dict[str, tuple[str, ...]] = {
-    "navigation": ("sigma_b_alpha", "sigma_b_d_beyond", "sigma_b_d_near"),
+    "navigation": ("sigma_b_alpha", "sigma_b_d_beyond", "sigma_b_d_near", "sigma_a_d"),
     "tracking": ("sigma_b_alpha", "sigma_b_d_beyond", "sigma_b_d_near", "teammate_gain"),
 }
 """What the policy sets, by task: the obstacle field's widths (Eq. 8, the paper's
-sigma_b_alpha and sigma_b_d) and, for tracking, a gain on the teammate fields' sum."""
+sigma_b_alpha and sigma_b_d); for navigation, from format version 3, also the target
+field's width along the distance (Eq. 6's sigma_a_d); for tracking, a gain on the
+teammate fields' sum."""
+OUTPUTS_V2 = {"navigation": OUTPUTS["navigation"][:3], "tracking": OUTPUTS["tracking"]}
+"""The outputs of a version-1 or -2 file (navigation's had no sigma_a_d)."""
 
 SPAN = {"sigma_b_alpha": math.log(2.0), "sigma_b_d_beyond": math.log(4.0), "sigma_b_d_near": math.log(2.0),
-        "teammate_gain": math.log(2.0)}
+        "sigma_a_d": math.log(2.0), "teammate_gain": math.log(2.0)}
 """How far (log factor) the policy may move each parameter from its base."""
 
 WIDTHS = ("sigma_b_alpha", "sigma_b_d_beyond", "sigma_b_d_near")
@@ -56,6 +61,8 @@ def base_values(task: str) -> dict[str, float]:
     fp = FieldParams() if task == "navigation" else FieldParams.paper()
     out = {"sigma_b_alpha": fp.sigma_b_alpha, "sigma_b_d_beyond": fp.sigma_b_d_beyond,
            "sigma_b_d_near": fp.sigma_b_d_near}
+    if task == "navigation":
+        out["sigma_a_d"] = fp.sigma_a_d
     if task == "tracking":
         out["teammate_gain"] = 1.0
     return out
@@ -99,6 +106,8 @@ class FieldPolicy:
         self.base = np.array([base[o] for o in self.outputs])
         self.span = np.array([SPAN[o] for o in self.outputs])
         self._fields = FieldParams() if task == "navigation" else FieldParams.paper()
+        self.base_fields = self._fields
+        """The field parameters of W = 0 (today's constants): what the modules compute with."""
 
     @classmethod
     def size(cls, task: str, per_field: bool = False) -> int:
@@ -130,8 +139,13 @@ class FieldPolicy:
         v = self.values(action)
         gain = v.pop("teammate_gain", 1.0)
         f = self._fields
-        return FieldChoice(FieldParams(f.sigma_a_alpha, f.sigma_a_d, v["sigma_b_alpha"], v["sigma_b_d_beyond"],
-                                       v["sigma_b_d_near"]), gain)
+        return FieldChoice(FieldParams(f.sigma_a_alpha, v.get("sigma_a_d", f.sigma_a_d), v["sigma_b_alpha"],
+                                       v["sigma_b_d_beyond"], v["sigma_b_d_near"]), gain)
+
+    def outputs_of(self, choice: FieldChoice) -> dict[str, float]:
+        """The value of each of the task's outputs in ``choice``, by name (the inverse of :meth:`choice`)."""
+        return {o: choice.teammate_gain if o == "teammate_gain" else float(getattr(choice.fields, o))
+                for o in self.outputs}
 
     def action(self, features: np.ndarray) -> np.ndarray:
         """tanh(W f): the policy's action for the features f."""
@@ -160,16 +174,23 @@ class FieldPolicy:
         return FieldParams(f.sigma_a_alpha, f.sigma_a_d, *widths)
 
     def field_params(self, features: np.ndarray, field_features: np.ndarray) -> list[FieldParams]:
-        """:meth:`field_widths` as each obstacle field's FieldParams."""
-        return [self.widths_params(tuple(r)) for r in self.field_widths(features, field_features).tolist()]
+        """:meth:`field_widths` as each obstacle field's FieldParams (the target field's widths the tick's)."""
+        tick = self.choose(features).fields
+        return [FieldParams(tick.sigma_a_alpha, tick.sigma_a_d, *r)
+                for r in self.field_widths(features, field_features).tolist()]
 
     def to_dict(self) -> dict:
-        doc = {"format": FORMAT, "version": 1, "task": self.task, "features": list(FEATURES),
-               "outputs": list(self.outputs), "base": self.base.tolist(), "span": self.span.tolist(),
-               "weights": self.W.tolist()}
+        old = OUTPUTS_V2[self.task]
+        if self.V is None and not self.W[len(old):].any():  # what a version-1 file can say: written as one
+            doc = {"format": FORMAT, "version": 1, "task": self.task, "features": list(FEATURES),
+                   "outputs": list(old), "base": self.base[:len(old)].tolist(),
+                   "span": self.span[:len(old)].tolist(), "weights": self.W[:len(old)].tolist()}
+        else:
+            doc = {"format": FORMAT, "version": VERSION, "task": self.task, "features": list(FEATURES),
+                   "outputs": list(self.outputs), "base": self.base.tolist(), "span": self.span.tolist(),
+                   "weights": self.W.tolist()}
         if self.V is not None:
-            doc.update(version=VERSION, field_features=list(FIELD_FEATURES), field_outputs=list(WIDTHS),
-                       field_weights=self.V.tolist())
+            doc.update(field_features=list(FIELD_FEATURES), field_outputs=list(WIDTHS), field_weights=self.V.tolist())
         return {**doc, **({"meta": self.meta} if self.meta else {})}
 
     def save(self, path: Path) -> None:
@@ -192,19 +213,23 @@ class FieldPolicy:
         task = doc.get("task")
         if task not in TASKS:
             raise ParameterError(f"{path}: task must be one of {list(TASKS)}, got {task!r}")
-        if doc.get("features") != list(FEATURES) or doc.get("outputs") != list(OUTPUTS[task]):
-            raise ParameterError(f"{path}: its features/outputs are not this version's {list(FEATURES)} / "
-                                 f"{list(OUTPUTS[task])}")
         version = doc.get("version", 1)
         if version not in (1, 2, VERSION):
             raise ParameterError(f"{path}: format version {version!r}; this code reads versions 1 to {VERSION}")
+        outputs = OUTPUTS[task] if version == VERSION else OUTPUTS_V2[task]
+        if doc.get("features") != list(FEATURES) or doc.get("outputs") != list(outputs):
+            raise ParameterError(f"{path}: its features/outputs are not version {version}'s {list(FEATURES)} / "
+                                 f"{list(outputs)}")
         try:
             W = np.asarray(doc.get("weights"), dtype=np.float64)
-            V = None if version == 1 else np.asarray(doc.get("field_weights"), dtype=np.float64)
+            has_v = version == 2 or (version == VERSION and "field_weights" in doc)  # a 3 may have W only
+            V = np.asarray(doc.get("field_weights"), dtype=np.float64) if has_v else None
         except (TypeError, ValueError) as exc:
             raise ParameterError(f"{path}: weights must be arrays of numbers: {exc}") from None
-        if W.shape != (len(OUTPUTS[task]), N_FEATURES):
-            raise ParameterError(f"{path}: weights must be {len(OUTPUTS[task])} x {N_FEATURES}, got shape {W.shape}")
+        if W.shape != (len(outputs), N_FEATURES):
+            raise ParameterError(f"{path}: weights must be {len(outputs)} x {N_FEATURES}, got shape {W.shape}")
+        if len(outputs) < len(OUTPUTS[task]):  # an older file: the outputs it did not have stay at their base
+            W = np.concatenate([W, np.zeros((len(OUTPUTS[task]) - len(outputs), N_FEATURES))])
         if V is not None:
             names = FIELD_FEATURES_V2 if version == 2 else FIELD_FEATURES
             if doc.get("field_features") != list(names) or doc.get("field_outputs") != list(WIDTHS):

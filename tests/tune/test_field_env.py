@@ -37,7 +37,7 @@ def test_passes_gymnasiums_check(task, max_time):
 def test_same_seed_same_episode_other_seed_other_scenario():
     env = FieldEnv("navigation", max_time=8.0)
     rng = np.random.default_rng(5)
-    acts = [rng.uniform(-1, 1, 3) for _ in range(100)]
+    acts = [rng.uniform(-1, 1, env.action_space.shape) for _ in range(100)]
     a = _episode(env, 7, lambda: iter(acts))
     seed_a = env.scenario_seed
     b = _episode(env, 7, lambda: iter(acts))
@@ -48,15 +48,15 @@ def test_same_seed_same_episode_other_seed_other_scenario():
     assert env.scenario_seed != seed_a
 
 
-def test_an_action_moves_the_obstacle_widths_within_their_span():
+def test_an_action_moves_the_field_widths_within_their_span():
     env = FieldEnv("navigation", max_time=2.0)
     env.reset(seed=1)
-    _, _, _, _, info = env.step(np.array([1.0, -1.0, 0.0], dtype=np.float32))
+    _, _, _, _, info = env.step(np.array([1.0, -1.0, 0.0, 1.0], dtype=np.float32))
     f = info["fields"]
     base = FieldParams()
     assert f["sigma_b_alpha"] == pytest.approx(2 * base.sigma_b_alpha)
     assert f["sigma_b_d_beyond"] == pytest.approx(base.sigma_b_d_beyond / 4)
-    assert f["sigma_b_d_near"] == base.sigma_b_d_near
+    assert f["sigma_b_d_near"] == base.sigma_b_d_near and f["sigma_a_d"] == pytest.approx(2 * base.sigma_a_d)
 
 
 @pytest.mark.parametrize("name,max_time", [("concave", None), ("doorway", None), ("tracking", 8.0)])

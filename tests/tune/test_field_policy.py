@@ -33,7 +33,7 @@ def test_zero_weights_are_todays_constants_exactly():
 
 
 def test_the_action_is_bounded_by_the_span():
-    W = np.zeros((3, len(FEATURES)))
+    W = np.zeros((4, len(FEATURES)))
     W[0, 0], W[1, 0] = 100.0, -100.0
     v = FieldPolicy("navigation", W).choose(np.eye(len(FEATURES))[0]).fields
     assert v.sigma_b_alpha == pytest.approx(2 * 0.6) and v.sigma_b_d_beyond == pytest.approx(2.475 / 4)
@@ -85,26 +85,35 @@ def test_v_gives_each_field_its_own_widths_within_the_span():
 
 
 def test_flat_weights_and_their_lengths():
-    p = FieldPolicy.from_flat("navigation", tuple(range(45)))
-    assert p.W[2, 8] == 26 and p.V is not None and p.V[2, 5] == 44 and p.flat() == tuple(float(x) for x in range(45))
-    assert FieldPolicy.from_flat("navigation", (0.0,) * 27).V is None
+    p = FieldPolicy.from_flat("navigation", tuple(range(54)))
+    assert p.W[3, 8] == 35 and p.V is not None and p.V[2, 5] == 53 and p.flat() == tuple(float(x) for x in range(54))
+    assert FieldPolicy.from_flat("navigation", (0.0,) * 36).V is None
     assert FieldPolicy.size("tracking", per_field=True) == 36 + 18
-    with pytest.raises(ParameterError, match=r"takes 27 \(W\) or 45 \(W and V\) numbers, got 30"):
+    with pytest.raises(ParameterError, match=r"takes 36 \(W\) or 54 \(W and V\) numbers, got 30"):
         FieldPolicy.from_flat("navigation", (0.0,) * 30)
 
 
 def test_a_v_policy_file_round_trips_and_old_files_load(tmp_path):
-    old = FieldPolicy.load(shipped_policy("navigation"))  # version 1: no V
-    assert old.V is None and not old.per_field and old.to_dict()["version"] == 1
+    old = FieldPolicy.load(shipped_policy("navigation"))  # version 1: no V, no sigma_a_d (its row 0)
+    assert old.V is None and not old.per_field and old.to_dict()["version"] == 1 and not old.W[3].any()
+    assert old.choose(np.ones(len(FEATURES))).fields.sigma_a_d == FieldParams().sigma_a_d
+    W = old.W.copy()
+    W[3, 0] = 0.5  # sigma_a_d moves: a version-1 file cannot say it
+    FieldPolicy("navigation", W).save(tmp_path / "w.json")
+    assert FieldPolicy.load(tmp_path / "w.json").to_dict()["version"] == 3
+    assert np.array_equal(FieldPolicy.load(tmp_path / "w.json").W, W)
     p = FieldPolicy("navigation", old.W, {"seed": 5}, np.arange(18.0).reshape(3, 6) / 10)
     p.save(tmp_path / "v.json")
     q = FieldPolicy.load(tmp_path / "v.json")
     assert q.to_dict()["version"] == 3 and np.array_equal(q.V, p.V) and np.array_equal(q.W, p.W) and q.meta == p.meta
     doc = p.to_dict()
-    v2 = {**doc, "version": 2, "field_features": list(FIELD_FEATURES[:5]), "field_weights": (p.V[:, :5]).tolist()}
+    v2 = {**doc, "version": 2, "outputs": doc["outputs"][:3], "base": doc["base"][:3], "span": doc["span"][:3],
+          "weights": doc["weights"][:3], "field_features": list(FIELD_FEATURES[:5]),
+          "field_weights": (p.V[:, :5]).tolist()}
     (tmp_path / "v2.json").write_text(json.dumps(v2))
-    r = FieldPolicy.load(tmp_path / "v2.json")  # five features, closing's column 0: the same policy
+    r = FieldPolicy.load(tmp_path / "v2.json")  # five features, closing's column 0, sigma_a_d's row 0
     assert r.V is not None and np.array_equal(r.V[:, :5], p.V[:, :5]) and not r.V[:, 5].any()
+    assert np.array_equal(r.W, p.W) and not r.W[3].any()
     g = np.random.default_rng(1).uniform(0, 1, (12, len(FIELD_FEATURES)))
     g5 = g.copy()
     g5[:, 5] = 0.0
@@ -118,6 +127,9 @@ def test_a_v_policy_file_round_trips_and_old_files_load(tmp_path):
         bad.write_text(json.dumps({**doc, key: value}))
         with pytest.raises(ParameterError, match=message):
             FieldPolicy.load(bad)
+    bad.write_text(json.dumps({**v2, "outputs": doc["outputs"]}))  # version 2 with version 3's outputs
+    with pytest.raises(ParameterError, match="features/outputs are not version 2's"):
+        FieldPolicy.load(bad)
 
 
 def test_each_field_sees_its_own_situation():
@@ -168,14 +180,14 @@ def test_the_motor_node_uses_the_policys_widths():
     sc = load_scenario("concave")
     checked = check_graph(policy_graph("navigation"))
     base = run_graph(sc, "cekm").episode.outcome()
-    zero = run_graph(sc, graph=checked, params={"weights": (0.0,) * 27}).episode.outcome()
-    zero_v = run_graph(sc, graph=checked, params={"weights": (0.0,) * 45}).episode.outcome()
-    W = np.zeros((3, len(FEATURES)))
+    zero = run_graph(sc, graph=checked, params={"weights": (0.0,) * 36}).episode.outcome()
+    zero_v = run_graph(sc, graph=checked, params={"weights": (0.0,) * 54}).episode.outcome()
+    W = np.zeros((4, len(FEATURES)))
     W[0, 1] = 3.0  # sigma_b_alpha up with an obstacle ahead
     wide = run_graph(sc, graph=checked, params={"weights": tuple(W.ravel().tolist())}).episode.outcome()
     V = np.zeros((3, len(FIELD_FEATURES)))
     V[0, 0] = 3.0  # sigma_b_alpha up for the near fields only
-    near = run_graph(sc, graph=checked, params={"weights": (0.0,) * 27 + tuple(V.ravel().tolist())},
+    near = run_graph(sc, graph=checked, params={"weights": (0.0,) * 36 + tuple(V.ravel().tolist())},
                      max_time=60.0).episode.outcome()
     assert zero == base and zero_v == base and wide != base and near != base
 

@@ -28,7 +28,7 @@ def test_run_fields_paper_differs_from_the_default(tmp_path, capsys):
 
 
 def test_evaluate_writes_every_variant_on_the_same_held_out_scenarios(tmp_path):
-    W = np.zeros((3, N_FEATURES))
+    W = np.zeros((4, N_FEATURES))
     W[0, 1] = 2.0
     FieldPolicy("navigation", W).save(tmp_path / "p.json")
     r = CliRunner().invoke(main, ["tune", "evaluate", "--task", "navigation", "--policy", str(tmp_path / "p.json"),
