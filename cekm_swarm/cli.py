@@ -58,9 +58,13 @@ def main() -> None:
                    "run's length (default 120).")
 @click.option("--fields", type=click.Choice(["paper", "tuned", "learned"]), help="cekm's field widths: the paper's, "
               "today's hand-tuned (the default) or the learned field policy's (docs/fields.md).")
+@click.option("--policy", type=click.Path(dir_okay=False, exists=True, path_type=Path),
+              help="With --fields learned: a field policy file of your own (cekm tune fields' policy.json) in "
+                   "place of the shipped one.")
 @out_dir_options("Directory for outcome.json and trajectory.png.")
 def run_cmd(scenario: str, controller: str, graph_file: Path | None, model_path: Path | None, learn: bool,
-            seed: int | None, max_time: float | None, fields: str | None, out_dir: Path, overwrite: bool) -> None:
+            seed: int | None, max_time: float | None, fields: str | None, policy: Path | None, out_dir: Path,
+            overwrite: bool) -> None:
     """Run SCENARIO (a name under world/scenarios or a .toml path) in one process, no Zenoh:
     the controller's graph, every node in this process, by the rule a lockstep launch
     follows (so `cekm launch --mode lockstep` gives the same run).
@@ -74,7 +78,7 @@ def run_cmd(scenario: str, controller: str, graph_file: Path | None, model_path:
     controller = learning_controller(controller, graph_file) if learn else controller
     try:
         checked = resolve_graph(controller, None if graph_file is None else str(graph_file), task)
-        checked = with_fields(checked, fields, task)
+        checked = with_fields(checked, fields, task, policy)
         checked.plan([r.id for r in sc.robots], task)
     except GraphError as exc:
         raise FileRefused(str(exc)) from None

@@ -11,7 +11,7 @@ from ..experiments.graph_run import with_params
 from ..graph.spec import Graph, graph_for, load_graph
 from ..models.params import PAPER_SIGMA_B_ALPHA
 from ..node.graph_check import CheckedGraph, check_graph
-from .policy import check_task
+from .policy import FieldPolicy, check_task
 
 FIELDS = ("paper", "tuned", "learned")
 """``--fields``: the paper's constants, today's hand-tuned ones, or the learned policy."""
@@ -43,13 +43,20 @@ def fields_graph(fields: str, task: str, policy: Path | str | None = None) -> tu
     return checked, ({"sigma_b_alpha": PAPER_SIGMA_B_ALPHA} if fields == "paper" else {})
 
 
-def with_fields(checked: CheckedGraph, fields: str | None, task: str) -> CheckedGraph:
-    """``cekm run --fields``: ``checked`` (the run's graph) unless FIELDS is given, then
-    the cooperative-EKM graph of :func:`fields_graph` with its parameters applied."""
+def with_fields(checked: CheckedGraph, fields: str | None, task: str,
+                policy: Path | str | None = None) -> CheckedGraph:
+    """``cekm run --fields [--policy FILE]``: ``checked`` (the run's graph) unless FIELDS is
+    given, then the cooperative-EKM graph of :func:`fields_graph` with its parameters applied.
+    A policy file goes with ``learned`` only, and is read here: a bad one is refused before
+    the run starts, naming the file."""
+    if policy is not None:
+        if fields != "learned":
+            raise ParameterError(f"--policy {policy} goes with --fields learned, not {fields or 'no --fields'}")
+        FieldPolicy.load(policy).check_task(task, policy)
     if fields is None:
         return checked
     if checked.graph.controller != "cekm":
         raise ParameterError(f"--fields goes with --controller cekm, not {checked.graph.controller!r}")
 
-    graph, params = fields_graph(fields, task)
+    graph, params = fields_graph(fields, task, policy)
     return with_params(graph, params)

@@ -142,6 +142,12 @@ class FieldPolicy:
         return FieldChoice(FieldParams(f.sigma_a_alpha, v.get("sigma_a_d", f.sigma_a_d), v["sigma_b_alpha"],
                                        v["sigma_b_d_beyond"], v["sigma_b_d_near"]), gain)
 
+    def check_task(self, task: str, where: Path | str) -> FieldPolicy:
+        """This policy, or a ParameterError naming ``where`` when it is for another task."""
+        if self.task != task:
+            raise ParameterError(f"{where}: a field policy for {self.task}, not {task}")
+        return self
+
     def outputs_of(self, choice: FieldChoice) -> dict[str, float]:
         """The value of each of the task's outputs in ``choice``, by name (the inverse of :meth:`choice`)."""
         return {o: choice.teammate_gain if o == "teammate_gain" else float(getattr(choice.fields, o))

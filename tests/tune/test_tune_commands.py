@@ -27,6 +27,28 @@ def test_run_fields_paper_differs_from_the_default(tmp_path, capsys):
     assert code != 0 and "--fields goes with --controller cekm, not 'fusion'" in capsys.readouterr().err
 
 
+def test_run_takes_a_policy_file_of_ones_own_with_fields_learned(tmp_path, capsys):
+    """Zero weights are today's constants (the default run, exactly); a policy that widens the
+    target field runs another path; a policy without --fields learned, or for tracking, is
+    refused before anything runs, naming the file."""
+    pol = tmp_path / "policies"
+    pol.mkdir()
+    FieldPolicy("navigation").save(pol / "zero.json")
+    W = np.zeros((4, N_FEATURES))
+    W[3, 0] = 3.0  # sigma_a_d at twice today's
+    FieldPolicy("navigation", W).save(pol / "wide.json")
+    plain = _run(tmp_path, "--seed", "3")
+    assert _run(tmp_path, "--fields", "learned", "--policy", str(pol / "zero.json"), "--seed", "3") == plain
+    assert _run(tmp_path, "--fields", "learned", "--policy", str(pol / "wide.json"), "--seed", "3") != plain
+    code = run_cli_args(["run", "concave", "--policy", str(pol / "wide.json"), "--out", str(tmp_path / "x")])
+    assert code != 0 and "wide.json goes with --fields learned, not no --fields" in capsys.readouterr().err
+    FieldPolicy("tracking").save(pol / "trk.json")
+    code = run_cli_args(["run", "concave", "--fields", "learned", "--policy", str(pol / "trk.json"),
+                         "--out", str(tmp_path / "y")])
+    assert code != 0 and "trk.json: a field policy for tracking, not navigation" in capsys.readouterr().err
+    assert not (tmp_path / "x").exists() and not (tmp_path / "y").exists()
+
+
 def test_evaluate_writes_every_variant_on_the_same_held_out_scenarios(tmp_path):
     W = np.zeros((4, N_FEATURES))
     W[0, 1] = 2.0
