@@ -35,7 +35,11 @@ ROUTE_KINDS = (*WIDE_KINDS, "alcove")
 MOVER_KINDS = (*WIDE_KINDS, "movers", "movers")
 """``--mix movers``: the wide mix with rooms with movers three times as often (a third of
 the scenarios): the geometry a closing speed is for (docs/fields.md, the third round)."""
-MIXES = {"default": KINDS, "wide": WIDE_KINDS, "route": ROUTE_KINDS, "movers": MOVER_KINDS}
+TURNED_KINDS = (*WIDE_KINDS, "u-turned", "u-turned")
+"""``--mix turned``: the wide mix and, a third of the time, a U turned any way (0.2-0.8 m wide,
+0.1-0.3 m deep), so the robot meets its side, its back or its mouth at a slant (Fig. 12's U
+on the checkpoint route, where the third round's first policy stalled)."""
+MIXES = {"default": KINDS, "wide": WIDE_KINDS, "route": ROUTE_KINDS, "movers": MOVER_KINDS, "turned": TURNED_KINDS}
 SEED_BASE = {"train": 1_000_000, "validation": 2_000_000, "test": 3_000_000}
 """Scenario seeds by purpose: purpose p's i-th scenario has seed SEED_BASE[p] + i."""
 
@@ -80,6 +84,9 @@ def navigation_raw(seed: int, kind: str | None = None, mix: str = "default") -> 
     if kind == "u-narrow":  # Fig. 9's narrow deep U's: 0.15-0.4 m wide, 0.12-0.3 m deep
         return u_raw(float(rng.uniform(0.15, 0.4)), float(rng.uniform(0.12, 0.30)), rs, seed,
                      float(rng.uniform(-0.1, 0.1)), math.pi + float(rng.uniform(-0.3, 0.3)))
+    if kind == "u-turned":  # any orientation: the robot meets its side, back or mouth
+        return u_raw(float(rng.uniform(0.2, 0.8)), float(rng.uniform(0.10, 0.30)), rs, seed,
+                     float(rng.uniform(-0.15, 0.15)), float(rng.uniform(-math.pi, math.pi)))
     if kind in ("gaps", "wall", "alcove"):
         return _extra_raw(kind, rng, rs, seed)
     if kind == "u":

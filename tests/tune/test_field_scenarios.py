@@ -49,6 +49,8 @@ def test_the_wide_mix_draws_its_own_kinds_too_and_they_are_what_they_say():
         "gaps", "wall", "alcove"}
     kinds = [navigation_raw(i, mix="movers")["name"].split("-")[1] for i in range(300)]
     assert set(kinds) == set(KINDS) | {"gaps", "wall"} and 0.25 < kinds.count("movers") / 300 < 0.42  # a third
+    facings = [navigation_raw(i, "u-turned")["obstacles"][0]["facing"] for i in range(60)]
+    assert min(facings) < -2.0 and max(facings) > 2.0 and any(abs(f) < 1.0 for f in facings)  # every way
     assert scenario_of("navigation", ("mix", "wide", 9))[0].name == navigation_scenario(9, mix="wide").name
     with pytest.raises(ParameterError, match="unknown geometry mix"):
         navigation_raw(9, mix="maze")
