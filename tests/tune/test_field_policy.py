@@ -192,6 +192,20 @@ def test_the_motor_node_uses_the_policys_widths():
     assert zero == base and zero_v == base and wide != base and near != base
 
 
+def test_the_policys_target_width_is_the_target_modules_own_exactly():
+    """A policy that sets sigma_a_d (Eq. 6) everywhere runs as the shipped graph whose target
+    module computes with that width: the motor's recomputed target field is the module's."""
+    sc = load_scenario("concave")
+    W = np.zeros((4, len(FEATURES)))
+    W[3, 0] = 0.7
+    width = FieldPolicy("navigation", W).choose(np.ones(len(FEATURES))).fields.sigma_a_d
+    assert width != FieldParams().sigma_a_d
+    policy = run_graph(sc, graph=check_graph(policy_graph("navigation")),
+                       params={"weights": tuple(W.ravel().tolist())}, max_time=40.0).episode.outcome()
+    module = run_graph(sc, "cekm", params={"sigma_a_d": width}, max_time=40.0).episode.outcome()
+    assert policy == module and policy != run_graph(sc, "cekm", max_time=40.0).episode.outcome()
+
+
 def test_the_tracking_policy_motor_takes_the_trackers_parameters():
     """The tracking field-policy motor with zero weights is the shipped tracking motor, with
     the default TrackingParams and with ``face_turn_gain=1`` (the previous turn) alike: the
