@@ -85,8 +85,12 @@ def navigation_raw(seed: int, kind: str | None = None, mix: str = "default") -> 
         return u_raw(float(rng.uniform(0.15, 0.4)), float(rng.uniform(0.12, 0.30)), rs, seed,
                      float(rng.uniform(-0.1, 0.1)), math.pi + float(rng.uniform(-0.3, 0.3)))
     if kind == "u-turned":  # any orientation: the robot meets its side, back or mouth
-        return u_raw(float(rng.uniform(0.2, 0.8)), float(rng.uniform(0.10, 0.30)), rs, seed,
-                     float(rng.uniform(-0.15, 0.15)), float(rng.uniform(-math.pi, math.pi)))
+        width, depth = float(rng.uniform(0.2, 0.8)), float(rng.uniform(0.10, 0.30))
+        raw = u_raw(width, depth, rs, seed, float(rng.uniform(-0.15, 0.15)), float(rng.uniform(-math.pi, math.pi)))
+        reach = math.hypot(width / 2 + 0.02, depth + 0.02)  # the U's farthest point from its mouth's centre
+        raw["robots"][0]["start"][0] = _r(1.5 - reach - 0.15)  # clear of the U whichever way it is turned
+        raw["targets"][0]["position"][0] = _r(1.5 + reach + 0.36)
+        return raw
     if kind in ("gaps", "wall", "alcove"):
         return _extra_raw(kind, rng, rs, seed)
     if kind == "u":

@@ -50,6 +50,8 @@ def test_the_wide_mix_draws_its_own_kinds_too_and_they_are_what_they_say():
     kinds = [navigation_raw(i, mix="movers")["name"].split("-")[1] for i in range(300)]
     assert set(kinds) == set(KINDS) | {"gaps", "wall"} and 0.25 < kinds.count("movers") / 300 < 0.42  # a third
     facings = [navigation_raw(i, "u-turned")["obstacles"][0]["facing"] for i in range(60)]
+    for i in range(300):  # the robot and the goal clear of the U whichever way it is turned: every one parses
+        navigation_scenario(1_000_000 + i, "u-turned")
     assert min(facings) < -2.0 and max(facings) > 2.0 and any(abs(f) < 1.0 for f in facings)  # every way
     assert scenario_of("navigation", ("mix", "wide", 9))[0].name == navigation_scenario(9, mix="wide").name
     with pytest.raises(ParameterError, match="unknown geometry mix"):
