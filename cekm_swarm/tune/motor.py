@@ -31,7 +31,6 @@ from cekm_swarm.modules.tracking_localization import tracking_activity, tracking
 from cekm_swarm.node import In, Node, NodeError, Out
 from cekm_swarm.protocol import ObstacleField, TargetField, TrackingField, WheelCommand
 from cekm_swarm.protocol.checks import lattice_misfit
-from cekm_swarm.robot import Khepera
 from cekm_swarm.ticks import tick_of
 
 from .features import ClosingSpeeds, field_features, obstacle_features
@@ -54,11 +53,10 @@ class _PolicyFields:
             if p.weights:
                 self.policy = FieldPolicy.from_flat(self.task, p.weights)
             else:
-                self.policy = FieldPolicy.load(p.policy or shipped_policy(self.task))
-        except Exception as exc:  # a bad file or weight count: the node names it and stops
+                path = p.policy or shipped_policy(self.task)
+                self.policy = FieldPolicy.load(path).check_task(self.task, path)
+        except Exception as exc:  # a bad file, weight count or task: the node names it and stops
             raise NodeError(f"{self.ctx.sender}: field policy: {exc}") from None
-        if self.policy.task != self.task:
-            raise NodeError(f"{self.ctx.sender}: field policy {p.policy!r} is for {self.policy.task}, not {self.task}")
         self.override: FieldChoice | None = None  # set by the environments (cekm_swarm.tune.env_core)
         self.last_features: np.ndarray | None = None
         self.last_choice: FieldChoice | None = None
@@ -69,8 +67,9 @@ class _PolicyFields:
         self._forward = 0.0  # the robot's forward speed, from the last command sent (m/s)
 
     def _sent(self, v_l: float, v_r: float) -> None:
-        """Remember the command sent: the robot's own approach, which ``closing`` discounts."""
-        v = Khepera.v_max
+        """Remember the command sent, as this robot's wheels execute it (clamped to its body's
+        v_max): the robot's own approach, which ``closing`` discounts."""
+        v = self.ctx.body.v_max
         self._forward = (min(max(v_l, -v), v) + min(max(v_r, -v), v)) / 2.0
 
     def _choose(self, features: np.ndarray) -> FieldChoice:
