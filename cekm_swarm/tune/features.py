@@ -15,8 +15,11 @@ import numpy as np
 
 from ..angles import wrap_scalar
 
-FEATURES = ("bias", "front", "left", "right", "seen", "toward_target", "target_angle", "target_near", "teammates")
+FEATURES = ("bias", "front", "left", "right", "seen", "toward_target", "target_angle", "target_near", "teammates",
+            "pocket")
 """Names of the feature vector's entries, in order."""
+FEATURES_V3 = FEATURES[:9]
+"""The features of a policy file of format version 1 to 3 (no ``pocket``)."""
 
 N_FEATURES = len(FEATURES)
 FRONT = math.pi / 4  # |alpha| below: in front
@@ -32,6 +35,11 @@ def proximity(d: float, d_max: float) -> float:
 def field_features(w: np.ndarray, obstacle_winners: Iterable[int | None], target: tuple[float, float] | None,
                    teammates: float = 0.0) -> np.ndarray:
     """The feature vector (:data:`FEATURES`) of one tick.
+
+    front, left, right: the proximity of the nearest obstacle winner ahead (|alpha| < 45
+    degrees), on the left and on the right (45-135 degrees); pocket: the least of the
+    three, nonzero only with something ahead and on both sides at once (a U's pocket, a
+    dead end), which a linear policy cannot form from the three by itself.
 
     ``w``: the map's input weights (alpha_i, d_i); ``obstacle_winners``: each distance
     sensor's obstacle winner (None: it sees nothing); ``target``: the target input (alpha,
@@ -64,7 +72,7 @@ def field_features(w: np.ndarray, obstacle_winners: Iterable[int | None], target
     else:
         t_angle, t_near = abs(wrap_scalar(target[0])) / math.pi, proximity(target[1], d_max)
     return np.array([1.0, front, left, right, seen / n if n else 0.0, toward, t_angle, t_near,
-                     min(max(teammates, 0.0), 1.0)], dtype=np.float64)
+                     min(max(teammates, 0.0), 1.0), min(front, left, right)], dtype=np.float64)
 
 
 FIELD_FEATURES = ("near", "off_heading", "toward_target", "nearest", "lone", "closing")

@@ -23,15 +23,16 @@ import numpy as np
 
 from ..errors import ParameterError
 from ..models.params import FieldParams
-from .features import FEATURES, FIELD_FEATURES, N_FEATURES, N_FIELD_FEATURES
+from .features import FEATURES, FEATURES_V3, FIELD_FEATURES, N_FEATURES, N_FIELD_FEATURES
 
 FORMAT = "cekm-field-policy"
-VERSION = 3
+VERSION = 4
 """The file format's version: 1 has W only; 2 adds the per-field weights V over five field
 features; 3 adds the sixth field feature, ``closing``, and navigation's fourth output,
-``sigma_a_d``. A version-1 file loads with no V, a version-2 file with V's ``closing``
-column 0, and either with W's ``sigma_a_d`` row 0: the same policy exactly. A policy a
-version-1 file can hold (no V, no sigma_a_d) is still written as version 1."""
+``sigma_a_d``; 4 adds the tick's tenth feature, ``pocket``. An older file loads with what
+it did not have at weight 0 (V's ``closing`` column, W's ``sigma_a_d`` row, W's ``pocket``
+column): the same policy exactly. A policy a version-1 file can hold (no V, no sigma_a_d,
+no pocket) is still written as version 1."""
 FIELD_FEATURES_V2 = FIELD_FEATURES[:5]
 """The per-field features of a version-2 file."""
 TASKS = ("navigation", "tracking")
@@ -186,11 +187,12 @@ class FieldPolicy:
                 for r in self.field_widths(features, field_features).tolist()]
 
     def to_dict(self) -> dict:
-        old = OUTPUTS_V2[self.task]
-        if self.V is None and not self.W[len(old):].any():  # what a version-1 file can say: written as one
-            doc = {"format": FORMAT, "version": 1, "task": self.task, "features": list(FEATURES),
+        old, n3 = OUTPUTS_V2[self.task], len(FEATURES_V3)
+        if self.V is None and not self.W[len(old):].any() and not self.W[:, n3:].any():
+            # what a version-1 file can say: written as one
+            doc = {"format": FORMAT, "version": 1, "task": self.task, "features": list(FEATURES_V3),
                    "outputs": list(old), "base": self.base[:len(old)].tolist(),
-                   "span": self.span[:len(old)].tolist(), "weights": self.W[:len(old)].tolist()}
+                   "span": self.span[:len(old)].tolist(), "weights": self.W[:len(old), :n3].tolist()}
         else:
             doc = {"format": FORMAT, "version": VERSION, "task": self.task, "features": list(FEATURES),
                    "outputs": list(self.outputs), "base": self.base.tolist(), "span": self.span.tolist(),
@@ -220,22 +222,23 @@ class FieldPolicy:
         if task not in TASKS:
             raise ParameterError(f"{path}: task must be one of {list(TASKS)}, got {task!r}")
         version = doc.get("version", 1)
-        if version not in (1, 2, VERSION):
+        if version not in range(1, VERSION + 1):
             raise ParameterError(f"{path}: format version {version!r}; this code reads versions 1 to {VERSION}")
-        outputs = OUTPUTS[task] if version == VERSION else OUTPUTS_V2[task]
-        if doc.get("features") != list(FEATURES) or doc.get("outputs") != list(outputs):
-            raise ParameterError(f"{path}: its features/outputs are not version {version}'s {list(FEATURES)} / "
+        outputs = OUTPUTS[task] if version >= 3 else OUTPUTS_V2[task]
+        features = FEATURES if version >= 4 else FEATURES_V3
+        if doc.get("features") != list(features) or doc.get("outputs") != list(outputs):
+            raise ParameterError(f"{path}: its features/outputs are not version {version}'s {list(features)} / "
                                  f"{list(outputs)}")
         try:
             W = np.asarray(doc.get("weights"), dtype=np.float64)
-            has_v = version == 2 or (version == VERSION and "field_weights" in doc)  # a 3 may have W only
+            has_v = version == 2 or (version >= 3 and "field_weights" in doc)  # a 3 or 4 may have W only
             V = np.asarray(doc.get("field_weights"), dtype=np.float64) if has_v else None
         except (TypeError, ValueError) as exc:
             raise ParameterError(f"{path}: weights must be arrays of numbers: {exc}") from None
-        if W.shape != (len(outputs), N_FEATURES):
-            raise ParameterError(f"{path}: weights must be {len(outputs)} x {N_FEATURES}, got shape {W.shape}")
-        if len(outputs) < len(OUTPUTS[task]):  # an older file: the outputs it did not have stay at their base
-            W = np.concatenate([W, np.zeros((len(OUTPUTS[task]) - len(outputs), N_FEATURES))])
+        if W.shape != (len(outputs), len(features)):
+            raise ParameterError(f"{path}: weights must be {len(outputs)} x {len(features)}, got shape {W.shape}")
+        # an older file: the outputs and features it did not have stay at weight 0 (their base)
+        W = np.pad(W, ((0, len(OUTPUTS[task]) - len(outputs)), (0, N_FEATURES - len(features))))
         if V is not None:
             names = FIELD_FEATURES_V2 if version == 2 else FIELD_FEATURES
             if doc.get("field_features") != list(names) or doc.get("field_outputs") != list(WIDTHS):

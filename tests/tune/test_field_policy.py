@@ -51,7 +51,7 @@ def test_save_load_round_trip_and_bad_files(tmp_path):
     doc = p.to_dict()
     doc["weights"] = [[0.0]]
     bad.write_text(json.dumps(doc))
-    with pytest.raises(ParameterError, match=r"bad.json: weights must be 4 x 9"):
+    with pytest.raises(ParameterError, match=r"bad.json: weights must be 4 x 10"):
         FieldPolicy.load(bad)
     doc["task"] = "juggling"
     bad.write_text(json.dumps(doc))
@@ -85,11 +85,11 @@ def test_v_gives_each_field_its_own_widths_within_the_span():
 
 
 def test_flat_weights_and_their_lengths():
-    p = FieldPolicy.from_flat("navigation", tuple(range(54)))
-    assert p.W[3, 8] == 35 and p.V is not None and p.V[2, 5] == 53 and p.flat() == tuple(float(x) for x in range(54))
-    assert FieldPolicy.from_flat("navigation", (0.0,) * 36).V is None
-    assert FieldPolicy.size("tracking", per_field=True) == 36 + 18
-    with pytest.raises(ParameterError, match=r"takes 36 \(W\) or 54 \(W and V\) numbers, got 30"):
+    p = FieldPolicy.from_flat("navigation", tuple(range(58)))
+    assert p.W[3, 9] == 39 and p.V is not None and p.V[2, 5] == 57 and p.flat() == tuple(float(x) for x in range(58))
+    assert FieldPolicy.from_flat("navigation", (0.0,) * 40).V is None
+    assert FieldPolicy.size("tracking", per_field=True) == 40 + 18
+    with pytest.raises(ParameterError, match=r"takes 40 \(W\) or 58 \(W and V\) numbers, got 30"):
         FieldPolicy.from_flat("navigation", (0.0,) * 30)
 
 
@@ -100,15 +100,24 @@ def test_a_v_policy_file_round_trips_and_old_files_load(tmp_path):
     W = old.W.copy()
     W[3, 0] = 0.5  # sigma_a_d moves: a version-1 file cannot say it
     FieldPolicy("navigation", W).save(tmp_path / "w.json")
-    assert FieldPolicy.load(tmp_path / "w.json").to_dict()["version"] == 3
+    assert FieldPolicy.load(tmp_path / "w.json").to_dict()["version"] == 4
     assert np.array_equal(FieldPolicy.load(tmp_path / "w.json").W, W)
+    W1 = old.W.copy()
+    W1[0, 9] = -1.0  # the pocket feature is read: a version-1 file cannot say it either
+    FieldPolicy("navigation", W1).save(tmp_path / "w1.json")
+    assert FieldPolicy.load(tmp_path / "w1.json").to_dict()["version"] == 4
     p = FieldPolicy("navigation", old.W, {"seed": 5}, np.arange(18.0).reshape(3, 6) / 10)
     p.save(tmp_path / "v.json")
     q = FieldPolicy.load(tmp_path / "v.json")
-    assert q.to_dict()["version"] == 3 and np.array_equal(q.V, p.V) and np.array_equal(q.W, p.W) and q.meta == p.meta
+    assert q.to_dict()["version"] == 4 and np.array_equal(q.V, p.V) and np.array_equal(q.W, p.W) and q.meta == p.meta
     doc = p.to_dict()
-    v2 = {**doc, "version": 2, "outputs": doc["outputs"][:3], "base": doc["base"][:3], "span": doc["span"][:3],
-          "weights": doc["weights"][:3], "field_features": list(FIELD_FEATURES[:5]),
+    w9 = [row[:9] for row in doc["weights"]]
+    v3 = {**doc, "version": 3, "features": list(FEATURES[:9]), "weights": w9}
+    (tmp_path / "v3.json").write_text(json.dumps(v3))
+    r3 = FieldPolicy.load(tmp_path / "v3.json")  # nine features: pocket's column 0, the same policy
+    assert np.array_equal(r3.W, p.W) and not r3.W[:, 9].any() and np.array_equal(r3.V, p.V)
+    v2 = {**doc, "version": 2, "features": list(FEATURES[:9]), "outputs": doc["outputs"][:3], "base": doc["base"][:3],
+          "span": doc["span"][:3], "weights": w9[:3], "field_features": list(FIELD_FEATURES[:5]),
           "field_weights": (p.V[:, :5]).tolist()}
     (tmp_path / "v2.json").write_text(json.dumps(v2))
     r = FieldPolicy.load(tmp_path / "v2.json")  # five features, closing's column 0, sigma_a_d's row 0
@@ -120,14 +129,15 @@ def test_a_v_policy_file_round_trips_and_old_files_load(tmp_path):
     f = np.ones(len(FEATURES))
     assert np.array_equal(r.field_widths(f, g), FieldPolicy("navigation", old.W, field_weights=r.V).field_widths(f, g5))
     bad = tmp_path / "bad.json"
-    for key, value, message in (("field_features", ["near"], "field_features/field_outputs are not version 3's"),
+    for key, value, message in (("field_features", ["near"], "field_features/field_outputs are not version 4's"),
                                 ("field_weights", [[0.0]], "field_weights must be 3 x 6, got shape \\(1, 1\\)"),
                                 ("field_weights", "many", "weights must be arrays of numbers"),
-                                ("version", 4, "format version 4; this code reads versions 1 to 3")):
+                                ("features", list(FEATURES[:9]), "features/outputs are not version 4's"),
+                                ("version", 5, "format version 5; this code reads versions 1 to 4")):
         bad.write_text(json.dumps({**doc, key: value}))
         with pytest.raises(ParameterError, match=message):
             FieldPolicy.load(bad)
-    bad.write_text(json.dumps({**v2, "outputs": doc["outputs"]}))  # version 2 with version 3's outputs
+    bad.write_text(json.dumps({**v2, "outputs": doc["outputs"]}))  # version 2 with version 4's outputs
     with pytest.raises(ParameterError, match="features/outputs are not version 2's"):
         FieldPolicy.load(bad)
 
@@ -170,6 +180,11 @@ def test_features_see_an_obstacle_ahead_and_the_target():
     assert f["bias"] == 1.0 and f["front"] == pytest.approx(1 - 0.02 / 0.16) and f["left"] == pytest.approx(0.5)
     assert f["right"] == 0.0 and f["seen"] == 0.5 and f["toward_target"] == f["front"]
     assert f["target_angle"] == 0.0 and f["target_near"] == 0.0 and f["teammates"] == 0.0
+    assert f["pocket"] == 0.0  # ahead and on the left, nothing on the right: a corner, not a pocket
+    pocket = dict(zip(FEATURES, field_features(w, [0, None, 2, 3], (0.0, 0.16)), strict=True))
+    assert pocket["pocket"] == pytest.approx(0.5)  # ahead (0.875), left and right (0.5 each): the least
+    corridor = dict(zip(FEATURES, field_features(w, [None, None, 2, 3], (0.0, 0.16)), strict=True))
+    assert corridor["left"] == corridor["right"] == pytest.approx(0.5) and corridor["pocket"] == 0.0
     empty = field_features(w, [None] * 12, None)
     assert empty.tolist() == [1.0] + [0.0] * (len(FEATURES) - 1)
 
@@ -180,14 +195,14 @@ def test_the_motor_node_uses_the_policys_widths():
     sc = load_scenario("concave")
     checked = check_graph(policy_graph("navigation"))
     base = run_graph(sc, "cekm").episode.outcome()
-    zero = run_graph(sc, graph=checked, params={"weights": (0.0,) * 36}).episode.outcome()
-    zero_v = run_graph(sc, graph=checked, params={"weights": (0.0,) * 54}).episode.outcome()
+    zero = run_graph(sc, graph=checked, params={"weights": (0.0,) * 40}).episode.outcome()
+    zero_v = run_graph(sc, graph=checked, params={"weights": (0.0,) * 58}).episode.outcome()
     W = np.zeros((4, len(FEATURES)))
     W[0, 1] = 3.0  # sigma_b_alpha up with an obstacle ahead
     wide = run_graph(sc, graph=checked, params={"weights": tuple(W.ravel().tolist())}).episode.outcome()
     V = np.zeros((3, len(FIELD_FEATURES)))
     V[0, 0] = 3.0  # sigma_b_alpha up for the near fields only
-    near = run_graph(sc, graph=checked, params={"weights": (0.0,) * 36 + tuple(V.ravel().tolist())},
+    near = run_graph(sc, graph=checked, params={"weights": (0.0,) * 40 + tuple(V.ravel().tolist())},
                      max_time=60.0).episode.outcome()
     assert zero == base and zero_v == base and wide != base and near != base
 

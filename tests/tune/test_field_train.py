@@ -49,26 +49,26 @@ def test_held_outputs_keep_their_rows_of_w_at_zero():
     with pytest.raises(ParameterError, match="at least one output must be free"):
         TuneConfig(hold=("sigma_b_alpha", "sigma_b_d_beyond", "sigma_b_d_near", "sigma_a_d"))
     c = TuneConfig(hold=("sigma_b_d_near",))
-    W = full_weights(c, np.arange(27.0) + 1).reshape(4, 9)
-    assert np.array_equal(W[[0, 1, 3]].ravel(), np.arange(27.0) + 1) and not W[2].any()
-    assert np.array_equal(full_weights(TuneConfig(), np.arange(36.0)), np.arange(36.0))
+    W = full_weights(c, np.arange(30.0) + 1).reshape(4, 10)
+    assert np.array_equal(W[[0, 1, 3]].ravel(), np.arange(30.0) + 1) and not W[2].any()
+    assert np.array_equal(full_weights(TuneConfig(), np.arange(40.0)), np.arange(40.0))
     assert command_of(c).endswith("--hold sigma_b_d_near")
 
 
 def test_per_field_training_searches_w_and_v_and_holds_both_rows():
     c = TuneConfig(per_field=True, hold=("sigma_b_d_near",))
-    assert search_size(c) == 3 * 9 + 2 * 6 and search_size(TuneConfig()) == 36
-    flat = full_weights(c, np.arange(39.0) + 1)
-    W, V = flat[:36].reshape(4, 9), flat[36:].reshape(3, 6)
-    assert np.array_equal(W[[0, 1, 3]].ravel(), np.arange(27.0) + 1) and not W[2].any()
-    assert np.array_equal(V[:2].ravel(), np.arange(27.0, 39.0) + 1) and not V[2].any()
+    assert search_size(c) == 3 * 10 + 2 * 6 and search_size(TuneConfig()) == 40
+    flat = full_weights(c, np.arange(42.0) + 1)
+    W, V = flat[:40].reshape(4, 10), flat[40:].reshape(3, 6)
+    assert np.array_equal(W[[0, 1, 3]].ravel(), np.arange(30.0) + 1) and not W[2].any()
+    assert np.array_equal(V[:2].ravel(), np.arange(30.0, 42.0) + 1) and not V[2].any()
     assert command_of(c).endswith("--hold sigma_b_d_near --per-field") and "--per-field" not in command_of(TuneConfig())
     trk = TuneConfig(task="tracking", per_field=True, hold=("teammate_gain",))
-    assert search_size(trk) == 3 * 9 + 3 * 6 and full_weights(trk, np.ones(45)).size == 36 + 18
+    assert search_size(trk) == 3 * 10 + 3 * 6 and full_weights(trk, np.ones(48)).size == 40 + 18
 
 
 def test_a_search_starts_from_an_init_policy_or_refuses_it(tmp_path):
-    W, V = np.zeros((4, 9)), np.zeros((3, 6))
+    W, V = np.zeros((4, 10)), np.zeros((3, 6))
     W[0], W[1, 2], V[1, 4] = 0.5, -1.0, 2.0
     FieldPolicy("navigation", W, field_weights=V).save(tmp_path / "start.json")
     c = TuneConfig(per_field=True, hold=("sigma_b_d_near",), init=str(tmp_path / "start.json"))
