@@ -60,10 +60,12 @@ def mix_option(help: str):
 @click.option("--init", "init", type=click.Path(dir_okay=False, exists=True), default=None,
               help="A policy file the search starts from (default: today's constants); kept if it is the best "
                    "on validation.")
+@click.option("--keep", multiple=True, help="An output whose rows of W and V stay at --init's weights (not "
+                                          "searched), e.g. sigma_b_alpha; repeat for more.")
 @model_option()
 @workers_option("Worker processes.", default=2)
 def fields_cmd(task, out_dir, seed, generations, popsize, sigma0, batch, validation, validate_every, max_time,
-               mix, hold, per_field, init, model_path, workers) -> None:
+               mix, hold, per_field, init, keep, model_path, workers) -> None:
     """Train a field policy by CMA-ES into OUT (policy.json), seeded and resumable."""
     from .train import TuneConfig, tune  # noqa: PLC0415 -- lazy: pymunk, tqdm, world
 
@@ -71,7 +73,8 @@ def fields_cmd(task, out_dir, seed, generations, popsize, sigma0, batch, validat
     try:
         config = TuneConfig(task, seed, generations or (30 if nav else 15), popsize or (12 if nav else 8), sigma0,
                             batch or (24 if nav else 6), validation or (48 if nav else 12), validate_every,
-                            max_time or (90.0 if nav else 30.0), mix, tuple(hold), per_field, str(init or ""))
+                            max_time or (90.0 if nav else 30.0), mix, tuple(hold), per_field, str(init or ""),
+                            tuple(keep))
         meta = tune(config, out_dir, _text(model_path), workers)
     except ParameterError as exc:
         raise click.UsageError(str(exc)) from None

@@ -62,7 +62,8 @@ class _PolicyFields:
         self.last_choice: FieldChoice | None = None
         self.last_widths: list[tuple[float, float, float]] | None = None  # each obstacle field's, last tick
         self._rows: dict[tuple[int, float, float, float], np.ndarray] = {}
-        self._sigma_a_d = self.policy.base_fields.sigma_a_d  # the target module's width (Eq. 6)
+        base = self.policy.base_fields
+        self._target_widths = (base.sigma_a_alpha, base.sigma_a_d)  # the target module's widths (Eq. 6)
         self._closing = ClosingSpeeds()  # each sensor's last reading (the feature "closing")
         self._forward = 0.0  # the robot's forward speed, from the last command sent (m/s)
 
@@ -79,13 +80,14 @@ class _PolicyFields:
         return choice
 
     def _target(self, w: np.ndarray, act: TargetActivity | None, choice: FieldChoice) -> TargetActivity | None:
-        """The target field a with the choice's sigma_a_d (Eq. 6): the target module's own row
-        when it is the base width (so W = 0 is today's run, bit for bit), else recomputed from
-        its winner (a pure function of winner and widths: exact). Rows cached as Eq. 8's."""
-        sd = choice.fields.sigma_a_d
-        if act is None or act.a is None or act.winner is None or sd == self._sigma_a_d:
+        """The target field a with the choice's sigma_a_alpha and sigma_a_d (Eq. 6): the target
+        module's own row when they are the base widths (so W = 0 is today's run, bit for bit),
+        else recomputed from its winner (a pure function of winner and widths: exact). Rows
+        cached as Eq. 8's."""
+        sa, sd = choice.fields.sigma_a_alpha, choice.fields.sigma_a_d
+        if act is None or act.a is None or act.winner is None or (sa, sd) == self._target_widths:
             return act
-        key = (-1 - act.winner, sd, 0.0, 0.0)  # winners as negative keys: apart from the obstacle rows
+        key = (-1 - act.winner, sd, sa, 0.0)  # winners as negative keys: apart from the obstacle rows
         a = self._rows.get(key)
         if a is None:
             a = self._rows[key] = target_field(w, act.winner, choice.fields)

@@ -26,30 +26,34 @@ from ..models.params import FieldParams
 from .features import FEATURES, FEATURES_V3, FIELD_FEATURES, N_FEATURES, N_FIELD_FEATURES
 
 FORMAT = "cekm-field-policy"
-VERSION = 4
+VERSION = 5
 """The file format's version: 1 has W only; 2 adds the per-field weights V over five field
 features; 3 adds the sixth field feature, ``closing``, and navigation's fourth output,
-``sigma_a_d``; 4 adds the tick's tenth feature, ``pocket``. An older file loads with what
-it did not have at weight 0 (V's ``closing`` column, W's ``sigma_a_d`` row, W's ``pocket``
-column): the same policy exactly. A policy a version-1 file can hold (no V, no sigma_a_d,
-no pocket) is still written as version 1."""
+``sigma_a_d``; 4 adds the tick's tenth feature, ``pocket``; 5 adds navigation's fifth
+output, ``sigma_a_alpha``. An older file loads with what it did not have at weight 0 (V's
+``closing`` column, W's ``sigma_a_d`` and ``sigma_a_alpha`` rows, W's ``pocket`` column):
+the same policy exactly. A policy a version-1 file can hold (no V, no target-field
+output, no pocket) is still written as version 1."""
 FIELD_FEATURES_V2 = FIELD_FEATURES[:5]
 """The per-field features of a version-2 file."""
 TASKS = ("navigation", "tracking")
 
 OUTPUTS: dict[str, tuple[str, ...]] = {
-    "navigation": ("sigma_b_alpha", "sigma_b_d_beyond", "sigma_b_d_near", "sigma_a_d"),
+    "navigation": ("sigma_b_alpha", "sigma_b_d_beyond", "sigma_b_d_near", "sigma_a_d", "sigma_a_alpha"),
     "tracking": ("sigma_b_alpha", "sigma_b_d_beyond", "sigma_b_d_near", "teammate_gain"),
 }
 """What the policy sets, by task: the obstacle field's widths (Eq. 8, the paper's
 sigma_b_alpha and sigma_b_d); for navigation, from format version 3, also the target
-field's width along the distance (Eq. 6's sigma_a_d); for tracking, a gain on the
-teammate fields' sum."""
+field's width along the distance (Eq. 6's sigma_a_d) and, from version 5, across the angle
+(Eq. 6's sigma_a_alpha: the paper's field is angle-insensitive, 2.475 rad); for tracking, a
+gain on the teammate fields' sum."""
 OUTPUTS_V2 = {"navigation": OUTPUTS["navigation"][:3], "tracking": OUTPUTS["tracking"]}
 """The outputs of a version-1 or -2 file (navigation's had no sigma_a_d)."""
+OUTPUTS_V3 = {"navigation": OUTPUTS["navigation"][:4], "tracking": OUTPUTS["tracking"]}
+"""The outputs of a version-3 or -4 file (navigation's had no sigma_a_alpha)."""
 
 SPAN = {"sigma_b_alpha": math.log(2.0), "sigma_b_d_beyond": math.log(4.0), "sigma_b_d_near": math.log(2.0),
-        "sigma_a_d": math.log(2.0), "teammate_gain": math.log(2.0)}
+        "sigma_a_d": math.log(2.0), "sigma_a_alpha": math.log(4.0), "teammate_gain": math.log(2.0)}
 """How far (log factor) the policy may move each parameter from its base."""
 
 WIDTHS = ("sigma_b_alpha", "sigma_b_d_beyond", "sigma_b_d_near")
@@ -64,6 +68,7 @@ def base_values(task: str) -> dict[str, float]:
            "sigma_b_d_near": fp.sigma_b_d_near}
     if task == "navigation":
         out["sigma_a_d"] = fp.sigma_a_d
+        out["sigma_a_alpha"] = fp.sigma_a_alpha
     if task == "tracking":
         out["teammate_gain"] = 1.0
     return out
@@ -140,8 +145,8 @@ class FieldPolicy:
         v = self.values(action)
         gain = v.pop("teammate_gain", 1.0)
         f = self._fields
-        return FieldChoice(FieldParams(f.sigma_a_alpha, v.get("sigma_a_d", f.sigma_a_d), v["sigma_b_alpha"],
-                                       v["sigma_b_d_beyond"], v["sigma_b_d_near"]), gain)
+        return FieldChoice(FieldParams(v.get("sigma_a_alpha", f.sigma_a_alpha), v.get("sigma_a_d", f.sigma_a_d),
+                                       v["sigma_b_alpha"], v["sigma_b_d_beyond"], v["sigma_b_d_near"]), gain)
 
     def check_task(self, task: str, where: Path | str) -> FieldPolicy:
         """This policy, or a ParameterError naming ``where`` when it is for another task."""
@@ -224,14 +229,14 @@ class FieldPolicy:
         version = doc.get("version", 1)
         if version not in range(1, VERSION + 1):
             raise ParameterError(f"{path}: format version {version!r}; this code reads versions 1 to {VERSION}")
-        outputs = OUTPUTS[task] if version >= 3 else OUTPUTS_V2[task]
+        outputs = OUTPUTS[task] if version >= 5 else OUTPUTS_V3[task] if version >= 3 else OUTPUTS_V2[task]
         features = FEATURES if version >= 4 else FEATURES_V3
         if doc.get("features") != list(features) or doc.get("outputs") != list(outputs):
             raise ParameterError(f"{path}: its features/outputs are not version {version}'s {list(features)} / "
                                  f"{list(outputs)}")
         try:
             W = np.asarray(doc.get("weights"), dtype=np.float64)
-            has_v = version == 2 or (version >= 3 and "field_weights" in doc)  # a 3 or 4 may have W only
+            has_v = version == 2 or (version >= 3 and "field_weights" in doc)  # from 3 on, W only is a policy too
             V = np.asarray(doc.get("field_weights"), dtype=np.float64) if has_v else None
         except (TypeError, ValueError) as exc:
             raise ParameterError(f"{path}: weights must be arrays of numbers: {exc}") from None

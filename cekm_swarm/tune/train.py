@@ -21,6 +21,7 @@ last whole generation), ``history.jsonl`` (one line per generation) and ``policy
 
 from __future__ import annotations
 
+import functools
 import json
 import pickle
 from dataclasses import asdict, dataclass
@@ -56,6 +57,7 @@ class TuneConfig:
     hold: tuple[str, ...] = ()  # outputs held at today's value (their rows of W and V stay 0)
     per_field: bool = False  # also train V: each obstacle field's widths from its own features
     init: str = ""  # a policy file the search starts from (its mean), "" = today's constants (0)
+    keep: tuple[str, ...] = ()  # outputs whose rows of W and V stay at --init's weights (not searched)
 
     def __post_init__(self) -> None:
         check_task(self.task)
@@ -66,8 +68,15 @@ class TuneConfig:
         for h in self.hold:
             if h not in outputs:
                 raise ParameterError(f"--hold: {h!r} is not an output of the {self.task} policy {list(outputs)}")
-        if len(set(self.hold)) >= len(outputs):
-            raise ParameterError("--hold: at least one output must be free")
+        for k in self.keep:
+            if k not in outputs:
+                raise ParameterError(f"--keep: {k!r} is not an output of the {self.task} policy {list(outputs)}")
+            if k in self.hold:
+                raise ParameterError(f"--keep {k} and --hold {k}: an output is kept at --init's weights or held at 0")
+        if self.keep and not self.init:
+            raise ParameterError("--keep needs --init: the policy whose weights it keeps")
+        if len(set(self.hold) | set(self.keep)) >= len(outputs):
+            raise ParameterError("--hold/--keep: at least one output must be free")
         for name in ("generations", "popsize", "batch", "validation", "validate_every"):
             v = getattr(self, name)
             if not isinstance(v, int) or v < 1:
@@ -87,17 +96,25 @@ def command_of(config: TuneConfig) -> str:
             + (f" --mix {c.mix}" if c.mix != "default" else "")
             + "".join(f" --hold {h}" for h in c.hold)
             + (" --per-field" if c.per_field else "")
-            + (f" --init {c.init}" if c.init else ""))
+            + (f" --init {c.init}" if c.init else "")
+            + "".join(f" --keep {k}" for k in c.keep))
 
 
 def free_rows(config: TuneConfig) -> np.ndarray:
-    """Which rows of W the strategy searches (the outputs not held)."""
-    return np.array([o not in config.hold for o in OUTPUTS[config.task]])
+    """Which rows of W the strategy searches (the outputs neither held nor kept)."""
+    return np.array([o not in config.hold and o not in config.keep for o in OUTPUTS[config.task]])
 
 
 def free_field_rows(config: TuneConfig) -> np.ndarray:
-    """Which rows of V the strategy searches (none without --per-field; else the widths not held)."""
-    return np.array([config.per_field and o not in config.hold for o in WIDTHS])
+    """Which rows of V the strategy searches (none without --per-field; else the widths neither held nor kept)."""
+    return np.array([config.per_field and o not in config.hold and o not in config.keep for o in WIDTHS])
+
+
+@functools.lru_cache(maxsize=4)
+def _init_weights(task: str, init: str) -> tuple[np.ndarray, np.ndarray]:
+    """--init's W and V (V zeros when it has none), for the rows --keep keeps."""
+    p = FieldPolicy.load(init)
+    return p.W, np.zeros((len(WIDTHS), N_FIELD_FEATURES)) if p.V is None else p.V
 
 
 def search_size(config: TuneConfig) -> int:
@@ -128,15 +145,21 @@ def start_vector(config: TuneConfig) -> np.ndarray:
 
 def full_weights(config: TuneConfig, x: np.ndarray) -> np.ndarray:
     """The policy's flat weights (:meth:`.policy.FieldPolicy.flat`: W, then V with
-    --per-field) of the strategy's vector ``x``: its entries in the free rows, 0 in the held ones."""
+    --per-field) of the strategy's vector ``x``: its entries in the free rows, 0 in the held ones,
+    --init's in the kept ones."""
     x = np.asarray(x, dtype=np.float64)
     free, vfree = free_rows(config), free_field_rows(config)
     n_w = int(free.sum()) * N_FEATURES
     W = np.zeros((len(free), N_FEATURES))
+    V = np.zeros((len(vfree), N_FIELD_FEATURES))
+    if config.keep:
+        W0, V0 = _init_weights(config.task, config.init)
+        kept = np.array([o in config.keep for o in OUTPUTS[config.task]])
+        W[kept] = W0[kept]
+        V[kept[:len(WIDTHS)]] = V0[kept[:len(WIDTHS)]]
     W[free] = x[:n_w].reshape(int(free.sum()), N_FEATURES)
     if not config.per_field:
         return W.ravel()
-    V = np.zeros((len(vfree), N_FIELD_FEATURES))
     V[vfree] = x[n_w:].reshape(int(vfree.sum()), N_FIELD_FEATURES)
     return np.concatenate([W.ravel(), V.ravel()])
 
@@ -163,6 +186,7 @@ def _check_dir(out: Path, config: TuneConfig) -> dict | None:
         saved.setdefault("hold", [])
         saved.setdefault("per_field", False)  # a directory of a version before --per-field, --init
         saved.setdefault("init", "")
+        saved.setdefault("keep", [])  # a directory of a version before --keep
         mine = json.loads(json.dumps(asdict(config)))  # as config.json holds it (a tuple is a list)
         for k in mine:
             if saved.get(k) != mine[k]:
@@ -176,6 +200,10 @@ def _check_dir(out: Path, config: TuneConfig) -> dict | None:
                 from None
         if doc.get("version") != STATE_VERSION:
             raise ParameterError(f"{state}: state version {doc.get('version')!r}, this code reads {STATE_VERSION}")
+        n, mine_n = int(getattr(doc.get("es"), "N", -1)), search_size(config)
+        if n != mine_n:
+            raise ParameterError(f"{state}: a search over {n} weights, but this version's policy has {mine_n} for "
+                                 f"these settings (its features or outputs changed since); train into another --out")
         return doc
     return None
 
@@ -198,13 +226,13 @@ def tune(config: TuneConfig, out: Path, model_path: str | None = None, workers: 
     out.mkdir(parents=True, exist_ok=True)
     state = _check_dir(out, config)
     (out / "config.json").write_text(json.dumps(asdict(config), indent=1) + "\n")
-    n = search_size(config)
     if state is None:
         x0 = start_vector(config)
         es = cma.CMAEvolutionStrategy(x0, config.sigma0,
                                       {"seed": config.seed, "popsize": config.popsize, "verbose": -9})
-        base = validate(config, full_weights(config, np.zeros(n)), model_path, workers)
-        best = {"generation": 0, "score": base, "weights": full_weights(config, np.zeros(n)).tolist()}
+        zero = np.zeros(FieldPolicy.size(config.task, config.per_field))  # today's constants (not --keep's rows)
+        base = validate(config, zero, model_path, workers)
+        best = {"generation": 0, "score": base, "weights": zero.tolist()}
         if config.init:  # the start is a candidate too: kept if it beats the constants on validation
             start = validate(config, full_weights(config, x0), model_path, workers)
             if start > base:

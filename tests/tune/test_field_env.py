@@ -51,12 +51,13 @@ def test_same_seed_same_episode_other_seed_other_scenario():
 def test_an_action_moves_the_field_widths_within_their_span():
     env = FieldEnv("navigation", max_time=2.0)
     env.reset(seed=1)
-    _, _, _, _, info = env.step(np.array([1.0, -1.0, 0.0, 1.0], dtype=np.float32))
+    _, _, _, _, info = env.step(np.array([1.0, -1.0, 0.0, 1.0, -1.0], dtype=np.float32))
     f = info["fields"]
     base = FieldParams()
     assert f["sigma_b_alpha"] == pytest.approx(2 * base.sigma_b_alpha)
     assert f["sigma_b_d_beyond"] == pytest.approx(base.sigma_b_d_beyond / 4)
     assert f["sigma_b_d_near"] == base.sigma_b_d_near and f["sigma_a_d"] == pytest.approx(2 * base.sigma_a_d)
+    assert f["sigma_a_alpha"] == pytest.approx(base.sigma_a_alpha / 4)
 
 
 @pytest.mark.parametrize("name,max_time", [("concave", None), ("doorway", None), ("tracking", 8.0)])

@@ -33,7 +33,7 @@ def test_zero_weights_are_todays_constants_exactly():
 
 
 def test_the_action_is_bounded_by_the_span():
-    W = np.zeros((4, len(FEATURES)))
+    W = np.zeros((5, len(FEATURES)))
     W[0, 0], W[1, 0] = 100.0, -100.0
     v = FieldPolicy("navigation", W).choose(np.eye(len(FEATURES))[0]).fields
     assert v.sigma_b_alpha == pytest.approx(2 * 0.6) and v.sigma_b_d_beyond == pytest.approx(2.475 / 4)
@@ -85,11 +85,11 @@ def test_v_gives_each_field_its_own_widths_within_the_span():
 
 
 def test_flat_weights_and_their_lengths():
-    p = FieldPolicy.from_flat("navigation", tuple(range(58)))
-    assert p.W[3, 9] == 39 and p.V is not None and p.V[2, 5] == 57 and p.flat() == tuple(float(x) for x in range(58))
-    assert FieldPolicy.from_flat("navigation", (0.0,) * 40).V is None
+    p = FieldPolicy.from_flat("navigation", tuple(range(68)))
+    assert p.W[4, 9] == 49 and p.V is not None and p.V[2, 5] == 67 and p.flat() == tuple(float(x) for x in range(68))
+    assert FieldPolicy.from_flat("navigation", (0.0,) * 50).V is None
     assert FieldPolicy.size("tracking", per_field=True) == 40 + 18
-    with pytest.raises(ParameterError, match=r"takes 40 \(W\) or 58 \(W and V\) numbers, got 30"):
+    with pytest.raises(ParameterError, match=r"takes 50 \(W\) or 68 \(W and V\) numbers, got 30"):
         FieldPolicy.from_flat("navigation", (0.0,) * 30)
 
 
@@ -100,22 +100,26 @@ def test_a_v_policy_file_round_trips_and_old_files_load(tmp_path):
     W = old.W.copy()
     W[3, 0] = 0.5  # sigma_a_d moves: a version-1 file cannot say it
     FieldPolicy("navigation", W).save(tmp_path / "w.json")
-    assert FieldPolicy.load(tmp_path / "w.json").to_dict()["version"] == 4
+    assert FieldPolicy.load(tmp_path / "w.json").to_dict()["version"] == 5
     assert np.array_equal(FieldPolicy.load(tmp_path / "w.json").W, W)
     W1 = old.W.copy()
     W1[0, 9] = -1.0  # the pocket feature is read: a version-1 file cannot say it either
     FieldPolicy("navigation", W1).save(tmp_path / "w1.json")
-    assert FieldPolicy.load(tmp_path / "w1.json").to_dict()["version"] == 4
+    assert FieldPolicy.load(tmp_path / "w1.json").to_dict()["version"] == 5
     p = FieldPolicy("navigation", old.W, {"seed": 5}, np.arange(18.0).reshape(3, 6) / 10)
     p.save(tmp_path / "v.json")
     q = FieldPolicy.load(tmp_path / "v.json")
-    assert q.to_dict()["version"] == 4 and np.array_equal(q.V, p.V) and np.array_equal(q.W, p.W) and q.meta == p.meta
+    assert q.to_dict()["version"] == 5 and np.array_equal(q.V, p.V) and np.array_equal(q.W, p.W) and q.meta == p.meta
     doc = p.to_dict()
     w9 = [row[:9] for row in doc["weights"]]
-    v3 = {**doc, "version": 3, "features": list(FEATURES[:9]), "weights": w9}
+    v3 = {**doc, "version": 3, "features": list(FEATURES[:9]), "outputs": doc["outputs"][:4], "base": doc["base"][:4],
+          "span": doc["span"][:4], "weights": w9[:4]}
     (tmp_path / "v3.json").write_text(json.dumps(v3))
-    r3 = FieldPolicy.load(tmp_path / "v3.json")  # nine features: pocket's column 0, the same policy
-    assert np.array_equal(r3.W, p.W) and not r3.W[:, 9].any() and np.array_equal(r3.V, p.V)
+    r3 = FieldPolicy.load(tmp_path / "v3.json")  # nine features and four outputs: the rest at weight 0
+    assert np.array_equal(r3.W, p.W) and not r3.W[:, 9].any() and not r3.W[4].any() and np.array_equal(r3.V, p.V)
+    v4 = {**v3, "version": 4, "features": list(FEATURES), "weights": [row[:10] for row in doc["weights"][:4]]}
+    (tmp_path / "v4.json").write_text(json.dumps(v4))
+    assert np.array_equal(FieldPolicy.load(tmp_path / "v4.json").W, p.W)  # four outputs: sigma_a_alpha's row 0
     v2 = {**doc, "version": 2, "features": list(FEATURES[:9]), "outputs": doc["outputs"][:3], "base": doc["base"][:3],
           "span": doc["span"][:3], "weights": w9[:3], "field_features": list(FIELD_FEATURES[:5]),
           "field_weights": (p.V[:, :5]).tolist()}
@@ -129,15 +133,15 @@ def test_a_v_policy_file_round_trips_and_old_files_load(tmp_path):
     f = np.ones(len(FEATURES))
     assert np.array_equal(r.field_widths(f, g), FieldPolicy("navigation", old.W, field_weights=r.V).field_widths(f, g5))
     bad = tmp_path / "bad.json"
-    for key, value, message in (("field_features", ["near"], "field_features/field_outputs are not version 4's"),
+    for key, value, message in (("field_features", ["near"], "field_features/field_outputs are not version 5's"),
                                 ("field_weights", [[0.0]], "field_weights must be 3 x 6, got shape \\(1, 1\\)"),
                                 ("field_weights", "many", "weights must be arrays of numbers"),
-                                ("features", list(FEATURES[:9]), "features/outputs are not version 4's"),
-                                ("version", 5, "format version 5; this code reads versions 1 to 4")):
+                                ("features", list(FEATURES[:9]), "features/outputs are not version 5's"),
+                                ("version", 6, "format version 6; this code reads versions 1 to 5")):
         bad.write_text(json.dumps({**doc, key: value}))
         with pytest.raises(ParameterError, match=message):
             FieldPolicy.load(bad)
-    bad.write_text(json.dumps({**v2, "outputs": doc["outputs"]}))  # version 2 with version 4's outputs
+    bad.write_text(json.dumps({**v2, "outputs": doc["outputs"]}))  # version 2 with version 5's outputs
     with pytest.raises(ParameterError, match="features/outputs are not version 2's"):
         FieldPolicy.load(bad)
 
@@ -195,29 +199,31 @@ def test_the_motor_node_uses_the_policys_widths():
     sc = load_scenario("concave")
     checked = check_graph(policy_graph("navigation"))
     base = run_graph(sc, "cekm").episode.outcome()
-    zero = run_graph(sc, graph=checked, params={"weights": (0.0,) * 40}).episode.outcome()
-    zero_v = run_graph(sc, graph=checked, params={"weights": (0.0,) * 58}).episode.outcome()
-    W = np.zeros((4, len(FEATURES)))
+    zero = run_graph(sc, graph=checked, params={"weights": (0.0,) * 50}).episode.outcome()
+    zero_v = run_graph(sc, graph=checked, params={"weights": (0.0,) * 68}).episode.outcome()
+    W = np.zeros((5, len(FEATURES)))
     W[0, 1] = 3.0  # sigma_b_alpha up with an obstacle ahead
     wide = run_graph(sc, graph=checked, params={"weights": tuple(W.ravel().tolist())}).episode.outcome()
     V = np.zeros((3, len(FIELD_FEATURES)))
     V[0, 0] = 3.0  # sigma_b_alpha up for the near fields only
-    near = run_graph(sc, graph=checked, params={"weights": (0.0,) * 40 + tuple(V.ravel().tolist())},
+    near = run_graph(sc, graph=checked, params={"weights": (0.0,) * 50 + tuple(V.ravel().tolist())},
                      max_time=60.0).episode.outcome()
     assert zero == base and zero_v == base and wide != base and near != base
 
 
-def test_the_policys_target_width_is_the_target_modules_own_exactly():
-    """A policy that sets sigma_a_d (Eq. 6) everywhere runs as the shipped graph whose target
-    module computes with that width: the motor's recomputed target field is the module's."""
+@pytest.mark.parametrize("row,name,bias", [(3, "sigma_a_d", 0.7), (4, "sigma_a_alpha", -0.5)])
+def test_the_policys_target_width_is_the_target_modules_own_exactly(row, name, bias):
+    """A policy that sets sigma_a_d or sigma_a_alpha (Eq. 6) everywhere runs as the shipped
+    graph whose target module computes with that width: the motor's recomputed target field
+    is the module's."""
     sc = load_scenario("concave")
-    W = np.zeros((4, len(FEATURES)))
-    W[3, 0] = 0.7
-    width = FieldPolicy("navigation", W).choose(np.ones(len(FEATURES))).fields.sigma_a_d
-    assert width != FieldParams().sigma_a_d
+    W = np.zeros((5, len(FEATURES)))
+    W[row, 0] = bias
+    width = getattr(FieldPolicy("navigation", W).choose(np.ones(len(FEATURES))).fields, name)
+    assert width != getattr(FieldParams(), name)
     policy = run_graph(sc, graph=check_graph(policy_graph("navigation")),
                        params={"weights": tuple(W.ravel().tolist())}, max_time=40.0).episode.outcome()
-    module = run_graph(sc, "cekm", params={"sigma_a_d": width}, max_time=40.0).episode.outcome()
+    module = run_graph(sc, "cekm", params={name: width}, max_time=40.0).episode.outcome()
     assert policy == module and policy != run_graph(sc, "cekm", max_time=40.0).episode.outcome()
 
 

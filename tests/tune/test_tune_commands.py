@@ -34,7 +34,7 @@ def test_run_takes_a_policy_file_of_ones_own_with_fields_learned(tmp_path, capsy
     pol = tmp_path / "policies"
     pol.mkdir()
     FieldPolicy("navigation").save(pol / "zero.json")
-    W = np.zeros((4, N_FEATURES))
+    W = np.zeros((5, N_FEATURES))
     W[3, 0] = 3.0  # sigma_a_d at twice today's
     FieldPolicy("navigation", W).save(pol / "wide.json")
     plain = _run(tmp_path, "--seed", "3")
@@ -50,7 +50,7 @@ def test_run_takes_a_policy_file_of_ones_own_with_fields_learned(tmp_path, capsy
 
 
 def test_evaluate_writes_every_variant_on_the_same_held_out_scenarios(tmp_path):
-    W = np.zeros((4, N_FEATURES))
+    W = np.zeros((5, N_FEATURES))
     W[0, 1] = 2.0
     FieldPolicy("navigation", W).save(tmp_path / "p.json")
     r = CliRunner().invoke(main, ["tune", "evaluate", "--task", "navigation", "--policy", str(tmp_path / "p.json"),
