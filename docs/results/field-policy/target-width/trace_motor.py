@@ -17,12 +17,13 @@ import sys
 from cekm_swarm.experiments.graph_run import GraphSession
 from cekm_swarm.node.graph_check import check_graph
 from cekm_swarm.tune.graphs import policy_graph
+from cekm_swarm.tune.policy import FieldPolicy
 from cekm_swarm.tune.rollout import _model
 from cekm_swarm.tune.scenarios import navigation_scenario
 
 
 def trace(seed: int, t0: float, t1: float, policy: str | None) -> None:
-    params = {"policy": policy} if policy else {"weights": (0.0,) * 36}
+    params = {"policy": policy} if policy else {"weights": (0.0,) * FieldPolicy.size("navigation")}
     s = GraphSession(navigation_scenario(seed), graph=check_graph(policy_graph("navigation")), model=_model(None),
                      max_time=t1, params=params)
     motor = s.executor.node("r1", "motor")

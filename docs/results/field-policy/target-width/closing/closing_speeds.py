@@ -16,6 +16,7 @@ from cekm_swarm.experiments.graph_run import run_graph
 from cekm_swarm.node.graph_check import check_graph
 from cekm_swarm.tune import features
 from cekm_swarm.tune.graphs import policy_graph
+from cekm_swarm.tune.policy import FieldPolicy
 from world import load_scenario
 
 
@@ -32,7 +33,7 @@ def largest_per_tick(name: str, max_time: float) -> np.ndarray:
     try:
         V = np.zeros((3, len(features.FIELD_FEATURES)))
         V[0, features.FIELD_FEATURES.index("closing")] = 1e-9
-        weights = (0.0,) * 36 + tuple(V.ravel().tolist())
+        weights = (0.0,) * FieldPolicy.size("navigation") + tuple(V.ravel().tolist())
         run_graph(load_scenario(name), graph=check_graph(policy_graph("navigation")), params={"weights": weights},
                   max_time=max_time)
     finally:
