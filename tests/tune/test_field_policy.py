@@ -94,8 +94,16 @@ def test_flat_weights_and_their_lengths():
 
 
 def test_a_v_policy_file_round_trips_and_old_files_load(tmp_path):
-    old = FieldPolicy.load(shipped_policy("navigation"))  # version 1: no V, no sigma_a_d (its row 0)
-    assert old.V is None and not old.per_field and old.to_dict()["version"] == 1 and not old.W[3].any()
+    W1 = np.random.default_rng(7).normal(0, 1, (3, 9))
+    v1 = {"format": "cekm-field-policy", "version": 1, "task": "navigation", "features": list(FEATURES[:9]),
+          "outputs": ["sigma_b_alpha", "sigma_b_d_beyond", "sigma_b_d_near"], "base": [0.6, 2.475, 0.02475],
+          "span": [0.693, 1.386, 0.693], "weights": W1.tolist()}
+    (tmp_path / "v1.json").write_text(json.dumps(v1))
+    old = FieldPolicy.load(tmp_path / "v1.json")  # version 1: no V, no sigma_a_d, no pocket (their weights 0)
+    assert old.V is None and not old.per_field and old.to_dict()["version"] == 1 and not old.W[3:].any()
+    assert np.array_equal(old.W[:3, :9], W1) and not old.W[:, 9].any()
+    shipped = FieldPolicy.load(shipped_policy("navigation"))  # --fields learned: a policy with its training command
+    assert shipped.task == "navigation" and shipped.per_field and shipped.meta["command"].startswith("cekm tune fields")
     assert old.choose(np.ones(len(FEATURES))).fields.sigma_a_d == FieldParams().sigma_a_d
     W = old.W.copy()
     W[3, 0] = 0.5  # sigma_a_d moves: a version-1 file cannot say it

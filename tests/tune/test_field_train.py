@@ -147,7 +147,7 @@ def test_killed_and_resumed_gives_the_same_policy_bit_for_bit(tmp_path):
     a = (tmp_path / "whole" / "policy.json").read_bytes()
     assert a == (tmp_path / "killed" / "policy.json").read_bytes()
     doc = json.loads(a)
-    assert doc["meta"]["config"]["seed"] == 7 and doc["version"] == 3 and len(doc["field_weights"]) == 3
+    assert doc["meta"]["config"]["seed"] == 7 and doc["version"] == 5 and len(doc["field_weights"]) == 3
     history = (tmp_path / "killed" / "history.jsonl").read_text().splitlines()
     assert [json.loads(x)["generation"] for x in history] == [1, 2, 3, 4]
 
