@@ -111,3 +111,10 @@ def test_the_mix_option_offers_exactly_the_generator_s_mixes():
     for name in ("fields", "contacts"):
         (mix,) = [p for p in tune_group.commands[name].params if p.name == "mix"]
         assert list(mix.type.choices) == list(MIXES)
+
+
+def test_tune_fields_refuses_keep_without_an_init_by_name(tmp_path, capsys):
+    """--keep keeps --init's rows: without --init the command stops before training, saying so."""
+    code = run_cli_args(["tune", "fields", "--out", str(tmp_path / "t"), "--keep", "sigma_b_alpha"])
+    assert code != 0 and "--keep needs --init" in capsys.readouterr().err
+    assert not (tmp_path / "t" / "state.pkl").exists()
