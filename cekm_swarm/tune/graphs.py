@@ -1,6 +1,7 @@
-"""The graphs of ``--fields``: the shipped cooperative-EKM graph with its motor node's
-program swapped for the field-policy motor (:mod:`.motor`), built from the shipped file
-rather than a copy of it, so the two cannot drift apart."""
+"""The graphs of ``--fields``: the shipped cooperative-EKM graph, and the same with its motor
+node's program the field-policy motor (:mod:`.motor`): for navigation the shipped
+``cekm-learned`` graph (a test keeps it the ``cekm`` graph node for node but the motor's
+program), for tracking built here from the shipped file."""
 
 from __future__ import annotations
 
@@ -20,8 +21,12 @@ PROGRAM = {"navigation": "cekm_swarm.tune.motor:FieldMotor", "tracking": "cekm_s
 
 
 def policy_graph(task: str) -> Graph:
-    """The shipped ``cekm`` graph of ``task`` with the field-policy motor node."""
-    doc = load_graph(graph_for("cekm", check_task(task))).to_dict()
+    """The ``cekm`` graph of ``task`` with the field-policy motor node: for navigation the
+    shipped ``cekm-learned`` graph (``--controller cekm-learned``, the same graph), for
+    tracking the shipped ``cekm`` graph with its motor's program swapped here."""
+    if check_task(task) == "navigation":
+        return load_graph(graph_for("cekm-learned", task))
+    doc = load_graph(graph_for("cekm", task)).to_dict()
     for n in doc["nodes"]:
         if n["name"] == "motor":
             n["program"] = PROGRAM[task]

@@ -118,3 +118,20 @@ def test_tune_fields_refuses_keep_without_an_init_by_name(tmp_path, capsys):
     code = run_cli_args(["tune", "fields", "--out", str(tmp_path / "t"), "--keep", "sigma_b_alpha"])
     assert code != 0 and "--keep needs --init" in capsys.readouterr().err
     assert not (tmp_path / "t" / "state.pkl").exists()
+
+
+def test_the_learned_graph_is_cekms_node_for_node_but_the_motor_and_runs_as_fields_learned(tmp_path):
+    """``--controller cekm-learned`` (a shipped graph, so launches and bridges take it) is the
+    cekm graph with the field-policy motor, and ``cekm run --fields learned`` runs it."""
+    from cekm_swarm.graph.spec import graph_for, load_graph
+    from cekm_swarm.tune.graphs import PROGRAM
+
+    plain = load_graph(graph_for("cekm", "navigation")).to_dict()
+    learned = load_graph(graph_for("cekm-learned", "navigation")).to_dict()
+    for n in plain["nodes"]:
+        if n["name"] == "motor":
+            n["program"] = PROGRAM["navigation"]
+    assert learned["nodes"] == plain["nodes"] and learned["controller"] == "cekm-learned"
+    by_fields = _run(tmp_path, "--fields", "learned")
+    by_controller = _run(tmp_path, "--controller", "cekm-learned")
+    assert by_fields == by_controller and by_fields != _run(tmp_path / "plain")
