@@ -109,8 +109,11 @@ def run_navigation_cmd(scenario, controller: str, model, seed: int | None, max_t
     if run.learning:
         doc["learning"] = run.learning
     (out_dir / "outcome.json").write_text(jsonfile.dumps(doc))
+    import matplotlib.pyplot as plt  # noqa: PLC0415 -- lazy: matplotlib
+
     fig = plot_run(run)
     fig.savefig(out_dir / "trajectory.png", dpi=130)
+    plt.close(fig)  # a run in a long-lived process (a test, a notebook) leaves no figure open
     for r, o in run.outcome.items():
         c = o["min_clearance_m"]
         clearance = ("nothing within sensor range" if c is None else f"{c * 1000:.0f} mm" if c >= 0.0 else

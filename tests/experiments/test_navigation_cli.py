@@ -18,6 +18,9 @@ def model(tmp_path_factory):
 
 @pytest.mark.slow
 def test_run_writes_outcome_and_picture(tmp_path, model):
+    import matplotlib.pyplot as plt
+
+    plt.close("all")  # what earlier tests in this process left open
     out = tmp_path / "run"
     r = CliRunner().invoke(main, ["run", "lone_obstacle", "--model", str(model), "--seed", "3", "--max-time", "30",
                                   "--out", str(out)])
@@ -28,6 +31,7 @@ def test_run_writes_outcome_and_picture(tmp_path, model):
     assert set(o) >= {"reached", "time_s", "path_length_m", "collisions", "min_clearance_m"}
     assert o["path_length_m"] > 0.05  # it moved
     assert (out / "trajectory.png").read_bytes()[:4] == b"\x89PNG"
+    assert plt.get_fignums() == []  # the picture's figure is closed: a run in a long-lived process leaks none
 
 
 @pytest.mark.slow
