@@ -111,7 +111,7 @@ def free_field_rows(config: TuneConfig) -> np.ndarray:
 
 
 @functools.lru_cache(maxsize=4)
-def _init_weights(task: str, init: str) -> tuple[np.ndarray, np.ndarray]:
+def _init_weights(init: str) -> tuple[np.ndarray, np.ndarray]:
     """--init's W and V (V zeros when it has none), for the rows --keep keeps."""
     p = FieldPolicy.load(init)
     return p.W, np.zeros((len(WIDTHS), N_FIELD_FEATURES)) if p.V is None else p.V
@@ -153,7 +153,7 @@ def full_weights(config: TuneConfig, x: np.ndarray) -> np.ndarray:
     W = np.zeros((len(free), N_FEATURES))
     V = np.zeros((len(vfree), N_FIELD_FEATURES))
     if config.keep:
-        W0, V0 = _init_weights(config.task, config.init)
+        W0, V0 = _init_weights(config.init)
         kept = np.array([o in config.keep for o in OUTPUTS[config.task]])
         W[kept] = W0[kept]
         V[kept[:len(WIDTHS)]] = V0[kept[:len(WIDTHS)]]
