@@ -2,7 +2,8 @@
 Gymnasium environment (:mod:`cekm_swarm.tune.env`) and ticks per second of a training's
 run (the field-policy motor with a policy's weights W, and with per-field weights V too:
 Eq. 8 per field with its own widths), against a plain ``cekm run`` of the same scenario
-measured in the same run (the baseline: the shipped graph, in process).
+measured in the same run (the baseline: the shipped constant-width graph, ``cekm-tuned``
+for navigation, in process).
 
 Every variant runs the same scenario to the same end; the best of ``--repeat`` timings
 counts, the variants interleaved. The host's load and steal are printed beside: numbers taken on a shared machine
@@ -41,11 +42,11 @@ def main() -> None:
     args = ap.parse_args()
 
     from cekm_swarm.experiments.default_model import default_model
+    from cekm_swarm.experiments.field_widths import CONSTANT_GRAPH, policy_graph
     from cekm_swarm.experiments.graph_run import run_graph
     from cekm_swarm.node.graph_check import check_graph
     from cekm_swarm.tune.env import FieldEnv
     from cekm_swarm.tune.features import N_FEATURES, N_FIELD_FEATURES
-    from cekm_swarm.tune.graphs import policy_graph
     from world import load_scenario
 
     sc = load_scenario(args.scenario)
@@ -60,7 +61,7 @@ def main() -> None:
     checked = check_graph(policy_graph(task))
 
     def plain():
-        return run_graph(sc, "cekm", model=model, max_time=max_time).ticks
+        return run_graph(sc, CONSTANT_GRAPH[task], model=model, max_time=max_time).ticks
 
     def trained():
         return run_graph(sc, graph=checked, params={"weights": W}, model=model, max_time=max_time).ticks

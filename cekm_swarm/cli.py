@@ -14,6 +14,7 @@ import click
 
 from .cli_support import FileRefused, Finite, out_dir_options, prepare_out_dir, run_cli, seed_option
 from .experiments.commands import (
+    fields_option,
     load_scenario_file,
     refuse_unplannable,
     run_navigation_cmd,
@@ -46,8 +47,8 @@ def main() -> None:
 @click.command("run")
 @click.argument("scenario")
 @click.option("--controller", default="cekm", show_default=True, metavar="NAME",
-              help="The controller whose graph runs (cekm graph list): cekm, fusion or stay for navigation; cekm, "
-                   "acmommt, kmeans, kmeans-global or stay for tracking.")
+              help="The controller whose graph runs (cekm graph list): cekm, cekm-tuned, fusion or stay for "
+                   "navigation; cekm, acmommt, kmeans, kmeans-global or stay for tracking.")
 @click.option("--graph", "graph_file", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               help="Run a graph file of your own instead (docs/modules.md).")
 @model_option(untrained=True)
@@ -56,8 +57,7 @@ def main() -> None:
 @click.option("--max-time", type=Finite(min=0.2),  # as cekm launch takes it, so every launch has its cekm run
               help="Sim seconds before a robot counts as trapped (default 600); for a tracking scenario, the "
                    "run's length (default 120).")
-@click.option("--fields", type=click.Choice(["paper", "tuned", "learned"]), help="cekm's field widths: the paper's, "
-              "today's hand-tuned (the default) or the learned field policy's (docs/fields.md).")
+@fields_option(None, "default: the graph's own (cekm: learned for navigation, tuned for tracking)")
 @click.option("--policy", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               help="With --fields learned: a field policy file of your own (cekm tune fields' policy.json) in "
                    "place of the shipped one.")

@@ -114,8 +114,8 @@ def test_a_bad_option_value_is_refused_by_name_before_the_command_runs(capsys, t
 
 @pytest.mark.parametrize("argv,needle", [
     (["run", "no_such_scenario", "--out", "{out}"], "no such scenario"),
-    (["run", "concave", "--controller", "acmommt", "--out", "{out}"], "(controllers: cekm, cekm-learned, "
-                                                                      "cekm-learning, cekm-learning-team, fusion, "
+    (["run", "concave", "--controller", "acmommt", "--out", "{out}"], "(controllers: cekm, cekm-learning, "
+                                                                      "cekm-learning-team, cekm-tuned, fusion, "
                                                                       "stay;"),
     (["run", "tracking", "--controller", "fusion", "--out", "{out}"],
      "(controllers: acmommt, cekm, kmeans, kmeans-global, stay;"),

@@ -27,12 +27,20 @@ from ..errors import ParameterError, ResultsFileError
 from ..models.io import load_model
 from ..models.params import TrackingParams
 from .engine import ClusterAddressError, check_address, on_cluster
+from .field_widths import FIELDS
 from .navigation_figures import plot_run
 from .navigation_run import planned_checkpoints, run_scenario
 from .reaching_report import write_seed, write_seeds_report
 
 if TYPE_CHECKING:
     from .reaching_config import NetworkRun, TargetReachingConfig
+
+
+def fields_option(default: str | None, what: str) -> Callable[[F], F]:
+    """``--fields paper|tuned|learned``: cekm's field widths (:mod:`.field_widths`)."""
+    return click.option("--fields", type=click.Choice(FIELDS), default=default, show_default=default is not None,
+                        help=f"cekm's field widths: the paper's, today's hand-tuned constants or the learned field "
+                             f"policy's (docs/fields.md); {what}.")
 
 
 def engine_options(fn: Callable[..., Any]) -> Callable[..., Any]:

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from world import ScenarioError, load_scenario
 
 from ..errors import ParameterError
+from .field_widths import FIELDS, REPRODUCTION
 
 
 @dataclass(frozen=True)
@@ -21,6 +22,7 @@ class SweepConfig:
     need: int = 2  # successes out of len(seeds) for a width to count as negotiated
     max_time: float = 300.0
     scenario: str = "concave"
+    fields: str = REPRODUCTION  # cekm's field widths (--fields, .field_widths): the paper's method's
 
     def __post_init__(self) -> None:
         for name in ("depths", "widths", "ranges"):
@@ -29,6 +31,8 @@ class SweepConfig:
                 raise ParameterError(f"--{name}: sweep {name} must be positive numbers, got {list(values)}")
         if not self.seeds:
             raise ParameterError("--seeds: give at least one seed")
+        if self.fields not in FIELDS:
+            raise ParameterError(f"--fields must be one of {list(FIELDS)}, got {self.fields!r}")
         if not 1 <= self.need <= len(self.seeds):
             raise ParameterError(f"--need: must be between 1 and the number of --seeds ({len(self.seeds)}), "
                                  f"got {self.need}")

@@ -26,11 +26,11 @@ from .navigation_run import run_scenario
 
 def _one(args) -> dict:
     """One run (in a worker process): does the cooperative EKM reach the goal?"""
-    scenario, width, depth, rng, seed, max_time, model_path = args
+    scenario, width, depth, rng, seed, max_time, model_path, fields = args
 
     sc = load_scenario(scenario, overrides={"obstacles[0].width": width, "obstacles[0].depth": depth,
                                             "sensors.range": rng})
-    run = run_scenario(sc, "cekm", load_model(model_path), seed, max_time)
+    run = run_scenario(sc, "cekm", load_model(model_path), seed, max_time, fields=fields)
     o = next(iter(run.outcome.values()))
     return {"width": width, "depth": depth, "range": rng, "seed": seed, "reached": o["reached"],
             "time_s": o["time_s"], "collisions": o["collisions"]}
@@ -38,7 +38,7 @@ def _one(args) -> dict:
 
 def run_sweep(config: SweepConfig, model_path: Path, workers: int | None = None, progress: bool = True) -> dict:
     """All runs of the sweep, in parallel (on Dask: :mod:`.engine`); returns the fig9.json document."""
-    jobs = [(config.scenario, w, d, r, s, config.max_time, str(model_path))
+    jobs = [(config.scenario, w, d, r, s, config.max_time, str(model_path), config.fields)
             for r in config.ranges for d in config.depths for w in config.widths for s in config.seeds]
     runs = run_jobs(_one, jobs, workers or default_workers(len(jobs), cap=2), desc="concave sweep",
                     progress=progress)

@@ -30,6 +30,7 @@ from ..errors import CekmError
 from ..models.networks import parse_network_name
 from .commands import (
     engine_options,
+    fields_option,
     load_scenario_file,
     parse_cekm_params,
     parse_team_sizes,
@@ -42,6 +43,7 @@ from .commands import (
     seeds_of,
     seeds_option,
 )
+from .field_widths import REPRODUCTION
 from .learning_commands import controller_model, learning_experiment_cmd, model_option
 from .navigation_figures import plot_fields
 from .navigation_run import fields_at
@@ -189,11 +191,12 @@ def circling(out_dir: Path, network: str, seed: int, trial: int, target: int | N
               help="Wheel speed unit of the plant (m/s) for every run, 0 = continuous (default: each scenario's).")
 @click.option("--max-time", default=300.0, show_default=True, type=Finite(min=1.0),
               help="Sim seconds before a robot counts as trapped.")
+@fields_option(REPRODUCTION, "the paper's method has constant ones")
 @model_option()
 @engine_options
 @out_dir_options("Directory for outcomes.json and the figures.")
-def obstacles(seeds: str, speed_unit: float | None, max_time: float, model_path: Path | None, workers: int | None,
-              out_dir: Path, overwrite: bool) -> None:
+def obstacles(seeds: str, speed_unit: float | None, max_time: float, fields: str, model_path: Path | None,
+              workers: int | None, out_dir: Path, overwrite: bool) -> None:
     """Reproduce section 4.2 (Figs. 8, 10-12): cooperative EKMs and command fusion over seeds."""
     from .default_model import default_model, default_model_path  # noqa: PLC0415 -- lazy: numba and scipy
 
@@ -213,7 +216,7 @@ def obstacles(seeds: str, speed_unit: float | None, max_time: float, model_path:
     if model_path is None:
         default_model()
         model_path = default_model_path()
-    doc, pictures = run_suite(seed_list, model_path, max_time, workers, speed_unit=speed_unit)
+    doc, pictures = run_suite(seed_list, model_path, max_time, workers, speed_unit=speed_unit, fields=fields)
     paths = write_suite(doc, pictures, out_dir)
     click.echo(summary_markdown(doc))
     click.echo("wrote " + ", ".join(str(p) for p in paths))
@@ -310,9 +313,10 @@ def train_cmd(network: str, steps: int, seed: int, out_path: Path, quiet: bool) 
 @model_option()
 @seed_option()
 @click.option("--robot", help="Robot id (default: the first).")
+@fields_option(None, "default: cekm's own (learned for navigation; Fig. 4 is the paper's method: --fields tuned)")
 @out_file_option("The PNG to write (replaced if it exists).")
 def fields_cmd(scenario: str, at_time: float, model_path: Path | None, seed: int | None, robot: str | None,
-               out_path: Path) -> None:
+               fields: str | None, out_path: Path) -> None:
     """Draw the activity maps of the paper's Fig 4 at sim time --at.
 
     The target field, three obstacle fields, the combined obstacle fields and the
@@ -330,7 +334,7 @@ def fields_cmd(scenario: str, at_time: float, model_path: Path | None, seed: int
                                  param_hint="'--robot'")
     prepare_figure_file(out_path)  # before the model, which may first be trained
     model = controller_model(model_path)
-    f = fields_at(sc, model, at_time, seed, robot)
+    f = fields_at(sc, model, at_time, seed, robot, fields)
     plot_fields(f).savefig(out_path, dpi=110)
     x, y, th = f["pose"]
     k = f["k"]

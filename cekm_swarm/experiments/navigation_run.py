@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import copy
 import functools
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -17,12 +17,11 @@ from cekm_swarm.ticks import TICK_S, tick_of
 from ..controller.cooperative import CooperativeEKM
 from ..controller.planner import PlanningError, plan_checkpoints
 from ..errors import ParameterError
-from ..models.params import FieldParams
-from ..modules.motor_integration import MotorIntegration, target_activity
-from .graph_run import run_graph
+from .field_widths import fields_graph
+from .graph_run import run_graph, with_params
 from .learning_run import learning_outcome
 
-CONTROLLERS = ("cekm", "fusion")
+CONTROLLERS = ("cekm", "cekm-tuned", "fusion")
 DEFAULT_MAX_TIME = 600.0  # s of sim time before a robot counts as trapped
 
 
@@ -58,14 +57,15 @@ class NavigationRun:
 
 def run_scenario(scenario, controller: str = "cekm", model=None, seed: int | None = None,
                  max_time: float = DEFAULT_MAX_TIME, use_checkpoints: bool | None = None,
-                 fields: FieldParams | None = None, progress=None, graph=None) -> NavigationRun:
+                 fields: str | None = None, progress=None, graph=None) -> NavigationRun:
     """Run a scenario to the end (every robot reached its goal, or max_time) with the
     controller's graph in one process (:func:`.graph_run.run_graph`; a distributed
     lockstep run computes the same, bit for bit).
 
     ``use_checkpoints``: plan checkpoints on the known walls (Fig. 12); default: the
-    scenario's ``plan_checkpoints``. ``fields``: the field widths of the cooperative
-    EKM's nodes (Eqs. 6, 8). ``graph``: a graph file instead of the controller's own.
+    scenario's ``plan_checkpoints``. ``fields``: cekm's field widths (``--fields``:
+    paper, tuned or learned, :mod:`.field_widths`); None runs the controller's graph as
+    shipped. ``graph``: a graph file instead of the controller's own.
     ``progress(t)`` is called every simulated second.
     """
 
@@ -78,8 +78,8 @@ def run_scenario(scenario, controller: str = "cekm", model=None, seed: int | Non
     if use_checkpoints is None:
         use_checkpoints = scenario.plan_checkpoints
     checkpoints, plan_paths = planned(scenario) if use_checkpoints else (None, {})
-    run = run_graph(scenario, controller, graph=graph, model=model, seed=seed, max_time=max_time,
-                    checkpoints=checkpoints, params=field_overrides(fields), progress=progress)
+    run = run_graph(scenario, controller, graph=cekm_graph(controller, fields, graph), model=model, seed=seed,
+                    max_time=max_time, checkpoints=checkpoints, progress=progress)
     world, episode = run.world, run.episode
     logs = {}
     for r, p in episode.progress.items():
@@ -92,13 +92,15 @@ def run_scenario(scenario, controller: str = "cekm", model=None, seed: int | Non
                          learning_outcome(run.executor, world.robot_ids, model))
 
 
-def field_overrides(fields: FieldParams | None) -> dict | None:
-    """Field widths as parameters of the nodes that take them (a graph without such nodes,
-    command fusion's, ignores them)."""
-    if fields is None:
-        return None
-
-    return {"lenient": True, **asdict(fields)}
+def cekm_graph(controller: str, fields: str | None, graph=None):
+    """The graph a run takes: ``graph`` if given, else with ``fields`` cekm's graph with
+    those field widths (:func:`.field_widths.fields_graph`), else None (the controller's
+    own)."""
+    if graph is not None or fields is None:
+        return graph
+    if controller != "cekm":
+        raise ParameterError(f"field widths ({fields}) go with controller 'cekm', not {controller!r}")
+    return with_params(*fields_graph(fields, "navigation"))
 
 
 def plan_all(world, geometry, source: str = "scenario") -> tuple[dict, dict]:
@@ -143,35 +145,34 @@ def world_seed(world, seed, scenario) -> int:
 
 
 def fields_at(scenario, model, at_time: float, controller_seed: int | None = None, robot: str | None = None,
-              fields: FieldParams | None = None) -> dict:
+              fields: str | None = None) -> dict:
     """Run the cooperative EKM to sim time ``at_time`` and return the activities of Fig. 4:
     the target field, each obstacle field, the combined obstacle fields and the integrated
-    activity, with the winners, the robot's pose and the input weights."""
+    activity, with the winners, the robot's pose and the input weights. The fields are the
+    ones the motor node integrated at that tick: with learned widths (``fields``, as
+    :func:`run_scenario`), the widths its policy chose."""
 
     checkpoints = planned(scenario)[0] if scenario.plan_checkpoints else None
     last = tick_of(at_time)
-    run = run_graph(scenario, "cekm", model=model, seed=controller_seed, checkpoints=checkpoints,
-                    params=field_overrides(fields), stop_at=last, max_time=max(at_time, TICK_S) + 1.0)
+    run = run_graph(scenario, "cekm", graph=cekm_graph("cekm", fields), model=model, seed=controller_seed,
+                    checkpoints=checkpoints, stop_at=last, max_time=max(at_time, TICK_S) + 1.0)
     world, episode, ex = run.world, run.episode, run.executor
     robot = robot or world.robot_ids[0]
-    k, keys = episode.tick, run.plan.keys
-    target = ex.output(keys.field_target(robot), k - k % 2)
+    motor = ex.node(robot, "motor")
+    ekm, integrated = getattr(motor, "ekm", None), getattr(motor, "integrated", None)
+    if not isinstance(ekm, CooperativeEKM) or integrated is None:
+        raise TypeError(f"{robot}'s motor node is a {type(motor).__name__}, not a cooperative EKM's motor "
+                        f"integration that has run: cekm fields draws the cekm controller's fields")
+    target, obs_fields = integrated
     n = model.w.shape[0]
     a = target.a if target is not None and target.a is not None else np.zeros(n)
-    obs_fields = {j: ex.output(keys.field_obstacle(robot, j), k) for j in range(len(world.sensor_angles))}
-    obstacle = {j: f.b for j, f in sorted(obs_fields.items()) if f is not None and f.b is not None}
+    obstacle = {f.index: f.b for f in obs_fields if f.b is not None}
     combined = np.sum(list(obstacle.values()), axis=0) if obstacle else np.zeros(n)
     e = a - combined
-    motor = ex.node(robot, "motor")
-    if not isinstance(motor, MotorIntegration):
-        raise TypeError(f"{robot}'s motor node is a {type(motor).__name__}, not cekm's motor integration: "
-                        f"cekm fields draws the cekm controller's fields")
-    ekm: CooperativeEKM = motor.ekm
-
-    decision = ekm.integrate(target_activity(target), [f for f in obs_fields.values() if f is not None])
+    decision = ekm.integrate(target, obs_fields)
     return {"time": episode.t, "robot": robot, "pose": world.pose(robot), "w": model.w.copy(),
             "a": a, "s": None if target is None else target.winner, "obstacle": obstacle,
-            "obstacle_winners": {j: f.winner for j, f in obs_fields.items() if f is not None and f.winner is not None},
+            "obstacle_winners": {f.index: f.winner for f in obs_fields if f.winner is not None},
             "combined": combined, "e": e, "k": decision.k, "eligible": ekm.eligible.copy(),
             "command": (decision.v_l, decision.v_r), "sensor_angles": world.sensor_angles.copy(),
             "geometry": world.static_geometry(), "state": world.state()}

@@ -18,6 +18,7 @@ from pathlib import Path
 
 from ..models.io import load_model
 from .engine import default_workers, run_jobs
+from .field_widths import REPRODUCTION
 from .navigation_run import run_scenario
 from .obstacle_stats import summarize
 
@@ -45,12 +46,12 @@ def success(scenario: str, outcome: dict, geometry: dict) -> bool:
 
 
 def _one(args):
-    scenario, controller, seed, max_time, model_path, keep, speed_unit = args
+    scenario, controller, seed, max_time, model_path, keep, speed_unit, fields = args
     from world import load_scenario  # noqa: PLC0415 -- lazy: pymunk, world
 
     overrides = None if speed_unit is None else {"plant.speed_unit": speed_unit}
     run = run_scenario(load_scenario(scenario, overrides=overrides), controller, load_model(model_path), seed,
-                       max_time)
+                       max_time, fields=fields if controller == "cekm" else None)
     o = next(iter(run.outcome.values()))
     ok = success(scenario, o, run.geometry)
     row = {"scenario": scenario, "controller": controller, "seed": seed, "success": ok,
@@ -63,18 +64,20 @@ def _one(args):
 
 def run_suite(seeds: tuple[int, ...], model_path: Path, max_time: float = 300.0, workers: int | None = None,
               scenarios: dict[str, tuple[str, ...]] | None = None, progress: bool = True,
-              speed_unit: float | None = None):
+              speed_unit: float | None = None, fields: str = REPRODUCTION):
     """Every (scenario, controller, seed); returns (document, the runs of the first seed for pictures).
 
     ``speed_unit``: the plant's wheel speed unit for every run (``[plant] speed_unit``;
-    0 = continuous speeds); None keeps each scenario's own."""
+    0 = continuous speeds); None keeps each scenario's own. ``fields``: cekm's field
+    widths (:mod:`.field_widths`; the paper's method, constant ones, unless told)."""
     scenarios = scenarios or SUITE
-    jobs = [(s, c, seed, max_time, str(model_path), seed == seeds[0], speed_unit) for s, cs in scenarios.items()
-            for c in cs for seed in seeds]
+    jobs = [(s, c, seed, max_time, str(model_path), seed == seeds[0], speed_unit, fields)
+            for s, cs in scenarios.items() for c in cs for seed in seeds]
     results = run_jobs(_one, jobs, workers or default_workers(len(jobs), cap=2), desc="obstacle runs",
                        progress=progress)
     rows = [r for r, _ in results]
     pictures = {(r["scenario"], r["controller"]): run for r, run in results if run is not None}
     doc = {"experiment": "obstacles", "paper_section": "4.2", "seeds": list(seeds), "max_time_s": max_time,
-           "speed_unit": speed_unit, "model": str(model_path), "summary": summarize(rows, scenarios), "runs": rows}
+           "speed_unit": speed_unit, "fields": fields, "model": str(model_path), "summary": summarize(rows, scenarios),
+           "runs": rows}
     return doc, pictures

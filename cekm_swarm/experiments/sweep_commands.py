@@ -9,8 +9,9 @@ import click
 
 from ..cli_support import Finite, check_seeds, out_dir_options, prepare_out_dir
 from ..errors import CekmError
-from .commands import engine_options, parse_floats, seeds_of, seeds_option
+from .commands import engine_options, fields_option, parse_floats, seeds_of, seeds_option
 from .concave_report import write_sweep
+from .field_widths import REPRODUCTION
 from .learning_commands import controller_model, model_option
 
 
@@ -26,10 +27,11 @@ def sweep() -> None:
 @seeds_option("1,2,3")
 @click.option("--need", default=2, show_default=True, type=click.IntRange(1), help="Successes a width needs.")
 @click.option("--max-time", default=300.0, show_default=True, type=Finite(min=1.0))
+@fields_option(REPRODUCTION, "the paper's method has constant ones")
 @model_option()
 @engine_options
 @out_dir_options("Directory for fig9.json, fig9.png and fig9_grid.png.")
-def sweep_concave(depths: str, widths: str, ranges: str, seeds: str, need: int, max_time: float,
+def sweep_concave(depths: str, widths: str, ranges: str, seeds: str, need: int, max_time: float, fields: str,
                   model_path: Path | None, workers: int | None, out_dir: Path, overwrite: bool) -> None:
     """Find the widest concave obstacle negotiated, per depth and sensing range (Fig. 9)."""
     from .concave_config import SweepConfig  # noqa: PLC0415 -- lazy: pymunk, world
@@ -40,7 +42,7 @@ def sweep_concave(depths: str, widths: str, ranges: str, seeds: str, need: int, 
         config = SweepConfig(depths=parse_floats(depths, "depths"),
                              widths=tuple(sorted(parse_floats(widths, "widths"))),
                              ranges=parse_floats(ranges, "ranges"), seeds=tuple(seeds_of(seeds)), need=need,
-                             max_time=max_time)
+                             max_time=max_time, fields=fields)
         config.check_scenarios()
     except CekmError as exc:
         raise click.UsageError(str(exc)) from None

@@ -49,10 +49,13 @@ class MotorIntegration(Node):
 
     def setup(self) -> None:
         self.ekm = cooperative_ekm(self.ctx, None, self.params.allow_reverse, self.params.reverse_min_d)
+        self.integrated: tuple[TargetActivity | None, list] | None = None
 
     def check_input(self, port: str, msg: Any) -> str | None:
         return lattice_misfit(msg, self.ekm.n)
 
     def step(self, t: float, inputs: Inputs) -> dict[str, Any]:
-        out = self.ekm.integrate(target_activity(inputs["target"]), inputs["obstacles"].values())  # Eqs. 9-11
+        target, obstacles = target_activity(inputs["target"]), list(inputs["obstacles"].values())
+        self.integrated = (target, obstacles)  # what this step integrated (cekm fields draws it)
+        out = self.ekm.integrate(target, obstacles)  # Eqs. 9-11
         return {"command": WheelCommand(t, self.ctx.sender, out.v_l, out.v_r, tick_of(t))}

@@ -1,7 +1,7 @@
 """Why contacts happen: every new contact of a generated navigation run, classified
 (docs/fields.md, "Why contacts happen").
 
-A run is the field-policy graph's (:func:`.graphs.policy_graph`; weights W = 0 are
+A run is the field-policy graph's (:func:`cekm_swarm.experiments.field_widths.policy_graph`; weights W = 0 are
 today's constants bit for bit), stepped tick by tick so that at the tick a contact
 begins we can read what the robot did and what its fields showed: where on the geometry
 the contact is (:func:`place`), its bearing in the robot's frame, the robot's speed over
@@ -19,10 +19,10 @@ from typing import Any
 import numpy as np
 
 from ..angles import wrap_scalar
+from ..experiments.field_widths import policy_graph
 from ..experiments.graph_run import GraphSession
 from ..node.graph_check import check_graph
 from ..ticks import TICK_S
-from .graphs import policy_graph
 from .motor import FieldMotor
 from .policy import FieldPolicy
 from .rollout import _model

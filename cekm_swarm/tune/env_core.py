@@ -3,7 +3,7 @@ of :class:`~cekm_swarm.tune.env.FieldEnv` (Gymnasium, one action for the team) a
 :class:`~cekm_swarm.tune.team_env.FieldTeamEnv` (PettingZoo, one action per robot).
 
 An episode is a :class:`~cekm_swarm.experiments.graph_run.GraphSession` of the field-policy
-graph (:func:`.graphs.policy_graph`: ``cekm run``'s world and controller, the motor node
+graph (:func:`cekm_swarm.experiments.field_widths.policy_graph`: ``cekm run``'s world and controller, the motor node
 swapped for the field-policy motor of :mod:`.motor`), on the scenario given or one generated
 from the environment's ``np_random`` (:mod:`.scenarios`). The environments set each robot's
 motor's field parameters (its ``override``) between ticks and read, per robot, the features
@@ -16,10 +16,10 @@ from typing import Any
 
 import numpy as np
 
+from ..experiments.field_widths import policy_graph
 from ..experiments.graph_run import GraphSession
 from ..node.graph_check import check_graph
 from .features import N_FEATURES
-from .graphs import policy_graph
 from .motor import FieldMotor, FieldTrackingMotor
 from .policy import FieldChoice, FieldPolicy, check_task
 from .scenarios import scenario as generated

@@ -24,13 +24,13 @@ from world import load_scenario
 from ..errors import ParameterError
 from ..experiments.concave_config import SweepConfig
 from ..experiments.concave_stats import cells_of, grid_of
+from ..experiments.field_widths import fields_graph
 from ..experiments.graph_run import with_params
 from ..experiments.metrics import welch_p
 from ..experiments.navigation_run import run_scenario
 from ..experiments.obstacle_run import SUITE, success
 from ..experiments.obstacle_stats import wilson_interval
 from ..experiments.tracking_stats import mean_ci95
-from .graphs import fields_graph
 from .rollout import _model, run_many
 from .scenarios import seed_of
 

@@ -139,6 +139,7 @@ class FieldMotor(_PolicyFields, Node):
 
     def setup(self) -> None:
         self.ekm = cooperative_ekm(self.ctx, None, self.params.allow_reverse, self.params.reverse_min_d)
+        self.integrated: tuple[TargetActivity | None, list[ObstacleActivity]] | None = None
         self._setup_policy()
 
     def check_input(self, port, msg):
@@ -149,8 +150,9 @@ class FieldMotor(_PolicyFields, Node):
         target = None if tf is None or tf.a is None else (tf.alpha, tf.d)
         features = field_features(self.ekm.w, [f.winner for f in fields], target)
         choice = self._choose(features)
-        out = self.ekm.integrate(self._target(self.ekm.w, target_activity(tf), choice),
-                                 self._obstacles(self.ekm.w, fields, choice, target, features))  # Eqs. 9-11
+        self.integrated = (self._target(self.ekm.w, target_activity(tf), choice),
+                           self._obstacles(self.ekm.w, fields, choice, target, features))  # as the plain motor's
+        out = self.ekm.integrate(*self.integrated)  # Eqs. 9-11
         self._sent(out.v_l, out.v_r)
         return {"command": WheelCommand(t, self.ctx.sender, out.v_l, out.v_r, tick_of(t))}
 

@@ -11,10 +11,10 @@ from typing import Any
 
 from world import load_scenario
 
+from ..experiments.field_widths import fields_graph, policy_graph
 from ..experiments.graph_run import run_graph
 from ..models.io import load_model
 from ..node.graph_check import check_graph
-from .graphs import fields_graph, policy_graph
 from .scenarios import scenario as generated
 
 _MODEL: dict[str | None, Any] = {}

@@ -71,6 +71,7 @@ def test_sweep_writes_grid(tmp_path, model):
         run = next(x for x in doc["runs"] if x["width"] == c["width"])
         assert c["of"] == 1 and c["reached"] == int(run["reached"]) and c["rate"] == c["reached"] / c["of"]
     assert set(doc["grid"][0]) == {"range", "depth", "max_width", "negotiated_widths", "max_width_no_hole"}
+    assert doc["settings"]["fields"] == "tuned"  # the paper's method (--fields learned: the policy)
     for name in ("fig9.png", "fig9_grid.png"):
         assert (out / name).read_bytes()[:4] == b"\x89PNG"
 

@@ -2,6 +2,8 @@
 where command fusion is trapped (Figs. 8 and 10), on the default model (trained and cached
 on first use) and fixed seeds."""
 
+import json
+
 import pytest
 from click.testing import CliRunner
 
@@ -49,3 +51,11 @@ def test_obstacles_command_writes_table_and_pictures(tmp_path, model):
     for name in ("outcomes.json", "table.md", "fig8_concave.png", "fig10_doorway.png", "fig11_rooms.png",
                  "fig12_checkpoints.png"):
         assert (tmp_path / name).is_file(), name
+    # the paper's method: constant widths (cekm-tuned), though cekm's default is learned
+    doc = json.loads((tmp_path / "outcomes.json").read_text())
+    row = next(r for r in doc["runs"] if (r["scenario"], r["controller"]) == ("doorway", "cekm"))
+    from world import load_scenario
+
+    tuned = run_scenario(load_scenario("doorway"), "cekm-tuned", model, 2, max_time=60).outcome["r1"]
+    learned = run_scenario(load_scenario("doorway"), "cekm", model, 2, max_time=60).outcome["r1"]
+    assert doc["fields"] == "tuned" and row["time_s"] == tuned["time_s"] != learned["time_s"]

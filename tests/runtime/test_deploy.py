@@ -207,9 +207,9 @@ def test_the_shipped_router_configs_are_the_generators_output_for_every_shipped_
     assert (DEPLOY / "tls" / "router.json5").read_text() == shipped(tls=True)
     head = (DEPLOY / "router.json5").read_text().splitlines()[1]
     assert (
-        "cekm graph acl acmommt-tracking cekm-learned-navigation cekm-learning-navigation "
-        "cekm-learning-team-navigation cekm-navigation "
-        "cekm-tracking fusion-navigation kmeans-global-tracking kmeans-tracking stay --robots r1,r2,r3,r4"
+        "cekm graph acl acmommt-tracking cekm-learning-navigation cekm-learning-team-navigation cekm-navigation "
+        "cekm-tracking cekm-tuned-navigation fusion-navigation kmeans-global-tracking kmeans-tracking stay "
+        "--robots r1,r2,r3,r4"
         in head
     )
 

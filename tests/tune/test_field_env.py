@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
+from cekm_swarm.experiments.field_widths import CONSTANT_GRAPH
 from cekm_swarm.experiments.graph_run import run_graph
 from cekm_swarm.models.params import FieldParams
 from cekm_swarm.tune.env import FieldEnv
@@ -62,12 +63,13 @@ def test_an_action_moves_the_field_widths_within_their_span():
 
 @pytest.mark.parametrize("name,max_time", [("concave", None), ("doorway", None), ("tracking", 8.0)])
 def test_the_zero_action_episode_is_cekm_runs(name, max_time):
-    """Action 0 is today's constants; stepping to the end gives ``cekm run``'s outcome exactly."""
+    """Action 0 is today's constants; stepping to the end gives ``cekm run --fields tuned``'s
+    outcome exactly (the constant-width graph: navigation's cekm-tuned, tracking's cekm)."""
     sc = load_scenario(name)
     env = FieldEnv("tracking" if name == "tracking" else "navigation", sc, max_time=max_time or 600.0)
     zero = np.zeros(env.action_space.shape, dtype=np.float32)
     _, rewards, outcome = _episode(env, 0, lambda: itertools.repeat(zero))
-    run = run_graph(sc, "cekm", max_time=max_time)
+    run = run_graph(sc, CONSTANT_GRAPH[env.task], max_time=max_time)
     assert outcome == run.episode.outcome()
     if name == "tracking":  # the return is the run's Parker's A
         assert sum(rewards) == pytest.approx(run.episode.meter.A, abs=1e-12)

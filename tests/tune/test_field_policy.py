@@ -20,7 +20,8 @@ from cekm_swarm.tune.features import (
     field_features,
     obstacle_features,
 )
-from cekm_swarm.tune.graphs import fields_graph, policy_graph, with_fields
+from cekm_swarm.experiments.field_widths import policy_graph
+from cekm_swarm.tune.graphs import with_fields
 from cekm_swarm.tune.policy import FieldPolicy, shipped_policy
 from world import load_scenario
 
@@ -206,7 +207,7 @@ def test_the_motor_node_uses_the_policys_widths():
     changes it (the widths really come from the policy)."""
     sc = load_scenario("concave")
     checked = check_graph(policy_graph("navigation"))
-    base = run_graph(sc, "cekm").episode.outcome()
+    base = run_graph(sc, "cekm-tuned").episode.outcome()
     zero = run_graph(sc, graph=checked, params={"weights": (0.0,) * 50}).episode.outcome()
     zero_v = run_graph(sc, graph=checked, params={"weights": (0.0,) * 68}).episode.outcome()
     W = np.zeros((5, len(FEATURES)))
@@ -231,8 +232,8 @@ def test_the_policys_target_width_is_the_target_modules_own_exactly(row, name, b
     assert width != getattr(FieldParams(), name)
     policy = run_graph(sc, graph=check_graph(policy_graph("navigation")),
                        params={"weights": tuple(W.ravel().tolist())}, max_time=40.0).episode.outcome()
-    module = run_graph(sc, "cekm", params={name: width}, max_time=40.0).episode.outcome()
-    assert policy == module and policy != run_graph(sc, "cekm", max_time=40.0).episode.outcome()
+    module = run_graph(sc, "cekm-tuned", params={name: width}, max_time=40.0).episode.outcome()
+    assert policy == module and policy != run_graph(sc, "cekm-tuned", max_time=40.0).episode.outcome()
 
 
 def test_the_tracking_policy_motor_takes_the_trackers_parameters():
@@ -252,18 +253,15 @@ def test_the_tracking_policy_motor_takes_the_trackers_parameters():
     assert runs[math.inf] != runs[1.0]
 
 
-def test_fields_option_graphs():
-    checked, params = fields_graph("paper", "navigation")
-    assert params == {"sigma_b_alpha": 0.495}
-    assert fields_graph("tuned", "tracking")[1] == {}
-    g, params = fields_graph("learned", "navigation", "p.json")
-    assert g.graph.node("motor").program.endswith("FieldMotor") and params == {"policy": "p.json"}
-    with pytest.raises(ParameterError, match="--fields must be one of"):
-        fields_graph("clever", "navigation")
+def test_fields_option_takes_only_a_cooperative_ekm_graph():
     fusion = check_graph("fusion-navigation")
     assert with_fields(fusion, None, "navigation") is fusion
     with pytest.raises(ParameterError, match="--fields goes with --controller cekm"):
         with_fields(fusion, "paper", "navigation")
+    tuned = check_graph("cekm-tuned-navigation")
+    assert with_fields(tuned, "learned", "navigation").graph.controller == "cekm"
+    with pytest.raises(ParameterError, match="--policy p.json goes with --fields learned, not tuned"):
+        with_fields(tuned, "tuned", "navigation", "p.json")
 
 
 def test_a_bad_policy_file_stops_the_node_with_its_name(tmp_path):

@@ -12,6 +12,7 @@ import pytest
 from pettingzoo.test import parallel_api_test
 
 from cekm_swarm.errors import ParameterError
+from cekm_swarm.experiments.field_widths import CONSTANT_GRAPH
 from cekm_swarm.experiments.graph_run import run_graph
 from cekm_swarm.tune.env import FieldEnv
 from cekm_swarm.tune.team_env import FieldTeamEnv
@@ -97,7 +98,7 @@ def _zero_action_episodes(task: str, name: str, max_time: float):
         single_rewards.append(r)
         if term or trunc:
             break
-    assert outcome == single.outcome() == run_graph(sc, "cekm", max_time=max_time).episode.outcome()
+    assert outcome == single.outcome() == run_graph(sc, CONSTANT_GRAPH[task], max_time=max_time).episode.outcome()
     single.close()
     return team, rewards, left, single_rewards
 

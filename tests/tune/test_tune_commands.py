@@ -28,8 +28,8 @@ def test_run_fields_paper_differs_from_the_default(tmp_path, capsys):
 
 
 def test_run_takes_a_policy_file_of_ones_own_with_fields_learned(tmp_path, capsys):
-    """Zero weights are today's constants (the default run, exactly); a policy that widens the
-    target field runs another path; a policy without --fields learned, or for tracking, is
+    """Zero weights are today's constants (``--fields tuned``, exactly); a policy that widens
+    the target field runs another path; a policy without --fields learned, or for tracking, is
     refused before anything runs, naming the file."""
     pol = tmp_path / "policies"
     pol.mkdir()
@@ -37,7 +37,7 @@ def test_run_takes_a_policy_file_of_ones_own_with_fields_learned(tmp_path, capsy
     W = np.zeros((5, N_FEATURES))
     W[3, 0] = 3.0  # sigma_a_d at twice today's
     FieldPolicy("navigation", W).save(pol / "wide.json")
-    plain = _run(tmp_path, "--seed", "3")
+    plain = _run(tmp_path, "--fields", "tuned", "--seed", "3")
     assert _run(tmp_path, "--fields", "learned", "--policy", str(pol / "zero.json"), "--seed", "3") == plain
     assert _run(tmp_path, "--fields", "learned", "--policy", str(pol / "wide.json"), "--seed", "3") != plain
     code = run_cli_args(["run", "concave", "--policy", str(pol / "wide.json"), "--out", str(tmp_path / "x")])
@@ -120,18 +120,12 @@ def test_tune_fields_refuses_keep_without_an_init_by_name(tmp_path, capsys):
     assert not (tmp_path / "t" / "state.pkl").exists()
 
 
-def test_the_learned_graph_is_cekms_node_for_node_but_the_motor_and_runs_as_fields_learned(tmp_path):
-    """``--controller cekm-learned`` (a shipped graph, so launches and bridges take it) is the
-    cekm graph with the field-policy motor, and ``cekm run --fields learned`` runs it."""
-    from cekm_swarm.graph.spec import graph_for, load_graph
-    from cekm_swarm.tune.graphs import PROGRAM
-
-    plain = load_graph(graph_for("cekm", "navigation")).to_dict()
-    learned = load_graph(graph_for("cekm-learned", "navigation")).to_dict()
-    for n in plain["nodes"]:
-        if n["name"] == "motor":
-            n["program"] = PROGRAM["navigation"]
-    assert learned["nodes"] == plain["nodes"] and learned["controller"] == "cekm-learned"
-    by_fields = _run(tmp_path, "--fields", "learned")
-    by_controller = _run(tmp_path, "--controller", "cekm-learned")
-    assert by_fields == by_controller and by_fields != _run(tmp_path / "plain")
+def test_the_default_is_the_learned_policy_and_cekm_tuned_the_constants(tmp_path):
+    """Navigation's ``cekm`` (the default controller) runs the shipped field policy, as
+    ``--fields learned`` does; ``--controller cekm-tuned`` (a shipped graph, so launches
+    and bridges take it) runs today's constants, as ``--fields tuned`` does; they differ."""
+    default = _run(tmp_path)
+    assert default == _run(tmp_path, "--fields", "learned")
+    tuned = _run(tmp_path, "--controller", "cekm-tuned")
+    assert tuned == _run(tmp_path, "--fields", "tuned") != default
+    assert _run(tmp_path, "--controller", "cekm-tuned", "--fields", "learned") == default
