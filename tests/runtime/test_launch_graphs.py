@@ -24,7 +24,7 @@ pytestmark = pytest.mark.slow  # starts real processes (tests/process_guard.py)
 
 NAVIGATION = ["training", "concave", "doorway", "lone_obstacle", "crossing", "rooms", "checkpoints"]
 TRACKING = ["tracking", "tracking-crowd"]
-SHIPPED = ([(s, c) for s in NAVIGATION for c in ("cekm", "cekm-learned", "fusion", "stay")]
+SHIPPED = ([(s, c) for s in NAVIGATION for c in ("cekm", "cekm-tuned", "fusion", "stay")]
            + [(s, c) for s in TRACKING for c in ("cekm", "acmommt", "kmeans", "kmeans-global", "stay")])
 MAX_TIME = {"crossing": 15.0, "tracking-crowd": 12.0}  # s of sim time; the others 10
 
