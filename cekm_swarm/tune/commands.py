@@ -26,8 +26,8 @@ def tune_group() -> None:
 def mix_option(help: str):
     """``--mix``, the generated geometry mix (the keys of scenarios.MIXES, which a test keeps
     equal; not imported here, as scenarios pulls in the world)."""
-    return click.option("--mix", type=click.Choice(["default", "wide", "route", "movers", "turned"]), default="default",
-                        show_default=True, help=help)
+    mixes = ["default", "wide", "route", "movers", "turned", "discs", "lone-disc"]
+    return click.option("--mix", type=click.Choice(mixes), default="default", show_default=True, help=help)
 
 
 @tune_group.command("fields")
@@ -51,7 +51,8 @@ def mix_option(help: str):
 @mix_option("Navigation: the generated geometries trained and validated on (wide: also disc rows with "
             "narrow gaps, long walls and narrow deep U's; route: also a goal in a narrow alcove; "
             "movers: the wide mix with rooms with movers a third of the time; turned: the wide mix and U's "
-            "turned any way a third of the time).")
+            "turned any way a third of the time; discs: the route mix and a lone small disc head-on a fifth of "
+            "the time; lone-disc: only those).")
 @click.option("--hold", multiple=True, help="An output held at today's value (its rows of W and V stay 0), e.g. "
                                           "sigma_b_d_near; repeat for more.")
 @click.option("--per-field", is_flag=True, help="Also learn V: each obstacle field's widths from its own "

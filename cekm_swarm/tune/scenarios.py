@@ -39,7 +39,12 @@ TURNED_KINDS = (*WIDE_KINDS, "u-turned", "u-turned")
 """``--mix turned``: the wide mix and, a third of the time, a U turned any way (0.2-0.8 m wide,
 0.1-0.3 m deep), so the robot meets its side, its back or its mouth at a slant (Fig. 12's U
 on the checkpoint route, where the third round's first policy stalled)."""
-MIXES = {"default": KINDS, "wide": WIDE_KINDS, "route": ROUTE_KINDS, "movers": MOVER_KINDS, "turned": TURNED_KINDS}
+DISC_KINDS = (*ROUTE_KINDS, "disc", "disc")
+"""``--mix discs``: the route mix and, a fifth of the time, a lone small disc head-on on the
+way to the goal (where the fourth round's policy can stall: its obstacle field, widened for
+walls ahead, inhibits every forward neuron the map has; docs/fields.md, the fifth round)."""
+MIXES = {"default": KINDS, "wide": WIDE_KINDS, "route": ROUTE_KINDS, "movers": MOVER_KINDS, "turned": TURNED_KINDS,
+         "discs": DISC_KINDS, "lone-disc": ("disc",)}
 SEED_BASE = {"train": 1_000_000, "validation": 2_000_000, "test": 3_000_000}
 """Scenario seeds by purpose: purpose p's i-th scenario has seed SEED_BASE[p] + i."""
 
@@ -91,6 +96,16 @@ def navigation_raw(seed: int, kind: str | None = None, mix: str = "default") -> 
         raw["robots"][0]["start"][0] = _r(1.5 - reach - 0.15)  # clear of the U whichever way it is turned
         raw["targets"][0]["position"][0] = _r(1.5 + reach + 0.36)
         return raw
+    if kind == "disc":  # a lone disc 0.04-0.16 m across, head-on (0-3 cm off the way), the start turned a little
+        radius, dist = float(rng.uniform(0.02, 0.08)), float(rng.uniform(0.8, 1.2))
+        at, off = float(rng.uniform(0.35, 0.6)), float(rng.uniform(-0.03, 0.03))
+        y = 1.0 + float(rng.uniform(-0.2, 0.2))
+        return {"name": f"gen-disc-{radius:.3f}", "seed": int(seed), "arena": {"bounds": [0.0, 0.0, 3.0, 2.0]},
+                "sensors": {"range": _r(rs)},
+                "robots": [{"id": "r1", "start": [0.8, _r(y), _r(rng.uniform(-0.3, 0.3))], "goal": "goal"}],
+                "targets": [{"id": "goal", "position": [_r(0.8 + dist), _r(y)]}],
+                "obstacles": [{"id": "disc", "shape": "disc", "center": [_r(0.8 + at * dist), _r(y + off)],
+                               "radius": _r(radius)}]}
     if kind in ("gaps", "wall", "alcove"):
         return _extra_raw(kind, rng, rs, seed)
     if kind == "u":
@@ -137,7 +152,7 @@ def navigation_raw(seed: int, kind: str | None = None, mix: str = "default") -> 
                 "robots": [{"id": "r1", "start": [0.25, _r(rng.uniform(0.3, 0.7)), 0.0], "goal": "goal"}],
                 "targets": [{"id": "goal", "position": [2.75, _r(rng.uniform(0.3, 0.7))]}],
                 "walls": walls, "obstacles": movers}
-    raise ParameterError(f"unknown geometry kind {kind!r}; expected one of {list(ROUTE_KINDS)}")
+    raise ParameterError(f"unknown geometry kind {kind!r}; expected one of {sorted(set(DISC_KINDS))}")
 
 
 def _extra_raw(kind: str, rng: np.random.Generator, rs: float, seed: int) -> dict[str, Any]:
