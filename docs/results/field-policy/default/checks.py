@@ -16,6 +16,10 @@ from pathlib import Path
 
 import numpy as np
 
+from cekm_swarm.experiments.navigation_run import run_scenario
+from world import load_scenario
+from world.scenario import parse_scenario
+
 PAIR = {"name": "pair", "seed": 1, "arena": {"bounds": [0.0, 0.0, 1.4, 1.2]},
         "robots": [{"id": "r1", "start": [0.2, 0.35, 0.0], "goal": "g1"},
                    {"id": "r2", "start": [0.2, 0.85, 0.0], "goal": "g2"}],
@@ -25,10 +29,6 @@ CONTROLLERS = ("cekm", "cekm-tuned")
 
 
 def _run(job: tuple) -> dict:
-    from cekm_swarm.experiments.navigation_run import run_scenario
-    from world import load_scenario
-    from world.scenario import parse_scenario
-
     check, controller, where = job
     if check == "crossing":
         sc, seed = load_scenario("crossing"), where
@@ -62,7 +62,8 @@ def main() -> None:
                                        "contact_free": sum(o["reached"] and o["collisions"] == 0 for o in rs)}
             print(f"{check:9s} {c:11s}", summary[f"{check} {c}"])
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "checks.json").write_text(json.dumps({"summary": summary, "runs": rows}, indent=1) + "\n")
+    runs = ",\n  ".join(json.dumps(r) for r in rows)  # one run a line
+    (args.out / "checks.json").write_text(f'{{"summary": {json.dumps(summary, indent=1)},\n "runs": [\n  {runs}\n]}}\n')
     print(f"wrote {args.out / 'checks.json'}")
 
 
