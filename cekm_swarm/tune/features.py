@@ -9,6 +9,7 @@ teammate fields' sum: no raw sensor reading, no world state. Every feature lies 
 from __future__ import annotations
 
 import math
+from collections import deque
 from collections.abc import Iterable, Sequence
 
 import numpy as np
@@ -16,15 +17,19 @@ import numpy as np
 from ..angles import wrap_scalar
 
 FEATURES = ("bias", "front", "left", "right", "seen", "toward_target", "target_angle", "target_near", "teammates",
-            "pocket")
+            "pocket", "stalled")
 """Names of the feature vector's entries, in order."""
 FEATURES_V3 = FEATURES[:9]
 """The features of a policy file of format version 1 to 3 (no ``pocket``)."""
+FEATURES_V5 = FEATURES[:10]
+"""The features of a policy file of format version 4 or 5 (no ``stalled``)."""
 
 N_FEATURES = len(FEATURES)
 FRONT = math.pi / 4  # |alpha| below: in front
 SIDE = 3 * math.pi / 4  # pi/4 <= |alpha| < 3 pi/4: beside
 TOWARD = math.pi / 6  # an obstacle within this of the target's direction stands toward it
+STALL_WINDOW = 4.0  # s of the robot's own commands that ``stalled`` looks back over
+STALL_PACE = 0.5  # of v_max: a mean forward pace at least this over the window is not stalled at all
 
 
 def proximity(d: float, d_max: float) -> float:
@@ -33,7 +38,7 @@ def proximity(d: float, d_max: float) -> float:
 
 
 def field_features(w: np.ndarray, obstacle_winners: Iterable[int | None], target: tuple[float, float] | None,
-                   teammates: float = 0.0) -> np.ndarray:
+                   teammates: float = 0.0, stalled: float = 0.0) -> np.ndarray:
     """The feature vector (:data:`FEATURES`) of one tick.
 
     front, left, right: the proximity of the nearest obstacle winner ahead (|alpha| < 45
@@ -44,7 +49,8 @@ def field_features(w: np.ndarray, obstacle_winners: Iterable[int | None], target
     ``w``: the map's input weights (alpha_i, d_i); ``obstacle_winners``: each distance
     sensor's obstacle winner (None: it sees nothing); ``target``: the target input (alpha,
     d) the target field localizes, None when there is none; ``teammates``: the largest
-    entry of the teammate fields' sum (tracking; 0 otherwise).
+    entry of the teammate fields' sum (tracking; 0 otherwise); ``stalled``: how little the
+    robot's own commands have moved it lately (:class:`Stall`; 0 when not known).
     """
     d_max = float(np.max(w[:, 1])) or 1.0
     front = left = right = toward = 0.0
@@ -72,7 +78,35 @@ def field_features(w: np.ndarray, obstacle_winners: Iterable[int | None], target
     else:
         t_angle, t_near = abs(wrap_scalar(target[0])) / math.pi, proximity(target[1], d_max)
     return np.array([1.0, front, left, right, seen / n if n else 0.0, toward, t_angle, t_near,
-                     min(max(teammates, 0.0), 1.0), min(front, left, right)], dtype=np.float64)
+                     min(max(teammates, 0.0), 1.0), min(front, left, right), min(max(stalled, 0.0), 1.0)],
+                    dtype=np.float64)
+
+
+class Stall:
+    """The feature ``stalled``: 1 - (the robot's net forward travel over the last
+    :data:`STALL_WINDOW` seconds) / (:data:`STALL_PACE` x v_max x the window), clipped to
+    [0, 1], from the commands its motor sent (what its wheels execute, clamped to v_max).
+    Turning back and forth in place, or forward and back, nets nothing: 1. Before a whole
+    window has passed it is 0 (a run's first turn toward the goal is not a stall)."""
+
+    def __init__(self) -> None:
+        self.sent: deque[tuple[float, float]] = deque()  # (t, forward speed from t on), oldest first
+
+    def value(self, t: float, v_max: float) -> float:
+        """``stalled`` at time ``t`` (before this step's command)."""
+        start = t - STALL_WINDOW
+        while len(self.sent) > 1 and self.sent[1][0] <= start:
+            self.sent.popleft()
+        if not self.sent or self.sent[0][0] > start + 1e-9 or v_max <= 0:
+            return 0.0
+        travel = 0.0
+        for (t0, v), (t1, _) in zip(self.sent, [*list(self.sent)[1:], (t, 0.0)], strict=True):
+            travel += v * (t1 - max(t0, start))
+        return 1.0 - min(abs(travel) / (STALL_PACE * v_max * STALL_WINDOW), 1.0)
+
+    def update(self, t: float, forward: float) -> None:
+        """The forward speed of the command sent at ``t``."""
+        self.sent.append((t, forward))
 
 
 FIELD_FEATURES = ("near", "off_heading", "toward_target", "nearest", "lone", "closing")

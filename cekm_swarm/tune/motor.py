@@ -33,7 +33,7 @@ from cekm_swarm.protocol import ObstacleField, TargetField, TrackingField, Wheel
 from cekm_swarm.protocol.checks import lattice_misfit
 from cekm_swarm.ticks import tick_of
 
-from .features import ClosingSpeeds, field_features, obstacle_features
+from .features import ClosingSpeeds, Stall, field_features, obstacle_features
 from .policy import FieldChoice, FieldPolicy, shipped_policy
 
 ROWS_KEPT = 256
@@ -66,12 +66,17 @@ class _PolicyFields:
         self._target_widths = (base.sigma_a_alpha, base.sigma_a_d)  # the target module's widths (Eq. 6)
         self._closing = ClosingSpeeds()  # each sensor's last reading (the feature "closing")
         self._forward = 0.0  # the robot's forward speed, from the last command sent (m/s)
+        self._stall = Stall()  # the commands sent lately (the feature "stalled")
 
-    def _sent(self, v_l: float, v_r: float) -> None:
+    def _stalled(self, t: float) -> float:
+        return self._stall.value(t, self.ctx.body.v_max)
+
+    def _sent(self, t: float, v_l: float, v_r: float) -> None:
         """Remember the command sent, as this robot's wheels execute it (clamped to its body's
         v_max): the robot's own approach, which ``closing`` discounts."""
         v = self.ctx.body.v_max
         self._forward = (min(max(v_l, -v), v) + min(max(v_r, -v), v)) / 2.0
+        self._stall.update(t, self._forward)
 
     def _choose(self, features: np.ndarray) -> FieldChoice:
         self.last_features = features
@@ -148,12 +153,12 @@ class FieldMotor(_PolicyFields, Node):
     def step(self, t, inputs):
         tf, fields = inputs["target"], list(inputs["obstacles"].values())
         target = None if tf is None or tf.a is None else (tf.alpha, tf.d)
-        features = field_features(self.ekm.w, [f.winner for f in fields], target)
+        features = field_features(self.ekm.w, [f.winner for f in fields], target, stalled=self._stalled(t))
         choice = self._choose(features)
         self.integrated = (self._target(self.ekm.w, target_activity(tf), choice),
                            self._obstacles(self.ekm.w, fields, choice, target, features))  # as the plain motor's
         out = self.ekm.integrate(*self.integrated)  # Eqs. 9-11
-        self._sent(out.v_l, out.v_r)
+        self._sent(t, out.v_l, out.v_r)
         return {"command": WheelCommand(t, self.ctx.sender, out.v_l, out.v_r, tick_of(t))}
 
 
@@ -189,10 +194,10 @@ class FieldTrackingMotor(_PolicyFields, Node):
                 _, alpha, d, _ = max(act.inputs, key=lambda x: x[3])
                 target = (alpha, d)
             team = float(np.max(act.b_team)) if len(act.b_team) else 0.0
-        features = field_features(w, [o.winner for o in fields], target, team)
+        features = field_features(w, [o.winner for o in fields], target, team, self._stalled(t))
         choice = self._choose(features)
         if act is not None and choice.teammate_gain != 1.0:
             act = replace(act, b_team=choice.teammate_gain * act.b_team)
         out = self.tekm.integrate(act, self._obstacles(w, fields, choice, target, features))  # Eqs. 9-11
-        self._sent(out.v_l, out.v_r)
+        self._sent(t, out.v_l, out.v_r)
         return {"command": WheelCommand(t, self.ctx.sender, out.v_l, out.v_r, tick_of(t))}

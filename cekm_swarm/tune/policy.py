@@ -23,15 +23,16 @@ import numpy as np
 
 from ..errors import ParameterError
 from ..models.params import FieldParams
-from .features import FEATURES, FEATURES_V3, FIELD_FEATURES, N_FEATURES, N_FIELD_FEATURES
+from .features import FEATURES, FEATURES_V3, FEATURES_V5, FIELD_FEATURES, N_FEATURES, N_FIELD_FEATURES
 
 FORMAT = "cekm-field-policy"
-VERSION = 5
+VERSION = 6
 """The file format's version: 1 has W only; 2 adds the per-field weights V over five field
 features; 3 adds the sixth field feature, ``closing``, and navigation's fourth output,
 ``sigma_a_d``; 4 adds the tick's tenth feature, ``pocket``; 5 adds navigation's fifth
-output, ``sigma_a_alpha``. An older file loads with what it did not have at weight 0 (V's
-``closing`` column, W's ``sigma_a_d`` and ``sigma_a_alpha`` rows, W's ``pocket`` column):
+output, ``sigma_a_alpha``; 6 adds the tick's eleventh feature, ``stalled``. An older file
+loads with what it did not have at weight 0 (V's ``closing`` column, W's ``sigma_a_d`` and
+``sigma_a_alpha`` rows, W's ``pocket`` and ``stalled`` columns):
 the same policy exactly. A policy a version-1 file can hold (no V, no target-field
 output, no pocket) is still written as version 1."""
 FIELD_FEATURES_V2 = FIELD_FEATURES[:5]
@@ -230,7 +231,7 @@ class FieldPolicy:
         if version not in range(1, VERSION + 1):
             raise ParameterError(f"{path}: format version {version!r}; this code reads versions 1 to {VERSION}")
         outputs = OUTPUTS[task] if version >= 5 else OUTPUTS_V3[task] if version >= 3 else OUTPUTS_V2[task]
-        features = FEATURES if version >= 4 else FEATURES_V3
+        features = FEATURES if version >= 6 else FEATURES_V5 if version >= 4 else FEATURES_V3
         if doc.get("features") != list(features) or doc.get("outputs") != list(outputs):
             raise ParameterError(f"{path}: its features/outputs are not version {version}'s {list(features)} / "
                                  f"{list(outputs)}")

@@ -52,7 +52,7 @@ def test_save_load_round_trip_and_bad_files(tmp_path):
     doc = p.to_dict()
     doc["weights"] = [[0.0]]
     bad.write_text(json.dumps(doc))
-    with pytest.raises(ParameterError, match=r"bad.json: weights must be 4 x 10"):
+    with pytest.raises(ParameterError, match=r"bad.json: weights must be 4 x 11"):
         FieldPolicy.load(bad)
     doc["task"] = "juggling"
     bad.write_text(json.dumps(doc))
@@ -86,11 +86,11 @@ def test_v_gives_each_field_its_own_widths_within_the_span():
 
 
 def test_flat_weights_and_their_lengths():
-    p = FieldPolicy.from_flat("navigation", tuple(range(68)))
-    assert p.W[4, 9] == 49 and p.V is not None and p.V[2, 5] == 67 and p.flat() == tuple(float(x) for x in range(68))
-    assert FieldPolicy.from_flat("navigation", (0.0,) * 50).V is None
-    assert FieldPolicy.size("tracking", per_field=True) == 40 + 18
-    with pytest.raises(ParameterError, match=r"takes 50 \(W\) or 68 \(W and V\) numbers, got 30"):
+    p = FieldPolicy.from_flat("navigation", tuple(range(73)))
+    assert p.W[4, 10] == 54 and p.V is not None and p.V[2, 5] == 72 and p.flat() == tuple(float(x) for x in range(73))
+    assert FieldPolicy.from_flat("navigation", (0.0,) * 55).V is None
+    assert FieldPolicy.size("tracking", per_field=True) == 44 + 18
+    with pytest.raises(ParameterError, match=r"takes 55 \(W\) or 73 \(W and V\) numbers, got 30"):
         FieldPolicy.from_flat("navigation", (0.0,) * 30)
 
 
@@ -109,16 +109,16 @@ def test_a_v_policy_file_round_trips_and_old_files_load(tmp_path):
     W = old.W.copy()
     W[3, 0] = 0.5  # sigma_a_d moves: a version-1 file cannot say it
     FieldPolicy("navigation", W).save(tmp_path / "w.json")
-    assert FieldPolicy.load(tmp_path / "w.json").to_dict()["version"] == 5
+    assert FieldPolicy.load(tmp_path / "w.json").to_dict()["version"] == 6
     assert np.array_equal(FieldPolicy.load(tmp_path / "w.json").W, W)
     W1 = old.W.copy()
     W1[0, 9] = -1.0  # the pocket feature is read: a version-1 file cannot say it either
     FieldPolicy("navigation", W1).save(tmp_path / "w1.json")
-    assert FieldPolicy.load(tmp_path / "w1.json").to_dict()["version"] == 5
+    assert FieldPolicy.load(tmp_path / "w1.json").to_dict()["version"] == 6
     p = FieldPolicy("navigation", old.W, {"seed": 5}, np.arange(18.0).reshape(3, 6) / 10)
     p.save(tmp_path / "v.json")
     q = FieldPolicy.load(tmp_path / "v.json")
-    assert q.to_dict()["version"] == 5 and np.array_equal(q.V, p.V) and np.array_equal(q.W, p.W) and q.meta == p.meta
+    assert q.to_dict()["version"] == 6 and np.array_equal(q.V, p.V) and np.array_equal(q.W, p.W) and q.meta == p.meta
     doc = p.to_dict()
     w9 = [row[:9] for row in doc["weights"]]
     v3 = {**doc, "version": 3, "features": list(FEATURES[:9]), "outputs": doc["outputs"][:4], "base": doc["base"][:4],
@@ -126,9 +126,13 @@ def test_a_v_policy_file_round_trips_and_old_files_load(tmp_path):
     (tmp_path / "v3.json").write_text(json.dumps(v3))
     r3 = FieldPolicy.load(tmp_path / "v3.json")  # nine features and four outputs: the rest at weight 0
     assert np.array_equal(r3.W, p.W) and not r3.W[:, 9].any() and not r3.W[4].any() and np.array_equal(r3.V, p.V)
-    v4 = {**v3, "version": 4, "features": list(FEATURES), "weights": [row[:10] for row in doc["weights"][:4]]}
+    v4 = {**v3, "version": 4, "features": list(FEATURES[:10]), "weights": [row[:10] for row in doc["weights"][:4]]}
     (tmp_path / "v4.json").write_text(json.dumps(v4))
     assert np.array_equal(FieldPolicy.load(tmp_path / "v4.json").W, p.W)  # four outputs: sigma_a_alpha's row 0
+    v5 = {**doc, "version": 5, "features": list(FEATURES[:10]), "weights": [row[:10] for row in doc["weights"]]}
+    (tmp_path / "v5.json").write_text(json.dumps(v5))
+    r5 = FieldPolicy.load(tmp_path / "v5.json")  # ten features: stalled's column at weight 0
+    assert np.array_equal(r5.W, p.W) and not r5.W[:, 10].any()
     v2 = {**doc, "version": 2, "features": list(FEATURES[:9]), "outputs": doc["outputs"][:3], "base": doc["base"][:3],
           "span": doc["span"][:3], "weights": w9[:3], "field_features": list(FIELD_FEATURES[:5]),
           "field_weights": (p.V[:, :5]).tolist()}
@@ -142,15 +146,15 @@ def test_a_v_policy_file_round_trips_and_old_files_load(tmp_path):
     f = np.ones(len(FEATURES))
     assert np.array_equal(r.field_widths(f, g), FieldPolicy("navigation", old.W, field_weights=r.V).field_widths(f, g5))
     bad = tmp_path / "bad.json"
-    for key, value, message in (("field_features", ["near"], "field_features/field_outputs are not version 5's"),
+    for key, value, message in (("field_features", ["near"], "field_features/field_outputs are not version 6's"),
                                 ("field_weights", [[0.0]], "field_weights must be 3 x 6, got shape \\(1, 1\\)"),
                                 ("field_weights", "many", "weights must be arrays of numbers"),
-                                ("features", list(FEATURES[:9]), "features/outputs are not version 5's"),
-                                ("version", 6, "format version 6; this code reads versions 1 to 5")):
+                                ("features", list(FEATURES[:9]), "features/outputs are not version 6's"),
+                                ("version", 7, "format version 7; this code reads versions 1 to 6")):
         bad.write_text(json.dumps({**doc, key: value}))
         with pytest.raises(ParameterError, match=message):
             FieldPolicy.load(bad)
-    bad.write_text(json.dumps({**v2, "outputs": doc["outputs"]}))  # version 2 with version 5's outputs
+    bad.write_text(json.dumps({**v2, "outputs": doc["outputs"]}))  # version 2 with version 6's outputs
     with pytest.raises(ParameterError, match="features/outputs are not version 2's"):
         FieldPolicy.load(bad)
 
@@ -208,14 +212,14 @@ def test_the_motor_node_uses_the_policys_widths():
     sc = load_scenario("concave")
     checked = check_graph(policy_graph("navigation"))
     base = run_graph(sc, "cekm-tuned").episode.outcome()
-    zero = run_graph(sc, graph=checked, params={"weights": (0.0,) * 50}).episode.outcome()
-    zero_v = run_graph(sc, graph=checked, params={"weights": (0.0,) * 68}).episode.outcome()
+    zero = run_graph(sc, graph=checked, params={"weights": (0.0,) * 55}).episode.outcome()
+    zero_v = run_graph(sc, graph=checked, params={"weights": (0.0,) * 73}).episode.outcome()
     W = np.zeros((5, len(FEATURES)))
     W[0, 1] = 3.0  # sigma_b_alpha up with an obstacle ahead
     wide = run_graph(sc, graph=checked, params={"weights": tuple(W.ravel().tolist())}).episode.outcome()
     V = np.zeros((3, len(FIELD_FEATURES)))
     V[0, 0] = 3.0  # sigma_b_alpha up for the near fields only
-    near = run_graph(sc, graph=checked, params={"weights": (0.0,) * 50 + tuple(V.ravel().tolist())},
+    near = run_graph(sc, graph=checked, params={"weights": (0.0,) * 55 + tuple(V.ravel().tolist())},
                      max_time=60.0).episode.outcome()
     assert zero == base and zero_v == base and wide != base and near != base
 
@@ -319,3 +323,27 @@ def test_the_shipped_policy_passes_a_small_disc_head_on(tmp_path):
     inhibits every forward neuron the map has, and the robot turns back and forth in front
     of the disc (the constant widths pass, grazing the disc in a quarter of such starts)."""
     assert run_graph(_pair(tmp_path), "cekm", seed=1, max_time=60.0).episode.outcome()["r1"]["reached"]
+
+
+def test_stalled_is_how_little_the_robots_own_commands_moved_it():
+    """``stalled`` over STALL_WINDOW s of sent commands: 0 until a window has passed, 0 at
+    full pace, 1 turning in place or back and forth, linear in the net forward travel."""
+    from cekm_swarm.ticks import TICK_S
+    from cekm_swarm.tune.features import STALL_PACE, STALL_WINDOW, Stall
+
+    v_max = 0.2
+
+    def after(speeds) -> float:
+        s = Stall()
+        for k, v in enumerate(speeds):
+            s.update(k * TICK_S, v)
+        return s.value(len(speeds) * TICK_S, v_max)
+
+    n = int(STALL_WINDOW / TICK_S) + 2
+    assert after([0.0] * (n - 10)) == 0.0  # less than a window: not known
+    assert after([0.0] * n) == 1.0 and after([v_max] * n) == 0.0
+    assert after([0.05, -0.05] * n) == pytest.approx(1.0, abs=0.02)  # forward and back nets nothing
+    assert after([STALL_PACE * v_max / 2] * n) == pytest.approx(0.5)
+    assert after([0.0] * n + [v_max] * n) == 0.0  # only the last window counts
+    feats = field_features(np.array([[0.0, 0.1], [1.0, 0.2]]), [None], None, stalled=0.75)
+    assert feats[FEATURES.index("stalled")] == 0.75

@@ -58,26 +58,26 @@ def test_held_outputs_keep_their_rows_of_w_at_zero():
     with pytest.raises(ParameterError, match="at least one output must be free"):
         TuneConfig(hold=("sigma_b_alpha", "sigma_b_d_beyond", "sigma_b_d_near", "sigma_a_d", "sigma_a_alpha"))
     c = TuneConfig(hold=("sigma_b_d_near",))
-    W = full_weights(c, np.arange(40.0) + 1).reshape(5, 10)
-    assert np.array_equal(W[[0, 1, 3, 4]].ravel(), np.arange(40.0) + 1) and not W[2].any()
-    assert np.array_equal(full_weights(TuneConfig(), np.arange(50.0)), np.arange(50.0))
+    W = full_weights(c, np.arange(44.0) + 1).reshape(5, 11)
+    assert np.array_equal(W[[0, 1, 3, 4]].ravel(), np.arange(44.0) + 1) and not W[2].any()
+    assert np.array_equal(full_weights(TuneConfig(), np.arange(55.0)), np.arange(55.0))
     assert command_of(c).endswith("--hold sigma_b_d_near")
 
 
 def test_per_field_training_searches_w_and_v_and_holds_both_rows():
     c = TuneConfig(per_field=True, hold=("sigma_b_d_near",))
-    assert search_size(c) == 4 * 10 + 2 * 6 and search_size(TuneConfig()) == 50
-    flat = full_weights(c, np.arange(52.0) + 1)
-    W, V = flat[:50].reshape(5, 10), flat[50:].reshape(3, 6)
-    assert np.array_equal(W[[0, 1, 3, 4]].ravel(), np.arange(40.0) + 1) and not W[2].any()
-    assert np.array_equal(V[:2].ravel(), np.arange(40.0, 52.0) + 1) and not V[2].any()
+    assert search_size(c) == 4 * 11 + 2 * 6 and search_size(TuneConfig()) == 55
+    flat = full_weights(c, np.arange(56.0) + 1)
+    W, V = flat[:55].reshape(5, 11), flat[55:].reshape(3, 6)
+    assert np.array_equal(W[[0, 1, 3, 4]].ravel(), np.arange(44.0) + 1) and not W[2].any()
+    assert np.array_equal(V[:2].ravel(), np.arange(44.0, 56.0) + 1) and not V[2].any()
     assert command_of(c).endswith("--hold sigma_b_d_near --per-field") and "--per-field" not in command_of(TuneConfig())
     trk = TuneConfig(task="tracking", per_field=True, hold=("teammate_gain",))
-    assert search_size(trk) == 3 * 10 + 3 * 6 and full_weights(trk, np.ones(48)).size == 40 + 18
+    assert search_size(trk) == 3 * 11 + 3 * 6 and full_weights(trk, np.ones(51)).size == 44 + 18
 
 
 def test_a_search_starts_from_an_init_policy_or_refuses_it(tmp_path):
-    W, V = np.zeros((5, 10)), np.zeros((3, 6))
+    W, V = np.zeros((5, 11)), np.zeros((3, 6))
     W[0], W[1, 2], V[1, 4] = 0.5, -1.0, 2.0
     FieldPolicy("navigation", W, field_weights=V).save(tmp_path / "start.json")
     c = TuneConfig(per_field=True, hold=("sigma_b_d_near",), init=str(tmp_path / "start.json"))
@@ -147,7 +147,7 @@ def test_killed_and_resumed_gives_the_same_policy_bit_for_bit(tmp_path):
     a = (tmp_path / "whole" / "policy.json").read_bytes()
     assert a == (tmp_path / "killed" / "policy.json").read_bytes()
     doc = json.loads(a)
-    assert doc["meta"]["config"]["seed"] == 7 and doc["version"] == 5 and len(doc["field_weights"]) == 3
+    assert doc["meta"]["config"]["seed"] == 7 and doc["version"] == 6 and len(doc["field_weights"]) == 3
     history = (tmp_path / "killed" / "history.jsonl").read_text().splitlines()
     assert [json.loads(x)["generation"] for x in history] == [1, 2, 3, 4]
 
@@ -161,19 +161,19 @@ def test_a_state_of_another_policy_shape_is_refused_by_name(tmp_path):
     (tmp_path / "config.json").write_text(json.dumps(asdict(config)))
     es = cma.CMAEvolutionStrategy(np.zeros(36), 0.3, {"seed": 1, "verbose": -9})
     (tmp_path / "state.pkl").write_bytes(pickle.dumps({"version": STATE_VERSION, "es": es}))
-    with pytest.raises(ParameterError, match=r"state.pkl: a search over 36 weights, but this version's policy has 50"):
+    with pytest.raises(ParameterError, match=r"state.pkl: a search over 36 weights, but this version's policy has 55"):
         _check_dir(tmp_path, config)
 
 
 def test_kept_outputs_stay_at_the_init_policys_weights(tmp_path):
     """--keep searches the other rows only; the kept rows of W and V are --init's, exactly."""
     rng = np.random.default_rng(3)
-    W, V = rng.normal(0, 1, (5, 10)), rng.normal(0, 1, (3, 6))
+    W, V = rng.normal(0, 1, (5, 11)), rng.normal(0, 1, (3, 6))
     W[2], V[2] = 0.0, 0.0  # sigma_b_d_near held
     FieldPolicy("navigation", W, field_weights=V).save(tmp_path / "start.json")
     c = TuneConfig(per_field=True, hold=("sigma_b_d_near",), init=str(tmp_path / "start.json"),
                    keep=("sigma_b_alpha", "sigma_b_d_beyond"))
-    assert search_size(c) == 2 * 10  # sigma_a_d's and sigma_a_alpha's rows of W; no row of V
+    assert search_size(c) == 2 * 11  # sigma_a_d's and sigma_a_alpha's rows of W; no row of V
     x0 = start_vector(c)
     assert np.array_equal(full_weights(c, x0), np.concatenate([W.ravel(), V.ravel()]))  # the start is the init
     moved = FieldPolicy.from_flat("navigation", full_weights(c, x0 + 1.0))
