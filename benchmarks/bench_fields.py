@@ -3,7 +3,8 @@ Gymnasium environment (:mod:`cekm_swarm.tune.env`) and ticks per second of a tra
 run (the field-policy motor with a policy's weights W, and with per-field weights V too:
 Eq. 8 per field with its own widths), against a plain ``cekm run`` of the same scenario
 measured in the same run (the baseline: the shipped constant-width graph, ``cekm-tuned``
-for navigation, in process).
+for navigation, in process), and the default ``cekm run`` (for navigation the shipped
+field policy) beside it.
 
 Every variant runs the same scenario to the same end; the best of ``--repeat`` timings
 counts, the variants interleaved. The host's load and steal are printed beside: numbers taken on a shared machine
@@ -63,6 +64,9 @@ def main() -> None:
     def plain():
         return run_graph(sc, CONSTANT_GRAPH[task], model=model, max_time=max_time).ticks
 
+    def default():
+        return run_graph(sc, "cekm", model=model, max_time=max_time).ticks
+
     def trained():
         return run_graph(sc, graph=checked, params={"weights": W}, model=model, max_time=max_time).ticks
 
@@ -82,11 +86,16 @@ def main() -> None:
         return env.session.episode.tick
 
     plain()  # warm up (compile, caches)
-    res = best_of({"plain": plain, "env": stepped, "policy": trained, "per_field": per_field}, args.repeat)
+    res = best_of({"plain": plain, "default": default, "env": stepped, "policy": trained, "per_field": per_field},
+                  args.repeat)
     (base_s, base_ticks), (env_s, env_ticks), (pol_s, pol_ticks) = res["plain"], res["env"], res["policy"]
     pf_s, pf_ticks = res["per_field"]
+    def_s, def_ticks = res["default"]
     print(f"scenario {args.scenario} ({task}), best of {args.repeat}")
-    print(f"  cekm run (baseline)         {base_ticks:6d} ticks  {base_ticks / base_s:9.0f} ticks/s")
+    print(f"  cekm run, constant widths   {base_ticks:6d} ticks  {base_ticks / base_s:9.0f} ticks/s  (the baseline)")
+    print(f"  cekm run, the default       {def_ticks:6d} ticks  {def_ticks / def_s:9.0f} ticks/s  "
+          f"ratio {base_s / base_ticks / (def_s / def_ticks):.2f} of baseline ({task}: "
+          f"{'the shipped policy' if task == 'navigation' else 'constant widths'})")
     print(f"  environment, {args.ticks_per_action} ticks/step   {env_ticks:6d} ticks  {env_ticks / env_s:9.0f} ticks/s "
           " "
           f"{steps['n'] / env_s:8.1f} steps/s  ratio {base_s / base_ticks / (env_s / env_ticks):.2f} of baseline")
