@@ -26,7 +26,7 @@ def tune_group() -> None:
 def mix_option(help: str):
     """``--mix``, the generated geometry mix (the keys of scenarios.MIXES, which a test keeps
     equal; not imported here, as scenarios pulls in the world)."""
-    mixes = ["default", "wide", "route", "movers", "turned", "discs", "lone-disc"]
+    mixes = ["default", "wide", "route", "movers", "turned", "discs", "lone-disc", "stalls"]
     return click.option("--mix", type=click.Choice(mixes), default="default", show_default=True, help=help)
 
 
@@ -52,7 +52,8 @@ def mix_option(help: str):
             "narrow gaps, long walls and narrow deep U's; route: also a goal in a narrow alcove; "
             "movers: the wide mix with rooms with movers a third of the time; turned: the wide mix and U's "
             "turned any way a third of the time; discs: the route mix and a lone small disc head-on a fifth of "
-            "the time; lone-disc: only those).")
+            "the time; lone-disc: only those; stalls: the default mix, narrow deep U's a third and lone discs "
+            "two ninths of the time).")
 @click.option("--hold", multiple=True, help="An output held at today's value (its rows of W and V stay 0), e.g. "
                                           "sigma_b_d_near; repeat for more.")
 @click.option("--per-field", is_flag=True, help="Also learn V: each obstacle field's widths from its own "

@@ -43,8 +43,11 @@ DISC_KINDS = (*ROUTE_KINDS, "disc", "disc")
 """``--mix discs``: the route mix and, a fifth of the time, a lone small disc head-on on the
 way to the goal (where the fourth round's policy can stall: its obstacle field, widened for
 walls ahead, inhibits every forward neuron the map has; docs/fields.md, the fifth round)."""
+STALL_KINDS = (*KINDS, "u-narrow", "u-narrow", "u-narrow", "disc", "disc")
+"""``--mix stalls``: the default mix, narrow deep U's a third of the time and lone discs
+head-on two ninths: the geometries where a robot stalls, for the ``stalled`` feature."""
 MIXES = {"default": KINDS, "wide": WIDE_KINDS, "route": ROUTE_KINDS, "movers": MOVER_KINDS, "turned": TURNED_KINDS,
-         "discs": DISC_KINDS, "lone-disc": ("disc",)}
+         "discs": DISC_KINDS, "lone-disc": ("disc",), "stalls": STALL_KINDS}
 SEED_BASE = {"train": 1_000_000, "validation": 2_000_000, "test": 3_000_000}
 """Scenario seeds by purpose: purpose p's i-th scenario has seed SEED_BASE[p] + i."""
 
