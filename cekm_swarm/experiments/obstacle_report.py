@@ -7,6 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from .. import jsonfile
+from .field_widths import REPRODUCTION
 from .obstacle_figures import suite_figure
 from .obstacle_run import FIGURE
 
@@ -19,6 +20,12 @@ def _mm(metres: float | None) -> str:
     return "-" if metres is None else f"{1000 * metres:.1f}"
 
 
+def _label(controller: str, doc: dict) -> str:
+    """cekm's row names its field widths when they are not the paper's method's."""
+    fields = doc.get("fields", REPRODUCTION)
+    return f"cekm ({fields} widths)" if controller == "cekm" and fields != REPRODUCTION else controller
+
+
 def summary_markdown(doc: dict) -> str:
     """One row per scenario and controller: success and collision-free success with their
     95 % intervals, contacts, runs with a contact, smallest clearance."""
@@ -28,7 +35,7 @@ def summary_markdown(doc: dict) -> str:
         fig = FIGURE.get(s)
         name = f"{s} (Fig. {fig})" if fig else s
         for c, t in per.items():
-            lines.append(f"| {name} | {c} | {_pct(t['success'], t['of'], t['success_ci95'])} | "
+            lines.append(f"| {name} | {_label(c, doc)} | {_pct(t['success'], t['of'], t['success_ci95'])} | "
                          f"{_pct(t['collision_free'], t['of'], t['collision_free_ci95'])} | {t['contacts']} | "
                          f"{t['runs_with_contact']} | {_mm(t['min_clearance_m'])} |")
     return "\n".join(lines)
@@ -46,7 +53,7 @@ def table_markdown(doc: dict) -> str:
                 mark = "yes" if r["success"] else "no"
                 extra = f", {r['checkpoints_reached']}/{r['checkpoints']} cp" if s == "checkpoints" else ""
                 cells.append(f"{mark} {r['time_s']:.0f} s, {r['collisions']} coll.{extra}")
-            lines.append(f"| {s} | {c} | " + " | ".join(cells) + f" | {tally['success']}/{tally['of']} |")
+            lines.append(f"| {s} | {_label(c, doc)} | " + " | ".join(cells) + f" | {tally['success']}/{tally['of']} |")
     return "\n".join(lines)
 
 
