@@ -47,14 +47,31 @@ class _PolicyFields:
     params: Any  # the node's (cekm_swarm.node.api.Node)
     ctx: Any
 
-    def _setup_policy(self) -> None:
+    def _load_policy(self) -> FieldPolicy:
+        """The policy the parameters name: ``weights`` if given, else the ``policy`` file
+        (default: the one shipped for the task)."""
         p = self.params
+        self._source = (p.policy, p.weights)
+        if p.weights:
+            return FieldPolicy.from_flat(self.task, p.weights)
+        path = p.policy or shipped_policy(self.task)
+        return FieldPolicy.load(path).check_task(self.task, path)
+
+    def _follow_params(self) -> None:
+        """A ``policy`` or ``weights`` changed while the node runs (``cekm param set``):
+        the new policy from this step on; one that cannot be read is refused in the node's
+        log, naming it, and the policy before it stays."""
+        if (self.params.policy, self.params.weights) == self._source:
+            return
         try:
-            if p.weights:
-                self.policy = FieldPolicy.from_flat(self.task, p.weights)
-            else:
-                path = p.policy or shipped_policy(self.task)
-                self.policy = FieldPolicy.load(path).check_task(self.task, path)
+            self.policy = self._load_policy()
+        except Exception as exc:  # noqa: BLE001 -- a bad file or weight count: logged, the run goes on
+            self.ctx.log.error("%s: field policy %s refused: %s; the policy before it stays", self.ctx.sender,
+                               self.params.policy or "weights", exc)
+
+    def _setup_policy(self) -> None:
+        try:
+            self.policy = self._load_policy()
         except Exception as exc:  # a bad file, weight count or task: the node names it and stops
             raise NodeError(f"{self.ctx.sender}: field policy: {exc}") from None
         self.override: FieldChoice | None = None  # set by the environments (cekm_swarm.tune.env_core)
@@ -79,6 +96,7 @@ class _PolicyFields:
         self._stall.update(t, self._forward)
 
     def _choose(self, features: np.ndarray) -> FieldChoice:
+        self._follow_params()
         self.last_features = features
         choice = self.override if self.override is not None else self.policy.choose(features)
         self.last_choice = choice

@@ -347,3 +347,27 @@ def test_stalled_is_how_little_the_robots_own_commands_moved_it():
     assert after([0.0] * n + [v_max] * n) == 0.0  # only the last window counts
     feats = field_features(np.array([[0.0, 0.1], [1.0, 0.2]]), [None], None, stalled=0.75)
     assert feats[FEATURES.index("stalled")] == 0.75
+
+
+def test_a_policy_set_while_the_motor_runs_takes_over_and_a_bad_one_is_refused(tmp_path, caplog):
+    """``cekm param set r1/motor policy FILE`` replaces the node's params between steps: the
+    field-policy motor follows from its next step; a file it cannot read is refused in its
+    log, naming it, and the policy before it stays."""
+    import dataclasses
+
+    from cekm_swarm.experiments.graph_run import GraphSession
+
+    FieldPolicy("navigation").save(tmp_path / "zero.json")
+    (tmp_path / "bad.json").write_text("[]")
+    s = GraphSession(load_scenario("concave"), "cekm", max_time=10.0)
+    for _ in range(20):
+        s.step()
+    motor = s.executor.node("r1", "motor")
+    shipped = motor.policy
+    assert motor.last_choice.fields != FieldParams()  # the shipped policy moves the widths
+    motor.params = dataclasses.replace(motor.params, policy=str(tmp_path / "bad.json"))
+    s.step()
+    assert motor.policy is shipped and "bad.json refused" in caplog.text and "not a field policy" in caplog.text
+    motor.params = dataclasses.replace(motor.params, policy=str(tmp_path / "zero.json"))
+    s.step()
+    assert motor.policy is not shipped and motor.last_choice.fields == FieldParams()  # W = 0: the constants
