@@ -19,41 +19,11 @@ import pytest
 from cekm_swarm.experiments.default_model import default_model, default_model_path
 from cekm_swarm.protocol import DEFAULT_KEYS as K
 from helpers.launch import LaunchProcess
+from helpers.pair import pair_toml
 
 pytestmark = pytest.mark.slow  # starts real processes (tests/process_guard.py)
 
-SCENARIO = """
-name = "pair"
-description = "two robots, short trips; r1 passes a disc"
-seed = 1
-
-[arena]
-bounds = [0.0, 0.0, 1.4, 1.2]
-
-[[robots]]
-id = "r1"
-start = [0.2, 0.35, 0.0]
-goal = "g1"
-
-[[robots]]
-id = "r2"
-start = [0.2, 0.85, 0.0]
-goal = "g2"
-
-[[targets]]
-id = "g1"
-position = [1.0, 0.35]
-
-[[targets]]
-id = "g2"
-position = [0.75, 0.85]
-
-[[obstacles]]
-id = "disc"
-shape = "disc"
-center = [0.6, 0.35]
-radius = 0.04
-"""
+SCENARIO = pair_toml()
 DEADMAN = 0.5
 KILL_AT = 1.0  # s of sim time
 

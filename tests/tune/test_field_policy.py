@@ -23,6 +23,7 @@ from cekm_swarm.tune.features import (
 )
 from cekm_swarm.tune.graphs import with_fields
 from cekm_swarm.tune.policy import FieldPolicy, shipped_policy
+from helpers.pair import pair_toml
 from world import load_scenario
 
 
@@ -278,36 +279,9 @@ def test_a_bad_policy_file_stops_the_node_with_its_name(tmp_path):
                   params={"policy": str(bad)}, max_time=1.0)
 
 
-PAIR = """
-name = "pair-stall"
-seed = 1
-[arena]
-bounds = [0.0, 0.0, 1.4, 1.2]
-[[robots]]
-id = "r1"
-start = [0.2, 0.355, -0.1]
-goal = "g1"
-[[robots]]
-id = "r2"
-start = [0.2, 0.85, 0.0]
-goal = "g2"
-[[targets]]
-id = "g1"
-position = [1.0, 0.35]
-[[targets]]
-id = "g2"
-position = [0.75, 0.85]
-[[obstacles]]
-id = "disc"
-shape = "disc"
-center = [0.6, 0.35]
-radius = 0.04
-"""
-
-
 def _pair(tmp_path):
     path = tmp_path / "pair.toml"
-    path.write_text(PAIR)
+    path.write_text(pair_toml((0.2, 0.355, -0.1)))  # a start the learned default stalls from
     return load_scenario(str(path))
 
 
