@@ -10,7 +10,7 @@ from dataclasses import dataclass
 from world import ScenarioError, load_scenario
 
 from ..errors import ParameterError
-from .field_widths import FIELDS, REPRODUCTION
+from .field_widths import REPRODUCTION, check_fields
 
 
 @dataclass(frozen=True)
@@ -31,8 +31,7 @@ class SweepConfig:
                 raise ParameterError(f"--{name}: sweep {name} must be positive numbers, got {list(values)}")
         if not self.seeds:
             raise ParameterError("--seeds: give at least one seed")
-        if self.fields not in FIELDS:
-            raise ParameterError(f"--fields must be one of {list(FIELDS)}, got {self.fields!r}")
+        check_fields(self.fields)
         if not 1 <= self.need <= len(self.seeds):
             raise ParameterError(f"--need: must be between 1 and the number of --seeds ({len(self.seeds)}), "
                                  f"got {self.need}")

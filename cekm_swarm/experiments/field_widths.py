@@ -39,6 +39,13 @@ POLICY_PROGRAM = {"navigation": "cekm_swarm.tune.motor:FieldMotor",
 """The motor node's program when a field policy chooses the widths."""
 
 
+def check_fields(fields: str) -> str:
+    """``fields`` if it is one of :data:`FIELDS`, else a ParameterError naming it."""
+    if fields not in FIELDS:
+        raise ParameterError(f"--fields must be one of {list(FIELDS)}, got {fields!r}")
+    return fields
+
+
 def _task(task: str) -> str:
     if task not in DEFAULT_FIELDS:
         raise ParameterError(f"task must be one of {sorted(DEFAULT_FIELDS)}, got {task!r}")
@@ -65,8 +72,7 @@ def fields_graph(fields: str, task: str, policy: Path | str | None = None) -> tu
     ``paper``: the constant-width graph with the paper's obstacle width (sigma_b_alpha
     0.495); ``tuned``: the constant-width graph as shipped; ``learned``: the field-policy
     motor with ``policy`` (default: the policy shipped for the task)."""
-    if fields not in FIELDS:
-        raise ParameterError(f"--fields must be one of {list(FIELDS)}, got {fields!r}")
+    check_fields(fields)
     if policy is not None and fields != "learned":
         raise ParameterError(f"a policy file ({policy}) goes with --fields learned, not {fields}")
     if fields == "learned":

@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from collections.abc import Iterable, Sequence
+from itertools import chain, pairwise
 
 import numpy as np
 
@@ -99,9 +100,7 @@ class Stall:
             self.sent.popleft()
         if not self.sent or self.sent[0][0] > start + 1e-9 or v_max <= 0:
             return 0.0
-        travel = 0.0
-        for (t0, v), (t1, _) in zip(self.sent, [*list(self.sent)[1:], (t, 0.0)], strict=True):
-            travel += v * (t1 - max(t0, start))
+        travel = sum(v * (t1 - max(t0, start)) for (t0, v), (t1, _) in pairwise(chain(self.sent, [(t, 0.0)])))
         return 1.0 - min(abs(travel) / (STALL_PACE * v_max * STALL_WINDOW), 1.0)
 
     def update(self, t: float, forward: float) -> None:

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import functools
 import math
+from itertools import chain
 from typing import Any
 
 import numpy as np
@@ -155,7 +156,7 @@ def navigation_raw(seed: int, kind: str | None = None, mix: str = "default") -> 
                 "robots": [{"id": "r1", "start": [0.25, _r(rng.uniform(0.3, 0.7)), 0.0], "goal": "goal"}],
                 "targets": [{"id": "goal", "position": [2.75, _r(rng.uniform(0.3, 0.7))]}],
                 "walls": walls, "obstacles": movers}
-    raise ParameterError(f"unknown geometry kind {kind!r}; expected one of {sorted(set(DISC_KINDS))}")
+    raise ParameterError(f"unknown geometry kind {kind!r}; expected one of {sorted(set(chain(*MIXES.values())))}")
 
 
 def _extra_raw(kind: str, rng: np.random.Generator, rs: float, seed: int) -> dict[str, Any]:
