@@ -114,6 +114,28 @@ def motor_command(M: np.ndarray, w: np.ndarray, alpha: float, d: float, k: int, 
     return min(max(c0, -v_max), v_max), min(max(c1, -v_max), v_max)
 
 
+def face_turn(v_l: float, v_r: float, gain: float, v_max: float, turn_only: bool = False) -> tuple[float, float]:
+    """A turn-in-place command of Eq. 11 executed faster (TrackingParams.face_turn_gain, the
+    navigation field-policy motor's turn_gain): c
+    scaled by min(gain, c* / max |c|), its direction kept, no wheel beyond c*; ``turn_only``:
+    only its turn part (v_r - v_l) / 2 scaled, by min(gain, (c* - |v|) / |turn|), its mean
+    speed v = (v_l + v_r) / 2 kept (face_turn_only)."""
+    if turn_only:
+        v, h = 0.5 * (v_l + v_r), 0.5 * (v_r - v_l)
+        f = min(gain, (v_max - abs(v)) / abs(h)) if h != 0.0 else 1.0
+        return (v - f * h, v + f * h) if f > 1.0 else (v_l, v_r)
+    top = max(abs(v_l), abs(v_r))
+    f = min(gain, v_max / top) if top > 0.0 else 1.0
+    return (v_l * f, v_r * f) if f > 1.0 else (v_l, v_r)
+
+
+def turns_to_rear(w: np.ndarray, k: int, reverse_min_d: float = 0.02) -> bool:
+    """Whether motor neuron k turns the robot in place toward its rear half (|alpha_k| > pi/2,
+    d_k <= reverse_min_d): the only rear neurons :func:`motor_candidates` keeps without
+    ``allow_reverse``, and the winner left when every forward neuron is inhibited."""
+    return bool(abs(float(w[k, 0])) > np.pi / 2 and float(w[k, 1]) <= reverse_min_d)
+
+
 class FieldRows(dict[int, np.ndarray]):
     """A field's rows by winner s, each computed when first asked for (read-only): the
     values a tabulated row holds, for a map that changes too often to tabulate."""

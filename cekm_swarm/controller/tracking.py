@@ -42,7 +42,7 @@ import numpy as np
 from ..models.networks import IndirectEKM
 from ..models.params import FieldParams, TrackingParams
 from .anticipation import TargetTracks, held_group
-from .cooperative import CooperativeEKM, MotorOutput, ObstacleActivity, motor_command
+from .cooperative import CooperativeEKM, MotorOutput, ObstacleActivity, face_turn, motor_command
 from .kmeans import assign
 from .readings import RangeReading
 from .team import TeammateShare, TeamView, observers_nearer, to_robot, to_world
@@ -147,20 +147,6 @@ def teammate_field(w: np.ndarray, s: int, params: TrackingParams) -> np.ndarray:
     sd = np.where(w[:, 1] >= w[s, 1], params.teammate_sigma_d_beyond, params.teammate_sigma_d_near)
     out: np.ndarray = np.exp(-da * da / (2.0 * params.teammate_sigma_alpha ** 2) - dd * dd / (2.0 * sd * sd))
     return out
-
-
-def face_turn(v_l: float, v_r: float, gain: float, v_max: float, turn_only: bool = False) -> tuple[float, float]:
-    """A turn-in-place command of Eq. 11 executed faster (TrackingParams.face_turn_gain): c
-    scaled by min(gain, c* / max |c|), its direction kept, no wheel beyond c*; ``turn_only``:
-    only its turn part (v_r - v_l) / 2 scaled, by min(gain, (c* - |v|) / |turn|), its mean
-    speed v = (v_l + v_r) / 2 kept (face_turn_only)."""
-    if turn_only:
-        v, h = 0.5 * (v_l + v_r), 0.5 * (v_r - v_l)
-        f = min(gain, (v_max - abs(v)) / abs(h)) if h != 0.0 else 1.0
-        return (v - f * h, v + f * h) if f > 1.0 else (v_l, v_r)
-    top = max(abs(v_l), abs(v_r))
-    f = min(gain, v_max / top) if top > 0.0 else 1.0
-    return (v_l * f, v_r * f) if f > 1.0 else (v_l, v_r)
 
 
 _SHARED: dict[Any, tuple[IndirectEKM, CooperativeEKM, np.ndarray]] = {}

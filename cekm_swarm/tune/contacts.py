@@ -101,13 +101,14 @@ def contact_events(seed: int, max_time: float = 300.0, model_path: str | None = 
                    weights: tuple[float, ...] | None = None,
                    mix: str = "default") -> tuple[dict[str, Any], list[dict[str, Any]]]:
     """The run of generated navigation scenario ``seed`` of geometry mix ``mix`` with the
-    policy ``weights`` (default W = 0: today's constants): its outcome row, and every new
-    contact, one row each."""
+    policy ``weights`` (default W = 0 and Eq. 11's turns as they are: today's constants, the
+    ``cekm-tuned`` graph's run): its outcome row, and every new contact, one row each."""
     raw = navigation_raw(seed, mix=mix)
     kind = raw["name"].split("-")[1]
-    w = weights if weights is not None else (0.0,) * FieldPolicy.size("navigation")
+    params: dict[str, Any] = {"weights": tuple(weights)} if weights is not None else \
+        {"weights": (0.0,) * FieldPolicy.size("navigation"), "turn_gain": 1.0}
     s = GraphSession(navigation_scenario(seed, mix=mix), graph=check_graph(policy_graph("navigation")),
-                     model=_model(model_path), max_time=max_time, params={"weights": tuple(w)})
+                     model=_model(model_path), max_time=max_time, params=params)
     motor = s.executor.node("r1", "motor")
     assert isinstance(motor, FieldMotor)
     outs: list[Any] = []

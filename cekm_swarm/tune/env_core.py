@@ -12,6 +12,7 @@ its fields see, its distance to the goal, its contacts and whether it has reache
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -44,6 +45,9 @@ class FieldEnvCore:
     :meth:`_setup` from its ``__init__`` and :meth:`_start` from its ``reset``."""
 
     np_random: np.random.Generator
+    turn_gain: float = math.inf
+    """Navigation: the motor's ``turn_gain`` (:class:`.motor.FieldMotor`; 1: Eq. 11's turns as
+    they are, so that action 0 is ``cekm run --fields tuned``'s run exactly)."""
 
     def _setup(self, task: str, scenario: Any, ticks_per_action: int, max_time: float | None, purpose: str,
                model: Any, contact_penalty: float) -> None:
@@ -77,8 +81,10 @@ class FieldEnvCore:
         """A new episode's session (the scenario drawn now), every robot at action 0 (today's values)."""
         self.close()
         sc = self._scenario()
-        self.session = GraphSession(sc, graph=self.checked, model=self.model, max_time=self.max_time,
-                                    params={"weights": (0.0,) * FieldPolicy.size(self.task)})  # the actions rule
+        params: dict[str, Any] = {"weights": (0.0,) * FieldPolicy.size(self.task)}  # the actions rule
+        if self.task == "navigation":
+            params["turn_gain"] = self.turn_gain
+        self.session = GraphSession(sc, graph=self.checked, model=self.model, max_time=self.max_time, params=params)
         self.robots = tuple(self.session.world.robot_ids)
         self.motor_of = {r: _policy_motor(self.session.executor.node(r, "motor")) for r in self.robots}
 

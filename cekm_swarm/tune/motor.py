@@ -7,8 +7,16 @@ the widths the field policy chooses from what the fields see (:mod:`.features`) 
 for the tick, or with a policy's per-field weights V each field's own -- and for
 tracking the teammate fields' sum is scaled by the policy's gain. A field is a pure
 function of its winner and its widths, so computing it here is exact, and the
-localization modules and the message protocol are unchanged: with the base widths this
-node's commands equal the shipped motor node's, bit for bit (tested).
+localization modules and the message protocol are unchanged: with the base widths and
+``turn_gain`` 1 this node's commands equal the plain motor node's, bit for bit (tested).
+
+One thing the navigation node executes differently (``turn_gain``, default inf; not a
+field parameter, as tracking's ``face_turn_gain``): when every forward neuron is inhibited
+and the detour winner k turns the robot in place toward its rear (|alpha_k| > pi/2, d_k <=
+reverse_min_d), its command's turn part is scaled up to c*, its mean speed kept. As Eq. 11
+gives it the turn is about 0.25 rad/s, slow enough that the rear neuron on the other side
+wins a few degrees later and turns it back: the robot swings in a narrow U or in front of
+a disc instead of turning round (docs/fields.md, the sixth round).
 
 Why the motor node: it is the one node that sees every field of a tick at once, which
 the policy's input needs; a separate policy node would need a new message to every
@@ -17,12 +25,13 @@ localization module for the same result.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
-from cekm_swarm.controller.cooperative import ObstacleActivity, TargetActivity
+from cekm_swarm.controller.cooperative import ObstacleActivity, TargetActivity, face_turn, turns_to_rear
 from cekm_swarm.models.fields import obstacle_field, target_field
 from cekm_swarm.models.params import FieldParams, TrackingParams, narrowed
 from cekm_swarm.modules.ekm import cooperative_ekm
@@ -159,8 +168,11 @@ class FieldMotor(_PolicyFields, Node):
         reverse_min_d: float = 0.02
         policy: str = ""  # a field policy file (cekm tune fields); "" = the one shipped for navigation
         weights: tuple[float, ...] = ()  # the policy's weights in place of a file (training): W, then V if any
+        turn_gain: float = math.inf  # a detour's turn in place toward the rear, executed up to c* (1: as Eq. 11)
 
     def setup(self) -> None:
+        if not self.params.turn_gain >= 1.0:
+            raise NodeError(f"{self.ctx.sender}: turn_gain must be >= 1 (inf: up to c*), got {self.params.turn_gain!r}")
         self.ekm = cooperative_ekm(self.ctx, None, self.params.allow_reverse, self.params.reverse_min_d)
         self.integrated: tuple[TargetActivity | None, list[ObstacleActivity]] | None = None
         self._setup_policy()
@@ -176,8 +188,12 @@ class FieldMotor(_PolicyFields, Node):
         self.integrated = (self._target(self.ekm.w, target_activity(tf), choice),
                            self._obstacles(self.ekm.w, fields, choice, target, features))  # as the plain motor's
         out = self.ekm.integrate(*self.integrated)  # Eqs. 9-11
-        self._sent(t, out.v_l, out.v_r)
-        return {"command": WheelCommand(t, self.ctx.sender, out.v_l, out.v_r, tick_of(t))}
+        v_l, v_r = out.v_l, out.v_r
+        if self.params.turn_gain != 1.0 and out.k is not None and out.k != out.s \
+                and turns_to_rear(self.ekm.w, out.k, self.params.reverse_min_d):
+            v_l, v_r = face_turn(v_l, v_r, self.params.turn_gain, self.ctx.body.v_max, turn_only=True)
+        self._sent(t, v_l, v_r)
+        return {"command": WheelCommand(t, self.ctx.sender, v_l, v_r, tick_of(t))}
 
 
 class FieldTrackingMotor(_PolicyFields, Node):

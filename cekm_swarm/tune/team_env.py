@@ -30,6 +30,7 @@ episode. With every agent at action 0 the run is ``cekm run``'s (tested).
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -56,7 +57,8 @@ class FieldTeamEnv(FieldEnvCore, ParallelEnv):
 
     def __init__(self, task: str = "navigation", scenario: Any = None, *, ticks_per_action: int = 8,
                  max_time: float | None = None, purpose: str = "train", model: Any = None,
-                 contact_penalty: float = 0.5, robots: int | None = None) -> None:
+                 contact_penalty: float = 0.5, robots: int | None = None, turn_gain: float = math.inf) -> None:
+        self.turn_gain = turn_gain  # navigation's motor: as cekm run's default graph (1: the constants' motor)
         self._setup(task, scenario, ticks_per_action, max_time, purpose, model, contact_penalty)
         if robots is not None and scenario is not None:
             raise ParameterError("FieldTeamEnv: robots= chooses generated scenarios; a scenario given has its own")

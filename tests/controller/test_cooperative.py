@@ -91,6 +91,20 @@ def test_motor_candidates_exclude_reverse_and_unconverged_neurons():
     np.testing.assert_array_equal(motor_candidates(net, allow_reverse=True), net.converged)
 
 
+def test_the_rear_turns_are_the_rear_candidates_the_reverse_rule_keeps():
+    """turns_to_rear: exactly the neurons of the rear half that motor_candidates keeps without
+    allow_reverse (turns in place, d <= reverse_min_d); none of the forward half."""
+    from cekm_swarm.controller.cooperative import motor_candidates, turns_to_rear
+
+    net = make_network("R9", np.random.default_rng(1))
+    w = np.array([[3.0, 0.01], [-2.0, 0.02], [3.0, 0.05], [0.3, 0.01], [np.pi / 2, 0.0]])
+    assert [turns_to_rear(w, k) for k in range(len(w))] == [True, True, False, False, False]
+    assert not turns_to_rear(w, 0, reverse_min_d=0.005)
+    rear = np.abs(net.w[:, 0]) > np.pi / 2
+    kept = motor_candidates(net)
+    assert [turns_to_rear(net.w, k) for k in range(len(net.w))] == (rear & kept).tolist()
+
+
 def test_convergence_mask_tells_a_converged_map_from_an_untrained_one():
     from cekm_swarm.experiments.training import convergence_mask
     from cekm_swarm.models.networks import IndirectEKM

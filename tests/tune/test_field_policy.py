@@ -213,8 +213,9 @@ def test_the_motor_node_uses_the_policys_widths():
     sc = load_scenario("concave")
     checked = check_graph(policy_graph("navigation"))
     base = run_graph(sc, "cekm-tuned").episode.outcome()
-    zero = run_graph(sc, graph=checked, params={"weights": (0.0,) * 55}).episode.outcome()
-    zero_v = run_graph(sc, graph=checked, params={"weights": (0.0,) * 73}).episode.outcome()
+    plain = {"turn_gain": 1.0}  # Eq. 11's command as the plain motor executes it
+    zero = run_graph(sc, graph=checked, params={"weights": (0.0,) * 55, **plain}).episode.outcome()
+    zero_v = run_graph(sc, graph=checked, params={"weights": (0.0,) * 73, **plain}).episode.outcome()
     W = np.zeros((5, len(FEATURES)))
     W[0, 1] = 3.0  # sigma_b_alpha up with an obstacle ahead
     wide = run_graph(sc, graph=checked, params={"weights": tuple(W.ravel().tolist())}).episode.outcome()
@@ -236,7 +237,7 @@ def test_the_policys_target_width_is_the_target_modules_own_exactly(row, name, b
     width = getattr(FieldPolicy("navigation", W).choose(np.ones(len(FEATURES))).fields, name)
     assert width != getattr(FieldParams(), name)
     policy = run_graph(sc, graph=check_graph(policy_graph("navigation")),
-                       params={"weights": tuple(W.ravel().tolist())}, max_time=40.0).episode.outcome()
+                       params={"weights": tuple(W.ravel().tolist()), "turn_gain": 1.0}, max_time=40.0).episode.outcome()
     module = run_graph(sc, "cekm-tuned", params={name: width}, max_time=40.0).episode.outcome()
     assert policy == module and policy != run_graph(sc, "cekm-tuned", max_time=40.0).episode.outcome()
 
@@ -281,7 +282,7 @@ def test_a_bad_policy_file_stops_the_node_with_its_name(tmp_path):
 
 def _pair(tmp_path):
     path = tmp_path / "pair.toml"
-    path.write_text(pair_toml((0.2, 0.355, -0.1)))  # a start the learned default stalls from
+    path.write_text(pair_toml((0.2, 0.355, -0.1)))  # a start where the learned widths leave only a turn in place
     return load_scenario(str(path))
 
 
@@ -289,14 +290,34 @@ def test_the_constant_widths_pass_a_small_disc_head_on(tmp_path):
     assert run_graph(_pair(tmp_path), "cekm-tuned", seed=1, max_time=60.0).episode.outcome()["r1"]["reached"]
 
 
-@pytest.mark.xfail(strict=True, raises=AssertionError,
-                   reason="known: the shipped navigation policy stalls head-on in front of a small disc in about 1 "
-                          "start of 100 (docs/fields.md, 'The default')")
-def test_the_shipped_policy_passes_a_small_disc_head_on(tmp_path):
+def test_the_default_passes_a_small_disc_head_on_by_turning_at_speed(tmp_path):
     """The stall the realtime launch test met: the obstacle field widened for a wall ahead
-    inhibits every forward neuron the map has, and the robot turns back and forth in front
-    of the disc (the constant widths pass, grazing the disc in a quarter of such starts)."""
-    assert run_graph(_pair(tmp_path), "cekm", seed=1, max_time=60.0).episode.outcome()["r1"]["reached"]
+    inhibits every forward neuron the map has, a turn-in-place neuron toward the rear wins,
+    and executed as the map commands it (turn_gain 1) the robot turns so slowly that the
+    next winner turns it back: it swings in front of the disc. Executed at speed (the
+    default), it turns away and passes (docs/fields.md, the sixth round)."""
+    sc = _pair(tmp_path)
+    assert run_graph(sc, "cekm", seed=1, max_time=60.0).episode.outcome()["r1"]["reached"]
+    slow = run_graph(sc, "cekm", seed=1, max_time=60.0, params={"turn_gain": 1.0}).episode.outcome()["r1"]
+    assert not slow["reached"]
+
+
+def test_the_default_backs_out_of_a_narrow_u_it_entered():
+    """Fig. 9's hole cell (0.1 m wide, 0.18 m deep, sensing range 0.12 m): the robot enters
+    the slot, the arms and back wall inhibit every forward neuron, and only a turn in place
+    toward the rear is left; executed at speed it turns round, drives out and goes round."""
+    sc = load_scenario("concave", overrides={"obstacles[0].width": 0.1, "obstacles[0].depth": 0.18,
+                                             "sensors.range": 0.12})
+    assert run_graph(sc, "cekm", seed=3, max_time=40.0).episode.outcome()["r1"]["reached"]
+    slow = run_graph(sc, "cekm", seed=3, max_time=40.0, params={"turn_gain": 1.0}).episode.outcome()["r1"]
+    assert not slow["reached"] and slow["collisions"] == 0  # stalled in the slot, not stuck on a wall
+
+
+def test_a_turn_gain_below_one_is_refused_naming_the_node():
+    from cekm_swarm.node.api import NodeError
+
+    with pytest.raises(NodeError, match=r"r1/motor: turn_gain must be >= 1 \(inf: up to c\*\), got 0.5"):
+        run_graph(load_scenario("concave"), "cekm", params={"turn_gain": 0.5}, max_time=1.0)
 
 
 def test_stalled_is_how_little_the_robots_own_commands_moved_it():

@@ -86,11 +86,12 @@ def test_one_robot_gets_field_envs_rewards_and_observations():
 def _zero_action_episodes(task: str, name: str, max_time: float):
     """The team env's episode and FieldEnv's, every action 0, on shipped scenario ``name``, seed 0."""
     sc = load_scenario(name)
-    team = FieldTeamEnv(task, sc, max_time=max_time)
+    plain = {"turn_gain": 1.0} if task == "navigation" else {}  # Eq. 11's turns as they are: the constants' motor
+    team = FieldTeamEnv(task, sc, max_time=max_time, **plain)
     zero = np.zeros(len(team.policy.outputs), dtype=np.float32)
     _, rewards, left, outcome = _episode(team, 0, itertools.repeat(dict.fromkeys(team.possible_agents, zero)))
     team.close()
-    single = FieldEnv(task, sc, max_time=max_time)
+    single = FieldEnv(task, sc, max_time=max_time, **plain)
     single.reset(seed=0)
     single_rewards = []
     while True:

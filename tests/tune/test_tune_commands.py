@@ -3,14 +3,19 @@
 from __future__ import annotations
 
 import json
+import math
 
 import numpy as np
 from click.testing import CliRunner
 
 from cekm_swarm.cli import main, run_cli_args
+from cekm_swarm.experiments.field_widths import policy_graph
+from cekm_swarm.experiments.graph_run import run_graph
+from cekm_swarm.node.graph_check import check_graph
 from cekm_swarm.tune.features import N_FEATURES
 from cekm_swarm.tune.policy import FieldPolicy
 from cekm_swarm.tune.scenarios import navigation_raw
+from world import load_scenario
 
 
 def _run(tmp_path, *args) -> dict:
@@ -28,9 +33,10 @@ def test_run_fields_paper_differs_from_the_default(tmp_path, capsys):
 
 
 def test_run_takes_a_policy_file_of_ones_own_with_fields_learned(tmp_path, capsys):
-    """Zero weights are today's constants (``--fields tuned``, exactly); a policy that widens
-    the target field runs another path; a policy without --fields learned, or for tracking, is
-    refused before anything runs, naming the file."""
+    """Zero weights are today's widths: the default graph's motor with them (its turns in place
+    at speed), and with Eq. 11's turns as they are ``--fields tuned``, exactly; a policy that
+    widens the target field runs another path; a policy without --fields learned, or for
+    tracking, is refused before anything runs, naming the file."""
     pol = tmp_path / "policies"
     pol.mkdir()
     FieldPolicy("navigation").save(pol / "zero.json")
@@ -38,7 +44,12 @@ def test_run_takes_a_policy_file_of_ones_own_with_fields_learned(tmp_path, capsy
     W[3, 0] = 3.0  # sigma_a_d at twice today's
     FieldPolicy("navigation", W).save(pol / "wide.json")
     plain = _run(tmp_path, "--fields", "tuned", "--seed", "3")
-    assert _run(tmp_path, "--fields", "learned", "--policy", str(pol / "zero.json"), "--seed", "3") == plain
+    zero = _run(tmp_path, "--fields", "learned", "--policy", str(pol / "zero.json"), "--seed", "3")
+    graph = check_graph(policy_graph("navigation"))
+    weights = {"weights": (0.0,) * FieldPolicy.size("navigation")}
+    for gain, expected in ((math.inf, zero), (1.0, plain)):
+        r1 = run_graph(load_scenario("concave"), graph=graph, seed=3, params={**weights, "turn_gain": gain})
+        assert {k: v for k, v in r1.episode.outcome()["r1"].items() if k in expected} == expected
     assert _run(tmp_path, "--fields", "learned", "--policy", str(pol / "wide.json"), "--seed", "3") != plain
     code = run_cli_args(["run", "concave", "--policy", str(pol / "wide.json"), "--out", str(tmp_path / "x")])
     assert code != 0 and "wide.json goes with --fields learned, not no --fields" in capsys.readouterr().err
