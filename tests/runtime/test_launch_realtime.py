@@ -37,12 +37,11 @@ def faulty_run(tmp_path_factory):
     # every reading every tick: each tick then has each module's field, which the checks of
     # staleness and of what is logged per tick count on (held readings: test_launch_graphs,
     # tests/node/test_held_readings.py, and the realtime runs of the other launch tests)
-    # the constant-width graph: this file tests recovery in real time, and the default's learned
-    # widths stall r1 in front of the disc in about 1 start of 100 (docs/fields.md, "The
-    # default"; tests/tune/test_field_policy.py pins that stall) -- the ~2 s its forward
-    # sensor's module is dead lands it there
+    # the default graph (learned widths, rear turns at speed): the ~2 s r1's forward sensor's
+    # module is dead once left it swinging in front of the disc, before its motor turned at
+    # speed (docs/fields.md, "The sixth round")
     run = LaunchProcess(str(scenario), out / "run", "--mode", "realtime", "--max-time", "40",
-                        "--model", str(default_model_path()), "--send-every-reading", "--controller", "cekm-tuned")
+                        "--model", str(default_model_path()), "--send-every-reading")
     kills = {}
     try:
         run.wait_line("world started ticking", timeout=90)
