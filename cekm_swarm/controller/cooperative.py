@@ -115,11 +115,10 @@ def motor_command(M: np.ndarray, w: np.ndarray, alpha: float, d: float, k: int, 
 
 
 def face_turn(v_l: float, v_r: float, gain: float, v_max: float, turn_only: bool = False) -> tuple[float, float]:
-    """A turn-in-place command of Eq. 11 executed faster (TrackingParams.face_turn_gain, the
-    navigation field-policy motor's turn_gain): c
-    scaled by min(gain, c* / max |c|), its direction kept, no wheel beyond c*; ``turn_only``:
-    only its turn part (v_r - v_l) / 2 scaled, by min(gain, (c* - |v|) / |turn|), its mean
-    speed v = (v_l + v_r) / 2 kept (face_turn_only)."""
+    """A turn-in-place command of Eq. 11 executed faster (tracking's face_turn_gain, the
+    navigation field-policy motor's turn_gain): c scaled by min(gain, c* / max |c|), its
+    direction kept, no wheel beyond c*; ``turn_only``: only its turn part (v_r - v_l) / 2
+    scaled, by min(gain, (c* - |v|) / |turn|), its mean speed v = (v_l + v_r) / 2 kept."""
     if turn_only:
         v, h = 0.5 * (v_l + v_r), 0.5 * (v_r - v_l)
         f = min(gain, (v_max - abs(v)) / abs(h)) if h != 0.0 else 1.0
