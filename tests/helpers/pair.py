@@ -1,6 +1,6 @@
 """The two-robot scenario with a small disc in r1's way (tests/runtime/test_launch_realtime.py's),
-r1's start given: the realtime recovery test's, and the learned default's known stall
-(tests/tune/test_field_policy.py)."""
+r1's start given: the realtime recovery test's, and the start where the learned widths leave
+only a turn in place (tests/tune/test_field_policy.py)."""
 
 from __future__ import annotations
 
