@@ -106,7 +106,7 @@ def contact_events(seed: int, max_time: float = 300.0, model_path: str | None = 
     raw = navigation_raw(seed, mix=mix)
     kind = raw["name"].split("-")[1]
     params: dict[str, Any] = {"weights": tuple(weights)} if weights is not None else \
-        {"weights": (0.0,) * FieldPolicy.size("navigation"), "turn_gain": 1.0}
+        {"weights": (0.0,) * FieldPolicy.size("navigation"), "turn_gain": 1.0, "trail_gain": 0.0}
     s = GraphSession(navigation_scenario(seed, mix=mix), graph=check_graph(policy_graph("navigation")),
                      model=_model(model_path), max_time=max_time, params=params)
     motor = s.executor.node("r1", "motor")

@@ -18,6 +18,12 @@ gives it the turn is about 0.25 rad/s, slow enough that the rear neuron on the o
 wins a few degrees later and turns it back: the robot swings in a narrow U or in front of
 a disc instead of turning round (docs/fields.md, the sixth round).
 
+One field it may add (``trail_gain``, default 0: none): the trail field of
+:mod:`cekm_swarm.controller.trail`, the robot's memory of where it has been, among the
+obstacle fields of Eq. 9 once the target has come no nearer for a while. At 0.6 it leads a
+robot out of a deep U it circles in; it is not the default (docs/fields.md, the seventh
+round: it loses section 4.2's rooms).
+
 Why the motor node: it is the one node that sees every field of a tick at once, which
 the policy's input needs; a separate policy node would need a new message to every
 localization module for the same result.
@@ -32,6 +38,7 @@ from typing import Any
 import numpy as np
 
 from cekm_swarm.controller.cooperative import ObstacleActivity, TargetActivity, face_turn, turns_to_rear
+from cekm_swarm.controller.trail import Trail, TrailParams
 from cekm_swarm.models.fields import obstacle_field, target_field
 from cekm_swarm.models.params import FieldParams, TrackingParams, narrowed
 from cekm_swarm.modules.ekm import cooperative_ekm
@@ -169,12 +176,19 @@ class FieldMotor(_PolicyFields, Node):
         policy: str = ""  # a field policy file (cekm tune fields); "" = the one shipped for navigation
         weights: tuple[float, ...] = ()  # the policy's weights in place of a file (training): W, then V if any
         turn_gain: float = math.inf  # a detour's turn in place toward the rear, executed up to c* (1: as Eq. 11)
+        trail_gain: float = 0.0  # the trail field's peak once progress stops (0: none; 0.6 leaves deep U's)
 
     def setup(self) -> None:
         if not self.params.turn_gain >= 1.0:
             raise NodeError(f"{self.ctx.sender}: turn_gain must be >= 1 (inf: up to c*), got {self.params.turn_gain!r}")
         self.ekm = cooperative_ekm(self.ctx, None, self.params.allow_reverse, self.params.reverse_min_d)
         self.integrated: tuple[TargetActivity | None, list[ObstacleActivity]] | None = None
+        try:
+            self._trail = Trail(TrailParams(gain=self.params.trail_gain).check())
+        except ValueError as exc:
+            raise NodeError(f"{self.ctx.sender}: {exc}") from None
+        self._command = (0.0, 0.0)  # the last command sent, which the trail's dead reckoning executes
+        self._trail_refused: float | None = None  # a trail gain set while running and refused
         self._setup_policy()
 
     def check_input(self, port, msg):
@@ -187,13 +201,34 @@ class FieldMotor(_PolicyFields, Node):
         choice = self._choose(features)
         self.integrated = (self._target(self.ekm.w, target_activity(tf), choice),
                            self._obstacles(self.ekm.w, fields, choice, target, features))  # as the plain motor's
-        out = self.ekm.integrate(*self.integrated)  # Eqs. 9-11
+        out = self.ekm.integrate(*self._with_trail(t, tf))  # Eqs. 9-11
         v_l, v_r = out.v_l, out.v_r
         if self.params.turn_gain != 1.0 and out.k is not None and out.k != out.s \
                 and turns_to_rear(self.ekm.w, out.k, self.params.reverse_min_d):
             v_l, v_r = face_turn(v_l, v_r, self.params.turn_gain, self.ctx.body.v_max, turn_only=True)
         self._sent(t, v_l, v_r)
+        self._command = (v_l, v_r)
         return {"command": WheelCommand(t, self.ctx.sender, v_l, v_r, tick_of(t))}
+
+    def _with_trail(self, t: float, tf: TargetField | None) -> tuple[TargetActivity | None, list[ObstacleActivity]]:
+        """The tick's fields with the trail field among the obstacle fields once the target has
+        come no nearer for a while (:mod:`cekm_swarm.controller.trail`); as they are otherwise."""
+        target, obstacles = self.integrated  # type: ignore[misc]
+        gain = self.params.trail_gain
+        if gain != self._trail.params.gain and gain != self._trail_refused:  # set while it runs (cekm param set)
+            try:
+                self._trail.params = replace(self._trail.params, gain=gain).check()
+            except ValueError as exc:
+                self._trail_refused = gain
+                self.ctx.log.error("%s: %s; the trail gain before it stays", self.ctx.sender, exc)
+        if self._trail.params.gain == 0.0:
+            return target, obstacles
+        body = self.ctx.body
+        self._trail.move(t, min(max(self._command[0], -body.v_max), body.v_max),
+                         min(max(self._command[1], -body.v_max), body.v_max), body.axle)
+        self._trail.update(t, None if tf is None or tf.d is None else float(tf.d))
+        b = self._trail.field(t, self.ekm.w)
+        return (target, obstacles) if b is None else (target, [*obstacles, ObstacleActivity(t, -1, None, b)])
 
 
 class FieldTrackingMotor(_PolicyFields, Node):

@@ -313,6 +313,28 @@ def test_the_default_backs_out_of_a_narrow_u_it_entered():
     assert not slow["reached"] and slow["collisions"] == 0  # stalled in the slot, not stuck on a wall
 
 
+def test_the_trail_field_leads_out_of_a_deep_u_the_robot_circles_in():
+    """A generated U (0.71 m wide, 0.27 m deep, facing the start, the goal behind it, sensing
+    range 0.15 m; validation seed 2,000,079): the robot drives in, and the target field pulls
+    it back each time it reaches the mouth, so it circles inside until the run ends. With the
+    trail field (docs/fields.md, the seventh round) the places it circled are inhibited once
+    the goal has come no nearer for a while, and it leaves the U and reaches the goal."""
+    from cekm_swarm.tune.scenarios import navigation_scenario
+
+    sc = navigation_scenario(2_000_079)
+    trapped = run_graph(sc, "cekm", max_time=200.0).episode.outcome()["r1"]
+    assert not trapped["reached"] and trapped["collisions"] == 0
+    out = run_graph(sc, "cekm", max_time=200.0, params={"trail_gain": 0.6}).episode.outcome()["r1"]
+    assert out["reached"] and out["collisions"] == 0
+
+
+def test_a_negative_trail_gain_is_refused_naming_the_node():
+    from cekm_swarm.node.api import NodeError
+
+    with pytest.raises(NodeError, match=r"r1/motor: trail gain must be >= 0, got -0.5"):
+        run_graph(load_scenario("concave"), "cekm", params={"trail_gain": -0.5}, max_time=1.0)
+
+
 def test_a_turn_gain_below_one_is_refused_naming_the_node():
     from cekm_swarm.node.api import NodeError
 

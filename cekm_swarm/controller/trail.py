@@ -1,0 +1,106 @@
+"""The trail field: a robot's memory of where it has been, an inhibitory field over the motor
+lattice once it stops getting nearer its target (docs/fields.md, "The seventh round").
+
+A reactive field does not leave a deep U it has entered: the target field pulls the robot
+back in each time it reaches the mouth, and it circles inside. The trail remembers the
+places the robot passed (dead-reckoned from its own wheel commands, so no node needs the
+world), and when the target has come no nearer for ``patience`` seconds, a field like an
+obstacle field (Eq. 8's b_j, subtracted in Eq. 9's sum) inhibits the motor neurons whose
+direction points at a place visited earlier and near: the visited inside of the U fills
+up, and the winner leads out of it. While the robot progresses, the field is absent, so
+the integration is Eq. 9 as it was.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+SAME_PLACE = 0.02
+"""m: a remembered place this near the robot has no bearing worth inhibiting."""
+
+
+@dataclass(frozen=True)
+class TrailParams:
+    """gain: the field's peak (0: no field); sigma: its width in direction (rad); radius:
+    places farther than this (m) are not inhibited; progress: a new best distance to the
+    target by this much (m) is progress; patience: seconds without progress before the
+    field acts; recent: places visited less than this long ago (s) are left alone (the
+    robot's own wake); memory: how long a place is remembered (s); every: seconds between
+    remembered places."""
+
+    gain: float = 0.6
+    sigma: float = 0.5
+    radius: float = 0.4
+    progress: float = 0.05
+    patience: float = 8.0
+    recent: float = 4.0
+    memory: float = 120.0
+    every: float = 0.5
+
+    def check(self) -> TrailParams:
+        """Itself, or ValueError naming the first parameter out of range."""
+        for name in ("sigma", "radius", "every"):
+            if not getattr(self, name) > 0.0:
+                raise ValueError(f"trail {name} must be > 0, got {getattr(self, name)!r}")
+        for name in ("gain", "progress", "patience", "recent", "memory"):
+            if not getattr(self, name) >= 0.0:
+                raise ValueError(f"trail {name} must be >= 0, got {getattr(self, name)!r}")
+        return self
+
+
+@dataclass
+class Trail:
+    """The robot's dead-reckoned pose (x, y, heading in its own start frame), the places it
+    passed, and its best distance to the target with the time it was reached."""
+
+    params: TrailParams = TrailParams()
+    pose: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    places: list[tuple[float, float, float]] = field(default_factory=list)  # (t, x, y)
+    best: tuple[float, float] = (math.inf, 0.0)  # (distance to the target, when)
+    _t: float | None = None
+
+    def move(self, t: float, v_l: float, v_r: float, axle: float) -> None:
+        """Dead reckoning: the wheel command (v_l, v_r) executed from the last call to ``t``
+        (a differential drive with ``axle``); the first call only sets the clock."""
+        if self._t is not None and t > self._t:
+            dt = t - self._t
+            x, y, th = self.pose
+            v, omega = 0.5 * (v_l + v_r), (v_r - v_l) / axle
+            mid = th + 0.5 * omega * dt
+            self.pose = (x + v * dt * math.cos(mid), y + v * dt * math.sin(mid), th + omega * dt)
+        self._t = t
+
+    def update(self, t: float, target_d: float | None) -> None:
+        """Remember the place at ``t`` (every ``every`` s), forget those past ``memory``, and
+        note progress: a distance to the target ``progress`` below the best so far."""
+        p = self.params
+        if target_d is not None and target_d < self.best[0] - p.progress:
+            self.best = (target_d, t)
+        if not self.places or t - self.places[-1][0] >= p.every:
+            self.places.append((t, self.pose[0], self.pose[1]))
+        while self.places and t - self.places[0][0] > p.memory:
+            self.places.pop(0)
+
+    def field(self, t: float, w: np.ndarray) -> np.ndarray | None:
+        """The trail field over the motor lattice ``w`` (rows alpha_k, d_k), or None while the
+        robot progresses (or has no place to avoid): b_k = gain * max over places q visited
+        between ``memory`` and ``recent`` ago within ``radius`` of
+        exp(-(alpha_k - bearing_q)^2 / (2 sigma^2)) * (1 - r_q / radius)."""
+        p = self.params
+        if p.gain == 0.0 or t - self.best[1] <= p.patience:
+            return None
+        x, y, th = self.pose
+        old = np.array([(qx, qy) for qt, qx, qy in self.places if t - qt > p.recent], dtype=np.float64)
+        if len(old) == 0:
+            return None
+        r = np.hypot(old[:, 0] - x, old[:, 1] - y)
+        near = (r < p.radius) & (r > SAME_PLACE)
+        if not near.any():
+            return None
+        bearing = np.arctan2(old[near, 1] - y, old[near, 0] - x) - th
+        off = (w[:, 0][:, None] - bearing[None, :] + np.pi) % (2.0 * np.pi) - np.pi
+        closeness = 1.0 - r[near] / p.radius
+        return p.gain * np.max(np.exp(-off ** 2 / (2.0 * p.sigma ** 2)) * closeness[None, :], axis=1)
