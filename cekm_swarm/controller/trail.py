@@ -61,6 +61,7 @@ class Trail:
     places: list[tuple[float, float, float]] = field(default_factory=list)  # (t, x, y)
     best: tuple[float, float] = (math.inf, 0.0)  # (distance to the target, when)
     _t: float | None = None
+    _array: np.ndarray | None = None  # ``places`` as an array, made again when they change
 
     def move(self, t: float, v_l: float, v_r: float, axle: float) -> None:
         """Dead reckoning: the wheel command (v_l, v_r) executed from the last call to ``t``
@@ -81,8 +82,10 @@ class Trail:
             self.best = (target_d, t)
         if not self.places or t - self.places[-1][0] >= p.every:
             self.places.append((t, self.pose[0], self.pose[1]))
+            self._array = None
         while self.places and t - self.places[0][0] > p.memory:
             self.places.pop(0)
+            self._array = None
 
     def field(self, t: float, w: np.ndarray) -> np.ndarray | None:
         """The trail field over the motor lattice ``w`` (rows alpha_k, d_k), or None while the
@@ -93,7 +96,9 @@ class Trail:
         if p.gain == 0.0 or t - self.best[1] <= p.patience:
             return None
         x, y, th = self.pose
-        old = np.array([(qx, qy) for qt, qx, qy in self.places if t - qt > p.recent], dtype=np.float64)
+        if self._array is None:
+            self._array = np.array(self.places, dtype=np.float64).reshape(-1, 3)
+        old = self._array[t - self._array[:, 0] > p.recent, 1:]
         if len(old) == 0:
             return None
         r = np.hypot(old[:, 0] - x, old[:, 1] - y)

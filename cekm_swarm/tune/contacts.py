@@ -23,7 +23,7 @@ from ..experiments.field_widths import policy_graph
 from ..experiments.graph_run import GraphSession
 from ..node.graph_check import check_graph
 from ..ticks import TICK_S
-from .motor import FieldMotor
+from .motor import PLAIN, FieldMotor
 from .policy import FieldPolicy
 from .rollout import _model
 from .scenarios import navigation_raw, navigation_scenario
@@ -101,12 +101,12 @@ def contact_events(seed: int, max_time: float = 300.0, model_path: str | None = 
                    weights: tuple[float, ...] | None = None,
                    mix: str = "default") -> tuple[dict[str, Any], list[dict[str, Any]]]:
     """The run of generated navigation scenario ``seed`` of geometry mix ``mix`` with the
-    policy ``weights`` (default W = 0 and Eq. 11's turns as they are: today's constants, the
+    policy ``weights`` (default W = 0 and the plain motor, :data:`.motor.PLAIN`: today's constants, the
     ``cekm-tuned`` graph's run): its outcome row, and every new contact, one row each."""
     raw = navigation_raw(seed, mix=mix)
     kind = raw["name"].split("-")[1]
     params: dict[str, Any] = {"weights": tuple(weights)} if weights is not None else \
-        {"weights": (0.0,) * FieldPolicy.size("navigation"), "turn_gain": 1.0, "trail_gain": 0.0}
+        {"weights": (0.0,) * FieldPolicy.size("navigation"), **PLAIN}
     s = GraphSession(navigation_scenario(seed, mix=mix), graph=check_graph(policy_graph("navigation")),
                      model=_model(model_path), max_time=max_time, params=params)
     motor = s.executor.node("r1", "motor")

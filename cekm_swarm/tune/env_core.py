@@ -21,7 +21,7 @@ from ..experiments.field_widths import policy_graph
 from ..experiments.graph_run import GraphSession
 from ..node.graph_check import check_graph
 from .features import N_FEATURES
-from .motor import FieldMotor, FieldTrackingMotor
+from .motor import TRAIL_GAIN, FieldMotor, FieldTrackingMotor
 from .policy import FieldChoice, FieldPolicy, check_task
 from .scenarios import scenario as generated
 from .scenarios import seed_of
@@ -47,7 +47,10 @@ class FieldEnvCore:
     np_random: np.random.Generator
     turn_gain: float = math.inf
     """Navigation: the motor's ``turn_gain`` (:class:`.motor.FieldMotor`; 1: Eq. 11's turns as
-    they are, so that action 0 is ``cekm run --fields tuned``'s run exactly)."""
+    they are)."""
+    trail_gain: float = TRAIL_GAIN
+    """Navigation: the motor's ``trail_gain`` (0: no trail field; with ``turn_gain`` 1, action 0
+    is ``cekm run --fields tuned``'s run exactly)."""
 
     def _setup(self, task: str, scenario: Any, ticks_per_action: int, max_time: float | None, purpose: str,
                model: Any, contact_penalty: float) -> None:
@@ -84,6 +87,7 @@ class FieldEnvCore:
         params: dict[str, Any] = {"weights": (0.0,) * FieldPolicy.size(self.task)}  # the actions rule
         if self.task == "navigation":
             params["turn_gain"] = self.turn_gain
+            params["trail_gain"] = self.trail_gain
         self.session = GraphSession(sc, graph=self.checked, model=self.model, max_time=self.max_time, params=params)
         self.robots = tuple(self.session.world.robot_ids)
         self.motor_of = {r: _policy_motor(self.session.executor.node(r, "motor")) for r in self.robots}

@@ -18,11 +18,11 @@ gives it the turn is about 0.25 rad/s, slow enough that the rear neuron on the o
 wins a few degrees later and turns it back: the robot swings in a narrow U or in front of
 a disc instead of turning round (docs/fields.md, the sixth round).
 
-One field it may add (``trail_gain``, default 0: none): the trail field of
-:mod:`cekm_swarm.controller.trail`, the robot's memory of where it has been, among the
-obstacle fields of Eq. 9 once the target has come no nearer for a while. At 0.6 it leads a
-robot out of a deep U it circles in; it is not the default (docs/fields.md, the seventh
-round: it loses section 4.2's rooms).
+One field the navigation node adds (``trail_gain``, default :data:`TRAIL_GAIN`; 0: none):
+the trail field of :mod:`cekm_swarm.controller.trail`, the robot's memory of where it has
+been, among the obstacle fields of Eq. 9 once the target has come no nearer for a while. It
+leads a robot out of a deep U it would circle in (docs/fields.md, the seventh round).
+:data:`PLAIN` turns both additions off: the plain motor node's Eqs. 9-11, bit for bit.
 
 Why the motor node: it is the one node that sees every field of a tick at once, which
 the policy's input needs; a separate policy node would need a new message to every
@@ -51,6 +51,13 @@ from cekm_swarm.ticks import tick_of
 
 from .features import ClosingSpeeds, Stall, field_features, obstacle_features
 from .policy import FieldChoice, FieldPolicy, shipped_policy
+
+TRAIL_GAIN = 0.3
+"""The trail field's peak in the default navigation motor (chosen on validation seeds by the
+selection rule of docs/fields.md, the seventh round)."""
+PLAIN: dict[str, float] = {"turn_gain": 1.0, "trail_gain": 0.0}
+"""The navigation node's parameters that make it the plain motor node (Eq. 11's turns as they
+are, no trail field): with W = 0, ``cekm run --fields tuned`` exactly."""
 
 ROWS_KEPT = 256
 """Obstacle-field rows a node remembers (keyed by winner and widths: exact for any widths)."""
@@ -176,7 +183,7 @@ class FieldMotor(_PolicyFields, Node):
         policy: str = ""  # a field policy file (cekm tune fields); "" = the one shipped for navigation
         weights: tuple[float, ...] = ()  # the policy's weights in place of a file (training): W, then V if any
         turn_gain: float = math.inf  # a detour's turn in place toward the rear, executed up to c* (1: as Eq. 11)
-        trail_gain: float = 0.0  # the trail field's peak once progress stops (0: none; 0.6 leaves deep U's)
+        trail_gain: float = TRAIL_GAIN  # the trail field's peak once progress stops (0: no trail field)
 
     def setup(self) -> None:
         if not self.params.turn_gain >= 1.0:

@@ -13,6 +13,7 @@ from cekm_swarm.experiments.field_widths import CONSTANT_GRAPH
 from cekm_swarm.experiments.graph_run import run_graph
 from cekm_swarm.models.params import FieldParams
 from cekm_swarm.tune.env import FieldEnv
+from cekm_swarm.tune.motor import PLAIN
 from world import load_scenario
 
 
@@ -65,10 +66,10 @@ def test_an_action_moves_the_field_widths_within_their_span():
 def test_the_zero_action_episode_is_cekm_runs(name, max_time):
     """Action 0 is today's constants; stepping to the end gives ``cekm run --fields tuned``'s
     outcome exactly (the constant-width graph: navigation's cekm-tuned, tracking's cekm;
-    navigation's motor with Eq. 11's turns as they are, turn_gain 1)."""
+    navigation's motor with Eq. 11's turns as they are and no trail field, PLAIN)."""
     sc = load_scenario(name)
     task = "tracking" if name == "tracking" else "navigation"
-    env = FieldEnv(task, sc, max_time=max_time or 600.0, **({"turn_gain": 1.0} if task == "navigation" else {}))
+    env = FieldEnv(task, sc, max_time=max_time or 600.0, **(PLAIN if task == "navigation" else {}))
     zero = np.zeros(env.action_space.shape, dtype=np.float32)
     _, rewards, outcome = _episode(env, 0, lambda: itertools.repeat(zero))
     run = run_graph(sc, CONSTANT_GRAPH[env.task], max_time=max_time)

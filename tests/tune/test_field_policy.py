@@ -22,6 +22,7 @@ from cekm_swarm.tune.features import (
     obstacle_features,
 )
 from cekm_swarm.tune.graphs import with_fields
+from cekm_swarm.tune.motor import PLAIN
 from cekm_swarm.tune.policy import FieldPolicy, shipped_policy
 from helpers.pair import pair_toml
 from world import load_scenario
@@ -213,7 +214,7 @@ def test_the_motor_node_uses_the_policys_widths():
     sc = load_scenario("concave")
     checked = check_graph(policy_graph("navigation"))
     base = run_graph(sc, "cekm-tuned").episode.outcome()
-    plain = {"turn_gain": 1.0}  # Eq. 11's command as the plain motor executes it
+    plain = PLAIN  # Eq. 11's command as the plain motor executes it, no trail field
     zero = run_graph(sc, graph=checked, params={"weights": (0.0,) * 55, **plain}).episode.outcome()
     zero_v = run_graph(sc, graph=checked, params={"weights": (0.0,) * 73, **plain}).episode.outcome()
     W = np.zeros((5, len(FEATURES)))
@@ -237,7 +238,7 @@ def test_the_policys_target_width_is_the_target_modules_own_exactly(row, name, b
     width = getattr(FieldPolicy("navigation", W).choose(np.ones(len(FEATURES))).fields, name)
     assert width != getattr(FieldParams(), name)
     policy = run_graph(sc, graph=check_graph(policy_graph("navigation")),
-                       params={"weights": tuple(W.ravel().tolist()), "turn_gain": 1.0}, max_time=40.0).episode.outcome()
+                       params={"weights": tuple(W.ravel().tolist()), **PLAIN}, max_time=40.0).episode.outcome()
     module = run_graph(sc, "cekm-tuned", params={name: width}, max_time=40.0).episode.outcome()
     assert policy == module and policy != run_graph(sc, "cekm-tuned", max_time=40.0).episode.outcome()
 
@@ -293,12 +294,12 @@ def test_the_constant_widths_pass_a_small_disc_head_on(tmp_path):
 def test_the_default_passes_a_small_disc_head_on_by_turning_at_speed(tmp_path):
     """The stall the realtime launch test met: the obstacle field widened for a wall ahead
     inhibits every forward neuron the map has, a turn-in-place neuron toward the rear wins,
-    and executed as the map commands it (turn_gain 1) the robot turns so slowly that the
+    and executed as the map commands it (PLAIN: turn_gain 1, no trail) the robot turns so slowly that the
     next winner turns it back: it swings in front of the disc. Executed at speed (the
     default), it turns away and passes (docs/fields.md, the sixth round)."""
     sc = _pair(tmp_path)
     assert run_graph(sc, "cekm", seed=1, max_time=60.0).episode.outcome()["r1"]["reached"]
-    slow = run_graph(sc, "cekm", seed=1, max_time=60.0, params={"turn_gain": 1.0}).episode.outcome()["r1"]
+    slow = run_graph(sc, "cekm", seed=1, max_time=60.0, params=PLAIN).episode.outcome()["r1"]
     assert not slow["reached"]
 
 
@@ -309,7 +310,7 @@ def test_the_default_backs_out_of_a_narrow_u_it_entered():
     sc = load_scenario("concave", overrides={"obstacles[0].width": 0.1, "obstacles[0].depth": 0.18,
                                              "sensors.range": 0.12})
     assert run_graph(sc, "cekm", seed=3, max_time=40.0).episode.outcome()["r1"]["reached"]
-    slow = run_graph(sc, "cekm", seed=3, max_time=40.0, params={"turn_gain": 1.0}).episode.outcome()["r1"]
+    slow = run_graph(sc, "cekm", seed=3, max_time=40.0, params=PLAIN).episode.outcome()["r1"]
     assert not slow["reached"] and slow["collisions"] == 0  # stalled in the slot, not stuck on a wall
 
 
@@ -322,9 +323,9 @@ def test_the_trail_field_leads_out_of_a_deep_u_the_robot_circles_in():
     from cekm_swarm.tune.scenarios import navigation_scenario
 
     sc = navigation_scenario(2_000_079)
-    trapped = run_graph(sc, "cekm", max_time=200.0).episode.outcome()["r1"]
+    trapped = run_graph(sc, "cekm", max_time=200.0, params={"trail_gain": 0.0}).episode.outcome()["r1"]
     assert not trapped["reached"] and trapped["collisions"] == 0
-    out = run_graph(sc, "cekm", max_time=200.0, params={"trail_gain": 0.6}).episode.outcome()["r1"]
+    out = run_graph(sc, "cekm", max_time=200.0).episode.outcome()["r1"]  # the default: trail_gain TRAIL_GAIN
     assert out["reached"] and out["collisions"] == 0
 
 

@@ -15,6 +15,7 @@ from cekm_swarm.errors import ParameterError
 from cekm_swarm.experiments.field_widths import CONSTANT_GRAPH
 from cekm_swarm.experiments.graph_run import run_graph
 from cekm_swarm.tune.env import FieldEnv
+from cekm_swarm.tune.motor import PLAIN
 from cekm_swarm.tune.team_env import FieldTeamEnv
 from world import load_scenario
 
@@ -86,7 +87,7 @@ def test_one_robot_gets_field_envs_rewards_and_observations():
 def _zero_action_episodes(task: str, name: str, max_time: float):
     """The team env's episode and FieldEnv's, every action 0, on shipped scenario ``name``, seed 0."""
     sc = load_scenario(name)
-    plain = {"turn_gain": 1.0} if task == "navigation" else {}  # Eq. 11's turns as they are: the constants' motor
+    plain = PLAIN if task == "navigation" else {}  # Eq. 11's turns as they are, no trail: the constants' motor
     team = FieldTeamEnv(task, sc, max_time=max_time, **plain)
     zero = np.zeros(len(team.policy.outputs), dtype=np.float32)
     _, rewards, left, outcome = _episode(team, 0, itertools.repeat(dict.fromkeys(team.possible_agents, zero)))

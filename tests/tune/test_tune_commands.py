@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import math
 
 import numpy as np
 from click.testing import CliRunner
@@ -13,6 +12,7 @@ from cekm_swarm.experiments.field_widths import policy_graph
 from cekm_swarm.experiments.graph_run import run_graph
 from cekm_swarm.node.graph_check import check_graph
 from cekm_swarm.tune.features import N_FEATURES
+from cekm_swarm.tune.motor import PLAIN
 from cekm_swarm.tune.policy import FieldPolicy
 from cekm_swarm.tune.scenarios import navigation_raw
 from world import load_scenario
@@ -47,8 +47,8 @@ def test_run_takes_a_policy_file_of_ones_own_with_fields_learned(tmp_path, capsy
     zero = _run(tmp_path, "--fields", "learned", "--policy", str(pol / "zero.json"), "--seed", "3")
     graph = check_graph(policy_graph("navigation"))
     weights = {"weights": (0.0,) * FieldPolicy.size("navigation")}
-    for gain, expected in ((math.inf, zero), (1.0, plain)):
-        r1 = run_graph(load_scenario("concave"), graph=graph, seed=3, params={**weights, "turn_gain": gain})
+    for motor, expected in (({}, zero), (PLAIN, plain)):
+        r1 = run_graph(load_scenario("concave"), graph=graph, seed=3, params={**weights, **motor})
         assert {k: v for k, v in r1.episode.outcome()["r1"].items() if k in expected} == expected
     assert _run(tmp_path, "--fields", "learned", "--policy", str(pol / "wide.json"), "--seed", "3") != plain
     code = run_cli_args(["run", "concave", "--policy", str(pol / "wide.json"), "--out", str(tmp_path / "x")])
