@@ -6,8 +6,9 @@ of the shipped cooperative-EKM graph whose motor node is the field-policy motor
 action (in [-1, 1]^k, mapped by :meth:`.policy.FieldPolicy.choice`: 0 is today's hand-tuned
 values) and runs ``ticks_per_action`` ticks. Navigation's motor is the default graph's: a
 turn in place toward the rear executed at speed (``turn_gain``) and the trail field
-(``trail_gain``, :mod:`.motor`); ``turn_gain=1, trail_gain=0`` (:data:`.motor.PLAIN`) makes
-action 0 exactly ``cekm run --fields tuned``.
+(``trail_gain``) and keeping clear of detected movers (``keep_clear``, :mod:`.motor`);
+``turn_gain=1, trail_gain=0, keep_clear=False`` (:data:`.motor.PLAIN`) makes action 0 exactly
+``cekm run --fields tuned``.
 
 * observation: the features of what the robots' fields see (:mod:`.features`), averaged
   over the team, float32 in [0, 1];
@@ -32,7 +33,7 @@ import numpy as np
 
 from .env_core import FieldEnvCore
 from .features import N_FEATURES
-from .motor import TRAIL_GAIN
+from .motor import KEEP_CLEAR, TRAIL_GAIN
 
 
 class FieldEnv(FieldEnvCore, gym.Env):
@@ -43,9 +44,10 @@ class FieldEnv(FieldEnvCore, gym.Env):
     def __init__(self, task: str = "navigation", scenario: Any = None, *, ticks_per_action: int = 8,
                  max_time: float | None = None, purpose: str = "train", model: Any = None,
                  contact_penalty: float = 0.5, turn_gain: float = math.inf,
-                 trail_gain: float = TRAIL_GAIN) -> None:
+                 trail_gain: float = TRAIL_GAIN, keep_clear: bool = KEEP_CLEAR) -> None:
         self.turn_gain = turn_gain  # navigation's motor: as cekm run's default graph (PLAIN: the constants' motor)
         self.trail_gain = trail_gain
+        self.keep_clear = keep_clear
         self._setup(task, scenario, ticks_per_action, max_time, purpose, model, contact_penalty)
         self.action_space = gym.spaces.Box(-1.0, 1.0, (len(self.policy.outputs),), dtype=np.float32)
         self.observation_space = gym.spaces.Box(0.0, 1.0, (N_FEATURES,), dtype=np.float32)

@@ -21,7 +21,7 @@ from ..experiments.field_widths import policy_graph
 from ..experiments.graph_run import GraphSession
 from ..node.graph_check import check_graph
 from .features import N_FEATURES
-from .motor import TRAIL_GAIN, FieldMotor, FieldTrackingMotor
+from .motor import KEEP_CLEAR, TRAIL_GAIN, FieldMotor, FieldTrackingMotor
 from .policy import FieldChoice, FieldPolicy, check_task
 from .scenarios import scenario as generated
 from .scenarios import seed_of
@@ -49,8 +49,10 @@ class FieldEnvCore:
     """Navigation: the motor's ``turn_gain`` (:class:`.motor.FieldMotor`; 1: Eq. 11's turns as
     they are)."""
     trail_gain: float = TRAIL_GAIN
-    """Navigation: the motor's ``trail_gain`` (0: no trail field; with ``turn_gain`` 1, action 0
-    is ``cekm run --fields tuned``'s run exactly)."""
+    """Navigation: the motor's ``trail_gain`` (0: no trail field)."""
+    keep_clear: bool = KEEP_CLEAR
+    """Navigation: whether the motor keeps clear of the movers it detects (with ``turn_gain`` 1
+    and ``trail_gain`` 0, False makes action 0 ``cekm run --fields tuned``'s run exactly)."""
 
     def _setup(self, task: str, scenario: Any, ticks_per_action: int, max_time: float | None, purpose: str,
                model: Any, contact_penalty: float) -> None:
@@ -88,6 +90,7 @@ class FieldEnvCore:
         if self.task == "navigation":
             params["turn_gain"] = self.turn_gain
             params["trail_gain"] = self.trail_gain
+            params["keep_clear"] = self.keep_clear
         self.session = GraphSession(sc, graph=self.checked, model=self.model, max_time=self.max_time, params=params)
         self.robots = tuple(self.session.world.robot_ids)
         self.motor_of = {r: _policy_motor(self.session.executor.node(r, "motor")) for r in self.robots}

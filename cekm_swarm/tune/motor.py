@@ -22,7 +22,12 @@ One field the navigation node adds (``trail_gain``, default :data:`TRAIL_GAIN`; 
 the trail field of :mod:`cekm_swarm.controller.trail`, the robot's memory of where it has
 been, among the obstacle fields of Eq. 9 once the target has come no nearer for a while. It
 leads a robot out of a deep U it would circle in (docs/fields.md, the seventh round).
-:data:`PLAIN` turns both additions off: the plain motor node's Eqs. 9-11, bit for bit.
+And one check of its command (``keep_clear``, default :data:`KEEP_CLEAR`): the moving
+obstacles :class:`cekm_swarm.controller.movers.MoverDetector` finds in the distance sensors'
+raw readings (its ``ranges`` input), and :func:`~cekm_swarm.controller.movers.keep_clear`'s
+velocity-obstacle choice when the command would bring the body within 1 cm of one
+(docs/fields.md, "The movers"). :data:`PLAIN` turns the three off: the plain motor node's
+Eqs. 9-11, bit for bit.
 
 Why the motor node: it is the one node that sees every field of a tick at once, which
 the policy's input needs; a separate policy node would need a new message to every
@@ -38,6 +43,7 @@ from typing import Any
 import numpy as np
 
 from cekm_swarm.controller.cooperative import ObstacleActivity, TargetActivity, face_turn, turns_to_rear
+from cekm_swarm.controller.movers import MoverDetector, MoverParams, keep_clear
 from cekm_swarm.controller.trail import Trail, TrailParams
 from cekm_swarm.models.fields import obstacle_field, target_field
 from cekm_swarm.models.params import FieldParams, TrackingParams, narrowed
@@ -45,17 +51,20 @@ from cekm_swarm.modules.ekm import cooperative_ekm
 from cekm_swarm.modules.motor_integration import target_activity
 from cekm_swarm.modules.tracking_localization import tracking_activity, tracking_ekm
 from cekm_swarm.node import In, Node, NodeError, Out
-from cekm_swarm.protocol import ObstacleField, TargetField, TrackingField, WheelCommand
+from cekm_swarm.protocol import ObstacleField, SenseRange, TargetField, TrackingField, WheelCommand
 from cekm_swarm.protocol.checks import lattice_misfit
 from cekm_swarm.ticks import tick_of
 
 from .features import ClosingSpeeds, Stall, field_features, obstacle_features
 from .policy import FieldChoice, FieldPolicy, shipped_policy
 
+KEEP_CLEAR = True
+"""Whether the default navigation motor keeps clear of the movers it detects
+(:mod:`cekm_swarm.controller.movers`; docs/fields.md, "The movers")."""
 TRAIL_GAIN = 0.3
 """The trail field's peak in the default navigation motor (chosen on validation seeds by the
 selection rule of docs/fields.md, the seventh round)."""
-PLAIN: dict[str, float] = {"turn_gain": 1.0, "trail_gain": 0.0}
+PLAIN: dict[str, float | bool] = {"turn_gain": 1.0, "trail_gain": 0.0, "keep_clear": False}
 """The navigation node's parameters that make it the plain motor node (Eq. 11's turns as they
 are, no trail field): with W = 0, ``cekm run --fields tuned`` exactly."""
 
@@ -171,7 +180,8 @@ class FieldMotor(_PolicyFields, Node):
     """Motor EKM with policy-chosen obstacle widths: target and obstacle fields -> wheel command."""
 
     inputs = {"target": In(TargetField, doc="the target field (the latest target tick's)"),
-              "obstacles": In(ObstacleField, many=True, doc="every obstacle field of the tick (their winners)")}
+              "obstacles": In(ObstacleField, many=True, doc="every obstacle field of the tick (their winners)"),
+              "ranges": In(SenseRange, many=True, doc="every distance sensor's raw reading (the movers' detector)")}
     outputs = {"command": Out(WheelCommand, doc="c = (v_l, v_r), clipped to c*")}
     uses_model = True
     warm_setup = True
@@ -184,6 +194,7 @@ class FieldMotor(_PolicyFields, Node):
         weights: tuple[float, ...] = ()  # the policy's weights in place of a file (training): W, then V if any
         turn_gain: float = math.inf  # a detour's turn in place toward the rear, executed up to c* (1: as Eq. 11)
         trail_gain: float = TRAIL_GAIN  # the trail field's peak once progress stops (0: no trail field)
+        keep_clear: bool = KEEP_CLEAR  # movers detected from the raw ranges are kept clear of (False: none)
 
     def setup(self) -> None:
         if not self.params.turn_gain >= 1.0:
@@ -196,6 +207,9 @@ class FieldMotor(_PolicyFields, Node):
             raise NodeError(f"{self.ctx.sender}: {exc}") from None
         self._command = (0.0, 0.0)  # the last command sent, which the trail's dead reckoning executes
         self._trail_refused: float | None = None  # a trail gain set while running and refused
+        body = self.ctx.body
+        self._movers = MoverDetector(MoverParams().check(), reach=body.body_radius + body.sensor_range)
+        self.last_movers: list[tuple[float, float, float, float]] = []  # tracked at the last step
         self._setup_policy()
 
     def check_input(self, port, msg):
@@ -208,11 +222,21 @@ class FieldMotor(_PolicyFields, Node):
         choice = self._choose(features)
         self.integrated = (self._target(self.ekm.w, target_activity(tf), choice),
                            self._obstacles(self.ekm.w, fields, choice, target, features))  # as the plain motor's
+        body = self.ctx.body
+        self._trail.move(t, min(max(self._command[0], -body.v_max), body.v_max),
+                         min(max(self._command[1], -body.v_max), body.v_max), body.axle)  # dead reckoning
         out = self.ekm.integrate(*self._with_trail(t, tf))  # Eqs. 9-11
         v_l, v_r = out.v_l, out.v_r
         if self.params.turn_gain != 1.0 and out.k is not None and out.k != out.s \
                 and turns_to_rear(self.ekm.w, out.k, self.params.reverse_min_d):
             v_l, v_r = face_turn(v_l, v_r, self.params.turn_gain, self.ctx.body.v_max, turn_only=True)
+        if self.params.keep_clear:
+            readings = [(r.alpha, r.d) for _, r in sorted(inputs["ranges"].items(), key=lambda kv: kv[1].index)]
+            self.last_movers = self._movers.update(t, self._trail.pose, readings)
+            if out.k is not None:  # a command of the motor EKM (not the stop of no target or the goal)
+                v_l, v_r = keep_clear(self._trail.pose, (v_l, v_r), self.last_movers,
+                                      body.body_radius + self._movers.params.radius, body.axle, body.v_max,
+                                      self._movers.params)
         self._sent(t, v_l, v_r)
         self._command = (v_l, v_r)
         return {"command": WheelCommand(t, self.ctx.sender, v_l, v_r, tick_of(t))}
@@ -230,9 +254,6 @@ class FieldMotor(_PolicyFields, Node):
                 self.ctx.log.error("%s: %s; the trail gain before it stays", self.ctx.sender, exc)
         if self._trail.params.gain == 0.0:
             return target, obstacles
-        body = self.ctx.body
-        self._trail.move(t, min(max(self._command[0], -body.v_max), body.v_max),
-                         min(max(self._command[1], -body.v_max), body.v_max), body.axle)
         self._trail.update(t, None if tf is None or tf.d is None else float(tf.d))
         b = self._trail.field(t, self.ekm.w)
         return (target, obstacles) if b is None else (target, [*obstacles, ObstacleActivity(t, -1, None, b)])

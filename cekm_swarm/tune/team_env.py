@@ -46,7 +46,7 @@ except ImportError as exc:  # pettingzoo is in the `test` extra, not a runtime d
 from ..errors import ParameterError
 from .env_core import FieldEnvCore
 from .features import N_FEATURES
-from .motor import TRAIL_GAIN
+from .motor import KEEP_CLEAR, TRAIL_GAIN
 from .scenarios import team_ids
 
 
@@ -59,9 +59,10 @@ class FieldTeamEnv(FieldEnvCore, ParallelEnv):
     def __init__(self, task: str = "navigation", scenario: Any = None, *, ticks_per_action: int = 8,
                  max_time: float | None = None, purpose: str = "train", model: Any = None,
                  contact_penalty: float = 0.5, robots: int | None = None, turn_gain: float = math.inf,
-                 trail_gain: float = TRAIL_GAIN) -> None:
+                 trail_gain: float = TRAIL_GAIN, keep_clear: bool = KEEP_CLEAR) -> None:
         self.turn_gain = turn_gain  # navigation's motor: as cekm run's default graph (PLAIN: the constants' motor)
         self.trail_gain = trail_gain
+        self.keep_clear = keep_clear
         self._setup(task, scenario, ticks_per_action, max_time, purpose, model, contact_penalty)
         if robots is not None and scenario is not None:
             raise ParameterError("FieldTeamEnv: robots= chooses generated scenarios; a scenario given has its own")

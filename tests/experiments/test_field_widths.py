@@ -30,10 +30,14 @@ def test_navigations_cekm_is_the_learned_policy_and_cekm_tuned_its_constant_twin
     assert DEFAULT_FIELDS["navigation"] == "learned" and CONSTANT_GRAPH["navigation"] == "cekm-tuned"
     motor = {n["name"]: n["program"] for n in cekm["nodes"]}["motor"]
     assert motor == POLICY_PROGRAM["navigation"]
-    # node for node the same graph but the motor's program
+    # node for node the same graph but the motor's program, and its reading the raw ranges (the movers' detector)
     for n in (*cekm["nodes"], *tuned["nodes"]):
         if n["name"] == "motor":
             n["program"] = "?"
+    motor_node = next(n for n in cekm["nodes"] if n["name"] == "motor")
+    ranges = [i for i in motor_node["inputs"] if i["port"] == "ranges"]
+    assert [i["key"] for i in ranges] == ["sense/range/*"]
+    motor_node["inputs"] = [i for i in motor_node["inputs"] if i["port"] != "ranges"]
     assert cekm["nodes"] == tuned["nodes"] and (cekm["controller"], tuned["controller"]) == ("cekm", "cekm-tuned")
 
 

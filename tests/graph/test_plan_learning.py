@@ -12,7 +12,7 @@ from cekm_swarm.experiments.graph_run import resolve_graph
 @pytest.mark.parametrize("controller", ["cekm-learning", "cekm-learning-team"])
 def test_learning_graph_plans_hold_readings_and_name_the_map_period(controller):
     plan = resolve_graph(controller, None, "navigation").plan(("r1", "r2"), "navigation")
-    plain = resolve_graph("cekm", None, "navigation").plan(("r1", "r2"), "navigation")
+    plain = resolve_graph("cekm-tuned", None, "navigation").plan(("r1", "r2"), "navigation")
     assert plan.held_readings("r1") == plain.held_readings("r1")  # every range and the target reading
     assert plan.map_period("r1") == 8 and plain.map_period("r1") is None
     assert "cekm/r1/sense/odometry" in plan.world_keys("r1")

@@ -30,8 +30,15 @@ from cekm_swarm.ticks import tick_time
 N = 12
 
 
-def test_the_navigation_graph_holds_every_reading_its_pure_localizations_read():
-    plan = check_graph("cekm-navigation").plan(("r1", "r2"), "navigation")
+def test_the_default_navigation_graph_holds_only_the_target_reading():
+    """The default's motor reads every raw range (the movers' detector, docs/fields.md), so
+    the world sends each range reading every tick; only the target reading may be held."""
+    plan = check_graph("cekm-navigation").plan(("r1",), "navigation")
+    assert plan.held_readings("r1") == [K.sense_target("r1")]
+
+
+def test_the_constant_width_navigation_graph_holds_every_reading_its_pure_localizations_read():
+    plan = check_graph("cekm-tuned-navigation").plan(("r1", "r2"), "navigation")
     assert plan.held_readings("r1") == [K.sense_target("r1")] + [K.sense_range("r1", j) for j in range(N)]
     motor = plan.node("r1", "motor")
     holds = plan.holds(motor)
@@ -53,7 +60,7 @@ def test_a_reading_with_a_stateful_or_many_keyed_reader_is_not_held():
 def test_a_pure_reader_of_a_held_reading_takes_any_stamp_in_bounds_and_its_reader_judges_the_output():
     from cekm_swarm.node.process import stamp_window
 
-    plan = check_graph("cekm-navigation").plan(("r1",), "navigation")
+    plan = check_graph("cekm-tuned-navigation").plan(("r1",), "navigation")
     obstacle, motor = stamp_window(plan, plan.node("r1", "obstacle-4")), stamp_window(plan, plan.node("r1", "motor"))
     for w in (obstacle, motor):
         assert w.check(tick_time(100)) is None
@@ -69,7 +76,7 @@ def test_a_pure_reader_of_a_held_reading_takes_any_stamp_in_bounds_and_its_reade
 
 
 def test_holding_can_be_turned_off_in_the_run_spec():
-    checked = check_graph("cekm-navigation")
+    checked = check_graph("cekm-tuned-navigation")
     from cekm_swarm.graph.resolve import build_plan
 
     plan = build_plan(checked.graph, ("r1",), "navigation", checked.ports, hold=False)
@@ -88,7 +95,7 @@ class Recorder(Node):
 
 
 def gate(cls=LockstepGate):
-    plan = check_graph("cekm-navigation").plan(("r1",), "navigation")
+    plan = check_graph("cekm-tuned-navigation").plan(("r1",), "navigation")
     from cekm_swarm.modules.motor_integration import MotorIntegration
 
     calls = []

@@ -52,7 +52,7 @@ class Recorder(Node):
 
 
 def motor_gate(gate_cls=LockstepGate, drops=None):
-    plan = check_graph("cekm-navigation").plan(("r1",), "navigation")
+    plan = check_graph("cekm-tuned-navigation").plan(("r1",), "navigation")
     node = plan.node("r1", "motor")
     calls = []
     from cekm_swarm.modules.motor_integration import MotorIntegration

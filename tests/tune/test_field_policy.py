@@ -329,6 +329,20 @@ def test_the_trail_field_leads_out_of_a_deep_u_the_robot_circles_in():
     assert out["reached"] and out["collisions"] == 0
 
 
+def test_the_default_keeps_clear_of_a_disc_that_would_hit_it_side_on():
+    """Rooms with movers (validation seed 2,000,067): a circling disc hits the robot from its
+    front left while it drives through the middle room. The movers' detector finds it in the
+    raw ranges (a hit in space a ray saw free a moment before) and the command that would
+    bring the body within 1 cm of it is replaced: the run is contact-free (docs/fields.md)."""
+    from cekm_swarm.tune.scenarios import navigation_scenario
+
+    sc = navigation_scenario(2_000_067)
+    hit = run_graph(sc, "cekm", max_time=120.0, params={"keep_clear": False}).episode.outcome()["r1"]
+    assert hit["reached"] and hit["collisions"] >= 1
+    out = run_graph(sc, "cekm", max_time=120.0).episode.outcome()["r1"]
+    assert out["reached"] and out["collisions"] == 0
+
+
 def test_a_negative_trail_gain_is_refused_naming_the_node():
     from cekm_swarm.node.api import NodeError
 

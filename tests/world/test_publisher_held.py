@@ -30,7 +30,7 @@ class Wire:
 def publisher(hold=True):
     world = World(load_scenario("lone_obstacle"))
     episode = make_episode(world, "navigation")
-    plan = check_graph("cekm-navigation").plan(("r1",), "navigation")
+    plan = check_graph("cekm-tuned-navigation").plan(("r1",), "navigation")
     held = {"r1": set(plan.held_readings("r1"))} if hold else None
     pub = TickPublisher(K, world, episode, {"r1": set(plan.world_keys("r1"))},
                         RecordFilter(K, ["r1"], DropCounter("test", keys=K)), held)
