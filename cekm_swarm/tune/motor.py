@@ -66,7 +66,8 @@ TRAIL_GAIN = 0.3
 selection rule of docs/fields.md, the seventh round)."""
 PLAIN: dict[str, float | bool] = {"turn_gain": 1.0, "trail_gain": 0.0, "keep_clear": False}
 """The navigation node's parameters that make it the plain motor node (Eq. 11's turns as they
-are, no trail field): with W = 0, ``cekm run --fields tuned`` exactly."""
+are, no trail field, no keeping clear of movers): with W = 0, ``cekm run --fields tuned``
+exactly."""
 
 ROWS_KEPT = 256
 """Obstacle-field rows a node remembers (keyed by winner and widths: exact for any widths)."""
