@@ -7,8 +7,14 @@ the two apart (their lattice steps and the rays sweeping along walls look like m
 :class:`MoverDetector` does it from the distance sensors' raw readings and the robot's
 dead-reckoned pose. A ray's reading says that the space along the ray up to the hit is free.
 A hit inside space that a ray of the last few ticks saw free, well short of where that ray
-hit (noise allowed for), is something that moved in. Such hits become tracks with a velocity
-(an alpha-beta filter, as :class:`~.anticipation.TargetTracks` for targets).
+hit (noise allowed for), is something that moved in: a mover is found there.
+
+A mover is then a disc of known radius moving at a constant velocity. Its centre and
+velocity are the least-squares fit to the rays of the last ``window`` ticks
+(:func:`fit_disc`): the hits near it lie on its rim, and the rays near it that saw free space
+do not cross it. One ray in twelve is 30 degrees wide of the next, so a small disc is often
+hit by one ray only, and a centre guessed from each hit jumps between rays; the fit uses the
+rays that miss it as well, and recovers the velocity that the velocity obstacle needs.
 :func:`keep_clear` is a velocity-obstacle choice. If the motor EKM's command would bring the
 body within ``margin`` of a tracked mover within ``horizon`` seconds, the command is replaced
 by whichever of stop, back, forward or a turn in place at c* keeps the most clearance.
@@ -21,112 +27,237 @@ from collections import deque
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 
+import numpy as np
+
 Pose = tuple[float, float, float]
 Mover = tuple[float, float, float, float]  # x, y, vx, vy in the dead-reckoned frame
 
 
 @dataclass(frozen=True)
 class MoverParams:
-    """history: ticks of rays remembered; eps: how near (m) a hit must be to an earlier ray's
-    line; slack: a hit must lie short of that ray's own hit by slack + noise * its length
-    (m; noise: the readings' relative error); radius: a mover's radius (m, its centre lies
-    this far beyond the hit); assoc: how far (m) from a track's prediction a hit joins it;
-    forget: seconds a track lives without a hit; gain_x, gain_v: the filter's gains;
-    min_speed: a track slower than this (m/s) is no mover (a wall seen by a grazing ray can
-    leave hits near an earlier ray's line; the obstacle fields keep clear of still things);
-    horizon: seconds of motion checked; margin: the clearance (m) a command must keep."""
+    """history: ticks of rays the free-space check remembers; eps: how near (m) a hit must be
+    to an earlier ray's line; slack: a hit must lie short of that ray's own hit by slack +
+    noise * its length (m; noise: the readings' relative error); radius: a mover's radius
+    (m); window: ticks of rays a mover's disc is fitted to; gate: how far (m) from the
+    predicted rim a hit joins the fit; sigma: the hits' and free rays' residual scale (m);
+    v_prior: the velocity's prior scale (m/s; the fit leans to standing still when the rays
+    say little); v_max: the fitted speed's cap (m/s); forget: seconds a mover lives without
+    a hit that moved in on its rim (a still thing wrongly found is soon dropped); confirm:
+    ticks with such hits before a track is a mover (one grazing ray on a wall makes one);
+    min_speed:
+    a mover slower than this (m/s) is not returned; horizon: seconds of motion checked;
+    margin: the clearance (m) a command must keep; still_horizon: seconds of motion in which
+    a replacing command must not bring the body nearer than ``margin`` to what the ranges
+    see now (when it is not that near already)."""
 
     history: int = 4
     eps: float = 0.006
     slack: float = 0.02
     noise: float = 0.1
     radius: float = 0.04
-    assoc: float = 0.08
+    window: int = 6
+    gate: float = 0.025
+    sigma: float = 0.01
+    v_prior: float = 0.3
+    v_max: float = 0.4
     forget: float = 0.5
-    gain_x: float = 0.5
-    gain_v: float = 0.3
+    confirm: int = 2
     min_speed: float = 0.0
     horizon: float = 1.5
     margin: float = 0.01
+    still_horizon: float = 0.5
 
     def check(self) -> MoverParams:
         """Itself, or ValueError naming the first parameter out of range."""
-        if self.history < 1:
-            raise ValueError(f"mover history must be >= 1 tick, got {self.history!r}")
-        for name in ("eps", "assoc", "forget", "horizon"):
+        for name in ("history", "window", "confirm"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"mover {name} must be >= 1 tick, got {getattr(self, name)!r}")
+        for name in ("eps", "radius", "gate", "sigma", "v_prior", "v_max", "forget", "horizon", "still_horizon"):
             if not getattr(self, name) > 0.0:
                 raise ValueError(f"mover {name} must be > 0, got {getattr(self, name)!r}")
-        for name in ("slack", "noise", "radius", "margin", "gain_x", "gain_v", "min_speed"):
+        for name in ("slack", "noise", "margin", "min_speed"):
             if not getattr(self, name) >= 0.0:
                 raise ValueError(f"mover {name} must be >= 0, got {getattr(self, name)!r}")
         return self
 
 
-Ray = tuple[float, float, float, float, float]  # origin x, y, direction x, y, free length
+FIT_STEPS = 4
+"""Levenberg-Marquardt steps of one fit (it starts from the last fit's prediction)."""
+NEAR_RAY = 0.05
+"""m beyond a disc's rim within which a free ray joins its fit."""
+
+
+@dataclass
+class _Tick:
+    """One tick's rays (free lengths already short of the noise) and hit points."""
+
+    t: float
+    rays: np.ndarray  # (n, 5): origin x, y, direction x, y, free length short of the noise
+    hits: np.ndarray  # (m, 2): the hit points
+
+
+@dataclass
+class _Track:
+    """A mover's disc as last fitted."""
+
+    q: np.ndarray  # centre x, y and velocity x, y at time t
+    t: float
+    moved: float  # when a hit that moved in last lay on its rim
+    moves: int = 1  # ticks with such hits
+    ticks: int = 0  # ticks of the window with a hit on its rim
+
+
+def fit_disc(q: np.ndarray, hits: np.ndarray, rays: np.ndarray, radius: float, sigma: float,
+             v_prior: float, steps: int = FIT_STEPS) -> np.ndarray:
+    """Centre and velocity (x, y, vx, vy at dt = 0) of a disc of ``radius`` moving straight:
+    least squares from ``q`` over the hits (rows x, y, dt) on its rim, the free rays (rows
+    origin x, y, direction x, y, free length, dt) that must not cross it, and the prior
+    velocity ~ N(0, v_prior^2)."""
+    lam = 1e-3
+
+    def residuals(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        cx, cy = q[0] + q[2] * hits[:, 2], q[1] + q[3] * hits[:, 2]
+        wx, wy = cx - hits[:, 0], cy - hits[:, 1]
+        n = np.maximum(np.hypot(wx, wy), 1e-9)
+        r_hit = (n - radius) / sigma
+        j_hit = np.stack([wx / n, wy / n, wx / n * hits[:, 2], wy / n * hits[:, 2]], axis=1) / sigma
+        fx, fy = q[0] + q[2] * rays[:, 5], q[1] + q[3] * rays[:, 5]
+        zx, zy = fx - rays[:, 0], fy - rays[:, 1]
+        a = np.clip(zx * rays[:, 2] + zy * rays[:, 3], 0.0, rays[:, 4])
+        zx, zy = zx - a * rays[:, 2], zy - a * rays[:, 3]  # from the ray's nearest point to the centre
+        ds = np.maximum(np.hypot(zx, zy), 1e-9)
+        inside = ds < radius
+        r_free = np.where(inside, (radius - ds) / sigma, 0.0)
+        j_free = np.where(inside[:, None], -np.stack([zx / ds, zy / ds, zx / ds * rays[:, 5], zy / ds * rays[:, 5]],
+                                                     axis=1) / sigma, 0.0)
+        r_v = q[2:] / v_prior
+        j_v = np.array([[0.0, 0.0, 1.0 / v_prior, 0.0], [0.0, 0.0, 0.0, 1.0 / v_prior]])
+        return np.concatenate([r_hit, r_free, r_v]), np.concatenate([j_hit, j_free, j_v])
+
+    r, jac = residuals(q)
+    cost = float(r @ r)
+    for _ in range(steps):
+        a = jac.T @ jac
+        step = np.linalg.solve(a + lam * np.diag(np.diag(a) + 1e-9), -(jac.T @ r))
+        r_new, jac_new = residuals(q + step)
+        cost_new = float(r_new @ r_new)
+        if cost_new < cost:
+            q, r, jac, cost, lam = q + step, r_new, jac_new, cost_new, lam * 0.3
+        else:
+            lam *= 10.0
+    return q
 
 
 @dataclass
 class MoverDetector:
-    """The rays of the last ``history`` ticks and the movers tracked from them."""
+    """The rays of the last ticks and the movers fitted to them."""
 
     params: MoverParams = MoverParams()
     reach: float = 0.2  # m from the centre a ray sees (body radius + range): its free length seeing nothing
-    rays: deque[list[Ray]] = field(default_factory=deque)
-    tracks: list[list[float]] = field(default_factory=list)  # x, y, vx, vy, t, hits
+    ticks: deque[_Tick] = field(default_factory=deque)  # the last max(history, window)
+    tracks: list[_Track] = field(default_factory=list)
 
     def update(self, t: float, pose: Pose, readings: Iterable[tuple[float, float | None]]) -> list[Mover]:
         """One tick: the readings (alpha, d from the centre, None when nothing is in range)
-        taken at ``pose``; returns the movers tracked (seen on two ticks or more, at ``min_speed``
-        or faster), at ``t``."""
+        taken at ``pose``; returns the movers (fitted to hits on two ticks or more, with
+        hits that moved in on ``confirm`` ticks, at ``min_speed`` or faster), at ``t``."""
         p = self.params
         x, y, th = pose
-        now: list[Ray] = []
-        hits: list[tuple[float, float]] = []
-        for alpha, d in readings:
-            ux, uy = math.cos(th + alpha), math.sin(th + alpha)
-            now.append((x, y, ux, uy, self.reach if d is None else d))
-            if d is not None and self._moved_in(x + d * ux, y + d * uy):
-                hits.append((x + (d + p.radius) * ux, y + (d + p.radius) * uy))
-        self.rays.append(now)
-        while len(self.rays) > p.history:
-            self.rays.popleft()
-        for hx, hy in hits:
-            self._track(t, hx, hy)
-        self.tracks = [tr for tr in self.tracks if t - tr[4] <= p.forget]
-        return [(tr[0] + tr[2] * (t - tr[4]), tr[1] + tr[3] * (t - tr[4]), tr[2], tr[3])
-                for tr in self.tracks if tr[5] >= 2 and math.hypot(tr[2], tr[3]) >= p.min_speed]
+        rays = np.array([(x, y, math.cos(th + a), math.sin(th + a), self.reach if d is None else d)
+                         for a, d in readings], dtype=np.float64).reshape(-1, 5)
+        hit = rays[:, 4] < self.reach
+        hits = rays[hit, :2] + rays[hit, 2:4] * rays[hit, 4:5]
+        moved_in = [(hx, hy, ux, uy) for (hx, hy), (ux, uy) in zip(hits.tolist(), rays[hit, 2:4].tolist(), strict=True)
+                    if self._moved_in(hx, hy)]
+        rays[:, 4] -= p.slack + p.noise * rays[:, 4]  # the length surely free
+        self.ticks.append(_Tick(t, rays[rays[:, 4] > 0.0], hits))
+        while len(self.ticks) > max(p.history, p.window):
+            self.ticks.popleft()
+        for tr in self.tracks:
+            self._fit(tr, t)
+        for hx, hy, ux, uy in moved_in:
+            near = [tr for tr in self.tracks if math.hypot(hx - tr.q[0], hy - tr.q[1]) - p.radius < p.gate]
+            if near:
+                for tr in near:
+                    tr.moves += tr.moved < t
+                    tr.moved = t
+                continue
+            tr = _Track(np.array([hx + p.radius * ux, hy + p.radius * uy, 0.0, 0.0]), t, moved=t)
+            self._fit(tr, t)
+            self.tracks.append(tr)
+        self.tracks = [tr for tr in self.tracks if t - tr.moved <= p.forget]
+        self._merge(t)
+        return [(float(tr.q[0] + tr.q[2] * (t - tr.t)), float(tr.q[1] + tr.q[3] * (t - tr.t)), float(tr.q[2]),
+                 float(tr.q[3])) for tr in self.tracks
+                if tr.ticks >= 2 and tr.moves >= p.confirm and math.hypot(tr.q[2], tr.q[3]) >= p.min_speed]
+
+    @property
+    def hits(self) -> list[tuple[float, float]]:
+        """The points the ranges hit at the last update (what keeping clear must not drive into)."""
+        return [(float(x), float(y)) for x, y in self.ticks[-1].hits] if self.ticks else []
+
+    def _merge(self, t: float) -> None:
+        """Of two tracks whose discs overlap by more than half a radius now, the one whose
+        rim a hit moved in on less recently goes (a mover's first guess left behind by its
+        path)."""
+        p = self.params
+        keep: list[_Track] = []
+        for tr in sorted(self.tracks, key=lambda tr: -tr.moved):
+            x, y = tr.q[:2] + tr.q[2:] * (t - tr.t)
+            if all(math.hypot(x - k.q[0] - k.q[2] * (t - k.t), y - k.q[1] - k.q[3] * (t - k.t)) > 1.5 * p.radius
+                   for k in keep):
+                keep.append(tr)
+        self.tracks = keep
 
     def _moved_in(self, px: float, py: float) -> bool:
-        """Whether (px, py) lies in space a remembered ray saw free, short of its hit."""
+        """Whether (px, py) lies in space a ray of the last ``history`` ticks saw free, short
+        of its hit (by the slack and noise)."""
         p = self.params
-        for tick in self.rays:
-            for ox, oy, ux, uy, free in tick:
-                wx, wy = px - ox, py - oy
-                along = wx * ux + wy * uy
-                if 0.0 < along < free - (p.slack + p.noise * free) and abs(wx * uy - wy * ux) < p.eps:
-                    return True
+        for tick in list(self.ticks)[-p.history:]:
+            r = tick.rays
+            wx, wy = px - r[:, 0], py - r[:, 1]
+            along = wx * r[:, 2] + wy * r[:, 3]
+            if ((along > 0.0) & (along < r[:, 4]) & (np.abs(wx * r[:, 3] - wy * r[:, 2]) < p.eps)).any():
+                return True
         return False
 
-    def _track(self, t: float, hx: float, hy: float) -> None:
+    def _fit(self, tr: _Track, t: float) -> None:
+        """The track's disc fitted again to the window: to the hits within ``gate`` of its
+        predicted rim (or inside it) and the free rays passing near it."""
         p = self.params
-        best: tuple[float, list[float]] | None = None
-        for tr in self.tracks:
-            dt = t - tr[4]
-            gap = math.hypot(hx - (tr[0] + tr[2] * dt), hy - (tr[1] + tr[3] * dt))
-            if gap < p.assoc and (best is None or gap < best[0]):
-                best = (gap, tr)
-        if best is None:
-            self.tracks.append([hx, hy, 0.0, 0.0, t, 1.0])
+        q = tr.q.copy()
+        q[:2] += q[2:] * (t - tr.t)
+        hits, rays, tr.ticks = self._near(q, t)
+        if not hits:
             return
-        tr = best[1]
-        dt = t - tr[4]
-        if dt <= 0.0:
-            return
-        ex, ey = tr[0] + tr[2] * dt, tr[1] + tr[3] * dt
-        rx, ry = hx - ex, hy - ey
-        tr[0], tr[1] = ex + p.gain_x * rx, ey + p.gain_x * ry
-        tr[2], tr[3] = tr[2] + p.gain_v * rx / dt, tr[3] + p.gain_v * ry / dt
-        tr[4], tr[5] = t, tr[5] + 1.0
+        q = fit_disc(q, np.concatenate(hits), np.concatenate(rays) if rays else np.zeros((0, 6)), p.radius,
+                     p.sigma, p.v_prior)
+        speed = math.hypot(q[2], q[3])
+        if speed > p.v_max:
+            q[2:] *= p.v_max / speed
+        tr.q, tr.t = q, t
+
+    def _near(self, q: np.ndarray, t: float) -> tuple[list[np.ndarray], list[np.ndarray], int]:
+        """The window's hits within ``gate`` of the rim of the disc ``q`` (rows x, y, dt), the
+        free rays passing within ``NEAR_RAY`` of it (rows origin, direction, free length, dt), and
+        the number of ticks with such hits."""
+        p = self.params
+        hits, rays, ticks = [], [], 0
+        for tick in list(self.ticks)[-p.window:]:
+            dt = tick.t - t
+            cx, cy = q[0] + q[2] * dt, q[1] + q[3] * dt
+            if len(tick.hits):
+                on = np.hypot(tick.hits[:, 0] - cx, tick.hits[:, 1] - cy) - p.radius < p.gate
+                if on.any():
+                    ticks += 1
+                    hits.append(np.column_stack([tick.hits[on], np.full(int(on.sum()), dt)]))
+            r = tick.rays
+            zx, zy = cx - r[:, 0], cy - r[:, 1]
+            a = np.clip(zx * r[:, 2] + zy * r[:, 3], 0.0, r[:, 4])
+            near = np.hypot(zx - a * r[:, 2], zy - a * r[:, 3]) < p.radius + NEAR_RAY
+            if near.any():
+                rays.append(np.column_stack([r[near], np.full(int(near.sum()), dt)]))
+        return hits, rays, ticks
 
 
 CHECK_STEP = 0.064
@@ -150,16 +281,23 @@ def clearance(pose: Pose, command: tuple[float, float], movers: Sequence[Mover],
 
 
 def keep_clear(pose: Pose, command: tuple[float, float], movers: Sequence[Mover], reach: float, axle: float,
-               v_max: float, params: MoverParams) -> tuple[float, float]:
+               v_max: float, params: MoverParams, still: Sequence[tuple[float, float]] = ()) -> tuple[float, float]:
     """The command, or when it would come within ``margin`` of a mover within ``horizon``
     s, the one of stop, back, forward, turn left or right in place at ``v_max`` that keeps
-    the most clearance (the command itself if none keeps more)."""
+    the most clearance (the command itself if none keeps more). A replacement must not
+    bring the body within ``margin`` of a point of ``still`` (what the ranges hit now)
+    within ``still_horizon`` s, unless it is that near already: keeping clear of a mover
+    never drives the robot into a wall."""
     if not movers:
         return command
     base = clearance(pose, command, movers, reach, axle, params.horizon)
     if base >= params.margin:
         return command
+    body = reach - params.radius
+    points = [(px, py, 0.0, 0.0) for px, py in still]
+    floor = min(params.margin, clearance(pose, (0.0, 0.0), points, body, axle, 0.0))
     options = [(0.0, 0.0), (-v_max, -v_max), (v_max, v_max), (-v_max, v_max), (v_max, -v_max)]
-    scored = [(clearance(pose, o, movers, reach, axle, params.horizon), o) for o in options]
+    scored = [(clearance(pose, o, movers, reach, axle, params.horizon), o) for o in options
+              if o == (0.0, 0.0) or clearance(pose, o, points, body, axle, params.still_horizon) >= floor]
     best_clear, best = max(scored, key=lambda s: s[0])
     return best if best_clear > base else command

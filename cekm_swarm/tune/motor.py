@@ -237,7 +237,7 @@ class FieldMotor(_PolicyFields, Node):
             if out.k is not None:  # a command of the motor EKM (not the stop of no target or the goal)
                 v_l, v_r = keep_clear(self._trail.pose, (v_l, v_r), self.last_movers,
                                       body.body_radius + self._movers.params.radius, body.axle, body.v_max,
-                                      self._movers.params)
+                                      self._movers.params, self._movers.hits)
         self._sent(t, v_l, v_r)
         self._command = (v_l, v_r)
         return {"command": WheelCommand(t, self.ctx.sender, v_l, v_r, tick_of(t))}
