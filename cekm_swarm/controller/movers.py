@@ -44,11 +44,10 @@ class MoverParams:
     say little); v_max: the fitted speed's cap (m/s); forget: seconds a mover lives without
     a hit that moved in on its rim (a still thing wrongly found is soon dropped); confirm:
     ticks with such hits before a track is a mover (one grazing ray on a wall makes one);
-    min_speed:
-    a mover slower than this (m/s) is not returned; horizon: seconds of motion checked;
-    margin: the clearance (m) a command must keep; still_horizon: seconds of motion in which
-    a replacing command must not bring the body nearer than ``margin`` to what the ranges
-    see now (when it is not that near already)."""
+    min_speed: a mover slower than this (m/s) is not returned; horizon: seconds of motion
+    checked; margin: the clearance (m) a command must keep; still_horizon: seconds of motion
+    in which a replacing command must not bring the body nearer than ``margin`` to what the
+    ranges see now (when it is not that near already)."""
 
     history: int = 4
     eps: float = 0.006
