@@ -29,7 +29,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-Pose = tuple[float, float, float]
+from .bounds import check_bounds
+from .dead_reckoning import Pose
+
 Mover = tuple[float, float, float, float]  # x, y, vx, vy in the dead-reckoned frame
 
 
@@ -68,15 +70,10 @@ class MoverParams:
 
     def check(self) -> MoverParams:
         """Itself, or ValueError naming the first parameter out of range."""
-        for name in ("history", "window", "confirm"):
-            if getattr(self, name) < 1:
-                raise ValueError(f"mover {name} must be >= 1 tick, got {getattr(self, name)!r}")
-        for name in ("eps", "radius", "gate", "sigma", "v_prior", "v_max", "forget", "horizon", "still_horizon"):
-            if not getattr(self, name) > 0.0:
-                raise ValueError(f"mover {name} must be > 0, got {getattr(self, name)!r}")
-        for name in ("slack", "noise", "margin", "min_speed"):
-            if not getattr(self, name) >= 0.0:
-                raise ValueError(f"mover {name} must be >= 0, got {getattr(self, name)!r}")
+        check_bounds("mover", self, ticks=("history", "window", "confirm"),
+                     positive=("eps", "radius", "gate", "sigma", "v_prior", "v_max", "forget", "horizon",
+                               "still_horizon"),
+                     nonnegative=("slack", "noise", "margin", "min_speed"))
         return self
 
 

@@ -3,9 +3,9 @@ lattice once it stops getting nearer its target (docs/fields.md, "The seventh ro
 
 A reactive field does not leave a deep U it has entered: the target field pulls the robot
 back in each time it reaches the mouth, and it circles inside. The trail remembers the
-places the robot passed (dead-reckoned from its own wheel commands, so no node needs the
-world), and when the target has come no nearer for ``patience`` seconds, a field like an
-obstacle field (Eq. 8's b_j, subtracted in Eq. 9's sum) inhibits the motor neurons whose
+places the robot passed (dead-reckoned from its own wheel commands, :mod:`~.dead_reckoning`,
+so no node needs the world), and when the target has come no nearer for ``patience``
+seconds, a field like an obstacle field (Eq. 8's b_j, subtracted in Eq. 9's sum) inhibits the motor neurons whose
 direction points at a place visited earlier and near: the visited inside of the U fills
 up, and the winner leads out of it. While the robot progresses, the field is absent, so
 the integration is Eq. 9 as it was.
@@ -17,6 +17,9 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from .bounds import check_bounds
+from .dead_reckoning import Pose
 
 SAME_PLACE = 0.02
 """m: a remembered place this near the robot has no bearing worth inhibiting."""
@@ -42,60 +45,45 @@ class TrailParams:
 
     def check(self) -> TrailParams:
         """Itself, or ValueError naming the first parameter out of range."""
-        for name in ("sigma", "radius", "every"):
-            if not getattr(self, name) > 0.0:
-                raise ValueError(f"trail {name} must be > 0, got {getattr(self, name)!r}")
-        for name in ("gain", "progress", "patience", "recent", "memory"):
-            if not getattr(self, name) >= 0.0:
-                raise ValueError(f"trail {name} must be >= 0, got {getattr(self, name)!r}")
+        check_bounds("trail", self, positive=("sigma", "radius", "every"),
+                     nonnegative=("gain", "progress", "patience", "recent", "memory"))
         return self
 
 
 @dataclass
 class Trail:
-    """The robot's dead-reckoned pose (x, y, heading in its own start frame), the places it
-    passed, and its best distance to the target with the time it was reached."""
+    """The places the robot passed (in its dead-reckoned frame,
+    :mod:`~.dead_reckoning`), and its best distance to the target with the time it was
+    reached."""
 
     params: TrailParams = TrailParams()
-    pose: tuple[float, float, float] = (0.0, 0.0, 0.0)
     places: list[tuple[float, float, float]] = field(default_factory=list)  # (t, x, y)
     best: tuple[float, float] = (math.inf, 0.0)  # (distance to the target, when)
-    _t: float | None = None
     _array: np.ndarray | None = None  # ``places`` as an array, made again when they change
 
-    def move(self, t: float, v_l: float, v_r: float, axle: float) -> None:
-        """Dead reckoning: the wheel command (v_l, v_r) executed from the last call to ``t``
-        (a differential drive with ``axle``); the first call only sets the clock."""
-        if self._t is not None and t > self._t:
-            dt = t - self._t
-            x, y, th = self.pose
-            v, omega = 0.5 * (v_l + v_r), (v_r - v_l) / axle
-            mid = th + 0.5 * omega * dt
-            self.pose = (x + v * dt * math.cos(mid), y + v * dt * math.sin(mid), th + omega * dt)
-        self._t = t
-
-    def update(self, t: float, target_d: float | None) -> None:
-        """Remember the place at ``t`` (every ``every`` s), forget those past ``memory``, and
-        note progress: a distance to the target ``progress`` below the best so far."""
+    def update(self, t: float, pose: Pose, target_d: float | None) -> None:
+        """Remember the robot's place at ``t`` (every ``every`` s), forget those past
+        ``memory``, and note progress: a distance to the target ``progress`` below the best
+        so far."""
         p = self.params
         if target_d is not None and target_d < self.best[0] - p.progress:
             self.best = (target_d, t)
         if not self.places or t - self.places[-1][0] >= p.every:
-            self.places.append((t, self.pose[0], self.pose[1]))
+            self.places.append((t, pose[0], pose[1]))
             self._array = None
         while self.places and t - self.places[0][0] > p.memory:
             self.places.pop(0)
             self._array = None
 
-    def field(self, t: float, w: np.ndarray) -> np.ndarray | None:
-        """The trail field over the motor lattice ``w`` (rows alpha_k, d_k), or None while the
-        robot progresses (or has no place to avoid): b_k = gain * max over places q visited
-        between ``memory`` and ``recent`` ago within ``radius`` of
-        exp(-(alpha_k - bearing_q)^2 / (2 sigma^2)) * (1 - r_q / radius)."""
+    def field(self, t: float, pose: Pose, w: np.ndarray) -> np.ndarray | None:
+        """The trail field of the robot at ``pose`` over the motor lattice ``w`` (rows
+        alpha_k, d_k), or None while the robot progresses (or has no place to avoid):
+        b_k = gain * max over places q visited between ``memory`` and ``recent`` ago within
+        ``radius`` of exp(-(alpha_k - bearing_q)^2 / (2 sigma^2)) * (1 - r_q / radius)."""
         p = self.params
         if p.gain == 0.0 or t - self.best[1] <= p.patience:
             return None
-        x, y, th = self.pose
+        x, y, th = pose
         if self._array is None:
             self._array = np.array(self.places, dtype=np.float64).reshape(-1, 3)
         old = self._array[t - self._array[:, 0] > p.recent, 1:]

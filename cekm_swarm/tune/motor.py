@@ -43,6 +43,7 @@ from typing import Any
 import numpy as np
 
 from cekm_swarm.controller.cooperative import ObstacleActivity, TargetActivity, face_turn, turns_to_rear
+from cekm_swarm.controller.dead_reckoning import DeadReckoning, executed
 from cekm_swarm.controller.movers import MoverDetector, MoverParams, keep_clear
 from cekm_swarm.controller.trail import Trail, TrailParams
 from cekm_swarm.models.fields import obstacle_field, target_field
@@ -116,6 +117,7 @@ class _PolicyFields:
         self._target_widths = (base.sigma_a_alpha, base.sigma_a_d)  # the target module's widths (Eq. 6)
         self._closing = ClosingSpeeds()  # each sensor's last reading (the feature "closing")
         self._forward = 0.0  # the robot's forward speed, from the last command sent (m/s)
+        self._executed = (0.0, 0.0)  # the last command sent, as the wheels execute it
         self._stall = Stall()  # the commands sent lately (the feature "stalled")
 
     def _stalled(self, t: float) -> float:
@@ -124,8 +126,8 @@ class _PolicyFields:
     def _sent(self, t: float, v_l: float, v_r: float) -> None:
         """Remember the command sent, as this robot's wheels execute it (clamped to its body's
         v_max): the robot's own approach, which ``closing`` discounts."""
-        v = self.ctx.body.v_max
-        self._forward = (min(max(v_l, -v), v) + min(max(v_r, -v), v)) / 2.0
+        self._executed = executed(v_l, v_r, self.ctx.body.v_max)
+        self._forward = (self._executed[0] + self._executed[1]) / 2.0
         self._stall.update(t, self._forward)
 
     def _choose(self, features: np.ndarray) -> FieldChoice:
@@ -206,7 +208,7 @@ class FieldMotor(_PolicyFields, Node):
             self._trail = Trail(TrailParams(gain=self.params.trail_gain).check())
         except ValueError as exc:
             raise NodeError(f"{self.ctx.sender}: {exc}") from None
-        self._command = (0.0, 0.0)  # the last command sent, which the trail's dead reckoning executes
+        self.reckoning = DeadReckoning()  # the pose from its own commands: the trail's places, the movers' rays
         self._trail_refused: float | None = None  # a trail gain set while running and refused
         body = self.ctx.body
         self._movers = MoverDetector(MoverParams().check(), reach=body.body_radius + body.sensor_range)
@@ -224,8 +226,7 @@ class FieldMotor(_PolicyFields, Node):
         self.integrated = (self._target(self.ekm.w, target_activity(tf), choice),
                            self._obstacles(self.ekm.w, fields, choice, target, features))  # as the plain motor's
         body = self.ctx.body
-        self._trail.move(t, min(max(self._command[0], -body.v_max), body.v_max),
-                         min(max(self._command[1], -body.v_max), body.v_max), body.axle)  # dead reckoning
+        self.reckoning.move(t, *self._executed, body.axle)  # the last tick's command, executed until now
         out = self.ekm.integrate(*self._with_trail(t, tf))  # Eqs. 9-11
         v_l, v_r = out.v_l, out.v_r
         if self.params.turn_gain != 1.0 and out.k is not None and out.k != out.s \
@@ -233,13 +234,12 @@ class FieldMotor(_PolicyFields, Node):
             v_l, v_r = face_turn(v_l, v_r, self.params.turn_gain, self.ctx.body.v_max, turn_only=True)
         if self.params.keep_clear:
             readings = [(r.alpha, r.d) for _, r in sorted(inputs["ranges"].items(), key=lambda kv: kv[1].index)]
-            self.last_movers = self._movers.update(t, self._trail.pose, readings)
+            self.last_movers = self._movers.update(t, self.reckoning.pose, readings)
             if out.k is not None:  # a command of the motor EKM (not the stop of no target or the goal)
-                v_l, v_r = keep_clear(self._trail.pose, (v_l, v_r), self.last_movers,
+                v_l, v_r = keep_clear(self.reckoning.pose, (v_l, v_r), self.last_movers,
                                       body.body_radius + self._movers.params.radius, body.axle, body.v_max,
                                       self._movers.params, self._movers.hits)
         self._sent(t, v_l, v_r)
-        self._command = (v_l, v_r)
         return {"command": WheelCommand(t, self.ctx.sender, v_l, v_r, tick_of(t))}
 
     def _with_trail(self, t: float, tf: TargetField | None) -> tuple[TargetActivity | None, list[ObstacleActivity]]:
@@ -255,8 +255,8 @@ class FieldMotor(_PolicyFields, Node):
                 self.ctx.log.error("%s: %s; the trail gain before it stays", self.ctx.sender, exc)
         if self._trail.params.gain == 0.0:
             return target, obstacles
-        self._trail.update(t, None if tf is None or tf.d is None else float(tf.d))
-        b = self._trail.field(t, self.ekm.w)
+        self._trail.update(t, self.reckoning.pose, None if tf is None or tf.d is None else float(tf.d))
+        b = self._trail.field(t, self.reckoning.pose, self.ekm.w)
         return (target, obstacles) if b is None else (target, [*obstacles, ObstacleActivity(t, -1, None, b)])
 
 

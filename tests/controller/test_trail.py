@@ -1,11 +1,12 @@
-"""The trail field (cekm_swarm.controller.trail): dead reckoning, progress, and which motor
-neurons it inhibits."""
+"""The trail field (cekm_swarm.controller.trail): progress, and which motor neurons it
+inhibits, on a dead-reckoned pose."""
 
 import math
 
 import numpy as np
 import pytest
 
+from cekm_swarm.controller.dead_reckoning import DeadReckoning
 from cekm_swarm.controller.trail import Trail, TrailParams
 
 AXLE = 0.053
@@ -17,43 +18,35 @@ def lattice(n: int = 72) -> np.ndarray:
     return np.column_stack([alpha, np.full(n, 0.05)])
 
 
-def drive(trail: Trail, t0: float, t1: float, v_l: float, v_r: float, target_d=None, dt: float = 0.128) -> float:
+def drive(trail: Trail, dr: DeadReckoning, t0: float, t1: float, v_l: float, v_r: float, target_d=None,
+          dt: float = 0.128) -> float:
     t = t0
     while t < t1 - 1e-9:
-        trail.move(t, v_l, v_r, AXLE)
-        trail.update(t, target_d)
+        dr.move(t, v_l, v_r, AXLE)
+        trail.update(t, dr.pose, target_d)
         t += dt
     return t
 
 
-def test_dead_reckoning_executes_the_commands_of_a_differential_drive():
-    tr = Trail()
-    tr.move(0.0, 0.1, 0.1, AXLE)  # the first call sets the clock only
-    tr.move(2.0, 0.1, 0.1, AXLE)
-    assert tr.pose == pytest.approx((0.2, 0.0, 0.0))
-    tr.move(3.0, -0.05, 0.05, AXLE)  # in place: omega = 0.1 / axle
-    assert tr.pose[:2] == pytest.approx((0.2, 0.0)) and tr.pose[2] == pytest.approx(0.1 / AXLE)
-
-
 def test_no_field_while_the_target_comes_nearer():
-    tr = Trail()
+    tr, dr = Trail(), DeadReckoning()
     d = 1.0
     for k in range(200):  # 25 s, always getting nearer
-        tr.move(k * 0.128, 0.1, 0.1, AXLE)
-        tr.update(k * 0.128, d)
+        dr.move(k * 0.128, 0.1, 0.1, AXLE)
+        tr.update(k * 0.128, dr.pose, d)
         d -= 0.01
-        assert tr.field(k * 0.128, lattice()) is None
+        assert tr.field(k * 0.128, dr.pose, lattice()) is None
 
 
 def test_after_patience_without_progress_it_inhibits_the_neurons_toward_old_places():
-    tr = Trail()
+    tr, dr = Trail(), DeadReckoning()
     w = lattice()
-    t = drive(tr, 0.0, 2.0, 0.1, 0.1, target_d=1.0)  # 0.2 m along +x: places behind the robot
-    t = drive(tr, t, t + math.pi * AXLE / 0.04, -0.02, 0.02, target_d=1.0)  # turn round in place
-    assert abs(math.remainder(tr.pose[2] - math.pi, 2 * math.pi)) < 0.1  # now facing the places it passed
-    assert tr.field(t, w) is None  # they are recent, and patience has not run out
-    t = drive(tr, t, t + 10.0, 0.0, 0.0, target_d=1.0)  # stands still, no progress
-    b = tr.field(t, w)
+    t = drive(tr, dr, 0.0, 2.0, 0.1, 0.1, target_d=1.0)  # 0.2 m along +x: places behind the robot
+    t = drive(tr, dr, t, t + math.pi * AXLE / 0.04, -0.02, 0.02, target_d=1.0)  # turn round in place
+    assert abs(math.remainder(dr.pose[2] - math.pi, 2 * math.pi)) < 0.1  # now facing the places it passed
+    assert tr.field(t, dr.pose, w) is None  # they are recent, and patience has not run out
+    t = drive(tr, dr, t, t + 10.0, 0.0, 0.0, target_d=1.0)  # stands still, no progress
+    b = tr.field(t, dr.pose, w)
     assert b is not None and b.shape == (len(w),)
     ahead = int(np.argmin(np.abs(w[:, 0])))  # the neuron pointing straight ahead: at the old places
     behind = int(np.argmax(np.abs(w[:, 0])))
@@ -63,18 +56,18 @@ def test_after_patience_without_progress_it_inhibits_the_neurons_toward_old_plac
 
 def test_places_are_forgotten_after_memory_and_a_new_best_resets_patience():
     p = TrailParams(memory=5.0)
-    tr = Trail(p)
-    t = drive(tr, 0.0, 20.0, 0.0, 0.0, target_d=1.0)
+    tr, dr = Trail(p), DeadReckoning()
+    t = drive(tr, dr, 0.0, 20.0, 0.0, 0.0, target_d=1.0)
     assert tr.places and t - tr.places[0][0] <= 5.0 + 1e-9
     assert tr.best == (1.0, 0.0)
-    tr.update(t, 0.9)
-    assert tr.best == (0.9, t) and tr.field(t, lattice()) is None
+    tr.update(t, dr.pose, 0.9)
+    assert tr.best == (0.9, t) and tr.field(t, dr.pose, lattice()) is None
 
 
 def test_zero_gain_is_no_field():
-    tr = Trail(TrailParams(gain=0.0))
-    t = drive(tr, 0.0, 30.0, 0.05, 0.1, target_d=1.0)  # circles without progress
-    assert tr.field(t, lattice()) is None
+    tr, dr = Trail(TrailParams(gain=0.0)), DeadReckoning()
+    t = drive(tr, dr, 0.0, 30.0, 0.05, 0.1, target_d=1.0)  # circles without progress
+    assert tr.field(t, dr.pose, lattice()) is None
 
 
 @pytest.mark.parametrize("name,value,words", [("gain", -0.1, "trail gain must be >= 0"),

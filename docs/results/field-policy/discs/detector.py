@@ -79,7 +79,7 @@ def quality(seed: int) -> dict:
     def wrapped(t, inputs):
         readings = [(r.alpha, r.d) for r in inputs["ranges"].values()]
         out = step(t, inputs)
-        pose, dr = w.pose("r1"), motor._trail.pose
+        pose, dr = w.pose("r1"), motor.reckoning.pose
         movers = []
         for mx, my, vx, vy in motor.last_movers:
             th = dr[2]
@@ -118,10 +118,10 @@ def bounded(job) -> tuple[str, bool]:
         readings = [(r.alpha, r.d) for r in sorted(inputs["ranges"].values(), key=lambda r: r.index)]
         flagged = []
         if mode.startswith("flagged"):
-            x, y, th = motor._trail.pose
+            x, y, th = motor.reckoning.pose
             flagged = [(a, d) for a, d in readings
                        if d is not None and det._moved_in(x + d * math.cos(th + a), y + d * math.sin(th + a))]
-            det.update(t, motor._trail.pose, readings)
+            det.update(t, motor.reckoning.pose, readings)
         out = step(t, inputs)
         pose = w.pose("r1")
         discs = []
