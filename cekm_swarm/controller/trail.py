@@ -5,9 +5,9 @@ A reactive field does not leave a deep U it has entered: the target field pulls 
 back in each time it reaches the mouth, and it circles inside. The trail remembers the
 places the robot passed (dead-reckoned from its own wheel commands, :mod:`~.dead_reckoning`,
 so no node needs the world), and when the target has come no nearer for ``patience``
-seconds, a field like an obstacle field (Eq. 8's b_j, subtracted in Eq. 9's sum) inhibits the motor neurons whose
-direction points at a place visited earlier and near: the visited inside of the U fills
-up, and the winner leads out of it. While the robot progresses, the field is absent, so
+seconds, a field like an obstacle field (Eq. 8's b_j, subtracted in Eq. 9's sum) inhibits
+the motor neurons whose direction points at a place visited earlier and near: the visited
+inside of the U fills up, and the winner leads out of it. While the robot progresses, the field is absent, so
 the integration is Eq. 9 as it was.
 """
 

@@ -26,8 +26,8 @@ And one check of its command (``keep_clear``, default :data:`KEEP_CLEAR`): the m
 obstacles :class:`cekm_swarm.controller.movers.MoverDetector` finds in the distance sensors'
 raw readings (its ``ranges`` input), and :func:`~cekm_swarm.controller.movers.keep_clear`'s
 velocity-obstacle choice when the command would bring the body within 1 cm of one
-(docs/fields.md, "The movers" and the eighth round). :data:`PLAIN` turns the three off: the plain motor node's
-Eqs. 9-11, bit for bit.
+(docs/fields.md, "The movers" and the eighth round). :data:`PLAIN` turns the three off:
+the plain motor node's Eqs. 9-11, bit for bit.
 
 Why the motor node: it is the one node that sees every field of a tick at once, which
 the policy's input needs; a separate policy node would need a new message to every
