@@ -188,9 +188,10 @@ class MoverDetector:
                 if tr.ticks >= 2 and tr.moves >= p.confirm and math.hypot(tr.q[2], tr.q[3]) >= p.min_speed]
 
     @property
-    def hits(self) -> list[tuple[float, float]]:
-        """The points the ranges hit at the last update (what keeping clear must not drive into)."""
-        return [(float(x), float(y)) for x, y in self.ticks[-1].hits] if self.ticks else []
+    def hits(self) -> np.ndarray:
+        """The points the ranges hit at the last update, rows x, y (what keeping clear must not
+        drive into)."""
+        return self.ticks[-1].hits if self.ticks else np.zeros((0, 2))
 
     def _merge(self, t: float) -> None:
         """Of two tracks whose discs overlap by more than half a radius now, the one whose
@@ -277,7 +278,8 @@ def clearance(pose: Pose, command: tuple[float, float], movers: Sequence[Mover],
 
 
 def keep_clear(pose: Pose, command: tuple[float, float], movers: Sequence[Mover], reach: float, axle: float,
-               v_max: float, params: MoverParams, still: Sequence[tuple[float, float]] = ()) -> tuple[float, float]:
+               v_max: float, params: MoverParams, still: Sequence[tuple[float, float]] | np.ndarray = ()
+               ) -> tuple[float, float]:
     """The command, or when it would come within ``margin`` of a mover within ``horizon``
     s, the one of stop, back, forward, turn left or right in place at ``v_max`` that keeps
     the most clearance (the command itself if none keeps more). A replacement must not

@@ -116,7 +116,6 @@ class _PolicyFields:
         base = self.policy.base_fields
         self._target_widths = (base.sigma_a_alpha, base.sigma_a_d)  # the target module's widths (Eq. 6)
         self._closing = ClosingSpeeds()  # each sensor's last reading (the feature "closing")
-        self._forward = 0.0  # the robot's forward speed, from the last command sent (m/s)
         self._executed = (0.0, 0.0)  # the last command sent, as the wheels execute it
         self._stall = Stall()  # the commands sent lately (the feature "stalled")
 
@@ -127,8 +126,12 @@ class _PolicyFields:
         """Remember the command sent, as this robot's wheels execute it (clamped to its body's
         v_max): the robot's own approach, which ``closing`` discounts."""
         self._executed = executed(v_l, v_r, self.ctx.body.v_max)
-        self._forward = (self._executed[0] + self._executed[1]) / 2.0
         self._stall.update(t, self._forward)
+
+    @property
+    def _forward(self) -> float:
+        """The robot's forward speed (m/s), from the last command sent."""
+        return (self._executed[0] + self._executed[1]) / 2.0
 
     def _choose(self, features: np.ndarray) -> FieldChoice:
         self._follow_params()
