@@ -26,8 +26,11 @@ And one check of its command (``keep_clear``, default :data:`KEEP_CLEAR`): the m
 obstacles :class:`cekm_swarm.controller.movers.MoverDetector` finds in the distance sensors'
 raw readings (its ``ranges`` input), and :func:`~cekm_swarm.controller.movers.keep_clear`'s
 velocity-obstacle choice when the command would bring the body within 1 cm of one
-(docs/fields.md, "The movers" and the eighth round). :data:`PLAIN` turns the three off:
-the plain motor node's Eqs. 9-11, bit for bit.
+(docs/fields.md, "The movers" and the eighth round). Keeping clear, it also keeps its
+command off what the ranges hit in the last ticks (``guard``, default :data:`GUARD`;
+:mod:`cekm_swarm.controller.guard`): a doorway's jamb end that falls between two rays is still
+there (docs/fields.md, the ninth round). :data:`PLAIN` turns the three off: the plain motor
+node's Eqs. 9-11, bit for bit.
 
 Why the motor node: it is the one node that sees every field of a tick at once, which
 the policy's input needs; a separate policy node would need a new message to every
@@ -44,6 +47,7 @@ import numpy as np
 
 from cekm_swarm.controller.cooperative import ObstacleActivity, TargetActivity, face_turn, turns_to_rear
 from cekm_swarm.controller.dead_reckoning import DeadReckoning, executed
+from cekm_swarm.controller.guard import Guard, GuardParams
 from cekm_swarm.controller.movers import MoverDetector, MoverParams, keep_clear
 from cekm_swarm.controller.trail import Trail, TrailParams
 from cekm_swarm.models.fields import obstacle_field, target_field
@@ -62,6 +66,9 @@ from .policy import FieldChoice, FieldPolicy, shipped_policy
 KEEP_CLEAR = True
 """Whether the default navigation motor keeps clear of the movers it detects
 (:mod:`cekm_swarm.controller.movers`; docs/fields.md, "The movers")."""
+GUARD = True
+"""Whether, keeping clear, it keeps its command off the hits of the last ticks as well
+(:mod:`cekm_swarm.controller.guard`; docs/fields.md, "The ninth round")."""
 TRAIL_GAIN = 0.3
 """The trail field's peak in the default navigation motor (chosen on validation seeds by the
 selection rule of docs/fields.md, the seventh round)."""
@@ -201,6 +208,7 @@ class FieldMotor(_PolicyFields, Node):
         turn_gain: float = math.inf  # a detour's turn in place toward the rear, executed up to c* (1: as Eq. 11)
         trail_gain: float = TRAIL_GAIN  # the trail field's peak once progress stops (0: no trail field)
         keep_clear: bool = KEEP_CLEAR  # movers detected from the raw ranges are kept clear of (False: none)
+        guard: bool = GUARD  # with keep_clear: the command kept off the hits of the last ticks (False: none)
 
     def setup(self) -> None:
         if not self.params.turn_gain >= 1.0:
@@ -216,6 +224,7 @@ class FieldMotor(_PolicyFields, Node):
         body = self.ctx.body
         self._movers = MoverDetector(MoverParams().check(), reach=body.body_radius + body.sensor_range)
         self.last_movers: list[tuple[float, float, float, float]] = []  # tracked at the last step
+        self._guard = Guard(GuardParams().check())
         self._setup_policy()
 
     def check_input(self, port, msg):
@@ -238,6 +247,11 @@ class FieldMotor(_PolicyFields, Node):
         if self.params.keep_clear:
             readings = [(r.alpha, r.d) for _, r in sorted(inputs["ranges"].items(), key=lambda kv: kv[1].index)]
             self.last_movers = self._movers.update(t, self.reckoning.pose, readings)
+            tick = self._movers.ticks[-1]
+            self._guard.update(tick.hits, tick.rays)
+            if out.k is not None and self.params.guard:
+                v_l, v_r = self._guard.command(self.reckoning.pose, (v_l, v_r), body.body_radius, body.axle,
+                                               body.v_max)
             if out.k is not None:  # a command of the motor EKM (not the stop of no target or the goal)
                 v_l, v_r = keep_clear(self.reckoning.pose, (v_l, v_r), self.last_movers,
                                       body.body_radius + self._movers.params.radius, body.axle, body.v_max,

@@ -343,6 +343,19 @@ def test_the_default_keeps_clear_of_a_disc_that_would_hit_it_side_on():
     assert out["reached"] and out["collisions"] == 0
 
 
+def test_the_default_keeps_off_a_doorway_jamb_end_that_falls_between_two_rays():
+    """Section 4.2's rooms (validation seed 2,000,051): the robot passes the first doorway and
+    its side closes on the upper jamb's end, seen by a ray a tick before and then between two
+    rays. The guard remembers the hits of the last ticks, and the command that would bring the
+    body within 1 cm of one is replaced by the nearest that does not (docs/fields.md, the ninth
+    round)."""
+    sc = load_scenario("rooms")
+    hit = run_graph(sc, "cekm", max_time=30.0, seed=2_000_051, params={"guard": False}).episode.outcome()["r1"]
+    assert "walls[1]" in hit["collisions_with"]
+    out = run_graph(sc, "cekm", max_time=30.0, seed=2_000_051).episode.outcome()["r1"]
+    assert out["collisions"] == 0 and out["path_length_m"] > 1.0
+
+
 def test_a_negative_trail_gain_is_refused_naming_the_node():
     from cekm_swarm.node.api import NodeError
 
