@@ -87,9 +87,14 @@ def guard(pose: Pose, command: tuple[float, float], points: np.ndarray, body: fl
     if not len(points):
         return command
     p = params
+    gaps = np.hypot(points[:, 0] - pose[0], points[:, 1] - pose[1]) - body
+    reach = max(v_max, abs(command[0]), abs(command[1])) * p.horizon  # the farthest the centre moves
+    near = gaps < p.margin + reach
+    if not near.any():  # nothing the body could come within margin of: most ticks
+        return command
+    points, now = points[near], float(gaps.min())
     c = np.array([command], dtype=np.float64)
     own = clearances(pose, c, points, body, axle, p.horizon, p.step)[0]
-    now = clearances(pose, c, points, body, axle, 0.0, p.step)[0]
     floor = min(p.margin, now)
     if own >= floor:
         return command
