@@ -6,7 +6,7 @@ For each: the runs that reach the goal without a contact, and what the others to
 doorway jamb is a wall, a disc an obstacle); and the ticks the guard replaced the command.
 
 Run: python docs/results/field-policy/guard/validate.py [--runs 200] [--scenarios rooms,checkpoints]
-(about three minutes on 2 cores)
+(about six minutes on 2 cores)
 """
 
 from __future__ import annotations
