@@ -30,7 +30,7 @@ class GuardParams:
     """memory: ticks whose hit points are remembered (0: no guard); margin: the clearance (m)
     a command must keep from them; horizon: seconds of motion checked; step: seconds between
     the instants checked; speeds: wheel speeds per wheel on the replacements' grid (odd, so
-    that stop and the turns in place are on it); eps: how near (m) a ray of this tick must
+    that a wheel at rest is on it: the pivots); eps: how near (m) a ray of this tick must
     pass a remembered hit, short of its own free length, to clear it."""
 
     memory: int = 6
