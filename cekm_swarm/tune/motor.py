@@ -225,6 +225,7 @@ class FieldMotor(_PolicyFields, Node):
         self._movers = MoverDetector(MoverParams().check(), reach=body.body_radius + body.sensor_range)
         self.last_movers: list[tuple[float, float, float, float]] = []  # tracked at the last step
         self._guard = Guard(GuardParams().check())
+        self.last_guarded = False  # whether the guard replaced the last step's command
         self._setup_policy()
 
     def check_input(self, port, msg):
@@ -249,9 +250,11 @@ class FieldMotor(_PolicyFields, Node):
             self.last_movers = self._movers.update(t, self.reckoning.pose, readings)
             tick = self._movers.ticks[-1]
             self._guard.update(tick.hits, tick.rays)
+            self.last_guarded = False
             if out.k is not None and self.params.guard:
-                v_l, v_r = self._guard.command(self.reckoning.pose, (v_l, v_r), body.body_radius, body.axle,
-                                               body.v_max)
+                wanted = (v_l, v_r)
+                v_l, v_r = self._guard.command(self.reckoning.pose, wanted, body.body_radius, body.axle, body.v_max)
+                self.last_guarded = (v_l, v_r) != wanted
             if out.k is not None:  # a command of the motor EKM (not the stop of no target or the goal)
                 v_l, v_r = keep_clear(self.reckoning.pose, (v_l, v_r), self.last_movers,
                                       body.body_radius + self._movers.params.radius, body.axle, body.v_max,

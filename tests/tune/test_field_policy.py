@@ -352,8 +352,11 @@ def test_the_default_keeps_off_a_doorway_jamb_end_that_falls_between_two_rays():
     sc = load_scenario("rooms")
     hit = run_graph(sc, "cekm", max_time=30.0, seed=2_000_051, params={"guard": False}).episode.outcome()["r1"]
     assert "walls[1]" in hit["collisions_with"]
-    out = run_graph(sc, "cekm", max_time=30.0, seed=2_000_051).episode.outcome()["r1"]
+    guarded: list[bool] = []
+    out = run_graph(sc, "cekm", max_time=30.0, seed=2_000_051,
+                    observe=lambda ex, _: guarded.append(ex.node("r1", "motor").last_guarded)).episode.outcome()["r1"]
     assert out["collisions"] == 0 and out["path_length_m"] > 1.0
+    assert 0 < sum(guarded) < len(guarded) / 10  # it replaced a few commands, not the run's
 
 
 def test_a_negative_trail_gain_is_refused_naming_the_node():

@@ -29,21 +29,15 @@ def one(job: tuple[str, int, bool]) -> tuple[str, bool, int, bool, list[str], in
     scenario, seed, guard = job
     s = GraphSession(load_scenario(scenario), graph=check_graph(policy_graph("navigation")), model=_model(None),
                      seed=seed, max_time=300.0, params={"guard": guard})
-    motor = s.executor.node("r1", "motor")
-    check, replaced = motor._guard.command, [0]
-
-    def counted(pose, command, *args):
-        out = check(pose, command, *args)
-        replaced[0] += out != tuple(command)
-        return out
-
-    motor._guard.command = counted
-    while not s.step():
-        pass
+    motor, replaced = s.executor.node("r1", "motor"), 0
+    done = False
+    while not done:
+        done = s.step()
+        replaced += motor.last_guarded
     o = s.episode.outcome()["r1"]
     s.executor.close()
     touched = ["disc" if name.startswith("obstacles") else "wall" for name in o["collisions_with"]]
-    return scenario, guard, seed, bool(o["reached"]) and o["collisions"] == 0, touched, replaced[0]
+    return scenario, guard, seed, bool(o["reached"]) and o["collisions"] == 0, touched, replaced
 
 
 def main() -> None:
