@@ -23,6 +23,7 @@ import numpy as np
 
 from .bounds import check_bounds
 from .dead_reckoning import Pose
+from .movers import seen_free
 
 
 @dataclass(frozen=True)
@@ -53,14 +54,7 @@ def remembered(hits: Sequence[np.ndarray], rays: np.ndarray, eps: float) -> np.n
     x, y, direction x, y, the length surely free) passes within ``eps`` of short of its free
     length: what is still there, as far as this tick can tell. Rows x, y."""
     points = np.concatenate([h for h in hits if len(h)]) if any(len(h) for h in hits) else np.zeros((0, 2))
-    if not len(points) or not len(rays):
-        return points
-    wx = points[:, 0][:, None] - rays[:, 0][None, :]
-    wy = points[:, 1][:, None] - rays[:, 1][None, :]
-    along = wx * rays[:, 2] + wy * rays[:, 3]
-    across = np.abs(wx * rays[:, 3] - wy * rays[:, 2])
-    cleared = ((along > 0.0) & (along < rays[:, 4]) & (across < eps)).any(axis=1)
-    return points[~cleared]
+    return points[~seen_free(points, rays, eps)]
 
 
 def clearances(pose: Pose, commands: np.ndarray, points: np.ndarray, body: float, axle: float,

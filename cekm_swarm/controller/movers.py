@@ -103,6 +103,18 @@ class _Track:
     ticks: int = 0  # ticks of the window with a hit on its rim
 
 
+def seen_free(points: np.ndarray, rays: np.ndarray, eps: float) -> np.ndarray:
+    """For each point (rows x, y), whether a ray (rows origin x, y, direction x, y, the length
+    surely free) passes within ``eps`` of it short of its free length: space that ray saw
+    free. Movers are hits in such space; the guard forgets remembered hits in it."""
+    if not len(points) or not len(rays):
+        return np.zeros(len(points), dtype=bool)
+    wx = points[:, 0][:, None] - rays[:, 0][None, :]
+    wy = points[:, 1][:, None] - rays[:, 1][None, :]
+    along = wx * rays[:, 2] + wy * rays[:, 3]
+    return ((along > 0.0) & (along < rays[:, 4]) & (np.abs(wx * rays[:, 3] - wy * rays[:, 2]) < eps)).any(axis=1)
+
+
 def fit_disc(q: np.ndarray, hits: np.ndarray, rays: np.ndarray, radius: float, sigma: float,
              v_prior: float, steps: int = FIT_STEPS) -> np.ndarray:
     """Centre and velocity (x, y, vx, vy at dt = 0) of a disc of ``radius`` moving straight:
@@ -163,15 +175,15 @@ class MoverDetector:
                          for a, d in readings], dtype=np.float64).reshape(-1, 5)
         hit = rays[:, 4] < self.reach
         hits = rays[hit, :2] + rays[hit, 2:4] * rays[hit, 4:5]
-        moved_in = [(hx, hy, ux, uy) for (hx, hy), (ux, uy) in zip(hits.tolist(), rays[hit, 2:4].tolist(), strict=True)
-                    if self._moved_in(hx, hy)]
+        moved = self._moved_in(hits)
+        moved_in = zip(hits[moved].tolist(), rays[hit, 2:4][moved].tolist(), strict=True)
         rays[:, 4] -= p.slack + p.noise * rays[:, 4]  # the length surely free
         self.ticks.append(_Tick(t, rays[rays[:, 4] > 0.0], hits))
         while len(self.ticks) > max(p.history, p.window):
             self.ticks.popleft()
         for tr in self.tracks:
             self._fit(tr, t)
-        for hx, hy, ux, uy in moved_in:
+        for (hx, hy), (ux, uy) in moved_in:
             near = [tr for tr in self.tracks if math.hypot(hx - tr.q[0], hy - tr.q[1]) - p.radius < p.gate]
             if near:
                 for tr in near:
@@ -206,17 +218,12 @@ class MoverDetector:
                 keep.append(tr)
         self.tracks = keep
 
-    def _moved_in(self, px: float, py: float) -> bool:
-        """Whether (px, py) lies in space a ray of the last ``history`` ticks saw free, short
-        of its hit (by the slack and noise)."""
-        p = self.params
-        for tick in list(self.ticks)[-p.history:]:
-            r = tick.rays
-            wx, wy = px - r[:, 0], py - r[:, 1]
-            along = wx * r[:, 2] + wy * r[:, 3]
-            if ((along > 0.0) & (along < r[:, 4]) & (np.abs(wx * r[:, 3] - wy * r[:, 2]) < p.eps)).any():
-                return True
-        return False
+    def _moved_in(self, points: np.ndarray) -> np.ndarray:
+        """For each point (rows x, y), whether it lies in space a ray of the last ``history``
+        ticks saw free, short of its hit (by the slack and noise)."""
+        recent = list(self.ticks)[-self.params.history:]
+        rays = np.concatenate([tick.rays for tick in recent]) if recent else np.zeros((0, 5))
+        return seen_free(points, rays, self.params.eps)
 
     def _fit(self, tr: _Track, t: float) -> None:
         """The track's disc fitted again to the window: to the hits within ``gate`` of its

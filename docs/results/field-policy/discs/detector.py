@@ -22,6 +22,8 @@ import math
 import statistics
 from concurrent.futures import ProcessPoolExecutor
 
+import numpy as np
+
 from cekm_swarm.controller.movers import MoverParams, keep_clear
 from cekm_swarm.experiments.field_widths import policy_graph
 from cekm_swarm.experiments.graph_run import GraphSession
@@ -119,8 +121,9 @@ def bounded(job) -> tuple[str, bool]:
         flagged = []
         if mode.startswith("flagged"):
             x, y, th = motor.reckoning.pose
-            flagged = [(a, d) for a, d in readings
-                       if d is not None and det._moved_in(x + d * math.cos(th + a), y + d * math.sin(th + a))]
+            seen = [(a, d) for a, d in readings if d is not None]
+            ends = np.array([(x + d * math.cos(th + a), y + d * math.sin(th + a)) for a, d in seen]).reshape(-1, 2)
+            flagged = [r for r, moved in zip(seen, det._moved_in(ends), strict=True) if moved]
             det.update(t, motor.reckoning.pose, readings)
         out = step(t, inputs)
         pose = w.pose("r1")
