@@ -75,6 +75,11 @@ class Trail:
             self.places.pop(0)
             self._array = None
 
+    def acting_for(self, t: float) -> float:
+        """Seconds since the field began to act at ``t`` (the target no nearer for ``patience``
+        s); zero or less while the robot progresses."""
+        return t - self.best[1] - self.params.patience
+
     def field(self, t: float, pose: Pose, w: np.ndarray) -> np.ndarray | None:
         """The trail field of the robot at ``pose`` over the motor lattice ``w`` (rows
         alpha_k, d_k), or None while the robot progresses (or has no place to avoid):
@@ -97,3 +102,12 @@ class Trail:
         off = (w[:, 0][:, None] - bearing[None, :] + np.pi) % (2.0 * np.pi) - np.pi
         closeness = 1.0 - r[near] / p.radius
         return p.gain * np.max(np.exp(-off ** 2 / (2.0 * p.sigma ** 2)) * closeness[None, :], axis=1)
+
+
+def paper_turn(acting_for: float, period: float) -> bool:
+    """Whether the paper's field widths are in their turn ``acting_for`` s after the trail began
+    to act: the policy's widths for the first ``period`` s, then the paper's for ``period`` s,
+    and so on until the robot progresses again (``period`` 0: never). A stall the learned widths
+    do not leave (a long shallow U at a short range) the paper's leave, and the reverse (a deep
+    wide U); docs/fields.md, the tenth round."""
+    return period > 0.0 and acting_for > 0.0 and int(acting_for // period) % 2 == 1

@@ -21,7 +21,11 @@ a disc instead of turning round (docs/fields.md, the sixth round).
 One field the navigation node adds (``trail_gain``, default :data:`TRAIL_GAIN`; 0: none):
 the trail field of :mod:`cekm_swarm.controller.trail`, the robot's memory of where it has
 been, among the obstacle fields of Eq. 9 once the target has come no nearer for a while. It
-leads a robot out of a deep U it would circle in (docs/fields.md, the seventh round).
+leads a robot out of a deep U it would circle in (docs/fields.md, the seventh round). While
+it acts, the field widths take turns (``alternate``, default :data:`ALTERNATE` s): the
+policy's, then the paper's constants, and so on until the robot progresses again. The learned
+widths take the robot up to a wall met head-on and the paper's keep it at their range, so each
+leaves a stall the other circles in: a deep wide U, a long shallow one (the tenth round).
 And one check of its command (``keep_clear``, default :data:`KEEP_CLEAR`): the moving
 obstacles :class:`cekm_swarm.controller.movers.MoverDetector` finds in the distance sensors'
 raw readings (its ``ranges`` input), and :func:`~cekm_swarm.controller.movers.keep_clear`'s
@@ -29,7 +33,7 @@ velocity-obstacle choice when the command would bring the body within 1 cm of on
 (docs/fields.md, "The movers" and the eighth round). Keeping clear, it also keeps its
 command off what the ranges hit in the last ticks (``guard``, default :data:`GUARD`;
 :mod:`cekm_swarm.controller.guard`): a doorway's jamb end that falls between two rays is still
-there (docs/fields.md, the ninth round). :data:`PLAIN` turns the three off: the plain motor
+there (docs/fields.md, the ninth round). :data:`PLAIN` turns them all off: the plain motor
 node's Eqs. 9-11, bit for bit.
 
 Why the motor node: it is the one node that sees every field of a tick at once, which
@@ -49,7 +53,7 @@ from cekm_swarm.controller.cooperative import ObstacleActivity, TargetActivity, 
 from cekm_swarm.controller.dead_reckoning import DeadReckoning, executed
 from cekm_swarm.controller.guard import Guard, GuardParams
 from cekm_swarm.controller.movers import MoverDetector, MoverParams, keep_clear
-from cekm_swarm.controller.trail import Trail, TrailParams
+from cekm_swarm.controller.trail import Trail, TrailParams, paper_turn
 from cekm_swarm.models.fields import obstacle_field, target_field
 from cekm_swarm.models.params import FieldParams, TrackingParams, narrowed
 from cekm_swarm.modules.ekm import cooperative_ekm
@@ -72,10 +76,18 @@ GUARD = True
 TRAIL_GAIN = 0.3
 """The trail field's peak in the default navigation motor (chosen on validation seeds by the
 selection rule of docs/fields.md, the seventh round)."""
+ALTERNATE = 20.0
+"""s: once the trail field acts, the default navigation motor's field widths go from the
+policy's to the paper's and back every this many seconds (chosen on validation seeds,
+docs/fields.md, the tenth round)."""
 PLAIN: dict[str, float | bool] = {"turn_gain": 1.0, "trail_gain": 0.0, "keep_clear": False}
 """The navigation node's parameters that make it the plain motor node (Eq. 11's turns as they
-are, no trail field, no keeping clear of movers): with W = 0, ``cekm run --fields tuned``
-exactly."""
+are, no trail field and so no paper's widths in turn, no keeping clear of movers): with W = 0,
+``cekm run --fields tuned`` exactly."""
+
+PAPER = FieldChoice(FieldParams.paper())
+"""The paper's constants as a tick's choice: the widths that stand in for the policy's in
+their turn (:func:`~cekm_swarm.controller.trail.paper_turn`)."""
 
 ROWS_KEPT = 256
 """Obstacle-field rows a node remembers (keyed by winner and widths: exact for any widths)."""
@@ -116,6 +128,7 @@ class _PolicyFields:
         except Exception as exc:  # a bad file, weight count or task: the node names it and stops
             raise NodeError(f"{self.ctx.sender}: field policy: {exc}") from None
         self.override: FieldChoice | None = None  # set by the environments (cekm_swarm.tune.env_core)
+        self._fixed = False  # whether the tick's choice is one set for every field (not the policy's)
         self.last_features: np.ndarray | None = None
         self.last_choice: FieldChoice | None = None
         self.last_widths: list[tuple[float, float, float]] | None = None  # each obstacle field's, last tick
@@ -140,10 +153,14 @@ class _PolicyFields:
         """The robot's forward speed (m/s), from the last command sent."""
         return (self._executed[0] + self._executed[1]) / 2.0
 
-    def _choose(self, features: np.ndarray) -> FieldChoice:
+    def _choose(self, features: np.ndarray, instead: FieldChoice | None = None) -> FieldChoice:
+        """The tick's field parameters: an environment's action (``override``), else ``instead``
+        if given, else the policy's."""
         self._follow_params()
         self.last_features = features
-        choice = self.override if self.override is not None else self.policy.choose(features)
+        fixed = self.override if self.override is not None else instead
+        self._fixed = fixed is not None
+        choice = fixed if fixed is not None else self.policy.choose(features)
         self.last_choice = choice
         return choice
 
@@ -164,10 +181,11 @@ class _PolicyFields:
     def _obstacles(self, w: np.ndarray, fields, choice: FieldChoice, target: tuple[float, float] | None,
                    features: np.ndarray) -> list[ObstacleActivity]:
         """b_j of each winner with its widths (Eq. 8), in sensor order: the tick's choice for
-        every field, or each field's own when the policy has per-field weights (and no
-        environment's action overrides it). Rows are cached by (winner, widths): exact."""
+        every field, or each field's own when the policy has per-field weights (and neither an
+        environment's action nor the paper's widths in their turn stand in for it). Rows are
+        cached by (winner, widths): exact."""
         fp: FieldParams | None = None  # the tick's, when every field has them
-        if self.override is None and self.policy.per_field:
+        if not self._fixed and self.policy.per_field:
             closing = self._closing.update(w, [(f.stamp, f.index, f.winner) for f in fields], self._forward)
             g = obstacle_features(w, [f.winner for f in fields], [f.index for f in fields], target, closing)
             widths = [(a, b, c) for a, b, c in self.policy.field_widths(features, g).tolist()]
@@ -209,10 +227,13 @@ class FieldMotor(_PolicyFields, Node):
         trail_gain: float = TRAIL_GAIN  # the trail field's peak once progress stops (0: no trail field)
         keep_clear: bool = KEEP_CLEAR  # movers detected from the raw ranges are kept clear of (False: none)
         guard: bool = GUARD  # with keep_clear: the command kept off the hits of the last ticks (False: none)
+        alternate: float = ALTERNATE  # s: with the trail acting, the policy's widths and the paper's in turn (0: never)
 
     def setup(self) -> None:
         if not self.params.turn_gain >= 1.0:
             raise NodeError(f"{self.ctx.sender}: turn_gain must be >= 1 (inf: up to c*), got {self.params.turn_gain!r}")
+        if not 0.0 <= self.params.alternate < math.inf:
+            raise NodeError(f"{self.ctx.sender}: alternate must be >= 0 s (0: never), got {self.params.alternate!r}")
         self.ekm = cooperative_ekm(self.ctx, None, self.params.allow_reverse, self.params.reverse_min_d)
         self.integrated: tuple[TargetActivity | None, list[ObstacleActivity]] | None = None
         try:
@@ -235,7 +256,7 @@ class FieldMotor(_PolicyFields, Node):
         tf, fields = inputs["target"], list(inputs["obstacles"].values())
         target = None if tf is None or tf.a is None else (tf.alpha, tf.d)
         features = field_features(self.ekm.w, [f.winner for f in fields], target, stalled=self._stalled(t))
-        choice = self._choose(features)
+        choice = self._choose(features, PAPER if self._paper_turn(t) else None)
         self.integrated = (self._target(self.ekm.w, target_activity(tf), choice),
                            self._obstacles(self.ekm.w, fields, choice, target, features))  # as the plain motor's
         body = self.ctx.body
@@ -261,6 +282,11 @@ class FieldMotor(_PolicyFields, Node):
                                       self._movers.params, self._movers.hits)
         self._sent(t, v_l, v_r)
         return {"command": WheelCommand(t, self.ctx.sender, v_l, v_r, tick_of(t))}
+
+    def _paper_turn(self, t: float) -> bool:
+        """Whether the paper's widths stand in for the policy's on this tick: the trail acts
+        (as of the last tick) and it is their turn (:func:`~cekm_swarm.controller.trail.paper_turn`)."""
+        return self._trail.params.gain > 0.0 and paper_turn(self._trail.acting_for(t), self.params.alternate)
 
     def _with_trail(self, t: float, tf: TargetField | None) -> tuple[TargetActivity | None, list[ObstacleActivity]]:
         """The tick's fields with the trail field among the obstacle fields once the target has

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from cekm_swarm.controller.dead_reckoning import DeadReckoning
-from cekm_swarm.controller.trail import Trail, TrailParams
+from cekm_swarm.controller.trail import Trail, TrailParams, paper_turn
 
 AXLE = 0.053
 
@@ -68,6 +68,22 @@ def test_zero_gain_is_no_field():
     tr, dr = Trail(TrailParams(gain=0.0)), DeadReckoning()
     t = drive(tr, dr, 0.0, 30.0, 0.05, 0.1, target_d=1.0)  # circles without progress
     assert tr.field(t, dr.pose, lattice()) is None
+
+
+def test_acting_for_counts_from_patience_after_the_last_progress():
+    tr, dr = Trail(TrailParams(patience=8.0)), DeadReckoning()
+    tr.update(0.0, dr.pose, 1.0)
+    assert tr.acting_for(5.0) == pytest.approx(-3.0) and tr.acting_for(10.0) == pytest.approx(2.0)
+    assert tr.field(5.0, dr.pose, lattice()) is None  # not acting yet
+    tr.update(12.0, dr.pose, 0.9)  # progress: patience starts again
+    assert tr.acting_for(12.0) == pytest.approx(-8.0) and tr.acting_for(21.0) == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("acting_for,turn", [(-3.0, False), (0.0, False), (5.0, False), (19.99, False), (20.0, True),
+                                             (39.99, True), (40.0, False), (59.0, False), (61.0, True)])
+def test_the_papers_widths_take_every_second_period_once_the_trail_acts(acting_for, turn):
+    assert paper_turn(acting_for, 20.0) is turn
+    assert paper_turn(acting_for, 0.0) is False  # period 0: never
 
 
 @pytest.mark.parametrize("name,value,words", [("gain", -0.1, "trail gain must be >= 0"),

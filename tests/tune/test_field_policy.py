@@ -22,7 +22,7 @@ from cekm_swarm.tune.features import (
     obstacle_features,
 )
 from cekm_swarm.tune.graphs import with_fields
-from cekm_swarm.tune.motor import PLAIN
+from cekm_swarm.tune.motor import PAPER, PLAIN
 from cekm_swarm.tune.policy import FieldPolicy, shipped_policy
 from helpers.pair import pair_toml
 from world import load_scenario
@@ -357,6 +357,38 @@ def test_the_default_keeps_off_a_doorway_jamb_end_that_falls_between_two_rays():
                     observe=lambda ex, _: guarded.append(ex.node("r1", "motor").last_guarded)).episode.outcome()["r1"]
     assert out["collisions"] == 0 and out["path_length_m"] > 1.0
     assert 0 < sum(guarded) < len(guarded) / 10  # it replaced a few commands, not the run's
+
+
+def test_the_papers_widths_in_their_turn_lead_round_a_long_shallow_u():
+    """Fig. 9's cell that the paper's constants negotiate (a U 2 m wide and 0.12 m deep, sensing
+    range 0.12 m; validation seed 2,000,014): the learned widths take the robot up to the back
+    wall, it follows the wall to an arm's inside, turns back and circles. Once the trail has
+    acted for 20 s the paper's widths take their turn: they hold the robot at the edge of its
+    range, it slides along the mouth past an arm's end and goes round (docs/fields.md, the
+    tenth round). In their turn every obstacle field has the paper's widths, not its own."""
+    sc = load_scenario("concave", overrides={"obstacles[0].width": 2.0, "obstacles[0].depth": 0.12,
+                                             "sensors.range": 0.12})
+    circles = run_graph(sc, "cekm", seed=2_000_014, max_time=120.0, params={"alternate": 0.0}).episode.outcome()["r1"]
+    assert not circles["reached"] and circles["collisions"] == 0
+    ticks: list[tuple[bool, set]] = []
+
+    def observe(ex, _):
+        motor = ex.node("r1", "motor")
+        ticks.append((motor.last_choice is PAPER, set(motor.last_widths)))
+
+    out = run_graph(sc, "cekm", seed=2_000_014, max_time=120.0, observe=observe).episode.outcome()["r1"]
+    assert out["reached"] and out["collisions"] == 0
+    paper = FieldParams.paper()
+    turns = [widths for in_turn, widths in ticks if in_turn]
+    assert 0 < len(turns) < len(ticks) / 2
+    assert all(w <= {(paper.sigma_b_alpha, paper.sigma_b_d_beyond, paper.sigma_b_d_near)} for w in turns)
+
+
+def test_a_negative_alternate_is_refused_naming_the_node():
+    from cekm_swarm.node.api import NodeError
+
+    with pytest.raises(NodeError, match=r"r1/motor: alternate must be >= 0 s \(0: never\), got -1.0"):
+        run_graph(load_scenario("concave"), "cekm", params={"alternate": -1.0}, max_time=1.0)
 
 
 def test_a_negative_trail_gain_is_refused_naming_the_node():
