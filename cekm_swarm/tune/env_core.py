@@ -8,6 +8,8 @@ swapped for the field-policy motor of :mod:`.motor`), on the scenario given or o
 from the environment's ``np_random`` (:mod:`.scenarios`). The environments set each robot's
 motor's field parameters (its ``override``) between ticks and read, per robot, the features
 its fields see, its distance to the goal, its contacts and whether it has reached the goal.
+The action is the widths: the motor's own schedule of the paper's widths while its trail acts
+(its ``alternate``) does not replace them.
 """
 
 from __future__ import annotations
