@@ -364,8 +364,9 @@ def test_the_papers_widths_in_their_turn_lead_round_a_long_shallow_u():
     range 0.12 m; validation seed 2,000,014): the learned widths take the robot up to the back
     wall, it follows the wall to an arm's inside, turns back and circles. Once the trail has
     acted for 20 s the paper's widths take their turn: they hold the robot at the edge of its
-    range, it slides along the mouth past an arm's end and goes round (docs/fields.md, the
-    tenth round). In their turn every obstacle field has the paper's widths, not its own."""
+    range and it slides along the mouth toward an arm's end, which it then goes round
+    (docs/fields.md, the tenth round). In their turn every obstacle field has the paper's
+    widths, not its own."""
     sc = load_scenario("concave", overrides={"obstacles[0].width": 2.0, "obstacles[0].depth": 0.12,
                                              "sensors.range": 0.12})
     circles = run_graph(sc, "cekm", seed=2_000_014, max_time=120.0, params={"alternate": 0.0}).episode.outcome()["r1"]
